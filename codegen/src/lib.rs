@@ -1,0 +1,365 @@
+//! Kernel DSL IR → GLSL ES 3.00 and WGSL.
+//!
+//! [`Program::link`] takes the IR of one or more `#[kernel]` modules, resolves names across
+//! them and checks the program (no recursion, no unknown names, no duplicate items). The
+//! program is then emitted for a [`Target`]: each function appears in dependency order,
+//! preceded by a comment naming its Rust source, with Rust names kept (renamed only where
+//! they clash with a target keyword or built-in). Output is deterministic.
+//!
+//! Where Rust, GLSL ES 3.00 and WGSL disagree, the emitted code keeps the DSL's (Rust's)
+//! meaning; the rules are listed in `docs/semantics.md` and each has an equivalence test.
+
+mod emit;
+mod infer;
+mod names;
+pub mod types;
+#[cfg(feature = "validate")]
+pub mod validate;
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt;
+
+pub use kernel_dsl_ir as ir;
+
+/// The shading languages codegen writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Target {
+    /// GLSL ES 3.00 (`#version 300 es`): WebGL2, OpenGL ES 3.0+, desktop GL with ES compatibility.
+    GlslEs300,
+    /// WGSL, as WebGPU and wgpu take it.
+    Wgsl,
+}
+
+impl Target {
+    pub fn extension(self) -> &'static str {
+        match self {
+            Target::GlslEs300 => "glsl",
+            Target::Wgsl => "wgsl",
+        }
+    }
+}
+
+/// An error located in the kernel's Rust source.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub struct CodegenError {
+    pub file: String,
+    pub span: ir::Span,
+    /// The kernel function (`module::name`) the error is in, when there is one.
+    pub function: Option<String>,
+    pub message: String,
+}
+
+impl fmt::Display for CodegenError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}:{}:{}: ", self.file, self.span.line, self.span.column + 1)?;
+        if let Some(func) = &self.function {
+            write!(f, "in kernel fn `{func}`: ")?;
+        }
+        write!(f, "{}", self.message)
+    }
+}
+
+/// A function, struct or const of the linked program, with where it came from.
+#[derive(Clone, Debug)]
+pub(crate) struct Located<T> {
+    pub module: String,
+    pub file: String,
+    pub item: T,
+}
+
+/// Kernel modules linked into one namespace.
+#[derive(Clone, Debug)]
+pub struct Program {
+    pub(crate) modules: Vec<ir::Module>,
+    pub(crate) fns: BTreeMap<String, Located<ir::FnDef>>,
+    pub(crate) structs: BTreeMap<String, Located<ir::StructDef>>,
+    pub(crate) consts: BTreeMap<String, Located<ir::ConstDef>>,
+}
+
+/// What to emit: the functions asked for and everything they reach.
+#[derive(Clone, Debug, Default)]
+pub struct Selection {
+    /// Kernel functions to emit (with their transitive callees). Empty: every function.
+    pub roots: Vec<String>,
+}
+
+impl Selection {
+    /// Every function of the named module (and what it calls in other modules).
+    pub fn module(program: &Program, module: &str) -> Selection {
+        Selection { roots: program.fns.values().filter(|f| f.module == module).map(|f| f.item.name.clone()).collect() }
+    }
+}
+
+/// Generated shader text with a map from its lines back to the Rust source.
+#[derive(Clone, Debug)]
+pub struct Generated {
+    pub target: Target,
+    pub source: String,
+    /// (1-based output line, Rust file, Rust span, kernel fn), in output order.
+    pub source_map: Vec<SourceMapEntry>,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SourceMapEntry {
+    pub line: u32,
+    pub file: String,
+    pub span: ir::Span,
+    pub function: String,
+}
+
+impl Generated {
+    /// The Rust location of generated line `line` (1-based): the closest mapped line at or
+    /// before it.
+    pub fn rust_location(&self, line: u32) -> Option<&SourceMapEntry> {
+        self.source_map.iter().take_while(|e| e.line <= line).last()
+    }
+}
+
+impl Program {
+    /// Links kernel modules into one program.
+    pub fn link(modules: &[ir::Module]) -> Result<Program, CodegenError> {
+        let mut program = Program {
+            modules: modules.to_vec(),
+            fns: BTreeMap::new(),
+            structs: BTreeMap::new(),
+            consts: BTreeMap::new(),
+        };
+        let mut seen: BTreeMap<String, (String, String)> = BTreeMap::new();
+        for m in modules {
+            for item in &m.items {
+                let name = item.name().to_string();
+                let span = match item {
+                    ir::Item::Struct(s) => s.span,
+                    ir::Item::Const(c) => c.span,
+                    ir::Item::Fn(f) => f.span,
+                };
+                if let Some((other_mod, other_file)) = seen.get(&name) {
+                    return Err(CodegenError {
+                        file: m.file.clone(),
+                        span,
+                        function: None,
+                        message: format!(
+                            "`{name}` is also defined in kernel module `{other_mod}` ({other_file}): shaders have one namespace, so kernel item names must be unique across linked modules"
+                        ),
+                    });
+                }
+                seen.insert(name.clone(), (m.name.clone(), m.file.clone()));
+                let (module, file) = (m.name.clone(), m.file.clone());
+                match item {
+                    ir::Item::Struct(s) => {
+                        program.structs.insert(name, Located { module, file, item: s.clone() });
+                    }
+                    ir::Item::Const(c) => {
+                        program.consts.insert(name, Located { module, file, item: c.clone() });
+                    }
+                    ir::Item::Fn(f) => {
+                        program.fns.insert(name, Located { module, file, item: f.clone() });
+                    }
+                }
+            }
+        }
+        for m in modules {
+            for import in &m.imports {
+                let module_name = import.path.last().cloned().unwrap_or_default();
+                let known_module = modules.iter().any(|k| k.name == module_name);
+                match &import.names {
+                    None if !known_module => {
+                        return Err(CodegenError {
+                            file: m.file.clone(),
+                            span: import.span,
+                            function: None,
+                            message: format!(
+                                "`{}` is not a kernel module linked into this program (link it, or import only kernel modules)",
+                                import.path.join("::")
+                            ),
+                        })
+                    }
+                    Some(names) => {
+                        for n in names {
+                            if !seen.contains_key(n) && !known_module {
+                                return Err(CodegenError {
+                                    file: m.file.clone(),
+                                    span: import.span,
+                                    function: None,
+                                    message: format!(
+                                        "`{}::{n}` is not a kernel item: kernels can only call kernel functions",
+                                        import.path.join("::")
+                                    ),
+                                });
+                            }
+                        }
+                    }
+                    None => {}
+                }
+            }
+        }
+        // Type-check every function now, so that errors surface at link time.
+        for f in program.fns.values() {
+            infer::infer_fn(&program, f)?;
+        }
+        program.check_no_recursion()?;
+        Ok(program)
+    }
+
+    /// Names of the linked modules, in link order.
+    pub fn module_names(&self) -> Vec<String> {
+        self.modules.iter().map(|m| m.name.clone()).collect()
+    }
+
+    /// The kernel function a call path names (`foo`, `super::rng::foo`), if any: paths through
+    /// a built-in type (`Vec3::new`, `f32::max`) are not kernel functions.
+    pub(crate) fn kernel_fn_of_path<'p>(&self, path: &'p [String]) -> Option<&'p str> {
+        if path.len() > 1 && ir::BUILTIN_TYPES.contains(&path[0].as_str()) {
+            return None;
+        }
+        path.last().map(String::as_str).filter(|n| self.fns.contains_key(*n))
+    }
+
+    /// The kernel functions `name` calls directly, with the call's span.
+    pub(crate) fn callees(&self, name: &str) -> Vec<(String, ir::Span)> {
+        let mut out = Vec::new();
+        if let Some(f) = self.fns.get(name) {
+            collect_calls_block(&f.item.body, &|p: &[String]| self.kernel_fn_of_path(p).map(str::to_string), &mut out);
+        }
+        out
+    }
+
+    fn check_no_recursion(&self) -> Result<(), CodegenError> {
+        fn visit(
+            p: &Program,
+            name: &str,
+            stack: &mut Vec<String>,
+            done: &mut BTreeSet<String>,
+        ) -> Result<(), CodegenError> {
+            if done.contains(name) {
+                return Ok(());
+            }
+            stack.push(name.to_string());
+            for (callee, span) in p.callees(name) {
+                if stack.contains(&callee) {
+                    let f = &p.fns[name];
+                    return Err(CodegenError {
+                        file: f.file.clone(),
+                        span,
+                        function: Some(format!("{}::{}", f.module, name)),
+                        message: format!(
+                            "recursion is not supported on GPUs (`{callee}` is reached again through this call): use a loop with an explicit stack"
+                        ),
+                    });
+                }
+                visit(p, &callee, stack, done)?;
+            }
+            stack.pop();
+            done.insert(name.to_string());
+            Ok(())
+        }
+        let mut done = BTreeSet::new();
+        for name in self.fns.keys() {
+            visit(self, name, &mut Vec::new(), &mut done)?;
+        }
+        Ok(())
+    }
+
+    /// Emits the selected functions (and everything they use) for `target`.
+    pub fn emit(&self, target: Target, selection: &Selection) -> Result<Generated, CodegenError> {
+        emit::emit(self, target, selection)
+    }
+}
+
+fn collect_calls_block(
+    b: &ir::Block,
+    resolve: &dyn Fn(&[String]) -> Option<String>,
+    out: &mut Vec<(String, ir::Span)>,
+) {
+    for s in &b.stmts {
+        match s {
+            ir::Stmt::Let { init: Some(e), .. } | ir::Stmt::Expr(e) => collect_calls(e, resolve, out),
+            ir::Stmt::Let { init: None, .. } => {}
+        }
+    }
+    if let Some(t) = &b.tail {
+        collect_calls(t, resolve, out);
+    }
+}
+
+/// Visits every expression below `e` (including `e`), depth first.
+pub(crate) fn walk_expr<'a>(e: &'a ir::Expr, f: &mut dyn FnMut(&'a ir::Expr)) {
+    use ir::ExprKind as K;
+    f(e);
+    let block = |b: &'a ir::Block, f: &mut dyn FnMut(&'a ir::Expr)| {
+        for s in &b.stmts {
+            match s {
+                ir::Stmt::Let { init: Some(e), .. } | ir::Stmt::Expr(e) => walk_expr(e, f),
+                ir::Stmt::Let { init: None, .. } => {}
+            }
+        }
+        if let Some(t) = &b.tail {
+            walk_expr(t, f);
+        }
+    };
+    match &e.kind {
+        K::Lit(_) | K::Path(_) | K::Break | K::Continue => {}
+        K::Unary { expr, .. } | K::Cast { expr, .. } | K::AddrOfMut(expr) | K::AddrOf(expr) | K::Paren(expr) => {
+            walk_expr(expr, f)
+        }
+        K::Binary { lhs, rhs, .. } => {
+            walk_expr(lhs, f);
+            walk_expr(rhs, f);
+        }
+        K::Assign { place, value, .. } => {
+            walk_expr(place, f);
+            walk_expr(value, f);
+        }
+        K::Call { args, .. } | K::Array(args) => args.iter().for_each(|a| walk_expr(a, f)),
+        K::MethodCall { receiver, args, .. } => {
+            walk_expr(receiver, f);
+            args.iter().for_each(|a| walk_expr(a, f));
+        }
+        K::Field { base, .. } => walk_expr(base, f),
+        K::Index { base, index } => {
+            walk_expr(base, f);
+            walk_expr(index, f);
+        }
+        K::StructLit { fields, .. } => fields.iter().for_each(|(_, v)| walk_expr(v, f)),
+        K::ArrayRepeat { value, .. } => walk_expr(value, f),
+        K::If { cond, then, otherwise } => {
+            walk_expr(cond, f);
+            block(then, f);
+            if let Some(o) = otherwise {
+                walk_expr(o, f);
+            }
+        }
+        K::Match { scrutinee, arms } => {
+            walk_expr(scrutinee, f);
+            for a in arms {
+                a.patterns.iter().for_each(|p| walk_expr(p, f));
+                walk_expr(&a.body, f);
+            }
+        }
+        K::Block(b) | K::Loop { body: b } => block(b, f),
+        K::While { cond, body } => {
+            walk_expr(cond, f);
+            block(body, f);
+        }
+        K::ForRange { start, end, body, .. } => {
+            walk_expr(start, f);
+            walk_expr(end, f);
+            block(body, f);
+        }
+        K::Return(v) => {
+            if let Some(v) = v {
+                walk_expr(v, f)
+            }
+        }
+    }
+}
+
+fn collect_calls(e: &ir::Expr, resolve: &dyn Fn(&[String]) -> Option<String>, out: &mut Vec<(String, ir::Span)>) {
+    walk_expr(e, &mut |e| {
+        if let ir::ExprKind::Call { path, .. } = &e.kind {
+            if let Some(name) = resolve(path) {
+                out.push((name, e.span));
+            }
+        }
+    });
+}

@@ -1,0 +1,1017 @@
+//! `#[kernel]`: emits the module unchanged for rustc (so it runs on the CPU) and, beside it,
+//! its IR as `kernel_ir()`. Anything outside the supported subset is a compile error at the
+//! offending span, with a message that says what to write instead.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use kernel_dsl_ir as ir;
+use proc_macro2::{Span, TokenStream};
+use quote::quote;
+use syn::spanned::Spanned;
+use syn::Error;
+
+#[proc_macro_attribute]
+pub fn kernel(attr: proc_macro::TokenStream, item: proc_macro::TokenStream) -> proc_macro::TokenStream {
+    let file = proc_macro::Span::call_site().file();
+    expand(attr.into(), item.into(), file).into()
+}
+
+fn expand(attr: TokenStream, item: TokenStream, file: String) -> TokenStream {
+    if !attr.is_empty() {
+        return Error::new(attr.span(), "`#[kernel]` takes no arguments").to_compile_error();
+    }
+    let mut module: syn::ItemMod = match syn::parse2(item) {
+        Ok(m) => m,
+        Err(e) => {
+            return Error::new(e.span(), "`#[kernel]` applies to an inline module: `#[kernel] pub mod name { ... }`")
+                .to_compile_error()
+        }
+    };
+    let mut lowering = Lowering::default();
+    let ir = lowering.module(&module, file);
+    strip_dsl_attributes(&mut module);
+    let errors = lowering.errors.into_iter().reduce(|mut a, b| {
+        a.combine(b);
+        a
+    });
+    match (ir, errors) {
+        (Some(ir), None) => {
+            let json = ir.to_json();
+            let Some((brace, items)) = module.content.as_mut() else { unreachable!("checked by Lowering::module") };
+            let _ = brace;
+            let generated: syn::File = syn::parse_quote! {
+                /// The IR of this kernel module, for code generation.
+                #[doc(hidden)]
+                pub const KERNEL_IR_JSON: &str = #json;
+                /// This kernel module's IR, for `lightport-codegen`.
+                pub fn kernel_ir() -> ::kernel_dsl::ir::Module {
+                    ::kernel_dsl::ir::Module::from_json(KERNEL_IR_JSON)
+                }
+            };
+            items.extend(generated.items);
+            quote!(#module)
+        }
+        (_, Some(err)) => {
+            let err = err.to_compile_error();
+            quote!(#err #module)
+        }
+        (None, None) => quote!(#module),
+    }
+}
+
+/// Removes the DSL's marker attributes (`#[resources]`) so rustc sees plain Rust.
+fn strip_dsl_attributes(module: &mut syn::ItemMod) {
+    if let Some((_, items)) = module.content.as_mut() {
+        for item in items {
+            if let syn::Item::Struct(s) = item {
+                s.attrs.retain(|a| !a.path().is_ident("resources"));
+            }
+        }
+    }
+}
+
+fn span_of(s: Span) -> ir::Span {
+    let start = s.start();
+    ir::Span { line: start.line as u32, column: start.column as u32 }
+}
+
+fn err(span: Span, msg: impl std::fmt::Display) -> Error {
+    Error::new(span, msg)
+}
+
+#[derive(Default)]
+struct Lowering {
+    errors: Vec<Error>,
+    /// Local function name -> calls it makes to local functions (for the recursion check).
+    calls: BTreeMap<String, Vec<(String, Span)>>,
+    current_fn: Option<String>,
+    local_fns: BTreeSet<String>,
+}
+
+impl Lowering {
+    fn error(&mut self, e: Error) {
+        self.errors.push(e);
+    }
+
+    fn module(&mut self, module: &syn::ItemMod, file: String) -> Option<ir::Module> {
+        let Some((_, items)) = &module.content else {
+            self.error(err(
+                module.span(),
+                "`#[kernel]` needs an inline module: `#[kernel] pub mod name { ... }` (out-of-line modules are not visible to the macro)",
+            ));
+            return None;
+        };
+        self.local_fns = items
+            .iter()
+            .filter_map(|i| match i {
+                syn::Item::Fn(f) => Some(f.sig.ident.to_string()),
+                _ => None,
+            })
+            .collect();
+        let mut out = ir::Module { name: module.ident.to_string(), file, imports: vec![], items: vec![] };
+        for item in items {
+            if is_cfg_test(item) {
+                continue;
+            }
+            match item {
+                syn::Item::Use(u) => self.use_item(u, &mut out.imports),
+                syn::Item::Struct(s) => {
+                    if let Some(s) = self.struct_item(s) {
+                        out.items.push(ir::Item::Struct(s));
+                    }
+                }
+                syn::Item::Const(c) => {
+                    if let Some(c) = self.const_item(c) {
+                        out.items.push(ir::Item::Const(c));
+                    }
+                }
+                syn::Item::Fn(f) => {
+                    if let Some(f) = self.fn_item(f) {
+                        out.items.push(ir::Item::Fn(f));
+                    }
+                }
+                syn::Item::Impl(i) => self.error(err(
+                    i.impl_token.span,
+                    "`impl` blocks are not supported in kernels: write free functions that take the value as a parameter",
+                )),
+                syn::Item::Trait(t) => self.error(err(
+                    t.trait_token.span,
+                    "traits are not supported in kernels: write free functions",
+                )),
+                syn::Item::Enum(e) => self.error(err(
+                    e.enum_token.span,
+                    "enums are not supported in kernels: use `u32` constants (`const KIND_X: u32 = 0;`)",
+                )),
+                syn::Item::Static(s) => self.error(err(
+                    s.static_token.span,
+                    "statics are not supported in kernels: use a `const`, or a field of the `#[resources]` struct for data that changes",
+                )),
+                syn::Item::Macro(m) => self.error(err(
+                    m.mac.path.span(),
+                    "macros are not supported in kernels: write the code out",
+                )),
+                syn::Item::Type(t) => self.error(err(
+                    t.type_token.span,
+                    "type aliases are not supported in kernels: name the type directly",
+                )),
+                syn::Item::Mod(m) => self.error(err(
+                    m.mod_token.span,
+                    "nested modules are not supported in a kernel module: make it a separate `#[kernel]` module",
+                )),
+                other => self.error(err(other.span(), "this item is not supported in a kernel module")),
+            }
+        }
+        self.check_recursion();
+        Some(out)
+    }
+
+    fn use_item(&mut self, u: &syn::ItemUse, imports: &mut Vec<ir::Import>) {
+        let mut flat = Vec::new();
+        flatten_use(&u.tree, &mut Vec::new(), &mut flat);
+        // path -> names (None = glob)
+        let mut grouped: BTreeMap<Vec<String>, Option<Vec<String>>> = BTreeMap::new();
+        for (path, name, span) in flat {
+            let root = path.first().map(String::as_str).unwrap_or("");
+            if matches!(root, "glam" | "kernel_dsl" | "core" | "std") {
+                // Vocabulary of the subset (glam types, Texels, f32 consts): nothing to link.
+                continue;
+            }
+            if path.is_empty() {
+                self.error(err(
+                    span,
+                    "import kernel items through their module path, e.g. `use super::rng::random_float;`",
+                ));
+                continue;
+            }
+            match name {
+                None => {
+                    grouped.insert(path, None);
+                }
+                Some(n) => {
+                    if let Some(Some(names)) = grouped.get_mut(&path) {
+                        names.push(n);
+                    } else if !grouped.contains_key(&path) {
+                        grouped.insert(path, Some(vec![n]));
+                    }
+                }
+            }
+        }
+        let span = span_of(u.span());
+        for (path, names) in grouped {
+            imports.push(ir::Import { path, names, span });
+        }
+    }
+
+    fn struct_item(&mut self, s: &syn::ItemStruct) -> Option<ir::StructDef> {
+        if !s.generics.params.is_empty() {
+            self.error(err(s.generics.span(), "generic structs are not supported in kernels"));
+            return None;
+        }
+        let resources = s.attrs.iter().any(|a| a.path().is_ident("resources"));
+        let syn::Fields::Named(named) = &s.fields else {
+            self.error(err(s.ident.span(), "kernel structs need named fields: `struct Hit { t: f32, ... }`"));
+            return None;
+        };
+        let mut fields = Vec::new();
+        for f in &named.named {
+            let name = f.ident.as_ref().map(|i| i.to_string()).unwrap_or_default();
+            if let Some(ty) = self.ty(&f.ty) {
+                fields.push(ir::Field { name, ty, span: span_of(f.span()) });
+            }
+        }
+        Some(ir::StructDef { name: s.ident.to_string(), fields, resources, span: span_of(s.ident.span()) })
+    }
+
+    fn const_item(&mut self, c: &syn::ItemConst) -> Option<ir::ConstDef> {
+        let ty = self.ty(&c.ty)?;
+        let value = self.expr(&c.expr)?;
+        Some(ir::ConstDef { name: c.ident.to_string(), ty, value, span: span_of(c.ident.span()) })
+    }
+
+    fn fn_item(&mut self, f: &syn::ItemFn) -> Option<ir::FnDef> {
+        let sig = &f.sig;
+        if !sig.generics.params.is_empty() {
+            self.error(err(
+                sig.generics.span(),
+                "generic functions are not supported in kernels: write one function per concrete type",
+            ));
+            return None;
+        }
+        if let Some(t) = &sig.asyncness {
+            self.error(err(t.span, "async functions are not supported in kernels"));
+        }
+        if let Some(t) = &sig.unsafety {
+            self.error(err(t.span, "unsafe functions are not supported in kernels"));
+        }
+        if let Some(v) = &sig.variadic {
+            self.error(err(v.span(), "variadic functions are not supported in kernels"));
+        }
+        let name = sig.ident.to_string();
+        self.current_fn = Some(name.clone());
+        let mut params = Vec::new();
+        for input in &sig.inputs {
+            match input {
+                syn::FnArg::Receiver(r) => self.error(err(
+                    r.span(),
+                    "methods are not supported in kernels: write a free function that takes the value as a parameter",
+                )),
+                syn::FnArg::Typed(pt) => {
+                    let (pname, mutable) = match &*pt.pat {
+                        syn::Pat::Ident(pi) if pi.by_ref.is_none() && pi.subpat.is_none() => {
+                            (pi.ident.to_string(), pi.mutability.is_some())
+                        }
+                        other => {
+                            self.error(err(other.span(), "kernel parameters must be plain names: `x: f32`"));
+                            continue;
+                        }
+                    };
+                    if let Some(ty) = self.ty(&pt.ty) {
+                        params.push(ir::Param { name: pname, ty, mutable, span: span_of(pt.span()) });
+                    }
+                }
+            }
+        }
+        let ret = match &sig.output {
+            syn::ReturnType::Default => None,
+            syn::ReturnType::Type(_, t) => self.ty(t),
+        };
+        let body = self.block(&f.block);
+        self.current_fn = None;
+        Some(ir::FnDef { name, params, ret, body: body?, span: span_of(sig.ident.span()) })
+    }
+
+    fn check_recursion(&mut self) {
+        // Depth-first search for a cycle in the local call graph.
+        fn visit(
+            name: &str,
+            calls: &BTreeMap<String, Vec<(String, Span)>>,
+            stack: &mut Vec<String>,
+            done: &mut BTreeSet<String>,
+        ) -> Option<(String, Span)> {
+            if done.contains(name) {
+                return None;
+            }
+            stack.push(name.to_string());
+            for (callee, span) in calls.get(name).into_iter().flatten() {
+                if stack.iter().any(|s| s == callee) {
+                    return Some((callee.clone(), *span));
+                }
+                if let Some(found) = visit(callee, calls, stack, done) {
+                    return Some(found);
+                }
+            }
+            stack.pop();
+            done.insert(name.to_string());
+            None
+        }
+        let mut done = BTreeSet::new();
+        let names: Vec<String> = self.calls.keys().cloned().collect();
+        for name in names {
+            let mut stack = Vec::new();
+            if let Some((callee, span)) = visit(&name, &self.calls, &mut stack, &mut done) {
+                self.error(err(
+                    span,
+                    format!(
+                        "recursion is not supported on GPUs (`{callee}` calls itself through this call): use a loop with an explicit stack"
+                    ),
+                ));
+                return;
+            }
+        }
+    }
+
+    fn ty(&mut self, t: &syn::Type) -> Option<ir::Type> {
+        match t {
+            syn::Type::Path(tp) => {
+                if tp.qself.is_some() {
+                    self.error(err(t.span(), "qualified types are not supported in kernels"));
+                    return None;
+                }
+                let seg = tp.path.segments.last()?;
+                let name = seg.ident.to_string();
+                if tp.path.segments.len() > 1 {
+                    let root = tp.path.segments[0].ident.to_string();
+                    if !matches!(root.as_str(), "glam" | "kernel_dsl" | "super" | "crate" | "self") {
+                        self.error(err(t.span(), "name kernel types directly (`Vec3`, `Hit`), not through a path"));
+                        return None;
+                    }
+                }
+                if let Some(msg) = unsupported_type_message(&name) {
+                    self.error(err(seg.ident.span(), msg));
+                    return None;
+                }
+                let mut args = Vec::new();
+                match &seg.arguments {
+                    syn::PathArguments::None => {}
+                    syn::PathArguments::AngleBracketed(ab) => {
+                        for a in &ab.args {
+                            match a {
+                                syn::GenericArgument::Type(t) => args.push(self.ty(t)?),
+                                other => {
+                                    self.error(err(
+                                        other.span(),
+                                        "only type arguments are supported here (`Texels<Vec4>`)",
+                                    ));
+                                    return None;
+                                }
+                            }
+                        }
+                    }
+                    syn::PathArguments::Parenthesized(p) => {
+                        self.error(err(p.span(), "function types are not supported in kernels"));
+                        return None;
+                    }
+                }
+                Some(ir::Type::Named { name, args })
+            }
+            syn::Type::Array(a) => {
+                let elem = self.ty(&a.elem)?;
+                let len = self.array_len(&a.len)?;
+                Some(ir::Type::Array { elem: Box::new(elem), len })
+            }
+            syn::Type::Reference(r) => {
+                if let Some(l) = &r.lifetime {
+                    self.error(err(l.span(), "lifetimes are not supported in kernels"));
+                    return None;
+                }
+                let inner = self.ty(&r.elem)?;
+                Some(ir::Type::Ref { mutable: r.mutability.is_some(), inner: Box::new(inner) })
+            }
+            syn::Type::Tuple(tt) if tt.elems.is_empty() => {
+                self.error(err(t.span(), "leave out `-> ()`"));
+                None
+            }
+            syn::Type::Tuple(_) => {
+                self.error(err(t.span(), "tuples are not supported in kernels: declare a struct with named fields"));
+                None
+            }
+            syn::Type::Slice(_) => {
+                self.error(err(
+                    t.span(),
+                    "slices are not supported in kernels: use a fixed-size array `[T; N]`, or `Texels<T>` in the `#[resources]` struct for scene data",
+                ));
+                None
+            }
+            syn::Type::Paren(p) => self.ty(&p.elem),
+            _ => {
+                self.error(err(t.span(), "this type is not supported in kernels"));
+                None
+            }
+        }
+    }
+
+    fn array_len(&mut self, e: &syn::Expr) -> Option<ir::ArrayLen> {
+        match e {
+            syn::Expr::Lit(syn::ExprLit { lit: syn::Lit::Int(i), .. }) => match i.base10_parse::<u32>() {
+                Ok(n) => Some(ir::ArrayLen::Literal(n)),
+                Err(_) => {
+                    self.error(err(i.span(), "array length out of range"));
+                    None
+                }
+            },
+            syn::Expr::Path(p) if p.path.segments.len() == 1 => {
+                Some(ir::ArrayLen::Const(p.path.segments[0].ident.to_string()))
+            }
+            _ => {
+                self.error(err(e.span(), "array lengths must be an integer literal or a `const` name"));
+                None
+            }
+        }
+    }
+
+    fn block(&mut self, b: &syn::Block) -> Option<ir::Block> {
+        let mut out = ir::Block::default();
+        let n = b.stmts.len();
+        let mut ok = true;
+        for (i, s) in b.stmts.iter().enumerate() {
+            match s {
+                syn::Stmt::Local(l) => ok &= self.local(l, &mut out.stmts).is_some(),
+                syn::Stmt::Item(item) => {
+                    self.error(err(
+                        item.span(),
+                        "items inside function bodies are not supported: move it to the module level",
+                    ));
+                    ok = false;
+                }
+                syn::Stmt::Expr(e, semi) => match self.expr(e) {
+                    Some(e) if semi.is_none() && i + 1 == n && !is_statement_like(&e) => out.tail = Some(Box::new(e)),
+                    Some(e) => out.stmts.push(ir::Stmt::Expr(e)),
+                    None => ok = false,
+                },
+                syn::Stmt::Macro(m) => {
+                    self.error(err(
+                        m.mac.path.span(),
+                        "macros are not supported in kernels (no printing, assertions or panics on a GPU): write the code out",
+                    ));
+                    ok = false;
+                }
+            }
+        }
+        ok.then_some(out)
+    }
+
+    fn local(&mut self, l: &syn::Local, out: &mut Vec<ir::Stmt>) -> Option<()> {
+        let (pat, ty) = match &l.pat {
+            syn::Pat::Type(pt) => (&*pt.pat, Some(&*pt.ty)),
+            p => (p, None),
+        };
+        let (name, mutable) = match pat {
+            syn::Pat::Ident(pi) if pi.by_ref.is_none() && pi.subpat.is_none() => {
+                (pi.ident.to_string(), pi.mutability.is_some())
+            }
+            syn::Pat::Tuple(_) | syn::Pat::Struct(_) | syn::Pat::TupleStruct(_) => {
+                self.error(err(pat.span(), "destructuring is not supported in kernels: bind one name per `let`"));
+                return None;
+            }
+            other => {
+                self.error(err(other.span(), "`let` needs a plain name here"));
+                return None;
+            }
+        };
+        let ty = match ty {
+            Some(t) => Some(self.ty(t)?),
+            None => None,
+        };
+        let init = match &l.init {
+            None => None,
+            Some(init) => {
+                if let Some((else_token, _)) = &init.diverge {
+                    self.error(err(else_token.span, "`let ... else` is not supported in kernels: use `if`"));
+                    return None;
+                }
+                Some(self.expr(&init.expr)?)
+            }
+        };
+        out.push(ir::Stmt::Let { name, mutable, ty, init, span: span_of(l.let_token.span) });
+        Some(())
+    }
+
+    fn boxed(&mut self, e: &syn::Expr) -> Option<Box<ir::Expr>> {
+        self.expr(e).map(Box::new)
+    }
+
+    fn expr(&mut self, e: &syn::Expr) -> Option<ir::Expr> {
+        let span = span_of(e.span());
+        let kind = match e {
+            syn::Expr::Lit(l) => ir::ExprKind::Lit(self.lit(&l.lit)?),
+            syn::Expr::Path(p) => ir::ExprKind::Path(self.path(&p.qself, &p.path)?),
+            syn::Expr::Paren(p) => ir::ExprKind::Paren(self.boxed(&p.expr)?),
+            syn::Expr::Group(g) => return self.expr(&g.expr),
+            syn::Expr::Unary(u) => {
+                let op = match u.op {
+                    syn::UnOp::Neg(_) => ir::UnOp::Neg,
+                    syn::UnOp::Not(_) => ir::UnOp::Not,
+                    syn::UnOp::Deref(_) => ir::UnOp::Deref,
+                    _ => {
+                        self.error(err(e.span(), "this operator is not supported in kernels"));
+                        return None;
+                    }
+                };
+                ir::ExprKind::Unary { op, expr: self.boxed(&u.expr)? }
+            }
+            syn::Expr::Binary(b) => {
+                let (op, assign) = bin_op(&b.op)?;
+                if matches!(op, ir::BinOp::Shl | ir::BinOp::Shr) && !is_int_literal(&b.right) {
+                    self.error(err(
+                        b.op.span(),
+                        "shift amounts that are not literals must use `wrapping_shl`/`wrapping_shr`: a shift by 32 or more panics in Rust and is undefined in GLSL, the DSL masks it to 0..31",
+                    ));
+                    return None;
+                }
+                let lhs = self.boxed(&b.left);
+                let rhs = self.boxed(&b.right);
+                let (lhs, rhs) = (lhs?, rhs?);
+                if assign {
+                    ir::ExprKind::Assign { op: Some(op), place: lhs, value: rhs }
+                } else {
+                    ir::ExprKind::Binary { op, lhs, rhs }
+                }
+            }
+            syn::Expr::Assign(a) => {
+                let place = self.boxed(&a.left);
+                let value = self.boxed(&a.right);
+                ir::ExprKind::Assign { op: None, place: place?, value: value? }
+            }
+            syn::Expr::Call(c) => {
+                let syn::Expr::Path(p) = &*c.func else {
+                    self.error(err(
+                        c.func.span(),
+                        "only calls of named kernel functions are supported (no closures or function values)",
+                    ));
+                    return None;
+                };
+                let path = self.path(&p.qself, &p.path)?;
+                self.check_call_path(&path, p.path.span())?;
+                if path.len() == 1 && self.local_fns.contains(&path[0]) {
+                    if let Some(f) = &self.current_fn {
+                        self.calls.entry(f.clone()).or_default().push((path[0].clone(), p.path.span()));
+                    }
+                }
+                let args = self.exprs(c.args.iter())?;
+                ir::ExprKind::Call { path, args }
+            }
+            syn::Expr::MethodCall(m) => {
+                if let Some(t) = &m.turbofish {
+                    self.error(err(t.span(), "turbofish is not supported in kernels"));
+                    return None;
+                }
+                let method = m.method.to_string();
+                if !ir::SUPPORTED_METHODS.contains(&method.as_str()) {
+                    self.error(err(m.method.span(), unsupported_method_message(&method)));
+                    return None;
+                }
+                let receiver = self.boxed(&m.receiver);
+                let args = self.exprs(m.args.iter());
+                ir::ExprKind::MethodCall { receiver: receiver?, method, args: args? }
+            }
+            syn::Expr::Field(f) => match &f.member {
+                syn::Member::Named(name) => ir::ExprKind::Field { base: self.boxed(&f.base)?, field: name.to_string() },
+                syn::Member::Unnamed(_) => {
+                    self.error(err(
+                        f.member.span(),
+                        "tuple fields are not supported in kernels: use a struct with named fields",
+                    ));
+                    return None;
+                }
+            },
+            syn::Expr::Index(i) => {
+                let base = self.boxed(&i.expr);
+                let index = self.boxed(&i.index);
+                ir::ExprKind::Index { base: base?, index: index? }
+            }
+            syn::Expr::Cast(c) => {
+                let inner = self.boxed(&c.expr);
+                let ty = self.ty(&c.ty);
+                ir::ExprKind::Cast { expr: inner?, ty: ty? }
+            }
+            syn::Expr::Struct(s) => {
+                if let Some(dot2) = &s.dot2_token {
+                    self.error(err(
+                        dot2.span(),
+                        "struct update syntax (`..base`) is not supported in kernels: list every field",
+                    ));
+                    return None;
+                }
+                let Some(name) = s.path.segments.last().map(|s| s.ident.to_string()) else {
+                    return None;
+                };
+                let mut fields = Vec::new();
+                for fv in &s.fields {
+                    let syn::Member::Named(fname) = &fv.member else {
+                        self.error(err(fv.member.span(), "use named fields"));
+                        return None;
+                    };
+                    fields.push((fname.to_string(), self.expr(&fv.expr)?));
+                }
+                ir::ExprKind::StructLit { name, fields }
+            }
+            syn::Expr::Array(a) => ir::ExprKind::Array(self.exprs(a.elems.iter())?),
+            syn::Expr::Repeat(r) => {
+                let value = self.boxed(&r.expr)?;
+                let len = self.array_len(&r.len)?;
+                ir::ExprKind::ArrayRepeat { value, len }
+            }
+            syn::Expr::Reference(r) => {
+                let inner = self.boxed(&r.expr)?;
+                if r.mutability.is_some() {
+                    ir::ExprKind::AddrOfMut(inner)
+                } else {
+                    ir::ExprKind::AddrOf(inner)
+                }
+            }
+            syn::Expr::If(i) => {
+                if let syn::Expr::Let(l) = &*i.cond {
+                    self.error(err(
+                        l.let_token.span,
+                        "`if let` is not supported in kernels: there are no enums or options; test a value with `if`",
+                    ));
+                    return None;
+                }
+                let cond = self.boxed(&i.cond);
+                let then = self.block(&i.then_branch);
+                let otherwise = match &i.else_branch {
+                    None => None,
+                    Some((_, e)) => Some(self.boxed(e)?),
+                };
+                ir::ExprKind::If { cond: cond?, then: then?, otherwise }
+            }
+            syn::Expr::Match(m) => self.match_expr(m)?,
+            syn::Expr::Block(b) => {
+                if let Some(l) = &b.label {
+                    self.error(err(l.span(), "labelled blocks are not supported in kernels"));
+                    return None;
+                }
+                ir::ExprKind::Block(self.block(&b.block)?)
+            }
+            syn::Expr::While(w) => {
+                self.no_label(&w.label)?;
+                if let syn::Expr::Let(l) = &*w.cond {
+                    self.error(err(
+                        l.let_token.span,
+                        "`while let` is not supported in kernels: use `while` with a condition",
+                    ));
+                    return None;
+                }
+                let cond = self.boxed(&w.cond);
+                let body = self.block(&w.body);
+                ir::ExprKind::While { cond: cond?, body: body? }
+            }
+            syn::Expr::Loop(l) => {
+                self.no_label(&l.label)?;
+                ir::ExprKind::Loop { body: self.block(&l.body)? }
+            }
+            syn::Expr::ForLoop(f) => {
+                self.no_label(&f.label)?;
+                let var = match &*f.pat {
+                    syn::Pat::Ident(pi) if pi.mutability.is_none() && pi.by_ref.is_none() => pi.ident.to_string(),
+                    other => {
+                        self.error(err(other.span(), "the loop variable must be a plain name: `for i in 0..n`"));
+                        return None;
+                    }
+                };
+                let range = match &*f.expr {
+                    syn::Expr::Range(r) => Some(r),
+                    syn::Expr::Paren(p) => match &*p.expr {
+                        syn::Expr::Range(r) => Some(r),
+                        _ => None,
+                    },
+                    _ => None,
+                };
+                let Some(syn::ExprRange { start: Some(start), end: Some(end), limits, .. }) = range else {
+                    self.error(err(
+                        f.expr.span(),
+                        "`for` loops run over an integer range with both ends: `for i in 0..n` or `for i in 0..=n` (iterators are not supported)",
+                    ));
+                    return None;
+                };
+                let start = self.boxed(start);
+                let end = self.boxed(end);
+                let body = self.block(&f.body);
+                ir::ExprKind::ForRange {
+                    var,
+                    start: start?,
+                    end: end?,
+                    inclusive: matches!(limits, syn::RangeLimits::Closed(_)),
+                    body: body?,
+                }
+            }
+            syn::Expr::Break(b) => {
+                self.no_label(
+                    &b.label.as_ref().map(|l| syn::Label { name: l.clone(), colon_token: Default::default() }),
+                )?;
+                if let Some(v) = &b.expr {
+                    self.error(err(
+                        v.span(),
+                        "`break` with a value is not supported in kernels: assign to a variable before `break`",
+                    ));
+                    return None;
+                }
+                ir::ExprKind::Break
+            }
+            syn::Expr::Continue(c) => {
+                if let Some(l) = &c.label {
+                    self.error(err(l.span(), "labelled `continue` is not supported in kernels"));
+                    return None;
+                }
+                ir::ExprKind::Continue
+            }
+            syn::Expr::Return(r) => ir::ExprKind::Return(match &r.expr {
+                None => None,
+                Some(v) => Some(self.boxed(v)?),
+            }),
+            syn::Expr::Closure(c) => {
+                self.error(err(c.or1_token.span, "closures are not supported in kernels: write a kernel `fn`"));
+                return None;
+            }
+            syn::Expr::Tuple(t) => {
+                self.error(err(t.span(), "tuples are not supported in kernels: declare a struct with named fields"));
+                return None;
+            }
+            syn::Expr::Macro(m) => {
+                self.error(err(
+                    m.mac.path.span(),
+                    "macros are not supported in kernels (no printing, assertions or panics on a GPU): write the code out",
+                ));
+                return None;
+            }
+            syn::Expr::Try(t) => {
+                self.error(err(
+                    t.question_token.span,
+                    "`?` is not supported in kernels: there are no Results on a GPU",
+                ));
+                return None;
+            }
+            syn::Expr::Range(r) => {
+                self.error(err(r.span(), "ranges are only supported as the range of a `for` loop"));
+                return None;
+            }
+            syn::Expr::Unsafe(u) => {
+                self.error(err(u.unsafe_token.span, "`unsafe` is not supported in kernels"));
+                return None;
+            }
+            syn::Expr::Let(l) => {
+                self.error(err(l.let_token.span, "`let` expressions are not supported in kernels"));
+                return None;
+            }
+            other => {
+                self.error(err(other.span(), "this expression is not supported in kernels"));
+                return None;
+            }
+        };
+        Some(ir::Expr { kind, span })
+    }
+
+    fn exprs<'a>(&mut self, es: impl Iterator<Item = &'a syn::Expr>) -> Option<Vec<ir::Expr>> {
+        let lowered: Vec<Option<ir::Expr>> = es.map(|e| self.expr(e)).collect();
+        lowered.into_iter().collect()
+    }
+
+    fn no_label(&mut self, l: &Option<syn::Label>) -> Option<()> {
+        if let Some(l) = l {
+            self.error(err(l.name.span(), "labelled loops are not supported in kernels: use a flag variable"));
+            return None;
+        }
+        Some(())
+    }
+
+    fn match_expr(&mut self, m: &syn::ExprMatch) -> Option<ir::ExprKind> {
+        let scrutinee = self.boxed(&m.expr)?;
+        let mut arms = Vec::new();
+        for arm in &m.arms {
+            if let Some((if_token, _)) = &arm.guard {
+                self.error(err(if_token.span, "match guards are not supported in kernels: use `if` inside the arm"));
+                return None;
+            }
+            let mut patterns = Vec::new();
+            let cases: Vec<&syn::Pat> = match &arm.pat {
+                syn::Pat::Or(o) => o.cases.iter().collect(),
+                p => vec![p],
+            };
+            for p in cases {
+                match p {
+                    syn::Pat::Wild(_) => {}
+                    syn::Pat::Lit(l) if matches!(l.lit, syn::Lit::Int(_)) => {
+                        patterns.push(ir::Expr { kind: ir::ExprKind::Lit(self.lit(&l.lit)?), span: span_of(l.span()) })
+                    }
+                    syn::Pat::Path(p) if p.path.segments.len() == 1 => patterns.push(ir::Expr {
+                        kind: ir::ExprKind::Path(vec![p.path.segments[0].ident.to_string()]),
+                        span: span_of(p.span()),
+                    }),
+                    other => {
+                        self.error(err(
+                            other.span(),
+                            "`match` in kernels only takes integer literal or `const` patterns and `_`: use `if` for anything else",
+                        ));
+                        return None;
+                    }
+                }
+            }
+            let body = self.expr(&arm.body)?;
+            arms.push(ir::MatchArm { patterns, body });
+        }
+        Some(ir::ExprKind::Match { scrutinee, arms })
+    }
+
+    fn lit(&mut self, l: &syn::Lit) -> Option<ir::Lit> {
+        match l {
+            syn::Lit::Int(i) => {
+                let suffix = i.suffix();
+                if !matches!(suffix, "" | "u32" | "i32" | "usize" | "f32") {
+                    self.error(err(i.span(), unsupported_type_message(suffix).unwrap_or("unsupported literal suffix")));
+                    return None;
+                }
+                if suffix == "f32" {
+                    let value = i.base10_parse::<f32>().ok()?;
+                    return Some(ir::Lit::Float { value, suffix: Some("f32".into()) });
+                }
+                let Ok(value) = i.base10_parse::<u64>() else {
+                    self.error(err(i.span(), "integer literal out of range"));
+                    return None;
+                };
+                let text = i.to_string().replace('_', "");
+                let digits = text.strip_suffix(suffix).unwrap_or(&text).to_string();
+                Some(ir::Lit::Int { digits, value, suffix: (!suffix.is_empty()).then(|| suffix.to_string()) })
+            }
+            syn::Lit::Float(f) => {
+                let suffix = f.suffix();
+                if !matches!(suffix, "" | "f32") {
+                    self.error(err(f.span(), "f64 is not supported on GPUs: use f32"));
+                    return None;
+                }
+                let value = f.base10_parse::<f32>().ok()?;
+                Some(ir::Lit::Float { value, suffix: (!suffix.is_empty()).then(|| suffix.to_string()) })
+            }
+            syn::Lit::Bool(b) => Some(ir::Lit::Bool(b.value)),
+            syn::Lit::Str(_) | syn::Lit::ByteStr(_) | syn::Lit::CStr(_) => {
+                self.error(err(l.span(), "strings are not supported in kernels"));
+                None
+            }
+            syn::Lit::Char(_) | syn::Lit::Byte(_) => {
+                self.error(err(l.span(), "characters and bytes are not supported in kernels: use u32"));
+                None
+            }
+            _ => {
+                self.error(err(l.span(), "this literal is not supported in kernels"));
+                None
+            }
+        }
+    }
+
+    fn path(&mut self, qself: &Option<syn::QSelf>, p: &syn::Path) -> Option<Vec<String>> {
+        if qself.is_some() {
+            self.error(err(p.span(), "qualified paths are not supported in kernels"));
+            return None;
+        }
+        let mut out = Vec::new();
+        for seg in &p.segments {
+            if !seg.arguments.is_none() {
+                self.error(err(seg.arguments.span(), "generic arguments are not supported here"));
+                return None;
+            }
+            out.push(seg.ident.to_string());
+        }
+        // `std::f32::consts::PI` and `core::f32::consts::PI` mean `f32::consts::PI`.
+        if matches!(out.first().map(String::as_str), Some("std" | "core")) {
+            out.remove(0);
+        }
+        if let Some(first) = out.first() {
+            if let Some(msg) = unsupported_type_message(first) {
+                self.error(err(p.span(), msg));
+                return None;
+            }
+        }
+        Some(out)
+    }
+
+    /// Calls through a type path (`Vec3::new`, `f32::max`) must name something the subset
+    /// supports; calls through a module path are kernel functions, checked when linking.
+    fn check_call_path(&mut self, path: &[String], span: Span) -> Option<()> {
+        if path.len() == 2 && ir::BUILTIN_TYPES.contains(&path[0].as_str()) {
+            let f = path[1].as_str();
+            if !ir::SUPPORTED_METHODS.contains(&f) && !ir::SUPPORTED_CONSTRUCTORS.contains(&f) {
+                self.error(err(span, format!("`{}::{f}` is not supported in kernels", path[0])));
+                return None;
+            }
+        }
+        Some(())
+    }
+}
+
+fn flatten_use(tree: &syn::UseTree, prefix: &mut Vec<String>, out: &mut Vec<(Vec<String>, Option<String>, Span)>) {
+    match tree {
+        syn::UseTree::Path(p) => {
+            prefix.push(p.ident.to_string());
+            flatten_use(&p.tree, prefix, out);
+            prefix.pop();
+        }
+        syn::UseTree::Name(n) => out.push((prefix.clone(), Some(n.ident.to_string()), n.ident.span())),
+        syn::UseTree::Rename(r) => out.push((prefix.clone(), Some(r.ident.to_string()), r.ident.span())),
+        syn::UseTree::Glob(g) => out.push((prefix.clone(), None, g.star_token.span)),
+        syn::UseTree::Group(g) => {
+            for t in &g.items {
+                flatten_use(t, prefix, out);
+            }
+        }
+    }
+}
+
+fn is_cfg_test(item: &syn::Item) -> bool {
+    let attrs = match item {
+        syn::Item::Mod(m) => &m.attrs,
+        syn::Item::Fn(f) => &f.attrs,
+        syn::Item::Use(u) => &u.attrs,
+        syn::Item::Const(c) => &c.attrs,
+        syn::Item::Struct(s) => &s.attrs,
+        _ => return false,
+    };
+    attrs.iter().any(|a| a.path().is_ident("cfg") && a.parse_args::<syn::Ident>().map(|i| i == "test").unwrap_or(false))
+}
+
+/// Loops and blocks without a value stay statements even when they end a block.
+fn is_statement_like(e: &ir::Expr) -> bool {
+    matches!(
+        e.kind,
+        ir::ExprKind::While { .. }
+            | ir::ExprKind::Loop { .. }
+            | ir::ExprKind::ForRange { .. }
+            | ir::ExprKind::Assign { .. }
+            | ir::ExprKind::Return(_)
+            | ir::ExprKind::Break
+            | ir::ExprKind::Continue
+    )
+}
+
+fn is_int_literal(e: &syn::Expr) -> bool {
+    match e {
+        syn::Expr::Lit(syn::ExprLit { lit: syn::Lit::Int(_), .. }) => true,
+        syn::Expr::Paren(p) => is_int_literal(&p.expr),
+        syn::Expr::Group(g) => is_int_literal(&g.expr),
+        _ => false,
+    }
+}
+
+fn bin_op(op: &syn::BinOp) -> Option<(ir::BinOp, bool)> {
+    use ir::BinOp as B;
+    use syn::BinOp as S;
+    Some(match op {
+        S::Add(_) => (B::Add, false),
+        S::Sub(_) => (B::Sub, false),
+        S::Mul(_) => (B::Mul, false),
+        S::Div(_) => (B::Div, false),
+        S::Rem(_) => (B::Rem, false),
+        S::And(_) => (B::And, false),
+        S::Or(_) => (B::Or, false),
+        S::BitXor(_) => (B::BitXor, false),
+        S::BitAnd(_) => (B::BitAnd, false),
+        S::BitOr(_) => (B::BitOr, false),
+        S::Shl(_) => (B::Shl, false),
+        S::Shr(_) => (B::Shr, false),
+        S::Eq(_) => (B::Eq, false),
+        S::Lt(_) => (B::Lt, false),
+        S::Le(_) => (B::Le, false),
+        S::Ne(_) => (B::Ne, false),
+        S::Ge(_) => (B::Ge, false),
+        S::Gt(_) => (B::Gt, false),
+        S::AddAssign(_) => (B::Add, true),
+        S::SubAssign(_) => (B::Sub, true),
+        S::MulAssign(_) => (B::Mul, true),
+        S::DivAssign(_) => (B::Div, true),
+        S::RemAssign(_) => (B::Rem, true),
+        S::BitXorAssign(_) => (B::BitXor, true),
+        S::BitAndAssign(_) => (B::BitAnd, true),
+        S::BitOrAssign(_) => (B::BitOr, true),
+        S::ShlAssign(_) => (B::Shl, true),
+        S::ShrAssign(_) => (B::Shr, true),
+        _ => return None,
+    })
+}
+
+fn unsupported_type_message(name: &str) -> Option<&'static str> {
+    Some(match name {
+        "f64" => "f64 is not supported on GPUs (WebGL2 has no doubles): use f32",
+        "i64" | "u64" | "i128" | "u128" | "isize" => "64-bit integers are not supported on GPUs: use i32 or u32",
+        "i8" | "i16" | "u8" | "u16" => "small integer types are not supported on GPUs: use i32 or u32 (and mask)",
+        "char" | "str" | "String" => "strings are not supported in kernels",
+        "Vec" | "Box" | "Rc" | "Arc" | "HashMap" | "BTreeMap" | "VecDeque" => {
+            "heap types are not supported in kernels: use fixed-size arrays `[T; N]`, or `Texels<T>` in the `#[resources]` struct for scene data"
+        }
+        "Option" | "Result" => "Option/Result are not supported in kernels: return a struct with a `hit: bool`-style flag",
+        "DVec2" | "DVec3" | "DVec4" => "double-precision vectors are not supported on GPUs: use Vec2/Vec3/Vec4",
+        "Vec3A" => "use Vec3 (Vec3A's padding has no GPU meaning)",
+        _ => return None,
+    })
+}
+
+fn unsupported_method_message(method: &str) -> String {
+    match method {
+        "unwrap" | "expect" => format!("`{method}` can panic, and kernels cannot: there are no Options on a GPU"),
+        "iter" | "into_iter" | "map" | "sum" | "fold" | "collect" => {
+            format!("iterators are not supported in kernels (`{method}`): write a `for i in 0..n` loop")
+        }
+        "clone" => "`clone` is not needed: kernel values are Copy".to_string(),
+        _ => format!(
+            "method `{method}` is not supported in kernels; supported methods: {}",
+            ir::SUPPORTED_METHODS.join(", ")
+        ),
+    }
+}

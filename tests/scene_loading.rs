@@ -1,0 +1,576 @@
+//! Scene loading: every scene of `../shared/scenes/MANIFEST.md`, the loaders' conventions
+//! (transforms, winding, units, cameras) on small glTF files written here, and malformed input,
+//! which must give an error and never a panic.
+
+use std::path::{Path, PathBuf};
+
+use glam::{Vec2, Vec3};
+use tracer::scene::{self, LoadOptions, Scene, SceneError, Wrap};
+
+fn shared(rel: &str) -> PathBuf {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes")).join(rel)
+}
+
+fn load(rel: &str) -> Scene {
+    scene::load(&shared(rel)).unwrap_or_else(|e| panic!("{rel}: {e}"))
+}
+
+/// Every scene in the manifest with its triangle count.
+const MANIFEST: &[(&str, usize)] = &[
+    ("cornell-box/CornellBox-Original.obj", 36),
+    ("cornell-box/CornellBox-Original.gltf", 36),
+    ("khronos/Box/glTF/Box.gltf", 12),
+    ("khronos/Box/glTF-Binary/Box.glb", 12),
+    ("khronos/BoxTextured/glTF/BoxTextured.gltf", 12),
+    ("khronos/BoxTextured/glTF-Binary/BoxTextured.glb", 12),
+    ("khronos/Avocado/glTF/Avocado.gltf", 682),
+    ("khronos/Duck/glTF/Duck.gltf", 4212),
+    ("khronos/Duck/glTF-Binary/Duck.glb", 4212),
+    ("khronos/DamagedHelmet/glTF/DamagedHelmet.gltf", 15452),
+    ("khronos/DamagedHelmet/glTF-Binary/DamagedHelmet.glb", 15452),
+    ("khronos/EmissiveStrengthTest/glTF/EmissiveStrengthTest.gltf", 90),
+    ("khronos/EmissiveStrengthTest/glTF-Binary/EmissiveStrengthTest.glb", 90),
+    ("khronos/LightsPunctualLamp/glTF/LightsPunctualLamp.gltf", 6000),
+    ("khronos/StainedGlassLamp/glTF-JPG-PNG/StainedGlassLamp.gltf", 35132),
+    ("threejs/LittlestTokyo.glb", 141_802),
+    ("threejs/collision-world.glb", 1754),
+    ("extra/bitterli-cornell-box/bitterli-cornell-box.gltf", 36),
+    ("extra/kajiya/cornell_box/scene.gltf", 32),
+    ("extra/kajiya/emissive/triangle.glb", 1),
+    ("extra/GlassVaseFlowers/glTF/GlassVaseFlowers.gltf", 14036),
+];
+
+#[test]
+fn manifest_scenes_load_with_their_triangle_counts() {
+    let mut failures = Vec::new();
+    for &(rel, triangles) in MANIFEST {
+        match scene::load(&shared(rel)) {
+            Ok(s) => {
+                s.validate().unwrap();
+                if s.triangles.len() != triangles {
+                    failures.push(format!("{rel}: {} triangles, manifest says {triangles}", s.triangles.len()));
+                }
+                println!(
+                    "{rel}: {} triangles, {} materials, {} textures, {} emissive, {} point lights, {} warnings",
+                    s.triangles.len(),
+                    s.materials.len(),
+                    s.textures.len(),
+                    s.emissive_triangle_count(),
+                    s.point_lights.len(),
+                    s.warnings.len()
+                );
+                for w in &s.warnings {
+                    println!("    warning: {w}");
+                }
+            }
+            Err(e) => failures.push(format!("{rel}: {e}")),
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn pica_pica_reports_its_missing_texture() {
+    let path = shared("extra/kajiya/pica_pica_-_mini_diorama_01/scene.gltf");
+    let strict = scene::load(&path).unwrap_err();
+    assert!(matches!(strict, SceneError::Io { .. }), "{strict}");
+    assert!(strict.to_string().contains("Wax_Pastel_Label_02_baseColor.png"), "{strict}");
+    let lenient = scene::load_with(&path, &LoadOptions { allow_missing_textures: true }).unwrap();
+    assert_eq!(lenient.triangles.len(), 76_274);
+    assert!(lenient.warnings.iter().any(|w| w.contains("Wax_Pastel_Label_02_baseColor.png")), "{:?}", lenient.warnings);
+}
+
+#[test]
+fn unsupported_features_are_warned_about_once() {
+    let lamp = load("khronos/LightsPunctualLamp/glTF/LightsPunctualLamp.gltf");
+    assert!(lamp.warnings.iter().any(|w| w.contains("KHR_materials_transmission")), "{:?}", lamp.warnings);
+    assert!(!lamp.point_lights.is_empty());
+    let vase = load("extra/GlassVaseFlowers/glTF/GlassVaseFlowers.gltf");
+    for ext in ["KHR_materials_transmission", "KHR_materials_volume"] {
+        assert_eq!(vase.warnings.iter().filter(|w| w.contains(ext)).count(), 1, "{ext}: {:?}", vase.warnings);
+    }
+    let mut sorted = vase.warnings.clone();
+    sorted.sort();
+    sorted.dedup();
+    assert_eq!(sorted.len(), vase.warnings.len(), "duplicated warnings: {:?}", vase.warnings);
+}
+
+#[test]
+fn draco_compressed_scene_is_refused_by_name() {
+    let err = scene::load(&shared("extra/LittlestTokyo.draco.glb")).unwrap_err();
+    assert!(
+        matches!(err, SceneError::UnsupportedRequiredExtension(ref e) if e == "KHR_draco_mesh_compression"),
+        "{err:?}"
+    );
+    assert!(err.to_string().contains("KHR_draco_mesh_compression"));
+}
+
+#[test]
+fn cornell_box_gltf_obj_and_embedded_agree() {
+    let obj = load("cornell-box/CornellBox-Original.obj");
+    let gltf = load("cornell-box/CornellBox-Original.gltf");
+    let embedded = scene::cornell_box();
+    for (name, s) in [("obj", &obj), ("gltf", &gltf), ("embedded", &embedded)] {
+        assert_eq!(s.triangles.len(), 36, "{name}");
+        assert_eq!(s.emissive_triangle_count(), 2, "{name}");
+        let emission = s.materials.iter().map(|m| m.emission).find(|e| e.max_element() > 0.0).unwrap();
+        assert!((emission - Vec3::new(17.0, 12.0, 4.0)).abs().max_element() < 0.02, "{name}: {emission}");
+        let b = s.bounds();
+        let e = embedded.bounds();
+        assert!(
+            (b.min - e.min).abs().max_element() < 1e-5 && (b.max - e.max).abs().max_element() < 1e-5,
+            "{name}: {b:?}"
+        );
+        let power = s.emitted_power();
+        assert!((power - embedded.emitted_power()).abs().max_element() < 0.05, "{name}: {power}");
+        let red = s.materials.iter().find(|m| m.name == "leftWall").unwrap();
+        assert!((red.base_color - Vec3::new(0.63, 0.065, 0.05)).abs().max_element() < 1e-6);
+    }
+    // The glTF has a camera node at (0, 1, 3) looking -Z; the OBJ gets one framing the box.
+    assert!((gltf.camera.position - Vec3::new(0.0, 1.0, 3.0)).length() < 1e-6);
+    assert!((gltf.camera.forward() - Vec3::NEG_Z).length() < 1e-6);
+    assert!((gltf.camera.yfov - 0.6911).abs() < 1e-6);
+    let c = obj.camera;
+    assert!(c.position.z > 1.0 && (c.forward() - Vec3::NEG_Z).length() < 1e-6);
+}
+
+#[test]
+fn textures_and_emission_are_decoded_to_linear() {
+    let boxed = load("khronos/BoxTextured/glTF-Binary/BoxTextured.glb");
+    assert_eq!(boxed.textures.len(), 1);
+    let t = &boxed.textures[0];
+    assert_eq!((t.width, t.height), (256, 256));
+    assert_eq!(t.texels.len(), 256 * 256);
+    assert!(t.texels.iter().all(|v| v.min_element() >= 0.0 && v.max_element() <= 1.0));
+    assert_eq!((t.wrap_s, t.wrap_t), (Wrap::Repeat, Wrap::Repeat));
+    let m = &boxed.materials[boxed.triangles[0].material as usize];
+    assert_eq!(m.base_color_texture, Some(0));
+
+    let helmet = load("khronos/DamagedHelmet/glTF/DamagedHelmet.gltf");
+    let m = &helmet.materials[0];
+    assert!(m.base_color_texture.is_some() && m.emissive_texture.is_some());
+    assert!(m.emission.max_element() > 0.0);
+
+    // EmissiveStrengthTest: emissiveFactor x KHR_materials_emissive_strength.
+    let strength = load("khronos/EmissiveStrengthTest/glTF/EmissiveStrengthTest.gltf");
+    let max = strength.materials.iter().map(|m| m.emission.max_element()).fold(0.0, f32::max);
+    assert!(max > 1.5, "strength not applied: max emission {max}");
+
+    // JPEG + PNG textures.
+    let lamp = load("khronos/StainedGlassLamp/glTF-JPG-PNG/StainedGlassLamp.gltf");
+    assert!(!lamp.textures.is_empty());
+    assert!(lamp.emissive_triangle_count() > 0);
+}
+
+#[test]
+fn duck_node_transform_is_applied() {
+    let duck = load("khronos/Duck/glTF/Duck.gltf");
+    // The Duck's mesh is authored in centimetres and scaled by its node (0.01): the world
+    // bounds are around 1.6 m, not 160.
+    let size = duck.bounds().diagonal();
+    assert!(size.max_element() < 5.0 && size.max_element() > 0.5, "{size}");
+    let glb = load("khronos/Duck/glTF-Binary/Duck.glb");
+    assert_eq!(duck.triangles, glb.triangles);
+}
+
+#[test]
+fn skies_load() {
+    let sky = scene::load_sky(&shared("hdri/venice_sunset_1k.hdr"), 2.0, 0.5).unwrap();
+    assert_eq!((sky.width, sky.height), (1024, 512));
+    assert_eq!(sky.texels.len(), 1024 * 512);
+    assert_eq!((sky.intensity, sky.rotation), (2.0, 0.5));
+    assert!(sky.texels.iter().all(|t| t.is_finite() && t.min_element() >= 0.0));
+    assert!(sky.texels.iter().any(|t| t.max_element() > 1.0), "HDR data expected");
+    let tiny = scene::load_sky(&shared("hdri/spot1Lux.hdr"), 1.0, 0.0).unwrap();
+    assert!(tiny.width > 0 && tiny.height > 0);
+    let exr = scene::load_sky(&shared("extra/bitterli-cornell-box/tungsten/TungstenRender.exr"), 1.0, 0.0).unwrap();
+    assert!(exr.width > 0 && exr.texels.len() == (exr.width * exr.height) as usize);
+
+    let missing = scene::load_sky(&shared("hdri/does-not-exist.hdr"), 1.0, 0.0).unwrap_err();
+    assert!(matches!(missing, SceneError::Io { .. }), "{missing}");
+    assert!(scene::load_sky(&shared("hdri/venice_sunset_1k.hdr"), f32::NAN, 0.0).is_err());
+    assert!(scene::load_sky(&shared("hdri/venice_sunset_1k.hdr"), -1.0, 0.0).is_err());
+    assert!(scene::load_sky(&shared("cornell-box/CornellBox-Original.obj"), 1.0, 0.0).is_err());
+
+    // The documented mapping: up is row 0, -Z is the image centre.
+    let s = tracer::scene::Sky::uniform(Vec3::ONE);
+    assert!((s.direction_to_uv(Vec3::Y).y).abs() < 1e-6);
+    assert!((s.direction_to_uv(Vec3::NEG_Z) - Vec2::new(0.5, 0.5)).length() < 1e-6);
+    assert!((s.direction_to_uv(Vec3::X).x - 0.75).abs() < 1e-6);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Small glTF files written by the tests.
+
+/// A scratch directory for one test.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("lightport-scene-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn base64(data: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut s = String::new();
+    for c in data.chunks(3) {
+        let n =
+            (u32::from(c[0]) << 16) | (u32::from(*c.get(1).unwrap_or(&0)) << 8) | u32::from(*c.get(2).unwrap_or(&0));
+        for k in 0..4 {
+            if k <= c.len() {
+                s.push(A[(n >> (18 - 6 * k)) as usize & 63] as char);
+            } else {
+                s.push('=');
+            }
+        }
+    }
+    s
+}
+
+fn f32_bytes(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+fn u16_bytes(v: &[u16]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// One triangle in the z = 0 plane facing +Z: (0,0,0), (1,0,0), (0,1,0).
+const TRI: [f32; 9] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+
+/// A glTF with one indexed triangle mesh: `positions` (3 floats each), u16 `indices`, in one
+/// data-URI buffer; `nodes` and extra top-level JSON members are spliced in.
+fn gltf_json(positions: &[f32], indices: &[u16], nodes: &str, extra: &str) -> String {
+    let mut buf = f32_bytes(positions);
+    let pos_len = buf.len();
+    buf.extend(u16_bytes(indices));
+    let n = positions.len() / 3;
+    format!(
+        r#"{{
+  "asset": {{"version": "2.0"}},
+  "scene": 0,
+  "scenes": [{{"nodes": [0]}}],
+  "nodes": {nodes},
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1}}]}}],
+  "buffers": [{{"byteLength": {len}, "uri": "data:application/octet-stream;base64,{b64}"}}],
+  "bufferViews": [
+    {{"buffer": 0, "byteOffset": 0, "byteLength": {pos_len}}},
+    {{"buffer": 0, "byteOffset": {pos_len}, "byteLength": {idx_len}}}
+  ],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": {n}, "type": "VEC3", "min": [0,0,0], "max": [1,1,1]}},
+    {{"bufferView": 1, "componentType": 5123, "count": {ni}, "type": "SCALAR"}}
+  ]{extra}
+}}"#,
+        len = buf.len(),
+        b64 = base64(&buf),
+        idx_len = indices.len() * 2,
+        ni = indices.len(),
+    )
+}
+
+fn load_str(json: &str) -> Result<Scene, SceneError> {
+    scene::load_gltf_slice(json.as_bytes(), None, &LoadOptions::default())
+}
+
+#[test]
+fn node_transforms_normals_and_winding() {
+    // Parent translates by (10, 0, 0); child mirrors x (negative determinant) via a matrix.
+    let nodes = r#"[
+        {"translation": [10, 0, 0], "children": [1]},
+        {"matrix": [-2,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1], "mesh": 0}
+    ]"#;
+    let s = load_str(&gltf_json(&TRI, &[0, 1, 2], nodes, "")).unwrap();
+    assert_eq!(s.triangles.len(), 1);
+    let t = s.triangles[0];
+    let mut xs: Vec<f32> = t.positions.iter().map(|p| p.x).collect();
+    xs.sort_by(f32::total_cmp);
+    assert_eq!(xs, vec![8.0, 10.0, 10.0]);
+    // Mirroring keeps the face pointing +Z: winding was flipped, flat normals follow it.
+    let geometric = (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]);
+    assert!(geometric.z > 0.0, "{t:?}");
+    assert!(t.normals.iter().all(|n| (*n - Vec3::Z).length() < 1e-6), "{t:?}");
+    // No camera in the file: a generated one frames the bounds.
+    assert!(s.camera.position.z > 0.0);
+}
+
+#[test]
+fn normals_use_the_inverse_transpose() {
+    // A sheared, non-uniformly scaled node with explicit normals.
+    let mut buf = f32_bytes(&TRI);
+    buf.extend(f32_bytes(&[0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0]));
+    let json = format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scenes": [{{"nodes": [0]}}],
+        "nodes": [{{"scale": [1, 1, 5], "rotation": [0.38268343, 0, 0, 0.9238795], "mesh": 0}}],
+        "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "NORMAL": 1}}}}]}}],
+        "buffers": [{{"byteLength": 72, "uri": "data:application/octet-stream;base64,{}"}}],
+        "bufferViews": [{{"buffer": 0, "byteLength": 72, "byteStride": 12}}],
+        "accessors": [
+          {{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]}},
+          {{"bufferView": 0, "byteOffset": 36, "componentType": 5126, "count": 3, "type": "VEC3"}}
+        ]}}"#,
+        base64(&buf)
+    );
+    let s = load_str(&json).unwrap();
+    let t = s.triangles[0];
+    let flat = (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]).normalize();
+    for n in t.normals {
+        assert!((n - flat).length() < 1e-5, "normal {n} vs geometric {flat}");
+    }
+}
+
+#[test]
+fn lights_cameras_and_units() {
+    let nodes = r#"[
+        {"mesh": 0, "children": [1, 2, 3]},
+        {"translation": [0, 2, 0], "extensions": {"KHR_lights_punctual": {"light": 0}}},
+        {"translation": [1, 0, 0], "extensions": {"KHR_lights_punctual": {"light": 1}}},
+        {"translation": [0, 0, 5], "rotation": [0, 0.70710677, 0, 0.70710677], "camera": 0}
+    ]"#;
+    let extra = r#",
+  "extensionsUsed": ["KHR_lights_punctual"],
+  "extensions": {"KHR_lights_punctual": {"lights": [
+      {"type": "point", "color": [1, 0.5, 0.25], "intensity": 10},
+      {"type": "spot", "intensity": 3, "spot": {"outerConeAngle": 0.5}}
+  ]}},
+  "cameras": [{"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.1}}]"#;
+    let s = load_str(&gltf_json(&TRI, &[0, 1, 2], nodes, extra)).unwrap();
+    assert_eq!(s.point_lights.len(), 2);
+    assert_eq!(s.point_lights[0].position, Vec3::new(0.0, 2.0, 0.0));
+    assert_eq!(s.point_lights[0].intensity, Vec3::new(10.0, 5.0, 2.5));
+    assert_eq!(s.point_lights[1].intensity, Vec3::splat(3.0));
+    assert!(s.warnings.iter().any(|w| w.contains("spot")), "{:?}", s.warnings);
+    // The camera is rotated 90° about +Y: it looks down -X.
+    assert!((s.camera.position - Vec3::new(0.0, 0.0, 5.0)).length() < 1e-6);
+    assert!((s.camera.forward() - Vec3::NEG_X).length() < 1e-5, "{:?}", s.camera);
+    assert_eq!(s.camera.yfov, 0.5);
+    assert!(s.camera.focus_distance > 0.0);
+}
+
+#[test]
+fn strips_fans_and_non_indexed_primitives() {
+    let quad = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0];
+    let json = |mode: u32, indexed: bool| {
+        let buf = f32_bytes(&quad);
+        let indices = if indexed { r#", "indices": 1"# } else { "" };
+        let mut all = buf.clone();
+        all.extend(u16_bytes(&[0, 1, 2, 3]));
+        format!(
+            r#"{{"asset": {{"version": "2.0"}}, "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0}}],
+            "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "mode": {mode}{indices}}}]}}],
+            "buffers": [{{"byteLength": 56, "uri": "data:application/octet-stream;base64,{}"}}],
+            "bufferViews": [{{"buffer": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 8}}],
+            "accessors": [
+              {{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]}},
+              {{"bufferView": 1, "componentType": 5123, "count": 4, "type": "SCALAR"}}
+            ]}}"#,
+            base64(&all)
+        )
+    };
+    // Strip 0,1,2,3 -> (0,1,2), (1,3,2): both facing +Z.
+    for (mode, count) in [(5, 2), (6, 2)] {
+        for indexed in [false, true] {
+            let s = load_str(&json(mode, indexed)).unwrap();
+            assert_eq!(s.triangles.len(), count, "mode {mode}");
+            if mode == 5 {
+                for t in &s.triangles {
+                    assert!(t.normals[0].z > 0.99, "mode {mode}: {t:?}");
+                }
+            }
+        }
+    }
+    // Points and lines are skipped with a warning; with nothing else it is an error.
+    let err = load_str(&json(0, false)).unwrap_err();
+    assert!(matches!(err, SceneError::NoTriangles(_)), "{err}");
+    assert!(err.to_string().contains("POINTS") || err.to_string().contains("Points"), "{err}");
+}
+
+#[test]
+fn sparse_accessors_override_values() {
+    // Base positions all zero except through sparse: element 1 -> (1,0,0), element 2 -> (0,1,0).
+    let mut buf = f32_bytes(&TRI);
+    buf.extend(u16_bytes(&[1, 2]));
+    buf.extend(f32_bytes(&[1.0, 0.0, 0.0, 0.0, 1.0, 0.0]));
+    let json = format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0}}],
+        "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}}}]}}],
+        "buffers": [{{"byteLength": {}, "uri": "data:application/octet-stream;base64,{}"}}],
+        "bufferViews": [{{"buffer": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 4}},
+                        {{"buffer": 0, "byteOffset": 40, "byteLength": 24}}],
+        "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,0], "max": [1,1,0],
+           "sparse": {{"count": 2, "indices": {{"bufferView": 1, "componentType": 5123}}, "values": {{"bufferView": 2}}}}}}]}}"#,
+        buf.len(),
+        base64(&buf)
+    );
+    // Same values as the dense data, so check it loads and reads the sparse view in range.
+    let s = load_str(&json).unwrap();
+    assert_eq!(s.triangles[0].positions[1], Vec3::X);
+    assert_eq!(s.triangles[0].positions[2], Vec3::Y);
+    // Sparse index out of range is an error.
+    let bad = json.replace(r#""count": 2, "indices""#, r#""count": 3, "indices""#);
+    assert!(load_str(&bad).is_err());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Malformed input: every case is an error, none panics.
+
+fn expect_error(what: &str, result: Result<Scene, SceneError>) -> SceneError {
+    match result {
+        Ok(s) => panic!("{what}: loaded {} triangles, expected an error", s.triangles.len()),
+        Err(e) => {
+            println!("{what}: {e}");
+            e
+        }
+    }
+}
+
+#[test]
+fn malformed_gltf_is_refused() {
+    let ok = gltf_json(&TRI, &[0, 1, 2], r#"[{"mesh": 0}]"#, "");
+    load_str(&ok).unwrap();
+
+    let e = expect_error("index out of range", load_str(&gltf_json(&TRI, &[0, 1, 5], r#"[{"mesh": 0}]"#, "")));
+    assert!(e.to_string().contains("out of range"), "{e}");
+
+    let mut nan = TRI;
+    nan[4] = f32::NAN;
+    let e = expect_error("NaN position", load_str(&gltf_json(&nan, &[0, 1, 2], r#"[{"mesh": 0}]"#, "")));
+    assert!(e.to_string().contains("not finite"), "{e}");
+    let mut inf = TRI;
+    inf[0] = f32::INFINITY;
+    expect_error("infinite position", load_str(&gltf_json(&inf, &[0, 1, 2], r#"[{"mesh": 0}]"#, "")));
+
+    let e = expect_error(
+        "huge accessor count",
+        load_str(&ok.replace(r#""count": 3, "type": "VEC3""#, r#""count": 2000000000, "type": "VEC3""#)),
+    );
+    assert!(matches!(e, SceneError::Malformed(_) | SceneError::TooLarge(_)), "{e}");
+
+    let e = expect_error(
+        "bufferView past the buffer",
+        load_str(&ok.replace(r#""byteOffset": 0, "byteLength": 36"#, r#""byteOffset": 0, "byteLength": 3600"#)),
+    );
+    assert!(e.to_string().contains("extends past"), "{e}");
+
+    expect_error("node cycle", load_str(&gltf_json(&TRI, &[0, 1, 2], r#"[{"mesh": 0, "children": [0]}]"#, "")));
+    expect_error("missing node", load_str(&gltf_json(&TRI, &[0, 1, 2], r#"[{"mesh": 0, "children": [7]}]"#, "")));
+    expect_error("not whole triangles", load_str(&gltf_json(&TRI, &[0, 1], r#"[{"mesh": 0}]"#, "")));
+    expect_error("bad base64", load_str(&ok.replace("base64,", "base64,*")));
+    expect_error("no scene content", load_str(r#"{"asset": {"version": "2.0"}}"#));
+    expect_error(
+        "wrong version",
+        load_str(r#"{"asset": {"version": "1.0"}}"#).and_then(|s| {
+            if s.triangles.is_empty() {
+                Err(SceneError::NoTriangles(String::new()))
+            } else {
+                Ok(s)
+            }
+        }),
+    );
+    expect_error(
+        "unknown required extension",
+        load_str(&gltf_json(
+            &TRI,
+            &[0, 1, 2],
+            r#"[{"mesh": 0}]"#,
+            r#", "extensionsRequired": ["EXT_unknown"], "extensionsUsed": ["EXT_unknown"]"#,
+        )),
+    );
+    expect_error("POSITION accessor out of range", load_str(&ok.replace(r#""POSITION": 0"#, r#""POSITION": 9"#)));
+    expect_error("JSON garbage", load_str("{\"asset\": [}"));
+}
+
+#[test]
+fn malformed_files_are_refused() {
+    let dir = scratch("malformed");
+    let write = |name: &str, bytes: &[u8]| {
+        let p = dir.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p
+    };
+
+    // Truncated .glb files, at many lengths.
+    let glb = std::fs::read(shared("khronos/BoxTextured/glTF-Binary/BoxTextured.glb")).unwrap();
+    for len in [0, 3, 4, 11, 12, 19, 20, 100, glb.len() / 2, glb.len() - 1] {
+        let p = write("truncated.glb", &glb[..len]);
+        expect_error(&format!("glb truncated to {len} bytes"), scene::load(&p));
+    }
+    // A GLB whose header claims more than the file has, and one whose BIN chunk is cut short.
+    let mut lying = glb.clone();
+    lying[8..12].copy_from_slice(&(glb.len() as u32 * 2).to_le_bytes());
+    expect_error("glb length too large", scene::load(&write("lying.glb", &lying)));
+
+    // Garbage and empty files of every type.
+    let mut garbage = Vec::new();
+    let mut x = 0x1234_5678u32;
+    for _ in 0..4096 {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        garbage.push(x as u8);
+    }
+    for ext in ["gltf", "glb", "obj"] {
+        expect_error(&format!("garbage .{ext}"), scene::load(&write(&format!("garbage.{ext}"), &garbage)));
+        expect_error(&format!("empty .{ext}"), scene::load(&write(&format!("empty.{ext}"), b"")));
+    }
+    let mut magic_garbage = b"glTF\x02\0\0\0".to_vec();
+    magic_garbage.extend_from_slice(&(garbage.len() as u32 + 12).to_le_bytes());
+    magic_garbage.extend_from_slice(&garbage);
+    expect_error("glb magic + garbage", scene::load(&write("magic.glb", &magic_garbage)));
+    expect_error("unknown extension", scene::load(&write("scene.fbx", b"...")));
+    expect_error("missing file", scene::load(&dir.join("nope.gltf")));
+
+    // Missing .bin.
+    let gltf = std::fs::read_to_string(shared("khronos/Box/glTF/Box.gltf")).unwrap();
+    let e = expect_error("missing .bin", scene::load(&write("missing-bin.gltf", gltf.as_bytes())));
+    assert!(matches!(e, SceneError::Io { .. }) && e.to_string().contains("Box0.bin"), "{e}");
+
+    // Truncated .bin.
+    let bin = std::fs::read(shared("khronos/Box/glTF/Box0.bin")).unwrap();
+    write("Box0.bin", &bin[..bin.len() / 2]);
+    let e = expect_error("truncated .bin", scene::load(&write("truncated-bin.gltf", gltf.as_bytes())));
+    assert!(e.to_string().contains("truncated"), "{e}");
+
+    // Missing texture file: an error, or a warning when allowed.
+    let textured = std::fs::read_to_string(shared("khronos/BoxTextured/glTF/BoxTextured.gltf")).unwrap();
+    std::fs::copy(shared("khronos/BoxTextured/glTF/BoxTextured0.bin"), dir.join("BoxTextured0.bin")).unwrap();
+    let p = write("missing-texture.gltf", textured.as_bytes());
+    let e = expect_error("missing texture", scene::load(&p));
+    assert!(e.to_string().contains("CesiumLogoFlat.png"), "{e}");
+    let lenient = scene::load_with(&p, &LoadOptions { allow_missing_textures: true }).unwrap();
+    assert!(lenient.textures.is_empty() && lenient.warnings.iter().any(|w| w.contains("CesiumLogoFlat.png")));
+
+    // A corrupt texture is an error even when missing ones are allowed.
+    write("CesiumLogoFlat.png", &garbage[..100]);
+    expect_error("corrupt texture", scene::load_with(&p, &LoadOptions { allow_missing_textures: true }));
+    let mut png = std::fs::read(shared("khronos/BoxTextured/glTF/CesiumLogoFlat.png")).unwrap();
+    png.truncate(png.len() / 2);
+    write("CesiumLogoFlat.png", &png);
+    expect_error("truncated texture", scene::load(&p));
+
+    // OBJ: out-of-range face, missing MTL, NaN vertex.
+    expect_error("obj face out of range", scene::load(&write("bad-face.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")));
+    let e = expect_error(
+        "obj missing mtl",
+        scene::load(&write("no-mtl.obj", b"mtllib nope.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")),
+    );
+    assert!(e.to_string().contains("nope.mtl"), "{e}");
+    expect_error("obj NaN", scene::load(&write("nan.obj", b"v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")));
+    expect_error("obj no faces", scene::load(&write("nofaces.obj", b"v 0 0 0\n")));
+    expect_error(
+        "mtl with a multibyte keyword",
+        scene::load(&{
+            write("odd.mtl", " newmtl a\n  K\u{e9} 1\n".as_bytes());
+            write("odd.obj", b"mtllib odd.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n")
+        }),
+    )
+    .to_string();
+
+    // A well-formed OBJ with texture coordinates: v is flipped to glTF's convention.
+    let s =
+        scene::load(&write("uv.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")).unwrap();
+    assert_eq!(s.triangles[0].uvs, [Vec2::new(0.0, 1.0), Vec2::new(1.0, 1.0), Vec2::new(0.0, 0.0)]);
+    assert!(s.triangles[0].normals[0].z > 0.99);
+
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,492 @@
+//! Bounding volume hierarchy over a scene's triangles, in the flat binary layout the kernel
+//! traverses.
+//!
+//! # Layout
+//! * `nodes[0]` is the root. A node with `count == 0` is interior: its children are
+//!   `nodes[first]` and `nodes[first + 1]` (always a pair, always after their parent). A node
+//!   with `count > 0` is a leaf holding triangles `first .. first + count` of the **reordered**
+//!   triangle list, where reordered triangle `i` is original triangle `triangle_order[i]`.
+//! * A one-triangle scene has a single leaf root. Building over zero triangles is an error
+//!   ([`BvhError::Empty`]): scene loading refuses such scenes, so the kernel never has to handle
+//!   an empty hierarchy.
+//! * Nodes are stored depth-first (each pair of children is allocated when its parent is
+//!   visited, left subtree first) and leaves' triangles in the same order, for locality.
+//! * Boxes are tight bounds of their triangles, as f32. Traversal should visit the nearer child
+//!   first (ordered stack) and make its slab test conservative (see
+//!   [`Bvh::intersect_closest`]), since flat boxes around axis-aligned triangles are common.
+//!
+//! # Building
+//! [`build`] uses obvhs' PLOC builder (parallel locally-ordered clustering over Morton-sorted
+//! boxes), its parallel reinsertion optimiser, and its SAH leaf collapse limited to
+//! [`BuildOptions::max_leaf_size`] triangles per leaf; then converts and reorders.
+
+use glam::{Vec3, Vec3A};
+use obvhs::aabb::Aabb as ObAabb;
+use obvhs::bvh2::leaf_collapser::collapse;
+use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
+use obvhs::bvh2::Bvh2;
+use obvhs::ploc::PlocBuilder;
+
+use crate::scene::Triangle;
+
+/// One BVH node (32 bytes): a box and either two children or a range of triangles.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BvhNode {
+    /// Smallest corner of the box.
+    pub min: Vec3,
+    /// Largest corner of the box.
+    pub max: Vec3,
+    /// Interior: index of the first child (the second is `first + 1`). Leaf: index of the first
+    /// triangle in the reordered triangle list.
+    pub first: u32,
+    /// 0 for interior nodes, else the number of triangles in the leaf.
+    pub count: u32,
+}
+
+impl BvhNode {
+    /// Whether this node is a leaf.
+    pub fn is_leaf(&self) -> bool {
+        self.count > 0
+    }
+
+    fn half_area(&self) -> f32 {
+        let d = (self.max - self.min).max(Vec3::ZERO);
+        d.x * d.y + d.y * d.z + d.z * d.x
+    }
+}
+
+/// A BVH: nodes plus the triangle order its leaves refer to.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Bvh {
+    /// The nodes; `nodes[0]` is the root.
+    pub nodes: Vec<BvhNode>,
+    /// Reordered index -> original triangle index: leaves' triangles, in leaf order.
+    pub triangle_order: Vec<u32>,
+}
+
+/// Why a BVH could not be built.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum BvhError {
+    /// There are no triangles.
+    #[error("cannot build a BVH over zero triangles")]
+    Empty,
+    /// A vertex is NaN or infinite.
+    #[error("triangle {0} has a non-finite vertex")]
+    NonFinite(usize),
+    /// More triangles than 32-bit node indices can address.
+    #[error("{0} triangles exceed the BVH limit of {MAX_TRIANGLES}")]
+    TooMany(usize),
+    /// The builder produced a hierarchy that does not convert (a bug, reported instead of
+    /// panicking).
+    #[error("internal BVH error: {0}")]
+    Internal(String),
+}
+
+/// Most triangles a BVH may hold (node indices are u32 and there are up to 2n - 1 nodes).
+pub const MAX_TRIANGLES: usize = (u32::MAX / 2) as usize;
+
+/// Build quality presets (obvhs' presets, with the leaf size overridden).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BuildQuality {
+    /// PLOC search radius 1, no reinsertion: the fastest build.
+    Fastest,
+    /// PLOC radius 6 (radius 1 for the first 2 passes), 2% reinsertion.
+    Fast,
+    /// PLOC radius 14 (radius 1 for the first 3 passes), 5% reinsertion before and 10%
+    /// after leaf collapse.
+    Medium,
+    /// PLOC radius 24, 128-bit Morton codes, 20% + 40% reinsertion.
+    Slow,
+}
+
+/// Options for [`build_with`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BuildOptions {
+    /// Which obvhs preset to start from.
+    pub quality: BuildQuality,
+    /// Most triangles per leaf (1..=255). SAH collapse decides below this.
+    pub max_leaf_size: u32,
+    /// Cost of visiting a node relative to intersecting one triangle, for the SAH collapse: a
+    /// higher value makes bigger leaves.
+    pub traversal_cost: f32,
+}
+
+impl Default for BuildOptions {
+    /// The settings [`build`] uses: [`BuildQuality::Fast`], leaves of at most 4 triangles,
+    /// traversal cost 1.5 (see the benchmark in `examples/bench_build.rs`).
+    fn default() -> Self {
+        Self { quality: BuildQuality::Fast, max_leaf_size: 4, traversal_cost: 1.5 }
+    }
+}
+
+/// A ray hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Original index of the triangle hit.
+    pub triangle: u32,
+    /// Distance along the ray, in units of the direction's length.
+    pub t: f32,
+    /// Barycentric weight of vertex 1.
+    pub u: f32,
+    /// Barycentric weight of vertex 2 (vertex 0 has `1 - u - v`).
+    pub v: f32,
+}
+
+/// Builds a BVH with the default [`BuildOptions`].
+pub fn build(triangles: &[Triangle]) -> Result<Bvh, BvhError> {
+    build_with(triangles, &BuildOptions::default())
+}
+
+/// Builds a BVH over `triangles` with the given options.
+pub fn build_with(triangles: &[Triangle], options: &BuildOptions) -> Result<Bvh, BvhError> {
+    if triangles.is_empty() {
+        return Err(BvhError::Empty);
+    }
+    if triangles.len() > MAX_TRIANGLES {
+        return Err(BvhError::TooMany(triangles.len()));
+    }
+    let mut aabbs = Vec::with_capacity(triangles.len());
+    for (i, t) in triangles.iter().enumerate() {
+        let [a, b, c] = t.positions;
+        if !(a.is_finite() && b.is_finite() && c.is_finite()) {
+            return Err(BvhError::NonFinite(i));
+        }
+        let (a, b, c) = (Vec3A::from(a), Vec3A::from(b), Vec3A::from(c));
+        aabbs.push(ObAabb::new(a.min(b).min(c), a.max(b).max(c)));
+    }
+    let p = preset(options);
+    let indices: Vec<u32> = (0..triangles.len() as u32).collect();
+    let mut bvh2 = PlocBuilder::with_capacity(aabbs.len()).build(
+        p.ploc_search_distance,
+        &aabbs,
+        indices,
+        p.sort_precision,
+        p.search_depth_threshold,
+    );
+    let mut reinsertion = ReinsertionOptimizer::default();
+    reinsertion.run(&mut bvh2, p.reinsertion_batch_ratio, None);
+    collapse(&mut bvh2, options.max_leaf_size.clamp(1, 255), options.traversal_cost.max(0.0));
+    reinsertion.run(&mut bvh2, p.reinsertion_batch_ratio * p.post_collapse_reinsertion_batch_ratio_multiplier, None);
+    convert(&bvh2, triangles.len())
+}
+
+fn preset(options: &BuildOptions) -> obvhs::BvhBuildParams {
+    let mut p = match options.quality {
+        BuildQuality::Fastest => obvhs::BvhBuildParams::fastest_build(),
+        BuildQuality::Fast => obvhs::BvhBuildParams::fast_build(),
+        BuildQuality::Medium => obvhs::BvhBuildParams::medium_build(),
+        BuildQuality::Slow => obvhs::BvhBuildParams::slow_build(),
+    };
+    // Spatial pre-splits would reference triangles from several leaves; keep one reference each.
+    p.pre_split = false;
+    p
+}
+
+/// Converts obvhs' BVH2 into our layout, depth-first, reordering triangles into leaf order.
+fn convert(bvh2: &Bvh2, triangle_count: usize) -> Result<Bvh, BvhError> {
+    let internal = |m: &str| BvhError::Internal(m.to_owned());
+    let src = &bvh2.nodes;
+    let prims = &bvh2.primitive_indices;
+    if src.is_empty() {
+        return Err(internal("the builder returned no nodes"));
+    }
+    let mut nodes: Vec<BvhNode> = Vec::with_capacity(src.len());
+    let mut order: Vec<u32> = Vec::with_capacity(triangle_count);
+    let placeholder = BvhNode { min: Vec3::ZERO, max: Vec3::ZERO, first: 0, count: 0 };
+    nodes.push(placeholder);
+    let mut stack: Vec<(usize, usize)> = vec![(0, 0)];
+    let mut visited = 0usize;
+    while let Some((s, d)) = stack.pop() {
+        visited += 1;
+        if visited > src.len() {
+            return Err(internal("the node graph has a cycle"));
+        }
+        let node = src.get(s).ok_or_else(|| internal("child index out of range"))?;
+        let (min, max) = (Vec3::from(node.aabb().min), Vec3::from(node.aabb().max));
+        let out = if node.is_leaf() {
+            let first = node.first_index as usize;
+            let range = prims
+                .get(first..first + node.prim_count as usize)
+                .ok_or_else(|| internal("leaf range out of range"))?;
+            let new_first = order.len() as u32;
+            order.extend_from_slice(range);
+            BvhNode { min, max, first: new_first, count: node.prim_count }
+        } else {
+            let child = nodes.len();
+            nodes.push(placeholder);
+            nodes.push(placeholder);
+            let c = node.first_index as usize;
+            stack.push((c + 1, child + 1));
+            stack.push((c, child));
+            BvhNode { min, max, first: child as u32, count: 0 }
+        };
+        *nodes.get_mut(d).ok_or_else(|| internal("destination out of range"))? = out;
+    }
+    if order.len() != triangle_count {
+        return Err(internal("leaves do not reference every triangle once"));
+    }
+    Ok(Bvh { nodes, triangle_order: order })
+}
+
+/// 1 + 2·γ(3) (γ(n) = nε / (1 - nε)): scaling a slab test's exit distance by this makes it
+/// conservative under f32 rounding (Ize, "Robust BVH Ray Traversal", JCGT 2013).
+const ROBUST_SCALE: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+
+impl Bvh {
+    /// Closest hit of the ray `origin + t·dir`, `0 < t < tmax`, with the original triangle list
+    /// `triangles` (the one [`build`] was given). Ties in `t` go to the smaller triangle index.
+    ///
+    /// A plain-Rust reference traversal (ordered stack, nearer child first, Möller–Trumbore,
+    /// no back-face culling), for tests; the kernel has its own in the DSL.
+    pub fn intersect_closest(&self, triangles: &[Triangle], origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
+        let inv = dir.recip();
+        let mut best: Option<Hit> = None;
+        let mut best_t = tmax;
+        let root = self.nodes.first()?;
+        let t_root = slab(root, origin, dir, inv, best_t)?;
+        let mut stack: Vec<(u32, f32)> = Vec::with_capacity(64);
+        stack.push((0, t_root));
+        while let Some((index, t_near)) = stack.pop() {
+            if t_near > best_t {
+                continue;
+            }
+            let Some(node) = self.nodes.get(index as usize) else {
+                continue;
+            };
+            if node.is_leaf() {
+                let first = node.first as usize;
+                let range = first..first + node.count as usize;
+                for &tri in self.triangle_order.get(range).unwrap_or(&[]) {
+                    let Some(t) = triangles.get(tri as usize) else {
+                        continue;
+                    };
+                    if let Some((t, u, v)) = intersect_triangle(t, origin, dir) {
+                        if closer(t, tri, best_t, best) {
+                            best_t = t;
+                            best = Some(Hit { triangle: tri, t, u, v });
+                        }
+                    }
+                }
+                continue;
+            }
+            let (a, b) = (node.first, node.first + 1);
+            let ta = self.nodes.get(a as usize).and_then(|n| slab(n, origin, dir, inv, best_t));
+            let tb = self.nodes.get(b as usize).and_then(|n| slab(n, origin, dir, inv, best_t));
+            match (ta, tb) {
+                (Some(ta), Some(tb)) => {
+                    // Push the far child first so the near one is popped next.
+                    if ta <= tb {
+                        stack.push((b, tb));
+                        stack.push((a, ta));
+                    } else {
+                        stack.push((a, ta));
+                        stack.push((b, tb));
+                    }
+                }
+                (Some(ta), None) => stack.push((a, ta)),
+                (None, Some(tb)) => stack.push((b, tb)),
+                (None, None) => {}
+            }
+        }
+        best
+    }
+
+    /// Number of leaves.
+    pub fn leaf_count(&self) -> usize {
+        self.nodes.iter().filter(|n| n.is_leaf()).count()
+    }
+
+    /// Longest root-to-leaf path in nodes (1 for a single leaf): the traversal stack needs at
+    /// most `depth() - 1` entries.
+    pub fn depth(&self) -> u32 {
+        let mut max = 0;
+        let mut stack = vec![(0usize, 1u32)];
+        let mut steps = 0;
+        while let Some((i, d)) = stack.pop() {
+            steps += 1;
+            if steps > self.nodes.len() {
+                break; // not a tree; `validate` says why
+            }
+            let Some(n) = self.nodes.get(i) else { continue };
+            max = max.max(d);
+            if !n.is_leaf() {
+                stack.push((n.first as usize, d + 1));
+                stack.push((n.first as usize + 1, d + 1));
+            }
+        }
+        max
+    }
+
+    /// Surface-area-heuristic cost with unit traversal and intersection costs:
+    /// `(Σ interior area + Σ leaf area x triangle count) / root area`. Lower is better; for
+    /// comparing builders on the same triangles.
+    pub fn sah_cost(&self) -> f32 {
+        let Some(root) = self.nodes.first() else {
+            return 0.0;
+        };
+        let root_area = root.half_area();
+        if root_area <= 0.0 {
+            return 0.0;
+        }
+        let sum: f64 = self
+            .nodes
+            .iter()
+            .map(|n| {
+                let area = f64::from(n.half_area());
+                if n.is_leaf() {
+                    area * f64::from(n.count)
+                } else {
+                    area
+                }
+            })
+            .sum();
+        (sum / f64::from(root_area)) as f32
+    }
+
+    /// Checks every structural invariant against the triangles the BVH was built from: every
+    /// node reachable exactly once from the root, children after their parent, child boxes
+    /// inside their parent's, leaf boxes containing their triangles, every triangle referenced
+    /// exactly once. Returns the first violation.
+    pub fn validate(&self, triangles: &[Triangle]) -> Result<(), String> {
+        if self.nodes.is_empty() {
+            return Err("no nodes".into());
+        }
+        if self.triangle_order.len() != triangles.len() {
+            return Err(format!(
+                "triangle_order has {} entries for {} triangles",
+                self.triangle_order.len(),
+                triangles.len()
+            ));
+        }
+        let mut seen_tri = vec![false; triangles.len()];
+        for &t in &self.triangle_order {
+            let slot = seen_tri.get_mut(t as usize).ok_or(format!("triangle_order holds {t}, out of range"))?;
+            if *slot {
+                return Err(format!("triangle {t} is referenced twice"));
+            }
+            *slot = true;
+        }
+        let mut reached = vec![false; self.nodes.len()];
+        let mut covered = vec![false; self.triangle_order.len()];
+        reached[0] = true;
+        let mut stack = vec![0usize];
+        while let Some(i) = stack.pop() {
+            let n = self.nodes[i];
+            if !(n.min.cmple(n.max).all()) {
+                return Err(format!("node {i} has an inverted box"));
+            }
+            if n.is_leaf() {
+                let (first, count) = (n.first as usize, n.count as usize);
+                for k in first..first + count {
+                    let c =
+                        covered.get_mut(k).ok_or(format!("leaf {i} range {first}..{} out of bounds", first + count))?;
+                    if *c {
+                        return Err(format!("reordered triangle {k} is in two leaves"));
+                    }
+                    *c = true;
+                    let tri = &triangles[self.triangle_order[k] as usize];
+                    for p in tri.positions {
+                        if !(n.min.cmple(p).all() && p.cmple(n.max).all()) {
+                            return Err(format!("leaf {i} box does not contain its triangle {k}"));
+                        }
+                    }
+                }
+            } else {
+                for c in [n.first as usize, n.first as usize + 1] {
+                    if c <= i {
+                        return Err(format!("node {i} has child {c} before it"));
+                    }
+                    let child = self.nodes.get(c).ok_or(format!("node {i} child {c} out of range"))?;
+                    if reached[c] {
+                        return Err(format!("node {c} is reached twice"));
+                    }
+                    reached[c] = true;
+                    if !(n.min.cmple(child.min).all() && child.max.cmple(n.max).all()) {
+                        return Err(format!("node {c} box is not inside its parent {i}"));
+                    }
+                    stack.push(c);
+                }
+            }
+        }
+        if let Some(i) = reached.iter().position(|r| !r) {
+            return Err(format!("node {i} is unreachable"));
+        }
+        if let Some(k) = covered.iter().position(|c| !c) {
+            return Err(format!("reordered triangle {k} is in no leaf"));
+        }
+        Ok(())
+    }
+}
+
+/// Closest hit by testing every triangle (same intersection routine and tie rule as
+/// [`Bvh::intersect_closest`]), for tests.
+pub fn intersect_brute_force(triangles: &[Triangle], origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
+    let mut best: Option<Hit> = None;
+    let mut best_t = tmax;
+    for (i, tri) in triangles.iter().enumerate() {
+        if let Some((t, u, v)) = intersect_triangle(tri, origin, dir) {
+            if closer(t, i as u32, best_t, best) {
+                best_t = t;
+                best = Some(Hit { triangle: i as u32, t, u, v });
+            }
+        }
+    }
+    best
+}
+
+/// Whether a hit at `t` on triangle `tri` beats the current best (ties: smaller index).
+fn closer(t: f32, tri: u32, best_t: f32, best: Option<Hit>) -> bool {
+    t < best_t || (t == best_t && best.is_some_and(|b| tri < b.triangle))
+}
+
+/// Möller–Trumbore ray/triangle intersection, both faces: `(t, u, v)` for `t > 0`.
+pub fn intersect_triangle(tri: &Triangle, origin: Vec3, dir: Vec3) -> Option<(f32, f32, f32)> {
+    let [p0, p1, p2] = tri.positions;
+    let e1 = p1 - p0;
+    let e2 = p2 - p0;
+    let pvec = dir.cross(e2);
+    let det = e1.dot(pvec);
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let inv_det = 1.0 / det;
+    let tvec = origin - p0;
+    let u = tvec.dot(pvec) * inv_det;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let qvec = tvec.cross(e1);
+    let v = dir.dot(qvec) * inv_det;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    let t = e2.dot(qvec) * inv_det;
+    (t > 0.0 && t.is_finite()).then_some((t, u, v))
+}
+
+/// Conservative slab test: entry distance if the ray meets the (slightly padded) box before
+/// `tmax`. Axes the ray is parallel to are handled explicitly (no 0·∞).
+fn slab(n: &BvhNode, origin: Vec3, dir: Vec3, inv: Vec3, tmax: f32) -> Option<f32> {
+    // Pad by a few ulps of the box's magnitude: Möller–Trumbore accepts hits a rounding error
+    // outside a triangle, which can lie just outside its tight box.
+    let pad = 4.0 * f32::EPSILON * n.min.abs().max(n.max.abs()).max_element();
+    let (lo, hi) = (n.min - pad, n.max + pad);
+    let mut t0 = 0.0f32;
+    let mut t1 = tmax;
+    for axis in 0..3 {
+        let (o, d) = (origin[axis], dir[axis]);
+        if d == 0.0 {
+            if o < lo[axis] || o > hi[axis] {
+                return None;
+            }
+            continue;
+        }
+        let (mut a, mut b) = ((lo[axis] - o) * inv[axis], (hi[axis] - o) * inv[axis]);
+        if a > b {
+            std::mem::swap(&mut a, &mut b);
+        }
+        t0 = t0.max(a);
+        t1 = t1.min(b * ROBUST_SCALE);
+    }
+    (t0 <= t1).then_some(t0)
+}

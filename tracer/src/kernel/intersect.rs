@@ -1,0 +1,95 @@
+#[kernel_dsl::kernel]
+pub mod intersect {
+    //! Ray/triangle (Möller–Trumbore) and ray/box (slab) tests. Comparisons are written so
+    //! that NaN (from degenerate or parallel cases) always means "miss" on every target.
+
+    use glam::Vec3;
+
+    /// The `t` of a miss. Finite, so that it compares and survives arithmetic on every target.
+    pub const MISS: f32 = f32::MAX;
+
+    /// A ray/triangle intersection: distance along the ray and barycentrics of v1 and v2.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct TriangleHit {
+        pub t: f32,
+        pub u: f32,
+        pub v: f32,
+    }
+
+    /// Möller–Trumbore, two-sided. A hit needs 0 < t, u >= 0, v >= 0, u + v <= 1 (edges and
+    /// vertices count as inside). Rays in the triangle's plane and zero-area triangles miss.
+    pub fn intersect_triangle(origin: Vec3, dir: Vec3, v0: Vec3, v1: Vec3, v2: Vec3) -> TriangleHit {
+        let miss = TriangleHit { t: MISS, u: 0.0, v: 0.0 };
+        let e1 = v1 - v0;
+        let e2 = v2 - v0;
+        let p = dir.cross(e2);
+        let det = e1.dot(p);
+        if det == 0.0 {
+            return miss;
+        }
+        let inv_det = 1.0 / det;
+        let s = origin - v0;
+        let u = s.dot(p) * inv_det;
+        if !(u >= 0.0 && u <= 1.0) {
+            return miss;
+        }
+        let q = s.cross(e1);
+        let v = dir.dot(q) * inv_det;
+        if !(v >= 0.0 && u + v <= 1.0) {
+            return miss;
+        }
+        let t = e2.dot(q) * inv_det;
+        if !(t > 0.0 && t < MISS) {
+            return miss;
+        }
+        TriangleHit { t, u, v }
+    }
+
+    /// `1 / dir` with zero components replaced by a tiny value of the same sign, so that
+    /// slab tests never compute `0 * inf` (NaN, and GLSL's min/max are undefined on NaN).
+    pub fn safe_inverse(dir: Vec3) -> Vec3 {
+        let tiny = 1.0e-20;
+        let x = if dir.x.abs() < tiny {
+            if dir.x >= 0.0 {
+                tiny
+            } else {
+                -tiny
+            }
+        } else {
+            dir.x
+        };
+        let y = if dir.y.abs() < tiny {
+            if dir.y >= 0.0 {
+                tiny
+            } else {
+                -tiny
+            }
+        } else {
+            dir.y
+        };
+        let z = if dir.z.abs() < tiny {
+            if dir.z >= 0.0 {
+                tiny
+            } else {
+                -tiny
+            }
+        } else {
+            dir.z
+        };
+        Vec3::new(1.0 / x, 1.0 / y, 1.0 / z)
+    }
+
+    /// Slab test against the box [bmin, bmax] for t in [0, t_max]: the entry distance
+    /// (0 when the origin is inside), or `MISS`. `inv_dir` comes from `safe_inverse`.
+    pub fn intersect_aabb(origin: Vec3, inv_dir: Vec3, bmin: Vec3, bmax: Vec3, t_max: f32) -> f32 {
+        let t0 = (bmin - origin) * inv_dir;
+        let t1 = (bmax - origin) * inv_dir;
+        let enter = t0.min(t1).max_element().max(0.0);
+        let exit = t0.max(t1).min_element().min(t_max);
+        if enter <= exit {
+            enter
+        } else {
+            MISS
+        }
+    }
+}

@@ -1,0 +1,54 @@
+//! The path-tracing kernel, written in the kernel DSL. Each file holds one `#[kernel]` module;
+//! the same code runs on the CPU and is generated into GLSL ES 3.00 and WGSL
+//! (`shaders-generated/`, regenerated with `cargo run -- shaders`).
+
+#[path = "intersect.rs"]
+mod intersect_src;
+#[path = "rng.rs"]
+mod rng_src;
+#[path = "sampling.rs"]
+mod sampling_src;
+
+pub use intersect_src::intersect;
+pub use rng_src::rng;
+pub use sampling_src::sampling;
+
+/// Every kernel module's IR, in link order.
+pub fn modules() -> Vec<kernel_dsl::ir::Module> {
+    vec![rng::kernel_ir(), sampling::kernel_ir(), intersect::kernel_ir()]
+}
+
+/// One generated shader file.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GeneratedFile {
+    /// File name inside `shaders-generated/`, e.g. `rng.wgsl`.
+    pub name: String,
+    pub source: String,
+}
+
+/// The contents of `shaders-generated/`: for every kernel module, a GLSL ES 3.00 and a WGSL
+/// file holding its functions and everything they use from other modules, each validated
+/// (WGSL by naga, GLSL parsed by glsl-lang) before it is returned.
+pub fn generated_shaders() -> Result<Vec<GeneratedFile>, ShaderError> {
+    use lightport_codegen::{Program, Selection, Target};
+    let modules = modules();
+    let program = Program::link(&modules)?;
+    let mut files = Vec::new();
+    for module in program.module_names() {
+        for target in [Target::GlslEs300, Target::Wgsl] {
+            let generated = program.emit(target, &Selection::module(&program, &module))?;
+            lightport_codegen::validate::validate(&generated)?;
+            files.push(GeneratedFile { name: format!("{module}.{}", target.extension()), source: generated.source });
+        }
+    }
+    Ok(files)
+}
+
+/// Code generation or validation of the kernel failed (reported against its Rust source).
+#[derive(Debug, thiserror::Error)]
+pub enum ShaderError {
+    #[error(transparent)]
+    Codegen(#[from] lightport_codegen::CodegenError),
+    #[error(transparent)]
+    Validation(#[from] lightport_codegen::validate::ValidationError),
+}

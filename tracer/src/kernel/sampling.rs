@@ -1,0 +1,62 @@
+#[kernel_dsl::kernel]
+pub mod sampling {
+    //! Direction sampling: an orthonormal basis around a normal and cosine-weighted
+    //! hemisphere sampling (the Lambert BSDF's importance sampling).
+
+    use glam::{Vec2, Vec3};
+
+    pub const PI: f32 = core::f32::consts::PI;
+    pub const INV_PI: f32 = core::f32::consts::FRAC_1_PI;
+
+    /// An orthonormal basis; `normal` is the local +Z axis.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct Onb {
+        pub tangent: Vec3,
+        pub bitangent: Vec3,
+        pub normal: Vec3,
+    }
+
+    /// Duff et al. 2017, "Building an Orthonormal Basis, Revisited": branch-light and
+    /// continuous except across z = 0. `n` must be unit length.
+    pub fn onb_from_normal(n: Vec3) -> Onb {
+        let sign = if n.z >= 0.0 { 1.0 } else { -1.0 };
+        let a = -1.0 / (sign + n.z);
+        let b = n.x * n.y * a;
+        Onb {
+            tangent: Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+            bitangent: Vec3::new(b, sign + n.y * n.y * a, -n.y),
+            normal: n,
+        }
+    }
+
+    /// Local (tangent, bitangent, normal) coordinates to world space.
+    pub fn onb_to_world(onb: Onb, v: Vec3) -> Vec3 {
+        onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z
+    }
+
+    /// A cosine-weighted direction on the +Z hemisphere from two uniforms in [0, 1)
+    /// (Malley's method on the polar disk mapping). Its pdf is `cos_theta / PI`.
+    pub fn cosine_sample_hemisphere(u1: f32, u2: f32) -> Vec3 {
+        let r = u1.sqrt();
+        let phi = 2.0 * PI * u2;
+        let z = (1.0 - u1).max(0.0).sqrt();
+        Vec3::new(r * phi.cos(), r * phi.sin(), z)
+    }
+
+    /// The solid-angle pdf of `cosine_sample_hemisphere` for a direction at `cos_theta`.
+    pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
+        cos_theta.max(0.0) * INV_PI
+    }
+
+    /// A cosine-weighted direction around the unit normal `n`.
+    pub fn sample_cosine_around(n: Vec3, u1: f32, u2: f32) -> Vec3 {
+        onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2))
+    }
+
+    /// Uniform barycentrics (u, v) on a triangle from two uniforms (Shirley's square-root
+    /// mapping): the point is `(1 - u - v) * p0 + u * p1 + v * p2`.
+    pub fn uniform_sample_triangle(u1: f32, u2: f32) -> Vec2 {
+        let s = u1.sqrt();
+        Vec2::new(s * (1.0 - u2), s * u2)
+    }
+}

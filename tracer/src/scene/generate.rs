@@ -1,0 +1,154 @@
+//! Scenes generated in code: the embedded Cornell box and small analytic test scenes.
+
+use glam::{Vec2, Vec3};
+
+use super::{flat_normal, Camera, Material, Scene, Triangle};
+
+/// Appends the two triangles of quad `q` (counter-clockwise seen from its front) with flat
+/// normals and unit-square texture coordinates.
+fn quad(out: &mut Vec<Triangle>, q: [Vec3; 4], material: u32) {
+    let uv = [Vec2::new(0.0, 1.0), Vec2::new(1.0, 1.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 0.0)];
+    for [a, b, c] in [[0, 1, 2], [0, 2, 3]] {
+        let positions = [q[a], q[b], q[c]];
+        out.push(Triangle { positions, normals: [flat_normal(&positions); 3], uvs: [uv[a], uv[b], uv[c]], material });
+    }
+}
+
+fn v(x: f32, y: f32, z: f32) -> Vec3 {
+    Vec3::new(x, y, z)
+}
+
+/// The embedded default scene: the Cornell box as measured in McGuire's
+/// `CornellBox-Original` (about 2 m wide, opening towards +Z): red left wall, green right wall,
+/// white floor, ceiling and back wall, a short and a tall box, and a 0.47 x 0.38 m ceiling light
+/// emitting radiance (17, 12, 4). 36 triangles, 8 materials, camera at (0, 1, 3) looking -Z
+/// with a 39.6° vertical field of view.
+///
+/// Unlike the OBJ (whose box "bottom" faces repeat a side face), the boxes' bottoms here face
+/// the floor; they are invisible either way.
+pub fn cornell_box() -> Scene {
+    let white = Vec3::new(0.725, 0.71, 0.68);
+    let materials = vec![
+        Material::diffuse("floor", white),
+        Material::diffuse("ceiling", white),
+        Material::diffuse("backWall", white),
+        Material::diffuse("rightWall", Vec3::new(0.14, 0.45, 0.091)),
+        Material::diffuse("leftWall", Vec3::new(0.63, 0.065, 0.05)),
+        Material::diffuse("shortBox", white),
+        Material::diffuse("tallBox", white),
+        Material::emissive("light", Vec3::splat(0.78), Vec3::new(17.0, 12.0, 4.0)),
+    ];
+    let (floor, ceiling, back, right, left, short, tall, light) = (0, 1, 2, 3, 4, 5, 6, 7);
+    let mut t = Vec::with_capacity(36);
+    quad(&mut t, [v(-1.01, 0.0, 0.99), v(1.0, 0.0, 0.99), v(1.0, 0.0, -1.04), v(-0.99, 0.0, -1.04)], floor);
+    quad(&mut t, [v(-1.02, 1.99, 0.99), v(-1.02, 1.99, -1.04), v(1.0, 1.99, -1.04), v(1.0, 1.99, 0.99)], ceiling);
+    quad(&mut t, [v(-0.99, 0.0, -1.04), v(1.0, 0.0, -1.04), v(1.0, 1.99, -1.04), v(-1.02, 1.99, -1.04)], back);
+    quad(&mut t, [v(1.0, 0.0, -1.04), v(1.0, 0.0, 0.99), v(1.0, 1.99, 0.99), v(1.0, 1.99, -1.04)], right);
+    quad(&mut t, [v(-1.01, 0.0, 0.99), v(-0.99, 0.0, -1.04), v(-1.02, 1.99, -1.04), v(-1.02, 1.99, 0.99)], left);
+    // Short box: footprint corners (x, z), height 0.6.
+    let s = [(0.53, 0.75), (0.70, 0.17), (0.13, 0.00), (-0.05, 0.57)];
+    prism(&mut t, s, 0.6, short);
+    // Tall box, height 1.2.
+    let h = [(-0.53, 0.09), (0.04, -0.09), (-0.14, -0.67), (-0.71, -0.49)];
+    prism(&mut t, h, 1.2, tall);
+    quad(&mut t, [v(-0.24, 1.98, 0.16), v(-0.24, 1.98, -0.22), v(0.23, 1.98, -0.22), v(0.23, 1.98, 0.16)], light);
+    Scene {
+        triangles: t,
+        materials,
+        camera: Camera::look_at(v(0.0, 1.0, 3.0), v(0.0, 1.0, 0.0), Vec3::Y, 0.6911),
+        ..Scene::default()
+    }
+}
+
+/// A box standing on y = 0 with footprint `f` (corners in counter-clockwise order seen from
+/// above) and height `h`: top, four sides and bottom, all facing outwards.
+fn prism(out: &mut Vec<Triangle>, f: [(f32, f32); 4], h: f32, material: u32) {
+    let lo = f.map(|(x, z)| v(x, 0.0, z));
+    let hi = f.map(|(x, z)| v(x, h, z));
+    quad(out, hi, material);
+    for i in 0..4 {
+        let j = (i + 1) % 4;
+        quad(out, [lo[j], hi[j], hi[i], lo[i]], material);
+    }
+    quad(out, [lo[3], lo[2], lo[1], lo[0]], material);
+}
+
+/// A closed cube `[-1, 1]³` seen from the inside (normals point inwards), every surface with
+/// diffuse albedo `albedo` and emitted radiance `emission`. The camera sits at the centre
+/// looking -Z with a 60° field of view.
+///
+/// The white-furnace result: every pixel converges to `emission / (1 - albedo)` per channel
+/// (for albedo < 1), whatever the path tracer's sampling, which tests energy conservation.
+pub fn white_furnace(albedo: Vec3, emission: Vec3) -> Scene {
+    let mut t = Vec::with_capacity(12);
+    let c = |x: f32, y: f32, z: f32| v(x, y, z);
+    // Counter-clockwise seen from inside the cube.
+    let faces = [
+        [c(-1., -1., -1.), c(1., -1., -1.), c(1., -1., 1.), c(-1., -1., 1.)], // floor, faces +Y
+        [c(-1., 1., -1.), c(-1., 1., 1.), c(1., 1., 1.), c(1., 1., -1.)],     // ceiling, -Y
+        [c(-1., -1., -1.), c(-1., 1., -1.), c(1., 1., -1.), c(1., -1., -1.)], // back, +Z
+        [c(-1., -1., 1.), c(1., -1., 1.), c(1., 1., 1.), c(-1., 1., 1.)],     // front, -Z
+        [c(-1., -1., -1.), c(-1., -1., 1.), c(-1., 1., 1.), c(-1., 1., -1.)], // left, +X
+        [c(1., -1., -1.), c(1., 1., -1.), c(1., 1., 1.), c(1., -1., 1.)],     // right, -X
+    ];
+    for f in faces {
+        quad(&mut t, f, 0);
+    }
+    Scene {
+        triangles: t,
+        materials: vec![Material::emissive("furnace", albedo, emission)],
+        camera: Camera::look_at(Vec3::ZERO, Vec3::NEG_Z, Vec3::Y, 60f32.to_radians()),
+        ..Scene::default()
+    }
+}
+
+/// A single square diffuse plane (y = 0, 20 x 20 m, facing +Y) with albedo `albedo`, and a
+/// camera 1 m above looking straight down (60° field of view, so only the plane is in view).
+///
+/// Under a uniform sky of radiance `L` (see [`super::Sky::uniform`]) with nothing else in the
+/// scene, every pixel converges to `albedo x L`.
+pub fn diffuse_plane(albedo: Vec3) -> Scene {
+    let mut t = Vec::with_capacity(2);
+    let s = 10.0;
+    quad(&mut t, [v(-s, 0.0, s), v(s, 0.0, s), v(s, 0.0, -s), v(-s, 0.0, -s)], 0);
+    Scene {
+        triangles: t,
+        materials: vec![Material::diffuse("plane", albedo)],
+        camera: Camera::look_at(v(0.0, 1.0, 0.0), Vec3::ZERO, Vec3::NEG_Z, 60f32.to_radians()),
+        ..Scene::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cornell_box_is_valid_and_closed_towards_the_camera() {
+        let s = cornell_box();
+        s.validate().unwrap();
+        assert_eq!(s.triangles.len(), 36);
+        assert_eq!(s.emissive_triangle_count(), 2);
+        // Walls, floor and ceiling face the inside of the box.
+        let center = v(0.0, 1.0, 0.0);
+        for t in &s.triangles[..10] {
+            let centroid = (t.positions[0] + t.positions[1] + t.positions[2]) / 3.0;
+            assert!(t.normals[0].dot(center - centroid) > 0.0, "{t:?}");
+        }
+        // Box faces point away from their box's axis; the light faces down.
+        assert!(s.triangles[34].normals[0].y < -0.99);
+    }
+
+    #[test]
+    fn analytic_scenes_face_the_right_way() {
+        let f = white_furnace(Vec3::splat(0.5), Vec3::ONE);
+        f.validate().unwrap();
+        for t in &f.triangles {
+            let centroid = (t.positions[0] + t.positions[1] + t.positions[2]) / 3.0;
+            assert!(t.normals[0].dot(-centroid) > 0.0);
+        }
+        let p = diffuse_plane(Vec3::splat(0.5));
+        p.validate().unwrap();
+        assert!(p.triangles.iter().all(|t| t.normals[0] == Vec3::Y));
+    }
+}

@@ -1,0 +1,841 @@
+//! glTF 2.0 (`.gltf` + external/data-URI buffers, and `.glb`) loading.
+//!
+//! The `gltf` crate parses and validates the JSON; everything after that (GLB container,
+//! buffers, accessors, images, the node graph) is read here from the JSON structures with
+//! checked lookups only, so that no file can make the loader panic, hang or over-allocate.
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::rc::Rc;
+
+use glam::{Mat3, Mat4, Quat, Vec2, Vec3};
+use gltf::json::camera::Type as CameraType;
+use gltf::json::extensions::scene::khr_lights_punctual::Type as LightType;
+use gltf::json::material::AlphaMode;
+use gltf::json::mesh::{Mode, Semantic};
+use gltf::json::texture::WrappingMode;
+use gltf::json::validation::Checked;
+use gltf::json::Root;
+use serde_json::{Map, Value};
+
+use super::accessor::Buffers;
+use super::texture::{decode_srgb, Decoded, Image};
+use super::util::{read_file, read_uri};
+use super::{
+    flat_normal, Aabb, Camera, LoadOptions, Material, PointLight, Scene, SceneError, Texture, Triangle, Warnings, Wrap,
+    MAX_TRIANGLES,
+};
+
+/// Extensions Lightport implements.
+const SUPPORTED_EXTENSIONS: &[&str] =
+    &["KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_mesh_quantization"];
+
+/// Extensions whose absence only changes the look, so a file requiring them is still rendered
+/// (with a warning): material models, texture transforms, variants, animation.
+fn is_approximable(ext: &str) -> bool {
+    ext.starts_with("KHR_materials_")
+        || ext == "KHR_texture_transform"
+        || ext == "KHR_animation_pointer"
+        || ext == "KHR_xmp_json_ld"
+}
+
+/// What Lightport does about an extension it does not implement, for the warning text.
+fn extension_note(ext: &str) -> &'static str {
+    match ext {
+        "KHR_materials_transmission" | "KHR_materials_volume" | "KHR_materials_diffuse_transmission" => {
+            "transmissive surfaces are rendered as opaque diffuse"
+        }
+        "KHR_texture_transform" => "textures are sampled without their transform",
+        "KHR_draco_mesh_compression" | "EXT_meshopt_compression" | "KHR_meshopt_compression" => {
+            "compressed primitives are read from their uncompressed fallback, or skipped"
+        }
+        "KHR_materials_variants" => "the default materials are used",
+        "KHR_texture_basisu" | "EXT_texture_webp" | "EXT_texture_avif" | "MSFT_texture_dds" => {
+            "the fallback PNG/JPEG image is used when there is one"
+        }
+        "KHR_node_visibility" => "every node is rendered visible",
+        "KHR_animation_pointer" => "animations are ignored",
+        e if e.starts_with("KHR_materials_") => "that part of the material is ignored (diffuse model)",
+        _ => "ignored",
+    }
+}
+
+fn malformed(m: String) -> SceneError {
+    SceneError::Malformed(m)
+}
+
+/// Loads a `.gltf` or `.glb` file. External files are resolved next to it.
+pub(crate) fn load_gltf(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError> {
+    let bytes = read_file(path)?;
+    let base = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    load_gltf_slice(&bytes, Some(base), options)
+}
+
+/// Loads glTF (JSON or GLB, recognised by content) from memory. Relative URIs are resolved
+/// against `base_dir`; with `None`, only embedded data (GLB chunk, data URIs) can be used.
+pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>, options: &LoadOptions) -> Result<Scene, SceneError> {
+    let (json, bin) = split_container(bytes)?;
+    let mut root: Root =
+        gltf::json::deserialize::from_slice(json).map_err(|e| SceneError::InvalidGltf(format!("JSON: {e}")))?;
+    let mut warnings = Warnings::default();
+    check_extensions(&mut root, &mut warnings)?;
+    precheck(&root)?;
+    let document = gltf::Document::from_json(root).map_err(validation_error)?;
+    let root = document.as_json();
+    let loader = Loader {
+        root,
+        buffers: Buffers::new(root, base_dir, bin),
+        base_dir,
+        warnings,
+        triangles: Vec::new(),
+        materials: Vec::new(),
+        material_map: HashMap::new(),
+        textures: Vec::new(),
+        texture_map: HashMap::new(),
+        images: HashMap::new(),
+        meshes: HashMap::new(),
+        point_lights: Vec::new(),
+        camera: None,
+        saw_orthographic: false,
+        allow_missing_textures: options.allow_missing_textures,
+    };
+    loader.run()
+}
+
+/// Splits a GLB container into its JSON and BIN chunks; other input is returned as JSON.
+fn split_container(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), SceneError> {
+    let invalid = |m: String| SceneError::InvalidGltf(m);
+    if bytes.is_empty() {
+        return Err(invalid("the file is empty".into()));
+    }
+    if !bytes.starts_with(b"glTF") {
+        return Ok((bytes, None));
+    }
+    let u32_at = |at: usize| bytes.get(at..at + 4).and_then(|b| b.try_into().ok()).map(u32::from_le_bytes);
+    let version = u32_at(4).ok_or_else(|| invalid("GLB header is truncated".into()))?;
+    if version != 2 {
+        return Err(invalid(format!("GLB version {version}, expected 2")));
+    }
+    let length = u32_at(8).ok_or_else(|| invalid("GLB header is truncated".into()))? as usize;
+    if length > bytes.len() {
+        return Err(invalid(format!("GLB is truncated: its header says {length} bytes, the file has {}", bytes.len())));
+    }
+    let data =
+        bytes.get(12..length).ok_or_else(|| invalid(format!("GLB length {length} is smaller than its header")))?;
+    let mut json = None;
+    let mut bin = None;
+    let mut pos = 0usize;
+    let mut chunk = 0;
+    while pos < data.len() {
+        let header = data.get(pos..pos + 8).ok_or_else(|| invalid(format!("GLB chunk {chunk} header is truncated")))?;
+        let len = u32::from_le_bytes([header[0], header[1], header[2], header[3]]) as usize;
+        let kind = &header[4..8];
+        let start = pos + 8;
+        let content = start.checked_add(len).and_then(|end| data.get(start..end)).ok_or_else(|| {
+            invalid(format!("GLB chunk {chunk} is truncated: {len} bytes declared, {} left", data.len() - start))
+        })?;
+        match (chunk, kind) {
+            (0, b"JSON") => json = Some(content),
+            (0, _) => return Err(invalid("the first GLB chunk is not JSON".into())),
+            (_, b"BIN\0") if bin.is_none() => bin = Some(content),
+            (_, b"JSON") => return Err(invalid("GLB has more than one JSON chunk".into())),
+            (_, b"BIN\0") => return Err(invalid("GLB has more than one BIN chunk".into())),
+            _ => {} // unknown chunks are skipped, as the spec asks
+        }
+        pos = start + len;
+        chunk += 1;
+    }
+    let json = json.ok_or_else(|| invalid("GLB has no JSON chunk".into()))?;
+    Ok((json, bin))
+}
+
+/// Applies the extension policy: required extensions Lightport cannot honour refuse the file;
+/// approximable ones are accepted with a warning; unsupported used ones are warned about.
+fn check_extensions(root: &mut Root, warnings: &mut Warnings) -> Result<(), SceneError> {
+    for ext in &root.extensions_required {
+        if SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
+            continue;
+        }
+        if !is_approximable(ext) {
+            return Err(SceneError::UnsupportedRequiredExtension(ext.clone()));
+        }
+    }
+    // The gltf crate's validation refuses required extensions it does not know; this loader
+    // has decided about each of them above.
+    root.extensions_required.clear();
+    let used: Vec<String> = root.extensions_used.clone();
+    for ext in used {
+        warn_extension(warnings, &ext);
+    }
+    Ok(())
+}
+
+fn warn_extension(warnings: &mut Warnings, ext: &str) {
+    if SUPPORTED_EXTENSIONS.contains(&ext) {
+        return;
+    }
+    warnings.once(ext, || format!("{ext} is not supported: {}", extension_note(ext)));
+}
+
+fn warn_extensions(warnings: &mut Warnings, map: Option<&Map<String, Value>>) {
+    for key in map.into_iter().flat_map(|m| m.keys()) {
+        warn_extension(warnings, key);
+    }
+}
+
+/// Checks the few things the `gltf` crate's validation would index without checking.
+fn precheck(root: &Root) -> Result<(), SceneError> {
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            for (semantic, accessor) in &prim.attributes {
+                if accessor.value() >= root.accessors.len() {
+                    return Err(malformed(format!(
+                        "mesh {m} primitive {p}: attribute {semantic:?} uses accessor {}, which does not exist",
+                        accessor.value()
+                    )));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn validation_error(e: gltf::Error) -> SceneError {
+    match e {
+        gltf::Error::Validation(list) => {
+            let shown: Vec<String> = list.iter().take(4).map(|(path, err)| format!("{path}: {err}")).collect();
+            let more = list.len().saturating_sub(shown.len());
+            let tail = if more > 0 { format!(" (and {more} more)") } else { String::new() };
+            SceneError::InvalidGltf(format!("{}{tail}", shown.join("; ")))
+        }
+        other => SceneError::InvalidGltf(other.to_string()),
+    }
+}
+
+/// One primitive's triangles in mesh space, decoded once per mesh and instanced per node.
+struct LocalPrimitive {
+    positions: Vec<Vec3>,
+    normals: Option<Vec<Vec3>>,
+    uvs: Option<Vec<Vec2>>,
+    triangles: Vec<[u32; 3]>,
+    material: u32,
+}
+
+/// The first perspective camera found, before its focus distance is known.
+struct FoundCamera {
+    position: Vec3,
+    forward: Vec3,
+    up: Vec3,
+    yfov: f32,
+}
+
+struct Loader<'a> {
+    root: &'a Root,
+    buffers: Buffers<'a>,
+    base_dir: Option<&'a Path>,
+    warnings: Warnings,
+    triangles: Vec<Triangle>,
+    materials: Vec<Material>,
+    material_map: HashMap<Option<usize>, u32>,
+    textures: Vec<Texture>,
+    texture_map: HashMap<usize, Option<u32>>,
+    images: HashMap<usize, Option<Rc<Image>>>,
+    meshes: HashMap<usize, Rc<Vec<LocalPrimitive>>>,
+    point_lights: Vec<PointLight>,
+    camera: Option<FoundCamera>,
+    saw_orthographic: bool,
+    allow_missing_textures: bool,
+}
+
+impl Loader<'_> {
+    fn run(mut self) -> Result<Scene, SceneError> {
+        let root = self.root;
+        if !root.animations.is_empty() {
+            self.warnings
+                .once("animations", || "animations are not supported: the scene is rendered in its rest pose".into());
+        }
+        warn_extensions(&mut self.warnings, root.extensions.as_ref().map(|e| &e.others));
+        let roots = self.scene_roots()?;
+        self.visit(&roots)?;
+
+        if self.triangles.is_empty() {
+            let why = if self.warnings.list_is_empty() {
+                " (no meshes in the scene)".to_owned()
+            } else {
+                format!(" ({})", self.warnings.joined())
+            };
+            return Err(SceneError::NoTriangles(why));
+        }
+        let mut scene = Scene {
+            triangles: self.triangles,
+            materials: self.materials,
+            textures: self.textures,
+            point_lights: self.point_lights,
+            camera: Camera::default(),
+            sky: None,
+            warnings: Vec::new(),
+        };
+        let bounds = scene.bounds();
+        scene.camera = match self.camera {
+            Some(c) => finish_camera(c, &bounds),
+            None => {
+                if self.saw_orthographic {
+                    self.warnings.once("orthographic camera", || {
+                        "orthographic cameras are not supported: a perspective camera framing the scene is used".into()
+                    });
+                }
+                Camera::framing(&bounds)
+            }
+        };
+        scene.warnings = self.warnings.into_vec();
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// The root nodes of the scene to render: the default scene, else the first, else (no
+    /// scenes at all) every node that is nobody's child.
+    fn scene_roots(&mut self) -> Result<Vec<usize>, SceneError> {
+        let root = self.root;
+        let index = root.scene.map(|s| s.value()).or(if root.scenes.is_empty() { None } else { Some(0) });
+        if let Some(i) = index {
+            let scene = root.scenes.get(i).ok_or_else(|| malformed(format!("scene {i} does not exist")))?;
+            warn_extensions(&mut self.warnings, scene.extensions.as_ref().map(|e| &e.others));
+            return Ok(scene.nodes.iter().map(|n| n.value()).collect());
+        }
+        if root.nodes.is_empty() {
+            return Ok(Vec::new());
+        }
+        self.warnings.once("no scene", || "the file defines no scene: all root nodes are rendered".into());
+        let mut is_child = vec![false; root.nodes.len()];
+        for node in &root.nodes {
+            for c in node.children.iter().flatten() {
+                if let Some(flag) = is_child.get_mut(c.value()) {
+                    *flag = true;
+                }
+            }
+        }
+        Ok((0..root.nodes.len()).filter(|&n| !is_child[n]).collect())
+    }
+
+    /// Walks the node hierarchy depth-first (pre-order, children in file order).
+    fn visit(&mut self, roots: &[usize]) -> Result<(), SceneError> {
+        let root = self.root;
+        let mut visited = vec![false; root.nodes.len()];
+        let mut stack: Vec<(usize, Mat4)> = roots.iter().rev().map(|&n| (n, Mat4::IDENTITY)).collect();
+        while let Some((n, parent)) = stack.pop() {
+            let node = root.nodes.get(n).ok_or_else(|| malformed(format!("node {n} does not exist")))?;
+            let seen = visited.get_mut(n).ok_or_else(|| malformed(format!("node {n} does not exist")))?;
+            if *seen {
+                return Err(malformed(format!(
+                    "node {n} is reached twice: the node hierarchy must be a tree (no cycles, no shared children)"
+                )));
+            }
+            *seen = true;
+            let world = parent * node_matrix(node, n)?;
+            if !world.is_finite() {
+                return Err(malformed(format!("node {n} has a non-finite world transform")));
+            }
+            if node.skin.is_some() {
+                self.warnings
+                    .once("skinning", || "skinning is not supported: skinned meshes are rendered unskinned".into());
+            }
+            if let Some(ext) = &node.extensions {
+                warn_extensions(&mut self.warnings, Some(&ext.others));
+                if let Some(l) = &ext.khr_lights_punctual {
+                    self.light(l.light.value(), n, &world)?;
+                }
+            }
+            if let Some(c) = node.camera {
+                self.camera(c.value(), &world)?;
+            }
+            if let Some(m) = node.mesh {
+                self.instantiate(m.value(), &world)?;
+            }
+            for child in node.children.iter().flatten().rev() {
+                stack.push((child.value(), world));
+            }
+        }
+        Ok(())
+    }
+
+    fn camera(&mut self, index: usize, world: &Mat4) -> Result<(), SceneError> {
+        if self.camera.is_some() {
+            return Ok(());
+        }
+        let cam = self.root.cameras.get(index).ok_or_else(|| malformed(format!("camera {index} does not exist")))?;
+        let perspective = match (cam.type_, &cam.perspective) {
+            (Checked::Valid(CameraType::Perspective), Some(p)) => p,
+            _ => {
+                self.saw_orthographic = true;
+                return Ok(());
+            }
+        };
+        let yfov = perspective.yfov;
+        if !(yfov > 0.0 && yfov < std::f32::consts::PI) {
+            return Err(malformed(format!("camera {index}: yfov {yfov} is not in (0, π)")));
+        }
+        let forward = world.transform_vector3(Vec3::NEG_Z).normalize_or_zero();
+        let up = world.transform_vector3(Vec3::Y).normalize_or_zero();
+        if forward == Vec3::ZERO || up == Vec3::ZERO {
+            self.warnings
+                .once("degenerate camera", || "a camera node has a degenerate transform: it is ignored".into());
+            return Ok(());
+        }
+        self.camera = Some(FoundCamera { position: world.transform_point3(Vec3::ZERO), forward, up, yfov });
+        Ok(())
+    }
+
+    fn light(&mut self, index: usize, node: usize, world: &Mat4) -> Result<(), SceneError> {
+        let light = self
+            .root
+            .extensions
+            .as_ref()
+            .and_then(|e| e.khr_lights_punctual.as_ref())
+            .and_then(|l| l.lights.get(index))
+            .ok_or_else(|| {
+                malformed(format!("node {node} uses KHR_lights_punctual light {index}, which does not exist"))
+            })?;
+        let intensity = Vec3::from(light.color) * light.intensity;
+        if !intensity.is_finite() || intensity.min_element() < 0.0 {
+            return Err(malformed(format!(
+                "KHR_lights_punctual light {index}: color x intensity must be finite and >= 0"
+            )));
+        }
+        match light.type_ {
+            Checked::Valid(LightType::Point) => {}
+            Checked::Valid(LightType::Spot) => self.warnings.once("spot lights", || {
+                "KHR_lights_punctual spot lights are treated as point lights (their cone is ignored)".into()
+            }),
+            Checked::Valid(LightType::Directional) => {
+                self.warnings.once("directional lights", || {
+                    "KHR_lights_punctual directional lights are not supported: they are ignored".into()
+                });
+                return Ok(());
+            }
+            Checked::Invalid => {
+                return Err(malformed(format!("KHR_lights_punctual light {index} has an invalid type")))
+            }
+        }
+        self.point_lights.push(PointLight { position: world.transform_point3(Vec3::ZERO), intensity });
+        Ok(())
+    }
+
+    /// Appends a mesh instance's world-space triangles.
+    fn instantiate(&mut self, mesh: usize, world: &Mat4) -> Result<(), SceneError> {
+        let prims = self.mesh(mesh)?;
+        let linear = Mat3::from_mat4(*world);
+        let det = linear.determinant();
+        if det == 0.0 {
+            return Ok(()); // a zero scale hides the mesh: nothing to render
+        }
+        let normal_matrix = linear.inverse().transpose();
+        let flip = det < 0.0;
+        let added: usize = prims.iter().map(|p| p.triangles.len()).sum();
+        if self.triangles.len().saturating_add(added) > MAX_TRIANGLES {
+            return Err(SceneError::TooLarge(format!(
+                "the scene has more than {MAX_TRIANGLES} triangles after instancing"
+            )));
+        }
+        self.triangles.reserve(added);
+        for prim in prims.iter() {
+            for tri in &prim.triangles {
+                let mut idx = *tri;
+                if flip {
+                    idx.swap(1, 2);
+                }
+                let fetch = |i: u32| prim.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO);
+                let positions = idx.map(|i| world.transform_point3(fetch(i)));
+                if !positions.iter().all(|p| p.is_finite()) {
+                    return Err(malformed(format!("mesh {mesh}: a vertex is not finite after its node transform")));
+                }
+                let flat = flat_normal(&positions);
+                let normals = match &prim.normals {
+                    Some(ns) => idx.map(|i| {
+                        let n = ns.get(i as usize).copied().unwrap_or(Vec3::ZERO);
+                        let n = (normal_matrix * n).normalize_or_zero();
+                        if n == Vec3::ZERO {
+                            flat
+                        } else {
+                            n
+                        }
+                    }),
+                    None => [flat; 3],
+                };
+                let uvs = match &prim.uvs {
+                    Some(uv) => idx.map(|i| uv.get(i as usize).copied().unwrap_or(Vec2::ZERO)),
+                    None => [Vec2::ZERO; 3],
+                };
+                self.triangles.push(Triangle { positions, normals, uvs, material: prim.material });
+            }
+        }
+        Ok(())
+    }
+
+    /// Decodes a mesh's primitives (once per mesh).
+    fn mesh(&mut self, index: usize) -> Result<Rc<Vec<LocalPrimitive>>, SceneError> {
+        if let Some(m) = self.meshes.get(&index) {
+            return Ok(m.clone());
+        }
+        let mesh = self.root.meshes.get(index).ok_or_else(|| malformed(format!("mesh {index} does not exist")))?;
+        warn_extensions(&mut self.warnings, mesh.extensions.as_ref().map(|e| &e.others));
+        let mut prims = Vec::with_capacity(mesh.primitives.len());
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            if let Some(local) = self.primitive(index, p, prim)? {
+                prims.push(local);
+            }
+        }
+        let prims = Rc::new(prims);
+        self.meshes.insert(index, prims.clone());
+        Ok(prims)
+    }
+
+    fn primitive(
+        &mut self,
+        m: usize,
+        p: usize,
+        prim: &gltf::json::mesh::Primitive,
+    ) -> Result<Option<LocalPrimitive>, SceneError> {
+        let what = format!("mesh {m} primitive {p}");
+        let mode = match prim.mode {
+            Checked::Valid(mode) => mode,
+            Checked::Invalid => return Err(malformed(format!("{what}: invalid mode"))),
+        };
+        if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+            self.warnings.once("non-triangle primitive modes", || {
+                format!("primitive mode {mode:?} is not supported: only triangles (lists, strips, fans) are rendered; such primitives are skipped")
+            });
+            return Ok(None);
+        }
+        let ext = prim.extensions.as_ref().map(|e| &e.others);
+        warn_extensions(&mut self.warnings, ext);
+        let compressed = ext.is_some_and(|e| {
+            e.contains_key("KHR_draco_mesh_compression")
+                || e.contains_key("EXT_meshopt_compression")
+                || e.contains_key("KHR_meshopt_compression")
+        });
+        if prim.targets.as_ref().is_some_and(|t| !t.is_empty()) {
+            self.warnings.once("morph targets", || {
+                "morph targets are not supported: meshes are rendered in their base shape".into()
+            });
+        }
+        let mut position = None;
+        let mut normal = None;
+        let mut uv = None;
+        for (semantic, accessor) in &prim.attributes {
+            match semantic {
+                Checked::Valid(Semantic::Positions) => position = Some(accessor.value()),
+                Checked::Valid(Semantic::Normals) => normal = Some(accessor.value()),
+                Checked::Valid(Semantic::TexCoords(0)) => uv = Some(accessor.value()),
+                Checked::Valid(Semantic::Colors(0)) => self
+                    .warnings
+                    .once("COLOR_0", || "vertex colours (COLOR_0) are not supported: they are ignored".into()),
+                _ => {}
+            }
+        }
+        let position = position.ok_or_else(|| malformed(format!("{what}: no POSITION attribute")))?;
+        if compressed
+            && self.root.accessors.get(position).is_some_and(|a| a.buffer_view.is_none() && a.sparse.is_none())
+        {
+            // Compressed data only, no uncompressed fallback to read.
+            return Ok(None);
+        }
+        let positions = to_vec3(self.buffers.read_f32(position, 3, &format!("{what} POSITION"))?);
+        let vertex_count = positions.len();
+        let normals = match normal {
+            Some(a) => {
+                let n = to_vec3(self.buffers.read_f32(a, 3, &format!("{what} NORMAL"))?);
+                if n.len() != vertex_count {
+                    return Err(malformed(format!("{what}: NORMAL has {} elements, POSITION {vertex_count}", n.len())));
+                }
+                Some(n)
+            }
+            None => None,
+        };
+        let uvs = match uv {
+            Some(a) => {
+                let t = to_vec2(self.buffers.read_f32(a, 2, &format!("{what} TEXCOORD_0"))?);
+                if t.len() != vertex_count {
+                    return Err(malformed(format!(
+                        "{what}: TEXCOORD_0 has {} elements, POSITION {vertex_count}",
+                        t.len()
+                    )));
+                }
+                Some(t)
+            }
+            None => None,
+        };
+        let indices = match prim.indices {
+            Some(a) => {
+                let indices = self.buffers.read_indices(a.value(), &format!("{what} indices"))?;
+                if let Some(bad) = indices.iter().find(|&&i| i as usize >= vertex_count) {
+                    return Err(malformed(format!("{what}: index {bad} is out of range ({vertex_count} vertices)")));
+                }
+                indices
+            }
+            None => (0..vertex_count as u32).collect(),
+        };
+        let triangles = assemble(mode, &indices)
+            .ok_or_else(|| malformed(format!("{what}: {} indices do not form whole triangles", indices.len())))?;
+        let material = self.material(prim.material.map(|i| i.value()))?;
+        Ok(Some(LocalPrimitive { positions, normals, uvs, triangles, material }))
+    }
+
+    /// Our index of a glTF material (`None`: the glTF default material).
+    fn material(&mut self, index: Option<usize>) -> Result<u32, SceneError> {
+        if let Some(&m) = self.material_map.get(&index) {
+            return Ok(m);
+        }
+        let material = match index {
+            None => Material::diffuse("default", Vec3::ONE),
+            Some(i) => self.convert_material(i)?,
+        };
+        let id = self.materials.len() as u32;
+        self.materials.push(material);
+        self.material_map.insert(index, id);
+        Ok(id)
+    }
+
+    fn convert_material(&mut self, index: usize) -> Result<Material, SceneError> {
+        let m = self.root.materials.get(index).ok_or_else(|| malformed(format!("material {index} does not exist")))?;
+        let what = format!("material {index}");
+        let [r, g, b, _alpha] = m.pbr_metallic_roughness.base_color_factor.0;
+        let base_color = Vec3::new(r, g, b);
+        if !base_color.is_finite() {
+            return Err(malformed(format!("{what}: baseColorFactor is not finite")));
+        }
+        let base_color = base_color.clamp(Vec3::ZERO, Vec3::ONE);
+        let strength =
+            m.extensions.as_ref().and_then(|e| e.emissive_strength.as_ref()).map_or(1.0, |s| s.emissive_strength.0);
+        let emission = Vec3::from(m.emissive_factor.0) * strength;
+        if !emission.is_finite() || emission.min_element() < 0.0 {
+            return Err(malformed(format!("{what}: emissiveFactor x emissive_strength must be finite and >= 0")));
+        }
+        if let Checked::Valid(mode @ (AlphaMode::Mask | AlphaMode::Blend)) = m.alpha_mode {
+            self.warnings
+                .once("alphaMode", || format!("alphaMode {mode:?} is not supported: surfaces are rendered opaque"));
+        }
+        if m.normal_texture.is_some() {
+            self.warnings
+                .once("normalTexture", || "normal textures are not supported: shading uses the vertex normals".into());
+        }
+        if let Some(ext) = &m.extensions {
+            warn_extensions(&mut self.warnings, Some(&ext.others));
+        }
+        let base_color_texture = self.texture_info(m.pbr_metallic_roughness.base_color_texture.as_ref())?;
+        let emissive_texture =
+            if emission.max_element() > 0.0 { self.texture_info(m.emissive_texture.as_ref())? } else { None };
+        Ok(Material {
+            name: m.name.clone().unwrap_or_default(),
+            base_color,
+            base_color_texture,
+            emission,
+            emissive_texture,
+        })
+    }
+
+    fn texture_info(&mut self, info: Option<&gltf::json::texture::Info>) -> Result<Option<u32>, SceneError> {
+        let Some(info) = info else {
+            return Ok(None);
+        };
+        if let Some(ext) = &info.extensions {
+            warn_extensions(&mut self.warnings, Some(&ext.others));
+        }
+        if info.tex_coord != 0 {
+            let set = info.tex_coord;
+            self.warnings.once("texture coordinate sets", || {
+                format!("textures on TEXCOORD_{set} are not supported (only TEXCOORD_0): those textures are dropped")
+            });
+            return Ok(None);
+        }
+        self.texture(info.index.value())
+    }
+
+    fn texture(&mut self, index: usize) -> Result<Option<u32>, SceneError> {
+        if let Some(&t) = self.texture_map.get(&index) {
+            return Ok(t);
+        }
+        let tex = self.root.textures.get(index).ok_or_else(|| malformed(format!("texture {index} does not exist")))?;
+        if let Some(ext) = &tex.extensions {
+            warn_extensions(&mut self.warnings, Some(&ext.others));
+        }
+        let (wrap_s, wrap_t) = match tex.sampler {
+            None => (Wrap::Repeat, Wrap::Repeat),
+            Some(s) => {
+                let sampler = self
+                    .root
+                    .samplers
+                    .get(s.value())
+                    .ok_or_else(|| malformed(format!("sampler {} does not exist", s.value())))?;
+                (wrap(sampler.wrap_s), wrap(sampler.wrap_t))
+            }
+        };
+        let result = match self.image(tex.source.value())? {
+            None => None,
+            Some(img) => {
+                let id = self.textures.len() as u32;
+                self.textures.push(Texture {
+                    width: img.width,
+                    height: img.height,
+                    texels: img.texels.clone(),
+                    wrap_s,
+                    wrap_t,
+                });
+                Some(id)
+            }
+        };
+        self.texture_map.insert(index, result);
+        Ok(result)
+    }
+
+    /// Decodes image `index` (once). `None` when its format is not supported (warned).
+    fn image(&mut self, index: usize) -> Result<Option<Rc<Image>>, SceneError> {
+        if let Some(img) = self.images.get(&index) {
+            return Ok(img.clone());
+        }
+        let json = self.root.images.get(index).ok_or_else(|| malformed(format!("image {index} does not exist")))?;
+        let name = match &json.uri {
+            Some(uri) if !uri.starts_with("data:") => format!("{index} ({uri})"),
+            _ => index.to_string(),
+        };
+        let decoded = match (&json.buffer_view, &json.uri) {
+            (Some(view), _) => {
+                let (bytes, _) = self.buffers.view(view.value())?;
+                decode_srgb(bytes, &name)?
+            }
+            (None, Some(uri)) => match read_uri(uri, self.base_dir, &format!("image {name}")) {
+                Ok(bytes) => decode_srgb(&bytes, &name)?,
+                Err(SceneError::Io { path, .. }) if self.allow_missing_textures => {
+                    let key = format!("missing image {}", path.display());
+                    self.warnings.once(&key, || {
+                        format!("image file {} is missing: textures using it are dropped", path.display())
+                    });
+                    self.images.insert(index, None);
+                    return Ok(None);
+                }
+                Err(e) => return Err(e),
+            },
+            (None, None) => return Err(malformed(format!("image {index} has neither a uri nor a bufferView"))),
+        };
+        let img = match decoded {
+            Decoded::Image(img) => Some(Rc::new(img)),
+            Decoded::Unsupported(format) => {
+                let key = format!("image format {format}");
+                self.warnings.once(&key, || {
+                    format!("image format {format} is not supported (PNG and JPEG are): textures using it are dropped")
+                });
+                None
+            }
+        };
+        self.images.insert(index, img.clone());
+        Ok(img)
+    }
+}
+
+fn finish_camera(c: FoundCamera, bounds: &Aabb) -> Camera {
+    let radius = 0.5 * bounds.diagonal().length();
+    let along = (bounds.center() - c.position).dot(c.forward);
+    let focus = if along.is_finite() && along > 1e-3 * radius.max(1e-6) { along } else { radius.max(1.0) };
+    Camera {
+        position: c.position,
+        target: c.position + c.forward * focus,
+        up: c.up,
+        yfov: c.yfov,
+        aperture_radius: 0.0,
+        focus_distance: focus,
+    }
+}
+
+fn wrap(mode: Checked<WrappingMode>) -> Wrap {
+    match mode {
+        Checked::Valid(WrappingMode::ClampToEdge) => Wrap::ClampToEdge,
+        Checked::Valid(WrappingMode::MirroredRepeat) => Wrap::MirroredRepeat,
+        _ => Wrap::Repeat,
+    }
+}
+
+/// A node's local transform (matrix, or TRS with the rotation normalised).
+fn node_matrix(node: &gltf::json::scene::Node, n: usize) -> Result<Mat4, SceneError> {
+    if let Some(m) = node.matrix {
+        let m = Mat4::from_cols_array(&m);
+        if !m.is_finite() {
+            return Err(malformed(format!("node {n}: matrix is not finite")));
+        }
+        return Ok(m);
+    }
+    let t = Vec3::from(node.translation.unwrap_or([0.0; 3]));
+    let s = Vec3::from(node.scale.unwrap_or([1.0; 3]));
+    let q = node.rotation.map_or(Quat::IDENTITY, |r| Quat::from_array(r.0));
+    if !(t.is_finite() && s.is_finite() && q.is_finite()) {
+        return Err(malformed(format!("node {n}: transform is not finite")));
+    }
+    let len = q.length();
+    let q = if len > 0.0 { q / len } else { Quat::IDENTITY };
+    Ok(Mat4::from_scale_rotation_translation(s, q, t))
+}
+
+/// Triangles from an index list in one of the triangle modes; `None` when a TRIANGLES list is
+/// not a multiple of three.
+fn assemble(mode: Mode, idx: &[u32]) -> Option<Vec<[u32; 3]>> {
+    match mode {
+        Mode::Triangles => {
+            if idx.len() % 3 != 0 {
+                return None;
+            }
+            Some(idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+        }
+        Mode::TriangleStrip => Some(
+            idx.windows(3)
+                .enumerate()
+                .map(|(i, w)| if i % 2 == 0 { [w[0], w[1], w[2]] } else { [w[0], w[2], w[1]] })
+                // Strips join with repeated indices; those triangles have no area.
+                .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+                .collect(),
+        ),
+        Mode::TriangleFan => {
+            let Some(&first) = idx.first() else {
+                return Some(Vec::new());
+            };
+            Some(idx.get(1..).unwrap_or(&[]).windows(2).map(|w| [w[0], w[1], first]).collect())
+        }
+        _ => Some(Vec::new()),
+    }
+}
+
+fn to_vec3(v: Vec<f32>) -> Vec<Vec3> {
+    v.chunks_exact(3).map(Vec3::from_slice).collect()
+}
+
+fn to_vec2(v: Vec<f32>) -> Vec<Vec2> {
+    v.chunks_exact(2).map(Vec2::from_slice).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strips_and_fans() {
+        assert_eq!(assemble(Mode::TriangleStrip, &[0, 1, 2, 3]).unwrap(), vec![[0, 1, 2], [1, 3, 2]]);
+        assert_eq!(assemble(Mode::TriangleFan, &[0, 1, 2, 3]).unwrap(), vec![[1, 2, 0], [2, 3, 0]]);
+        assert!(assemble(Mode::Triangles, &[0, 1]).is_none());
+        assert_eq!(assemble(Mode::TriangleFan, &[]).map(|v| v.len()), Some(0));
+    }
+
+    #[test]
+    fn glb_container_errors() {
+        assert!(split_container(b"").is_err());
+        assert!(split_container(b"glTF").is_err());
+        assert!(split_container(b"glTF\x02\0\0\0\x04\0\0\0").is_err());
+        assert!(split_container(b"glTF\x02\0\0\0\xff\0\0\0").is_err());
+        let mut glb = b"glTF\x02\0\0\0\x1c\0\0\0".to_vec();
+        glb.extend_from_slice(&4u32.to_le_bytes());
+        glb.extend_from_slice(b"JSON{}  ");
+        glb[8] = glb.len() as u8;
+        let (json, bin) = split_container(&glb).unwrap();
+        assert_eq!(json, b"{}  ");
+        assert!(bin.is_none());
+    }
+}

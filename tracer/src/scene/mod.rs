@@ -1,0 +1,509 @@
+//! Scenes: loading, flattening and validating `.gltf`/`.glb`/`.obj` files (+ `.hdr`/`.exr` skies)
+//! into one renderer-agnostic [`Scene`], plus small generated scenes for tests.
+//!
+//! # Conventions
+//! Everything follows glTF: right-handed coordinates, +Y up, metres, cameras look down their
+//! local -Z, counter-clockwise triangles are front faces, colours are **linear** RGB.
+//! Texture coordinates follow glTF too: `(0, 0)` is the **top-left** corner of an image
+//! (OBJ `vt` coordinates are flipped on load to match).
+//!
+//! # Units of light
+//! Lightport keeps glTF's photometric numbers as they are (no 683 lm/W factor) and treats them
+//! as the renderer's radiometric units:
+//! * [`Material::emission`] is emitted **radiance** (glTF `emissiveFactor` x
+//!   `KHR_materials_emissive_strength`, i.e. nits in glTF, read as W/(sr m²) per RGB channel).
+//! * [`PointLight::intensity`] is **radiant intensity** (glTF `color` x `intensity`, candela in
+//!   glTF, read as W/sr per channel): the irradiance at distance `d` facing the light is
+//!   `intensity / d²`.
+//! * [`Sky`] texels are radiance, multiplied by [`Sky::intensity`].
+//!
+//! The three use the same unit, so a scene keeps its glTF light balance.
+//!
+//! # Robustness
+//! Loading never panics on any input and never hangs: every size in a file is checked against
+//! the data that backs it before anything is allocated, indices are range-checked, non-finite
+//! vertex data is refused, node hierarchies must be trees, and totals are capped
+//! ([`MAX_TRIANGLES`], [`MAX_TEXTURE_DIMENSION`], [`MAX_FILE_BYTES`]).
+//! Unsupported features are reported once each in [`Scene::warnings`], naming the feature; files
+//! that cannot be rendered meaningfully at all are refused with a [`SceneError`].
+
+mod accessor;
+mod generate;
+mod gltf_loader;
+mod obj_loader;
+mod sky;
+mod texture;
+mod util;
+
+use std::path::{Path, PathBuf};
+
+use glam::{Vec2, Vec3, Vec4};
+
+pub use generate::{cornell_box, diffuse_plane, white_furnace};
+pub use gltf_loader::load_gltf_slice;
+pub use sky::load_sky;
+pub use texture::srgb_to_linear;
+
+/// Most triangles a loaded scene may have after instancing (each [`Triangle`] is 100 bytes,
+/// so this caps a scene's triangle list at about 1.7 GB).
+pub const MAX_TRIANGLES: usize = 1 << 24;
+/// Largest accepted width or height of a texture or sky image.
+pub const MAX_TEXTURE_DIMENSION: u32 = 16384;
+/// Largest accepted size of one file read by the loaders (scene, buffer, image or sky).
+pub const MAX_FILE_BYTES: u64 = 4 << 30;
+
+/// A flattened, validated scene: everything in world space, ready to be packed.
+#[derive(Clone, Debug, Default)]
+pub struct Scene {
+    /// World-space triangles (node transforms applied, winding fixed for mirroring transforms).
+    pub triangles: Vec<Triangle>,
+    /// Materials referenced by [`Triangle::material`].
+    pub materials: Vec<Material>,
+    /// Decoded textures referenced by materials.
+    pub textures: Vec<Texture>,
+    /// Point lights (glTF `KHR_lights_punctual` point lights, and spot lights treated as points).
+    pub point_lights: Vec<PointLight>,
+    /// The camera: the scene's first perspective camera, or one framing the scene's bounds.
+    pub camera: Camera,
+    /// An environment map. Loaders never set it (a sky comes from [`load_sky`]).
+    pub sky: Option<Sky>,
+    /// Unsupported features met while loading, each reported once and named.
+    pub warnings: Vec<String>,
+}
+
+/// One triangle in world space. Vertex order is counter-clockwise seen from the front face.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Triangle {
+    /// World-space vertex positions (metres).
+    pub positions: [Vec3; 3],
+    /// World-space unit shading normals (generated flat normals when the file had none).
+    pub normals: [Vec3; 3],
+    /// Texture coordinates (glTF `TEXCOORD_0`; `(0,0)` = top-left of an image), zero when absent.
+    pub uvs: [Vec2; 3],
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+}
+
+/// A diffuse, possibly emissive material.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    /// The material's name in the file (empty when it had none).
+    pub name: String,
+    /// Linear RGB diffuse albedo (glTF `baseColorFactor.rgb`, OBJ `Kd`), each in `[0, 1]`.
+    pub base_color: Vec3,
+    /// Index into [`Scene::textures`] multiplying `base_color` (texels are linear).
+    pub base_color_texture: Option<u32>,
+    /// Emitted linear radiance: glTF `emissiveFactor x KHR_materials_emissive_strength`
+    /// (OBJ `Ke`). Zero for non-emissive materials.
+    pub emission: Vec3,
+    /// Index into [`Scene::textures`] multiplying `emission`. Always `None` when `emission` is 0.
+    pub emissive_texture: Option<u32>,
+}
+
+impl Material {
+    /// A plain diffuse material.
+    pub fn diffuse(name: &str, base_color: Vec3) -> Self {
+        Self {
+            name: name.to_owned(),
+            base_color,
+            base_color_texture: None,
+            emission: Vec3::ZERO,
+            emissive_texture: None,
+        }
+    }
+
+    /// A diffuse material that also emits `emission` radiance.
+    pub fn emissive(name: &str, base_color: Vec3, emission: Vec3) -> Self {
+        Self { emission, ..Self::diffuse(name, base_color) }
+    }
+
+    /// Whether the material emits light.
+    pub fn is_emissive(&self) -> bool {
+        self.emission.max_element() > 0.0
+    }
+}
+
+/// Texture coordinate wrapping, as glTF samplers define it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Wrap {
+    /// Tile the image (glTF's default).
+    #[default]
+    Repeat,
+    /// Clamp to the border texels.
+    ClampToEdge,
+    /// Tile, mirroring every other copy.
+    MirroredRepeat,
+}
+
+/// A decoded texture. Texel `(x, y)` is `texels[y * width + x]`; row 0 is the top of the image,
+/// which is texture coordinate v = 0 (glTF convention).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Texture {
+    /// Width in texels (> 0).
+    pub width: u32,
+    /// Height in texels (> 0).
+    pub height: u32,
+    /// `width * height` texels: **linear** RGB (sRGB-encoded images are converted on load) and
+    /// linear alpha.
+    pub texels: Vec<Vec4>,
+    /// Wrapping along u.
+    pub wrap_s: Wrap,
+    /// Wrapping along v.
+    pub wrap_t: Wrap,
+}
+
+/// A point light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PointLight {
+    /// World-space position (metres).
+    pub position: Vec3,
+    /// Radiant intensity per linear RGB channel (glTF `color x intensity`; see the module docs
+    /// for units): irradiance at distance `d` is `intensity / d²`.
+    pub intensity: Vec3,
+}
+
+/// A thin-lens (or pinhole) perspective camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Eye position in world space.
+    pub position: Vec3,
+    /// A point the camera looks at (the view direction is `target - position`).
+    pub target: Vec3,
+    /// World-space up hint (not necessarily orthogonal to the view direction).
+    pub up: Vec3,
+    /// Vertical field of view in radians (glTF `yfov`). The horizontal one follows the image.
+    pub yfov: f32,
+    /// Lens radius in metres; 0 is a pinhole camera (no depth of field).
+    pub aperture_radius: f32,
+    /// Distance from `position` to the plane in focus, in metres (> 0).
+    pub focus_distance: f32,
+}
+
+impl Default for Camera {
+    fn default() -> Self {
+        Self::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, Vec3::Y, DEFAULT_YFOV)
+    }
+}
+
+/// Vertical field of view of generated cameras (45°).
+pub const DEFAULT_YFOV: f32 = std::f32::consts::FRAC_PI_4;
+
+impl Camera {
+    /// A pinhole camera at `position` looking at `target`, focused on the target.
+    pub fn look_at(position: Vec3, target: Vec3, up: Vec3, yfov: f32) -> Self {
+        let distance = (target - position).length();
+        Self {
+            position,
+            target,
+            up,
+            yfov,
+            aperture_radius: 0.0,
+            focus_distance: if distance > 0.0 && distance.is_finite() { distance } else { 1.0 },
+        }
+    }
+
+    /// A camera on the +Z side of `bounds` looking at its centre (-Z), far enough back for the
+    /// bounding sphere to fit in a 45° vertical field of view. Used when a file has no camera.
+    pub fn framing(bounds: &Aabb) -> Self {
+        if bounds.is_empty() {
+            return Self::default();
+        }
+        let center = bounds.center();
+        let radius = (0.5 * bounds.diagonal().length()).max(1e-3);
+        let distance = radius / (0.5 * DEFAULT_YFOV).sin() * 1.05;
+        Self::look_at(center + Vec3::new(0.0, 0.0, distance), center, Vec3::Y, DEFAULT_YFOV)
+    }
+
+    /// Unit view direction.
+    pub fn forward(&self) -> Vec3 {
+        (self.target - self.position).normalize_or(Vec3::NEG_Z)
+    }
+}
+
+/// An equirectangular environment map.
+///
+/// Direction `d` (unit, world space) maps to `u = 0.5 + atan2(d.x, -d.z) / 2π` (after rotating
+/// `d` by `-rotation` about +Y) and `v = acos(d.y) / π`: row 0 is straight up (+Y), the image
+/// centre is seen looking down -Z, u grows towards +X. Texel `(x, y)` is
+/// `texels[y * width + x]` and covers `u in [x/width, (x+1)/width)`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sky {
+    /// Width in texels (> 0).
+    pub width: u32,
+    /// Height in texels (> 0).
+    pub height: u32,
+    /// Linear radiance, finite and non-negative, row 0 = top.
+    pub texels: Vec<Vec3>,
+    /// Multiplier applied to every texel.
+    pub intensity: f32,
+    /// Rotation of the map about +Y, radians (counter-clockwise seen from above).
+    pub rotation: f32,
+}
+
+impl Sky {
+    /// A sky of constant radiance (a 1x1 map), for analytic tests.
+    pub fn uniform(radiance: Vec3) -> Self {
+        Self { width: 1, height: 1, texels: vec![radiance], intensity: 1.0, rotation: 0.0 }
+    }
+
+    /// Texture coordinates of world direction `dir` (see the type docs).
+    pub fn direction_to_uv(&self, dir: Vec3) -> Vec2 {
+        let d = glam::Quat::from_rotation_y(-self.rotation) * dir.normalize_or(Vec3::Y);
+        let u = 0.5 + d.x.atan2(-d.z) / std::f32::consts::TAU;
+        let v = d.y.clamp(-1.0, 1.0).acos() / std::f32::consts::PI;
+        Vec2::new(u, v)
+    }
+
+    /// Radiance seen along `dir` (nearest texel, times `intensity`): a reference lookup.
+    pub fn radiance(&self, dir: Vec3) -> Vec3 {
+        let uv = self.direction_to_uv(dir);
+        let x = ((uv.x - uv.x.floor()) * self.width as f32) as usize;
+        let y = (uv.y * self.height as f32) as usize;
+        let x = x.min(self.width.saturating_sub(1) as usize);
+        let y = y.min(self.height.saturating_sub(1) as usize);
+        self.texels.get(y * self.width as usize + x).copied().unwrap_or(Vec3::ZERO) * self.intensity
+    }
+}
+
+/// An axis-aligned box. The empty box has `min = +inf`, `max = -inf`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    /// Smallest corner.
+    pub min: Vec3,
+    /// Largest corner.
+    pub max: Vec3,
+}
+
+impl Default for Aabb {
+    fn default() -> Self {
+        Self::EMPTY
+    }
+}
+
+impl Aabb {
+    /// The empty box.
+    pub const EMPTY: Self = Self { min: Vec3::INFINITY, max: Vec3::NEG_INFINITY };
+
+    /// Grows the box to contain `p`.
+    pub fn extend(&mut self, p: Vec3) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+
+    /// Whether the box contains nothing.
+    pub fn is_empty(&self) -> bool {
+        !(self.min.cmple(self.max).all())
+    }
+
+    /// Centre (meaningless when empty).
+    pub fn center(&self) -> Vec3 {
+        0.5 * (self.min + self.max)
+    }
+
+    /// `max - min` (zero when empty).
+    pub fn diagonal(&self) -> Vec3 {
+        if self.is_empty() {
+            Vec3::ZERO
+        } else {
+            self.max - self.min
+        }
+    }
+}
+
+/// Why a scene or sky could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// A file could not be read.
+    #[error("cannot read {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file extension names no format Lightport reads.
+    #[error("unsupported file type {0:?}: expected .gltf, .glb or .obj (scenes), .hdr or .exr (skies)")]
+    UnsupportedFileType(String),
+    /// The file is not valid glTF (bad container, JSON or schema).
+    #[error("invalid glTF: {0}")]
+    InvalidGltf(String),
+    /// The glTF file lists an extension in `extensionsRequired` that Lightport cannot honour.
+    #[error("the glTF file requires extension {0}, which Lightport does not support")]
+    UnsupportedRequiredExtension(String),
+    /// The file's data is inconsistent (out-of-range indices, truncated buffers, NaN, ...).
+    #[error("malformed scene: {0}")]
+    Malformed(String),
+    /// Something is bigger than Lightport accepts.
+    #[error("too large: {0}")]
+    TooLarge(String),
+    /// Nothing renderable was found.
+    #[error("the scene has no triangles to render{0}")]
+    NoTriangles(String),
+    /// An image could not be decoded.
+    #[error("image {name}: {message}")]
+    Image {
+        /// Which image (file name or glTF image index).
+        name: String,
+        /// What went wrong.
+        message: String,
+    },
+    /// The OBJ or MTL parser refused the file.
+    #[error("OBJ {path}: {message}")]
+    Obj {
+        /// The OBJ or MTL file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// A parameter passed to a loader is out of range.
+    #[error("invalid parameter: {0}")]
+    InvalidParameter(String),
+}
+
+/// Loader settings.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// When a texture's image **file** is missing, drop the texture (the material keeps its
+    /// factor) and warn, instead of refusing the scene. Off by default: a missing file usually
+    /// means a broken export. Corrupt image data is an error either way.
+    pub allow_missing_textures: bool,
+}
+
+/// Loads a scene with default [`LoadOptions`], choosing the format from the file extension:
+/// `.gltf`/`.glb` (glTF 2.0) or `.obj` (Wavefront, with its MTL libraries).
+pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    load_with(path, &LoadOptions::default())
+}
+
+/// Loads a scene (see [`load`]) with the given options.
+pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
+    match ext.as_str() {
+        "gltf" | "glb" => gltf_loader::load_gltf(path, options),
+        "obj" => obj_loader::load_obj(path, options),
+        _ => Err(SceneError::UnsupportedFileType(
+            path.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default(),
+        )),
+    }
+}
+
+impl Scene {
+    /// Bounds of all triangles (point lights and camera excluded).
+    pub fn bounds(&self) -> Aabb {
+        let mut b = Aabb::EMPTY;
+        for t in &self.triangles {
+            for p in t.positions {
+                b.extend(p);
+            }
+        }
+        b
+    }
+
+    /// Number of triangles whose material emits light.
+    pub fn emissive_triangle_count(&self) -> usize {
+        self.triangles
+            .iter()
+            .filter(|t| self.materials.get(t.material as usize).is_some_and(Material::is_emissive))
+            .count()
+    }
+
+    /// Total emitted power of emissive triangles, per channel: `Σ emission x area x π`
+    /// (one-sided Lambertian emitters; emissive textures are ignored). Handy to compare scenes.
+    pub fn emitted_power(&self) -> Vec3 {
+        self.triangles
+            .iter()
+            .filter_map(|t| {
+                let m = self.materials.get(t.material as usize)?;
+                let [a, b, c] = t.positions;
+                let area = 0.5 * (b - a).cross(c - a).length();
+                Some(m.emission * area * std::f32::consts::PI)
+            })
+            .sum()
+    }
+
+    /// Checks the scene's invariants: indices in range, finite data, unit-ish normals,
+    /// texture sizes. Loaders and generators always produce valid scenes; this is for scenes
+    /// built by hand.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        let bad = |m: String| Err(SceneError::Malformed(m));
+        let texture_ok = |t: Option<u32>| t.is_none_or(|t| (t as usize) < self.textures.len());
+        for (i, t) in self.triangles.iter().enumerate() {
+            if t.material as usize >= self.materials.len() {
+                return bad(format!("triangle {i} uses missing material {}", t.material));
+            }
+            let finite = t.positions.iter().all(|p| p.is_finite())
+                && t.normals.iter().all(|n| n.is_finite())
+                && t.uvs.iter().all(|uv| uv.is_finite());
+            if !finite {
+                return bad(format!("triangle {i} has non-finite vertex data"));
+            }
+        }
+        for (i, m) in self.materials.iter().enumerate() {
+            if !texture_ok(m.base_color_texture) || !texture_ok(m.emissive_texture) {
+                return bad(format!("material {i} uses a missing texture"));
+            }
+            if !m.base_color.is_finite() || !m.emission.is_finite() || m.emission.min_element() < 0.0 {
+                return bad(format!("material {i} has invalid colours"));
+            }
+        }
+        for (i, t) in self.textures.iter().enumerate() {
+            if t.width == 0 || t.height == 0 || t.texels.len() != t.width as usize * t.height as usize {
+                return bad(format!("texture {i} has inconsistent size"));
+            }
+        }
+        for (i, l) in self.point_lights.iter().enumerate() {
+            if !l.position.is_finite() || !l.intensity.is_finite() {
+                return bad(format!("point light {i} is not finite"));
+            }
+        }
+        if let Some(sky) = &self.sky {
+            if sky.width == 0 || sky.height == 0 || sky.texels.len() != sky.width as usize * sky.height as usize {
+                return bad("sky has inconsistent size".into());
+            }
+        }
+        let c = &self.camera;
+        if !(c.position.is_finite() && c.target.is_finite() && c.up.is_finite())
+            || !(c.yfov > 0.0 && c.yfov < std::f32::consts::PI)
+            || c.position == c.target
+        {
+            return bad("invalid camera".into());
+        }
+        Ok(())
+    }
+}
+
+/// Collects warnings, each key reported once.
+#[derive(Default)]
+pub(crate) struct Warnings {
+    seen: std::collections::HashSet<String>,
+    list: Vec<String>,
+}
+
+impl Warnings {
+    /// Reports `message` unless something was already reported under `key`.
+    pub(crate) fn once(&mut self, key: &str, message: impl FnOnce() -> String) {
+        if self.seen.insert(key.to_owned()) {
+            let m = message();
+            log::warn!("{m}");
+            self.list.push(m);
+        }
+    }
+
+    pub(crate) fn list_is_empty(&self) -> bool {
+        self.list.is_empty()
+    }
+
+    pub(crate) fn joined(&self) -> String {
+        self.list.join("; ")
+    }
+
+    pub(crate) fn into_vec(self) -> Vec<String> {
+        self.list
+    }
+}
+
+/// Flat unit normal of a triangle (counter-clockwise front), +Y for degenerate triangles.
+pub(crate) fn flat_normal(p: &[Vec3; 3]) -> Vec3 {
+    (p[1] - p[0]).cross(p[2] - p[0]).normalize_or(Vec3::Y)
+}

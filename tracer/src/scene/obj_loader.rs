@@ -1,0 +1,237 @@
+//! Wavefront OBJ (+ MTL) loading through `tobj`.
+//!
+//! MTL support: `Kd` (base colour, read as linear), `map_Kd` (sRGB texture), `Ke` (emitted
+//! radiance), `map_Ke`. OBJ `vt` coordinates have v = 0 at the bottom of the image; they are
+//! flipped to glTF's top-left convention. OBJ files have no camera: one framing the bounds is
+//! generated.
+
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+
+use glam::{Vec2, Vec3};
+
+use super::texture::{catch_decoder_panic, decode_srgb, Decoded};
+use super::util::read_file;
+use super::{
+    flat_normal, Camera, LoadOptions, Material, Scene, SceneError, Texture, Triangle, Warnings, Wrap, MAX_TRIANGLES,
+};
+
+/// Base colour of materials without `Kd`, and of faces without a material.
+const DEFAULT_ALBEDO: f32 = 0.8;
+
+pub(crate) fn load_obj(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError> {
+    let bytes = read_file(path)?;
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
+        _ => PathBuf::from("."),
+    };
+    let obj_error = |message: String| SceneError::Obj { path: path.to_owned(), message };
+    let mtl_failure: RefCell<Option<SceneError>> = RefCell::new(None);
+    let parse_options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    let parsed = catch_decoder_panic(|| {
+        tobj::load_obj_buf(&mut Cursor::new(&bytes), &parse_options, |mtl| {
+            let full = dir.join(mtl);
+            let result = read_file(&full).and_then(|b| {
+                catch_decoder_panic(|| tobj::load_mtl_buf(&mut Cursor::new(b)))
+                    .unwrap_or(Err(tobj::LoadError::GenericFailure))
+                    .map_err(|e| SceneError::Obj { path: full.clone(), message: e.to_string() })
+            });
+            result.map_err(|e| {
+                mtl_failure.borrow_mut().get_or_insert(e);
+                tobj::LoadError::OpenFileFailed
+            })
+        })
+    })
+    .ok_or_else(|| obj_error("the OBJ parser failed unexpectedly".into()))?;
+    let (models, materials) = parsed.map_err(|e| obj_error(e.to_string()))?;
+    if let Some(e) = mtl_failure.into_inner() {
+        return Err(e);
+    }
+    let mtl_materials = materials.map_err(|e| obj_error(format!("material library: {e}")))?;
+
+    let mut warnings = Warnings::default();
+    let mut textures = Vec::new();
+    let mut texture_cache: HashMap<String, Option<u32>> = HashMap::new();
+    let mut materials = Vec::with_capacity(mtl_materials.len() + 1);
+    for m in &mtl_materials {
+        materials.push(convert_material(m, &dir, &mut textures, &mut texture_cache, &mut warnings, options)?);
+    }
+    let mut default_material = None;
+
+    let mut triangles = Vec::new();
+    for model in &models {
+        let mesh = &model.mesh;
+        let what = format!("object {:?}", model.name);
+        let vertex_count = mesh.positions.len() / 3;
+        let positions: Vec<Vec3> = mesh.positions.chunks_exact(3).map(Vec3::from_slice).collect();
+        if positions.iter().any(|p| !p.is_finite()) {
+            return Err(SceneError::Malformed(format!("{what}: a vertex position is not finite")));
+        }
+        let normals: Option<Vec<Vec3>> = (mesh.normals.len() == mesh.positions.len())
+            .then(|| mesh.normals.chunks_exact(3).map(Vec3::from_slice).collect());
+        let uvs: Option<Vec<Vec2>> = (mesh.texcoords.len() / 2 == vertex_count && !mesh.texcoords.is_empty())
+            .then(|| mesh.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], 1.0 - c[1])).collect());
+        if normals.as_ref().is_some_and(|n| n.iter().any(|v| !v.is_finite()))
+            || uvs.as_ref().is_some_and(|t| t.iter().any(|v| !v.is_finite()))
+        {
+            return Err(SceneError::Malformed(format!("{what}: a normal or texture coordinate is not finite")));
+        }
+        let material = match mesh.material_id {
+            Some(id) if id < materials.len() => id as u32,
+            Some(id) => return Err(SceneError::Malformed(format!("{what} uses material {id}, which does not exist"))),
+            None => *default_material.get_or_insert_with(|| {
+                materials.push(Material::diffuse("default", Vec3::splat(DEFAULT_ALBEDO)));
+                materials.len() as u32 - 1
+            }),
+        };
+        if mesh.indices.len() % 3 != 0 {
+            return Err(SceneError::Malformed(format!(
+                "{what}: {} indices do not form whole triangles",
+                mesh.indices.len()
+            )));
+        }
+        if triangles.len() + mesh.indices.len() / 3 > MAX_TRIANGLES {
+            return Err(SceneError::TooLarge(format!("the scene has more than {MAX_TRIANGLES} triangles")));
+        }
+        for face in mesh.indices.chunks_exact(3) {
+            let idx = [face[0], face[1], face[2]].map(|i| i as usize);
+            let mut p = [Vec3::ZERO; 3];
+            for (k, &i) in idx.iter().enumerate() {
+                p[k] = *positions.get(i).ok_or_else(|| {
+                    SceneError::Malformed(format!("{what}: vertex index {i} is out of range ({vertex_count} vertices)"))
+                })?;
+            }
+            let flat = flat_normal(&p);
+            let normals = match &normals {
+                Some(ns) => {
+                    idx.map(|i| ns.get(i).map(|n| n.normalize_or_zero()).filter(|n| *n != Vec3::ZERO).unwrap_or(flat))
+                }
+                None => [flat; 3],
+            };
+            let uvs = match &uvs {
+                Some(t) => idx.map(|i| t.get(i).copied().unwrap_or(Vec2::ZERO)),
+                None => [Vec2::ZERO; 3],
+            };
+            triangles.push(Triangle { positions: p, normals, uvs, material });
+        }
+    }
+    if triangles.is_empty() {
+        return Err(SceneError::NoTriangles(" (the OBJ has no faces)".into()));
+    }
+    let mut scene = Scene {
+        triangles,
+        materials,
+        textures,
+        point_lights: Vec::new(),
+        camera: Camera::default(),
+        sky: None,
+        warnings: Vec::new(),
+    };
+    scene.camera = Camera::framing(&scene.bounds());
+    scene.warnings = warnings.into_vec();
+    scene.validate()?;
+    Ok(scene)
+}
+
+fn convert_material(
+    m: &tobj::Material,
+    dir: &Path,
+    textures: &mut Vec<Texture>,
+    cache: &mut HashMap<String, Option<u32>>,
+    warnings: &mut Warnings,
+    options: &LoadOptions,
+) -> Result<Material, SceneError> {
+    let what = format!("MTL material {:?}", m.name);
+    let color = |c: Option<[f32; 3]>, default: f32, name: &str| -> Result<Vec3, SceneError> {
+        let v = c.map_or(Vec3::splat(default), Vec3::from);
+        if v.is_finite() && v.min_element() >= 0.0 {
+            Ok(v)
+        } else {
+            Err(SceneError::Malformed(format!("{what}: {name} must be finite and >= 0")))
+        }
+    };
+    let base_color = color(m.diffuse, DEFAULT_ALBEDO, "Kd")?.min(Vec3::ONE);
+    let emission = color(m.emissive, 0.0, "Ke")?;
+    if m.specular.is_some_and(|ks| ks.iter().any(|&k| k > 0.0)) {
+        warnings
+            .once("MTL Ks", || "MTL specular reflection (Ks) is not supported: surfaces are rendered diffuse".into());
+    }
+    if m.dissolve.is_some_and(|d| d < 1.0) || m.unknown_param.contains_key("Tr") {
+        warnings.once("MTL d", || "MTL transparency (d, Tr) is not supported: surfaces are rendered opaque".into());
+    }
+    if m.normal_texture.is_some() || m.unknown_param.contains_key("map_Bump") {
+        warnings.once("MTL bump", || "MTL bump and normal maps are not supported: they are ignored".into());
+    }
+    let base_color_texture = match &m.diffuse_texture {
+        Some(t) => texture(t, dir, textures, cache, warnings, options)?,
+        None => None,
+    };
+    let emissive_texture = match m.unknown_param.get("map_Ke") {
+        Some(t) if emission.max_element() > 0.0 => texture(t, dir, textures, cache, warnings, options)?,
+        _ => None,
+    };
+    Ok(Material { name: m.name.clone(), base_color, base_color_texture, emission, emissive_texture })
+}
+
+/// Loads an MTL texture map (relative to the OBJ's folder). Map options (`-bm 1 ...`) are
+/// skipped with a warning; the file name is the last word.
+fn texture(
+    spec: &str,
+    dir: &Path,
+    textures: &mut Vec<Texture>,
+    cache: &mut HashMap<String, Option<u32>>,
+    warnings: &mut Warnings,
+    options: &LoadOptions,
+) -> Result<Option<u32>, SceneError> {
+    let file = if spec.starts_with('-') {
+        warnings.once("MTL map options", || {
+            "MTL texture map options (-bm, -s, ...) are not supported: they are ignored".into()
+        });
+        spec.split_whitespace().last().unwrap_or(spec)
+    } else {
+        spec
+    };
+    if let Some(&t) = cache.get(file) {
+        return Ok(t);
+    }
+    let path = dir.join(file.replace('\\', "/"));
+    let bytes = match read_file(&path) {
+        Ok(bytes) => bytes,
+        Err(SceneError::Io { .. }) if options.allow_missing_textures => {
+            let key = format!("missing image {}", path.display());
+            warnings.once(&key, || format!("image file {} is missing: textures using it are dropped", path.display()));
+            cache.insert(file.to_owned(), None);
+            return Ok(None);
+        }
+        Err(e) => return Err(e),
+    };
+    let id = match decode_srgb(&bytes, &path.display().to_string())? {
+        Decoded::Image(img) => {
+            textures.push(Texture {
+                width: img.width,
+                height: img.height,
+                texels: img.texels,
+                wrap_s: Wrap::Repeat,
+                wrap_t: Wrap::Repeat,
+            });
+            Some(textures.len() as u32 - 1)
+        }
+        Decoded::Unsupported(format) => {
+            let key = format!("image format {format}");
+            warnings.once(&key, || {
+                format!("image format {format} is not supported (PNG and JPEG are): textures using it are dropped")
+            });
+            None
+        }
+    };
+    cache.insert(file.to_owned(), id);
+    Ok(id)
+}

@@ -1,0 +1,54 @@
+//! Equirectangular environment maps from Radiance `.hdr` and OpenEXR `.exr` files.
+
+use std::io::Cursor;
+use std::path::Path;
+
+use glam::Vec3;
+use image::{ImageFormat, ImageReader};
+
+use super::texture::{catch_decoder_panic, limits};
+use super::util::read_file;
+use super::{SceneError, Sky};
+
+/// Loads an equirectangular sky (see [`Sky`] for the mapping) from a `.hdr` or `.exr` file.
+///
+/// `intensity` (finite, >= 0) scales the radiance; `rotation` (radians, finite) turns the map
+/// about +Y. Texels must be finite; negative values (which some EXR tools produce) are clamped
+/// to zero.
+pub fn load_sky(path: &Path, intensity: f32, rotation: f32) -> Result<Sky, SceneError> {
+    if !(intensity.is_finite() && intensity >= 0.0) {
+        return Err(SceneError::InvalidParameter(format!("sky intensity must be finite and >= 0, got {intensity}")));
+    }
+    if !rotation.is_finite() {
+        return Err(SceneError::InvalidParameter(format!("sky rotation must be finite, got {rotation}")));
+    }
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
+    let format = match ext.as_str() {
+        "hdr" => ImageFormat::Hdr,
+        "exr" => ImageFormat::OpenExr,
+        _ => return Err(SceneError::UnsupportedFileType(ext)),
+    };
+    let bytes = read_file(path)?;
+    let name = path.display().to_string();
+    let err = |message: String| SceneError::Image { name: name.clone(), message };
+    let mut reader = ImageReader::with_format(Cursor::new(&bytes), format);
+    reader.limits(limits());
+    let img = catch_decoder_panic(|| reader.decode())
+        .ok_or_else(|| err("the image decoder failed unexpectedly".into()))?
+        .map_err(|e| err(format!("cannot decode {format:?}: {e}")))?;
+    let (width, height) = (img.width(), img.height());
+    if width == 0 || height == 0 {
+        return Err(err("image has no texels".into()));
+    }
+    let rgb = img.into_rgb32f();
+    let mut texels = Vec::with_capacity(width as usize * height as usize);
+    for (i, p) in rgb.pixels().enumerate() {
+        let v = Vec3::new(p[0], p[1], p[2]);
+        if !v.is_finite() {
+            let w = width as usize;
+            return Err(err(format!("texel ({}, {}) is not finite", i % w.max(1), i / w.max(1))));
+        }
+        texels.push(v.max(Vec3::ZERO));
+    }
+    Ok(Sky { width, height, texels, intensity, rotation })
+}
