@@ -15,6 +15,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Path-trace a scene (glTF, GLB or OBJ; without SCENE, a built-in Cornell box) to an image.
+    Render(RenderArgs),
     /// Regenerate the GLSL ES 3.00 and WGSL of every kernel module into shaders-generated/
     /// (each file validated first) and print them.
     Shaders {
@@ -34,6 +36,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Shaders { check, dir, quiet } => shaders(&dir, check, quiet),
+        Command::Render(args) => render(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -42,6 +45,142 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    /// Scene file (.gltf, .glb, .obj). Default: the Cornell box generated in code.
+    scene: Option<PathBuf>,
+    /// Equirectangular sky (.hdr or .exr).
+    #[arg(long)]
+    sky: Option<PathBuf>,
+    /// Sky radiance multiplier.
+    #[arg(long, default_value_t = 1.0)]
+    sky_intensity: f32,
+    /// Sky rotation about +Y, degrees.
+    #[arg(long, default_value_t = 0.0)]
+    sky_rotation: f32,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 64)]
+    spp: u32,
+    #[arg(long, default_value_t = 512)]
+    width: u32,
+    #[arg(long, default_value_t = 512)]
+    height: u32,
+    /// Sampling strategy: BSDF sampling only, next event estimation only, or both with MIS.
+    #[arg(long, value_enum, default_value_t = StrategyArg::Mis)]
+    strategy: StrategyArg,
+    /// Maximum path length in segments.
+    #[arg(long, default_value_t = 8)]
+    max_depth: u32,
+    /// Backend to render with.
+    #[arg(long, value_enum, default_value_t = BackendArg::Cpu)]
+    backend: BackendArg,
+    /// Random seed (the same seed gives the same image).
+    #[arg(long, default_value_t = 0)]
+    seed: u32,
+    /// Output image: .png (sRGB, clamped) or .exr (linear float).
+    #[arg(long, short, default_value = "out.png")]
+    out: PathBuf,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum StrategyArg {
+    Bsdf,
+    Nee,
+    Mis,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum BackendArg {
+    Cpu,
+}
+
+fn render(args: &RenderArgs) -> Result<()> {
+    use std::time::Instant;
+    use tracer::pack::{RenderSettings, Strategy};
+
+    if args.spp == 0 {
+        bail!("--spp must be at least 1");
+    }
+    let t0 = Instant::now();
+    let mut scene = match &args.scene {
+        Some(path) => tracer::scene::load(path).with_context(|| format!("loading {}", path.display()))?,
+        None => tracer::scene::cornell_box(),
+    };
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    if let Some(sky) = &args.sky {
+        let s = tracer::scene::load_sky(sky, args.sky_intensity, args.sky_rotation.to_radians())
+            .with_context(|| format!("loading sky {}", sky.display()))?;
+        scene.sky = Some(s);
+    }
+    let load_time = t0.elapsed();
+    let t1 = Instant::now();
+    let bvh = tracer::bvh::build(&scene.triangles).context("building the BVH")?;
+    let bvh_time = t1.elapsed();
+    let settings = RenderSettings {
+        width: args.width,
+        height: args.height,
+        strategy: match args.strategy {
+            StrategyArg::Bsdf => Strategy::Bsdf,
+            StrategyArg::Nee => Strategy::Nee,
+            StrategyArg::Mis => Strategy::Mis,
+        },
+        max_depth: args.max_depth,
+    };
+    let t2 = Instant::now();
+    let packed = tracer::pack::pack(&scene, &bvh, &settings).context("packing the scene")?;
+    let pack_time = t2.elapsed();
+    let features = packed.features;
+    let lights = packed.light_count;
+
+    let bar = indicatif::ProgressBar::new(args.spp as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} rendering [{bar:40}] {pos}/{len} spp, {per_sec}, eta {eta}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    let t3 = Instant::now();
+    let (image, rejected) = match args.backend {
+        BackendArg::Cpu => {
+            let mut r = tracer::backend::cpu::CpuRenderer::new(packed, args.seed);
+            for _ in 0..args.spp {
+                r.render_frame();
+                bar.inc(1);
+            }
+            (r.image(), r.rejected_samples())
+        }
+    };
+    let render_time = t3.elapsed();
+    bar.finish_and_clear();
+    tracer::output::write_image(&args.out, &image)?;
+
+    let samples = args.spp as f64 * args.width as f64 * args.height as f64;
+    println!("scene        {}", args.scene.as_ref().map_or("built-in Cornell box".into(), |p| p.display().to_string()));
+    println!("triangles    {}", scene.triangles.len());
+    println!("lights       {lights} (features: {features:?})");
+    println!("load         {:.1} ms", load_time.as_secs_f64() * 1e3);
+    println!("BVH build    {:.1} ms ({} nodes)", bvh_time.as_secs_f64() * 1e3, bvh.nodes.len());
+    println!("pack         {:.1} ms", pack_time.as_secs_f64() * 1e3);
+    println!(
+        "render       {:.2} s, {} spp at {}x{}, {:.2} M samples/s ({:?} backend, {:?} strategy)",
+        render_time.as_secs_f64(),
+        args.spp,
+        args.width,
+        args.height,
+        samples / render_time.as_secs_f64() / 1e6,
+        match args.backend {
+            BackendArg::Cpu => "cpu",
+        },
+        settings.strategy.name()
+    );
+    if rejected > 0 {
+        println!("warning      {rejected} non-finite samples were dropped");
+    }
+    println!("wrote        {}", args.out.display());
+    Ok(())
 }
 
 fn shaders(dir: &Path, check: bool, quiet: bool) -> Result<()> {

@@ -438,7 +438,8 @@ pub(crate) fn unique_local(name: &str, used: &mut BTreeSet<String>) -> String {
     let mut candidate = base.clone();
     let mut n = 1;
     while used.contains(&candidate) {
-        candidate = format!("{base}_{n}");
+        // Never create a double underscore (reserved in GLSL and WGSL).
+        candidate = if base.ends_with('_') { format!("{base}{n}") } else { format!("{base}_{n}") };
         n += 1;
     }
     used.insert(candidate.clone());

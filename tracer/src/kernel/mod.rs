@@ -2,20 +2,44 @@
 //! the same code runs on the CPU and is generated into GLSL ES 3.00 and WGSL
 //! (`shaders-generated/`, regenerated with `cargo run -- shaders`).
 
+#[path = "camera.rs"]
+mod camera_src;
+#[path = "integrator.rs"]
+mod integrator_src;
 #[path = "intersect.rs"]
 mod intersect_src;
+#[path = "lights.rs"]
+mod lights_src;
 #[path = "rng.rs"]
 mod rng_src;
 #[path = "sampling.rs"]
 mod sampling_src;
+#[path = "scene_data.rs"]
+mod scene_data_src;
+#[path = "traverse.rs"]
+mod traverse_src;
 
+pub use camera_src::camera;
+pub use integrator_src::integrator;
 pub use intersect_src::intersect;
+pub use lights_src::lights;
 pub use rng_src::rng;
 pub use sampling_src::sampling;
+pub use scene_data_src::scene_data;
+pub use traverse_src::traverse;
 
 /// Every kernel module's IR, in link order.
 pub fn modules() -> Vec<kernel_dsl::ir::Module> {
-    vec![rng::kernel_ir(), sampling::kernel_ir(), intersect::kernel_ir()]
+    vec![
+        rng::kernel_ir(),
+        sampling::kernel_ir(),
+        intersect::kernel_ir(),
+        scene_data::kernel_ir(),
+        traverse::kernel_ir(),
+        camera::kernel_ir(),
+        lights::kernel_ir(),
+        integrator::kernel_ir(),
+    ]
 }
 
 /// One generated shader file.

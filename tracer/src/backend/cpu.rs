@@ -1,0 +1,73 @@
+//! The CPU backend: the DSL kernel compiled as ordinary Rust, run per pixel with rayon. It is
+//! the reference the GPU backends are compared with.
+
+use glam::{Vec3, Vec4, Vec4Swizzles};
+use rayon::prelude::*;
+
+use super::{frame_seed, Image};
+use crate::kernel::integrator::render_sample;
+use crate::pack::Packed;
+
+pub struct CpuRenderer {
+    packed: Packed,
+    seed: u32,
+    frames: u32,
+    /// Sum of samples per pixel: rgb, and the number of accepted (finite) samples in w.
+    accumulation: Vec<Vec4>,
+}
+
+impl CpuRenderer {
+    /// A renderer for `packed`; `seed` selects the random sequence (same seed, same image).
+    pub fn new(packed: Packed, seed: u32) -> Self {
+        let n = packed.scene.width as usize * packed.scene.height as usize;
+        CpuRenderer { packed, seed, frames: 0, accumulation: vec![Vec4::ZERO; n] }
+    }
+
+    pub fn frames(&self) -> u32 {
+        self.frames
+    }
+
+    pub fn packed(&self) -> &Packed {
+        &self.packed
+    }
+
+    /// Adds one sample per pixel.
+    pub fn render_frame(&mut self) {
+        self.packed.scene.frame_seed = frame_seed(self.frames, self.seed);
+        let scene = &self.packed.scene;
+        let width = scene.width as usize;
+        self.accumulation.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+            for (x, acc) in row.iter_mut().enumerate() {
+                *acc += render_sample(scene, x as u32, y as u32);
+            }
+        });
+        self.frames += 1;
+    }
+
+    /// Samples that were not finite and were dropped, over the whole image.
+    pub fn rejected_samples(&self) -> u64 {
+        let accepted: f64 = self.accumulation.iter().map(|a| a.w as f64).sum();
+        (self.frames as u64 * self.accumulation.len() as u64).saturating_sub(accepted.round() as u64)
+    }
+
+    /// The mean of the accumulated samples (linear RGB).
+    pub fn image(&self) -> Image {
+        let n = self.frames.max(1) as f32;
+        Image {
+            width: self.packed.scene.width,
+            height: self.packed.scene.height,
+            pixels: self.accumulation.iter().map(|a| a.xyz() / n).collect(),
+        }
+    }
+
+    /// Advances the frame counter without rendering (pairs with `sample_pixel`).
+    pub fn render_frame_count_only(&mut self) {
+        self.frames += 1;
+    }
+
+    /// One sample of pixel (x, y) for the current frame, without accumulating it.
+    pub fn sample_pixel(&mut self, x: u32, y: u32) -> Vec3 {
+        self.packed.scene.frame_seed = frame_seed(self.frames, self.seed);
+        render_sample(&self.packed.scene, x, y).xyz()
+    }
+}

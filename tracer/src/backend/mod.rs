@@ -1,0 +1,27 @@
+//! Backends run the same kernel over the same packed data. They share one shape: create from
+//! a [`Packed`](crate::pack::Packed) scene, `render_frame` adds one sample per pixel, and the
+//! accumulated image is read back as linear RGB.
+
+pub mod cpu;
+
+use glam::Vec3;
+
+/// Seed of frame `frame`: spreads consecutive frames over the hash's input space.
+pub fn frame_seed(frame: u32, seed: u32) -> u32 {
+    frame.wrapping_mul(0x9e37_79b9) ^ seed.wrapping_mul(0x85eb_ca6b)
+}
+
+/// A linear-RGB image: the mean of the accumulated samples.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<Vec3>,
+}
+
+impl Image {
+    pub fn mean(&self) -> Vec3 {
+        let sum: glam::DVec3 = self.pixels.iter().map(|p| p.as_dvec3()).sum();
+        (sum / self.pixels.len().max(1) as f64).as_vec3()
+    }
+}

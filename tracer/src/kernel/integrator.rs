@@ -1,0 +1,147 @@
+#[kernel_dsl::kernel]
+pub mod integrator {
+    //! The path tracer: Lambert BSDF, next event estimation over every light, multiple
+    //! importance sampling with the power heuristic, Russian roulette. The strategy is a
+    //! run-time uniform; all three estimate the same image.
+
+    use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
+
+    use crate::kernel::camera::camera_ray;
+    use crate::kernel::intersect::MISS;
+    use crate::kernel::lights::{
+        area_pdf_to_solid_angle, finite_or_zero, light_pmf, power_heuristic, sample_light, sky_pdf, sky_radiance,
+        triangle_emission,
+    };
+    use crate::kernel::rng::{pixel_seed, random_float};
+    use crate::kernel::sampling::{sample_cosine_around, INV_PI};
+    use crate::kernel::scene_data::{
+        fetch_material, fetch_triangle, sample_texture, shading_normal, texcoord, Scene, NONE, STRATEGY_BSDF,
+        STRATEGY_MIS, STRATEGY_NEE,
+    };
+    use crate::kernel::traverse::{occluded, trace_closest};
+
+    /// Russian roulette starts after this many path segments.
+    pub const RR_START_DEPTH: u32 = 3;
+
+    /// `p` moved off its surface along the facing geometric normal `n`, by an amount that
+    /// scales with the coordinates' magnitude (floats lose absolute precision far from 0).
+    pub fn offset_origin(scene: &Scene, p: Vec3, n: Vec3) -> Vec3 {
+        let eps = (p.abs().max_element() + scene.scene_scale) * 4.0e-6;
+        p + n * eps
+    }
+
+    /// MIS weight of emission found by a BSDF-sampled ray with pdf `bsdf_pdf` (0 for camera
+    /// rays) when light sampling would have found it with `light_pdf`.
+    pub fn hit_emission_weight(scene: &Scene, bsdf_pdf: f32, light_pdf: f32) -> f32 {
+        if bsdf_pdf <= 0.0 || scene.strategy == STRATEGY_BSDF {
+            1.0
+        } else if scene.strategy == STRATEGY_NEE {
+            0.0
+        } else {
+            power_heuristic(bsdf_pdf, light_pdf)
+        }
+    }
+
+    /// One path sample through pixel (x, y): (radiance, 1), or zero when it was not finite.
+    pub fn render_sample(scene: &Scene, x: u32, y: u32) -> Vec4 {
+        let mut rng = pixel_seed(y * scene.width + x, scene.frame_seed);
+        let film = Vec2::new(x as f32 + random_float(&mut rng), y as f32 + random_float(&mut rng));
+        let lens = Vec2::new(random_float(&mut rng), random_float(&mut rng));
+        let ray = camera_ray(scene, film, lens);
+        let mut origin = ray.origin;
+        let mut dir = ray.dir;
+        let mut throughput = Vec3::ONE;
+        let mut radiance = Vec3::ZERO;
+        let mut bsdf_pdf = 0.0f32;
+        let mut depth = 0u32;
+        loop {
+            let hit = trace_closest(scene, origin, dir, MISS);
+            if hit.triangle == NONE {
+                if scene.has_sky != 0 {
+                    let mut light_pdf = 0.0;
+                    if scene.strategy == STRATEGY_MIS && bsdf_pdf > 0.0 {
+                        light_pdf = sky_pdf(scene, dir) * light_pmf(scene, scene.light_count - 1);
+                    }
+                    radiance += throughput * sky_radiance(scene, dir) * hit_emission_weight(scene, bsdf_pdf, light_pdf);
+                }
+                break;
+            }
+            let tri = fetch_triangle(scene, hit.triangle);
+            let p = origin + dir * hit.t;
+            let face = (tri.v1 - tri.v0).cross(tri.v2 - tri.v0);
+            let area2 = face.length();
+            if !(area2 > 0.0) {
+                break;
+            }
+            let flip = if face.dot(dir) > 0.0 { -1.0 } else { 1.0 };
+            let ng = face * (flip / area2);
+            let mut ns = ng;
+            if scene.has_shading != 0 {
+                let n = shading_normal(scene, hit.triangle, hit.u, hit.v) * flip;
+                let len = n.length();
+                if len > 0.0 && n.dot(ng) > 0.0 {
+                    ns = n / len;
+                }
+            }
+            let material = fetch_material(scene, tri.material);
+
+            // Emission found by this ray.
+            if material.emission.max_element() > 0.0 {
+                let mut light_pdf = 0.0;
+                if scene.strategy == STRATEGY_MIS && bsdf_pdf > 0.0 && tri.light != NONE {
+                    let cos_light = ng.dot(dir);
+                    light_pdf = area_pdf_to_solid_angle(light_pmf(scene, tri.light), 0.5 * area2, hit.t, cos_light);
+                }
+                let e = triangle_emission(scene, hit.triangle, tri.material, hit.u, hit.v);
+                radiance += throughput * e * hit_emission_weight(scene, bsdf_pdf, light_pdf);
+            }
+            if depth + 1 >= scene.max_depth {
+                break;
+            }
+
+            let mut albedo = material.base_color;
+            if scene.has_textures != 0 && material.base_texture != NONE {
+                albedo *=
+                    sample_texture(scene, material.base_texture, texcoord(scene, hit.triangle, hit.u, hit.v)).xyz();
+            }
+            let surface = offset_origin(scene, p, ng);
+
+            // Next event estimation.
+            let u_light = Vec3::new(random_float(&mut rng), random_float(&mut rng), random_float(&mut rng));
+            if scene.has_lights != 0 && scene.light_count > 0 {
+                let ls = sample_light(scene, surface, u_light);
+                let cos = ns.dot(ls.dir);
+                if ls.pdf > 0.0 && cos > 0.0 && ng.dot(ls.dir) > 0.0 && (ls.delta || scene.strategy != STRATEGY_BSDF) {
+                    let mut weight = 1.0;
+                    if !ls.delta && scene.strategy == STRATEGY_MIS {
+                        weight = power_heuristic(ls.pdf, cos * INV_PI);
+                    }
+                    let t_max = if ls.dist < MISS { ls.dist * (1.0 - 1.0e-4) } else { MISS };
+                    if !occluded(scene, surface, ls.dir, t_max) {
+                        radiance += throughput * albedo * (INV_PI * cos * weight / ls.pdf) * ls.radiance;
+                    }
+                }
+            }
+
+            // Continue the path by sampling the Lambert BSDF (cosine-weighted).
+            let next = sample_cosine_around(ns, random_float(&mut rng), random_float(&mut rng));
+            let cos = ns.dot(next);
+            if !(cos > 0.0) || ng.dot(next) <= 0.0 {
+                break;
+            }
+            bsdf_pdf = cos * INV_PI;
+            throughput *= albedo;
+            depth += 1;
+            if depth >= RR_START_DEPTH {
+                let q = throughput.max_element().min(0.95);
+                if random_float(&mut rng) >= q {
+                    break;
+                }
+                throughput /= q;
+            }
+            origin = surface;
+            dir = next;
+        }
+        finite_or_zero(radiance)
+    }
+}

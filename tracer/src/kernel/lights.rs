@@ -1,0 +1,231 @@
+#[kernel_dsl::kernel]
+pub mod lights {
+    //! Light sampling for next event estimation: one alias table over every emitter (emissive
+    //! triangles, point lights, the sky) chosen by power, and the matching pdfs for MIS.
+
+    use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
+
+    use crate::kernel::intersect::MISS;
+    use crate::kernel::sampling::{uniform_sample_triangle, INV_PI, PI};
+    use crate::kernel::scene_data::{
+        fetch_material, fetch_triangle, index_of, sample_texture, texcoord, Scene, LIGHT_POINT, LIGHT_SKY,
+        LIGHT_TEXELS, LIGHT_TRIANGLE, NONE,
+    };
+
+    /// A sampled light direction as seen from a shading point.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct LightSample {
+        /// Unit direction towards the light.
+        pub dir: Vec3,
+        /// Distance to the light sample (MISS for the sky).
+        pub dist: f32,
+        /// Emitted radiance (area lights, sky) or intensity / dist² (point lights).
+        pub radiance: Vec3,
+        /// Solid-angle pdf including the light selection (0 for an invalid sample).
+        pub pdf: f32,
+        /// Point lights cannot be hit by BSDF sampling: no MIS for them.
+        pub delta: bool,
+    }
+
+    pub fn luminance(c: Vec3) -> f32 {
+        c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+    }
+
+    /// Picks a light index from a uniform in [0, 1) with the alias table.
+    pub fn choose_light(scene: &Scene, u: f32) -> u32 {
+        let n = scene.light_count;
+        let scaled = u * n as f32;
+        let i = (scaled as u32).min(n - 1);
+        let entry = scene.lights.fetch(i * LIGHT_TEXELS);
+        if scaled - (i as f32) < entry.x {
+            i
+        } else {
+            index_of(entry.y)
+        }
+    }
+
+    /// Probability of choosing light `index`.
+    pub fn light_pmf(scene: &Scene, index: u32) -> f32 {
+        scene.lights.fetch(index * LIGHT_TEXELS).z
+    }
+
+    /// Emitted radiance of a triangle's material at barycentrics (u, v).
+    pub fn triangle_emission(scene: &Scene, triangle: u32, material: u32, u: f32, v: f32) -> Vec3 {
+        let m = fetch_material(scene, material);
+        let mut e = m.emission;
+        if scene.has_textures != 0 && m.emissive_texture != NONE {
+            e *= sample_texture(scene, m.emissive_texture, texcoord(scene, triangle, u, v)).xyz();
+        }
+        e
+    }
+
+    /// Solid-angle pdf of sampling a point at distance `dist` on a triangle of `area`, seen
+    /// under `cos_light` (emission is two-sided), including its selection probability.
+    pub fn area_pdf_to_solid_angle(pmf: f32, area: f32, dist: f32, cos_light: f32) -> f32 {
+        let c = cos_light.abs();
+        if c <= 0.0 || area <= 0.0 {
+            0.0
+        } else {
+            pmf * dist * dist / (area * c)
+        }
+    }
+
+    /// The sky's direction for texture coordinates (u, v) (see `tracer::scene::Sky`).
+    pub fn sky_direction(scene: &Scene, uv: Vec2) -> Vec3 {
+        let phi = (uv.x - 0.5) * 2.0 * PI + scene.sky_rotation;
+        let theta = uv.y * PI;
+        let s = theta.sin();
+        Vec3::new(s * phi.sin(), theta.cos(), -s * phi.cos())
+    }
+
+    /// Texel (column, row) of the sky seen along unit `dir`.
+    pub fn sky_texel_coords(scene: &Scene, dir: Vec3) -> Vec2 {
+        let phi = dir.x.atan2(-dir.z) - scene.sky_rotation;
+        let u = phi * (0.5 * INV_PI) + 0.5;
+        let u = u - u.floor();
+        let v = dir.y.clamp(-1.0, 1.0).acos() * INV_PI;
+        let w = scene.sky_width as f32;
+        let h = scene.sky_height as f32;
+        Vec2::new((u * w).floor().min(w - 1.0), (v * h).floor().min(h - 1.0))
+    }
+
+    pub fn sky_radiance(scene: &Scene, dir: Vec3) -> Vec3 {
+        let c = sky_texel_coords(scene, dir);
+        let i = c.y as u32 * scene.sky_width + c.x as u32;
+        scene.sky.fetch(i).xyz() * scene.sky_intensity
+    }
+
+    /// Probability of sky texel (col, row) under the sky's CDFs.
+    pub fn sky_texel_pmf(scene: &Scene, col: u32, row: u32) -> f32 {
+        let row_hi = scene.sky_rows.fetch(row).x;
+        let row_lo = if row > 0 { scene.sky_rows.fetch(row - 1).x } else { 0.0 };
+        let base = row * scene.sky_width;
+        let col_hi = scene.sky.fetch(base + col).w;
+        let col_lo = if col > 0 { scene.sky.fetch(base + col - 1).w } else { 0.0 };
+        (row_hi - row_lo) * (col_hi - col_lo)
+    }
+
+    /// Solid-angle pdf of sampling `dir` from the sky (without the light selection).
+    pub fn sky_pdf(scene: &Scene, dir: Vec3) -> f32 {
+        let c = sky_texel_coords(scene, dir);
+        let pmf = sky_texel_pmf(scene, c.x as u32, c.y as u32);
+        let sin_theta = (1.0 - dir.y * dir.y).max(0.0).sqrt();
+        if sin_theta <= 0.0 {
+            0.0
+        } else {
+            pmf * (scene.sky_width * scene.sky_height) as f32 / (2.0 * PI * PI * sin_theta)
+        }
+    }
+
+    /// First index in `[first, first + count)` whose CDF value exceeds `u` (binary search).
+    pub fn search_sky_row(scene: &Scene, u: f32) -> u32 {
+        let mut lo = 0u32;
+        let mut hi = scene.sky_height - 1;
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if scene.sky_rows.fetch(mid).x > u {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        lo
+    }
+
+    pub fn search_sky_column(scene: &Scene, row: u32, u: f32) -> u32 {
+        let base = row * scene.sky_width;
+        let mut lo = 0u32;
+        let mut hi = scene.sky_width - 1;
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if scene.sky.fetch(base + mid).w > u {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        lo
+    }
+
+    /// Samples one light for the shading point `p`. `u` are three uniforms in [0, 1).
+    pub fn sample_light(scene: &Scene, p: Vec3, u: Vec3) -> LightSample {
+        let none = LightSample { dir: Vec3::Y, dist: 0.0, radiance: Vec3::ZERO, pdf: 0.0, delta: false };
+        let index = choose_light(scene, u.x);
+        let head = scene.lights.fetch(index * LIGHT_TEXELS);
+        let data = scene.lights.fetch(index * LIGHT_TEXELS + 1);
+        let kind = index_of(head.w);
+        let pmf = head.z;
+        if kind == LIGHT_TRIANGLE {
+            let tri_index = index_of(data.x);
+            let tri = fetch_triangle(scene, tri_index);
+            let b = uniform_sample_triangle(u.y, u.z);
+            let q = tri.v0 * (1.0 - b.x - b.y) + tri.v1 * b.x + tri.v2 * b.y;
+            let to_light = q - p;
+            let dist2 = to_light.dot(to_light);
+            if !(dist2 > 0.0) {
+                return none;
+            }
+            let dist = dist2.sqrt();
+            let dir = to_light / dist;
+            let n = (tri.v1 - tri.v0).cross(tri.v2 - tri.v0);
+            let area2 = n.length();
+            let cos_light = if area2 > 0.0 { n.dot(dir) / area2 } else { 0.0 };
+            let pdf = area_pdf_to_solid_angle(pmf, 0.5 * area2, dist, cos_light);
+            if !(pdf > 0.0) {
+                return none;
+            }
+            let radiance = triangle_emission(scene, tri_index, tri.material, b.x, b.y);
+            LightSample { dir, dist, radiance, pdf, delta: false }
+        } else if kind == LIGHT_POINT {
+            let intensity = scene.lights.fetch(index * LIGHT_TEXELS + 2).xyz();
+            let to_light = data.xyz() - p;
+            let dist2 = to_light.dot(to_light);
+            if !(dist2 > 0.0) {
+                return none;
+            }
+            let dist = dist2.sqrt();
+            LightSample { dir: to_light / dist, dist, radiance: intensity / dist2, pdf: pmf, delta: true }
+        } else if kind == LIGHT_SKY && scene.has_sky != 0 {
+            let row = search_sky_row(scene, u.y);
+            let col = search_sky_column(scene, row, u.z);
+            // Uniform position inside the chosen texel, from what is left of u.y and u.z.
+            let base = row * scene.sky_width;
+            let lo = if col > 0 { scene.sky.fetch(base + col - 1).w } else { 0.0 };
+            let hi = scene.sky.fetch(base + col).w;
+            let fu = if hi > lo { ((u.z - lo) / (hi - lo)).clamp(0.0, 0.999999) } else { 0.5 };
+            let row_lo = if row > 0 { scene.sky_rows.fetch(row - 1).x } else { 0.0 };
+            let row_hi = scene.sky_rows.fetch(row).x;
+            let fv = if row_hi > row_lo { ((u.y - row_lo) / (row_hi - row_lo)).clamp(0.0, 0.999999) } else { 0.5 };
+            let uv = Vec2::new((col as f32 + fu) / scene.sky_width as f32, (row as f32 + fv) / scene.sky_height as f32);
+            let dir = sky_direction(scene, uv);
+            let pdf = sky_pdf(scene, dir) * pmf;
+            if !(pdf > 0.0) {
+                return none;
+            }
+            LightSample { dir, dist: MISS, radiance: sky_radiance(scene, dir), pdf, delta: false }
+        } else {
+            none
+        }
+    }
+
+    /// The power heuristic (β = 2) weight of a strategy with pdf `a` against one with pdf `b`.
+    pub fn power_heuristic(a: f32, b: f32) -> f32 {
+        let a2 = a * a;
+        let b2 = b * b;
+        if a2 + b2 > 0.0 {
+            a2 / (a2 + b2)
+        } else {
+            0.0
+        }
+    }
+
+    /// Makes a radiance sample safe to accumulate: (rgb, 1) when finite, else (0, 0, 0, 0) so
+    /// that the host can count rejected samples.
+    pub fn finite_or_zero(c: Vec3) -> Vec4 {
+        if c.x.is_finite() && c.y.is_finite() && c.z.is_finite() {
+            c.extend(1.0)
+        } else {
+            Vec4::ZERO
+        }
+    }
+}

@@ -1,0 +1,190 @@
+#[kernel_dsl::kernel]
+pub mod scene_data {
+    //! The packed scene as the kernel reads it: one `#[resources]` struct (data textures and
+    //! uniforms) and the functions that decode its texels. `tracer::pack` writes exactly this
+    //! layout, using the constants below.
+    //!
+    //! Integers stored in float texels are exact float values (< 2^24), never raw bits:
+    //! bit patterns of small integers are denormals, which GPUs may flush.
+
+    use glam::{UVec4, Vec2, Vec3, Vec4, Vec4Swizzles};
+    use kernel_dsl::Texels;
+
+    /// Texels per triangle in `triangles`: `[v0, material]`, `[v1, light index or -1]`, `[v2, 0]`.
+    pub const TRIANGLE_TEXELS: u32 = 3;
+    /// Texels per triangle in `shading`: `[n0, u0]`, `[n1, v0]`, `[n2, u1]`, `[v1, u2, v2, 0]`.
+    pub const SHADING_TEXELS: u32 = 4;
+    /// Texels per BVH node: `[min, first]`, `[max, count]` (count 0: interior, children at
+    /// `first` and `first + 1`; else a leaf of triangles `first..first + count`).
+    pub const NODE_TEXELS: u32 = 2;
+    /// Texels per material: `[base colour, base texture or -1]`, `[emission, emissive texture or -1]`.
+    pub const MATERIAL_TEXELS: u32 = 2;
+    /// Texels per light: `[alias threshold, alias index, pmf, kind]`, `[position or triangle index, 0]`,
+    /// `[intensity, 0]`.
+    pub const LIGHT_TEXELS: u32 = 3;
+    pub const LIGHT_TRIANGLE: u32 = 0;
+    pub const LIGHT_POINT: u32 = 1;
+    pub const LIGHT_SKY: u32 = 2;
+    /// No index (stored as -1.0 in float texels).
+    pub const NONE: u32 = 0xffffffff;
+    pub const WRAP_REPEAT: u32 = 0;
+    pub const WRAP_CLAMP: u32 = 1;
+    pub const WRAP_MIRROR: u32 = 2;
+
+    /// Everything the kernel reads. On the CPU the `Texels` are slices of the packed arrays; in
+    /// GLSL they are data textures (`scene_<field>`) and the scalars are uniforms.
+    #[resources]
+    #[derive(Clone, Debug, Default)]
+    pub struct Scene {
+        pub triangles: Texels<Vec4>,
+        pub shading: Texels<Vec4>,
+        pub nodes: Texels<Vec4>,
+        pub materials: Texels<Vec4>,
+        pub lights: Texels<Vec4>,
+        /// Albedo/emission texels of every texture, back to back (linear RGBA).
+        pub texture_texels: Texels<Vec4>,
+        /// Per texture: `[first texel, width, height, wrap_s | wrap_t << 8]`.
+        pub texture_info: Texels<UVec4>,
+        /// Equirectangular sky: `[radiance, conditional CDF within the row]`.
+        pub sky: Texels<Vec4>,
+        /// Per sky row: `[marginal CDF, 0, 0, 0]`.
+        pub sky_rows: Texels<Vec4>,
+
+        pub camera_position: Vec3,
+        /// Right vector scaled by tan(fov/2) * aspect.
+        pub camera_right: Vec3,
+        /// Up vector scaled by tan(fov/2).
+        pub camera_up: Vec3,
+        pub camera_forward: Vec3,
+        pub lens_radius: f32,
+        pub focus_distance: f32,
+        pub width: u32,
+        pub height: u32,
+        pub frame_seed: u32,
+        pub max_depth: u32,
+        /// 0: BSDF sampling only, 1: next event estimation only, 2: MIS (power heuristic).
+        pub strategy: u32,
+        pub light_count: u32,
+        pub sky_width: u32,
+        pub sky_height: u32,
+        pub sky_intensity: f32,
+        pub sky_rotation: f32,
+        /// Largest absolute coordinate of the scene: scales self-intersection offsets.
+        pub scene_scale: f32,
+        /// Feature flags (0 or 1). Codegen can specialise on them, removing the code and data of
+        /// features a scene does not use.
+        pub has_sky: u32,
+        pub has_textures: u32,
+        pub has_shading: u32,
+        pub has_lights: u32,
+    }
+
+    pub const STRATEGY_BSDF: u32 = 0;
+    pub const STRATEGY_NEE: u32 = 1;
+    pub const STRATEGY_MIS: u32 = 2;
+
+    /// A triangle's vertices and indices, as the kernel needs them.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct TriangleData {
+        pub v0: Vec3,
+        pub v1: Vec3,
+        pub v2: Vec3,
+        pub material: u32,
+        /// Index in the light table, or NONE.
+        pub light: u32,
+    }
+
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct MaterialData {
+        pub base_color: Vec3,
+        pub base_texture: u32,
+        pub emission: Vec3,
+        pub emissive_texture: u32,
+    }
+
+    /// A float texel component holding an index (-1 for none).
+    pub fn index_of(x: f32) -> u32 {
+        if x < 0.0 {
+            NONE
+        } else {
+            x as u32
+        }
+    }
+
+    pub fn fetch_triangle(scene: &Scene, index: u32) -> TriangleData {
+        let base = index * TRIANGLE_TEXELS;
+        let a = scene.triangles.fetch(base);
+        let b = scene.triangles.fetch(base + 1);
+        let c = scene.triangles.fetch(base + 2);
+        TriangleData { v0: a.xyz(), v1: b.xyz(), v2: c.xyz(), material: index_of(a.w), light: index_of(b.w) }
+    }
+
+    pub fn fetch_material(scene: &Scene, index: u32) -> MaterialData {
+        let a = scene.materials.fetch(index * MATERIAL_TEXELS);
+        let b = scene.materials.fetch(index * MATERIAL_TEXELS + 1);
+        MaterialData {
+            base_color: a.xyz(),
+            base_texture: index_of(a.w),
+            emission: b.xyz(),
+            emissive_texture: index_of(b.w),
+        }
+    }
+
+    /// Interpolated shading normal (not normalised) at barycentrics (u, v).
+    pub fn shading_normal(scene: &Scene, index: u32, u: f32, v: f32) -> Vec3 {
+        let base = index * SHADING_TEXELS;
+        let n0 = scene.shading.fetch(base).xyz();
+        let n1 = scene.shading.fetch(base + 1).xyz();
+        let n2 = scene.shading.fetch(base + 2).xyz();
+        n0 * (1.0 - u - v) + n1 * u + n2 * v
+    }
+
+    /// Interpolated texture coordinates at barycentrics (u, v).
+    pub fn texcoord(scene: &Scene, index: u32, u: f32, v: f32) -> Vec2 {
+        let base = index * SHADING_TEXELS;
+        let uv0 = Vec2::new(scene.shading.fetch(base).w, scene.shading.fetch(base + 1).w);
+        let rest = scene.shading.fetch(base + 3);
+        let uv1 = Vec2::new(scene.shading.fetch(base + 2).w, rest.x);
+        let uv2 = Vec2::new(rest.y, rest.z);
+        uv0 * (1.0 - u - v) + uv1 * u + uv2 * v
+    }
+
+    /// Texel coordinate `i` of an axis of `size` texels under a wrap mode.
+    pub fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
+        if mode == WRAP_CLAMP {
+            i.clamp(0, size - 1)
+        } else if mode == WRAP_MIRROR {
+            let period = 2 * size;
+            let m = ((i % period) + period) % period;
+            if m < size {
+                m
+            } else {
+                period - 1 - m
+            }
+        } else {
+            ((i % size) + size) % size
+        }
+    }
+
+    pub fn texel(scene: &Scene, info: UVec4, x: i32, y: i32) -> Vec4 {
+        let w = info.y as i32;
+        let h = info.z as i32;
+        let tx = wrap_coordinate(x, w, info.w & 255);
+        let ty = wrap_coordinate(y, h, info.w >> 8);
+        scene.texture_texels.fetch(info.x + (ty * w + tx) as u32)
+    }
+
+    /// Bilinear lookup of texture `index` at `uv` (glTF convention: v = 0 is the top row).
+    pub fn sample_texture(scene: &Scene, index: u32, uv: Vec2) -> Vec4 {
+        let info = scene.texture_info.fetch(index);
+        let x = uv.x * info.y as f32 - 0.5;
+        let y = uv.y * info.z as f32 - 0.5;
+        let fx = x - x.floor();
+        let fy = y - y.floor();
+        let x0 = x.floor() as i32;
+        let y0 = y.floor() as i32;
+        let top = texel(scene, info, x0, y0) * (1.0 - fx) + texel(scene, info, x0 + 1, y0) * fx;
+        let bottom = texel(scene, info, x0, y0 + 1) * (1.0 - fx) + texel(scene, info, x0 + 1, y0 + 1) * fx;
+        top * (1.0 - fy) + bottom * fy
+    }
+}

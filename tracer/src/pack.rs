@@ -1,0 +1,424 @@
+//! Packing: a loaded scene and its BVH become the texel arrays and uniforms the kernel reads
+//! (`kernel::scene_data::Scene`), plus the [`Features`] the scene uses. The same packed data
+//! feeds every backend: the CPU reads the arrays directly, GPUs upload them as textures.
+//!
+//! Nothing is packed that the scene does not use: no sky means no sky arrays, no textures
+//! means no texture atlas (and no per-vertex UVs), flat geometry means no shading normals.
+
+use glam::{UVec4, Vec3, Vec4};
+use kernel_dsl::Texels;
+
+use crate::bvh::Bvh;
+use crate::kernel::scene_data::{
+    self, Scene as KernelScene, LIGHT_POINT, LIGHT_SKY, LIGHT_TEXELS, LIGHT_TRIANGLE, MATERIAL_TEXELS, NODE_TEXELS,
+    SHADING_TEXELS, TRIANGLE_TEXELS,
+};
+use crate::scene::{Scene, Wrap};
+
+/// What a scene uses; decides what is packed and, on GPUs, which kernel variant is generated.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Features {
+    pub sky: bool,
+    pub textures: bool,
+    /// Per-vertex normals or texture coordinates are needed.
+    pub shading: bool,
+    pub point_lights: bool,
+    pub emissive_triangles: bool,
+}
+
+impl Features {
+    pub fn lights(&self) -> bool {
+        self.sky || self.point_lights || self.emissive_triangles
+    }
+
+    /// Every feature on: the unspecialised kernel, for comparisons.
+    pub fn all() -> Features {
+        Features { sky: true, textures: true, shading: true, point_lights: true, emissive_triangles: true }
+    }
+}
+
+/// Which estimator the kernel uses (all three converge to the same image).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Strategy {
+    /// BSDF sampling only (point lights, which BSDF rays cannot hit, are still sampled).
+    Bsdf,
+    /// Next event estimation only.
+    Nee,
+    /// Both, combined with multiple importance sampling (power heuristic).
+    #[default]
+    Mis,
+}
+
+impl Strategy {
+    pub const ALL: [Strategy; 3] = [Strategy::Bsdf, Strategy::Nee, Strategy::Mis];
+
+    pub fn uniform_value(self) -> u32 {
+        match self {
+            Strategy::Bsdf => scene_data::STRATEGY_BSDF,
+            Strategy::Nee => scene_data::STRATEGY_NEE,
+            Strategy::Mis => scene_data::STRATEGY_MIS,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Strategy::Bsdf => "bsdf",
+            Strategy::Nee => "nee",
+            Strategy::Mis => "mis",
+        }
+    }
+}
+
+/// Render settings that become uniforms.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    pub strategy: Strategy,
+    /// Maximum number of path segments (camera to light).
+    pub max_depth: u32,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings { width: 512, height: 512, strategy: Strategy::Mis, max_depth: 8 }
+    }
+}
+
+/// Used and allocated texels of one packed array once laid out as a 2D texture.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ArrayStats {
+    pub name: &'static str,
+    pub texels: usize,
+    pub width: u32,
+    pub height: u32,
+    /// Bytes per texel (16 for RGBA32F / RGBA32UI).
+    pub texel_bytes: usize,
+}
+
+impl ArrayStats {
+    pub fn allocated(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+}
+
+/// The packed scene.
+#[derive(Clone, Debug)]
+pub struct Packed {
+    pub scene: KernelScene,
+    pub features: Features,
+    pub triangle_count: usize,
+    pub light_count: usize,
+}
+
+/// Why a scene cannot be packed.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum PackError {
+    #[error(
+        "the scene has {0} triangles; the packed layout stores indices as exact floats, so at most 16,777,216 fit"
+    )]
+    TooManyTriangles(usize),
+    #[error("the BVH references triangle {0}, which the scene does not have")]
+    BadBvh(u32),
+    #[error("{what} needs {texels} texels, more than a {max}x{max} texture holds")]
+    TooLarge { what: &'static str, texels: usize, max: u32 },
+    #[error("the image size {width}x{height} is invalid (each side 1..=16384)")]
+    BadSize { width: u32, height: u32 },
+}
+
+/// Largest integer stored exactly in an f32 texel.
+const MAX_EXACT: usize = 1 << 24;
+
+/// Lays out `texels` as a 2D texture of power-of-two width no larger than `max_size`:
+/// the narrowest power of two that keeps the height within `max_size` and near-square.
+pub fn texture_shape(texels: usize, max_size: u32) -> Option<(u32, u32)> {
+    let texels = texels.max(1);
+    let mut width = 1u32;
+    while (width as usize) * (width as usize) < texels && width < max_size {
+        width *= 2;
+    }
+    let height = texels.div_ceil(width as usize);
+    (height <= max_size as usize).then_some((width, height as u32))
+}
+
+fn index_value(i: Option<u32>) -> f32 {
+    i.map_or(-1.0, |i| i as f32)
+}
+
+fn wrap_code(w: Wrap) -> u32 {
+    match w {
+        Wrap::Repeat => scene_data::WRAP_REPEAT,
+        Wrap::ClampToEdge => scene_data::WRAP_CLAMP,
+        Wrap::MirroredRepeat => scene_data::WRAP_MIRROR,
+    }
+}
+
+fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+/// Vose's alias method: (threshold, alias) per entry for sampling proportionally to `weights`.
+fn alias_table(weights: &[f32]) -> Vec<(f32, u32)> {
+    let n = weights.len();
+    let total: f64 = weights.iter().map(|w| *w as f64).sum();
+    let mut scaled: Vec<f64> = weights.iter().map(|w| *w as f64 * n as f64 / total).collect();
+    let mut table = vec![(1.0f32, 0u32); n];
+    for (i, t) in table.iter_mut().enumerate() {
+        t.1 = i as u32;
+    }
+    let (mut small, mut large): (Vec<usize>, Vec<usize>) = (0..n).partition(|&i| scaled[i] < 1.0);
+    while let (Some(s), Some(&l)) = (small.pop(), large.last()) {
+        table[s] = (scaled[s] as f32, l as u32);
+        scaled[l] -= 1.0 - scaled[s];
+        if scaled[l] < 1.0 {
+            large.pop();
+            small.push(l);
+        }
+    }
+    table
+}
+
+/// Packs `scene` (with its BVH) for rendering with `settings`.
+pub fn pack(scene: &Scene, bvh: &Bvh, settings: &RenderSettings) -> Result<Packed, PackError> {
+    let (width, height) = (settings.width, settings.height);
+    if !(1..=16384).contains(&width) || !(1..=16384).contains(&height) {
+        return Err(PackError::BadSize { width, height });
+    }
+    let tri_count = bvh.triangle_order.len();
+    if tri_count >= MAX_EXACT || bvh.nodes.len() >= MAX_EXACT {
+        return Err(PackError::TooManyTriangles(tri_count));
+    }
+    let ordered: Vec<&crate::scene::Triangle> = bvh
+        .triangle_order
+        .iter()
+        .map(|&i| scene.triangles.get(i as usize).ok_or(PackError::BadBvh(i)))
+        .collect::<Result<_, _>>()?;
+
+    let textures_used = scene.materials.iter().any(|m| m.base_color_texture.is_some() || m.emissive_texture.is_some())
+        && !scene.textures.is_empty();
+    let smooth = ordered.iter().any(|t| {
+        let face = (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]).normalize_or_zero();
+        t.normals.iter().any(|n| n.dot(face) < 0.9999)
+    });
+    let emissive_triangles: Vec<u32> = ordered
+        .iter()
+        .enumerate()
+        .filter(|(_, t)| scene.materials.get(t.material as usize).is_some_and(|m| m.is_emissive()))
+        .map(|(i, _)| i as u32)
+        .collect();
+    let features = Features {
+        sky: scene.sky.is_some(),
+        textures: textures_used,
+        shading: textures_used || smooth,
+        point_lights: !scene.point_lights.is_empty(),
+        emissive_triangles: !emissive_triangles.is_empty(),
+    };
+
+    // Lights: emissive triangles, point lights, then the sky (the kernel expects it last).
+    let bounds = scene.bounds();
+    let radius = (0.5 * bounds.diagonal().length()).max(1e-6);
+    let mut light_weights = Vec::new();
+    let mut light_data: Vec<(u32, Vec4, Vec4)> = Vec::new();
+    let mut triangle_light = vec![None; tri_count];
+    for &ti in &emissive_triangles {
+        let t = ordered[ti as usize];
+        let m = &scene.materials[t.material as usize];
+        let texture_mean = m
+            .emissive_texture
+            .and_then(|i| scene.textures.get(i as usize))
+            .map(|tex| {
+                let sum: Vec4 = tex.texels.iter().copied().sum();
+                luminance(sum.truncate() / tex.texels.len().max(1) as f32)
+            })
+            .unwrap_or(1.0);
+        let area = 0.5 * (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]).length();
+        triangle_light[ti as usize] = Some(light_data.len() as u32);
+        light_weights.push(luminance(m.emission) * texture_mean * area * std::f32::consts::PI);
+        light_data.push((LIGHT_TRIANGLE, Vec4::new(ti as f32, 0.0, 0.0, 0.0), Vec4::ZERO));
+    }
+    for p in &scene.point_lights {
+        light_weights.push(luminance(p.intensity) * 4.0 * std::f32::consts::PI);
+        light_data.push((LIGHT_POINT, p.position.extend(0.0), p.intensity.extend(0.0)));
+    }
+    let mut sky_texels = Vec::new();
+    let mut sky_rows = Vec::new();
+    if let Some(sky) = &scene.sky {
+        let (w, h) = (sky.width as usize, sky.height as usize);
+        let mut row_sums = Vec::with_capacity(h);
+        sky_texels.reserve(w * h);
+        for y in 0..h {
+            // Weight by sin(theta): texels near the poles cover less solid angle.
+            let sin_theta = (std::f32::consts::PI * (y as f32 + 0.5) / h as f32).sin();
+            let weights: Vec<f64> =
+                (0..w).map(|x| (luminance(sky.texels[y * w + x]) * sin_theta).max(0.0) as f64).collect();
+            let total: f64 = weights.iter().sum();
+            let mut acc = 0.0f64;
+            for (x, wt) in weights.iter().enumerate() {
+                acc += if total > 0.0 { wt / total } else { 1.0 / w as f64 };
+                let cdf = if x + 1 == w { 1.0 } else { acc as f32 };
+                sky_texels.push(sky.texels[y * w + x].extend(cdf));
+            }
+            row_sums.push(total);
+        }
+        let total: f64 = row_sums.iter().sum();
+        let mut acc = 0.0f64;
+        for (y, s) in row_sums.iter().enumerate() {
+            acc += if total > 0.0 { s / total } else { 1.0 / h as f64 };
+            let cdf = if y + 1 == h { 1.0 } else { acc as f32 };
+            sky_rows.push(Vec4::new(cdf, 0.0, 0.0, 0.0));
+        }
+        let mean_radiance = if total > 0.0 {
+            // Mean of luminance * sin(theta) over the map, normalised by the mean of sin(theta) (2/π).
+            (total / (w * h) as f64) as f32 / (2.0 / std::f32::consts::PI) * sky.intensity
+        } else {
+            0.0
+        };
+        light_weights.push(mean_radiance * std::f32::consts::PI * radius * radius * std::f32::consts::PI);
+        light_data.push((LIGHT_SKY, Vec4::ZERO, Vec4::ZERO));
+    }
+    // Every light keeps a share of the samples: with next event estimation only, a light that
+    // is never chosen would be missing from the image.
+    let mean_weight = light_weights.iter().sum::<f32>() / light_weights.len().max(1) as f32;
+    let floor = if mean_weight > 0.0 { mean_weight * 1e-3 } else { 1.0 };
+    for w in &mut light_weights {
+        *w = if w.is_finite() { w.max(floor) } else { floor };
+    }
+    let total_weight: f32 = light_weights.iter().sum();
+    let alias = alias_table(&light_weights);
+    let mut lights = Vec::with_capacity(light_data.len() * LIGHT_TEXELS as usize);
+    for (i, (kind, a, b)) in light_data.iter().enumerate() {
+        let (threshold, alias_index) = alias[i];
+        lights.push(Vec4::new(threshold, alias_index as f32, light_weights[i] / total_weight, *kind as f32));
+        lights.push(*a);
+        lights.push(*b);
+    }
+
+    let mut triangles = Vec::with_capacity(tri_count * TRIANGLE_TEXELS as usize);
+    for (i, t) in ordered.iter().enumerate() {
+        triangles.push(t.positions[0].extend(t.material as f32));
+        triangles.push(t.positions[1].extend(index_value(triangle_light[i])));
+        triangles.push(t.positions[2].extend(0.0));
+    }
+    let mut shading = Vec::new();
+    if features.shading {
+        shading.reserve(tri_count * SHADING_TEXELS as usize);
+        for t in &ordered {
+            shading.push(t.normals[0].extend(t.uvs[0].x));
+            shading.push(t.normals[1].extend(t.uvs[0].y));
+            shading.push(t.normals[2].extend(t.uvs[1].x));
+            shading.push(Vec4::new(t.uvs[1].y, t.uvs[2].x, t.uvs[2].y, 0.0));
+        }
+    }
+    let mut nodes = Vec::with_capacity(bvh.nodes.len() * NODE_TEXELS as usize);
+    for n in &bvh.nodes {
+        nodes.push(n.min.extend(n.first as f32));
+        nodes.push(n.max.extend(n.count as f32));
+    }
+    let mut materials = Vec::with_capacity(scene.materials.len() * MATERIAL_TEXELS as usize);
+    let texture_index = |i: Option<u32>| if features.textures { index_value(i) } else { -1.0 };
+    for m in &scene.materials {
+        materials.push(m.base_color.extend(texture_index(m.base_color_texture)));
+        materials.push(m.emission.extend(texture_index(m.emissive_texture)));
+    }
+    let mut texture_texels = Vec::new();
+    let mut texture_info = Vec::new();
+    if features.textures {
+        for t in &scene.textures {
+            texture_info.push(UVec4::new(
+                texture_texels.len() as u32,
+                t.width,
+                t.height,
+                wrap_code(t.wrap_s) | wrap_code(t.wrap_t) << 8,
+            ));
+            texture_texels.extend_from_slice(&t.texels);
+        }
+    }
+
+    let cam = &scene.camera;
+    let forward = (cam.target - cam.position).normalize_or(Vec3::NEG_Z);
+    let tan_half = (0.5 * cam.yfov).tan();
+    let aspect = width as f32 / height as f32;
+    let right = forward.cross(cam.up).normalize_or(Vec3::X);
+    let up = right.cross(forward).normalize_or(Vec3::Y);
+    let scene_scale = bounds.min.abs().max(bounds.max.abs()).max_element();
+    let sky = scene.sky.as_ref();
+    let kernel_scene = KernelScene {
+        triangles: Texels::new(triangles),
+        shading: Texels::new(shading),
+        nodes: Texels::new(nodes),
+        materials: Texels::new(materials),
+        lights: Texels::new(lights),
+        texture_texels: Texels::new(texture_texels),
+        texture_info: Texels::new(texture_info),
+        sky: Texels::new(sky_texels),
+        sky_rows: Texels::new(sky_rows),
+        camera_position: cam.position,
+        camera_right: right * tan_half * aspect,
+        camera_up: up * tan_half,
+        camera_forward: forward,
+        lens_radius: cam.aperture_radius,
+        focus_distance: cam.focus_distance,
+        width,
+        height,
+        frame_seed: 0,
+        max_depth: settings.max_depth.max(1),
+        strategy: settings.strategy.uniform_value(),
+        light_count: light_data.len() as u32,
+        sky_width: sky.map_or(0, |s| s.width),
+        sky_height: sky.map_or(0, |s| s.height),
+        sky_intensity: sky.map_or(0.0, |s| s.intensity),
+        sky_rotation: sky.map_or(0.0, |s| s.rotation),
+        scene_scale: if scene_scale.is_finite() { scene_scale } else { 1.0 },
+        has_sky: features.sky as u32,
+        has_textures: features.textures as u32,
+        has_shading: features.shading as u32,
+        has_lights: features.lights() as u32,
+    };
+    Ok(Packed { scene: kernel_scene, features, triangle_count: tri_count, light_count: light_data.len() })
+}
+
+impl Packed {
+    /// Sets the render settings that are uniforms (no repacking needed).
+    pub fn apply(&mut self, settings: &RenderSettings) {
+        let s = &mut self.scene;
+        s.max_depth = settings.max_depth.max(1);
+        s.strategy = settings.strategy.uniform_value();
+        if settings.width != s.width || settings.height != s.height {
+            let aspect_old = s.width as f32 / s.height as f32;
+            let aspect_new = settings.width as f32 / settings.height as f32;
+            s.camera_right *= aspect_new / aspect_old;
+            s.width = settings.width;
+            s.height = settings.height;
+        }
+    }
+
+    /// Every packed array with its texture layout for `max_texture_size`; arrays the scene
+    /// does not use are absent.
+    pub fn arrays(&self, max_texture_size: u32) -> Result<Vec<ArrayStats>, PackError> {
+        let s = &self.scene;
+        let list: [(&'static str, usize); 9] = [
+            ("triangles", s.triangles.len()),
+            ("shading", s.shading.len()),
+            ("nodes", s.nodes.len()),
+            ("materials", s.materials.len()),
+            ("lights", s.lights.len()),
+            ("texture_texels", s.texture_texels.len()),
+            ("texture_info", s.texture_info.len()),
+            ("sky", s.sky.len()),
+            ("sky_rows", s.sky_rows.len()),
+        ];
+        let mut out = Vec::new();
+        for (name, texels) in list {
+            if texels == 0 {
+                continue;
+            }
+            let (width, height) = texture_shape(texels, max_texture_size).ok_or(PackError::TooLarge {
+                what: name,
+                texels,
+                max: max_texture_size,
+            })?;
+            out.push(ArrayStats { name, texels, width, height, texel_bytes: 16 });
+        }
+        Ok(out)
+    }
+}
