@@ -445,7 +445,7 @@ vec3 sky_radiance(vec3 dir) {
     return lp_fetch_vec4(scene_sky, i).xyz * scene_sky_intensity;
 }
 
-// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:129)
+// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:134)
 vec3 shading_normal(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec3 n0 = lp_fetch_vec4(scene_shading, base).xyz;
@@ -461,13 +461,12 @@ MaterialData fetch_material(uint index) {
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:64)
+// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:65)
 float area_pdf_to_solid_angle(float pmf, float area, float dist, float cos_light) {
-    float c = abs(cos_light);
-    return c <= 0.0 || area <= 0.0 ? 0.0 : pmf * dist * dist / (area * c);
+    return !(cos_light > 0.0) || !(area > 0.0) ? 0.0 : pmf * dist * dist / (area * cos_light);
 }
 
-// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:148)
+// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:153)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -480,7 +479,7 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::texel (tracer/src/kernel/scene_data.rs:164)
+// scene_data::texel (tracer/src/kernel/scene_data.rs:169)
 vec4 texel(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -489,7 +488,7 @@ vec4 texel(uvec4 info, int x, int y) {
     return lp_fetch_vec4(scene_texture_texels, info.x + uint(ty * w + tx));
 }
 
-// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:173)
+// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:178)
 vec4 sample_texture(uint index, vec2 uv) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = uv.x * lp_u32_to_f32(info.y) - 0.5;
@@ -503,7 +502,7 @@ vec4 sample_texture(uint index, vec2 uv) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::texcoord (tracer/src/kernel/scene_data.rs:138)
+// scene_data::texcoord (tracer/src/kernel/scene_data.rs:143)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -603,7 +602,7 @@ LightSample sample_light(vec3 p, vec3 u) {
         vec3 dir = to_light / dist;
         vec3 n = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
         float area2 = length(n);
-        float cos_light = area2 > 0.0 ? dot(n, dir) / area2 : 0.0;
+        float cos_light = area2 > 0.0 ? -dot(n, dir) / area2 : 0.0;
         float pdf = area_pdf_to_solid_angle(pmf, 0.5 * area2, dist, cos_light);
         if (!(pdf > 0.0)) {
             return none;
@@ -748,10 +747,10 @@ vec4 render_sample(uint x, uint y) {
             }
         }
         MaterialData material = fetch_material(tri.material);
-        if (lp_max_element_vec3(material.emission) > 0.0) {
+        if (lp_max_element_vec3(material.emission) > 0.0 && flip > 0.0) {
             float light_pdf_1 = 0.0;
             if ((scene_strategy == STRATEGY_MIS) && bsdf_pdf > 0.0 && (tri.light != NONE)) {
-                float cos_light = dot(ng, dir);
+                float cos_light = -dot(ng, dir);
                 light_pdf_1 = area_pdf_to_solid_angle(light_pmf(tri.light), 0.5 * area2, hit.t, cos_light);
             }
             vec3 e = triangle_emission(hit.triangle, tri.material, hit.u, hit.v);

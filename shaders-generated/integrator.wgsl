@@ -416,7 +416,7 @@ fn sky_radiance(dir: vec3<f32>) -> vec3<f32> {
     return scene_sky[i].xyz * scene.sky_intensity;
 }
 
-// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:129)
+// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:134)
 fn shading_normal(index: u32, u: f32, v: f32) -> vec3<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let n0: vec3<f32> = scene_shading[base].xyz;
@@ -432,13 +432,12 @@ fn fetch_material(index: u32) -> MaterialData {
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:64)
+// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:65)
 fn area_pdf_to_solid_angle(pmf: f32, area: f32, dist: f32, cos_light: f32) -> f32 {
-    let c: f32 = abs(cos_light);
-    return select(pmf * dist * dist / (area * c), 0.0, c <= 0.0 || area <= 0.0);
+    return select(pmf * dist * dist / (area * cos_light), 0.0, !(cos_light > 0.0) || !(area > 0.0));
 }
 
-// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:148)
+// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:153)
 fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     if mode == WRAP_CLAMP {
         return clamp(i, 0i, size - 1i);
@@ -451,7 +450,7 @@ fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     }
 }
 
-// scene_data::texel (tracer/src/kernel/scene_data.rs:164)
+// scene_data::texel (tracer/src/kernel/scene_data.rs:169)
 fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
     let w: i32 = bitcast<i32>(info.y);
     let h: i32 = bitcast<i32>(info.z);
@@ -460,7 +459,7 @@ fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
     return scene_texture_texels[info.x + bitcast<u32>(ty * w + tx)];
 }
 
-// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:173)
+// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:178)
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     let info: vec4<u32> = scene_texture_info[index];
     let x: f32 = uv.x * lp_u32_to_f32(info.y) - 0.5;
@@ -474,7 +473,7 @@ fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::texcoord (tracer/src/kernel/scene_data.rs:138)
+// scene_data::texcoord (tracer/src/kernel/scene_data.rs:143)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(scene_shading[base].w, scene_shading[base + 1u].w);
@@ -574,7 +573,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         let dir: vec3<f32> = to_light / dist;
         let n: vec3<f32> = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
         let area2: f32 = length(n);
-        let cos_light: f32 = select(0.0, dot(n, dir) / area2, area2 > 0.0);
+        let cos_light: f32 = select(0.0, -dot(n, dir) / area2, area2 > 0.0);
         let pdf: f32 = area_pdf_to_solid_angle(pmf, 0.5 * area2, dist, cos_light);
         if !(pdf > 0.0) {
             return none;
@@ -718,10 +717,10 @@ fn render_sample(x: u32, y: u32) -> vec4<f32> {
             }
         }
         let material: MaterialData = fetch_material(tri.material);
-        if lp_max_element_vec3(material.emission) > 0.0 {
+        if lp_max_element_vec3(material.emission) > 0.0 && flip > 0.0 {
             var light_pdf_1: f32 = 0.0;
             if (scene.strategy == STRATEGY_MIS) && bsdf_pdf > 0.0 && (tri.light != NONE) {
-                let cos_light: f32 = dot(ng, dir);
+                let cos_light: f32 = -dot(ng, dir);
                 light_pdf_1 = area_pdf_to_solid_angle(light_pmf(tri.light), 0.5 * area2, hit.t, cos_light);
             }
             let e: vec3<f32> = triangle_emission(hit.triangle, tri.material, hit.u, hit.v);

@@ -170,7 +170,7 @@ MaterialData fetch_material(uint index) {
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:148)
+// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:153)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -183,7 +183,7 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::texel (tracer/src/kernel/scene_data.rs:164)
+// scene_data::texel (tracer/src/kernel/scene_data.rs:169)
 vec4 texel(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -192,7 +192,7 @@ vec4 texel(uvec4 info, int x, int y) {
     return lp_fetch_vec4(scene_texture_texels, info.x + uint(ty * w + tx));
 }
 
-// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:173)
+// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:178)
 vec4 sample_texture(uint index, vec2 uv) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = uv.x * lp_u32_to_f32(info.y) - 0.5;
@@ -206,7 +206,7 @@ vec4 sample_texture(uint index, vec2 uv) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::texcoord (tracer/src/kernel/scene_data.rs:138)
+// scene_data::texcoord (tracer/src/kernel/scene_data.rs:143)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -226,10 +226,9 @@ vec3 triangle_emission(uint triangle, uint material, float u, float v) {
     return e;
 }
 
-// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:64)
+// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:65)
 float area_pdf_to_solid_angle(float pmf, float area, float dist, float cos_light) {
-    float c = abs(cos_light);
-    return c <= 0.0 || area <= 0.0 ? 0.0 : pmf * dist * dist / (area * c);
+    return !(cos_light > 0.0) || !(area > 0.0) ? 0.0 : pmf * dist * dist / (area * cos_light);
 }
 
 // lights::sky_direction (tracer/src/kernel/lights.rs:74)
@@ -344,7 +343,7 @@ LightSample sample_light(vec3 p, vec3 u) {
         vec3 dir = to_light / dist;
         vec3 n = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
         float area2 = length(n);
-        float cos_light = area2 > 0.0 ? dot(n, dir) / area2 : 0.0;
+        float cos_light = area2 > 0.0 ? -dot(n, dir) / area2 : 0.0;
         float pdf = area_pdf_to_solid_angle(pmf, 0.5 * area2, dist, cos_light);
         if (!(pdf > 0.0)) {
             return none;

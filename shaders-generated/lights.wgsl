@@ -143,7 +143,7 @@ fn fetch_material(index: u32) -> MaterialData {
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:148)
+// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:153)
 fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     if mode == WRAP_CLAMP {
         return clamp(i, 0i, size - 1i);
@@ -156,7 +156,7 @@ fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     }
 }
 
-// scene_data::texel (tracer/src/kernel/scene_data.rs:164)
+// scene_data::texel (tracer/src/kernel/scene_data.rs:169)
 fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
     let w: i32 = bitcast<i32>(info.y);
     let h: i32 = bitcast<i32>(info.z);
@@ -165,7 +165,7 @@ fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
     return scene_texture_texels[info.x + bitcast<u32>(ty * w + tx)];
 }
 
-// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:173)
+// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:178)
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     let info: vec4<u32> = scene_texture_info[index];
     let x: f32 = uv.x * lp_u32_to_f32(info.y) - 0.5;
@@ -179,7 +179,7 @@ fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::texcoord (tracer/src/kernel/scene_data.rs:138)
+// scene_data::texcoord (tracer/src/kernel/scene_data.rs:143)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(scene_shading[base].w, scene_shading[base + 1u].w);
@@ -199,10 +199,9 @@ fn triangle_emission(triangle: u32, material: u32, u: f32, v: f32) -> vec3<f32> 
     return e;
 }
 
-// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:64)
+// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:65)
 fn area_pdf_to_solid_angle(pmf: f32, area: f32, dist: f32, cos_light: f32) -> f32 {
-    let c: f32 = abs(cos_light);
-    return select(pmf * dist * dist / (area * c), 0.0, c <= 0.0 || area <= 0.0);
+    return select(pmf * dist * dist / (area * cos_light), 0.0, !(cos_light > 0.0) || !(area > 0.0));
 }
 
 // lights::sky_direction (tracer/src/kernel/lights.rs:74)
@@ -317,7 +316,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         let dir: vec3<f32> = to_light / dist;
         let n: vec3<f32> = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
         let area2: f32 = length(n);
-        let cos_light: f32 = select(0.0, dot(n, dir) / area2, area2 > 0.0);
+        let cos_light: f32 = select(0.0, -dot(n, dir) / area2, area2 > 0.0);
         let pdf: f32 = area_pdf_to_solid_angle(pmf, 0.5 * area2, dist, cos_light);
         if !(pdf > 0.0) {
             return none;

@@ -119,7 +119,7 @@ MaterialData fetch_material(uint index) {
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:129)
+// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:134)
 vec3 shading_normal(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec3 n0 = lp_fetch_vec4(scene_shading, base).xyz;
@@ -128,7 +128,7 @@ vec3 shading_normal(uint index, float u, float v) {
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
-// scene_data::texcoord (tracer/src/kernel/scene_data.rs:138)
+// scene_data::texcoord (tracer/src/kernel/scene_data.rs:143)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -138,7 +138,7 @@ vec2 texcoord(uint index, float u, float v) {
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
 
-// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:148)
+// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:153)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -151,7 +151,7 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::texel (tracer/src/kernel/scene_data.rs:164)
+// scene_data::texel (tracer/src/kernel/scene_data.rs:169)
 vec4 texel(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -160,7 +160,7 @@ vec4 texel(uvec4 info, int x, int y) {
     return lp_fetch_vec4(scene_texture_texels, info.x + uint(ty * w + tx));
 }
 
-// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:173)
+// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:178)
 vec4 sample_texture(uint index, vec2 uv) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = uv.x * lp_u32_to_f32(info.y) - 0.5;

@@ -89,7 +89,7 @@ fn fetch_material(index: u32) -> MaterialData {
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:129)
+// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:134)
 fn shading_normal(index: u32, u: f32, v: f32) -> vec3<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let n0: vec3<f32> = scene_shading[base].xyz;
@@ -98,7 +98,7 @@ fn shading_normal(index: u32, u: f32, v: f32) -> vec3<f32> {
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
-// scene_data::texcoord (tracer/src/kernel/scene_data.rs:138)
+// scene_data::texcoord (tracer/src/kernel/scene_data.rs:143)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(scene_shading[base].w, scene_shading[base + 1u].w);
@@ -108,7 +108,7 @@ fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
 
-// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:148)
+// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:153)
 fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     if mode == WRAP_CLAMP {
         return clamp(i, 0i, size - 1i);
@@ -121,7 +121,7 @@ fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     }
 }
 
-// scene_data::texel (tracer/src/kernel/scene_data.rs:164)
+// scene_data::texel (tracer/src/kernel/scene_data.rs:169)
 fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
     let w: i32 = bitcast<i32>(info.y);
     let h: i32 = bitcast<i32>(info.z);
@@ -130,7 +130,7 @@ fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
     return scene_texture_texels[info.x + bitcast<u32>(ty * w + tx)];
 }
 
-// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:173)
+// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:178)
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     let info: vec4<u32> = scene_texture_info[index];
     let x: f32 = uv.x * lp_u32_to_f32(info.y) - 0.5;

@@ -808,8 +808,24 @@ impl<'a> Emitter<'a> {
                 }
                 (format!("{tn}({})", vals.join(", ")), P_ATOM)
             }
-            K::ArrayRepeat { .. } => {
-                return Err(self.error(span, "`[value; N]` is supported as the initial value of a `let` only"))
+            K::ArrayRepeat { value, .. } => {
+                // In an expression: an array constructor repeating a simple value.
+                let t = self.types.ty(e).clone();
+                let Ty::Array(_, n) = t else { unreachable!("array type") };
+                let simple = matches!(strip_parens(value).kind, K::Lit(_) | K::Path(_));
+                if !simple || n > 32 {
+                    return Err(self.error(
+                        span,
+                        "`[value; N]` inside an expression needs a literal or const value and N <= 32: bind it with `let` instead",
+                    ));
+                }
+                let tn = self.ty_name(&t);
+                if !glsl && is_zero_literal(value) {
+                    (format!("{tn}()"), P_ATOM)
+                } else {
+                    let v = self.expr(value)?.0;
+                    (format!("{tn}({})", vec![v; n as usize].join(", ")), P_ATOM)
+                }
             }
             K::AddrOfMut(place) => {
                 let pt = self.types.ty(place).clone();

@@ -7,3 +7,4 @@ pub mod kernel;
 pub mod output;
 pub mod pack;
 pub mod scene;
+pub mod stats;

@@ -14,13 +14,15 @@ pub struct CpuRenderer {
     frames: u32,
     /// Sum of samples per pixel: rgb, and the number of accepted (finite) samples in w.
     accumulation: Vec<Vec4>,
+    /// Sum of squared samples per pixel, for variance estimates.
+    squares: Vec<Vec3>,
 }
 
 impl CpuRenderer {
     /// A renderer for `packed`; `seed` selects the random sequence (same seed, same image).
     pub fn new(packed: Packed, seed: u32) -> Self {
         let n = packed.scene.width as usize * packed.scene.height as usize;
-        CpuRenderer { packed, seed, frames: 0, accumulation: vec![Vec4::ZERO; n] }
+        CpuRenderer { packed, seed, frames: 0, accumulation: vec![Vec4::ZERO; n], squares: vec![Vec3::ZERO; n] }
     }
 
     pub fn frames(&self) -> u32 {
@@ -36,11 +38,15 @@ impl CpuRenderer {
         self.packed.scene.frame_seed = frame_seed(self.frames, self.seed);
         let scene = &self.packed.scene;
         let width = scene.width as usize;
-        self.accumulation.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
-            for (x, acc) in row.iter_mut().enumerate() {
-                *acc += render_sample(scene, x as u32, y as u32);
-            }
-        });
+        self.accumulation.par_chunks_mut(width).zip(self.squares.par_chunks_mut(width)).enumerate().for_each(
+            |(y, (row, squares))| {
+                for (x, (acc, sq)) in row.iter_mut().zip(squares).enumerate() {
+                    let sample = render_sample(scene, x as u32, y as u32);
+                    *acc += sample;
+                    *sq += sample.xyz() * sample.xyz();
+                }
+            },
+        );
         self.frames += 1;
     }
 
@@ -58,6 +64,27 @@ impl CpuRenderer {
             height: self.packed.scene.height,
             pixels: self.accumulation.iter().map(|a| a.xyz() / n).collect(),
         }
+    }
+
+    /// Sum of every accepted sample so far (rgb), for per-frame statistics.
+    pub fn accumulated_sum(&self) -> glam::DVec3 {
+        self.accumulation.iter().map(|a| a.xyz().as_dvec3()).sum()
+    }
+
+    /// Per-pixel sample variance (unbiased, per channel).
+    pub fn variance(&self) -> Vec<Vec3> {
+        let n = self.frames as f32;
+        if n < 2.0 {
+            return vec![Vec3::ZERO; self.squares.len()];
+        }
+        self.accumulation
+            .iter()
+            .zip(&self.squares)
+            .map(|(s, q)| {
+                let mean = s.xyz() / n;
+                ((*q / n - mean * mean) * (n / (n - 1.0))).max(Vec3::ZERO)
+            })
+            .collect()
     }
 
     /// Advances the frame counter without rendering (pairs with `sample_pixel`).

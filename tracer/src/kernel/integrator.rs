@@ -85,11 +85,11 @@ pub mod integrator {
             }
             let material = fetch_material(scene, tri.material);
 
-            // Emission found by this ray.
-            if material.emission.max_element() > 0.0 {
+            // Emission found by this ray (one-sided: only the front face emits).
+            if material.emission.max_element() > 0.0 && flip > 0.0 {
                 let mut light_pdf = 0.0;
                 if scene.strategy == STRATEGY_MIS && bsdf_pdf > 0.0 && tri.light != NONE {
-                    let cos_light = ng.dot(dir);
+                    let cos_light = -ng.dot(dir);
                     light_pdf = area_pdf_to_solid_angle(light_pmf(scene, tri.light), 0.5 * area2, hit.t, cos_light);
                 }
                 let e = triangle_emission(scene, hit.triangle, tri.material, hit.u, hit.v);

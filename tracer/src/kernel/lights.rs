@@ -59,14 +59,14 @@ pub mod lights {
         e
     }
 
-    /// Solid-angle pdf of sampling a point at distance `dist` on a triangle of `area`, seen
-    /// under `cos_light` (emission is two-sided), including its selection probability.
+    /// Solid-angle pdf of sampling a point at distance `dist` on a triangle of `area` whose
+    /// front faces the shading point under `cos_light`, including its selection probability.
+    /// Emission is one-sided (glTF's counter-clockwise front face): zero from behind.
     pub fn area_pdf_to_solid_angle(pmf: f32, area: f32, dist: f32, cos_light: f32) -> f32 {
-        let c = cos_light.abs();
-        if c <= 0.0 || area <= 0.0 {
+        if !(cos_light > 0.0) || !(area > 0.0) {
             0.0
         } else {
-            pmf * dist * dist / (area * c)
+            pmf * dist * dist / (area * cos_light)
         }
     }
 
@@ -169,7 +169,7 @@ pub mod lights {
             let dir = to_light / dist;
             let n = (tri.v1 - tri.v0).cross(tri.v2 - tri.v0);
             let area2 = n.length();
-            let cos_light = if area2 > 0.0 { n.dot(dir) / area2 } else { 0.0 };
+            let cos_light = if area2 > 0.0 { -n.dot(dir) / area2 } else { 0.0 };
             let pdf = area_pdf_to_solid_angle(pmf, 0.5 * area2, dist, cos_light);
             if !(pdf > 0.0) {
                 return none;

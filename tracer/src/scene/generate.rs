@@ -92,7 +92,9 @@ pub fn white_furnace(albedo: Vec3, emission: Vec3) -> Scene {
         [c(1., -1., -1.), c(1., 1., -1.), c(1., 1., 1.), c(1., -1., 1.)],     // right, -X
     ];
     for f in faces {
-        quad(&mut t, f, 0);
+        // Reversed: the corners above wind outwards; emission is one-sided (front faces), so
+        // the faces must face the inside of the furnace.
+        quad(&mut t, [f[3], f[2], f[1], f[0]], 0);
     }
     Scene {
         triangles: t,
