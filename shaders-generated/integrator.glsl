@@ -36,6 +36,8 @@ uniform uint scene_has_sky;
 uniform uint scene_has_textures;
 uniform uint scene_has_shading;
 uniform uint scene_has_lights;
+uniform uint scene_has_triangle_lights;
+uniform uint scene_has_point_lights;
 
 // sampling::Onb (tracer/src/kernel/sampling.rs:13)
 struct Onb {
@@ -51,7 +53,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:88)
+// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:90)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -60,7 +62,7 @@ struct TriangleData {
     uint light;
 };
 
-// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:98)
+// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:100)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -127,11 +129,11 @@ const uint NONE = 0xffffffffu;
 const uint WRAP_CLAMP = 1u;
 // scene_data::WRAP_MIRROR (tracer/src/kernel/scene_data.rs:32)
 const uint WRAP_MIRROR = 2u;
-// scene_data::STRATEGY_BSDF (tracer/src/kernel/scene_data.rs:82)
+// scene_data::STRATEGY_BSDF (tracer/src/kernel/scene_data.rs:84)
 const uint STRATEGY_BSDF = 0u;
-// scene_data::STRATEGY_NEE (tracer/src/kernel/scene_data.rs:83)
+// scene_data::STRATEGY_NEE (tracer/src/kernel/scene_data.rs:85)
 const uint STRATEGY_NEE = 1u;
-// scene_data::STRATEGY_MIS (tracer/src/kernel/scene_data.rs:84)
+// scene_data::STRATEGY_MIS (tracer/src/kernel/scene_data.rs:86)
 const uint STRATEGY_MIS = 2u;
 // traverse::STACK_SIZE (tracer/src/kernel/traverse.rs:13)
 const uint STACK_SIZE = 64u;
@@ -290,7 +292,7 @@ vec3 safe_inverse(vec3 dir) {
     return vec3(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:106)
+// scene_data::index_of (tracer/src/kernel/scene_data.rs:108)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
@@ -311,7 +313,7 @@ float intersect_aabb(vec3 origin, vec3 inv_dir, vec3 bmin, vec3 bmax, float t_ma
     return enter <= exit ? enter : MISS;
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:114)
+// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:116)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -445,7 +447,7 @@ vec3 sky_radiance(vec3 dir) {
     return lp_fetch_vec4(scene_sky, i).xyz * scene_sky_intensity;
 }
 
-// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:134)
+// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:136)
 vec3 shading_normal(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec3 n0 = lp_fetch_vec4(scene_shading, base).xyz;
@@ -454,7 +456,7 @@ vec3 shading_normal(uint index, float u, float v) {
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
-// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:122)
+// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:124)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
@@ -466,7 +468,7 @@ float area_pdf_to_solid_angle(float pmf, float area, float dist, float cos_light
     return !(cos_light > 0.0) || !(area > 0.0) ? 0.0 : pmf * dist * dist / (area * cos_light);
 }
 
-// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:153)
+// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:155)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -479,7 +481,7 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::texel (tracer/src/kernel/scene_data.rs:169)
+// scene_data::texel (tracer/src/kernel/scene_data.rs:171)
 vec4 texel(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -488,7 +490,7 @@ vec4 texel(uvec4 info, int x, int y) {
     return lp_fetch_vec4(scene_texture_texels, info.x + uint(ty * w + tx));
 }
 
-// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:178)
+// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:180)
 vec4 sample_texture(uint index, vec2 uv) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = uv.x * lp_u32_to_f32(info.y) - 0.5;
@@ -502,7 +504,7 @@ vec4 sample_texture(uint index, vec2 uv) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::texcoord (tracer/src/kernel/scene_data.rs:143)
+// scene_data::texcoord (tracer/src/kernel/scene_data.rs:145)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -588,7 +590,7 @@ LightSample sample_light(vec3 p, vec3 u) {
     vec4 data = lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS + 1u);
     uint kind = index_of(head.w);
     float pmf = head.z;
-    if (kind == LIGHT_TRIANGLE) {
+    if ((kind == LIGHT_TRIANGLE) && (scene_has_triangle_lights != 0u)) {
         uint tri_index = index_of(data.x);
         TriangleData tri = fetch_triangle(tri_index);
         vec2 b = uniform_sample_triangle(u.y, u.z);
@@ -609,7 +611,7 @@ LightSample sample_light(vec3 p, vec3 u) {
         }
         vec3 radiance = triangle_emission(tri_index, tri.material, b.x, b.y);
         return LightSample(dir, dist, radiance, pdf, false);
-    } else if (kind == LIGHT_POINT) {
+    } else if ((kind == LIGHT_POINT) && (scene_has_point_lights != 0u)) {
         vec3 intensity = lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS + 2u).xyz;
         vec3 to_light_1 = data.xyz - p;
         float dist2_1 = dot(to_light_1, to_light_1);

@@ -23,6 +23,8 @@ struct SceneUniforms {
     has_textures: u32,
     has_shading: u32,
     has_lights: u32,
+    has_triangle_lights: u32,
+    has_point_lights: u32,
 }
 @group(0) @binding(0) var<uniform> scene: SceneUniforms;
 @group(0) @binding(1) var<storage, read> scene_triangles: array<vec4<f32>>;
@@ -49,7 +51,7 @@ struct TriangleHit {
     v: f32,
 }
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:88)
+// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:90)
 struct TriangleData {
     v0: vec3<f32>,
     v1: vec3<f32>,
@@ -58,7 +60,7 @@ struct TriangleData {
     light: u32,
 }
 
-// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:98)
+// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:100)
 struct MaterialData {
     base_color: vec3<f32>,
     base_texture: u32,
@@ -125,11 +127,11 @@ const NONE: u32 = 0xffffffffu;
 const WRAP_CLAMP: u32 = 1u;
 // scene_data::WRAP_MIRROR (tracer/src/kernel/scene_data.rs:32)
 const WRAP_MIRROR: u32 = 2u;
-// scene_data::STRATEGY_BSDF (tracer/src/kernel/scene_data.rs:82)
+// scene_data::STRATEGY_BSDF (tracer/src/kernel/scene_data.rs:84)
 const STRATEGY_BSDF: u32 = 0u;
-// scene_data::STRATEGY_NEE (tracer/src/kernel/scene_data.rs:83)
+// scene_data::STRATEGY_NEE (tracer/src/kernel/scene_data.rs:85)
 const STRATEGY_NEE: u32 = 1u;
-// scene_data::STRATEGY_MIS (tracer/src/kernel/scene_data.rs:84)
+// scene_data::STRATEGY_MIS (tracer/src/kernel/scene_data.rs:86)
 const STRATEGY_MIS: u32 = 2u;
 // traverse::STACK_SIZE (tracer/src/kernel/traverse.rs:13)
 const STACK_SIZE: u32 = 64u;
@@ -263,7 +265,7 @@ fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:106)
+// scene_data::index_of (tracer/src/kernel/scene_data.rs:108)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
@@ -284,7 +286,7 @@ fn intersect_aabb(origin: vec3<f32>, inv_dir: vec3<f32>, bmin: vec3<f32>, bmax: 
     return select(MISS, enter, enter <= exit);
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:114)
+// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:116)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
     let a: vec4<f32> = scene_triangles[base];
@@ -416,7 +418,7 @@ fn sky_radiance(dir: vec3<f32>) -> vec3<f32> {
     return scene_sky[i].xyz * scene.sky_intensity;
 }
 
-// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:134)
+// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:136)
 fn shading_normal(index: u32, u: f32, v: f32) -> vec3<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let n0: vec3<f32> = scene_shading[base].xyz;
@@ -425,7 +427,7 @@ fn shading_normal(index: u32, u: f32, v: f32) -> vec3<f32> {
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
-// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:122)
+// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:124)
 fn fetch_material(index: u32) -> MaterialData {
     let a: vec4<f32> = scene_materials[index * MATERIAL_TEXELS];
     let b: vec4<f32> = scene_materials[index * MATERIAL_TEXELS + 1u];
@@ -437,7 +439,7 @@ fn area_pdf_to_solid_angle(pmf: f32, area: f32, dist: f32, cos_light: f32) -> f3
     return select(pmf * dist * dist / (area * cos_light), 0.0, !(cos_light > 0.0) || !(area > 0.0));
 }
 
-// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:153)
+// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:155)
 fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     if mode == WRAP_CLAMP {
         return clamp(i, 0i, size - 1i);
@@ -450,7 +452,7 @@ fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     }
 }
 
-// scene_data::texel (tracer/src/kernel/scene_data.rs:169)
+// scene_data::texel (tracer/src/kernel/scene_data.rs:171)
 fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
     let w: i32 = bitcast<i32>(info.y);
     let h: i32 = bitcast<i32>(info.z);
@@ -459,7 +461,7 @@ fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
     return scene_texture_texels[info.x + bitcast<u32>(ty * w + tx)];
 }
 
-// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:178)
+// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:180)
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     let info: vec4<u32> = scene_texture_info[index];
     let x: f32 = uv.x * lp_u32_to_f32(info.y) - 0.5;
@@ -473,7 +475,7 @@ fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::texcoord (tracer/src/kernel/scene_data.rs:143)
+// scene_data::texcoord (tracer/src/kernel/scene_data.rs:145)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(scene_shading[base].w, scene_shading[base + 1u].w);
@@ -559,7 +561,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     let data: vec4<f32> = scene_lights[index * LIGHT_TEXELS + 1u];
     let kind: u32 = index_of(head.w);
     let pmf: f32 = head.z;
-    if kind == LIGHT_TRIANGLE {
+    if (kind == LIGHT_TRIANGLE) && (scene.has_triangle_lights != 0u) {
         let tri_index: u32 = index_of(data.x);
         let tri: TriangleData = fetch_triangle(tri_index);
         let b: vec2<f32> = uniform_sample_triangle(u.y, u.z);
@@ -580,7 +582,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         }
         let radiance: vec3<f32> = triangle_emission(tri_index, tri.material, b.x, b.y);
         return LightSample(dir, dist, radiance, pdf, false);
-    } else if kind == LIGHT_POINT {
+    } else if (kind == LIGHT_POINT) && (scene.has_point_lights != 0u) {
         let intensity: vec3<f32> = scene_lights[index * LIGHT_TEXELS + 2u].xyz;
         let to_light_1: vec3<f32> = data.xyz - p;
         let dist2_1: f32 = dot(to_light_1, to_light_1);

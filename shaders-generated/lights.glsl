@@ -21,8 +21,10 @@ uniform float scene_sky_intensity;
 uniform float scene_sky_rotation;
 uniform uint scene_has_sky;
 uniform uint scene_has_textures;
+uniform uint scene_has_triangle_lights;
+uniform uint scene_has_point_lights;
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:88)
+// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:90)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -31,7 +33,7 @@ struct TriangleData {
     uint light;
 };
 
-// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:98)
+// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:100)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -140,7 +142,7 @@ float luminance(vec3 c) {
     return dot(c, vec3(0.2126, 0.7152, 0.0722));
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:106)
+// scene_data::index_of (tracer/src/kernel/scene_data.rs:108)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
@@ -163,14 +165,14 @@ float light_pmf(uint index) {
     return lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS).z;
 }
 
-// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:122)
+// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:124)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:153)
+// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:155)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -183,7 +185,7 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::texel (tracer/src/kernel/scene_data.rs:169)
+// scene_data::texel (tracer/src/kernel/scene_data.rs:171)
 vec4 texel(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -192,7 +194,7 @@ vec4 texel(uvec4 info, int x, int y) {
     return lp_fetch_vec4(scene_texture_texels, info.x + uint(ty * w + tx));
 }
 
-// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:178)
+// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:180)
 vec4 sample_texture(uint index, vec2 uv) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = uv.x * lp_u32_to_f32(info.y) - 0.5;
@@ -206,7 +208,7 @@ vec4 sample_texture(uint index, vec2 uv) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::texcoord (tracer/src/kernel/scene_data.rs:143)
+// scene_data::texcoord (tracer/src/kernel/scene_data.rs:145)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -306,7 +308,7 @@ uint search_sky_column(uint row, float u) {
     return lo;
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:114)
+// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:116)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -329,7 +331,7 @@ LightSample sample_light(vec3 p, vec3 u) {
     vec4 data = lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS + 1u);
     uint kind = index_of(head.w);
     float pmf = head.z;
-    if (kind == LIGHT_TRIANGLE) {
+    if ((kind == LIGHT_TRIANGLE) && (scene_has_triangle_lights != 0u)) {
         uint tri_index = index_of(data.x);
         TriangleData tri = fetch_triangle(tri_index);
         vec2 b = uniform_sample_triangle(u.y, u.z);
@@ -350,7 +352,7 @@ LightSample sample_light(vec3 p, vec3 u) {
         }
         vec3 radiance = triangle_emission(tri_index, tri.material, b.x, b.y);
         return LightSample(dir, dist, radiance, pdf, false);
-    } else if (kind == LIGHT_POINT) {
+    } else if ((kind == LIGHT_POINT) && (scene_has_point_lights != 0u)) {
         vec3 intensity = lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS + 2u).xyz;
         vec3 to_light_1 = data.xyz - p;
         float dist2_1 = dot(to_light_1, to_light_1);

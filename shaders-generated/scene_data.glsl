@@ -12,7 +12,7 @@ uniform highp sampler2D scene_materials;
 uniform highp sampler2D scene_texture_texels;
 uniform highp usampler2D scene_texture_info;
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:88)
+// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:90)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -21,7 +21,7 @@ struct TriangleData {
     uint light;
 };
 
-// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:98)
+// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:100)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -98,12 +98,12 @@ uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:106)
+// scene_data::index_of (tracer/src/kernel/scene_data.rs:108)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:114)
+// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:116)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -112,14 +112,14 @@ TriangleData fetch_triangle(uint index) {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
 }
 
-// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:122)
+// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:124)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:134)
+// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:136)
 vec3 shading_normal(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec3 n0 = lp_fetch_vec4(scene_shading, base).xyz;
@@ -128,7 +128,7 @@ vec3 shading_normal(uint index, float u, float v) {
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
-// scene_data::texcoord (tracer/src/kernel/scene_data.rs:143)
+// scene_data::texcoord (tracer/src/kernel/scene_data.rs:145)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -138,7 +138,7 @@ vec2 texcoord(uint index, float u, float v) {
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
 
-// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:153)
+// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:155)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -151,7 +151,7 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::texel (tracer/src/kernel/scene_data.rs:169)
+// scene_data::texel (tracer/src/kernel/scene_data.rs:171)
 vec4 texel(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -160,7 +160,7 @@ vec4 texel(uvec4 info, int x, int y) {
     return lp_fetch_vec4(scene_texture_texels, info.x + uint(ty * w + tx));
 }
 
-// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:178)
+// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:180)
 vec4 sample_texture(uint index, vec2 uv) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = uv.x * lp_u32_to_f32(info.y) - 0.5;

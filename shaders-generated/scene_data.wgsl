@@ -7,7 +7,7 @@
 @group(0) @binding(3) var<storage, read> scene_texture_texels: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> scene_texture_info: array<vec4<u32>>;
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:88)
+// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:90)
 struct TriangleData {
     v0: vec3<f32>,
     v1: vec3<f32>,
@@ -16,7 +16,7 @@ struct TriangleData {
     light: u32,
 }
 
-// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:98)
+// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:100)
 struct MaterialData {
     base_color: vec3<f32>,
     base_texture: u32,
@@ -68,12 +68,12 @@ fn lp_f32_to_i32(x: f32) -> i32 {
     return 0i;
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:106)
+// scene_data::index_of (tracer/src/kernel/scene_data.rs:108)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:114)
+// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:116)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
     let a: vec4<f32> = scene_triangles[base];
@@ -82,14 +82,14 @@ fn fetch_triangle(index: u32) -> TriangleData {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
 }
 
-// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:122)
+// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:124)
 fn fetch_material(index: u32) -> MaterialData {
     let a: vec4<f32> = scene_materials[index * MATERIAL_TEXELS];
     let b: vec4<f32> = scene_materials[index * MATERIAL_TEXELS + 1u];
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:134)
+// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:136)
 fn shading_normal(index: u32, u: f32, v: f32) -> vec3<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let n0: vec3<f32> = scene_shading[base].xyz;
@@ -98,7 +98,7 @@ fn shading_normal(index: u32, u: f32, v: f32) -> vec3<f32> {
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
-// scene_data::texcoord (tracer/src/kernel/scene_data.rs:143)
+// scene_data::texcoord (tracer/src/kernel/scene_data.rs:145)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(scene_shading[base].w, scene_shading[base + 1u].w);
@@ -108,7 +108,7 @@ fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
 
-// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:153)
+// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:155)
 fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     if mode == WRAP_CLAMP {
         return clamp(i, 0i, size - 1i);
@@ -121,7 +121,7 @@ fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     }
 }
 
-// scene_data::texel (tracer/src/kernel/scene_data.rs:169)
+// scene_data::texel (tracer/src/kernel/scene_data.rs:171)
 fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
     let w: i32 = bitcast<i32>(info.y);
     let h: i32 = bitcast<i32>(info.z);
@@ -130,7 +130,7 @@ fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
     return scene_texture_texels[info.x + bitcast<u32>(ty * w + tx)];
 }
 
-// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:178)
+// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:180)
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     let info: vec4<u32> = scene_texture_info[index];
     let x: f32 = uv.x * lp_u32_to_f32(info.y) - 0.5;

@@ -16,7 +16,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:88)
+// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:90)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -78,7 +78,7 @@ vec4 lp_fetch_vec4(highp sampler2D t, uint i) {
     return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:106)
+// scene_data::index_of (tracer/src/kernel/scene_data.rs:108)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
@@ -108,7 +108,7 @@ float intersect_aabb(vec3 origin, vec3 inv_dir, vec3 bmin, vec3 bmax, float t_ma
     return enter <= exit ? enter : MISS;
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:114)
+// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:116)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);

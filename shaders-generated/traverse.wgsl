@@ -11,7 +11,7 @@ struct TriangleHit {
     v: f32,
 }
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:88)
+// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:90)
 struct TriangleData {
     v0: vec3<f32>,
     v1: vec3<f32>,
@@ -67,7 +67,7 @@ fn lp_min_element_vec3(v: vec3<f32>) -> f32 {
     return min(min(v.x, v.y), v.z);
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:106)
+// scene_data::index_of (tracer/src/kernel/scene_data.rs:108)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
@@ -97,7 +97,7 @@ fn intersect_aabb(origin: vec3<f32>, inv_dir: vec3<f32>, bmin: vec3<f32>, bmax: 
     return select(MISS, enter, enter <= exit);
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:114)
+// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:116)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
     let a: vec4<f32> = scene_triangles[base];

@@ -144,7 +144,9 @@ fn output_is_deterministic() {
 
 #[test]
 fn each_function_names_its_rust_source() {
-    let g = tracer_program().emit(Target::GlslEs300, &Selection { roots: vec!["wang_hash".into()] }).unwrap();
+    let g = tracer_program()
+        .emit(Target::GlslEs300, &Selection { roots: vec!["wang_hash".into()], ..Default::default() })
+        .unwrap();
     assert!(g.source.contains("// rng::wang_hash (tracer/src/kernel/rng.rs:7)"), "{}", g.source);
     // Only what the root needs is emitted.
     assert!(!g.source.contains("random_float"));
@@ -186,7 +188,8 @@ fn divergent_semantics_use_the_helpers() {
 #[test]
 fn wgsl_validation_errors_point_at_the_rust_function() {
     let program = tracer_program();
-    let mut g = program.emit(Target::Wgsl, &Selection { roots: vec!["pixel_seed".into()] }).unwrap();
+    let mut g =
+        program.emit(Target::Wgsl, &Selection { roots: vec!["pixel_seed".into()], ..Default::default() }).unwrap();
     // Break the body of `pixel_seed` the way a codegen bug would: a type error.
     g.source = g.source.replace("    let s: u32 = wang_hash(", "    let bad: u32 = 1.5;\n    let s: u32 = wang_hash(");
     assert!(g.source.contains("let bad"), "the corruption must apply:\n{}", g.source);
@@ -198,7 +201,8 @@ fn wgsl_validation_errors_point_at_the_rust_function() {
 #[test]
 fn glsl_parse_errors_point_at_the_rust_function() {
     let program = tracer_program();
-    let mut g = program.emit(Target::GlslEs300, &Selection { roots: vec!["random_u32".into()] }).unwrap();
+    let mut g =
+        program.emit(Target::GlslEs300, &Selection { roots: vec!["random_u32".into()], ..Default::default() }).unwrap();
     g.source = g.source.replace("state ^= state << 13;", "state ^= state << ;");
     let err = validate::validate(&g).expect_err("glsl-lang must reject a syntax error");
     assert!(err.to_string().contains("rng::random_u32"), "{err}");
@@ -227,4 +231,19 @@ fn every_supported_method_is_implemented_for_some_type() {
         });
         assert!(found, "`{m}` is accepted by the macro but no type implements it in codegen");
     }
+}
+
+#[test]
+fn specialisation_removes_unused_features_code_and_data() {
+    use tracer::pack::Features;
+    let all = tracer::kernel::path_tracer_shader(&Features::all(), Target::GlslEs300).unwrap().source;
+    let cornell = Features { emissive_triangles: true, ..Default::default() };
+    let small = tracer::kernel::path_tracer_shader(&cornell, Target::GlslEs300).unwrap().source;
+    assert!(small.len() < all.len() * 9 / 10, "{} vs {} bytes", small.len(), all.len());
+    for gone in ["scene_sky", "sky_radiance", "sample_texture", "scene_texture_texels", "scene_shading", "LIGHT_POINT"]
+    {
+        assert!(all.contains(gone), "the full kernel has {gone}");
+        assert!(!small.contains(gone), "a scene without it must not carry {gone}");
+    }
+    assert!(small.contains("void main()") && small.contains("render_sample(pixel.x, pixel.y)"));
 }

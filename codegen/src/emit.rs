@@ -5,7 +5,7 @@
 //! `match self.target` where the languages part ways. Divergent semantics go through small
 //! helper functions (`lp_*`), emitted only when used.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 
 use crate::infer::{self, BindingKind, FnTypes};
@@ -42,6 +42,28 @@ enum Dest {
 
 pub(crate) fn emit(program: &Program, target: Target, selection: &Selection) -> R<Generated> {
     let order = fn_order(program, selection);
+    // First pass: which calls survive specialisation. Second pass: only what is reached.
+    let first = emit_functions(program, target, selection, &order)?;
+    let roots: Vec<String> =
+        order.iter().filter(|n| selection.roots.is_empty() || selection.roots.contains(n)).cloned().collect();
+    let mut reached = BTreeSet::new();
+    let mut stack = roots;
+    while let Some(n) = stack.pop() {
+        if reached.insert(n.clone()) {
+            stack.extend(first.calls.get(&n).into_iter().flatten().cloned());
+        }
+    }
+    let order: Vec<String> = order.into_iter().filter(|n| reached.contains(n)).collect();
+    let mut e = emit_functions(program, target, selection, &order)?;
+    e.assemble(&order)
+}
+
+fn emit_functions<'a>(
+    program: &'a Program,
+    target: Target,
+    selection: &'a Selection,
+    order: &[String],
+) -> R<Emitter<'a>> {
     let mut e = Emitter {
         program,
         target,
@@ -56,11 +78,13 @@ pub(crate) fn emit(program: &Program, target: Target, selection: &Selection) -> 
         func: None,
         types: FnTypes::default(),
         used_names: BTreeSet::new(),
+        selection,
+        calls: BTreeMap::new(),
     };
-    for name in &order {
+    for name in order {
         e.function(&program.fns[name])?;
     }
-    e.assemble(&order)
+    Ok(e)
 }
 
 /// The selected functions and their callees, callees first (GLSL needs declaration before
@@ -135,6 +159,9 @@ struct Emitter<'a> {
     func: Option<&'a Located<ir::FnDef>>,
     types: FnTypes,
     used_names: BTreeSet<String>,
+    selection: &'a Selection,
+    /// Kernel functions each emitted function calls (after specialisation).
+    calls: BTreeMap<String, BTreeSet<String>>,
 }
 
 fn snake(name: &str) -> String {
@@ -414,6 +441,14 @@ impl<'a> Emitter<'a> {
     fn value_into(&mut self, e: &Expr, dest: &Dest) -> R<()> {
         let e = strip_parens(e);
         match &e.kind {
+            K::If { cond, then, otherwise } if self.const_bool(cond).is_some() => {
+                // Decided by specialisation: emit only the live branch.
+                if self.const_bool(cond) == Some(true) {
+                    self.block_into(then, dest)?;
+                } else if let Some(o) = otherwise {
+                    self.value_into(o, dest)?;
+                }
+            }
             K::If { cond, then, otherwise } if !is_simple_if(e) => {
                 self.mark(e.span);
                 let c = self.expr(cond)?;
@@ -429,6 +464,18 @@ impl<'a> Emitter<'a> {
                 // `else if` chains stay flat; an `else` block is emitted without extra braces.
                 while let Some(o) = otherwise {
                     match &o.kind {
+                        // Branches decided by specialisation: skip a dead `else if`, or end
+                        // the chain at a live one.
+                        K::If { cond, otherwise: next, .. } if self.const_bool(cond) == Some(false) => {
+                            otherwise = next.as_deref().map(strip_parens);
+                        }
+                        K::If { cond, then, .. } if self.const_bool(cond) == Some(true) => {
+                            self.line("} else {");
+                            self.indent += 1;
+                            self.block_into(then, dest)?;
+                            self.indent -= 1;
+                            otherwise = None;
+                        }
                         K::If { cond, then, otherwise: next } => {
                             let c = self.expr(cond)?.0;
                             self.line(&if self.glsl() {
@@ -841,6 +888,13 @@ impl<'a> Emitter<'a> {
                 }
             }
             K::AddrOf(inner) => self.expr(inner)?,
+            K::If { cond, then, otherwise } if self.const_bool(cond).is_some() => {
+                match (self.const_bool(cond), then.tail.as_deref(), otherwise.as_deref()) {
+                    (Some(true), Some(t), _) if then.stmts.is_empty() => self.expr(t)?,
+                    (Some(false), _, Some(o)) => self.expr(o)?,
+                    _ => return Err(self.error(span, "bind this `if` to a `let` first")),
+                }
+            }
             K::If { cond, then, otherwise } => {
                 let (Some(t), Some(o)) = (then.tail.as_ref(), otherwise.as_ref()) else {
                     return Err(self.error(span, "an `if` without `else` has no value"));
@@ -883,6 +937,51 @@ impl<'a> Emitter<'a> {
         })
     }
 
+    /// The value of a condition fixed by specialisation (`res.flag != 0 && ...`), if any.
+    fn const_bool(&self, e: &Expr) -> Option<bool> {
+        if self.selection.specialize.is_empty() {
+            return None;
+        }
+        let e = strip_parens(e);
+        match &e.kind {
+            K::Lit(ir::Lit::Bool(b)) => Some(*b),
+            K::Unary { op: UnOp::Not, expr } => self.const_bool(expr).map(|b| !b),
+            K::Binary { op: BinOp::And, lhs, rhs } => match (self.const_bool(lhs), self.const_bool(rhs)) {
+                (Some(false), _) | (_, Some(false)) => Some(false),
+                (Some(true), Some(true)) => Some(true),
+                _ => None,
+            },
+            K::Binary { op: BinOp::Or, lhs, rhs } => match (self.const_bool(lhs), self.const_bool(rhs)) {
+                (Some(true), _) | (_, Some(true)) => Some(true),
+                (Some(false), Some(false)) => Some(false),
+                _ => None,
+            },
+            K::Binary { op, lhs, rhs } if op.is_comparison() => {
+                let (a, b) = (self.const_u64(lhs)?, self.const_u64(rhs)?);
+                Some(match op {
+                    BinOp::Eq => a == b,
+                    BinOp::Ne => a != b,
+                    BinOp::Lt => a < b,
+                    BinOp::Le => a <= b,
+                    BinOp::Gt => a > b,
+                    _ => a >= b,
+                })
+            }
+            _ => None,
+        }
+    }
+
+    fn const_u64(&self, e: &Expr) -> Option<u64> {
+        match &strip_parens(e).kind {
+            K::Lit(ir::Lit::Int { value, .. }) => Some(*value),
+            K::Field { base, field } => match self.types.ty(base).deref() {
+                Ty::Resource(res) => self.specialized(res, field).map(u64::from),
+                _ => None,
+            },
+            _ => None,
+        }
+    }
+
     /// Rust dereferences `&mut` automatically for fields, indexing and methods; WGSL does not.
     fn auto_deref(&self, v: (String, u8), t: &Ty) -> (String, u8) {
         if matches!(t, Ty::RefMut(_)) && !self.glsl() {
@@ -892,7 +991,14 @@ impl<'a> Emitter<'a> {
         }
     }
 
+    fn specialized(&self, res: &str, field: &str) -> Option<u32> {
+        self.selection.specialize.get(&format!("{res}.{field}")).copied()
+    }
+
     fn resource_field(&mut self, res: &str, field: &str) -> (String, u8) {
+        if let Some(v) = self.specialized(res, field) {
+            return (format!("{v}u"), P_ATOM);
+        }
         self.resources_used.insert((res.to_string(), field.to_string()));
         let def = &self.program.structs[res].item;
         let is_texels = def
@@ -1101,6 +1207,9 @@ impl<'a> Emitter<'a> {
     fn call(&mut self, e: &Expr, path: &[String], args: &[Expr]) -> R<(String, u8)> {
         let glsl = self.glsl();
         if let Some(name) = self.program.kernel_fn_of_path(path) {
+            if let Some(f) = self.func {
+                self.calls.entry(f.item.name.clone()).or_default().insert(name.to_string());
+            }
             let callee = &self.program.fns[name].item;
             let mut out = Vec::new();
             for (p, a) in callee.params.iter().zip(args) {
@@ -1436,11 +1545,44 @@ impl<'a> Emitter<'a> {
 
         let offset = out.lines().count() as u32;
         out.push_str(&self.body);
+        if let Some(entry) = &self.selection.entry {
+            out.push_str(&self.entry_point(entry)?);
+        }
         while out.ends_with("\n\n") {
             out.pop();
         }
         let source_map = self.map.iter().map(|m| SourceMapEntry { line: m.line + offset, ..m.clone() }).collect();
         Ok(Generated { target: self.target, source: out, source_map })
+    }
+
+    fn entry_point(&mut self, entry: &crate::EntryPoint) -> R<String> {
+        let f = self.program.fns.get(&entry.function).ok_or_else(|| CodegenError {
+            file: String::new(),
+            span: ir::Span::default(),
+            function: None,
+            message: format!("entry point `{}` is not a kernel function", entry.function),
+        })?;
+        let types = infer::infer_fn(self.program, f)?;
+        let params: Vec<&Ty> =
+            types.params.iter().map(|i| &types.bindings[*i].ty).filter(|t| !matches!(t, Ty::Resource(_))).collect();
+        if params != [&U32, &U32] || types.ret != Ty::Vector(Scalar::F32, 4) {
+            return Err(CodegenError {
+                file: f.file.clone(),
+                span: f.item.span,
+                function: Some(format!("{}::{}", f.module, f.item.name)),
+                message: "an entry point takes (resources, x: u32, y: u32) and returns Vec4".into(),
+            });
+        }
+        let name = names::safe(&entry.function);
+        Ok(if self.glsl() {
+            format!(
+                "// Entry point: one sample of pixel gl_FragCoord.xy added to the running sum.\nuniform highp sampler2D lp_accumulation;\nout vec4 lp_out;\n\nvoid main() {{\n    uvec2 pixel = uvec2(gl_FragCoord.xy);\n    lp_out = texelFetch(lp_accumulation, ivec2(pixel), 0) + {name}(pixel.x, pixel.y);\n}}\n"
+            )
+        } else {
+            format!(
+                "// Entry point: one sample per pixel added to the running sum in lp_accumulation.\nstruct LpTarget {{\n    width: u32,\n    height: u32,\n}}\n@group(1) @binding(0) var<storage, read_write> lp_accumulation: array<vec4<f32>>;\n@group(1) @binding(1) var<uniform> lp_target: LpTarget;\n\n@compute @workgroup_size(8, 8)\nfn main(@builtin(global_invocation_id) id: vec3<u32>) {{\n    if id.x >= lp_target.width || id.y >= lp_target.height {{\n        return;\n    }}\n    let i = id.y * lp_target.width + id.x;\n    lp_accumulation[i] = lp_accumulation[i] + {name}(id.x, id.y);\n}}\n"
+            )
+        })
     }
 
     /// A const's value: literals, or simple expressions of literals and other consts.

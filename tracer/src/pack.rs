@@ -27,6 +27,21 @@ pub struct Features {
 }
 
 impl Features {
+    /// The kernel's feature flags fixed to this scene's values, for codegen's specialisation.
+    pub fn specialization(&self) -> std::collections::BTreeMap<String, u32> {
+        [
+            ("has_sky", self.sky),
+            ("has_textures", self.textures),
+            ("has_shading", self.shading),
+            ("has_lights", self.lights()),
+            ("has_triangle_lights", self.emissive_triangles),
+            ("has_point_lights", self.point_lights),
+        ]
+        .into_iter()
+        .map(|(k, v)| (format!("Scene.{k}"), v as u32))
+        .collect()
+    }
+
     pub fn lights(&self) -> bool {
         self.sky || self.point_lights || self.emissive_triangles
     }
@@ -373,6 +388,8 @@ pub fn pack(scene: &Scene, bvh: &Bvh, settings: &RenderSettings) -> Result<Packe
         has_textures: features.textures as u32,
         has_shading: features.shading as u32,
         has_lights: features.lights() as u32,
+        has_triangle_lights: features.emissive_triangles as u32,
+        has_point_lights: features.point_lights as u32,
     };
     Ok(Packed { scene: kernel_scene, features, triangle_count: tri_count, light_count: light_data.len() })
 }

@@ -155,7 +155,7 @@ pub mod lights {
         let data = scene.lights.fetch(index * LIGHT_TEXELS + 1);
         let kind = index_of(head.w);
         let pmf = head.z;
-        if kind == LIGHT_TRIANGLE {
+        if kind == LIGHT_TRIANGLE && scene.has_triangle_lights != 0 {
             let tri_index = index_of(data.x);
             let tri = fetch_triangle(scene, tri_index);
             let b = uniform_sample_triangle(u.y, u.z);
@@ -176,7 +176,7 @@ pub mod lights {
             }
             let radiance = triangle_emission(scene, tri_index, tri.material, b.x, b.y);
             LightSample { dir, dist, radiance, pdf, delta: false }
-        } else if kind == LIGHT_POINT {
+        } else if kind == LIGHT_POINT && scene.has_point_lights != 0 {
             let intensity = scene.lights.fetch(index * LIGHT_TEXELS + 2).xyz();
             let to_light = data.xyz() - p;
             let dist2 = to_light.dot(to_light);

@@ -42,6 +42,20 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
     ]
 }
 
+/// The path tracer's complete shader for `target`, specialised to `features`: a GLSL ES 3.00
+/// fragment shader or a WGSL compute shader around `integrator::render_sample`, validated.
+pub fn path_tracer_shader(
+    features: &crate::pack::Features,
+    target: lightport_codegen::Target,
+) -> Result<lightport_codegen::Generated, ShaderError> {
+    use lightport_codegen::{Program, Selection};
+    let program = Program::link(&modules())?;
+    let generated = program.emit(target, &Selection::entry("render_sample", features.specialization()))?;
+    #[cfg(feature = "validate")]
+    lightport_codegen::validate::validate(&generated)?;
+    Ok(generated)
+}
+
 /// One generated shader file.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct GeneratedFile {
@@ -53,6 +67,7 @@ pub struct GeneratedFile {
 /// The contents of `shaders-generated/`: for every kernel module, a GLSL ES 3.00 and a WGSL
 /// file holding its functions and everything they use from other modules, each validated
 /// (WGSL by naga, GLSL parsed by glsl-lang) before it is returned.
+#[cfg(feature = "validate")]
 pub fn generated_shaders() -> Result<Vec<GeneratedFile>, ShaderError> {
     use lightport_codegen::{Program, Selection, Target};
     let modules = modules();
@@ -65,7 +80,22 @@ pub fn generated_shaders() -> Result<Vec<GeneratedFile>, ShaderError> {
             files.push(GeneratedFile { name: format!("{module}.{}", target.extension()), source: generated.source });
         }
     }
+    // The complete path tracer: every feature on, and the variant a Cornell box needs.
+    let variants = [("path_tracer", crate::pack::Features::all()), ("path_tracer_cornell", cornell_features())];
+    for (name, features) in variants {
+        for target in [Target::GlslEs300, Target::Wgsl] {
+            let generated = path_tracer_shader(&features, target)?;
+            let ext = if target == Target::GlslEs300 { "frag.glsl" } else { "wgsl" };
+            files.push(GeneratedFile { name: format!("{name}.{ext}"), source: generated.source });
+        }
+    }
     Ok(files)
+}
+
+/// What the built-in Cornell box uses: emissive triangles only.
+#[cfg(feature = "validate")]
+fn cornell_features() -> crate::pack::Features {
+    crate::pack::Features { emissive_triangles: true, ..Default::default() }
 }
 
 /// Code generation or validation of the kernel failed (reported against its Rust source).
@@ -73,6 +103,7 @@ pub fn generated_shaders() -> Result<Vec<GeneratedFile>, ShaderError> {
 pub enum ShaderError {
     #[error(transparent)]
     Codegen(#[from] lightport_codegen::CodegenError),
+    #[cfg(feature = "validate")]
     #[error(transparent)]
     Validation(#[from] lightport_codegen::validate::ValidationError),
 }

@@ -77,6 +77,8 @@ pub mod scene_data {
         pub has_textures: u32,
         pub has_shading: u32,
         pub has_lights: u32,
+        pub has_triangle_lights: u32,
+        pub has_point_lights: u32,
     }
 
     pub const STRATEGY_BSDF: u32 = 0;
