@@ -235,17 +235,21 @@ pub fn pack(scene: &Scene, bvh: &Bvh, settings: &RenderSettings) -> Result<Packe
     let mut light_weights = Vec::new();
     let mut light_data: Vec<(u32, Vec4, Vec4)> = Vec::new();
     let mut triangle_light = vec![None; tri_count];
+    // Mean luminance of each emissive texture, computed once (a light's power estimate).
+    let mut texture_mean = vec![None; scene.textures.len()];
+    for m in &scene.materials {
+        if let Some(i) = m.emissive_texture.filter(|i| (*i as usize) < scene.textures.len()) {
+            texture_mean[i as usize].get_or_insert_with(|| {
+                let tex = &scene.textures[i as usize];
+                let sum: Vec4 = tex.texels.iter().copied().sum();
+                luminance(sum.truncate() / tex.texels.len().max(1) as f32)
+            });
+        }
+    }
     for &ti in &emissive_triangles {
         let t = ordered[ti as usize];
         let m = &scene.materials[t.material as usize];
-        let texture_mean = m
-            .emissive_texture
-            .and_then(|i| scene.textures.get(i as usize))
-            .map(|tex| {
-                let sum: Vec4 = tex.texels.iter().copied().sum();
-                luminance(sum.truncate() / tex.texels.len().max(1) as f32)
-            })
-            .unwrap_or(1.0);
+        let texture_mean = m.emissive_texture.and_then(|i| texture_mean.get(i as usize).copied().flatten()).unwrap_or(1.0);
         let area = 0.5 * (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]).length();
         triangle_light[ti as usize] = Some(light_data.len() as u32);
         light_weights.push(luminance(m.emission) * texture_mean * area * std::f32::consts::PI);
