@@ -247,3 +247,30 @@ fn specialisation_removes_unused_features_code_and_data() {
     }
     assert!(small.contains("void main()") && small.contains("render_sample(pixel.x, pixel.y)"));
 }
+
+#[test]
+fn every_kernel_function_has_a_valid_equivalence_harness() {
+    let program = tracer_program();
+    let mut checked = 0;
+    for module in tracer::kernel::modules() {
+        for item in &module.items {
+            let kernel_dsl::ir::Item::Fn(f) = item else { continue };
+            for target in [Target::GlslEs300, Target::Wgsl] {
+                let g = program.emit(target, &Selection::harness(&f.name)).expect("harness emits");
+                validate::validate(&g).unwrap_or_else(|e| panic!("harness of {}: {e}\n{}", f.name, g.source));
+                let h = g.harness.expect("layout");
+                assert!(h.output_words <= 16, "{}: at most 4 RGBA32UI attachments", f.name);
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked > 30, "{checked} functions");
+    // The layout of a known function: intersect_triangle(origin, dir, v0, v1, v2) -> TriangleHit.
+    let g = program.emit(Target::GlslEs300, &Selection::harness("intersect_triangle")).unwrap();
+    let h = g.harness.unwrap();
+    assert_eq!((h.input_words, h.output_words), (15, 3));
+    // random_float(&mut u32) -> f32: one word in, the result and the new state out.
+    let g = program.emit(Target::Wgsl, &Selection::harness("random_float")).unwrap();
+    let h = g.harness.unwrap();
+    assert_eq!((h.input_words, h.output_words), (1, 2));
+}

@@ -1548,11 +1548,17 @@ impl<'a> Emitter<'a> {
         if let Some(entry) = &self.selection.entry {
             out.push_str(&self.entry_point(entry)?);
         }
+        let mut harness = None;
+        if let Some(function) = &self.selection.harness {
+            let (text, layout) = self.harness(function)?;
+            out.push_str(&text);
+            harness = Some(layout);
+        }
         while out.ends_with("\n\n") {
             out.pop();
         }
         let source_map = self.map.iter().map(|m| SourceMapEntry { line: m.line + offset, ..m.clone() }).collect();
-        Ok(Generated { target: self.target, source: out, source_map })
+        Ok(Generated { target: self.target, source: out, source_map, harness })
     }
 
     fn entry_point(&mut self, entry: &crate::EntryPoint) -> R<String> {
@@ -1583,6 +1589,252 @@ impl<'a> Emitter<'a> {
                 "// Entry point: one sample per pixel added to the running sum in lp_accumulation.\nstruct LpTarget {{\n    width: u32,\n    height: u32,\n}}\n@group(1) @binding(0) var<storage, read_write> lp_accumulation: array<vec4<f32>>;\n@group(1) @binding(1) var<uniform> lp_target: LpTarget;\n\n@compute @workgroup_size(8, 8)\nfn main(@builtin(global_invocation_id) id: vec3<u32>) {{\n    if id.x >= lp_target.width || id.y >= lp_target.height {{\n        return;\n    }}\n    let i = id.y * lp_target.width + id.x;\n    lp_accumulation[i] = lp_accumulation[i] + {name}(id.x, id.y);\n}}\n"
             )
         })
+    }
+
+    /// Words (u32) a value of type `t` occupies in a harness buffer.
+    fn words(&self, t: &Ty) -> R<u32> {
+        Ok(match t {
+            Ty::Scalar(_) | Ty::IntVar(_) => 1,
+            Ty::Vector(_, n) => *n as u32,
+            Ty::Array(e, n) => self.words(e)? * n,
+            Ty::Struct(name) => {
+                let def = self.program.structs[name].item.clone();
+                let mut total = 0;
+                for f in &def.fields {
+                    let ft = infer::resolve_type(self.program, &f.ty).map_err(|m| self.harness_error(m))?;
+                    total += self.words(&ft)?;
+                }
+                total
+            }
+            Ty::RefMut(inner) => self.words(inner)?,
+            Ty::Unit => 0,
+            other => return Err(self.harness_error(format!("`{other}` cannot cross the harness"))),
+        })
+    }
+
+    fn harness_error(&self, message: impl Into<String>) -> CodegenError {
+        CodegenError { file: String::new(), span: ir::Span::default(), function: None, message: message.into() }
+    }
+
+    /// An expression decoding a `t` from the words starting at `*next`.
+    fn decode(&mut self, t: &Ty, next: &mut u32) -> R<String> {
+        let glsl = self.glsl();
+        let word = |k: u32| if glsl { format!("lp_word(base, {k}u)") } else { format!("lp_args[base + {k}u]") };
+        Ok(match t {
+            Ty::Scalar(s) => {
+                let w = word(*next);
+                *next += 1;
+                match (s, glsl) {
+                    (Scalar::F32, true) => format!("uintBitsToFloat({w})"),
+                    (Scalar::F32, false) => format!("bitcast<f32>({w})"),
+                    (Scalar::I32, true) => format!("int({w})"),
+                    (Scalar::I32, false) => format!("bitcast<i32>({w})"),
+                    (Scalar::Bool, _) => format!("({w} != 0u)"),
+                    _ => w,
+                }
+            }
+            Ty::Vector(s, n) => {
+                let comps: Vec<String> = (0..*n).map(|_| self.decode(&Ty::Scalar(*s), next)).collect::<R<_>>()?;
+                format!("{}({})", self.ty_name(t), comps.join(", "))
+            }
+            Ty::Array(e, n) => {
+                let items: Vec<String> = (0..*n).map(|_| self.decode(e, next)).collect::<R<_>>()?;
+                format!("{}({})", self.ty_name(t), items.join(", "))
+            }
+            Ty::Struct(name) => {
+                let def = self.program.structs[name].item.clone();
+                let mut fields = Vec::new();
+                for f in &def.fields {
+                    let ft = infer::resolve_type(self.program, &f.ty).map_err(|m| self.harness_error(m))?;
+                    fields.push(self.decode(&ft, next)?);
+                }
+                format!("{}({})", self.ty_name(t), fields.join(", "))
+            }
+            other => return Err(self.harness_error(format!("`{other}` cannot cross the harness"))),
+        })
+    }
+
+    /// Statements storing `value` (of type `t`) as words from `*next` into `lp_w`.
+    fn encode(&mut self, t: &Ty, value: &str, next: &mut u32, lines: &mut Vec<String>) -> R<()> {
+        let glsl = self.glsl();
+        match t {
+            Ty::Scalar(s) => {
+                let w = match (s, glsl) {
+                    (Scalar::F32, true) => format!("floatBitsToUint({value})"),
+                    (Scalar::F32, false) => format!("bitcast<u32>({value})"),
+                    (Scalar::I32, true) | (Scalar::Bool, true) => format!("uint({value})"),
+                    (Scalar::I32, false) => format!("bitcast<u32>({value})"),
+                    (Scalar::Bool, false) => format!("select(0u, 1u, {value})"),
+                    _ => value.to_string(),
+                };
+                lines.push(format!("lp_w[{}] = {w};", *next));
+                *next += 1;
+            }
+            Ty::Vector(s, n) => {
+                for c in "xyzw".chars().take(*n as usize) {
+                    self.encode(&Ty::Scalar(*s), &format!("{value}.{c}"), next, lines)?;
+                }
+            }
+            Ty::Array(e, n) => {
+                for i in 0..*n {
+                    self.encode(e, &format!("{value}[{i}]"), next, lines)?;
+                }
+            }
+            Ty::Struct(name) => {
+                let def = self.program.structs[name].item.clone();
+                for f in &def.fields {
+                    let ft = infer::resolve_type(self.program, &f.ty).map_err(|m| self.harness_error(m))?;
+                    self.encode(&ft, &format!("{value}.{}", names::safe(&f.name)), next, lines)?;
+                }
+            }
+            Ty::Unit => {}
+            other => return Err(self.harness_error(format!("`{other}` cannot cross the harness"))),
+        }
+        Ok(())
+    }
+
+    fn harness(&mut self, function: &str) -> R<(String, crate::Harness)> {
+        let f = self
+            .program
+            .fns
+            .get(function)
+            .ok_or_else(|| self.harness_error(format!("`{function}` is not a kernel function")))?;
+        let types = infer::infer_fn(self.program, f)?;
+        let glsl = self.glsl();
+        let mut next = 0u32;
+        let mut setup = Vec::new();
+        let mut args = Vec::new();
+        let mut outs = Vec::new();
+        for (i, id) in types.params.iter().enumerate() {
+            let b = &types.bindings[*id];
+            match &b.ty {
+                Ty::Resource(_) => {}
+                Ty::RefMut(inner) => {
+                    let name = format!("lp_arg{i}");
+                    let v = self.decode(inner, &mut next)?;
+                    let tn = self.ty_name(inner);
+                    setup.push(if glsl { format!("{tn} {name} = {v};") } else { format!("var {name}: {tn} = {v};") });
+                    args.push(if glsl { name.clone() } else { format!("&{name}") });
+                    outs.push(((**inner).clone(), name));
+                }
+                t => {
+                    let name = format!("lp_arg{i}");
+                    let v = self.decode(t, &mut next)?;
+                    let tn = self.ty_name(t);
+                    setup.push(if glsl { format!("{tn} {name} = {v};") } else { format!("let {name}: {tn} = {v};") });
+                    args.push(name);
+                }
+            }
+        }
+        let input_words = next;
+        let call = format!("{}({})", names::safe(function), args.join(", "));
+        let mut body = Vec::new();
+        let mut out_next = 0u32;
+        if types.ret != Ty::Unit {
+            let tn = self.ty_name(&types.ret);
+            body.push(if glsl {
+                format!("{tn} lp_result = {call};")
+            } else {
+                format!("let lp_result: {tn} = {call};")
+            });
+            let ret = types.ret.clone();
+            self.encode(&ret, "lp_result", &mut out_next, &mut body)?;
+        } else {
+            body.push(format!("{call};"));
+        }
+        for (t, name) in &outs {
+            self.encode(t, name, &mut out_next, &mut body)?;
+        }
+        let layout = crate::Harness { function: function.to_string(), input_words, output_words: out_next };
+        let words = out_next.max(1);
+        let mut text = String::new();
+        let _ = writeln!(
+            text,
+            "// Equivalence-test harness around {function}: {input_words} input words, {out_next} output words."
+        );
+        if glsl {
+            let texels = layout.input_texels();
+            let attachments = layout.output_attachments();
+            text.push_str(
+                "uniform highp usampler2D lp_args;
+",
+            );
+            for j in 0..attachments {
+                let _ = writeln!(text, "layout(location = {j}) out uvec4 lp_out{j};");
+            }
+            text.push_str(
+                "
+uint lp_word(ivec2 base, uint k) {
+    uvec4 t = texelFetch(lp_args, ivec2(base.x + int(k / 4u), base.y), 0);
+    return t[int(k % 4u)];
+}
+
+void main() {
+",
+            );
+            let _ = writeln!(
+                text,
+                "    ivec2 cell = ivec2(gl_FragCoord.xy);
+    ivec2 base = ivec2(cell.x * {texels}, cell.y);"
+            );
+            for l in &setup {
+                let _ = writeln!(text, "    {l}");
+            }
+            let _ = writeln!(text, "    uint lp_w[{}];", attachments * 4);
+            let _ = writeln!(text, "    for (int i = 0; i < {}; ++i) {{ lp_w[i] = 0u; }}", attachments * 4);
+            for l in &body {
+                let _ = writeln!(text, "    {l}");
+            }
+            for j in 0..attachments {
+                let k = j * 4;
+                let _ = writeln!(
+                    text,
+                    "    lp_out{j} = uvec4(lp_w[{k}], lp_w[{}], lp_w[{}], lp_w[{}]);",
+                    k + 1,
+                    k + 2,
+                    k + 3
+                );
+            }
+            text.push_str(
+                "}
+",
+            );
+        } else {
+            text.push_str(
+                "struct LpCount {
+    n: u32,
+}
+@group(1) @binding(0) var<storage, read> lp_args: array<u32>;
+@group(1) @binding(1) var<storage, read_write> lp_results: array<u32>;
+@group(1) @binding(2) var<uniform> lp_count: LpCount;
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= lp_count.n {
+        return;
+    }
+",
+            );
+            let _ = writeln!(text, "    let base: u32 = id.x * {}u;", input_words.max(1));
+            for l in &setup {
+                let _ = writeln!(text, "    {l}");
+            }
+            let _ = writeln!(text, "    var lp_w: array<u32, {words}>;");
+            for l in &body {
+                let _ = writeln!(text, "    {l}");
+            }
+            let _ = writeln!(
+                text,
+                "    for (var k: u32 = 0u; k < {words}u; k++) {{
+        lp_results[id.x * {words}u + k] = lp_w[k];
+    }}"
+            );
+            text.push_str(
+                "}
+",
+            );
+        }
+        Ok((text, layout))
     }
 
     /// A const's value: literals, or simple expressions of literals and other consts.

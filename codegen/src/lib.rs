@@ -88,6 +88,41 @@ pub struct Selection {
     pub specialize: BTreeMap<String, u32>,
     /// Also emit an entry point (`main`) around a kernel function.
     pub entry: Option<EntryPoint>,
+    /// Also emit an equivalence-test harness around a kernel function (see [`Harness`]).
+    pub harness: Option<String>,
+}
+
+/// The layout of a generated equivalence-test harness: a `main` that calls one kernel
+/// function per invocation on arguments read from an input buffer and writes its results.
+///
+/// Every value travels as 32-bit words (f32 as its bits, so NaN and -0.0 survive; i32 as its
+/// two's complement; bool as 0/1), flattened field by field and component by component.
+/// Inputs: the non-resource parameters in order (`&mut` parameters give their initial value).
+/// Outputs: the return value, then the final value of each `&mut` parameter.
+///
+/// GLSL (fragment shader): invocation (x, y) of a W x H grid reads texels
+/// `(x * input_texels + k, y)` of the RGBA32UI texture `lp_args` and writes output word `4j + c`
+/// to component `c` of the RGBA32UI colour attachment `j` (`lp_out0`, `lp_out1`, ...).
+/// WGSL (compute shader, 64 invocations per workgroup along x): invocation `i` reads
+/// `lp_args[i * input_words + k]` and writes `lp_results[i * output_words + k]`, for
+/// `i < lp_count.n`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Harness {
+    pub function: String,
+    pub input_words: u32,
+    pub output_words: u32,
+}
+
+impl Harness {
+    /// RGBA32UI texels per invocation in the GLSL input texture.
+    pub fn input_texels(&self) -> u32 {
+        self.input_words.div_ceil(4).max(1)
+    }
+
+    /// Colour attachments the GLSL harness writes.
+    pub fn output_attachments(&self) -> u32 {
+        self.output_words.div_ceil(4).max(1)
+    }
 }
 
 /// A shader entry point wrapped around a kernel function `fn(&Resources, x: u32, y: u32) -> Vec4`
@@ -118,7 +153,13 @@ impl Selection {
             roots: vec![function.to_string()],
             specialize,
             entry: Some(EntryPoint { function: function.to_string() }),
+            harness: None,
         }
+    }
+
+    /// An equivalence-test harness around `function` and everything it reaches.
+    pub fn harness(function: &str) -> Selection {
+        Selection { roots: vec![function.to_string()], harness: Some(function.to_string()), ..Selection::default() }
     }
 }
 
@@ -133,6 +174,8 @@ pub fn fullscreen_vertex_shader() -> &'static str {
 pub struct Generated {
     pub target: Target,
     pub source: String,
+    /// The harness layout, when one was asked for.
+    pub harness: Option<Harness>,
     /// (1-based output line, Rust file, Rust span, kernel fn), in output order.
     pub source_map: Vec<SourceMapEntry>,
 }

@@ -137,6 +137,8 @@ pub enum PackError {
     BadBvh(u32),
     #[error("{what} needs {texels} texels, more than a {max}x{max} texture holds")]
     TooLarge { what: &'static str, texels: usize, max: u32 },
+    #[error("the BVH is {depth} levels deep; the kernel's traversal stack holds {max}")]
+    BvhTooDeep { depth: u32, max: u32 },
     #[error("the image size {width}x{height} is invalid (each side 1..=16384)")]
     BadSize { width: u32, height: u32 },
 }
@@ -203,6 +205,12 @@ pub fn pack(scene: &Scene, bvh: &Bvh, settings: &RenderSettings) -> Result<Packe
     if tri_count >= MAX_EXACT || bvh.nodes.len() >= MAX_EXACT {
         return Err(PackError::TooManyTriangles(tri_count));
     }
+    // Ordered traversal keeps at most one pending node per level on its stack.
+    let depth = bvh.depth();
+    let max = crate::kernel::traverse::STACK_SIZE as u32;
+    if depth > max {
+        return Err(PackError::BvhTooDeep { depth, max });
+    }
     let ordered: Vec<&crate::scene::Triangle> = bvh
         .triangle_order
         .iter()
@@ -249,7 +257,8 @@ pub fn pack(scene: &Scene, bvh: &Bvh, settings: &RenderSettings) -> Result<Packe
     for &ti in &emissive_triangles {
         let t = ordered[ti as usize];
         let m = &scene.materials[t.material as usize];
-        let texture_mean = m.emissive_texture.and_then(|i| texture_mean.get(i as usize).copied().flatten()).unwrap_or(1.0);
+        let texture_mean =
+            m.emissive_texture.and_then(|i| texture_mean.get(i as usize).copied().flatten()).unwrap_or(1.0);
         let area = 0.5 * (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]).length();
         triangle_light[ti as usize] = Some(light_data.len() as u32);
         light_weights.push(luminance(m.emission) * texture_mean * area * std::f32::consts::PI);
