@@ -15,10 +15,6 @@ fn lp_max_element_vec3(v: vec3<f32>) -> f32 {
     return max(max(v.x, v.y), v.z);
 }
 
-fn lp_min_element_vec3(v: vec3<f32>) -> f32 {
-    return min(min(v.x, v.y), v.z);
-}
-
 // intersect::intersect_triangle (tracer/src/kernel/intersect.rs:21)
 fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> TriangleHit {
     let miss: TriangleHit = TriangleHit(MISS, 0.0, 0.0);
@@ -47,7 +43,7 @@ fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3
     return TriangleHit(t, u, v);
 }
 
-// intersect::safe_inverse (tracer/src/kernel/intersect.rs:50)
+// intersect::safe_inverse (tracer/src/kernel/intersect.rs:51)
 fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     let tiny: f32 = 1e-20;
     let x: f32 = select(dir.x, select(-tiny, tiny, dir.x >= 0.0), abs(dir.x) < tiny);
@@ -56,11 +52,15 @@ fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// intersect::intersect_aabb (tracer/src/kernel/intersect.rs:84)
+// intersect::intersect_aabb (tracer/src/kernel/intersect.rs:85)
 fn intersect_aabb(origin: vec3<f32>, inv_dir: vec3<f32>, bmin: vec3<f32>, bmax: vec3<f32>, t_max: f32) -> f32 {
     let t0: vec3<f32> = (bmin - origin) * inv_dir;
     let t1: vec3<f32> = (bmax - origin) * inv_dir;
+    let far: vec3<f32> = max(t0, t1);
+    let far_x: f32 = select(far.x, MISS, far.x == 0.0);
+    let far_y: f32 = select(far.y, MISS, far.y == 0.0);
+    let far_z: f32 = select(far.z, MISS, far.z == 0.0);
     let enter: f32 = max(lp_max_element_vec3(min(t0, t1)), 0.0);
-    let exit: f32 = min(lp_min_element_vec3(max(t0, t1)), t_max);
+    let exit: f32 = min(min(min(far_x, far_y), far_z), t_max);
     return select(MISS, enter, enter <= exit);
 }

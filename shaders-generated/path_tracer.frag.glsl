@@ -186,10 +186,6 @@ float lp_max_element_vec3(vec3 v) {
     return max(max(v.x, v.y), v.z);
 }
 
-float lp_min_element_vec3(vec3 v) {
-    return min(min(v.x, v.y), v.z);
-}
-
 // Texel `i` of a row-major RGBA32F data texture.
 vec4 lp_fetch_vec4(highp sampler2D t, uint i) {
     uint w = uint(textureSize(t, 0).x);
@@ -253,7 +249,7 @@ Ray camera_ray(vec2 film, vec2 lens) {
     }
 }
 
-// intersect::safe_inverse (tracer/src/kernel/intersect.rs:50)
+// intersect::safe_inverse (tracer/src/kernel/intersect.rs:51)
 vec3 safe_inverse(vec3 dir) {
     float tiny = 1e-20;
     float x = abs(dir.x) < tiny ? (dir.x >= 0.0 ? tiny : -tiny) : dir.x;
@@ -274,12 +270,16 @@ Node fetch_node(uint index) {
     return Node(a.xyz, b.xyz, index_of(a.w), index_of(b.w));
 }
 
-// intersect::intersect_aabb (tracer/src/kernel/intersect.rs:84)
+// intersect::intersect_aabb (tracer/src/kernel/intersect.rs:85)
 float intersect_aabb(vec3 origin, vec3 inv_dir, vec3 bmin, vec3 bmax, float t_max) {
     vec3 t0 = (bmin - origin) * inv_dir;
     vec3 t1 = (bmax - origin) * inv_dir;
+    vec3 far = max(t0, t1);
+    float far_x = far.x == 0.0 ? MISS : far.x;
+    float far_y = far.y == 0.0 ? MISS : far.y;
+    float far_z = far.z == 0.0 ? MISS : far.z;
     float enter = max(lp_max_element_vec3(min(t0, t1)), 0.0);
-    float exit = min(lp_min_element_vec3(max(t0, t1)), t_max);
+    float exit = min(min(min(far_x, far_y), far_z), t_max);
     return enter <= exit ? enter : MISS;
 }
 

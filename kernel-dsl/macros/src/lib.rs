@@ -79,6 +79,12 @@ fn err(span: Span, msg: impl std::fmt::Display) -> Error {
     Error::new(span, msg)
 }
 
+/// An error covering all of `tokens` (on stable Rust, `Spanned::span` of a multi-token node
+/// is only its first token, so `err(node.span(), ..)` would underline one token).
+fn err_at<T: quote::ToTokens + ?Sized>(tokens: &T, msg: impl std::fmt::Display) -> Error {
+    Error::new_spanned(tokens, msg)
+}
+
 #[derive(Default)]
 struct Lowering {
     errors: Vec<Error>,
@@ -86,6 +92,11 @@ struct Lowering {
     calls: BTreeMap<String, Vec<(String, Span)>>,
     current_fn: Option<String>,
     local_fns: BTreeSet<String>,
+    /// Structs declared in this module -> whether they are the `#[resources]` struct.
+    local_structs: BTreeMap<String, bool>,
+    /// Consts declared in this module and names imported from other kernel modules: the
+    /// identifiers a `match` arm may name as a constant pattern.
+    pattern_consts: BTreeSet<String>,
 }
 
 impl Lowering {
@@ -95,8 +106,8 @@ impl Lowering {
 
     fn module(&mut self, module: &syn::ItemMod, file: String) -> Option<ir::Module> {
         let Some((_, items)) = &module.content else {
-            self.error(err(
-                module.span(),
+            self.error(err_at(
+                &module,
                 "`#[kernel]` needs an inline module: `#[kernel] pub mod name { ... }` (out-of-line modules are not visible to the macro)",
             ));
             return None;
@@ -108,6 +119,28 @@ impl Lowering {
                 _ => None,
             })
             .collect();
+        self.local_structs = items
+            .iter()
+            .filter_map(|i| match i {
+                syn::Item::Struct(s) => {
+                    Some((s.ident.to_string(), s.attrs.iter().any(|a| a.path().is_ident("resources"))))
+                }
+                _ => None,
+            })
+            .collect();
+        for item in items {
+            match item {
+                syn::Item::Const(c) => {
+                    self.pattern_consts.insert(c.ident.to_string());
+                }
+                syn::Item::Use(u) => {
+                    let mut flat = Vec::new();
+                    flatten_use(&u.tree, &mut Vec::new(), &mut flat);
+                    self.pattern_consts.extend(flat.into_iter().filter_map(|(_, name, _, _)| name));
+                }
+                _ => {}
+            }
+        }
         let mut out = ir::Module { name: module.ident.to_string(), file, imports: vec![], items: vec![] };
         for item in items {
             if is_cfg_test(item) {
@@ -146,10 +179,7 @@ impl Lowering {
                     s.static_token.span,
                     "statics are not supported in kernels: use a `const`, or a field of the `#[resources]` struct for data that changes",
                 )),
-                syn::Item::Macro(m) => self.error(err(
-                    m.mac.path.span(),
-                    "macros are not supported in kernels: write the code out",
-                )),
+                syn::Item::Macro(m) => self.error(err_at(&m.mac.path, macro_message(&m.mac))),
                 syn::Item::Type(t) => self.error(err(
                     t.type_token.span,
                     "type aliases are not supported in kernels: name the type directly",
@@ -158,7 +188,7 @@ impl Lowering {
                     m.mod_token.span,
                     "nested modules are not supported in a kernel module: make it a separate `#[kernel]` module",
                 )),
-                other => self.error(err(other.span(), "this item is not supported in a kernel module")),
+                other => self.error(err_at(&other, "this item is not supported in a kernel module")),
             }
         }
         self.check_recursion();
@@ -170,7 +200,16 @@ impl Lowering {
         flatten_use(&u.tree, &mut Vec::new(), &mut flat);
         // path -> names (None = glob)
         let mut grouped: BTreeMap<Vec<String>, Option<Vec<String>>> = BTreeMap::new();
-        for (path, name, span) in flat {
+        for rename in use_renames(&u.tree) {
+            self.error(err_at(
+                rename,
+                "renaming imports (`as`) is not supported in kernels: import the item under its own name",
+            ));
+        }
+        for (path, name, span, renamed) in flat {
+            if renamed {
+                continue;
+            }
             let root = path.first().map(String::as_str).unwrap_or("");
             if matches!(root, "glam" | "kernel_dsl" | "core" | "std") {
                 // Vocabulary of the subset (glam types, Texels, f32 consts): nothing to link.
@@ -190,8 +229,8 @@ impl Lowering {
                 Some(n) => {
                     if let Some(Some(names)) = grouped.get_mut(&path) {
                         names.push(n);
-                    } else if !grouped.contains_key(&path) {
-                        grouped.insert(path, Some(vec![n]));
+                    } else {
+                        grouped.entry(path).or_insert_with(|| Some(vec![n]));
                     }
                 }
             }
@@ -204,12 +243,15 @@ impl Lowering {
 
     fn struct_item(&mut self, s: &syn::ItemStruct) -> Option<ir::StructDef> {
         if !s.generics.params.is_empty() {
-            self.error(err(s.generics.span(), "generic structs are not supported in kernels"));
+            self.error(err_at(
+                &s.generics,
+                "generic structs are not supported in kernels: declare one struct per concrete type",
+            ));
             return None;
         }
         let resources = s.attrs.iter().any(|a| a.path().is_ident("resources"));
         let syn::Fields::Named(named) = &s.fields else {
-            self.error(err(s.ident.span(), "kernel structs need named fields: `struct Hit { t: f32, ... }`"));
+            self.error(err_at(&s.ident, "kernel structs need named fields: `struct Hit { t: f32, ... }`"));
             return None;
         };
         let mut fields = Vec::new();
@@ -231,9 +273,14 @@ impl Lowering {
     fn fn_item(&mut self, f: &syn::ItemFn) -> Option<ir::FnDef> {
         let sig = &f.sig;
         if !sig.generics.params.is_empty() {
-            self.error(err(
-                sig.generics.span(),
-                "generic functions are not supported in kernels: write one function per concrete type",
+            let only_lifetimes = sig.generics.params.iter().all(|p| matches!(p, syn::GenericParam::Lifetime(_)));
+            self.error(err_at(
+                &sig.generics,
+                if only_lifetimes {
+                    "lifetimes are not supported in kernels: leave them out (`scene: &Scene`)"
+                } else {
+                    "generic functions are not supported in kernels: write one function per concrete type"
+                },
             ));
             return None;
         }
@@ -244,15 +291,15 @@ impl Lowering {
             self.error(err(t.span, "unsafe functions are not supported in kernels"));
         }
         if let Some(v) = &sig.variadic {
-            self.error(err(v.span(), "variadic functions are not supported in kernels"));
+            self.error(err_at(&v, "variadic functions are not supported in kernels"));
         }
         let name = sig.ident.to_string();
         self.current_fn = Some(name.clone());
         let mut params = Vec::new();
         for input in &sig.inputs {
             match input {
-                syn::FnArg::Receiver(r) => self.error(err(
-                    r.span(),
+                syn::FnArg::Receiver(r) => self.error(err_at(
+                    &r,
                     "methods are not supported in kernels: write a free function that takes the value as a parameter",
                 )),
                 syn::FnArg::Typed(pt) => {
@@ -261,7 +308,7 @@ impl Lowering {
                             (pi.ident.to_string(), pi.mutability.is_some())
                         }
                         other => {
-                            self.error(err(other.span(), "kernel parameters must be plain names: `x: f32`"));
+                            self.error(err_at(&other, "kernel parameters must be plain names: `x: f32`"));
                             continue;
                         }
                     };
@@ -293,8 +340,10 @@ impl Lowering {
             }
             stack.push(name.to_string());
             for (callee, span) in calls.get(name).into_iter().flatten() {
-                if stack.iter().any(|s| s == callee) {
-                    return Some((callee.clone(), *span));
+                if let Some(start) = stack.iter().position(|s| s == callee) {
+                    let mut cycle: Vec<String> = stack[start..].iter().map(|s| format!("`{s}`")).collect();
+                    cycle.push(format!("`{callee}`"));
+                    return Some((cycle.join(" -> "), *span));
                 }
                 if let Some(found) = visit(callee, calls, stack, done) {
                     return Some(found);
@@ -308,11 +357,11 @@ impl Lowering {
         let names: Vec<String> = self.calls.keys().cloned().collect();
         for name in names {
             let mut stack = Vec::new();
-            if let Some((callee, span)) = visit(&name, &self.calls, &mut stack, &mut done) {
+            if let Some((cycle, span)) = visit(&name, &self.calls, &mut stack, &mut done) {
                 self.error(err(
                     span,
                     format!(
-                        "recursion is not supported on GPUs (`{callee}` calls itself through this call): use a loop with an explicit stack"
+                        "recursion is not supported on GPUs (this call closes the cycle {cycle}): use a loop, with an explicit stack if needed"
                     ),
                 ));
                 return;
@@ -324,7 +373,7 @@ impl Lowering {
         match t {
             syn::Type::Path(tp) => {
                 if tp.qself.is_some() {
-                    self.error(err(t.span(), "qualified types are not supported in kernels"));
+                    self.error(err_at(&t, "qualified types are not supported in kernels"));
                     return None;
                 }
                 let seg = tp.path.segments.last()?;
@@ -332,12 +381,12 @@ impl Lowering {
                 if tp.path.segments.len() > 1 {
                     let root = tp.path.segments[0].ident.to_string();
                     if !matches!(root.as_str(), "glam" | "kernel_dsl" | "super" | "crate" | "self") {
-                        self.error(err(t.span(), "name kernel types directly (`Vec3`, `Hit`), not through a path"));
+                        self.error(err_at(&t, "name kernel types directly (`Vec3`, `Hit`), not through a path"));
                         return None;
                     }
                 }
                 if let Some(msg) = unsupported_type_message(&name) {
-                    self.error(err(seg.ident.span(), msg));
+                    self.error(err_at(&seg.ident, msg));
                     return None;
                 }
                 let mut args = Vec::new();
@@ -348,8 +397,8 @@ impl Lowering {
                             match a {
                                 syn::GenericArgument::Type(t) => args.push(self.ty(t)?),
                                 other => {
-                                    self.error(err(
-                                        other.span(),
+                                    self.error(err_at(
+                                        &other,
                                         "only type arguments are supported here (`Texels<Vec4>`)",
                                     ));
                                     return None;
@@ -358,7 +407,7 @@ impl Lowering {
                         }
                     }
                     syn::PathArguments::Parenthesized(p) => {
-                        self.error(err(p.span(), "function types are not supported in kernels"));
+                        self.error(err_at(&p, "function types are not supported in kernels"));
                         return None;
                     }
                 }
@@ -371,30 +420,50 @@ impl Lowering {
             }
             syn::Type::Reference(r) => {
                 if let Some(l) = &r.lifetime {
-                    self.error(err(l.span(), "lifetimes are not supported in kernels"));
+                    self.error(err_at(l, "lifetimes are not supported in kernels: leave them out (`scene: &Scene`)"));
                     return None;
                 }
                 let inner = self.ty(&r.elem)?;
+                if r.mutability.is_none() {
+                    let by_value = match &inner {
+                        ir::Type::Named { name, .. } => match self.local_structs.get(name) {
+                            Some(resources) => !resources,
+                            None => ir::BUILTIN_TYPES.contains(&name.as_str()),
+                        },
+                        ir::Type::Array { .. } | ir::Type::Ref { .. } => true,
+                    };
+                    if by_value {
+                        let what = match &inner {
+                            ir::Type::Named { name, .. } => format!("`{name}`"),
+                            _ => "it".to_string(),
+                        };
+                        self.error(err_at(
+                            &r,
+                            format!("shared references are only for the `#[resources]` struct: pass {what} by value (kernel values are Copy), or as `&mut` to modify it"),
+                        ));
+                        return None;
+                    }
+                }
                 Some(ir::Type::Ref { mutable: r.mutability.is_some(), inner: Box::new(inner) })
             }
             syn::Type::Tuple(tt) if tt.elems.is_empty() => {
-                self.error(err(t.span(), "leave out `-> ()`"));
+                self.error(err_at(&t, "leave out `-> ()`"));
                 None
             }
             syn::Type::Tuple(_) => {
-                self.error(err(t.span(), "tuples are not supported in kernels: declare a struct with named fields"));
+                self.error(err_at(&t, "tuples are not supported in kernels: declare a struct with named fields"));
                 None
             }
             syn::Type::Slice(_) => {
-                self.error(err(
-                    t.span(),
+                self.error(err_at(
+                    &t,
                     "slices are not supported in kernels: use a fixed-size array `[T; N]`, or `Texels<T>` in the `#[resources]` struct for scene data",
                 ));
                 None
             }
             syn::Type::Paren(p) => self.ty(&p.elem),
             _ => {
-                self.error(err(t.span(), "this type is not supported in kernels"));
+                self.error(err_at(&t, "this type is not supported in kernels"));
                 None
             }
         }
@@ -405,7 +474,7 @@ impl Lowering {
             syn::Expr::Lit(syn::ExprLit { lit: syn::Lit::Int(i), .. }) => match i.base10_parse::<u32>() {
                 Ok(n) => Some(ir::ArrayLen::Literal(n)),
                 Err(_) => {
-                    self.error(err(i.span(), "array length out of range"));
+                    self.error(err_at(&i, "array length out of range"));
                     None
                 }
             },
@@ -413,7 +482,7 @@ impl Lowering {
                 Some(ir::ArrayLen::Const(p.path.segments[0].ident.to_string()))
             }
             _ => {
-                self.error(err(e.span(), "array lengths must be an integer literal or a `const` name"));
+                self.error(err_at(&e, "array lengths must be an integer literal or a `const` name"));
                 None
             }
         }
@@ -427,8 +496,8 @@ impl Lowering {
             match s {
                 syn::Stmt::Local(l) => ok &= self.local(l, &mut out.stmts).is_some(),
                 syn::Stmt::Item(item) => {
-                    self.error(err(
-                        item.span(),
+                    self.error(err_at(
+                        &item,
                         "items inside function bodies are not supported: move it to the module level",
                     ));
                     ok = false;
@@ -439,10 +508,7 @@ impl Lowering {
                     None => ok = false,
                 },
                 syn::Stmt::Macro(m) => {
-                    self.error(err(
-                        m.mac.path.span(),
-                        "macros are not supported in kernels (no printing, assertions or panics on a GPU): write the code out",
-                    ));
+                    self.error(err_at(&m.mac.path, macro_message(&m.mac)));
                     ok = false;
                 }
             }
@@ -451,6 +517,10 @@ impl Lowering {
     }
 
     fn local(&mut self, l: &syn::Local, out: &mut Vec<ir::Stmt>) -> Option<()> {
+        if let Some((else_token, _)) = l.init.as_ref().and_then(|init| init.diverge.as_ref()) {
+            self.error(err(else_token.span, "`let ... else` is not supported in kernels: test the value with `if`"));
+            return None;
+        }
         let (pat, ty) = match &l.pat {
             syn::Pat::Type(pt) => (&*pt.pat, Some(&*pt.ty)),
             p => (p, None),
@@ -459,12 +529,12 @@ impl Lowering {
             syn::Pat::Ident(pi) if pi.by_ref.is_none() && pi.subpat.is_none() => {
                 (pi.ident.to_string(), pi.mutability.is_some())
             }
-            syn::Pat::Tuple(_) | syn::Pat::Struct(_) | syn::Pat::TupleStruct(_) => {
-                self.error(err(pat.span(), "destructuring is not supported in kernels: bind one name per `let`"));
+            syn::Pat::Tuple(_) | syn::Pat::Struct(_) | syn::Pat::TupleStruct(_) | syn::Pat::Slice(_) => {
+                self.error(err_at(&pat, "destructuring is not supported in kernels: bind one name per `let`"));
                 return None;
             }
             other => {
-                self.error(err(other.span(), "`let` needs a plain name here"));
+                self.error(err_at(&other, "`let` needs a plain name here: `let x = ...;` or `let mut x: f32 = ...;`"));
                 return None;
             }
         };
@@ -474,13 +544,7 @@ impl Lowering {
         };
         let init = match &l.init {
             None => None,
-            Some(init) => {
-                if let Some((else_token, _)) = &init.diverge {
-                    self.error(err(else_token.span, "`let ... else` is not supported in kernels: use `if`"));
-                    return None;
-                }
-                Some(self.expr(&init.expr)?)
-            }
+            Some(init) => Some(self.expr(&init.expr)?),
         };
         out.push(ir::Stmt::Let { name, mutable, ty, init, span: span_of(l.let_token.span) });
         Some(())
@@ -503,17 +567,21 @@ impl Lowering {
                     syn::UnOp::Not(_) => ir::UnOp::Not,
                     syn::UnOp::Deref(_) => ir::UnOp::Deref,
                     _ => {
-                        self.error(err(e.span(), "this operator is not supported in kernels"));
+                        self.error(err_at(&e, "this operator is not supported in kernels"));
                         return None;
                     }
                 };
                 ir::ExprKind::Unary { op, expr: self.boxed(&u.expr)? }
             }
             syn::Expr::Binary(b) => {
-                let (op, assign) = bin_op(&b.op)?;
+                let Some((op, assign)) = bin_op(&b.op) else {
+                    self.error(err_at(&b.op, "this operator is not supported in kernels"));
+                    return None;
+                };
                 if matches!(op, ir::BinOp::Shl | ir::BinOp::Shr) && !is_int_literal(&b.right) {
-                    self.error(err(
-                        b.op.span(),
+                    let (shift, amount) = (&b.op, &b.right);
+                    self.error(err_at(
+                        &quote!(#shift #amount),
                         "shift amounts that are not literals must use `wrapping_shl`/`wrapping_shr`: a shift by 32 or more panics in Rust and is undefined in GLSL, the DSL masks it to 0..31",
                     ));
                     return None;
@@ -534,17 +602,21 @@ impl Lowering {
             }
             syn::Expr::Call(c) => {
                 let syn::Expr::Path(p) = &*c.func else {
-                    self.error(err(
-                        c.func.span(),
+                    self.error(err_at(
+                        &c.func,
                         "only calls of named kernel functions are supported (no closures or function values)",
                     ));
                     return None;
                 };
                 let path = self.path(&p.qself, &p.path)?;
-                self.check_call_path(&path, p.path.span())?;
-                if path.len() == 1 && self.local_fns.contains(&path[0]) {
+                self.check_call_path(&path, &p.path)?;
+                let local = match path.as_slice() {
+                    [name] | [_, name] if path.len() == 1 || path[0] == "self" => Some(name),
+                    _ => None,
+                };
+                if let Some(callee) = local.filter(|n| self.local_fns.contains(*n)) {
                     if let Some(f) = &self.current_fn {
-                        self.calls.entry(f.clone()).or_default().push((path[0].clone(), p.path.span()));
+                        self.calls.entry(f.clone()).or_default().push((callee.clone(), p.path.span()));
                     }
                 }
                 let args = self.exprs(c.args.iter())?;
@@ -552,12 +624,12 @@ impl Lowering {
             }
             syn::Expr::MethodCall(m) => {
                 if let Some(t) = &m.turbofish {
-                    self.error(err(t.span(), "turbofish is not supported in kernels"));
+                    self.error(err_at(&t, "turbofish is not supported in kernels"));
                     return None;
                 }
                 let method = m.method.to_string();
                 if !ir::SUPPORTED_METHODS.contains(&method.as_str()) {
-                    self.error(err(m.method.span(), unsupported_method_message(&method)));
+                    self.error(err_at(&m.method, unsupported_method_message(&method)));
                     return None;
                 }
                 let receiver = self.boxed(&m.receiver);
@@ -567,8 +639,8 @@ impl Lowering {
             syn::Expr::Field(f) => match &f.member {
                 syn::Member::Named(name) => ir::ExprKind::Field { base: self.boxed(&f.base)?, field: name.to_string() },
                 syn::Member::Unnamed(_) => {
-                    self.error(err(
-                        f.member.span(),
+                    self.error(err_at(
+                        &f.member,
                         "tuple fields are not supported in kernels: use a struct with named fields",
                     ));
                     return None;
@@ -586,19 +658,18 @@ impl Lowering {
             }
             syn::Expr::Struct(s) => {
                 if let Some(dot2) = &s.dot2_token {
-                    self.error(err(
-                        dot2.span(),
+                    let rest = &s.rest;
+                    self.error(err_at(
+                        &quote!(#dot2 #rest),
                         "struct update syntax (`..base`) is not supported in kernels: list every field",
                     ));
                     return None;
                 }
-                let Some(name) = s.path.segments.last().map(|s| s.ident.to_string()) else {
-                    return None;
-                };
+                let name = s.path.segments.last().map(|s| s.ident.to_string())?;
                 let mut fields = Vec::new();
                 for fv in &s.fields {
                     let syn::Member::Named(fname) = &fv.member else {
-                        self.error(err(fv.member.span(), "use named fields"));
+                        self.error(err_at(&fv.member, "use named fields"));
                         return None;
                     };
                     fields.push((fname.to_string(), self.expr(&fv.expr)?));
@@ -621,8 +692,8 @@ impl Lowering {
             }
             syn::Expr::If(i) => {
                 if let syn::Expr::Let(l) = &*i.cond {
-                    self.error(err(
-                        l.let_token.span,
+                    self.error(err_at(
+                        l,
                         "`if let` is not supported in kernels: there are no enums or options; test a value with `if`",
                     ));
                     return None;
@@ -638,7 +709,7 @@ impl Lowering {
             syn::Expr::Match(m) => self.match_expr(m)?,
             syn::Expr::Block(b) => {
                 if let Some(l) = &b.label {
-                    self.error(err(l.span(), "labelled blocks are not supported in kernels"));
+                    self.error(err_at(&l, "labelled blocks are not supported in kernels"));
                     return None;
                 }
                 ir::ExprKind::Block(self.block(&b.block)?)
@@ -646,10 +717,7 @@ impl Lowering {
             syn::Expr::While(w) => {
                 self.no_label(&w.label)?;
                 if let syn::Expr::Let(l) = &*w.cond {
-                    self.error(err(
-                        l.let_token.span,
-                        "`while let` is not supported in kernels: use `while` with a condition",
-                    ));
+                    self.error(err_at(l, "`while let` is not supported in kernels: use `while` with a condition"));
                     return None;
                 }
                 let cond = self.boxed(&w.cond);
@@ -665,7 +733,7 @@ impl Lowering {
                 let var = match &*f.pat {
                     syn::Pat::Ident(pi) if pi.mutability.is_none() && pi.by_ref.is_none() => pi.ident.to_string(),
                     other => {
-                        self.error(err(other.span(), "the loop variable must be a plain name: `for i in 0..n`"));
+                        self.error(err_at(&other, "the loop variable must be a plain name: `for i in 0..n`"));
                         return None;
                     }
                 };
@@ -678,8 +746,8 @@ impl Lowering {
                     _ => None,
                 };
                 let Some(syn::ExprRange { start: Some(start), end: Some(end), limits, .. }) = range else {
-                    self.error(err(
-                        f.expr.span(),
+                    self.error(err_at(
+                        &f.expr,
                         "`for` loops run over an integer range with both ends: `for i in 0..n` or `for i in 0..=n` (iterators are not supported)",
                     ));
                     return None;
@@ -700,8 +768,8 @@ impl Lowering {
                     &b.label.as_ref().map(|l| syn::Label { name: l.clone(), colon_token: Default::default() }),
                 )?;
                 if let Some(v) = &b.expr {
-                    self.error(err(
-                        v.span(),
+                    self.error(err_at(
+                        &v,
                         "`break` with a value is not supported in kernels: assign to a variable before `break`",
                     ));
                     return None;
@@ -710,7 +778,7 @@ impl Lowering {
             }
             syn::Expr::Continue(c) => {
                 if let Some(l) = &c.label {
-                    self.error(err(l.span(), "labelled `continue` is not supported in kernels"));
+                    self.error(err_at(&l, "labelled `continue` is not supported in kernels: use a flag variable"));
                     return None;
                 }
                 ir::ExprKind::Continue
@@ -720,29 +788,26 @@ impl Lowering {
                 Some(v) => Some(self.boxed(v)?),
             }),
             syn::Expr::Closure(c) => {
-                self.error(err(c.or1_token.span, "closures are not supported in kernels: write a kernel `fn`"));
+                self.error(err_at(c, "closures are not supported in kernels: write a kernel `fn`"));
                 return None;
             }
             syn::Expr::Tuple(t) => {
-                self.error(err(t.span(), "tuples are not supported in kernels: declare a struct with named fields"));
+                self.error(err_at(&t, "tuples are not supported in kernels: declare a struct with named fields"));
                 return None;
             }
             syn::Expr::Macro(m) => {
-                self.error(err(
-                    m.mac.path.span(),
-                    "macros are not supported in kernels (no printing, assertions or panics on a GPU): write the code out",
-                ));
+                self.error(err_at(&m.mac.path, macro_message(&m.mac)));
                 return None;
             }
             syn::Expr::Try(t) => {
                 self.error(err(
                     t.question_token.span,
-                    "`?` is not supported in kernels: there are no Results on a GPU",
+                    "`?` is not supported in kernels (there are no Results on a GPU): test the value with `if` and `return` early",
                 ));
                 return None;
             }
             syn::Expr::Range(r) => {
-                self.error(err(r.span(), "ranges are only supported as the range of a `for` loop"));
+                self.error(err_at(&r, "ranges are only supported as the range of a `for` loop"));
                 return None;
             }
             syn::Expr::Unsafe(u) => {
@@ -750,11 +815,11 @@ impl Lowering {
                 return None;
             }
             syn::Expr::Let(l) => {
-                self.error(err(l.let_token.span, "`let` expressions are not supported in kernels"));
+                self.error(err_at(l, "`let` expressions are not supported in kernels: test values with `if`"));
                 return None;
             }
             other => {
-                self.error(err(other.span(), "this expression is not supported in kernels"));
+                self.error(err_at(&other, "this expression is not supported in kernels"));
                 return None;
             }
         };
@@ -768,7 +833,7 @@ impl Lowering {
 
     fn no_label(&mut self, l: &Option<syn::Label>) -> Option<()> {
         if let Some(l) = l {
-            self.error(err(l.name.span(), "labelled loops are not supported in kernels: use a flag variable"));
+            self.error(err_at(&l.name, "labelled loops are not supported in kernels: use a flag variable"));
             return None;
         }
         Some(())
@@ -778,33 +843,73 @@ impl Lowering {
         let scrutinee = self.boxed(&m.expr)?;
         let mut arms = Vec::new();
         for arm in &m.arms {
-            if let Some((if_token, _)) = &arm.guard {
-                self.error(err(if_token.span, "match guards are not supported in kernels: use `if` inside the arm"));
+            if let Some((if_token, guard)) = &arm.guard {
+                self.error(err_at(
+                    &quote!(#if_token #guard),
+                    "match guards are not supported in kernels: use `if` inside the arm",
+                ));
                 return None;
             }
             let mut patterns = Vec::new();
+            let mut catch_all = false;
             let cases: Vec<&syn::Pat> = match &arm.pat {
                 syn::Pat::Or(o) => o.cases.iter().collect(),
                 p => vec![p],
             };
             for p in cases {
                 match p {
-                    syn::Pat::Wild(_) => {}
+                    syn::Pat::Wild(_) => catch_all = true,
+                    // `-1 =>`: syn keeps the sign in the literal's digits.
+                    syn::Pat::Lit(syn::ExprLit { lit: syn::Lit::Int(i), .. }) if i.base10_digits().starts_with('-') => {
+                        let positive = syn::LitInt::new(&i.to_string()[1..], i.span());
+                        let span = span_of(i.span());
+                        let lit = self.lit(&syn::Lit::Int(positive))?;
+                        let value = Box::new(ir::Expr { kind: ir::ExprKind::Lit(lit), span });
+                        patterns.push(ir::Expr { kind: ir::ExprKind::Unary { op: ir::UnOp::Neg, expr: value }, span })
+                    }
                     syn::Pat::Lit(l) if matches!(l.lit, syn::Lit::Int(_)) => {
                         patterns.push(ir::Expr { kind: ir::ExprKind::Lit(self.lit(&l.lit)?), span: span_of(l.span()) })
                     }
-                    syn::Pat::Path(p) if p.path.segments.len() == 1 => patterns.push(ir::Expr {
+                    syn::Pat::Path(p) if p.qself.is_none() && p.path.segments.len() == 1 => patterns.push(ir::Expr {
                         kind: ir::ExprKind::Path(vec![p.path.segments[0].ident.to_string()]),
                         span: span_of(p.span()),
                     }),
+                    // A bare identifier is a constant pattern when it names a constant (what
+                    // rustc decides from scope); otherwise it would bind a new variable.
+                    syn::Pat::Ident(pi)
+                        if pi.by_ref.is_none()
+                            && pi.mutability.is_none()
+                            && pi.subpat.is_none()
+                            && (self.pattern_consts.contains(&pi.ident.to_string())
+                                || is_screaming_case(&pi.ident.to_string())) =>
+                    {
+                        patterns.push(ir::Expr {
+                            kind: ir::ExprKind::Path(vec![pi.ident.to_string()]),
+                            span: span_of(pi.ident.span()),
+                        })
+                    }
+                    syn::Pat::Ident(pi) if pi.subpat.is_none() => {
+                        self.error(err_at(
+                            &pi.ident,
+                            format!(
+                                "`{}` would bind a variable: `match` in kernels only takes integer literal or `const` patterns; write `_` and use the matched value itself",
+                                pi.ident
+                            ),
+                        ));
+                        return None;
+                    }
                     other => {
-                        self.error(err(
-                            other.span(),
+                        self.error(err_at(
+                            &other,
                             "`match` in kernels only takes integer literal or `const` patterns and `_`: use `if` for anything else",
                         ));
                         return None;
                     }
                 }
+            }
+            if catch_all {
+                // `3 | _` matches everything: an arm without patterns is the IR's `_`.
+                patterns.clear();
             }
             let body = self.expr(&arm.body)?;
             arms.push(ir::MatchArm { patterns, body });
@@ -817,7 +922,7 @@ impl Lowering {
             syn::Lit::Int(i) => {
                 let suffix = i.suffix();
                 if !matches!(suffix, "" | "u32" | "i32" | "usize" | "f32") {
-                    self.error(err(i.span(), unsupported_type_message(suffix).unwrap_or("unsupported literal suffix")));
+                    self.error(err_at(&i, unsupported_type_message(suffix).unwrap_or("unsupported literal suffix")));
                     return None;
                 }
                 if suffix == "f32" {
@@ -825,7 +930,7 @@ impl Lowering {
                     return Some(ir::Lit::Float { value, suffix: Some("f32".into()) });
                 }
                 let Ok(value) = i.base10_parse::<u64>() else {
-                    self.error(err(i.span(), "integer literal out of range"));
+                    self.error(err_at(&i, "integer literal out of range"));
                     return None;
                 };
                 let text = i.to_string().replace('_', "");
@@ -835,7 +940,10 @@ impl Lowering {
             syn::Lit::Float(f) => {
                 let suffix = f.suffix();
                 if !matches!(suffix, "" | "f32") {
-                    self.error(err(f.span(), "f64 is not supported on GPUs: use f32"));
+                    self.error(err_at(
+                        &f,
+                        "f64 is not supported on GPUs (WebGL2 has no doubles): use f32 (`0.5` or `0.5f32`)",
+                    ));
                     return None;
                 }
                 let value = f.base10_parse::<f32>().ok()?;
@@ -843,15 +951,18 @@ impl Lowering {
             }
             syn::Lit::Bool(b) => Some(ir::Lit::Bool(b.value)),
             syn::Lit::Str(_) | syn::Lit::ByteStr(_) | syn::Lit::CStr(_) => {
-                self.error(err(l.span(), "strings are not supported in kernels"));
+                self.error(err_at(&l, "strings are not supported in kernels (GPUs have no text): use `u32` codes"));
                 None
             }
             syn::Lit::Char(_) | syn::Lit::Byte(_) => {
-                self.error(err(l.span(), "characters and bytes are not supported in kernels: use u32"));
+                self.error(err_at(
+                    &l,
+                    "characters and bytes are not supported in kernels (GPUs have no text): use `u32` codes",
+                ));
                 None
             }
             _ => {
-                self.error(err(l.span(), "this literal is not supported in kernels"));
+                self.error(err_at(&l, "this literal is not supported in kernels"));
                 None
             }
         }
@@ -859,13 +970,13 @@ impl Lowering {
 
     fn path(&mut self, qself: &Option<syn::QSelf>, p: &syn::Path) -> Option<Vec<String>> {
         if qself.is_some() {
-            self.error(err(p.span(), "qualified paths are not supported in kernels"));
+            self.error(err_at(&p, "qualified paths are not supported in kernels"));
             return None;
         }
         let mut out = Vec::new();
         for seg in &p.segments {
             if !seg.arguments.is_none() {
-                self.error(err(seg.arguments.span(), "generic arguments are not supported here"));
+                self.error(err_at(&seg.arguments, "generic arguments are not supported here"));
                 return None;
             }
             out.push(seg.ident.to_string());
@@ -876,7 +987,7 @@ impl Lowering {
         }
         if let Some(first) = out.first() {
             if let Some(msg) = unsupported_type_message(first) {
-                self.error(err(p.span(), msg));
+                self.error(err_at(&p, msg));
                 return None;
             }
         }
@@ -885,11 +996,19 @@ impl Lowering {
 
     /// Calls through a type path (`Vec3::new`, `f32::max`) must name something the subset
     /// supports; calls through a module path are kernel functions, checked when linking.
-    fn check_call_path(&mut self, path: &[String], span: Span) -> Option<()> {
+    fn check_call_path(&mut self, path: &[String], tokens: &syn::Path) -> Option<()> {
         if path.len() == 2 && ir::BUILTIN_TYPES.contains(&path[0].as_str()) {
             let f = path[1].as_str();
             if !ir::SUPPORTED_METHODS.contains(&f) && !ir::SUPPORTED_CONSTRUCTORS.contains(&f) {
-                self.error(err(span, format!("`{}::{f}` is not supported in kernels", path[0])));
+                self.error(err_at(
+                    tokens,
+                    format!(
+                        "`{}::{f}` is not supported in kernels; supported associated functions: {} and the methods {}",
+                        path[0],
+                        ir::SUPPORTED_CONSTRUCTORS.join(", "),
+                        ir::SUPPORTED_METHODS.join(", ")
+                    ),
+                ));
                 return None;
             }
         }
@@ -897,16 +1016,32 @@ impl Lowering {
     }
 }
 
-fn flatten_use(tree: &syn::UseTree, prefix: &mut Vec<String>, out: &mut Vec<(Vec<String>, Option<String>, Span)>) {
+/// The `a as b` parts of a `use` tree.
+fn use_renames(tree: &syn::UseTree) -> Vec<&syn::UseRename> {
+    match tree {
+        syn::UseTree::Path(p) => use_renames(&p.tree),
+        syn::UseTree::Rename(r) => vec![r],
+        syn::UseTree::Group(g) => g.items.iter().flat_map(use_renames).collect(),
+        syn::UseTree::Name(_) | syn::UseTree::Glob(_) => vec![],
+    }
+}
+
+/// Flattens a `use` tree into (module path, imported name or `None` for a glob, span, renamed).
+#[allow(clippy::type_complexity)]
+fn flatten_use(
+    tree: &syn::UseTree,
+    prefix: &mut Vec<String>,
+    out: &mut Vec<(Vec<String>, Option<String>, Span, bool)>,
+) {
     match tree {
         syn::UseTree::Path(p) => {
             prefix.push(p.ident.to_string());
             flatten_use(&p.tree, prefix, out);
             prefix.pop();
         }
-        syn::UseTree::Name(n) => out.push((prefix.clone(), Some(n.ident.to_string()), n.ident.span())),
-        syn::UseTree::Rename(r) => out.push((prefix.clone(), Some(r.ident.to_string()), r.ident.span())),
-        syn::UseTree::Glob(g) => out.push((prefix.clone(), None, g.star_token.span)),
+        syn::UseTree::Name(n) => out.push((prefix.clone(), Some(n.ident.to_string()), n.ident.span(), false)),
+        syn::UseTree::Rename(r) => out.push((prefix.clone(), Some(r.ident.to_string()), r.ident.span(), true)),
+        syn::UseTree::Glob(g) => out.push((prefix.clone(), None, g.star_token.span, false)),
         syn::UseTree::Group(g) => {
             for t in &g.items {
                 flatten_use(t, prefix, out);
@@ -939,6 +1074,12 @@ fn is_statement_like(e: &ir::Expr) -> bool {
             | ir::ExprKind::Break
             | ir::ExprKind::Continue
     )
+}
+
+/// `KIND_LAMBERT`: the naming convention of constants.
+fn is_screaming_case(name: &str) -> bool {
+    name.chars().any(|c| c.is_ascii_uppercase())
+        && name.chars().all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_')
 }
 
 fn is_int_literal(e: &syn::Expr) -> bool {
@@ -991,7 +1132,7 @@ fn unsupported_type_message(name: &str) -> Option<&'static str> {
         "f64" => "f64 is not supported on GPUs (WebGL2 has no doubles): use f32",
         "i64" | "u64" | "i128" | "u128" | "isize" => "64-bit integers are not supported on GPUs: use i32 or u32",
         "i8" | "i16" | "u8" | "u16" => "small integer types are not supported on GPUs: use i32 or u32 (and mask)",
-        "char" | "str" | "String" => "strings are not supported in kernels",
+        "char" | "str" | "String" => "strings and characters are not supported in kernels (GPUs have no text): use `u32` codes",
         "Vec" | "Box" | "Rc" | "Arc" | "HashMap" | "BTreeMap" | "VecDeque" => {
             "heap types are not supported in kernels: use fixed-size arrays `[T; N]`, or `Texels<T>` in the `#[resources]` struct for scene data"
         }
@@ -1002,9 +1143,30 @@ fn unsupported_type_message(name: &str) -> Option<&'static str> {
     })
 }
 
+/// What to write instead of a macro, by the macro's name.
+fn macro_message(mac: &syn::Macro) -> String {
+    let name = mac.path.segments.last().map(|s| s.ident.to_string()).unwrap_or_default();
+    match name.as_str() {
+        "panic" | "unreachable" | "todo" | "unimplemented" => format!(
+            "`{name}!` is not supported in kernels (a GPU cannot panic): return a value that marks the case, e.g. a miss"
+        ),
+        "assert" | "assert_eq" | "assert_ne" | "debug_assert" | "debug_assert_eq" | "debug_assert_ne" => format!(
+            "`{name}!` is not supported in kernels (a GPU cannot panic): check the condition in a CPU test of the kernel instead"
+        ),
+        "print" | "println" | "eprint" | "eprintln" | "dbg" | "format" | "write" | "writeln" => format!(
+            "`{name}!` is not supported in kernels (a GPU cannot print): inspect values in a CPU test of the kernel instead"
+        ),
+        "vec" => "`vec!` is not supported in kernels (no heap on a GPU): use an array `[x; N]`".to_string(),
+        "macro_rules" => "macro definitions are not supported in kernels: write a kernel `fn`".to_string(),
+        _ => format!("macros are not supported in kernels (`{name}!`): write the code out, or a kernel `fn`"),
+    }
+}
+
 fn unsupported_method_message(method: &str) -> String {
     match method {
-        "unwrap" | "expect" => format!("`{method}` can panic, and kernels cannot: there are no Options on a GPU"),
+        "unwrap" | "expect" => format!(
+            "`{method}` can panic, and kernels cannot (there are no Options on a GPU): compute the value directly, or test it with `if`"
+        ),
         "iter" | "into_iter" | "map" | "sum" | "fold" | "collect" => {
             format!("iterators are not supported in kernels (`{method}`): write a `for i in 0..n` loop")
         }

@@ -45,7 +45,8 @@ pub mod intersect {
         TriangleHit { t, u, v }
     }
 
-    /// `1 / dir` with zero components replaced by a tiny value of the same sign, so that
+    /// `1 / dir` with zero components replaced by a tiny value of the same sign (-0.0 counts as
+    /// positive), so that
     /// slab tests never compute `0 * inf` (NaN, and GLSL's min/max are undefined on NaN).
     pub fn safe_inverse(dir: Vec3) -> Vec3 {
         let tiny = 1.0e-20;
@@ -79,13 +80,20 @@ pub mod intersect {
         Vec3::new(1.0 / x, 1.0 / y, 1.0 / z)
     }
 
-    /// Slab test against the box [bmin, bmax] for t in [0, t_max]: the entry distance
+    /// Slab test against the closed box [bmin, bmax] for t in [0, t_max]: the entry distance
     /// (0 when the origin is inside), or `MISS`. `inv_dir` comes from `safe_inverse`.
     pub fn intersect_aabb(origin: Vec3, inv_dir: Vec3, bmin: Vec3, bmax: Vec3, t_max: f32) -> f32 {
         let t0 = (bmin - origin) * inv_dir;
         let t1 = (bmax - origin) * inv_dir;
+        let far = t0.max(t1);
+        // An exit distance of exactly 0 comes from an origin on a face plane; for a ray parallel
+        // to that face it would close the slab (0 * 1e20 = 0) although the ray runs along the
+        // face. Treat it as unbounded: at worst a box is entered needlessly, never culled wrongly.
+        let far_x = if far.x == 0.0 { MISS } else { far.x };
+        let far_y = if far.y == 0.0 { MISS } else { far.y };
+        let far_z = if far.z == 0.0 { MISS } else { far.z };
         let enter = t0.min(t1).max_element().max(0.0);
-        let exit = t0.max(t1).min_element().min(t_max);
+        let exit = far_x.min(far_y).min(far_z).min(t_max);
         if enter <= exit {
             enter
         } else {

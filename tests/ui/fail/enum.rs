@@ -1,0 +1,10 @@
+#[kernel_dsl::kernel]
+pub mod k {
+    #[derive(Clone, Copy)]
+    pub enum Kind {
+        Diffuse,
+        Mirror,
+    }
+}
+
+fn main() {}

@@ -1,0 +1,4 @@
+#[kernel_dsl::kernel]
+mod missing;
+
+fn main() {}
