@@ -84,7 +84,13 @@ fn main() {
         let t = Instant::now();
         let packed = pack(scene, &bvh, &settings).expect("pack");
         let pack_ms = t.elapsed().as_secs_f64() * 1e3;
-        let frames = if quick { 2 } else if *name == "Cornell box" { 32 } else { 8 };
+        let frames = if quick {
+            2
+        } else if *name == "Cornell box" {
+            32
+        } else {
+            8
+        };
         let multi = samples_per_second(&packed, frames, threads);
         let single = samples_per_second(&packed, frames.div_ceil(2), 1);
         let (closest, shadow) = rays_per_second(&packed, if quick { 20_000 } else { 200_000 }, threads);

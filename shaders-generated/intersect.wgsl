@@ -61,6 +61,6 @@ fn intersect_aabb(origin: vec3<f32>, inv_dir: vec3<f32>, bmin: vec3<f32>, bmax: 
     let far_y: f32 = select(far.y, MISS, far.y == 0.0);
     let far_z: f32 = select(far.z, MISS, far.z == 0.0);
     let enter: f32 = max(lp_max_element_vec3(min(t0, t1)), 0.0);
-    let exit: f32 = min(min(min(far_x, far_y), far_z), t_max);
+    let exit: f32 = min(min(min(far_x, far_y), far_z) * 1.0000008, t_max);
     return select(MISS, enter, enter <= exit);
 }

@@ -227,7 +227,7 @@ float intersect_aabb(vec3 origin, vec3 inv_dir, vec3 bmin, vec3 bmax, float t_ma
     float far_y = far.y == 0.0 ? MISS : far.y;
     float far_z = far.z == 0.0 ? MISS : far.z;
     float enter = max(lp_max_element_vec3(min(t0, t1)), 0.0);
-    float exit = min(min(min(far_x, far_y), far_z), t_max);
+    float exit = min(min(min(far_x, far_y), far_z) * 1.0000008, t_max);
     return enter <= exit ? enter : MISS;
 }
 

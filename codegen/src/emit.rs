@@ -371,7 +371,7 @@ impl<'a> Emitter<'a> {
             match b.kind {
                 BindingKind::Resource => {}
                 BindingKind::RefParam => {
-                    let t = b.ty.deref().clone();
+                    let t = b.ty.strip_ref().clone();
                     if self.glsl() {
                         let d = self.decl(&t, &b.out_name);
                         params.push(format!("inout {d}"));
@@ -617,7 +617,7 @@ impl<'a> Emitter<'a> {
                             let Ty::Array(_, n) = b.ty else { unreachable!("array type") };
                             self.line(&format!("{kw}{d};"));
                             // WGSL zero-initialises; GLSL leaves locals undefined.
-                            if !(is_zero_literal(value) && !self.glsl()) {
+                            if !is_zero_literal(value) || self.glsl() {
                                 let v = self.expr(value)?.0;
                                 let i = self.fresh("i");
                                 if self.glsl() {
@@ -735,7 +735,7 @@ impl<'a> Emitter<'a> {
                         let d = self.decl(&t, &tmp);
                         self.line(&if glsl { format!("{d};") } else { format!("var {d};") });
                         self.value_into(value, &Dest::Assign(tmp.clone()))?;
-                        let pt = self.types.ty(place).deref().clone();
+                        let pt = self.types.ty(place).strip_ref().clone();
                         let rhs = self.binary_text(*op, (p.clone(), P_ATOM), &pt, (tmp, P_ATOM), &t, e.span)?;
                         self.line(&format!("{p} = {};", rhs.0));
                         return Ok(());
@@ -746,7 +746,7 @@ impl<'a> Emitter<'a> {
                 match op {
                     None => self.line(&format!("{p} = {};", v.0)),
                     Some(op) => {
-                        let pt = self.types.ty(place).deref().clone();
+                        let pt = self.types.ty(place).strip_ref().clone();
                         let vt = self.types.ty(value).clone();
                         let rhs = self.binary_text(*op, (p.clone(), P_ATOM), &pt, v.clone(), &vt, e.span)?;
                         // Keep `x op= v` where the target operator means the same thing.
@@ -808,7 +808,7 @@ impl<'a> Emitter<'a> {
             K::MethodCall { receiver, method, args } => self.method(e, receiver, method, args)?,
             K::Field { base, field } => {
                 let bt = self.types.ty(base).clone();
-                if let Ty::Resource(res) = bt.deref() {
+                if let Ty::Resource(res) = bt.strip_ref() {
                     return Ok(self.resource_field(res, field));
                 }
                 let b = self.expr(base)?;
@@ -974,7 +974,7 @@ impl<'a> Emitter<'a> {
     fn const_u64(&self, e: &Expr) -> Option<u64> {
         match &strip_parens(e).kind {
             K::Lit(ir::Lit::Int { value, .. }) => Some(*value),
-            K::Field { base, field } => match self.types.ty(base).deref() {
+            K::Field { base, field } => match self.types.ty(base).strip_ref() {
                 Ty::Resource(res) => self.specialized(res, field).map(u64::from),
                 _ => None,
             },
@@ -1081,11 +1081,9 @@ impl<'a> Emitter<'a> {
             return Ok((b.out_name.clone(), P_ATOM));
         }
         let name = path.last().expect("non-empty path");
-        if path.len() == 1 || self.program.consts.contains_key(name) && types::assoc_const(path).is_none() {
-            if self.program.consts.contains_key(name) {
-                self.consts_used.insert(name.clone());
-                return Ok((names::safe(name), P_ATOM));
-            }
+        if (path.len() == 1 || types::assoc_const(path).is_none()) && self.program.consts.contains_key(name) {
+            self.consts_used.insert(name.clone());
+            return Ok((names::safe(name), P_ATOM));
         }
         match types::assoc_const(path) {
             Some((t, v)) => {
@@ -1108,7 +1106,7 @@ impl<'a> Emitter<'a> {
     ) -> R<(String, u8)> {
         let glsl = self.glsl();
         let p = op_prec(op);
-        let lt = lt.deref();
+        let lt = lt.strip_ref();
         let is_vec = matches!(lt, Ty::Vector(..));
         // Semantics that differ between targets.
         match op {
@@ -1150,7 +1148,7 @@ impl<'a> Emitter<'a> {
     /// WGSL shift amounts are u32; the DSL only allows literal amounts for `<<`/`>>`.
     fn shift_amount(&self, op: BinOp, r: (String, u8), rt: &Ty) -> (String, u8) {
         match op {
-            BinOp::Shl | BinOp::Shr if !self.glsl() && rt.deref() != &U32 => {
+            BinOp::Shl | BinOp::Shr if !self.glsl() && rt.strip_ref() != &U32 => {
                 let digits = r.0.trim_end_matches('i');
                 (format!("{digits}u"), P_ATOM)
             }
@@ -1243,12 +1241,12 @@ impl<'a> Emitter<'a> {
 
     fn method(&mut self, e: &Expr, receiver: &Expr, method: &str, args: &[Expr]) -> R<(String, u8)> {
         let glsl = self.glsl();
-        let rt = self.types.ty(receiver).deref().clone();
+        let rt = self.types.ty(receiver).strip_ref().clone();
         if method == "fetch" {
             let K::Field { base, field } = &strip_parens(receiver).kind else {
                 return Err(self.error(e.span, "read texels as `resources.field.fetch(index)`"));
             };
-            let Ty::Resource(res) = self.types.ty(base).deref().clone() else {
+            let Ty::Resource(res) = self.types.ty(base).strip_ref().clone() else {
                 return Err(self.error(e.span, "read texels as `resources.field.fetch(index)`"));
             };
             let tex = self.resource_field(&res, field).0;
@@ -1588,27 +1586,6 @@ impl<'a> Emitter<'a> {
             format!(
                 "// Entry point: one sample per pixel added to the running sum in lp_accumulation.\nstruct LpTarget {{\n    width: u32,\n    height: u32,\n}}\n@group(1) @binding(0) var<storage, read_write> lp_accumulation: array<vec4<f32>>;\n@group(1) @binding(1) var<uniform> lp_target: LpTarget;\n\n@compute @workgroup_size(8, 8)\nfn main(@builtin(global_invocation_id) id: vec3<u32>) {{\n    if id.x >= lp_target.width || id.y >= lp_target.height {{\n        return;\n    }}\n    let i = id.y * lp_target.width + id.x;\n    lp_accumulation[i] = lp_accumulation[i] + {name}(id.x, id.y);\n}}\n"
             )
-        })
-    }
-
-    /// Words (u32) a value of type `t` occupies in a harness buffer.
-    fn words(&self, t: &Ty) -> R<u32> {
-        Ok(match t {
-            Ty::Scalar(_) | Ty::IntVar(_) => 1,
-            Ty::Vector(_, n) => *n as u32,
-            Ty::Array(e, n) => self.words(e)? * n,
-            Ty::Struct(name) => {
-                let def = self.program.structs[name].item.clone();
-                let mut total = 0;
-                for f in &def.fields {
-                    let ft = infer::resolve_type(self.program, &f.ty).map_err(|m| self.harness_error(m))?;
-                    total += self.words(&ft)?;
-                }
-                total
-            }
-            Ty::RefMut(inner) => self.words(inner)?,
-            Ty::Unit => 0,
-            other => return Err(self.harness_error(format!("`{other}` cannot cross the harness"))),
         })
     }
 

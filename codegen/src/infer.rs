@@ -288,7 +288,7 @@ impl<'a> Cx<'a> {
                 let p = self.expr(place)?;
                 let v = self.expr(value)?;
                 let p = self.shallow(&p);
-                let p = p.deref().clone();
+                let p = p.strip_ref().clone();
                 match op {
                     Some(ir::BinOp::Shl | ir::BinOp::Shr) => {}
                     Some(_) if matches!(p, Ty::Vector(..)) && !matches!(self.shallow(&v), Ty::Vector(..)) => {}
@@ -301,19 +301,19 @@ impl<'a> Cx<'a> {
             K::Call { path, args } => self.call(path, args, span)?,
             K::MethodCall { receiver, method, args } => {
                 let r = self.expr(receiver)?;
-                let r = self.shallow(&r).deref().clone();
+                let r = self.shallow(&r).strip_ref().clone();
                 self.method(&r, method, args, span)?
             }
             K::Field { base, field } => {
                 let b = self.expr(base)?;
-                let b = self.shallow(&b).deref().clone();
+                let b = self.shallow(&b).strip_ref().clone();
                 self.field(&b, field, span)?
             }
             K::Index { base, index } => {
                 let b = self.expr(base)?;
                 let i = self.expr(index)?;
                 self.unify(&i, &USIZE, index.span)?;
-                match self.shallow(&b).deref() {
+                match self.shallow(&b).strip_ref() {
                     Ty::Array(elem, _) => (**elem).clone(),
                     other => return Err(self.error(span, format!("only arrays can be indexed, found `{other}`"))),
                 }
@@ -572,7 +572,7 @@ impl<'a> Cx<'a> {
                     _ if !args.is_empty() => {
                         // `f32::max(a, b)`, `Vec3::dot(a, b)`: a method call written as a path.
                         let recv = self.expr(&args[0])?;
-                        let recv = self.shallow(&recv).deref().clone();
+                        let recv = self.shallow(&recv).strip_ref().clone();
                         let recv = if recv.is_int() && matches!(t, Ty::Scalar(_)) {
                             self.unify(&recv, &t, span)?
                         } else {

@@ -53,7 +53,7 @@ impl Ty {
     }
 
     /// Strips one `&mut`: Rust auto-dereferences for field access, indexing and methods.
-    pub fn deref(&self) -> &Ty {
+    pub fn strip_ref(&self) -> &Ty {
         match self {
             Ty::RefMut(inner) => inner,
             t => t,

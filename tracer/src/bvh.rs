@@ -17,12 +17,15 @@
 //!
 //! # Building
 //! [`build`] uses obvhs' PLOC builder (parallel locally-ordered clustering over Morton-sorted
-//! boxes), its parallel reinsertion optimiser, and its SAH leaf collapse limited to
-//! [`BuildOptions::max_leaf_size`] triangles per leaf; then converts and reorders.
+//! boxes) and its parallel reinsertion optimiser, then converts to this layout in one pass that
+//! also collapses subtrees into leaves of at most [`BuildOptions::max_leaf_size`] triangles
+//! wherever that lowers the SAH cost (the same criterion as obvhs' leaf collapser, applied to
+//! whole subtrees, without its separate node rewrite).
 
 use glam::{Vec3, Vec3A};
 use obvhs::aabb::Aabb as ObAabb;
 use obvhs::bvh2::leaf_collapser::collapse;
+use obvhs::bvh2::node::Bvh2Node;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::bvh2::Bvh2;
 use obvhs::ploc::PlocBuilder;
@@ -163,11 +166,17 @@ pub fn build_with(triangles: &[Triangle], options: &BuildOptions) -> Result<Bvh,
         p.sort_precision,
         p.search_depth_threshold,
     );
+    let max_leaf = options.max_leaf_size.clamp(1, 255);
+    let traversal_cost = options.traversal_cost.max(0.0);
     let mut reinsertion = ReinsertionOptimizer::default();
     reinsertion.run(&mut bvh2, p.reinsertion_batch_ratio, None);
-    collapse(&mut bvh2, options.max_leaf_size.clamp(1, 255), options.traversal_cost.max(0.0));
-    reinsertion.run(&mut bvh2, p.reinsertion_batch_ratio * p.post_collapse_reinsertion_batch_ratio_multiplier, None);
-    convert(&bvh2, triangles.len())
+    let post_collapse = p.reinsertion_batch_ratio * p.post_collapse_reinsertion_batch_ratio_multiplier;
+    if post_collapse > 0.0 {
+        // Presets that reinsert again after collapsing need obvhs' collapse first.
+        collapse(&mut bvh2, max_leaf, traversal_cost);
+        reinsertion.run(&mut bvh2, post_collapse, None);
+    }
+    convert(&bvh2, triangles.len(), max_leaf, traversal_cost)
 }
 
 fn preset(options: &BuildOptions) -> obvhs::BvhBuildParams {
@@ -182,42 +191,104 @@ fn preset(options: &BuildOptions) -> obvhs::BvhBuildParams {
     p
 }
 
-/// Converts obvhs' BVH2 into our layout, depth-first, reordering triangles into leaf order.
-fn convert(bvh2: &Bvh2, triangle_count: usize) -> Result<Bvh, BvhError> {
+/// Converts obvhs' BVH2 into our layout, depth-first, reordering triangles into leaf order and
+/// collapsing subtrees into leaves where the SAH says so (at most `max_leaf` triangles, node
+/// traversal costing `traversal_cost` triangle tests). Doing the collapse here, in one
+/// bottom-up pass over the tree, replaces obvhs' separate collapse step and its node rewrite.
+fn convert(bvh2: &Bvh2, triangle_count: usize, max_leaf: u32, traversal_cost: f32) -> Result<Bvh, BvhError> {
     let internal = |m: &str| BvhError::Internal(m.to_owned());
     let src = &bvh2.nodes;
     let prims = &bvh2.primitive_indices;
     if src.is_empty() {
         return Err(internal("the builder returned no nodes"));
     }
+    let children = |n: &Bvh2Node| -> Result<(usize, usize), BvhError> {
+        let c = n.first_index as usize;
+        if c + 1 < src.len() {
+            Ok((c, c + 1))
+        } else {
+            Err(internal("child index out of range"))
+        }
+    };
+
+    // 1. Pre-order, checking that the node graph is a tree reachable from the root.
+    let mut preorder: Vec<u32> = Vec::with_capacity(src.len());
+    let mut stack: Vec<u32> = vec![0];
+    while let Some(s) = stack.pop() {
+        if preorder.len() >= src.len() {
+            return Err(internal("the node graph has a cycle"));
+        }
+        preorder.push(s);
+        let node = src.get(s as usize).ok_or_else(|| internal("node index out of range"))?;
+        if !node.is_leaf() {
+            let (l, r) = children(node)?;
+            stack.push(r as u32);
+            stack.push(l as u32);
+        }
+    }
+
+    // 2. Bottom-up (reverse pre-order): triangles per subtree and its best SAH cost, deciding
+    //    which subtrees become leaves.
+    let mut count = vec![0u32; src.len()];
+    let mut cost = vec![0f32; src.len()];
+    let mut collapse = vec![false; src.len()];
+    for &s in preorder.iter().rev() {
+        let s = s as usize;
+        let node = &src[s];
+        let area = node.aabb().half_area();
+        if node.is_leaf() {
+            count[s] = node.prim_count;
+            cost[s] = area * node.prim_count as f32;
+            continue;
+        }
+        let (l, r) = children(node)?;
+        let n = count[l].saturating_add(count[r]);
+        let as_split = area * traversal_cost + cost[l] + cost[r];
+        let as_leaf = area * n as f32;
+        count[s] = n;
+        if n <= max_leaf && as_leaf <= as_split {
+            collapse[s] = true;
+            cost[s] = as_leaf;
+        } else {
+            cost[s] = as_split;
+        }
+    }
+
+    // 3. Emit depth-first: each pair of children is allocated when its parent is visited.
     let mut nodes: Vec<BvhNode> = Vec::with_capacity(src.len());
     let mut order: Vec<u32> = Vec::with_capacity(triangle_count);
     let placeholder = BvhNode { min: Vec3::ZERO, max: Vec3::ZERO, first: 0, count: 0 };
     nodes.push(placeholder);
     let mut stack: Vec<(usize, usize)> = vec![(0, 0)];
-    let mut visited = 0usize;
+    let mut gather: Vec<usize> = Vec::new();
     while let Some((s, d)) = stack.pop() {
-        visited += 1;
-        if visited > src.len() {
-            return Err(internal("the node graph has a cycle"));
-        }
-        let node = src.get(s).ok_or_else(|| internal("child index out of range"))?;
+        let node = &src[s]; // every `s` here was reached in step 1
         let (min, max) = (Vec3::from(node.aabb().min), Vec3::from(node.aabb().max));
-        let out = if node.is_leaf() {
-            let first = node.first_index as usize;
-            let range = prims
-                .get(first..first + node.prim_count as usize)
-                .ok_or_else(|| internal("leaf range out of range"))?;
-            let new_first = order.len() as u32;
-            order.extend_from_slice(range);
-            BvhNode { min, max, first: new_first, count: node.prim_count }
+        let out = if node.is_leaf() || collapse[s] {
+            let first = order.len() as u32;
+            gather.push(s);
+            while let Some(g) = gather.pop() {
+                let n = &src[g];
+                if n.is_leaf() {
+                    let start = n.first_index as usize;
+                    let range = prims
+                        .get(start..start + n.prim_count as usize)
+                        .ok_or_else(|| internal("leaf range out of range"))?;
+                    order.extend_from_slice(range);
+                } else {
+                    let (l, r) = children(n)?;
+                    gather.push(r);
+                    gather.push(l);
+                }
+            }
+            BvhNode { min, max, first, count: order.len() as u32 - first }
         } else {
+            let (l, r) = children(node)?;
             let child = nodes.len();
             nodes.push(placeholder);
             nodes.push(placeholder);
-            let c = node.first_index as usize;
-            stack.push((c + 1, child + 1));
-            stack.push((c, child));
+            stack.push((r, child + 1));
+            stack.push((l, child));
             BvhNode { min, max, first: child as u32, count: 0 }
         };
         *nodes.get_mut(d).ok_or_else(|| internal("destination out of range"))? = out;
@@ -246,7 +317,13 @@ impl Bvh {
         let t_root = slab(root, origin, dir, inv, best_t)?;
         let mut stack: Vec<(u32, f32)> = Vec::with_capacity(64);
         stack.push((0, t_root));
+        // In a tree every node is popped at most once; the bound only matters for corrupt input.
+        let mut budget = self.nodes.len();
         while let Some((index, t_near)) = stack.pop() {
+            if budget == 0 {
+                break;
+            }
+            budget -= 1;
             if t_near > best_t {
                 continue;
             }
@@ -269,7 +346,7 @@ impl Bvh {
                 }
                 continue;
             }
-            let (a, b) = (node.first, node.first + 1);
+            let (a, b) = (node.first, node.first.saturating_add(1));
             let ta = self.nodes.get(a as usize).and_then(|n| slab(n, origin, dir, inv, best_t));
             let tb = self.nodes.get(b as usize).and_then(|n| slab(n, origin, dir, inv, best_t));
             match (ta, tb) {

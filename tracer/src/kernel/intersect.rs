@@ -93,7 +93,9 @@ pub mod intersect {
         let far_y = if far.y == 0.0 { MISS } else { far.y };
         let far_z = if far.z == 0.0 { MISS } else { far.z };
         let enter = t0.min(t1).max_element().max(0.0);
-        let exit = far_x.min(far_y).min(far_z).min(t_max);
+        // Widen the exit by 1 + 2 * gamma(3) (Ize 2013) so rounding never culls a box that the
+        // exact slab test would enter.
+        let exit = (far_x.min(far_y).min(far_z) * 1.000_000_8).min(t_max);
         if enter <= exit {
             enter
         } else {

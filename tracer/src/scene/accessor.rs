@@ -13,8 +13,8 @@ use super::SceneError;
 
 /// Most elements one accessor may have.
 const MAX_ACCESSOR_COUNT: u64 = 1 << 26;
-/// Most elements of a sparse accessor without a bufferView: nothing in the file backs its
-/// count, so it gets a tighter cap of its own.
+/// Most elements of an accessor without a bufferView (zeros, maybe with sparse values): nothing
+/// in the file backs its count, so it gets a tighter cap of its own.
 const MAX_UNBACKED_COUNT: usize = 1 << 22;
 
 fn malformed(m: String) -> SceneError {
@@ -236,14 +236,10 @@ impl<'a> Buffers<'a> {
                 }
             }
             None => {
-                if l.sparse.is_none() {
-                    return Err(malformed(format!(
-                        "{what}: accessor {index} has neither a bufferView nor sparse data"
-                    )));
-                }
+                // glTF: an accessor without a bufferView holds zeros (plus sparse values).
                 if l.count > MAX_UNBACKED_COUNT {
                     return Err(SceneError::TooLarge(format!(
-                        "{what}: sparse accessor {index} without a bufferView has {} elements (limit {MAX_UNBACKED_COUNT})",
+                        "{what}: accessor {index} without a bufferView has {} elements (limit {MAX_UNBACKED_COUNT})",
                         l.count
                     )));
                 }

@@ -23,7 +23,7 @@ use super::texture::{decode_srgb, Decoded, Image};
 use super::util::{read_file, read_uri};
 use super::{
     flat_normal, Aabb, Camera, LoadOptions, Material, PointLight, Scene, SceneError, Texture, Triangle, Warnings, Wrap,
-    MAX_TRIANGLES,
+    MAX_SCENE_TEXELS, MAX_TRIANGLES,
 };
 
 /// Extensions Lightport implements.
@@ -78,13 +78,15 @@ pub(crate) fn load_gltf(path: &Path, options: &LoadOptions) -> Result<Scene, Sce
 /// against `base_dir`; with `None`, only embedded data (GLB chunk, data URIs) can be used.
 pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>, options: &LoadOptions) -> Result<Scene, SceneError> {
     let (json, bin) = split_container(bytes)?;
-    let mut root: Root =
-        gltf::json::deserialize::from_slice(json).map_err(|e| SceneError::InvalidGltf(format!("JSON: {e}")))?;
+    let (mut root, animations) = parse_json(json)?;
     let mut warnings = Warnings::default();
+    if animations > 0 {
+        warnings.once("animations", || "animations are not supported: the scene is rendered in its rest pose".into());
+    }
     check_extensions(&mut root, &mut warnings)?;
     precheck(&root)?;
-    let document = gltf::Document::from_json(root).map_err(validation_error)?;
-    let root = document.as_json();
+    validate(&root)?;
+    let root = &root;
     let loader = Loader {
         root,
         buffers: Buffers::new(root, base_dir, bin),
@@ -101,6 +103,7 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>, options: &LoadOpti
         camera: None,
         saw_orthographic: false,
         allow_missing_textures: options.allow_missing_textures,
+        mesh_instances: 0,
     };
     loader.run()
 }
@@ -193,7 +196,8 @@ fn precheck(root: &Root) -> Result<(), SceneError> {
             for (semantic, accessor) in &prim.attributes {
                 if accessor.value() >= root.accessors.len() {
                     return Err(malformed(format!(
-                        "mesh {m} primitive {p}: attribute {semantic:?} uses accessor {}, which does not exist",
+                        "mesh {m} primitive {p}: attribute {} uses accessor {}, which does not exist",
+                        semantic_name(semantic),
                         accessor.value()
                     )));
                 }
@@ -203,16 +207,62 @@ fn precheck(root: &Root) -> Result<(), SceneError> {
     Ok(())
 }
 
-fn validation_error(e: gltf::Error) -> SceneError {
-    match e {
-        gltf::Error::Validation(list) => {
-            let shown: Vec<String> = list.iter().take(4).map(|(path, err)| format!("{path}: {err}")).collect();
-            let more = list.len().saturating_sub(shown.len());
-            let tail = if more > 0 { format!(" (and {more} more)") } else { String::new() };
-            SceneError::InvalidGltf(format!("{}{tail}", shown.join("; ")))
+/// Parses the JSON chunk into the `gltf` crate's schema types, first smoothing over two places
+/// where they are stricter than glTF: numbers written as integral floats (`1.0` for a count) are
+/// accepted, and `animations` (which Lightport does not use, and whose channel targets the crate
+/// requires to name a node) are dropped. Returns the root and the number of animations.
+fn parse_json(json: &[u8]) -> Result<(Root, usize), SceneError> {
+    let invalid = |e: serde_json::Error| SceneError::InvalidGltf(format!("JSON: {e}"));
+    let mut value: Value = serde_json::from_slice(json).map_err(invalid)?;
+    let animations = match value.as_object_mut().and_then(|o| o.remove("animations")) {
+        Some(Value::Array(a)) => a.len(),
+        _ => 0,
+    };
+    integral_floats_to_integers(&mut value);
+    // Round-trip through text: some schema types (raw JSON values) only deserialize from text.
+    let text = serde_json::to_vec(&value).map_err(invalid)?;
+    let root: Root = serde_json::from_slice(&text).map_err(invalid)?;
+    Ok((root, animations))
+}
+
+fn integral_floats_to_integers(v: &mut Value) {
+    match v {
+        Value::Number(n) => {
+            if let Some(f) = n.as_f64().filter(|_| n.is_f64()) {
+                if f.fract() == 0.0 && f.abs() < 9.0e15 {
+                    *n = serde_json::Number::from(f as i64);
+                }
+            }
         }
-        other => SceneError::InvalidGltf(other.to_string()),
+        Value::Array(a) => a.iter_mut().for_each(integral_floats_to_integers),
+        Value::Object(o) => o.values_mut().for_each(integral_floats_to_integers),
+        _ => {}
     }
+}
+
+/// Runs the `gltf` crate's schema validation, ignoring the checks where it is stricter than
+/// glTF 2.0 and which this loader handles itself: accessors without a bufferView (zeros),
+/// primitives without POSITION (skipped), textures whose image comes from an extension.
+fn validate(root: &Root) -> Result<(), SceneError> {
+    use gltf::json::validation::{Error, Validate};
+    let mut errors = Vec::new();
+    root.validate(root, gltf::json::Path::new, &mut |path, err| {
+        let path = path().to_string();
+        let tolerated = matches!(err, Error::Missing)
+            && ((path.starts_with("accessors[") && path.ends_with("].bufferView"))
+                || (path.starts_with("textures[") && path.ends_with("].source"))
+                || (path.starts_with("meshes[") && path.ends_with(".attributes[\"POSITION\"]")));
+        if !tolerated {
+            errors.push(format!("{path}: {err}"));
+        }
+    });
+    if errors.is_empty() {
+        return Ok(());
+    }
+    let more = errors.len().saturating_sub(4);
+    let tail = if more > 0 { format!(" (and {more} more)") } else { String::new() };
+    errors.truncate(4);
+    Err(SceneError::InvalidGltf(format!("{}{tail}", errors.join("; "))))
 }
 
 /// One primitive's triangles in mesh space, decoded once per mesh and instanced per node.
@@ -242,30 +292,30 @@ struct Loader<'a> {
     material_map: HashMap<Option<usize>, u32>,
     textures: Vec<Texture>,
     texture_map: HashMap<usize, Option<u32>>,
-    images: HashMap<usize, Option<Rc<Image>>>,
+    /// glTF image -> the texture holding its texels (`None`: unsupported or missing).
+    images: HashMap<usize, Option<u32>>,
     meshes: HashMap<usize, Rc<Vec<LocalPrimitive>>>,
     point_lights: Vec<PointLight>,
     camera: Option<FoundCamera>,
     saw_orthographic: bool,
     allow_missing_textures: bool,
+    mesh_instances: usize,
 }
 
 impl Loader<'_> {
     fn run(mut self) -> Result<Scene, SceneError> {
         let root = self.root;
-        if !root.animations.is_empty() {
-            self.warnings
-                .once("animations", || "animations are not supported: the scene is rendered in its rest pose".into());
-        }
         warn_extensions(&mut self.warnings, root.extensions.as_ref().map(|e| &e.others));
         let roots = self.scene_roots()?;
         self.visit(&roots)?;
 
         if self.triangles.is_empty() {
-            let why = if self.warnings.list_is_empty() {
-                " (no meshes in the scene)".to_owned()
+            let why = if self.mesh_instances == 0 {
+                " (no node of the scene has a mesh)".to_owned()
+            } else if self.warnings.list_is_empty() {
+                " (its meshes have no triangles)".to_owned()
             } else {
-                format!(" ({})", self.warnings.joined())
+                format!(" (every primitive was skipped; {})", self.warnings.joined())
             };
             return Err(SceneError::NoTriangles(why));
         }
@@ -352,6 +402,7 @@ impl Loader<'_> {
                 self.camera(c.value(), &world)?;
             }
             if let Some(m) = node.mesh {
+                self.mesh_instances += 1;
                 self.instantiate(m.value(), &world)?;
             }
             for child in node.children.iter().flatten().rev() {
@@ -535,7 +586,10 @@ impl Loader<'_> {
                 _ => {}
             }
         }
-        let position = position.ok_or_else(|| malformed(format!("{what}: no POSITION attribute")))?;
+        let Some(position) = position else {
+            self.warnings.once("no POSITION", || "primitives without POSITION are skipped".into());
+            return Ok(None);
+        };
         if compressed
             && self.root.accessors.get(position).is_some_and(|a| a.buffer_view.is_none() && a.sparse.is_none())
         {
@@ -672,29 +726,62 @@ impl Loader<'_> {
                 (wrap(sampler.wrap_s), wrap(sampler.wrap_t))
             }
         };
-        let result = match self.image(tex.source.value())? {
-            None => None,
-            Some(img) => {
-                let id = self.textures.len() as u32;
-                self.textures.push(Texture {
-                    width: img.width,
-                    height: img.height,
-                    texels: img.texels.clone(),
-                    wrap_s,
-                    wrap_t,
+        if tex.source.value() == u32::MAX as usize {
+            // No core source: the image is only given by an extension (WebP, KTX2, ...).
+            self.warnings.once("texture without a source", || {
+                "textures whose image is only provided by an extension are dropped".into()
+            });
+            self.texture_map.insert(index, None);
+            return Ok(None);
+        }
+        let image = tex.source.value();
+        let result = match self.images.get(&image).copied() {
+            // Decoded before for another glTF texture: share it, or copy it for other wrap modes.
+            Some(Some(first)) => match self.textures.get(first as usize) {
+                Some(t) if (t.wrap_s, t.wrap_t) == (wrap_s, wrap_t) => Some(first),
+                Some(t) => {
+                    if (t.texels.len() as u64) > self.texel_budget()? {
+                        return Err(texel_budget_error());
+                    }
+                    let copy = Texture { wrap_s, wrap_t, ..t.clone() };
+                    self.textures.push(copy);
+                    Some(self.textures.len() as u32 - 1)
+                }
+                None => None,
+            },
+            Some(None) => None,
+            None => {
+                let id = self.decode_image(image)?.map(|img| {
+                    self.textures.push(Texture {
+                        width: img.width,
+                        height: img.height,
+                        texels: img.texels,
+                        wrap_s,
+                        wrap_t,
+                    });
+                    self.textures.len() as u32 - 1
                 });
-                Some(id)
+                self.images.insert(image, id);
+                id
             }
         };
         self.texture_map.insert(index, result);
         Ok(result)
     }
 
-    /// Decodes image `index` (once). `None` when its format is not supported (warned).
-    fn image(&mut self, index: usize) -> Result<Option<Rc<Image>>, SceneError> {
-        if let Some(img) = self.images.get(&index) {
-            return Ok(img.clone());
+    /// Texels the scene's textures may still add.
+    fn texel_budget(&self) -> Result<u64, SceneError> {
+        let used: u64 = self.textures.iter().map(|t| t.texels.len() as u64).sum();
+        match MAX_SCENE_TEXELS.checked_sub(used) {
+            Some(left) if left > 0 => Ok(left),
+            _ => Err(texel_budget_error()),
         }
+    }
+
+    /// Decodes image `index`. `None` (warned) when its format is not supported, or its file is
+    /// missing and that is allowed.
+    fn decode_image(&mut self, index: usize) -> Result<Option<Image>, SceneError> {
+        let budget = self.texel_budget()?;
         let json = self.root.images.get(index).ok_or_else(|| malformed(format!("image {index} does not exist")))?;
         let name = match &json.uri {
             Some(uri) if !uri.starts_with("data:") => format!("{index} ({uri})"),
@@ -703,16 +790,15 @@ impl Loader<'_> {
         let decoded = match (&json.buffer_view, &json.uri) {
             (Some(view), _) => {
                 let (bytes, _) = self.buffers.view(view.value())?;
-                decode_srgb(bytes, &name)?
+                decode_srgb(bytes, &name, budget)?
             }
             (None, Some(uri)) => match read_uri(uri, self.base_dir, &format!("image {name}")) {
-                Ok(bytes) => decode_srgb(&bytes, &name)?,
+                Ok(bytes) => decode_srgb(&bytes, &name, budget)?,
                 Err(SceneError::Io { path, .. }) if self.allow_missing_textures => {
                     let key = format!("missing image {}", path.display());
                     self.warnings.once(&key, || {
                         format!("image file {} is missing: textures using it are dropped", path.display())
                     });
-                    self.images.insert(index, None);
                     return Ok(None);
                 }
                 Err(e) => return Err(e),
@@ -720,7 +806,7 @@ impl Loader<'_> {
             (None, None) => return Err(malformed(format!("image {index} has neither a uri nor a bufferView"))),
         };
         let img = match decoded {
-            Decoded::Image(img) => Some(Rc::new(img)),
+            Decoded::Image(img) => Some(img),
             Decoded::Unsupported(format) => {
                 let key = format!("image format {format}");
                 self.warnings.once(&key, || {
@@ -729,9 +815,12 @@ impl Loader<'_> {
                 None
             }
         };
-        self.images.insert(index, img.clone());
         Ok(img)
     }
+}
+
+fn texel_budget_error() -> SceneError {
+    SceneError::TooLarge(format!("the scene's textures have more than {MAX_SCENE_TEXELS} texels"))
 }
 
 fn finish_camera(c: FoundCamera, bounds: &Aabb) -> Camera {
@@ -745,6 +834,20 @@ fn finish_camera(c: FoundCamera, bounds: &Aabb) -> Camera {
         yfov: c.yfov,
         aperture_radius: 0.0,
         focus_distance: focus,
+    }
+}
+
+fn semantic_name(s: &Checked<Semantic>) -> String {
+    match s {
+        Checked::Valid(Semantic::Positions) => "POSITION".into(),
+        Checked::Valid(Semantic::Normals) => "NORMAL".into(),
+        Checked::Valid(Semantic::Tangents) => "TANGENT".into(),
+        Checked::Valid(Semantic::TexCoords(n)) => format!("TEXCOORD_{n}"),
+        Checked::Valid(Semantic::Colors(n)) => format!("COLOR_{n}"),
+        Checked::Valid(Semantic::Joints(n)) => format!("JOINTS_{n}"),
+        Checked::Valid(Semantic::Weights(n)) => format!("WEIGHTS_{n}"),
+        Checked::Valid(other) => format!("{other:?}"),
+        Checked::Invalid => "(invalid)".into(),
     }
 }
 
@@ -781,7 +884,7 @@ fn node_matrix(node: &gltf::json::scene::Node, n: usize) -> Result<Mat4, SceneEr
 fn assemble(mode: Mode, idx: &[u32]) -> Option<Vec<[u32; 3]>> {
     match mode {
         Mode::Triangles => {
-            if idx.len() % 3 != 0 {
+            if !idx.len().is_multiple_of(3) {
                 return None;
             }
             Some(idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())

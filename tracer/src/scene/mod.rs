@@ -19,13 +19,37 @@
 //!
 //! The three use the same unit, so a scene keeps its glTF light balance.
 //!
+//! # What is read
+//! * glTF: the default scene (else the first; with no scene at all, every root node), node
+//!   matrices and TRS, meshes in TRIANGLES / TRIANGLE_STRIP / TRIANGLE_FAN mode (indexed or not,
+//!   sparse accessors, `KHR_mesh_quantization`), POSITION, NORMAL (transformed by the inverse
+//!   transpose; flat normals when absent), TEXCOORD_0, materials (`baseColorFactor`,
+//!   `baseColorTexture`, `emissiveFactor`, `emissiveTexture`, `KHR_materials_emissive_strength`),
+//!   PNG/JPEG images with sampler wrap modes, `KHR_lights_punctual`, and the first perspective
+//!   camera in depth-first node order. Primitives without a material get glTF's default
+//!   material (white, albedo 1).
+//! * `KHR_lights_punctual`: point lights; **spot lights become point lights** (cone ignored,
+//!   warned); directional lights are skipped (warned); `range` is ignored (physical falloff).
+//! * OBJ/MTL: see the `obj_loader` notes: `Kd`, `map_Kd`, `Ke`, `map_Ke`; a default camera.
+//!
+//! # Extensions and warnings
+//! A glTF file **requiring** an extension Lightport cannot honour is refused
+//! ([`SceneError::UnsupportedRequiredExtension`]), e.g. `KHR_draco_mesh_compression`,
+//! `EXT_meshopt_compression`, `KHR_texture_basisu`. Required extensions that only change the
+//! look (`KHR_materials_*`, `KHR_texture_transform`) are accepted with a warning. Everything
+//! else unsupported (listed extensions, skins, morph targets, animations, point/line
+//! primitives, textures on other UV sets, vertex colours, alpha modes, normal maps, orthographic
+//! cameras...) is reported once in [`Scene::warnings`], naming the feature.
+//!
 //! # Robustness
 //! Loading never panics on any input and never hangs: every size in a file is checked against
 //! the data that backs it before anything is allocated, indices are range-checked, non-finite
 //! vertex data is refused, node hierarchies must be trees, and totals are capped
-//! ([`MAX_TRIANGLES`], [`MAX_TEXTURE_DIMENSION`], [`MAX_FILE_BYTES`]).
-//! Unsupported features are reported once each in [`Scene::warnings`], naming the feature; files
-//! that cannot be rendered meaningfully at all are refused with a [`SceneError`].
+//! ([`MAX_TRIANGLES`], [`MAX_TEXTURE_DIMENSION`], [`MAX_IMAGE_TEXELS`], [`MAX_SCENE_TEXELS`],
+//! [`MAX_FILE_BYTES`]). Malformed data (truncated or missing buffers, out-of-range indices,
+//! NaN/Inf, missing or corrupt images) is an error; files with nothing to render are refused
+//! with [`SceneError::NoTriangles`]. Third-party decoders (images, OBJ) run under
+//! `catch_unwind` as a last line of defence.
 
 mod accessor;
 mod generate;
@@ -49,6 +73,12 @@ pub use texture::srgb_to_linear;
 pub const MAX_TRIANGLES: usize = 1 << 24;
 /// Largest accepted width or height of a texture or sky image.
 pub const MAX_TEXTURE_DIMENSION: u32 = 16384;
+/// Most texels one texture or sky image may have (64 Mi: 1 GiB as `Vec4`), checked from the
+/// image header before decoding.
+pub const MAX_IMAGE_TEXELS: u64 = 1 << 26;
+/// Most texels all of a scene's textures may have together (256 Mi: 4 GiB as `Vec4`), so that
+/// many images sharing one small, highly compressed file cannot exhaust memory.
+pub const MAX_SCENE_TEXELS: u64 = 1 << 28;
 /// Largest accepted size of one file read by the loaders (scene, buffer, image or sky).
 pub const MAX_FILE_BYTES: u64 = 4 << 30;
 
@@ -463,10 +493,9 @@ impl Scene {
             }
         }
         let c = &self.camera;
-        if !(c.position.is_finite() && c.target.is_finite() && c.up.is_finite())
-            || !(c.yfov > 0.0 && c.yfov < std::f32::consts::PI)
-            || c.position == c.target
-        {
+        let finite = c.position.is_finite() && c.target.is_finite() && c.up.is_finite();
+        let fov_ok = c.yfov > 0.0 && c.yfov < std::f32::consts::PI;
+        if !finite || !fov_ok || c.position == c.target {
             return bad("invalid camera".into());
         }
         Ok(())

@@ -15,7 +15,8 @@ use glam::{Vec2, Vec3};
 use super::texture::{catch_decoder_panic, decode_srgb, Decoded};
 use super::util::read_file;
 use super::{
-    flat_normal, Camera, LoadOptions, Material, Scene, SceneError, Texture, Triangle, Warnings, Wrap, MAX_TRIANGLES,
+    flat_normal, Camera, LoadOptions, Material, Scene, SceneError, Texture, Triangle, Warnings, Wrap, MAX_SCENE_TEXELS,
+    MAX_TRIANGLES,
 };
 
 /// Base colour of materials without `Kd`, and of faces without a material.
@@ -29,13 +30,8 @@ pub(crate) fn load_obj(path: &Path, options: &LoadOptions) -> Result<Scene, Scen
     };
     let obj_error = |message: String| SceneError::Obj { path: path.to_owned(), message };
     let mtl_failure: RefCell<Option<SceneError>> = RefCell::new(None);
-    let parse_options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ignore_points: true,
-        ignore_lines: true,
-        ..Default::default()
-    };
+    let parse_options =
+        tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
     let parsed = catch_decoder_panic(|| {
         tobj::load_obj_buf(&mut Cursor::new(&bytes), &parse_options, |mtl| {
             let full = dir.join(mtl);
@@ -92,7 +88,7 @@ pub(crate) fn load_obj(path: &Path, options: &LoadOptions) -> Result<Scene, Scen
                 materials.len() as u32 - 1
             }),
         };
-        if mesh.indices.len() % 3 != 0 {
+        if !mesh.indices.len().is_multiple_of(3) {
             return Err(SceneError::Malformed(format!(
                 "{what}: {} indices do not form whole triangles",
                 mesh.indices.len()
@@ -213,7 +209,12 @@ fn texture(
         }
         Err(e) => return Err(e),
     };
-    let id = match decode_srgb(&bytes, &path.display().to_string())? {
+    let used: u64 = textures.iter().map(|t| t.texels.len() as u64).sum();
+    let budget = MAX_SCENE_TEXELS.saturating_sub(used);
+    if budget == 0 {
+        return Err(SceneError::TooLarge(format!("the scene's textures have more than {MAX_SCENE_TEXELS} texels")));
+    }
+    let id = match decode_srgb(&bytes, &path.display().to_string(), budget)? {
         Decoded::Image(img) => {
             textures.push(Texture {
                 width: img.width,

@@ -1,14 +1,13 @@
 //! Equirectangular environment maps from Radiance `.hdr` and OpenEXR `.exr` files.
 
-use std::io::Cursor;
 use std::path::Path;
 
 use glam::Vec3;
-use image::{ImageFormat, ImageReader};
+use image::ImageFormat;
 
-use super::texture::{catch_decoder_panic, limits};
+use super::texture::decode_limited;
 use super::util::read_file;
-use super::{SceneError, Sky};
+use super::{SceneError, Sky, MAX_IMAGE_TEXELS};
 
 /// Loads an equirectangular sky (see [`Sky`] for the mapping) from a `.hdr` or `.exr` file.
 ///
@@ -31,11 +30,7 @@ pub fn load_sky(path: &Path, intensity: f32, rotation: f32) -> Result<Sky, Scene
     let bytes = read_file(path)?;
     let name = path.display().to_string();
     let err = |message: String| SceneError::Image { name: name.clone(), message };
-    let mut reader = ImageReader::with_format(Cursor::new(&bytes), format);
-    reader.limits(limits());
-    let img = catch_decoder_panic(|| reader.decode())
-        .ok_or_else(|| err("the image decoder failed unexpectedly".into()))?
-        .map_err(|e| err(format!("cannot decode {format:?}: {e}")))?;
+    let img = decode_limited(&bytes, format, MAX_IMAGE_TEXELS, &name)?;
     let (width, height) = (img.width(), img.height());
     if width == 0 || height == 0 {
         return Err(err("image has no texels".into()));

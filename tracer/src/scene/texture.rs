@@ -3,9 +3,9 @@
 use std::io::Cursor;
 
 use glam::Vec4;
-use image::{DynamicImage, ImageFormat, ImageReader, Limits};
+use image::{DynamicImage, ImageDecoder, ImageFormat, ImageReader, Limits};
 
-use super::{SceneError, MAX_TEXTURE_DIMENSION};
+use super::{SceneError, MAX_IMAGE_TEXELS, MAX_TEXTURE_DIMENSION};
 
 /// Largest allocation an image decoder may make (bytes).
 const MAX_DECODE_BYTES: u64 = 2 << 30;
@@ -36,8 +36,8 @@ pub(crate) fn limits() -> Limits {
 
 /// Decodes a PNG or JPEG whose colour channels are sRGB-encoded, returning linear texels.
 /// Formats other than PNG and JPEG come back as [`Decoded::Unsupported`]; corrupt PNG/JPEG data
-/// is an error.
-pub(crate) fn decode_srgb(bytes: &[u8], name: &str) -> Result<Decoded, SceneError> {
+/// is an error, and so is an image with more than `max_texels` texels (checked from its header).
+pub(crate) fn decode_srgb(bytes: &[u8], name: &str, max_texels: u64) -> Result<Decoded, SceneError> {
     let err = |message: String| SceneError::Image { name: name.to_owned(), message };
     if bytes.is_empty() {
         return Err(err("empty image data".into()));
@@ -51,16 +51,36 @@ pub(crate) fn decode_srgb(bytes: &[u8], name: &str) -> Result<Decoded, SceneErro
             Err(_) => return Err(err("not a PNG or JPEG image".into())),
         }
     };
-    let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
-    reader.limits(limits());
-    let img = catch_decoder_panic(|| reader.decode())
-        .ok_or_else(|| err("the image decoder failed unexpectedly".into()))?
-        .map_err(|e| err(format!("cannot decode {format:?}: {e}")))?;
+    let img = decode_limited(bytes, format, max_texels.min(MAX_IMAGE_TEXELS), name)?;
     let (width, height) = (img.width(), img.height());
     if width == 0 || height == 0 {
         return Err(err("image has no texels".into()));
     }
     Ok(Decoded::Image(Image { width, height, texels: srgb_to_linear_texels(img) }))
+}
+
+/// Decodes with [`limits`], refusing images with more than `max_texels` texels before their
+/// pixels are decoded.
+pub(crate) fn decode_limited(
+    bytes: &[u8],
+    format: ImageFormat,
+    max_texels: u64,
+    name: &str,
+) -> Result<DynamicImage, SceneError> {
+    let err = |message: String| SceneError::Image { name: name.to_owned(), message };
+    catch_decoder_panic(|| {
+        let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
+        reader.limits(limits());
+        let decoder = reader.into_decoder().map_err(|e| err(format!("cannot decode {format:?}: {e}")))?;
+        let (w, h) = decoder.dimensions();
+        if u64::from(w) * u64::from(h) > max_texels {
+            return Err(SceneError::TooLarge(format!(
+                "image {name} is {w} x {h}: more texels than the {max_texels} allowed here"
+            )));
+        }
+        DynamicImage::from_decoder(decoder).map_err(|e| err(format!("cannot decode {format:?}: {e}")))
+    })
+    .unwrap_or_else(|| Err(err("the image decoder failed unexpectedly".into())))
 }
 
 /// Converts any decoded image to linear RGBA, treating its colour channels as sRGB-encoded.

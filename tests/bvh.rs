@@ -1,0 +1,227 @@
+//! BVH: structural invariants, and closest hits equal to brute force on many random rays.
+
+use std::path::Path;
+
+use glam::{Vec2, Vec3};
+use tracer::bvh::{self, BuildOptions, BuildQuality, Bvh, BvhError};
+use tracer::scene::{self, Scene, Triangle};
+
+/// xorshift32 with a float helper.
+struct Rng(u32);
+
+impl Rng {
+    fn next(&mut self) -> u32 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 17;
+        self.0 ^= self.0 << 5;
+        self.0
+    }
+    fn float(&mut self) -> f32 {
+        (self.next() >> 8) as f32 / (1u32 << 24) as f32
+    }
+    fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.float()
+    }
+    fn unit_vector(&mut self) -> Vec3 {
+        loop {
+            let v = Vec3::new(self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0));
+            let l = v.length_squared();
+            if l > 1e-4 && l <= 1.0 {
+                return v / l.sqrt();
+            }
+        }
+    }
+}
+
+fn shared_scene(rel: &str) -> Scene {
+    let p = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes")).join(rel);
+    scene::load(&p).unwrap_or_else(|e| panic!("{rel}: {e}"))
+}
+
+fn tri(a: Vec3, b: Vec3, c: Vec3) -> Triangle {
+    Triangle { positions: [a, b, c], normals: [Vec3::Z; 3], uvs: [Vec2::ZERO; 3], material: 0 }
+}
+
+/// Random triangles of very different sizes, some axis-aligned, some degenerate, some
+/// duplicated (exact ties in t).
+fn triangle_soup(n: usize, seed: u32) -> Vec<Triangle> {
+    let mut rng = Rng(seed);
+    let mut out = Vec::with_capacity(n);
+    while out.len() < n {
+        let c = Vec3::new(rng.range(-10.0, 10.0), rng.range(-10.0, 10.0), rng.range(-10.0, 10.0));
+        let size = 10f32.powf(rng.range(-2.0, 0.7));
+        let mut t = tri(c + rng.unit_vector() * size, c + rng.unit_vector() * size, c + rng.unit_vector() * size);
+        match rng.next() % 10 {
+            0 => t.positions.iter_mut().for_each(|p| p.y = c.y), // axis-aligned (flat box)
+            1 => t.positions[2] = t.positions[1],                // degenerate
+            _ => {}
+        }
+        out.push(t);
+        if rng.next().is_multiple_of(20) {
+            out.push(t); // an exact duplicate
+        }
+    }
+    out.truncate(n);
+    out
+}
+
+fn leaf_sizes_within(bvh: &Bvh, max: u32) -> bool {
+    bvh.nodes.iter().all(|n| n.count <= max)
+}
+
+/// Casts `rays` random rays (origins in and around the bounds, directions uniform plus some
+/// axis-aligned ones) and requires the BVH's closest hit to equal brute force exactly.
+/// Returns how many rays hit something.
+fn compare_with_brute_force(name: &str, tris: &[Triangle], bvh: &Bvh, rays: usize, seed: u32) -> usize {
+    let mut b = tracer::scene::Aabb::EMPTY;
+    for t in tris {
+        t.positions.iter().for_each(|p| b.extend(*p));
+    }
+    let (center, extent) = (b.center(), b.diagonal() * 0.6 + Vec3::splat(1e-3));
+    let mut rng = Rng(seed);
+    let mut hits = 0;
+    let mut mismatches = Vec::new();
+    for i in 0..rays {
+        let origin = center + extent * Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+        let mut dir = rng.unit_vector();
+        match i % 16 {
+            0 => dir = [Vec3::X, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_X][(i / 16) % 4], // axis-aligned
+            1 => dir.y = 0.0,                                                      // parallel to y slabs
+            2 => dir *= 37.0,                                                      // not normalised
+            _ => {}
+        }
+        let tmax = if i % 7 == 0 { rng.range(0.0, extent.length()) } else { f32::INFINITY };
+        let expected = bvh::intersect_brute_force(tris, origin, dir, tmax);
+        let got = bvh.intersect_closest(tris, origin, dir, tmax);
+        if expected.is_some() {
+            hits += 1;
+        }
+        if got != expected && mismatches.len() < 10 {
+            mismatches
+                .push(format!("ray {i}: origin {origin} dir {dir} tmax {tmax}: bvh {got:?}, brute force {expected:?}"));
+        }
+    }
+    assert!(mismatches.is_empty(), "{name}: {mismatches:#?}");
+    println!("{name}: {rays} rays, {hits} hits, {} nodes, depth {}", bvh.nodes.len(), bvh.depth());
+    hits
+}
+
+fn check(name: &str, tris: &[Triangle], rays: usize) {
+    let bvh = bvh::build(tris).unwrap();
+    bvh.validate(tris).unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert!(leaf_sizes_within(&bvh, BuildOptions::default().max_leaf_size));
+    let hits = compare_with_brute_force(name, tris, &bvh, rays, 0x9E37_79B9);
+    assert!(hits > rays / 10, "{name}: only {hits} of {rays} rays hit: the comparison proves little");
+}
+
+#[test]
+fn cornell_box_matches_brute_force() {
+    check("cornell box", &scene::cornell_box().triangles, 20_000);
+    // The OBJ repeats two faces of each box: exact ties, settled by triangle index.
+    check("cornell box (OBJ)", &shared_scene("cornell-box/CornellBox-Original.obj").triangles, 10_000);
+}
+
+#[test]
+fn duck_matches_brute_force() {
+    check("duck", &shared_scene("khronos/Duck/glTF-Binary/Duck.glb").triangles, 10_000);
+}
+
+#[test]
+fn triangle_soup_matches_brute_force() {
+    check("soup", &triangle_soup(5000, 7), 10_000);
+}
+
+#[test]
+fn littlest_tokyo_matches_brute_force_on_a_few_rays() {
+    let s = shared_scene("threejs/LittlestTokyo.glb");
+    check("littlest tokyo", &s.triangles, 600);
+}
+
+#[test]
+fn every_preset_and_leaf_size_is_valid() {
+    let tris = triangle_soup(3000, 11);
+    for quality in [BuildQuality::Fastest, BuildQuality::Fast, BuildQuality::Medium, BuildQuality::Slow] {
+        for max_leaf_size in [1, 2, 4, 8] {
+            let options = BuildOptions { quality, max_leaf_size, ..BuildOptions::default() };
+            let bvh = bvh::build_with(&tris, &options).unwrap();
+            bvh.validate(&tris).unwrap_or_else(|e| panic!("{options:?}: {e}"));
+            assert!(leaf_sizes_within(&bvh, max_leaf_size), "{options:?}");
+            compare_with_brute_force(&format!("{options:?}"), &tris, &bvh, 1000, 3);
+        }
+    }
+}
+
+#[test]
+fn edge_cases() {
+    assert_eq!(bvh::build(&[]), Err(BvhError::Empty));
+
+    let one = [tri(Vec3::ZERO, Vec3::X, Vec3::Y)];
+    let b = bvh::build(&one).unwrap();
+    assert_eq!(b.nodes.len(), 1);
+    assert_eq!((b.nodes[0].first, b.nodes[0].count), (0, 1));
+    assert_eq!(b.triangle_order, vec![0]);
+    b.validate(&one).unwrap();
+    let hit = b.intersect_closest(&one, Vec3::new(0.25, 0.25, 1.0), Vec3::NEG_Z, f32::INFINITY).unwrap();
+    assert_eq!((hit.triangle, hit.t, hit.u, hit.v), (0, 1.0, 0.25, 0.25));
+    assert!(b.intersect_closest(&one, Vec3::new(0.25, 0.25, 1.0), Vec3::Z, f32::INFINITY).is_none());
+    assert!(b.intersect_closest(&one, Vec3::new(0.25, 0.25, 1.0), Vec3::NEG_Z, 0.5).is_none());
+
+    let mut nan = one;
+    nan[0].positions[1].x = f32::NAN;
+    assert_eq!(bvh::build(&nan), Err(BvhError::NonFinite(0)));
+
+    // Everything in one point: a zero-size scene box must not break Morton coding.
+    let point = vec![tri(Vec3::ONE, Vec3::ONE, Vec3::ONE); 100];
+    let b = bvh::build(&point).unwrap();
+    b.validate(&point).unwrap();
+
+    // Many identical triangles: all tie; the smallest index wins.
+    let same = vec![tri(Vec3::ZERO, Vec3::X, Vec3::Y); 50];
+    let b = bvh::build(&same).unwrap();
+    b.validate(&same).unwrap();
+    let hit = b.intersect_closest(&same, Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z, f32::INFINITY).unwrap();
+    assert_eq!(hit.triangle, 0);
+}
+
+#[test]
+fn validate_catches_broken_hierarchies() {
+    let tris = triangle_soup(500, 5);
+    let good = bvh::build(&tris).unwrap();
+    good.validate(&tris).unwrap();
+    assert!(good.sah_cost() > 1.0 && good.depth() > 3 && good.leaf_count() > 1);
+
+    let interior = good.nodes.iter().position(|n| !n.is_leaf()).unwrap();
+    let leaf = good.nodes.iter().position(|n| n.is_leaf()).unwrap();
+
+    let mut shrunk = good.clone();
+    let child = shrunk.nodes[interior].first as usize;
+    shrunk.nodes[child].max += Vec3::splat(1.0);
+    assert!(shrunk.validate(&tris).is_err(), "child box outside its parent");
+
+    let mut tight = good.clone();
+    tight.nodes[leaf].min = tight.nodes[leaf].max;
+    assert!(tight.validate(&tris).is_err(), "leaf box not containing its triangles");
+
+    let mut twice = good.clone();
+    twice.triangle_order[1] = twice.triangle_order[0];
+    assert!(twice.validate(&tris).is_err(), "triangle referenced twice");
+
+    let mut cycle = good.clone();
+    let c = cycle.nodes[0].first as usize;
+    cycle.nodes[c].first = 0;
+    cycle.nodes[c].count = 0;
+    assert!(cycle.validate(&tris).is_err(), "child pointing back at the root");
+    let _ = cycle.depth(); // terminates on a cyclic graph
+    let _ = cycle.intersect_closest(&tris, Vec3::ZERO, Vec3::X, 1.0); // and traversal returns
+}
+
+#[test]
+fn better_presets_have_lower_sah_cost() {
+    let s = shared_scene("khronos/DamagedHelmet/glTF-Binary/DamagedHelmet.glb");
+    let cost = |quality| {
+        bvh::build_with(&s.triangles, &BuildOptions { quality, ..BuildOptions::default() }).unwrap().sah_cost()
+    };
+    let (fastest, fast, medium) = (cost(BuildQuality::Fastest), cost(BuildQuality::Fast), cost(BuildQuality::Medium));
+    println!("SAH cost: fastest {fastest:.1}, fast {fast:.1}, medium {medium:.1}");
+    assert!(medium <= fastest * 1.02, "medium {medium} vs fastest {fastest}");
+}
