@@ -97,6 +97,9 @@ struct Lowering {
     /// Consts declared in this module and names imported from other kernel modules: the
     /// identifiers a `match` arm may name as a constant pattern.
     pattern_consts: BTreeSet<String>,
+    /// Names imported by `use` from other (kernel) modules, and whether a glob import exists.
+    imported: BTreeSet<String>,
+    glob_import: bool,
 }
 
 impl Lowering {
@@ -112,6 +115,23 @@ impl Lowering {
             ));
             return None;
         };
+        for item in items {
+            if let syn::Item::Use(u) = item {
+                let mut flat = Vec::new();
+                flatten_use(&u.tree, &mut Vec::new(), &mut flat);
+                for (path, name, _, _) in flat {
+                    if matches!(path.first().map(String::as_str), Some("glam" | "kernel_dsl" | "core" | "std")) {
+                        continue;
+                    }
+                    match name {
+                        Some(n) => {
+                            self.imported.insert(n);
+                        }
+                        None => self.glob_import = true,
+                    }
+                }
+            }
+        }
         self.local_fns = items
             .iter()
             .filter_map(|i| match i {
@@ -997,7 +1017,25 @@ impl Lowering {
     /// Calls through a type path (`Vec3::new`, `f32::max`) must name something the subset
     /// supports; calls through a module path are kernel functions, checked when linking.
     fn check_call_path(&mut self, path: &[String], tokens: &syn::Path) -> Option<()> {
-        if path.len() == 2 && ir::BUILTIN_TYPES.contains(&path[0].as_str()) {
+        let written: Vec<String> = tokens.segments.iter().map(|s| s.ident.to_string()).collect();
+        let through_type = path.len() == 2 && ir::BUILTIN_TYPES.contains(&path[0].as_str());
+        if !through_type {
+            let first = written[0].as_str();
+            let known_single = written.len() == 1
+                && (self.local_fns.contains(first) || self.imported.contains(first) || self.glob_import);
+            let module_path = written.len() > 1 && matches!(first, "super" | "crate" | "self");
+            if !known_single && !module_path {
+                let what = written.join("::");
+                let msg = if matches!(first, "std" | "core" | "alloc") || written.len() > 1 {
+                    format!("`{what}` is not a kernel function: kernels run on GPUs and can only call kernel functions (of this module, or of another `#[kernel]` module through `super::`/`crate::` or a `use`) and the built-ins of `f32` and glam")
+                } else {
+                    format!("`{what}` is not a kernel function of this module or one imported with `use crate::kernel::module::{what}`: kernels can only call kernel functions and the built-ins of `f32` and glam")
+                };
+                self.error(err_at(tokens, msg));
+                return None;
+            }
+        }
+        if through_type {
             let f = path[1].as_str();
             if !ir::SUPPORTED_METHODS.contains(&f) && !ir::SUPPORTED_CONSTRUCTORS.contains(&f) {
                 self.error(err_at(
