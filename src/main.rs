@@ -94,6 +94,8 @@ enum StrategyArg {
 #[derive(Clone, Copy, clap::ValueEnum)]
 enum BackendArg {
     Cpu,
+    /// OpenGL ES 3.0 through a headless EGL context (any GL driver; Mesa llvmpipe without a GPU).
+    Gl,
 }
 
 fn render(args: &RenderArgs) -> Result<()> {
@@ -152,6 +154,17 @@ fn render(args: &RenderArgs) -> Result<()> {
             }
             (r.image(), r.rejected_samples())
         }
+        BackendArg::Gl => {
+            let mut r =
+                tracer::backend::gl::GlRenderer::headless(packed, args.seed).context("starting the GL backend")?;
+            for _ in 0..args.spp {
+                r.render_frame()?;
+                // Wait for each frame so that the progress bar tells the truth.
+                r.finish()?;
+                bar.inc(1);
+            }
+            (r.image()?, r.rejected_samples()?)
+        }
     };
     let render_time = t3.elapsed();
     bar.finish_and_clear();
@@ -173,6 +186,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         samples / render_time.as_secs_f64() / 1e6,
         match args.backend {
             BackendArg::Cpu => "cpu",
+            BackendArg::Gl => "gl",
         },
         settings.strategy.name()
     );

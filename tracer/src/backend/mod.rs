@@ -3,6 +3,9 @@
 //! accumulated image is read back as linear RGB.
 
 pub mod cpu;
+#[cfg(feature = "gl")]
+pub mod egl;
+pub mod gl;
 
 use glam::Vec3;
 

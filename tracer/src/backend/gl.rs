@@ -1,0 +1,837 @@
+//! The GL backend: the kernel's generated GLSL ES 3.00 fragment shader, drawn as a full-screen
+//! triangle into an RGBA32F framebuffer once per frame, over the packed scene uploaded as data
+//! textures.
+//!
+//! [`GlRenderer`] only needs a [`glow::Context`], so the same code drives native OpenGL ES /
+//! desktop GL and (on wasm) WebGL2; only context creation and the frame loop around it differ.
+//! Natively, [`GlRenderer::headless`] creates its own surfaceless EGL context (feature `gl`).
+//!
+//! Layout, as the generated shader expects it (see `shaders-generated/*.frag.glsl`):
+//! - every `Texels<Vec4>` / `Texels<UVec4>` field `f` of the kernel's `Scene` is a 2D RGBA32F /
+//!   RGBA32UI texture bound to the sampler uniform `scene_f`: the packed array exactly as
+//!   packed, row-major, with the power-of-two width of [`pack::texture_shape`] (the shader's
+//!   `lp_fetch_*` divides by `textureSize(t, 0).x`), NEAREST filtering;
+//! - every scalar or vector field `f` is the uniform `scene_f`;
+//! - `lp_accumulation` is the previous frame's running sum (rgb: sum of samples, w: number of
+//!   finite samples); the entry point writes it plus this frame's sample. Two RGBA32F
+//!   textures ping-pong.
+//!
+//! Fields and arrays that specialisation removed from the shader have no uniform location and
+//! are skipped. [`scene_bindings`] is the one list of `Scene` fields: it destructures the struct
+//! without `..`, so a new field does not compile until it is bound here.
+
+use std::marker::PhantomData;
+
+use glam::{UVec4, Vec3, Vec4, Vec4Swizzles};
+use glow::HasContext;
+use kernel_dsl::Texels;
+use lightport_codegen::{Generated, Target};
+
+use super::{frame_seed, Image};
+use crate::kernel::scene_data::Scene;
+use crate::kernel::ShaderError;
+use crate::pack::{self, PackError, Packed};
+
+#[cfg(feature = "gl")]
+pub use super::egl::{EglError, HeadlessContext};
+
+/// The sampler uniform holding the previous accumulation (written by codegen's entry point).
+pub const ACCUMULATION_UNIFORM: &str = "lp_accumulation";
+/// Prefix of every `Scene` field's uniform in the generated GLSL.
+pub const SCENE_UNIFORM_PREFIX: &str = "scene_";
+
+/// One field of the kernel's `Scene` as the GL backend binds it.
+#[derive(Clone, Copy, Debug)]
+pub enum Binding<'a> {
+    /// An RGBA32F data texture (`sampler2D`).
+    Vec4s(&'a Texels<Vec4>),
+    /// An RGBA32UI data texture (`usampler2D`).
+    UVec4s(&'a Texels<UVec4>),
+    F32(&'a f32),
+    U32(&'a u32),
+    Vec3(&'a Vec3),
+}
+
+impl Binding<'_> {
+    /// The GL type of the uniform the shader declares for this binding (`glGetActiveUniform`).
+    pub fn gl_type(&self) -> u32 {
+        match self {
+            Binding::Vec4s(_) => glow::SAMPLER_2D,
+            Binding::UVec4s(_) => glow::UNSIGNED_INT_SAMPLER_2D,
+            Binding::F32(_) => glow::FLOAT,
+            Binding::U32(_) => glow::UNSIGNED_INT,
+            Binding::Vec3(_) => glow::FLOAT_VEC3,
+        }
+    }
+
+    /// The kernel DSL type of the field (as the IR spells it).
+    pub fn dsl_type(&self) -> &'static str {
+        match self {
+            Binding::Vec4s(_) => "Texels<Vec4>",
+            Binding::UVec4s(_) => "Texels<UVec4>",
+            Binding::F32(_) => "f32",
+            Binding::U32(_) => "u32",
+            Binding::Vec3(_) => "Vec3",
+        }
+    }
+
+    /// Texel count of a data texture; `None` for a uniform.
+    pub fn texels(&self) -> Option<usize> {
+        match self {
+            Binding::Vec4s(t) => Some(t.len()),
+            Binding::UVec4s(t) => Some(t.len()),
+            _ => None,
+        }
+    }
+}
+
+/// Lists every field of `Scene` with its binding kind. The struct pattern names each field
+/// (no `..`) and the kind must match the field's type: a new `Scene` field is a compile error
+/// here until it is listed, and the name is the field's own (`stringify!`).
+macro_rules! bind_scene_fields {
+    ($scene:expr; $($field:ident: $kind:ident),* $(,)?) => {{
+        let Scene { $($field),* } = $scene;
+        vec![$((stringify!($field), Binding::$kind($field))),*]
+    }};
+}
+
+/// Every field of the kernel's `Scene`, named as in Rust (the GLSL uniform is `scene_<name>`).
+pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
+    bind_scene_fields!(scene;
+        triangles: Vec4s,
+        shading: Vec4s,
+        nodes: Vec4s,
+        materials: Vec4s,
+        lights: Vec4s,
+        texture_texels: Vec4s,
+        texture_info: UVec4s,
+        sky: Vec4s,
+        sky_rows: Vec4s,
+        camera_position: Vec3,
+        camera_right: Vec3,
+        camera_up: Vec3,
+        camera_forward: Vec3,
+        lens_radius: F32,
+        focus_distance: F32,
+        width: U32,
+        height: U32,
+        frame_seed: U32,
+        max_depth: U32,
+        strategy: U32,
+        light_count: U32,
+        sky_width: U32,
+        sky_height: U32,
+        sky_intensity: F32,
+        sky_rotation: F32,
+        scene_scale: F32,
+        has_sky: U32,
+        has_textures: U32,
+        has_shading: U32,
+        has_lights: U32,
+        has_triangle_lights: U32,
+        has_point_lights: U32,
+    )
+}
+
+/// Why the GL backend cannot render.
+#[derive(Debug, thiserror::Error)]
+pub enum GlError {
+    #[cfg(feature = "gl")]
+    #[error(transparent)]
+    Context(#[from] EglError),
+    #[error("the GL context cannot run the kernel: {0}")]
+    Unsupported(String),
+    #[error("the scene does not fit this GL device (GL_MAX_TEXTURE_SIZE {max_texture_size}): {reason}")]
+    SceneTooLarge { max_texture_size: u32, reason: PackError },
+    #[error("the image is {width}x{height} but this GL device's {limit} is {max}")]
+    ImageTooLarge { width: u32, height: u32, limit: &'static str, max: u32 },
+    #[error(transparent)]
+    Codegen(#[from] ShaderError),
+    #[error("the {stage} shader does not compile (driver log, with the kernel's Rust locations):\n{log}")]
+    Compile { stage: &'static str, log: String },
+    #[error("the shader program does not link (driver log):\n{log}")]
+    Link { log: String },
+    #[error(
+        "the shader declares uniform `{name}` (GL type {gl_type:#06x}), which the GL backend does not bind{expected}"
+    )]
+    UnboundUniform { name: String, gl_type: u32, expected: String },
+    #[error("GL {what} failed: {detail}")]
+    Gl { what: &'static str, detail: String },
+}
+
+fn gl_failed(what: &'static str) -> impl FnOnce(String) -> GlError {
+    move |detail| GlError::Gl { what, detail }
+}
+
+/// Options for [`GlRenderer::with_options`].
+#[derive(Clone, Debug, Default)]
+pub struct GlOptions {
+    /// Use at most this texture size even where the device allows more (e.g. to check that a
+    /// scene fits WebGL2's common 4096, or to test the limit errors).
+    pub max_texture_size: Option<u32>,
+}
+
+/// What the GL context reports about itself.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GlInfo {
+    /// `GL_VERSION`, e.g. "OpenGL ES 3.2 Mesa 25.0.7".
+    pub version: String,
+    /// `GL_RENDERER`, e.g. "llvmpipe (LLVM 19.1.7, 256 bits)".
+    pub renderer: String,
+    /// The texture size used (the device's `GL_MAX_TEXTURE_SIZE`, or the smaller option).
+    pub max_texture_size: u32,
+}
+
+/// Every GL object a renderer created, deleted together.
+#[derive(Default)]
+struct Objects {
+    textures: Vec<glow::Texture>,
+    framebuffers: Vec<glow::Framebuffer>,
+    programs: Vec<glow::Program>,
+    vertex_arrays: Vec<glow::VertexArray>,
+}
+
+impl Objects {
+    fn delete(&mut self, gl: &glow::Context) {
+        // SAFETY: each object was created on `gl` and is deleted once (the lists are drained).
+        unsafe {
+            for t in self.textures.drain(..) {
+                gl.delete_texture(t);
+            }
+            for f in self.framebuffers.drain(..) {
+                gl.delete_framebuffer(f);
+            }
+            for p in self.programs.drain(..) {
+                gl.delete_program(p);
+            }
+            for v in self.vertex_arrays.drain(..) {
+                gl.delete_vertex_array(v);
+            }
+        }
+    }
+}
+
+/// The state [`GlRenderer`] keeps besides its objects.
+struct Pipeline {
+    program: glow::Program,
+    vertex_array: glow::VertexArray,
+    /// (texture unit, texture) of every data texture the shader samples.
+    data_textures: Vec<(u32, glow::Texture)>,
+    accumulation_unit: u32,
+    accumulation: [glow::Texture; 2],
+    framebuffers: [glow::Framebuffer; 2],
+    frame_seed_location: Option<glow::UniformLocation>,
+    info: GlInfo,
+}
+
+/// The kernel on a GL context. Create it from a [`Packed`] scene; [`render_frame`](Self::render_frame)
+/// adds one sample per pixel; [`image`](Self::image) reads the mean back, as
+/// [`CpuRenderer`](super::cpu::CpuRenderer) does.
+///
+/// A GL context is current on one thread: the renderer is not `Send`.
+pub struct GlRenderer {
+    gl: glow::Context,
+    packed: Packed,
+    seed: u32,
+    frames: u32,
+    objects: Objects,
+    pipeline: Pipeline,
+    /// Which accumulation texture holds the running sum.
+    current: usize,
+    /// The EGL context this renderer created ([`headless`](Self::headless)); dropped last.
+    #[cfg(feature = "gl")]
+    headless: Option<HeadlessContext>,
+    _not_send: PhantomData<*const ()>,
+}
+
+impl GlRenderer {
+    /// A renderer on `gl` (which must be current) for `packed`; `seed` selects the random
+    /// sequence, as for the CPU backend.
+    pub fn new(gl: glow::Context, packed: Packed, seed: u32) -> Result<Self, GlError> {
+        Self::with_options(gl, packed, seed, &GlOptions::default())
+    }
+
+    pub fn with_options(gl: glow::Context, packed: Packed, seed: u32, options: &GlOptions) -> Result<Self, GlError> {
+        let mut objects = Objects::default();
+        match build(&gl, &packed, options, &mut objects) {
+            Ok(pipeline) => Ok(GlRenderer {
+                gl,
+                packed,
+                seed,
+                frames: 0,
+                objects,
+                pipeline,
+                current: 0,
+                #[cfg(feature = "gl")]
+                headless: None,
+                _not_send: PhantomData,
+            }),
+            Err(e) => {
+                objects.delete(&gl);
+                Err(e)
+            }
+        }
+    }
+
+    /// A renderer on its own headless EGL context (OpenGL ES 3.0, no surface).
+    #[cfg(feature = "gl")]
+    pub fn headless(packed: Packed, seed: u32) -> Result<Self, GlError> {
+        Self::headless_with_options(packed, seed, &GlOptions::default())
+    }
+
+    #[cfg(feature = "gl")]
+    pub fn headless_with_options(packed: Packed, seed: u32, options: &GlOptions) -> Result<Self, GlError> {
+        let context = HeadlessContext::new()?;
+        let gl = context.glow();
+        let mut renderer = Self::with_options(gl, packed, seed, options)?;
+        renderer.headless = Some(context);
+        Ok(renderer)
+    }
+
+    /// Makes the renderer's own EGL context current if another one is.
+    fn activate(&self) -> Result<(), GlError> {
+        #[cfg(feature = "gl")]
+        if let Some(context) = &self.headless {
+            if !context.is_current() {
+                context.make_current()?;
+            }
+        }
+        Ok(())
+    }
+
+    pub fn gl(&self) -> &glow::Context {
+        &self.gl
+    }
+
+    pub fn info(&self) -> &GlInfo {
+        &self.pipeline.info
+    }
+
+    pub fn frames(&self) -> u32 {
+        self.frames
+    }
+
+    pub fn packed(&self) -> &Packed {
+        &self.packed
+    }
+
+    /// Adds one sample per pixel (queued on the GL context; [`finish`](Self::finish) waits).
+    pub fn render_frame(&mut self) -> Result<(), GlError> {
+        self.activate()?;
+        let gl = &self.gl;
+        let p = &self.pipeline;
+        let (width, height) = (self.packed.scene.width as i32, self.packed.scene.height as i32);
+        // SAFETY: every object belongs to this context, which is current; the draw reads the
+        // textures bound here and writes the other accumulation texture (no feedback loop).
+        unsafe {
+            gl.use_program(Some(p.program));
+            for &(unit, texture) in &p.data_textures {
+                gl.active_texture(glow::TEXTURE0 + unit);
+                gl.bind_texture(glow::TEXTURE_2D, Some(texture));
+            }
+            gl.active_texture(glow::TEXTURE0 + p.accumulation_unit);
+            gl.bind_texture(glow::TEXTURE_2D, Some(p.accumulation[self.current]));
+            gl.uniform_1_u32(p.frame_seed_location.as_ref(), frame_seed(self.frames, self.seed));
+            gl.bind_framebuffer(glow::FRAMEBUFFER, Some(p.framebuffers[1 - self.current]));
+            gl.viewport(0, 0, width, height);
+            gl.disable(glow::BLEND);
+            gl.disable(glow::DEPTH_TEST);
+            gl.disable(glow::SCISSOR_TEST);
+            gl.bind_vertex_array(Some(p.vertex_array));
+            gl.draw_arrays(glow::TRIANGLES, 0, 3);
+            gl.bind_vertex_array(None);
+            gl.bind_framebuffer(glow::FRAMEBUFFER, None);
+        }
+        self.current = 1 - self.current;
+        self.frames += 1;
+        Ok(())
+    }
+
+    /// Waits until every queued frame has been rendered (`glFinish`), e.g. around timings.
+    pub fn finish(&self) -> Result<(), GlError> {
+        self.activate()?;
+        // SAFETY: a plain synchronisation call on the current context.
+        unsafe { self.gl.finish() };
+        Ok(())
+    }
+
+    /// The running sum per pixel, row y = kernel row y: rgb the sum of samples, w the number
+    /// of finite samples.
+    pub fn accumulation(&self) -> Result<Vec<Vec4>, GlError> {
+        self.activate()?;
+        let (width, height) = (self.packed.scene.width as usize, self.packed.scene.height as usize);
+        let mut words = vec![0u32; width * height * 4];
+        let gl = &self.gl;
+        // SAFETY: the framebuffer belongs to this context; the slice holds width x height RGBA
+        // floats, the size glReadPixels writes with PACK_ALIGNMENT 4.
+        let error = unsafe {
+            gl.bind_framebuffer(glow::READ_FRAMEBUFFER, Some(self.pipeline.framebuffers[self.current]));
+            gl.read_buffer(glow::COLOR_ATTACHMENT0);
+            gl.pixel_store_i32(glow::PACK_ALIGNMENT, 4);
+            gl.read_pixels(
+                0,
+                0,
+                width as i32,
+                height as i32,
+                glow::RGBA,
+                glow::FLOAT,
+                glow::PixelPackData::Slice(Some(words_as_bytes_mut(&mut words))),
+            );
+            gl.bind_framebuffer(glow::READ_FRAMEBUFFER, None);
+            gl.get_error()
+        };
+        if error != glow::NO_ERROR {
+            return Err(GlError::Gl { what: "glReadPixels (RGBA, FLOAT)", detail: format!("error {error:#06x}") });
+        }
+        Ok(words.chunks_exact(4).map(|t| Vec4::from_array([t[0], t[1], t[2], t[3]].map(f32::from_bits))).collect())
+    }
+
+    /// The mean of the accumulated samples (linear RGB), as the CPU backend computes it.
+    pub fn image(&self) -> Result<Image, GlError> {
+        let n = self.frames.max(1) as f32;
+        Ok(Image {
+            width: self.packed.scene.width,
+            height: self.packed.scene.height,
+            pixels: self.accumulation()?.iter().map(|a| a.xyz() / n).collect(),
+        })
+    }
+
+    /// Samples that were not finite and were dropped, over the whole image.
+    pub fn rejected_samples(&self) -> Result<u64, GlError> {
+        let accumulation = self.accumulation()?;
+        let accepted: f64 = accumulation.iter().map(|a| a.w as f64).sum();
+        Ok((self.frames as u64 * accumulation.len() as u64).saturating_sub(accepted.round() as u64))
+    }
+}
+
+impl Drop for GlRenderer {
+    fn drop(&mut self) {
+        if self.activate().is_ok() {
+            self.objects.delete(&self.gl);
+        }
+        // `headless` (declared after `gl`) is dropped after this, destroying the context.
+    }
+}
+
+/// Whether the context can render to an RGBA32F framebuffer: desktop GL 3.0+, OpenGL ES 3.2,
+/// or `EXT_color_buffer_float` (OpenGL ES 3.0/3.1, WebGL2).
+fn float_render_targets(gl: &glow::Context) -> bool {
+    let v = gl.version();
+    let extensions = gl.supported_extensions();
+    (!v.is_embedded && v.major >= 3)
+        || (v.is_embedded && (v.major, v.minor) >= (3, 2))
+        || extensions.contains("GL_EXT_color_buffer_float")
+        || extensions.contains("EXT_color_buffer_float")
+}
+
+/// Creates the program, textures and framebuffers for `packed`, recording each object in
+/// `objects` (deleted by the caller on error).
+fn build(gl: &glow::Context, packed: &Packed, options: &GlOptions, objects: &mut Objects) -> Result<Pipeline, GlError> {
+    // SAFETY (every block below): plain queries and object creation on the current context;
+    // uploads pass slices of exactly width x height texels of the declared format.
+    let (version, renderer, device_max, viewport) = unsafe {
+        let mut viewport = [0i32; 2];
+        gl.get_parameter_i32_slice(glow::MAX_VIEWPORT_DIMS, &mut viewport);
+        (
+            gl.get_parameter_string(glow::VERSION),
+            gl.get_parameter_string(glow::RENDERER),
+            gl.get_parameter_i32(glow::MAX_TEXTURE_SIZE).max(0) as u32,
+            viewport,
+        )
+    };
+    let v = gl.version();
+    if v.major < 3 {
+        return Err(GlError::Unsupported(format!(
+            "it is {version}; the kernel needs OpenGL ES 3.0, WebGL2 or desktop OpenGL 3.0+"
+        )));
+    }
+    if !float_render_targets(gl) {
+        return Err(GlError::Unsupported(format!(
+            "{version} ({renderer}) cannot render to RGBA32F (no EXT_color_buffer_float), which the accumulation needs"
+        )));
+    }
+    let max_texture_size = options.max_texture_size.map_or(device_max, |m| m.min(device_max));
+    let info = GlInfo { version, renderer, max_texture_size };
+
+    // Limits: every packed array and the image must fit.
+    packed.arrays(max_texture_size).map_err(|reason| GlError::SceneTooLarge { max_texture_size, reason })?;
+    let scene = &packed.scene;
+    let (width, height) = (scene.width, scene.height);
+    for (limit, max) in [
+        ("GL_MAX_TEXTURE_SIZE", max_texture_size),
+        ("GL_MAX_VIEWPORT_DIMS", viewport[0].min(viewport[1]).max(0) as u32),
+    ] {
+        if width > max || height > max {
+            return Err(GlError::ImageTooLarge { width, height, limit, max });
+        }
+    }
+
+    let fragment = crate::kernel::path_tracer_shader(&packed.features, Target::GlslEs300)?;
+    let program = compile_program(gl, &fragment)?;
+    objects.programs.push(program);
+
+    let bindings = scene_bindings(scene);
+    check_active_uniforms(gl, program, &bindings)?;
+
+    let mut data_textures = Vec::new();
+    let mut frame_seed_location = None;
+    // SAFETY: see above.
+    unsafe {
+        gl.use_program(Some(program));
+        for (name, binding) in &bindings {
+            let Some(location) = gl.get_uniform_location(program, &format!("{SCENE_UNIFORM_PREFIX}{name}")) else {
+                continue; // removed by specialisation
+            };
+            let location = Some(&location);
+            match binding {
+                Binding::Vec4s(_) | Binding::UVec4s(_) => {
+                    let unit = data_textures.len() as u32;
+                    let texture = upload_texels(gl, binding, max_texture_size, name)?;
+                    objects.textures.push(texture);
+                    gl.uniform_1_i32(location, unit as i32);
+                    data_textures.push((unit, texture));
+                }
+                Binding::F32(x) => gl.uniform_1_f32(location, **x),
+                Binding::U32(x) => gl.uniform_1_u32(location, **x),
+                Binding::Vec3(v) => gl.uniform_3_f32(location, v.x, v.y, v.z),
+            }
+            if *name == "frame_seed" {
+                frame_seed_location = location.cloned();
+            }
+        }
+        let accumulation_unit = data_textures.len() as u32;
+        let units = gl.get_parameter_i32(glow::MAX_TEXTURE_IMAGE_UNITS).max(0) as u32;
+        if accumulation_unit + 1 > units {
+            return Err(GlError::Unsupported(format!(
+                "the shader samples {} textures but GL_MAX_TEXTURE_IMAGE_UNITS is {units}",
+                accumulation_unit + 1
+            )));
+        }
+        let accumulation_location = gl.get_uniform_location(program, ACCUMULATION_UNIFORM).ok_or_else(|| {
+            GlError::Unsupported(format!("the generated entry point has no `{ACCUMULATION_UNIFORM}` sampler"))
+        })?;
+        gl.uniform_1_i32(Some(&accumulation_location), accumulation_unit as i32);
+
+        let zeros = vec![0u32; width as usize * height as usize * 4];
+        let mut accumulation = Vec::new();
+        let mut framebuffers = Vec::new();
+        for _ in 0..2 {
+            let texture = gl.create_texture().map_err(gl_failed("glCreateTexture (accumulation)"))?;
+            objects.textures.push(texture);
+            gl.bind_texture(glow::TEXTURE_2D, Some(texture));
+            set_nearest(gl);
+            gl.tex_image_2d(
+                glow::TEXTURE_2D,
+                0,
+                glow::RGBA32F as i32,
+                width as i32,
+                height as i32,
+                0,
+                glow::RGBA,
+                glow::FLOAT,
+                glow::PixelUnpackData::Slice(Some(words_as_bytes(&zeros))),
+            );
+            let framebuffer = gl.create_framebuffer().map_err(gl_failed("glCreateFramebuffer"))?;
+            objects.framebuffers.push(framebuffer);
+            gl.bind_framebuffer(glow::FRAMEBUFFER, Some(framebuffer));
+            gl.framebuffer_texture_2d(glow::FRAMEBUFFER, glow::COLOR_ATTACHMENT0, glow::TEXTURE_2D, Some(texture), 0);
+            gl.draw_buffers(&[glow::COLOR_ATTACHMENT0]);
+            let status = gl.check_framebuffer_status(glow::FRAMEBUFFER);
+            gl.bind_framebuffer(glow::FRAMEBUFFER, None);
+            if status != glow::FRAMEBUFFER_COMPLETE {
+                return Err(GlError::Unsupported(format!(
+                    "an RGBA32F {width}x{height} framebuffer is incomplete (status {status:#06x})"
+                )));
+            }
+            accumulation.push(texture);
+            framebuffers.push(framebuffer);
+        }
+        gl.bind_texture(glow::TEXTURE_2D, None);
+        let vertex_array = gl.create_vertex_array().map_err(gl_failed("glCreateVertexArray"))?;
+        objects.vertex_arrays.push(vertex_array);
+        gl.use_program(None);
+        let error = gl.get_error();
+        if error != glow::NO_ERROR {
+            return Err(GlError::Gl { what: "setting up the renderer", detail: format!("error {error:#06x}") });
+        }
+        Ok(Pipeline {
+            program,
+            vertex_array,
+            data_textures,
+            accumulation_unit,
+            accumulation: [accumulation[0], accumulation[1]],
+            framebuffers: [framebuffers[0], framebuffers[1]],
+            frame_seed_location,
+            info,
+        })
+    }
+}
+
+/// The bytes of 32-bit words. Pixel data stays in `u32` buffers because WebGL views it in
+/// place as a `Float32Array`/`Uint32Array`, which must be 4-byte aligned.
+fn words_as_bytes(words: &[u32]) -> &[u8] {
+    // SAFETY: u8 has no alignment or validity requirements; the length covers the same bytes.
+    unsafe { std::slice::from_raw_parts(words.as_ptr().cast::<u8>(), std::mem::size_of_val(words)) }
+}
+
+fn words_as_bytes_mut(words: &mut [u32]) -> &mut [u8] {
+    // SAFETY: as above; every byte pattern is a valid u32, so writes through the view are sound.
+    unsafe { std::slice::from_raw_parts_mut(words.as_mut_ptr().cast::<u8>(), std::mem::size_of_val(words)) }
+}
+
+/// NEAREST filtering and edge clamping for the bound 2D texture (float textures are not
+/// filterable in OpenGL ES 3.0; the default mipmapped filter would leave them incomplete).
+unsafe fn set_nearest(gl: &glow::Context) {
+    gl.tex_parameter_i32(glow::TEXTURE_2D, glow::TEXTURE_MIN_FILTER, glow::NEAREST as i32);
+    gl.tex_parameter_i32(glow::TEXTURE_2D, glow::TEXTURE_MAG_FILTER, glow::NEAREST as i32);
+    gl.tex_parameter_i32(glow::TEXTURE_2D, glow::TEXTURE_WRAP_S, glow::CLAMP_TO_EDGE as i32);
+    gl.tex_parameter_i32(glow::TEXTURE_2D, glow::TEXTURE_WRAP_T, glow::CLAMP_TO_EDGE as i32);
+}
+
+/// Uploads a packed array as a row-major 2D texture of the shape `pack::texture_shape` gives
+/// (an empty array the shader still declares becomes one zero texel).
+unsafe fn upload_texels(
+    gl: &glow::Context,
+    binding: &Binding<'_>,
+    max_texture_size: u32,
+    name: &'static str,
+) -> Result<glow::Texture, GlError> {
+    let texels = binding.texels().unwrap_or(0);
+    let (w, h) = pack::texture_shape(texels, max_texture_size).ok_or(GlError::SceneTooLarge {
+        max_texture_size,
+        reason: PackError::TooLarge { what: name, texels, max: max_texture_size },
+    })?;
+    let mut words = Vec::with_capacity(w as usize * h as usize * 4);
+    let (internal, format, ty) = match binding {
+        Binding::UVec4s(t) => {
+            words.extend(t.as_slice().iter().flat_map(|texel| texel.to_array()));
+            (glow::RGBA32UI, glow::RGBA_INTEGER, glow::UNSIGNED_INT)
+        }
+        Binding::Vec4s(t) => {
+            words.extend(t.as_slice().iter().flat_map(|texel| texel.to_array().map(f32::to_bits)));
+            (glow::RGBA32F, glow::RGBA, glow::FLOAT)
+        }
+        _ => unreachable!("only texel arrays are uploaded"),
+    };
+    words.resize(w as usize * h as usize * 4, 0);
+    let texture = gl.create_texture().map_err(gl_failed("glCreateTexture (scene data)"))?;
+    gl.bind_texture(glow::TEXTURE_2D, Some(texture));
+    set_nearest(gl);
+    gl.pixel_store_i32(glow::UNPACK_ALIGNMENT, 4);
+    gl.tex_image_2d(
+        glow::TEXTURE_2D,
+        0,
+        internal as i32,
+        w as i32,
+        h as i32,
+        0,
+        format,
+        ty,
+        glow::PixelUnpackData::Slice(Some(words_as_bytes(&words))),
+    );
+    let error = gl.get_error();
+    gl.bind_texture(glow::TEXTURE_2D, None);
+    if error != glow::NO_ERROR {
+        gl.delete_texture(texture);
+        return Err(GlError::Gl {
+            what: "uploading a scene texture",
+            detail: format!("scene_{name} ({w}x{h}, {texels} texels): error {error:#06x}"),
+        });
+    }
+    Ok(texture)
+}
+
+/// Every active uniform of `program` must be one the renderer binds, with the GL type of its
+/// field: a uniform the codegen adds and this backend does not set is an error, not a zero.
+fn check_active_uniforms(
+    gl: &glow::Context,
+    program: glow::Program,
+    bindings: &[(&'static str, Binding<'_>)],
+) -> Result<(), GlError> {
+    // SAFETY: queries on a linked program of the current context.
+    let active: Vec<glow::ActiveUniform> =
+        unsafe { (0..gl.get_active_uniforms(program)).filter_map(|i| gl.get_active_uniform(program, i)).collect() };
+    for u in active {
+        if u.name == ACCUMULATION_UNIFORM && u.utype == glow::SAMPLER_2D {
+            continue;
+        }
+        let field = u.name.strip_prefix(SCENE_UNIFORM_PREFIX);
+        let binding = field.and_then(|f| bindings.iter().find(|(n, _)| *n == f)).map(|(_, b)| b);
+        match binding {
+            Some(b) if b.gl_type() == u.utype => {}
+            Some(b) => {
+                return Err(GlError::UnboundUniform {
+                    name: u.name,
+                    gl_type: u.utype,
+                    expected: format!(
+                        " as that type (the Scene field is {}, GL type {:#06x})",
+                        b.dsl_type(),
+                        b.gl_type()
+                    ),
+                })
+            }
+            None => return Err(GlError::UnboundUniform { name: u.name, gl_type: u.utype, expected: String::new() }),
+        }
+    }
+    Ok(())
+}
+
+/// Compiles and links the generated fragment shader with codegen's full-screen vertex
+/// shader. Compile errors carry the driver's log with each message's generated line mapped
+/// back to the kernel's Rust source.
+pub fn compile_program(gl: &glow::Context, fragment: &Generated) -> Result<glow::Program, GlError> {
+    // SAFETY: object creation, compilation and linking on the current context; shaders are
+    // deleted once linked (or on error), the program on error.
+    unsafe {
+        let vertex = compile_shader(gl, glow::VERTEX_SHADER, lightport_codegen::fullscreen_vertex_shader(), None)?;
+        let fragment_shader = match compile_shader(gl, glow::FRAGMENT_SHADER, &fragment.source, Some(fragment)) {
+            Ok(s) => s,
+            Err(e) => {
+                gl.delete_shader(vertex);
+                return Err(e);
+            }
+        };
+        let program = gl.create_program().map_err(gl_failed("glCreateProgram"))?;
+        gl.attach_shader(program, vertex);
+        gl.attach_shader(program, fragment_shader);
+        gl.link_program(program);
+        let linked = gl.get_program_link_status(program);
+        gl.detach_shader(program, vertex);
+        gl.detach_shader(program, fragment_shader);
+        gl.delete_shader(vertex);
+        gl.delete_shader(fragment_shader);
+        if !linked {
+            let log = gl.get_program_info_log(program);
+            gl.delete_program(program);
+            return Err(GlError::Link { log: annotate_log(&log, Some(fragment)) });
+        }
+        Ok(program)
+    }
+}
+
+unsafe fn compile_shader(
+    gl: &glow::Context,
+    stage: u32,
+    source: &str,
+    generated: Option<&Generated>,
+) -> Result<glow::Shader, GlError> {
+    let shader = gl.create_shader(stage).map_err(gl_failed("glCreateShader"))?;
+    gl.shader_source(shader, source);
+    gl.compile_shader(shader);
+    if gl.get_shader_compile_status(shader) {
+        return Ok(shader);
+    }
+    let log = gl.get_shader_info_log(shader);
+    gl.delete_shader(shader);
+    let stage = if stage == glow::VERTEX_SHADER { "vertex" } else { "fragment" };
+    Err(GlError::Compile { stage, log: annotate_log(&log, generated) })
+}
+
+/// The generated line a driver's log line refers to: Mesa writes `0:LINE(COLUMN): error: ...`,
+/// ANGLE and others `ERROR: 0:LINE: ...`.
+pub fn log_line_number(line: &str) -> Option<u32> {
+    let bytes = line.as_bytes();
+    let mut i = 0;
+    while i < bytes.len() {
+        // A source-string number, ':', the line number, then '(' or ':'.
+        if bytes[i].is_ascii_digit() && (i == 0 || !bytes[i - 1].is_ascii_alphanumeric()) {
+            let mut j = i;
+            while j < bytes.len() && bytes[j].is_ascii_digit() {
+                j += 1;
+            }
+            if bytes.get(j) == Some(&b':') {
+                let start = j + 1;
+                let mut k = start;
+                while k < bytes.len() && bytes[k].is_ascii_digit() {
+                    k += 1;
+                }
+                if k > start && matches!(bytes.get(k), Some(b'(') | Some(b':')) {
+                    return line[start..k].parse().ok();
+                }
+            }
+            i = j;
+        } else {
+            i += 1;
+        }
+    }
+    None
+}
+
+/// The driver's log with, under each message that names a generated line, that line and
+/// the Rust location it was generated from.
+pub fn annotate_log(log: &str, generated: Option<&Generated>) -> String {
+    let mut out = String::new();
+    for line in log.lines() {
+        out.push_str(line);
+        out.push('\n');
+        let (Some(generated), Some(n)) = (generated, log_line_number(line)) else {
+            continue;
+        };
+        if let Some(text) = generated.source.lines().nth((n as usize).saturating_sub(1)) {
+            out.push_str(&format!("    generated line {n}: {}\n", text.trim()));
+        }
+        if let Some(at) = generated.rust_location(n) {
+            out.push_str(&format!("    from {}:{}:{} (in {})\n", at.file, at.span.line, at.span.column, at.function));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kernel_dsl::ir::{Item, Type};
+
+    fn type_name(t: &Type) -> String {
+        match t {
+            Type::Named { name, args } if args.is_empty() => name.clone(),
+            Type::Named { name, args } => {
+                format!("{name}<{}>", args.iter().map(type_name).collect::<Vec<_>>().join(", "))
+            }
+            other => format!("{other:?}"),
+        }
+    }
+
+    /// Every field of every `#[resources]` struct of the kernel is bound, under its own name
+    /// and with the right kind; nothing else is.
+    #[test]
+    fn every_resource_field_is_bound() {
+        let scene = Scene::default();
+        let bindings = scene_bindings(&scene);
+        let mut resources = 0;
+        for module in crate::kernel::modules() {
+            for item in &module.items {
+                let Item::Struct(s) = item else { continue };
+                if !s.resources {
+                    continue;
+                }
+                resources += 1;
+                let names: Vec<&str> = s.fields.iter().map(|f| f.name.as_str()).collect();
+                let bound: Vec<&str> = bindings.iter().map(|(n, _)| *n).collect();
+                assert_eq!(bound, names, "the GL backend's bindings must list the fields of {}", s.name);
+                for (field, (_, binding)) in s.fields.iter().zip(&bindings) {
+                    assert_eq!(type_name(&field.ty), binding.dsl_type(), "field {}", field.name);
+                }
+            }
+        }
+        assert_eq!(resources, 1, "one #[resources] struct");
+    }
+
+    #[test]
+    fn driver_log_lines_are_parsed() {
+        assert_eq!(log_line_number("0:123(45): error: `foo' undeclared"), Some(123));
+        assert_eq!(log_line_number("ERROR: 0:77: 'foo' : undeclared identifier"), Some(77));
+        assert_eq!(log_line_number("error: linking failed"), None);
+        assert_eq!(log_line_number("vec3 at 0.5:1"), None);
+    }
+
+    #[test]
+    fn log_messages_point_at_the_rust_source() {
+        let features = pack::Features { emissive_triangles: true, ..Default::default() };
+        let generated = crate::kernel::path_tracer_shader(&features, Target::GlslEs300).expect("kernel");
+        let n = generated.source.lines().position(|l| l.contains("power_heuristic(float")).expect("fn") as u32 + 2;
+        let annotated = annotate_log(&format!("0:{n}(5): error: something"), Some(&generated));
+        assert!(annotated.contains("tracer/src/kernel/"), "{annotated}");
+        assert!(annotated.contains("power_heuristic"), "{annotated}");
+    }
+}
