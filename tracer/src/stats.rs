@@ -39,26 +39,3 @@ impl Estimate {
         self.z_score(&Estimate { mean: exact, std_err: 0.0 })
     }
 }
-
-/// Root mean squared error between two images (per channel, over all pixels).
-pub fn rmse(a: &[glam::Vec3], b: &[glam::Vec3]) -> f64 {
-    let n = (a.len().min(b.len()) * 3).max(1) as f64;
-    let sum: f64 = a.iter().zip(b).map(|(x, y)| (*x - *y).as_dvec3().length_squared()).sum();
-    (sum / n).sqrt()
-}
-
-/// Relative mean squared error: mean of (a - b)² / (b² + eps) over channels.
-pub fn rel_mse(a: &[glam::Vec3], reference: &[glam::Vec3]) -> f64 {
-    let n = (a.len().min(reference.len()) * 3).max(1) as f64;
-    let eps = 1e-2;
-    let sum: f64 = a
-        .iter()
-        .zip(reference)
-        .map(|(x, r)| {
-            let d = (*x - *r).as_dvec3();
-            let r = r.as_dvec3();
-            d.x * d.x / (r.x * r.x + eps) + d.y * d.y / (r.y * r.y + eps) + d.z * d.z / (r.z * r.z + eps)
-        })
-        .sum();
-    sum / n
-}

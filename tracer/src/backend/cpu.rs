@@ -66,11 +66,6 @@ impl CpuRenderer {
         }
     }
 
-    /// Sum of every accepted sample so far (rgb), for per-frame statistics.
-    pub fn accumulated_sum(&self) -> glam::DVec3 {
-        self.accumulation.iter().map(|a| a.xyz().as_dvec3()).sum()
-    }
-
     /// Per-pixel sample variance (unbiased, per channel).
     pub fn variance(&self) -> Vec<Vec3> {
         let n = self.frames as f32;
@@ -85,16 +80,5 @@ impl CpuRenderer {
                 ((*q / n - mean * mean) * (n / (n - 1.0))).max(Vec3::ZERO)
             })
             .collect()
-    }
-
-    /// Advances the frame counter without rendering (pairs with `sample_pixel`).
-    pub fn render_frame_count_only(&mut self) {
-        self.frames += 1;
-    }
-
-    /// One sample of pixel (x, y) for the current frame, without accumulating it.
-    pub fn sample_pixel(&mut self, x: u32, y: u32) -> Vec3 {
-        self.packed.scene.frame_seed = frame_seed(self.frames, self.seed);
-        render_sample(&self.packed.scene, x, y).xyz()
     }
 }
