@@ -6,8 +6,9 @@ cd "$(dirname "$0")/.."
 step() { printf '\n==> %s\n' "$*"; }
 
 # The GL backend's tests need a GL driver: Mesa's EGL, GLES and software rasteriser (llvmpipe).
+# The web tests (tests/web.rs) need Chromium (WebGL2 on SwiftShader) and node + npm to drive it.
 missing=()
-for package in libegl1 libegl-mesa0 libgles2 libgl1-mesa-dri; do
+for package in libegl1 libegl-mesa0 libgles2 libgl1-mesa-dri chromium; do
     status=$(dpkg-query -W -f='${Status}' "$package" 2>/dev/null || true)
     [ "$status" = "install ok installed" ] || missing+=("$package")
 done
@@ -18,6 +19,19 @@ if [ ${#missing[@]} -gt 0 ]; then
     "${sudo[@]}" apt-get update
     "${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends "${missing[@]}"
 fi
+if ! command -v npm >/dev/null; then
+    step "installing nodejs npm"
+    sudo=()
+    if [ "$(id -u)" -ne 0 ]; then sudo=(sudo); fi
+    "${sudo[@]}" apt-get update
+    "${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends nodejs npm
+fi
+
+step "browser test driver (npm ci in tests/web)"
+(cd tests/web && npm ci --no-audit --no-fund)
+
+step "web build (wasm32 + wasm-bindgen into web/pkg)"
+scripts/build-web.sh
 
 step "toolchain components"
 rustup component add rustfmt clippy >/dev/null 2>&1 || true
@@ -27,6 +41,7 @@ cargo fmt --all -- --check
 
 step "clippy"
 cargo clippy --workspace --all-targets -- -D warnings
+cargo clippy -p lightport-web --target wasm32-unknown-unknown -- -D warnings
 
 step "generated shaders are fresh"
 cargo run -q -- shaders --check >/dev/null || cargo run -q -- shaders --check

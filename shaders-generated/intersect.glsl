@@ -15,11 +15,6 @@ struct TriangleHit {
 // intersect::MISS (tracer/src/kernel/intersect.rs:9)
 const float MISS = 3.4028235e38;
 
-// Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
-float lp_max_element_vec3(vec3 v) {
-    return max(max(v.x, v.y), v.z);
-}
-
 // intersect::intersect_triangle (tracer/src/kernel/intersect.rs:21)
 TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2) {
     TriangleHit miss = TriangleHit(MISS, 0.0, 0.0);
@@ -57,15 +52,30 @@ vec3 safe_inverse(vec3 dir) {
     return vec3(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// intersect::intersect_aabb (tracer/src/kernel/intersect.rs:85)
+// intersect::min_no_nan (tracer/src/kernel/intersect.rs:85)
+float min_no_nan(float a, float b) {
+    return a < b ? a : b;
+}
+
+// intersect::max_no_nan (tracer/src/kernel/intersect.rs:94)
+float max_no_nan(float a, float b) {
+    return a > b ? a : b;
+}
+
+// intersect::intersect_aabb (tracer/src/kernel/intersect.rs:104)
 float intersect_aabb(vec3 origin, vec3 inv_dir, vec3 bmin, vec3 bmax, float t_max) {
     vec3 t0 = (bmin - origin) * inv_dir;
     vec3 t1 = (bmax - origin) * inv_dir;
-    vec3 far = max(t0, t1);
-    float far_x = far.x == 0.0 ? MISS : far.x;
-    float far_y = far.y == 0.0 ? MISS : far.y;
-    float far_z = far.z == 0.0 ? MISS : far.z;
-    float enter = max(lp_max_element_vec3(min(t0, t1)), 0.0);
-    float exit = min(min(min(far_x, far_y), far_z) * 1.0000008, t_max);
-    return enter <= exit ? enter : MISS;
+    vec3 far = vec3(max_no_nan(t0.x, t1.x), max_no_nan(t0.y, t1.y), max_no_nan(t0.z, t1.z));
+    vec3 near = vec3(min_no_nan(t0.x, t1.x), min_no_nan(t0.y, t1.y), min_no_nan(t0.z, t1.z));
+    float enter = max_no_nan(max_no_nan(max_no_nan(near.x, near.y), near.z), 0.0);
+    float exit = min_no_nan(min_no_nan(far.x, far.y), far.z);
+    if (exit == 0.0) {
+        float far_x = far.x == 0.0 ? MISS : far.x;
+        float far_y = far.y == 0.0 ? MISS : far.y;
+        float far_z = far.z == 0.0 ? MISS : far.z;
+        exit = min_no_nan(min_no_nan(far_x, far_y), far_z);
+    }
+    float exit_1 = min_no_nan(exit * 1.0000008, t_max);
+    return enter <= exit_1 ? enter : MISS;
 }

@@ -10,11 +10,6 @@ struct TriangleHit {
 // intersect::MISS (tracer/src/kernel/intersect.rs:9)
 const MISS: f32 = 3.4028235e38;
 
-// Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
-fn lp_max_element_vec3(v: vec3<f32>) -> f32 {
-    return max(max(v.x, v.y), v.z);
-}
-
 // intersect::intersect_triangle (tracer/src/kernel/intersect.rs:21)
 fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> TriangleHit {
     let miss: TriangleHit = TriangleHit(MISS, 0.0, 0.0);
@@ -52,15 +47,30 @@ fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// intersect::intersect_aabb (tracer/src/kernel/intersect.rs:85)
+// intersect::min_no_nan (tracer/src/kernel/intersect.rs:85)
+fn min_no_nan(a: f32, b: f32) -> f32 {
+    return select(b, a, a < b);
+}
+
+// intersect::max_no_nan (tracer/src/kernel/intersect.rs:94)
+fn max_no_nan(a: f32, b: f32) -> f32 {
+    return select(b, a, a > b);
+}
+
+// intersect::intersect_aabb (tracer/src/kernel/intersect.rs:104)
 fn intersect_aabb(origin: vec3<f32>, inv_dir: vec3<f32>, bmin: vec3<f32>, bmax: vec3<f32>, t_max: f32) -> f32 {
     let t0: vec3<f32> = (bmin - origin) * inv_dir;
     let t1: vec3<f32> = (bmax - origin) * inv_dir;
-    let far: vec3<f32> = max(t0, t1);
-    let far_x: f32 = select(far.x, MISS, far.x == 0.0);
-    let far_y: f32 = select(far.y, MISS, far.y == 0.0);
-    let far_z: f32 = select(far.z, MISS, far.z == 0.0);
-    let enter: f32 = max(lp_max_element_vec3(min(t0, t1)), 0.0);
-    let exit: f32 = min(min(min(far_x, far_y), far_z) * 1.0000008, t_max);
-    return select(MISS, enter, enter <= exit);
+    let far: vec3<f32> = vec3<f32>(max_no_nan(t0.x, t1.x), max_no_nan(t0.y, t1.y), max_no_nan(t0.z, t1.z));
+    let near: vec3<f32> = vec3<f32>(min_no_nan(t0.x, t1.x), min_no_nan(t0.y, t1.y), min_no_nan(t0.z, t1.z));
+    let enter: f32 = max_no_nan(max_no_nan(max_no_nan(near.x, near.y), near.z), 0.0);
+    var exit: f32 = min_no_nan(min_no_nan(far.x, far.y), far.z);
+    if exit == 0.0 {
+        let far_x: f32 = select(far.x, MISS, far.x == 0.0);
+        let far_y: f32 = select(far.y, MISS, far.y == 0.0);
+        let far_z: f32 = select(far.z, MISS, far.z == 0.0);
+        exit = min_no_nan(min_no_nan(far_x, far_y), far_z);
+    }
+    let exit_1: f32 = min_no_nan(exit * 1.0000008, t_max);
+    return select(MISS, enter, enter <= exit_1);
 }

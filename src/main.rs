@@ -1,5 +1,8 @@
 //! The `lightport` command line.
 
+mod chart;
+mod serve;
+
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -17,6 +20,12 @@ struct Cli {
 enum Command {
     /// Path-trace a scene (glTF, GLB or OBJ; without SCENE, a built-in Cornell box) to an image.
     Render(RenderArgs),
+    /// Speed against accuracy: render scenes with each strategy on each backend at increasing
+    /// sample counts; write error-against-time charts (SVG), CSV and equal-time crops.
+    Chart(chart::ChartArgs),
+    /// Serve the web path tracer on 127.0.0.1: the page, its wasm, and a prebuilt bundle per
+    /// scene (the built-in Cornell box plus SCENE...). See docs/serve.md.
+    Serve(serve::ServeArgs),
     /// Regenerate the GLSL ES 3.00 and WGSL of every kernel module into shaders-generated/
     /// (each file validated first) and print them.
     Shaders {
@@ -37,6 +46,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Shaders { check, dir, quiet } => shaders(&dir, check, quiet),
         Command::Render(args) => render(&args),
+        Command::Chart(args) => chart::chart(&args),
+        Command::Serve(args) => serve::serve(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

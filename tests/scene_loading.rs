@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 use tracer::scene::{self, LoadOptions, Scene, SceneError, Wrap};
 
 fn shared(rel: &str) -> PathBuf {
@@ -141,7 +141,10 @@ fn textures_and_emission_are_decoded_to_linear() {
     let t = &boxed.textures[0];
     assert_eq!((t.width, t.height), (256, 256));
     assert_eq!(t.texels.len(), 256 * 256);
-    assert!(t.texels.iter().all(|v| v.min_element() >= 0.0 && v.max_element() <= 1.0));
+    // Texels stay sRGB-encoded 8-bit RGBA; `linear` decodes them as the kernel does.
+    let linear: Vec<Vec4> = (0..t.texels.len()).filter_map(|i| t.linear(i)).collect();
+    assert!(linear.iter().all(|v| v.min_element() >= 0.0 && v.max_element() <= 1.0));
+    assert!(linear.iter().any(|v| v.x != linear[0].x), "the texture is not one flat colour");
     assert_eq!((t.wrap_s, t.wrap_t), (Wrap::Repeat, Wrap::Repeat));
     let m = &boxed.materials[boxed.triangles[0].material as usize];
     assert_eq!(m.base_color_texture, Some(0));

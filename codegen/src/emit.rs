@@ -1593,14 +1593,16 @@ impl<'a> Emitter<'a> {
         CodegenError { file: String::new(), span: ir::Span::default(), function: None, message: message.into() }
     }
 
-    /// An expression decoding a `t` from the words starting at `*next`.
-    fn decode(&mut self, t: &Ty, next: &mut u32) -> R<String> {
+    /// An expression decoding a `t` from the words starting at `*next`; each word's Rust path
+    /// (`origin.x`, `ray.dir.z`) and scalar type is appended to `layout`.
+    fn decode(&mut self, t: &Ty, path: &str, next: &mut u32, layout: &mut Vec<crate::HarnessWord>) -> R<String> {
         let glsl = self.glsl();
         let word = |k: u32| if glsl { format!("lp_word(base, {k}u)") } else { format!("lp_args[base + {k}u]") };
         Ok(match t {
             Ty::Scalar(s) => {
                 let w = word(*next);
                 *next += 1;
+                layout.push(crate::HarnessWord { path: path.to_string(), scalar: *s });
                 match (s, glsl) {
                     (Scalar::F32, true) => format!("uintBitsToFloat({w})"),
                     (Scalar::F32, false) => format!("bitcast<f32>({w})"),
@@ -1611,11 +1613,16 @@ impl<'a> Emitter<'a> {
                 }
             }
             Ty::Vector(s, n) => {
-                let comps: Vec<String> = (0..*n).map(|_| self.decode(&Ty::Scalar(*s), next)).collect::<R<_>>()?;
+                let comps: Vec<String> = "xyzw"
+                    .chars()
+                    .take(*n as usize)
+                    .map(|c| self.decode(&Ty::Scalar(*s), &format!("{path}.{c}"), next, layout))
+                    .collect::<R<_>>()?;
                 format!("{}({})", self.ty_name(t), comps.join(", "))
             }
             Ty::Array(e, n) => {
-                let items: Vec<String> = (0..*n).map(|_| self.decode(e, next)).collect::<R<_>>()?;
+                let items: Vec<String> =
+                    (0..*n).map(|i| self.decode(e, &format!("{path}[{i}]"), next, layout)).collect::<R<_>>()?;
                 format!("{}({})", self.ty_name(t), items.join(", "))
             }
             Ty::Struct(name) => {
@@ -1623,7 +1630,7 @@ impl<'a> Emitter<'a> {
                 let mut fields = Vec::new();
                 for f in &def.fields {
                     let ft = infer::resolve_type(self.program, &f.ty).map_err(|m| self.harness_error(m))?;
-                    fields.push(self.decode(&ft, next)?);
+                    fields.push(self.decode(&ft, &format!("{path}.{}", f.name), next, layout)?);
                 }
                 format!("{}({})", self.ty_name(t), fields.join(", "))
             }
@@ -1631,8 +1638,17 @@ impl<'a> Emitter<'a> {
         })
     }
 
-    /// Statements storing `value` (of type `t`) as words from `*next` into `lp_w`.
-    fn encode(&mut self, t: &Ty, value: &str, next: &mut u32, lines: &mut Vec<String>) -> R<()> {
+    /// Statements storing `value` (of type `t`) as words from `*next` into `lp_w`; each word's
+    /// Rust path and scalar type is appended to `layout`.
+    fn encode(
+        &mut self,
+        t: &Ty,
+        value: &str,
+        path: &str,
+        next: &mut u32,
+        lines: &mut Vec<String>,
+        layout: &mut Vec<crate::HarnessWord>,
+    ) -> R<()> {
         let glsl = self.glsl();
         match t {
             Ty::Scalar(s) => {
@@ -1645,23 +1661,25 @@ impl<'a> Emitter<'a> {
                     _ => value.to_string(),
                 };
                 lines.push(format!("lp_w[{}] = {w};", *next));
+                layout.push(crate::HarnessWord { path: path.to_string(), scalar: *s });
                 *next += 1;
             }
             Ty::Vector(s, n) => {
                 for c in "xyzw".chars().take(*n as usize) {
-                    self.encode(&Ty::Scalar(*s), &format!("{value}.{c}"), next, lines)?;
+                    self.encode(&Ty::Scalar(*s), &format!("{value}.{c}"), &format!("{path}.{c}"), next, lines, layout)?;
                 }
             }
             Ty::Array(e, n) => {
                 for i in 0..*n {
-                    self.encode(e, &format!("{value}[{i}]"), next, lines)?;
+                    self.encode(e, &format!("{value}[{i}]"), &format!("{path}[{i}]"), next, lines, layout)?;
                 }
             }
             Ty::Struct(name) => {
                 let def = self.program.structs[name].item.clone();
                 for f in &def.fields {
                     let ft = infer::resolve_type(self.program, &f.ty).map_err(|m| self.harness_error(m))?;
-                    self.encode(&ft, &format!("{value}.{}", names::safe(&f.name)), next, lines)?;
+                    let (v, p) = (format!("{value}.{}", names::safe(&f.name)), format!("{path}.{}", f.name));
+                    self.encode(&ft, &v, &p, next, lines, layout)?;
                 }
             }
             Ty::Unit => {}
@@ -1677,26 +1695,30 @@ impl<'a> Emitter<'a> {
             .get(function)
             .ok_or_else(|| self.harness_error(format!("`{function}` is not a kernel function")))?;
         let types = infer::infer_fn(self.program, f)?;
+        let param_names: Vec<String> = f.item.params.iter().map(|p| p.name.clone()).collect();
         let glsl = self.glsl();
         let mut next = 0u32;
         let mut setup = Vec::new();
         let mut args = Vec::new();
         let mut outs = Vec::new();
+        let mut inputs = Vec::new();
+        let mut outputs = Vec::new();
         for (i, id) in types.params.iter().enumerate() {
             let b = &types.bindings[*id];
+            let param = param_names.get(i).cloned().unwrap_or_else(|| format!("arg{i}"));
             match &b.ty {
                 Ty::Resource(_) => {}
                 Ty::RefMut(inner) => {
                     let name = format!("lp_arg{i}");
-                    let v = self.decode(inner, &mut next)?;
+                    let v = self.decode(inner, &param, &mut next, &mut inputs)?;
                     let tn = self.ty_name(inner);
                     setup.push(if glsl { format!("{tn} {name} = {v};") } else { format!("var {name}: {tn} = {v};") });
                     args.push(if glsl { name.clone() } else { format!("&{name}") });
-                    outs.push(((**inner).clone(), name));
+                    outs.push(((**inner).clone(), name, param));
                 }
                 t => {
                     let name = format!("lp_arg{i}");
-                    let v = self.decode(t, &mut next)?;
+                    let v = self.decode(t, &param, &mut next, &mut inputs)?;
                     let tn = self.ty_name(t);
                     setup.push(if glsl { format!("{tn} {name} = {v};") } else { format!("let {name}: {tn} = {v};") });
                     args.push(name);
@@ -1715,14 +1737,15 @@ impl<'a> Emitter<'a> {
                 format!("let lp_result: {tn} = {call};")
             });
             let ret = types.ret.clone();
-            self.encode(&ret, "lp_result", &mut out_next, &mut body)?;
+            self.encode(&ret, "lp_result", "return", &mut out_next, &mut body, &mut outputs)?;
         } else {
             body.push(format!("{call};"));
         }
-        for (t, name) in &outs {
-            self.encode(t, name, &mut out_next, &mut body)?;
+        for (t, name, param) in &outs {
+            self.encode(t, name, param, &mut out_next, &mut body, &mut outputs)?;
         }
-        let layout = crate::Harness { function: function.to_string(), input_words, output_words: out_next };
+        let layout =
+            crate::Harness { function: function.to_string(), input_words, output_words: out_next, inputs, outputs };
         let words = out_next.max(1);
         let mut text = String::new();
         let _ = writeln!(

@@ -7,7 +7,7 @@
 //! they clash with a target keyword or built-in). Output is deterministic.
 //!
 //! Where Rust, GLSL ES 3.00 and WGSL disagree, the emitted code keeps the DSL's (Rust's)
-//! meaning; the rules are listed in `docs/semantics.md` and each has an equivalence test.
+//! meaning; the rules are listed in `docs/dsl.md` and each has an equivalence test (`tests/equivalence.rs`).
 
 mod emit;
 mod infer;
@@ -111,6 +111,21 @@ pub struct Harness {
     pub function: String,
     pub input_words: u32,
     pub output_words: u32,
+    /// Every input word in order (`input_words` of them), so that a host can check that the
+    /// values it flattens follow the same layout.
+    pub inputs: Vec<HarnessWord>,
+    /// Every output word in order (`output_words` of them).
+    pub outputs: Vec<HarnessWord>,
+}
+
+/// One 32-bit word of a harness's inputs or outputs.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct HarnessWord {
+    /// Where the word comes from, in Rust terms: the parameter name (or `return`), then struct
+    /// fields, vector components and array indices, e.g. `origin.x`, `return.t`, `state`.
+    pub path: String,
+    /// How the word encodes its value (`usize` travels as a `u32`).
+    pub scalar: types::Scalar,
 }
 
 impl Harness {

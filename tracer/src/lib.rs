@@ -2,6 +2,7 @@
 //! kernel DSL) and the backends that run it.
 
 pub mod backend;
+pub mod bundle;
 pub mod bvh;
 pub mod kernel;
 pub mod output;

@@ -11,9 +11,9 @@ use kernel_dsl::Texels;
 use crate::bvh::Bvh;
 use crate::kernel::scene_data::{
     self, Scene as KernelScene, LIGHT_POINT, LIGHT_SKY, LIGHT_TEXELS, LIGHT_TRIANGLE, MATERIAL_TEXELS, NODE_TEXELS,
-    SHADING_TEXELS, TRIANGLE_TEXELS,
+    SHADING_TEXELS, TEXTURE_TEXELS_PER_ELEMENT, TRIANGLE_TEXELS,
 };
-use crate::scene::{Scene, Wrap};
+use crate::scene::{srgb_to_linear, Scene, Wrap};
 
 /// What a scene uses; decides what is packed and, on GPUs, which kernel variant is generated.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -141,6 +141,10 @@ pub enum PackError {
     BvhTooDeep { depth: u32, max: u32 },
     #[error("the image size {width}x{height} is invalid (each side 1..=16384)")]
     BadSize { width: u32, height: u32 },
+    #[error("a BVH leaf holds {triangles} triangles; the kernel's traversal takes at most {max}")]
+    LeafTooLarge { triangles: u32, max: u32 },
+    #[error("the packed textures were made from another scene (they do not match this scene's textures)")]
+    TexturesMismatch,
 }
 
 /// Largest integer stored exactly in an f32 texel.
@@ -195,8 +199,123 @@ fn alias_table(weights: &[f32]) -> Vec<(f32, u32)> {
     table
 }
 
-/// Packs `scene` (with its BVH) for rendering with `settings`.
+/// The texture half of packing: the texel atlas and its per-texture table. It depends only on
+/// the scene's textures and materials, so it is made once (in parallel with the BVH build, see
+/// [`build_and_pack`]) and reused by [`pack_with_textures`] when the geometry or the settings
+/// change. Cloning is cheap: the arrays are shared.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PackedTextures {
+    /// Whether any material uses a texture (`Features::textures`); when not, nothing is packed.
+    pub used: bool,
+    /// The kernel's `texture_texels`: every texture's packed sRGBA8 texels, four per element,
+    /// each texture starting on an element boundary.
+    pub texels: Texels<UVec4>,
+    /// The kernel's `texture_info`: `[first texel, width, height, wrap_s | wrap_t << 8]`.
+    pub info: Texels<UVec4>,
+    /// Mean linear luminance of each texture some material emits through (`None` for the
+    /// others): the emitting triangles' power estimate for light selection.
+    pub emissive_mean_luminance: Vec<Option<f32>>,
+}
+
+/// Packs the textures of `scene` (see [`PackedTextures`]).
+pub fn pack_textures(scene: &Scene) -> PackedTextures {
+    let textures = &scene.textures;
+    let used = scene.materials.iter().any(|m| m.base_color_texture.is_some() || m.emissive_texture.is_some())
+        && !textures.is_empty();
+    let mut emissive_mean_luminance = vec![None; textures.len()];
+    let srgb_lut: [f32; 256] = std::array::from_fn(|v| srgb_to_linear(v as f32 / 255.0));
+    for m in &scene.materials {
+        if let Some(i) = m.emissive_texture.filter(|i| (*i as usize) < textures.len()) {
+            emissive_mean_luminance[i as usize].get_or_insert_with(|| {
+                let t = &textures[i as usize];
+                let sum = t.texels.iter().fold(Vec3::ZERO, |sum, &texel| {
+                    let [r, g, b, _] = texel.to_le_bytes();
+                    sum + Vec3::new(srgb_lut[r as usize], srgb_lut[g as usize], srgb_lut[b as usize])
+                });
+                luminance(sum / t.texels.len().max(1) as f32)
+            });
+        }
+    }
+    if !used {
+        return PackedTextures { emissive_mean_luminance, ..Default::default() };
+    }
+    let per = TEXTURE_TEXELS_PER_ELEMENT as usize;
+    let mut info = Vec::with_capacity(textures.len());
+    // Element ranges of each texture in the atlas.
+    let mut ranges = Vec::with_capacity(textures.len());
+    let mut elements = 0usize;
+    for t in textures {
+        info.push(UVec4::new(
+            (elements * per) as u32,
+            t.width,
+            t.height,
+            wrap_code(t.wrap_s) | wrap_code(t.wrap_t) << 8,
+        ));
+        let len = t.texels.len().div_ceil(per);
+        ranges.push(elements..elements + len);
+        elements += len;
+    }
+    let texels = Texels::from_fill(elements, |atlas| {
+        for (t, range) in textures.iter().zip(ranges) {
+            let Some(out) = atlas.get_mut(range) else { continue };
+            let words = t.texels.chunks_exact(per);
+            let tail = words.remainder();
+            for (element, four) in out.iter_mut().zip(words) {
+                *element = UVec4::new(four[0], four[1], four[2], four[3]);
+            }
+            if let Some(last) = out.get_mut(t.texels.len() / per).filter(|_| !tail.is_empty()) {
+                // A partial last element: the lanes past the texture stay zero.
+                let mut lanes = [0u32; 4];
+                lanes[..tail.len()].copy_from_slice(tail);
+                *last = UVec4::from_array(lanes);
+            }
+        }
+    });
+    PackedTextures { used, texels, info: Texels::new(info), emissive_mean_luminance }
+}
+
+/// Builds the BVH and packs `scene` for `settings`, packing the textures in parallel with the
+/// BVH build (neither needs the other).
+pub fn build_and_pack(scene: &Scene, settings: &RenderSettings) -> Result<(Bvh, Packed), BuildAndPackError> {
+    let (bvh, textures) = rayon::join(|| crate::bvh::build(&scene.triangles), || pack_textures(scene));
+    let bvh = bvh?;
+    let packed = pack_with_textures(scene, &bvh, &textures, settings)?;
+    Ok((bvh, packed))
+}
+
+/// Why [`build_and_pack`] failed.
+#[derive(Debug, thiserror::Error)]
+pub enum BuildAndPackError {
+    #[error(transparent)]
+    Bvh(#[from] crate::bvh::BvhError),
+    #[error(transparent)]
+    Pack(#[from] PackError),
+}
+
+/// Packs `scene` (with its BVH) for rendering with `settings`: [`pack_textures`], then
+/// [`pack_with_textures`].
 pub fn pack(scene: &Scene, bvh: &Bvh, settings: &RenderSettings) -> Result<Packed, PackError> {
+    pack_with_textures(scene, bvh, &pack_textures(scene), settings)
+}
+
+/// Packs `scene` (with its BVH) for rendering with `settings`, taking its textures already
+/// packed by [`pack_textures`] (shared, not copied).
+pub fn pack_with_textures(
+    scene: &Scene,
+    bvh: &Bvh,
+    textures: &PackedTextures,
+    settings: &RenderSettings,
+) -> Result<Packed, PackError> {
+    let matches = textures.emissive_mean_luminance.len() == scene.textures.len()
+        && if textures.used {
+            textures.info.len() == scene.textures.len()
+                && scene.textures.iter().zip(textures.info.as_slice()).all(|(t, i)| (t.width, t.height) == (i.y, i.z))
+        } else {
+            textures.info.is_empty()
+        };
+    if !matches {
+        return Err(PackError::TexturesMismatch);
+    }
     let (width, height) = (settings.width, settings.height);
     if !(1..=16384).contains(&width) || !(1..=16384).contains(&height) {
         return Err(PackError::BadSize { width, height });
@@ -211,14 +330,18 @@ pub fn pack(scene: &Scene, bvh: &Bvh, settings: &RenderSettings) -> Result<Packe
     if depth > max {
         return Err(PackError::BvhTooDeep { depth, max });
     }
+    // The traversal stack carries a leaf's triangle count in 8 bits.
+    let max_leaf = crate::kernel::traverse::MAX_LEAF_TRIANGLES;
+    if let Some(leaf) = bvh.nodes.iter().find(|n| n.count > max_leaf) {
+        return Err(PackError::LeafTooLarge { triangles: leaf.count, max: max_leaf });
+    }
     let ordered: Vec<&crate::scene::Triangle> = bvh
         .triangle_order
         .iter()
         .map(|&i| scene.triangles.get(i as usize).ok_or(PackError::BadBvh(i)))
         .collect::<Result<_, _>>()?;
 
-    let textures_used = scene.materials.iter().any(|m| m.base_color_texture.is_some() || m.emissive_texture.is_some())
-        && !scene.textures.is_empty();
+    let textures_used = textures.used;
     let smooth = ordered.iter().any(|t| {
         let face = (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]).normalize_or_zero();
         t.normals.iter().any(|n| n.dot(face) < 0.9999)
@@ -243,17 +366,7 @@ pub fn pack(scene: &Scene, bvh: &Bvh, settings: &RenderSettings) -> Result<Packe
     let mut light_weights = Vec::new();
     let mut light_data: Vec<(u32, Vec4, Vec4)> = Vec::new();
     let mut triangle_light = vec![None; tri_count];
-    // Mean luminance of each emissive texture, computed once (a light's power estimate).
-    let mut texture_mean = vec![None; scene.textures.len()];
-    for m in &scene.materials {
-        if let Some(i) = m.emissive_texture.filter(|i| (*i as usize) < scene.textures.len()) {
-            texture_mean[i as usize].get_or_insert_with(|| {
-                let tex = &scene.textures[i as usize];
-                let sum: Vec4 = tex.texels.iter().copied().sum();
-                luminance(sum.truncate() / tex.texels.len().max(1) as f32)
-            });
-        }
-    }
+    let texture_mean = &textures.emissive_mean_luminance;
     for &ti in &emissive_triangles {
         let t = ordered[ti as usize];
         let m = &scene.materials[t.material as usize];
@@ -261,11 +374,11 @@ pub fn pack(scene: &Scene, bvh: &Bvh, settings: &RenderSettings) -> Result<Packe
             m.emissive_texture.and_then(|i| texture_mean.get(i as usize).copied().flatten()).unwrap_or(1.0);
         let area = 0.5 * (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]).length();
         triangle_light[ti as usize] = Some(light_data.len() as u32);
-        light_weights.push(luminance(m.emission) * texture_mean * area * std::f32::consts::PI);
+        light_weights.push(luminance(m.emission) as f64 * texture_mean as f64 * area as f64 * std::f64::consts::PI);
         light_data.push((LIGHT_TRIANGLE, Vec4::new(ti as f32, 0.0, 0.0, 0.0), Vec4::ZERO));
     }
     for p in &scene.point_lights {
-        light_weights.push(luminance(p.intensity) * 4.0 * std::f32::consts::PI);
+        light_weights.push(luminance(p.intensity) as f64 * 4.0 * std::f64::consts::PI);
         light_data.push((LIGHT_POINT, p.position.extend(0.0), p.intensity.extend(0.0)));
     }
     let mut sky_texels = Vec::new();
@@ -301,16 +414,25 @@ pub fn pack(scene: &Scene, bvh: &Bvh, settings: &RenderSettings) -> Result<Packe
         } else {
             0.0
         };
-        light_weights.push(mean_radiance * std::f32::consts::PI * radius * radius * std::f32::consts::PI);
+        light_weights
+            .push(mean_radiance as f64 * std::f64::consts::PI * (radius as f64).powi(2) * std::f64::consts::PI);
         light_data.push((LIGHT_SKY, Vec4::ZERO, Vec4::ZERO));
     }
     // Every light keeps a share of the samples: with next event estimation only, a light that
-    // is never chosen would be missing from the image.
-    let mean_weight = light_weights.iter().sum::<f32>() / light_weights.len().max(1) as f32;
-    let floor = if mean_weight > 0.0 { mean_weight * 1e-3 } else { 1.0 };
-    for w in &mut light_weights {
-        *w = if w.is_finite() { w.max(floor) } else { floor };
-    }
+    // is never chosen would be missing from the image. Weights are powers in f64: f32 radiances
+    // up to the loaders' limit times areas cannot overflow it, so one huge light cannot turn the
+    // mean (and every pmf) into inf/NaN.
+    let mean_weight = light_weights.iter().sum::<f64>() / light_weights.len().max(1) as f64;
+    let floor = if mean_weight > 0.0 && mean_weight.is_finite() { mean_weight * 1e-3 } else { 1.0 };
+    let light_weights: Vec<f32> = light_weights
+        .iter()
+        .map(|w| {
+            let w = if w.is_finite() { w.max(floor) } else { floor };
+            // The shares are what the kernel reads; normalise in f64 before narrowing.
+            w / mean_weight.max(floor)
+        })
+        .map(|w| w as f32)
+        .collect();
     let total_weight: f32 = light_weights.iter().sum();
     let alias = alias_table(&light_weights);
     let mut lights = Vec::with_capacity(light_data.len() * LIGHT_TEXELS as usize);
@@ -321,45 +443,35 @@ pub fn pack(scene: &Scene, bvh: &Bvh, settings: &RenderSettings) -> Result<Packe
         lights.push(*b);
     }
 
-    let mut triangles = Vec::with_capacity(tri_count * TRIANGLE_TEXELS as usize);
-    for (i, t) in ordered.iter().enumerate() {
-        triangles.push(t.positions[0].extend(t.material as f32));
-        triangles.push(t.positions[1].extend(index_value(triangle_light[i])));
-        triangles.push(t.positions[2].extend(0.0));
-    }
-    let mut shading = Vec::new();
-    if features.shading {
-        shading.reserve(tri_count * SHADING_TEXELS as usize);
-        for t in &ordered {
-            shading.push(t.normals[0].extend(t.uvs[0].x));
-            shading.push(t.normals[1].extend(t.uvs[0].y));
-            shading.push(t.normals[2].extend(t.uvs[1].x));
-            shading.push(Vec4::new(t.uvs[1].y, t.uvs[2].x, t.uvs[2].y, 0.0));
+    // The large arrays are written straight into their shared allocations (no copy).
+    let triangles = Texels::from_fn(tri_count * TRIANGLE_TEXELS as usize, |k| {
+        let (i, t) = (k / 3, ordered[k / 3]);
+        match k % 3 {
+            0 => t.positions[0].extend(t.material as f32),
+            1 => t.positions[1].extend(index_value(triangle_light[i])),
+            _ => t.positions[2].extend(0.0),
         }
-    }
-    let mut nodes = Vec::with_capacity(bvh.nodes.len() * NODE_TEXELS as usize);
-    for n in &bvh.nodes {
-        nodes.push(n.min.extend(n.first as f32));
-        nodes.push(n.max.extend(n.count as f32));
-    }
+    });
+    let shading_texels = if features.shading { tri_count * SHADING_TEXELS as usize } else { 0 };
+    let shading = Texels::from_fn(shading_texels, |k| {
+        let t = ordered[k / 4];
+        match k % 4 {
+            0 => t.normals[0].extend(t.uvs[0].x),
+            1 => t.normals[1].extend(t.uvs[0].y),
+            2 => t.normals[2].extend(t.uvs[1].x),
+            _ => Vec4::new(t.uvs[1].y, t.uvs[2].x, t.uvs[2].y, 0.0),
+        }
+    });
+    let nodes = Texels::from_fn(bvh.nodes.len() * NODE_TEXELS as usize, |k| {
+        let n = &bvh.nodes[k / 2];
+        let (corner, payload) = if k % 2 == 0 { (n.min, n.first) } else { (n.max, n.count) };
+        UVec4::new(corner.x.to_bits(), corner.y.to_bits(), corner.z.to_bits(), payload)
+    });
     let mut materials = Vec::with_capacity(scene.materials.len() * MATERIAL_TEXELS as usize);
     let texture_index = |i: Option<u32>| if features.textures { index_value(i) } else { -1.0 };
     for m in &scene.materials {
         materials.push(m.base_color.extend(texture_index(m.base_color_texture)));
         materials.push(m.emission.extend(texture_index(m.emissive_texture)));
-    }
-    let mut texture_texels = Vec::new();
-    let mut texture_info = Vec::new();
-    if features.textures {
-        for t in &scene.textures {
-            texture_info.push(UVec4::new(
-                texture_texels.len() as u32,
-                t.width,
-                t.height,
-                wrap_code(t.wrap_s) | wrap_code(t.wrap_t) << 8,
-            ));
-            texture_texels.extend_from_slice(&t.texels);
-        }
     }
 
     let cam = &scene.camera;
@@ -371,13 +483,13 @@ pub fn pack(scene: &Scene, bvh: &Bvh, settings: &RenderSettings) -> Result<Packe
     let scene_scale = bounds.min.abs().max(bounds.max.abs()).max_element();
     let sky = scene.sky.as_ref();
     let kernel_scene = KernelScene {
-        triangles: Texels::new(triangles),
-        shading: Texels::new(shading),
-        nodes: Texels::new(nodes),
+        triangles,
+        shading,
+        nodes,
         materials: Texels::new(materials),
         lights: Texels::new(lights),
-        texture_texels: Texels::new(texture_texels),
-        texture_info: Texels::new(texture_info),
+        texture_texels: textures.texels.clone(),
+        texture_info: textures.info.clone(),
         sky: Texels::new(sky_texels),
         sky_rows: Texels::new(sky_rows),
         camera_position: cam.position,
@@ -450,5 +562,120 @@ impl Packed {
             out.push(ArrayStats { name, texels, width, height, texel_bytes: 16 });
         }
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{cornell_box, Material, Texture};
+
+    fn texture(width: u32, height: u32, first_word: u32) -> Texture {
+        let texels = (0..width * height).map(|i| first_word + i).collect();
+        Texture { width, height, texels, wrap_s: Wrap::Repeat, wrap_t: Wrap::ClampToEdge }
+    }
+
+    /// The Cornell box with a 3-texel and a 5-texel texture, the first one used by a material.
+    fn textured_box() -> Scene {
+        let mut scene = cornell_box();
+        scene.textures = vec![texture(3, 1, 100), texture(5, 1, 200)];
+        scene.materials[0].base_color_texture = Some(0);
+        scene
+    }
+
+    #[test]
+    fn textures_start_on_element_boundaries_and_keep_their_texels() {
+        let scene = textured_box();
+        let packed = pack_textures(&scene);
+        assert!(packed.used);
+        // 3 texels fill one element (one lane left zero); the second texture starts at texel 4.
+        let info = packed.info.as_slice();
+        assert_eq!(info[0], UVec4::new(0, 3, 1, scene_data::WRAP_REPEAT | scene_data::WRAP_CLAMP << 8));
+        assert_eq!(info[1].x, 4);
+        assert_eq!(
+            packed.texels.as_slice(),
+            &[UVec4::new(100, 101, 102, 0), UVec4::new(200, 201, 202, 203), UVec4::new(204, 0, 0, 0)]
+        );
+    }
+
+    #[test]
+    fn unused_textures_are_not_packed() {
+        let mut scene = textured_box();
+        scene.materials[0].base_color_texture = None;
+        let packed = pack_textures(&scene);
+        assert!(!packed.used && packed.texels.is_empty() && packed.info.is_empty());
+    }
+
+    #[test]
+    fn emissive_texture_mean_is_the_linear_mean_luminance() {
+        let mut scene = cornell_box();
+        // Two texels: sRGB grey 188 (linear 0.5029) and black, alpha ignored: the mean of the
+        // linear values, not of the encoded ones (188 / 255 / 2 = 0.369).
+        scene.textures = vec![Texture {
+            width: 2,
+            height: 1,
+            texels: vec![0x00bc_bcbc, 0xff00_0000],
+            wrap_s: Wrap::Repeat,
+            wrap_t: Wrap::Repeat,
+        }];
+        scene.materials.push(Material { emissive_texture: Some(0), ..Material::emissive("e", Vec3::ONE, Vec3::ONE) });
+        let mean = pack_textures(&scene).emissive_mean_luminance;
+        assert_eq!(mean.len(), 1);
+        let expected = 0.5 * srgb_to_linear(188.0 / 255.0);
+        assert!((mean[0].unwrap() - expected).abs() < 1e-6 && (expected - 0.2515).abs() < 1e-3, "{mean:?}");
+    }
+
+    #[test]
+    fn packed_textures_share_their_arrays_with_the_packed_scene() {
+        let scene = textured_box();
+        let bvh = crate::bvh::build(&scene.triangles).unwrap();
+        let textures = pack_textures(&scene);
+        let packed = pack_with_textures(&scene, &bvh, &textures, &RenderSettings::default()).unwrap();
+        assert!(std::ptr::eq(packed.scene.texture_texels.as_slice(), textures.texels.as_slice()));
+        let whole = pack(&scene, &bvh, &RenderSettings::default()).unwrap().scene;
+        assert_eq!(packed.scene.texture_texels, whole.texture_texels);
+        assert_eq!(packed.scene.texture_info, whole.texture_info);
+        assert_eq!(packed.scene.materials, whole.materials);
+    }
+
+    #[test]
+    fn textures_of_another_scene_are_refused() {
+        let scene = textured_box();
+        let bvh = crate::bvh::build(&scene.triangles).unwrap();
+        let mut other = textured_box();
+        other.textures[1] = texture(4, 2, 0);
+        let settings = RenderSettings::default();
+        let err = pack_with_textures(&scene, &bvh, &pack_textures(&other), &settings).unwrap_err();
+        assert_eq!(err, PackError::TexturesMismatch);
+        let err = pack_with_textures(&scene, &bvh, &pack_textures(&cornell_box()), &settings).unwrap_err();
+        assert_eq!(err, PackError::TexturesMismatch);
+    }
+
+    #[test]
+    fn leaves_beyond_the_stack_encoding_are_refused() {
+        let scene = cornell_box();
+        let mut bvh = crate::bvh::build(&scene.triangles).unwrap();
+        let leaf = bvh.nodes.iter_mut().find(|n| n.count > 0).unwrap();
+        leaf.count = 256;
+        let err = pack(&scene, &bvh, &RenderSettings::default()).unwrap_err();
+        assert_eq!(err, PackError::LeafTooLarge { triangles: 256, max: 255 });
+    }
+    #[test]
+    fn light_selection_stays_finite_for_lights_of_extreme_power() {
+        // Loaders refuse more than 1e12, but a scene built in code may hold anything finite:
+        // f32::MAX / 2 times 4π overflows f32. Its share must not turn the mean, the floor or any
+        // pmf into inf/NaN, and the dim light keeps the floor share.
+        let mut scene = cornell_box();
+        scene.point_lights = vec![
+            crate::scene::PointLight { position: Vec3::new(0.0, 1.0, 0.0), intensity: Vec3::splat(f32::MAX / 2.0) },
+            crate::scene::PointLight { position: Vec3::new(0.2, 1.0, 0.0), intensity: Vec3::splat(1e-30) },
+        ];
+        let bvh = crate::bvh::build(&scene.triangles).unwrap();
+        let packed = pack(&scene, &bvh, &RenderSettings::default()).unwrap();
+        let lights = packed.scene.lights.as_slice();
+        let pmfs: Vec<f32> = lights.chunks(LIGHT_TEXELS as usize).map(|l| l[0].z).collect();
+        assert!(pmfs.iter().all(|p| p.is_finite() && *p > 0.0), "{pmfs:?}");
+        assert!((pmfs.iter().sum::<f32>() - 1.0).abs() < 1e-5, "{pmfs:?}");
+        assert!(lights.iter().all(|t| t.is_finite()));
     }
 }

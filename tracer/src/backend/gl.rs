@@ -100,10 +100,10 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
     bind_scene_fields!(scene;
         triangles: Vec4s,
         shading: Vec4s,
-        nodes: Vec4s,
+        nodes: UVec4s,
         materials: Vec4s,
         lights: Vec4s,
-        texture_texels: Vec4s,
+        texture_texels: UVec4s,
         texture_info: UVec4s,
         sky: Vec4s,
         sky_rows: Vec4s,
@@ -159,7 +159,7 @@ pub enum GlError {
     Gl { what: &'static str, detail: String },
 }
 
-fn gl_failed(what: &'static str) -> impl FnOnce(String) -> GlError {
+pub(crate) fn gl_failed(what: &'static str) -> impl FnOnce(String) -> GlError {
     move |detail| GlError::Gl { what, detail }
 }
 
@@ -402,6 +402,67 @@ impl GlRenderer {
         let accepted: f64 = accumulation.iter().map(|a| a.w as f64).sum();
         Ok((self.frames as u64 * accumulation.len() as u64).saturating_sub(accepted.round() as u64))
     }
+
+    /// The texture holding the running sum (what [`accumulation`](Self::accumulation) reads),
+    /// for a display pass that draws the converging image (the web viewer).
+    pub fn accumulation_texture(&self) -> glow::Texture {
+        self.pipeline.accumulation[self.current]
+    }
+
+    /// Changes the scene's uniforms (camera, strategy, depth...) and restarts the accumulation,
+    /// without recompiling the shader or re-uploading the data textures: an interactive camera
+    /// costs nothing. Texel arrays changed by `update` are not re-uploaded; the image size
+    /// cannot change (its textures are allocated at creation): that is an error.
+    pub fn set_uniforms(&mut self, update: impl FnOnce(&mut Scene)) -> Result<(), GlError> {
+        self.activate()?;
+        let (width, height) = (self.packed.scene.width, self.packed.scene.height);
+        update(&mut self.packed.scene);
+        let scene = &mut self.packed.scene;
+        if (scene.width, scene.height) != (width, height) {
+            let wanted = format!("{}x{}", scene.width, scene.height);
+            (scene.width, scene.height) = (width, height);
+            return Err(GlError::Unsupported(format!(
+                "the image size is fixed at {width}x{height} when the renderer is created; create one for {wanted}"
+            )));
+        }
+        let gl = &self.gl;
+        let program = self.pipeline.program;
+        // SAFETY: uniform updates on this context's linked program, which is current.
+        unsafe {
+            gl.use_program(Some(program));
+            for (name, binding) in scene_bindings(&self.packed.scene) {
+                let location = gl.get_uniform_location(program, &format!("{SCENE_UNIFORM_PREFIX}{name}"));
+                match binding {
+                    Binding::F32(x) => gl.uniform_1_f32(location.as_ref(), *x),
+                    Binding::U32(x) => gl.uniform_1_u32(location.as_ref(), *x),
+                    Binding::Vec3(v) => gl.uniform_3_f32(location.as_ref(), v.x, v.y, v.z),
+                    Binding::Vec4s(_) | Binding::UVec4s(_) => {}
+                }
+            }
+            gl.use_program(None);
+        }
+        self.restart()
+    }
+
+    /// Drops every accumulated sample: the next frame is sample 1 again.
+    pub fn restart(&mut self) -> Result<(), GlError> {
+        self.activate()?;
+        let gl = &self.gl;
+        // SAFETY: clears this context's RGBA32F accumulation attachment (the one the next
+        // frame reads) with a float clear, valid for float colour buffers.
+        let error = unsafe {
+            gl.bind_framebuffer(glow::FRAMEBUFFER, Some(self.pipeline.framebuffers[self.current]));
+            gl.disable(glow::SCISSOR_TEST);
+            gl.clear_buffer_f32_slice(glow::COLOR, 0, &[0.0; 4]);
+            gl.bind_framebuffer(glow::FRAMEBUFFER, None);
+            gl.get_error()
+        };
+        if error != glow::NO_ERROR {
+            return Err(GlError::Gl { what: "clearing the accumulation", detail: format!("error {error:#06x}") });
+        }
+        self.frames = 0;
+        Ok(())
+    }
 }
 
 impl Drop for GlRenderer {
@@ -569,19 +630,19 @@ fn build(gl: &glow::Context, packed: &Packed, options: &GlOptions, objects: &mut
 
 /// The bytes of 32-bit words. Pixel data stays in `u32` buffers because WebGL views it in
 /// place as a `Float32Array`/`Uint32Array`, which must be 4-byte aligned.
-fn words_as_bytes(words: &[u32]) -> &[u8] {
+pub(crate) fn words_as_bytes(words: &[u32]) -> &[u8] {
     // SAFETY: u8 has no alignment or validity requirements; the length covers the same bytes.
     unsafe { std::slice::from_raw_parts(words.as_ptr().cast::<u8>(), std::mem::size_of_val(words)) }
 }
 
-fn words_as_bytes_mut(words: &mut [u32]) -> &mut [u8] {
+pub(crate) fn words_as_bytes_mut(words: &mut [u32]) -> &mut [u8] {
     // SAFETY: as above; every byte pattern is a valid u32, so writes through the view are sound.
     unsafe { std::slice::from_raw_parts_mut(words.as_mut_ptr().cast::<u8>(), std::mem::size_of_val(words)) }
 }
 
 /// NEAREST filtering and edge clamping for the bound 2D texture (float textures are not
 /// filterable in OpenGL ES 3.0; the default mipmapped filter would leave them incomplete).
-unsafe fn set_nearest(gl: &glow::Context) {
+pub(crate) unsafe fn set_nearest(gl: &glow::Context) {
     gl.tex_parameter_i32(glow::TEXTURE_2D, glow::TEXTURE_MIN_FILTER, glow::NEAREST as i32);
     gl.tex_parameter_i32(glow::TEXTURE_2D, glow::TEXTURE_MAG_FILTER, glow::NEAREST as i32);
     gl.tex_parameter_i32(glow::TEXTURE_2D, glow::TEXTURE_WRAP_S, glow::CLAMP_TO_EDGE as i32);
@@ -590,7 +651,7 @@ unsafe fn set_nearest(gl: &glow::Context) {
 
 /// Uploads a packed array as a row-major 2D texture of the shape `pack::texture_shape` gives
 /// (an empty array the shader still declares becomes one zero texel).
-unsafe fn upload_texels(
+pub(crate) unsafe fn upload_texels(
     gl: &glow::Context,
     binding: &Binding<'_>,
     max_texture_size: u32,

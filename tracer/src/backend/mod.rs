@@ -6,6 +6,7 @@ pub mod cpu;
 #[cfg(feature = "gl")]
 pub mod egl;
 pub mod gl;
+pub mod harness;
 
 use glam::Vec3;
 

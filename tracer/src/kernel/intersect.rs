@@ -80,22 +80,48 @@ pub mod intersect {
         Vec3::new(1.0 / x, 1.0 / y, 1.0 / z)
     }
 
+    /// The smaller of `a` and `b` as a compare and select: one instruction on CPUs, where
+    /// `f32::min` also has to order NaN. The slab test never produces NaN (see `safe_inverse`).
+    pub fn min_no_nan(a: f32, b: f32) -> f32 {
+        if a < b {
+            a
+        } else {
+            b
+        }
+    }
+
+    /// The larger of `a` and `b` as a compare and select (see `min_no_nan`).
+    pub fn max_no_nan(a: f32, b: f32) -> f32 {
+        if a > b {
+            a
+        } else {
+            b
+        }
+    }
+
     /// Slab test against the closed box [bmin, bmax] for t in [0, t_max]: the entry distance
     /// (0 when the origin is inside), or `MISS`. `inv_dir` comes from `safe_inverse`.
     pub fn intersect_aabb(origin: Vec3, inv_dir: Vec3, bmin: Vec3, bmax: Vec3, t_max: f32) -> f32 {
         let t0 = (bmin - origin) * inv_dir;
         let t1 = (bmax - origin) * inv_dir;
-        let far = t0.max(t1);
-        // An exit distance of exactly 0 comes from an origin on a face plane; for a ray parallel
-        // to that face it would close the slab (0 * 1e20 = 0) although the ray runs along the
-        // face. Treat it as unbounded: at worst a box is entered needlessly, never culled wrongly.
-        let far_x = if far.x == 0.0 { MISS } else { far.x };
-        let far_y = if far.y == 0.0 { MISS } else { far.y };
-        let far_z = if far.z == 0.0 { MISS } else { far.z };
-        let enter = t0.min(t1).max_element().max(0.0);
+        let far = Vec3::new(max_no_nan(t0.x, t1.x), max_no_nan(t0.y, t1.y), max_no_nan(t0.z, t1.z));
+        let near = Vec3::new(min_no_nan(t0.x, t1.x), min_no_nan(t0.y, t1.y), min_no_nan(t0.z, t1.z));
+        let enter = max_no_nan(max_no_nan(max_no_nan(near.x, near.y), near.z), 0.0);
+        let mut exit = min_no_nan(min_no_nan(far.x, far.y), far.z);
+        if exit == 0.0 {
+            // An exit distance of exactly 0 comes from an origin on a face plane; for a ray
+            // parallel to that face it would close the slab (0 * 1e20 = 0) although the ray runs
+            // along the face. Treat such an axis as unbounded: at worst a box is entered
+            // needlessly, never culled wrongly. (Rare: tested only when the exit is 0, which
+            // gives the same result as testing every axis.)
+            let far_x = if far.x == 0.0 { MISS } else { far.x };
+            let far_y = if far.y == 0.0 { MISS } else { far.y };
+            let far_z = if far.z == 0.0 { MISS } else { far.z };
+            exit = min_no_nan(min_no_nan(far_x, far_y), far_z);
+        }
         // Widen the exit by 1 + 2 * gamma(3) (Ize 2013) so rounding never culls a box that the
         // exact slab test would enter.
-        let exit = (far_x.min(far_y).min(far_z) * 1.000_000_8).min(t_max);
+        let exit = min_no_nan(exit * 1.000_000_8, t_max);
         if enter <= exit {
             enter
         } else {

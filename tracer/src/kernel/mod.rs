@@ -46,6 +46,21 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
     ]
 }
 
+/// Every kernel module's captured description, as the macro serialised it (what
+/// [`modules`] parses): a stable text to fingerprint the kernel with.
+pub fn ir_json() -> [&'static str; 8] {
+    [
+        rng::KERNEL_IR_JSON,
+        sampling::KERNEL_IR_JSON,
+        intersect::KERNEL_IR_JSON,
+        scene_data::KERNEL_IR_JSON,
+        traverse::KERNEL_IR_JSON,
+        camera::KERNEL_IR_JSON,
+        lights::KERNEL_IR_JSON,
+        integrator::KERNEL_IR_JSON,
+    ]
+}
+
 /// The path tracer's complete shader for `target`, specialised to `features`: a GLSL ES 3.00
 /// fragment shader or a WGSL compute shader around `integrator::render_sample`, validated.
 pub fn path_tracer_shader(

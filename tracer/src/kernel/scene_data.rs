@@ -14,8 +14,10 @@ pub mod scene_data {
     pub const TRIANGLE_TEXELS: u32 = 3;
     /// Texels per triangle in `shading`: `[n0, u0]`, `[n1, v0]`, `[n2, u1]`, `[v1, u2, v2, 0]`.
     pub const SHADING_TEXELS: u32 = 4;
-    /// Texels per BVH node: `[min, first]`, `[max, count]` (count 0: interior, children at
-    /// `first` and `first + 1`; else a leaf of triangles `first..first + count`).
+    /// Texels per BVH node (in `nodes`, integer texels): `[min, first]`, `[max, count]`, the
+    /// corners as their f32 bit patterns (count 0: interior, children at `first` and
+    /// `first + 1`; else a leaf of triangles `first..first + count`). Integer texels spare
+    /// traversal any float-to-index conversion.
     pub const NODE_TEXELS: u32 = 2;
     /// Texels per material: `[base colour, base texture or -1]`, `[emission, emissive texture or -1]`.
     pub const MATERIAL_TEXELS: u32 = 2;
@@ -25,6 +27,8 @@ pub mod scene_data {
     pub const LIGHT_TRIANGLE: u32 = 0;
     pub const LIGHT_POINT: u32 = 1;
     pub const LIGHT_SKY: u32 = 2;
+    /// Texels per element of `texture_texels` (one `u32` each in a `UVec4`).
+    pub const TEXTURE_TEXELS_PER_ELEMENT: u32 = 4;
     /// No index (stored as -1.0 in float texels).
     pub const NONE: u32 = 0xffffffff;
     pub const WRAP_REPEAT: u32 = 0;
@@ -38,12 +42,15 @@ pub mod scene_data {
     pub struct Scene {
         pub triangles: Texels<Vec4>,
         pub shading: Texels<Vec4>,
-        pub nodes: Texels<Vec4>,
+        pub nodes: Texels<UVec4>,
         pub materials: Texels<Vec4>,
         pub lights: Texels<Vec4>,
-        /// Albedo/emission texels of every texture, back to back (linear RGBA).
-        pub texture_texels: Texels<Vec4>,
-        /// Per texture: `[first texel, width, height, wrap_s | wrap_t << 8]`.
+        /// Albedo/emission texels of every texture, back to back, four per element: texel `i` is
+        /// component `i % 4` of element `i / 4`, 8-bit RGBA as in the image file (colour
+        /// sRGB-encoded, red in the low byte), decoded by `decode_srgba8`.
+        pub texture_texels: Texels<UVec4>,
+        /// Per texture: `[first texel, width, height, wrap_s | wrap_t << 8]`; the first texel is
+        /// a multiple of `TEXTURE_TEXELS_PER_ELEMENT`.
         pub texture_info: Texels<UVec4>,
         /// Equirectangular sky: `[radiance, conditional CDF within the row]`.
         pub sky: Texels<Vec4>,
@@ -168,12 +175,44 @@ pub mod scene_data {
         }
     }
 
+    /// The sRGB transfer function's inverse (IEC 61966-2-1) for one channel in [0, 1].
+    pub fn srgb_to_linear(c: f32) -> f32 {
+        if c <= 0.04045 {
+            c / 12.92
+        } else {
+            ((c + 0.055) / 1.055).powf(2.4)
+        }
+    }
+
+    /// A packed texel (8-bit RGBA, red in the low byte, colour sRGB-encoded) as linear RGBA.
+    pub fn decode_srgba8(word: u32) -> Vec4 {
+        // Each byte is isolated as `x >> 24`: codegen knows such a value has at most 8 bits and
+        // converts it to float directly (exact), without its rounding helper for full u32s.
+        let r = ((word << 24) >> 24) as f32 / 255.0;
+        let g = ((word << 16) >> 24) as f32 / 255.0;
+        let b = ((word << 8) >> 24) as f32 / 255.0;
+        let a = (word >> 24) as f32 / 255.0;
+        Vec4::new(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a)
+    }
+
     pub fn texel(scene: &Scene, info: UVec4, x: i32, y: i32) -> Vec4 {
         let w = info.y as i32;
         let h = info.z as i32;
         let tx = wrap_coordinate(x, w, info.w & 255);
         let ty = wrap_coordinate(y, h, info.w >> 8);
-        scene.texture_texels.fetch(info.x + (ty * w + tx) as u32)
+        let i = info.x + (ty * w + tx) as u32;
+        let four = scene.texture_texels.fetch(i / TEXTURE_TEXELS_PER_ELEMENT);
+        let lane = i % TEXTURE_TEXELS_PER_ELEMENT;
+        let word = if lane == 0 {
+            four.x
+        } else if lane == 1 {
+            four.y
+        } else if lane == 2 {
+            four.z
+        } else {
+            four.w
+        };
+        decode_srgba8(word)
     }
 
     /// Bilinear lookup of texture `index` at `uv` (glTF convention: v = 0 is the top row).

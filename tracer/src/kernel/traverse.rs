@@ -3,10 +3,10 @@ pub mod traverse {
     //! BVH traversal with an ordered stack: the nearer child is visited first, and subtrees
     //! entered beyond the closest hit so far are skipped.
 
-    use glam::{Vec3, Vec4Swizzles};
+    use glam::Vec3;
 
     use crate::kernel::intersect::{intersect_aabb, intersect_triangle, safe_inverse, MISS};
-    use crate::kernel::scene_data::{fetch_triangle, index_of, Scene, NODE_TEXELS, NONE};
+    use crate::kernel::scene_data::{fetch_triangle, Scene, NODE_TEXELS, NONE};
 
     /// Traversal stack depth. A deeper tree would drop subtrees (never write out of bounds);
     /// `tracer::bvh` keeps trees well below it.
@@ -33,7 +33,22 @@ pub mod traverse {
     pub fn fetch_node(scene: &Scene, index: u32) -> Node {
         let a = scene.nodes.fetch(index * NODE_TEXELS);
         let b = scene.nodes.fetch(index * NODE_TEXELS + 1);
-        Node { min: a.xyz(), max: b.xyz(), first: index_of(a.w), count: index_of(b.w) }
+        Node {
+            min: Vec3::new(f32::from_bits(a.x), f32::from_bits(a.y), f32::from_bits(a.z)),
+            max: Vec3::new(f32::from_bits(b.x), f32::from_bits(b.y), f32::from_bits(b.z)),
+            first: a.w,
+            count: b.w,
+        }
+    }
+
+    /// Largest leaf the stack encoding holds (`tracer::pack` refuses larger leaves).
+    pub const MAX_LEAF_TRIANGLES: u32 = 255;
+
+    /// A stack entry for a node: its `first` and `count` in one word (`first < 2^24`, which
+    /// packing guarantees, and `count <= MAX_LEAF_TRIANGLES`). Carrying them on the stack
+    /// means a popped node is never fetched again: only its children are.
+    pub fn stack_entry(first: u32, count: u32) -> u32 {
+        (first << 8) | count
     }
 
     /// Closest intersection along `origin + t * dir` for t in (0, t_max).
@@ -46,7 +61,7 @@ pub mod traverse {
         let root = fetch_node(scene, 0);
         let root_t = intersect_aabb(origin, inv_dir, root.min, root.max, t_max);
         if root_t < MISS {
-            stack[0] = 0;
+            stack[0] = stack_entry(root.first, root.count);
             stack_t[0] = root_t;
             sp = 1;
         }
@@ -55,9 +70,10 @@ pub mod traverse {
             if stack_t[sp] > hit.t {
                 continue;
             }
-            let node = fetch_node(scene, stack[sp]);
-            if node.count > 0 {
-                for i in node.first..node.first + node.count {
+            let first = stack[sp] >> 8;
+            let count = stack[sp] & 255;
+            if count > 0 {
+                for i in first..first + count {
                     let tri = fetch_triangle(scene, i);
                     let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
                     if h.t < hit.t {
@@ -65,16 +81,18 @@ pub mod traverse {
                     }
                 }
             } else {
-                let left = fetch_node(scene, node.first);
-                let right = fetch_node(scene, node.first + 1);
+                let left = fetch_node(scene, first);
+                let right = fetch_node(scene, first + 1);
                 let t_left = intersect_aabb(origin, inv_dir, left.min, left.max, hit.t);
                 let t_right = intersect_aabb(origin, inv_dir, right.min, right.max, hit.t);
                 // Push the farther child first so that the nearer one is popped next.
                 let left_first = t_left <= t_right;
-                let near = if left_first { node.first } else { node.first + 1 };
-                let far = if left_first { node.first + 1 } else { node.first };
-                let t_near = t_left.min(t_right);
-                let t_far = t_left.max(t_right);
+                let left_entry = stack_entry(left.first, left.count);
+                let right_entry = stack_entry(right.first, right.count);
+                let near = if left_first { left_entry } else { right_entry };
+                let far = if left_first { right_entry } else { left_entry };
+                let t_near = if left_first { t_left } else { t_right };
+                let t_far = if left_first { t_right } else { t_left };
                 if t_far < MISS && sp < STACK_SIZE {
                     stack[sp] = far;
                     stack_t[sp] = t_far;
@@ -97,13 +115,15 @@ pub mod traverse {
         let mut sp: usize = 0;
         let root = fetch_node(scene, 0);
         if intersect_aabb(origin, inv_dir, root.min, root.max, t_max) < MISS {
+            stack[0] = stack_entry(root.first, root.count);
             sp = 1;
         }
         while sp > 0 {
             sp -= 1;
-            let node = fetch_node(scene, stack[sp]);
-            if node.count > 0 {
-                for i in node.first..node.first + node.count {
+            let first = stack[sp] >> 8;
+            let count = stack[sp] & 255;
+            if count > 0 {
+                for i in first..first + count {
                     let tri = fetch_triangle(scene, i);
                     if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
                         return true;
@@ -111,9 +131,9 @@ pub mod traverse {
                 }
             } else {
                 for c in 0..2u32 {
-                    let child = fetch_node(scene, node.first + c);
+                    let child = fetch_node(scene, first + c);
                     if intersect_aabb(origin, inv_dir, child.min, child.max, t_max) < MISS && sp < STACK_SIZE {
-                        stack[sp] = node.first + c;
+                        stack[sp] = stack_entry(child.first, child.count);
                         sp += 1;
                     }
                 }

@@ -6,7 +6,7 @@ use super::{flat_normal, Camera, Material, Scene, Triangle};
 
 /// Appends the two triangles of quad `q` (counter-clockwise seen from its front) with flat
 /// normals and unit-square texture coordinates.
-fn quad(out: &mut Vec<Triangle>, q: [Vec3; 4], material: u32) {
+pub(crate) fn quad(out: &mut Vec<Triangle>, q: [Vec3; 4], material: u32) {
     let uv = [Vec2::new(0.0, 1.0), Vec2::new(1.0, 1.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 0.0)];
     for [a, b, c] in [[0, 1, 2], [0, 2, 3]] {
         let positions = [q[a], q[b], q[c]];
@@ -14,7 +14,7 @@ fn quad(out: &mut Vec<Triangle>, q: [Vec3; 4], material: u32) {
     }
 }
 
-fn v(x: f32, y: f32, z: f32) -> Vec3 {
+pub(crate) fn v(x: f32, y: f32, z: f32) -> Vec3 {
     Vec3::new(x, y, z)
 }
 

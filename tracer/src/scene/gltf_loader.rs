@@ -450,9 +450,10 @@ impl Loader<'_> {
                 malformed(format!("node {node} uses KHR_lights_punctual light {index}, which does not exist"))
             })?;
         let intensity = Vec3::from(light.color) * light.intensity;
-        if !intensity.is_finite() || intensity.min_element() < 0.0 {
+        if !intensity.is_finite() || intensity.min_element() < 0.0 || intensity.max_element() > super::MAX_RADIANCE {
             return Err(malformed(format!(
-                "KHR_lights_punctual light {index}: color x intensity must be finite and >= 0"
+                "KHR_lights_punctual light {index}: color x intensity must be finite, >= 0 and at most {:e}",
+                super::MAX_RADIANCE
             )));
         }
         match light.type_ {
@@ -666,6 +667,13 @@ impl Loader<'_> {
         let emission = Vec3::from(m.emissive_factor.0) * strength;
         if !emission.is_finite() || emission.min_element() < 0.0 {
             return Err(malformed(format!("{what}: emissiveFactor x emissive_strength must be finite and >= 0")));
+        }
+        if emission.max_element() > super::MAX_RADIANCE {
+            return Err(malformed(format!(
+                "{what}: emissiveFactor x emissive_strength = {emission} is above the largest radiance Lightport \
+                 accepts ({:e})",
+                super::MAX_RADIANCE
+            )));
         }
         if let Checked::Valid(mode @ (AlphaMode::Mask | AlphaMode::Blend)) = m.alpha_mode {
             self.warnings

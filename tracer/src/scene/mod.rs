@@ -56,17 +56,18 @@ mod generate;
 mod gltf_loader;
 mod obj_loader;
 mod sky;
+pub mod stability;
 mod texture;
 mod util;
 
 use std::path::{Path, PathBuf};
 
-use glam::{Vec2, Vec3, Vec4};
+use glam::{Vec2, Vec3};
 
 pub use generate::{cornell_box, diffuse_plane, white_furnace};
 pub use gltf_loader::load_gltf_slice;
 pub use sky::load_sky;
-pub use texture::srgb_to_linear;
+pub use texture::{srgb_to_linear, srgba8_to_linear};
 
 /// Most triangles a loaded scene may have after instancing (each [`Triangle`] is 100 bytes,
 /// so this caps a scene's triangle list at about 1.7 GB).
@@ -81,6 +82,12 @@ pub const MAX_IMAGE_TEXELS: u64 = 1 << 26;
 pub const MAX_SCENE_TEXELS: u64 = 1 << 28;
 /// Largest accepted size of one file read by the loaders (scene, buffer, image or sky).
 pub const MAX_FILE_BYTES: u64 = 4 << 30;
+/// Largest emitted radiance a loader accepts, per channel (material emission, and sky texels
+/// times the sky intensity); larger values are refused as malformed, like NaN and infinity.
+/// The sun is about 1.6e9 (cd/m², read as W/(sr m²)), so this leaves 600x headroom, while a
+/// sample (radiance x path throughput / pdf, up to about 1e3 x the radiance) squared and summed
+/// over a million frames, as the CPU backend's variance does, stays finite in f32.
+pub const MAX_RADIANCE: f32 = 1e12;
 
 /// A flattened, validated scene: everything in world space, ready to be packed.
 #[derive(Clone, Debug, Default)]
@@ -173,9 +180,11 @@ pub struct Texture {
     pub width: u32,
     /// Height in texels (> 0).
     pub height: u32,
-    /// `width * height` texels: **linear** RGB (sRGB-encoded images are converted on load) and
-    /// linear alpha.
-    pub texels: Vec<Vec4>,
+    /// `width * height` texels, one `u32` each: 8-bit RGBA as stored in the image file (colour
+    /// **sRGB-encoded**, alpha linear), red in the low byte (`r | g << 8 | b << 16 | a << 24`).
+    /// This is the packed layout every backend reads; the kernel decodes sRGB to linear when it
+    /// samples, [`Texture::linear`] does the same on the CPU side.
+    pub texels: Vec<u32>,
     /// Wrapping along u.
     pub wrap_s: Wrap,
     /// Wrapping along v.

@@ -156,6 +156,12 @@ fn convert_material(
     };
     let base_color = color(m.diffuse, DEFAULT_ALBEDO, "Kd")?.min(Vec3::ONE);
     let emission = color(m.emissive, 0.0, "Ke")?;
+    if emission.max_element() > super::MAX_RADIANCE {
+        return Err(SceneError::Malformed(format!(
+            "{what}: Ke {emission} is above the largest radiance Lightport accepts ({:e})",
+            super::MAX_RADIANCE
+        )));
+    }
     if m.specular.is_some_and(|ks| ks.iter().any(|&k| k > 0.0)) {
         warnings
             .once("MTL Ks", || "MTL specular reflection (Ks) is not supported: surfaces are rendered diffuse".into());

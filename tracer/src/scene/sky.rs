@@ -7,13 +7,14 @@ use image::ImageFormat;
 
 use super::texture::decode_limited;
 use super::util::read_file;
-use super::{SceneError, Sky, MAX_IMAGE_TEXELS};
+use super::{SceneError, Sky, MAX_IMAGE_TEXELS, MAX_RADIANCE};
 
 /// Loads an equirectangular sky (see [`Sky`] for the mapping) from a `.hdr` or `.exr` file.
 ///
 /// `intensity` (finite, >= 0) scales the radiance; `rotation` (radians, finite) turns the map
-/// about +Y. Texels must be finite; negative values (which some EXR tools produce) are clamped
-/// to zero.
+/// about +Y. Texels must be finite and, times `intensity`, at most [`MAX_RADIANCE`] (a NaN,
+/// infinite or huge texel is an error naming it, not something silently clamped: it means a
+/// broken file); negative values (which some EXR tools produce) are clamped to zero.
 pub fn load_sky(path: &Path, intensity: f32, rotation: f32) -> Result<Sky, SceneError> {
     if !(intensity.is_finite() && intensity >= 0.0) {
         return Err(SceneError::InvalidParameter(format!("sky intensity must be finite and >= 0, got {intensity}")));
@@ -39,9 +40,23 @@ pub fn load_sky(path: &Path, intensity: f32, rotation: f32) -> Result<Sky, Scene
     let mut texels = Vec::with_capacity(width as usize * height as usize);
     for (i, p) in rgb.pixels().enumerate() {
         let v = Vec3::new(p[0], p[1], p[2]);
+        let w = width as usize;
+        let (x, y) = (i % w.max(1), i / w.max(1));
         if !v.is_finite() {
-            let w = width as usize;
-            return Err(err(format!("texel ({}, {}) is not finite", i % w.max(1), i / w.max(1))));
+            return Err(err(format!("texel ({x}, {y}) is not finite")));
+        }
+        if v.max_element() > MAX_RADIANCE {
+            return Err(err(format!(
+                "texel ({x}, {y}) is {}, above the largest radiance Lightport accepts ({MAX_RADIANCE:e})",
+                v.max_element()
+            )));
+        }
+        if v.max_element() * intensity > MAX_RADIANCE {
+            return Err(SceneError::InvalidParameter(format!(
+                "sky intensity {intensity} times texel ({x}, {y}) ({}) is above the largest radiance Lightport \
+                 accepts ({MAX_RADIANCE:e})",
+                v.max_element()
+            )));
         }
         texels.push(v.max(Vec3::ZERO));
     }

@@ -1,0 +1,157 @@
+//! A table of CPU-vs-GL equivalence per kernel function: invocations, largest ULP and absolute
+//! differences, float words that are not bit-identical, invocations out of the stated
+//! tolerance, and the time each backend took (same run; GL includes upload and readback).
+//!
+//! `cargo run --release --example equivalence_report [RAYS]` (RAYS: LittlestTokyo traversal
+//! rays, default 100000). The pass/fail checks are in `tests/equivalence.rs`; this prints the
+//! figures.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use glam::{Vec2, Vec3};
+use tracer::backend::harness::{Backend, Equivalence, Outcome, Tolerance};
+use tracer::kernel::intersect::{self, MISS};
+use tracer::kernel::{rng, sampling, scene_data, traverse};
+use tracer::pack::{pack, RenderSettings};
+
+/// Test inputs: xorshift64*, independent of the kernel's RNG.
+struct Inputs(u64);
+
+impl Inputs {
+    fn u32(&mut self) -> u32 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 32) as u32
+    }
+
+    fn unit(&mut self) -> f32 {
+        (self.u32() >> 8) as f32 / 16_777_216.0
+    }
+
+    fn in_box(&mut self, lo: Vec3, hi: Vec3) -> Vec3 {
+        lo + (hi - lo) * Vec3::new(self.unit(), self.unit(), self.unit())
+    }
+}
+
+fn row<O>(outcome: &Outcome<O>) {
+    let seconds = |b| outcome.seconds.iter().find(|(x, _)| *x == b).map_or(f64::NAN, |(_, s)| *s);
+    for c in &outcome.comparisons {
+        println!(
+            "| {:<25} | {:>9} | {:>9} | {:>9.1e} | {:>9} | {:>10} | {:>7.3} | {:>7.3} | {} |",
+            outcome.function,
+            c.invocations,
+            c.max_ulps,
+            c.max_abs,
+            c.inexact_floats,
+            c.mismatched.len(),
+            seconds(Backend::Cpu),
+            seconds(Backend::Gl),
+            c.tolerance
+        );
+    }
+}
+
+fn main() -> Result<()> {
+    let rays: usize =
+        std::env::args().nth(1).map(|a| a.parse()).transpose().context("RAYS must be a number")?.unwrap_or(100_000);
+    let mut eq = Equivalence::new(&[Backend::Cpu, Backend::Gl], &[]).context("creating the CPU and GL backends")?;
+    let info = eq.gl().map(|g| g.limits()).context("the GL backend")?;
+    println!("GL limits: {info:?}");
+    println!("| function                  | invocations | max ULP | max abs | inexact | mismatches | CPU s | GL s | tolerance |");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---|");
+    let mut r = Inputs(0x1234_5678_9abc_def1);
+
+    let seeds: Vec<(u32,)> = (0..1u32 << 20).map(|_| (r.u32(),)).collect();
+    row(&eq.run("wang_hash", &seeds, |_, &(s,)| (rng::wang_hash(s),), Tolerance::EXACT)?);
+    let random = |_: &_, &(s,): &(u32,)| {
+        let mut state = s;
+        (rng::random_float(&mut state), state)
+    };
+    row(&eq.run("random_float", &seeds, random, Tolerance::EXACT)?);
+
+    let uniforms: Vec<(f32, f32)> = (0..1 << 16).map(|_| (r.unit(), r.unit())).collect();
+    let sampling_tolerance = Tolerance::ulps(16).with_absolute(2e-6).flushing_subnormals();
+    row(&eq.run(
+        "cosine_sample_hemisphere",
+        &uniforms,
+        |_, &(a, b)| (sampling::cosine_sample_hemisphere(a, b),),
+        sampling_tolerance,
+    )?);
+    let normals: Vec<(Vec3, f32, f32)> =
+        uniforms.iter().map(|&(a, b)| (r.in_box(Vec3::splat(-1.0), Vec3::ONE).normalize(), a, b)).collect();
+    row(&eq.run(
+        "sample_cosine_around",
+        &normals,
+        |_, &(n, a, b)| (sampling::sample_cosine_around(n, a, b),),
+        sampling_tolerance,
+    )?);
+
+    let triangles: Vec<(Vec3, Vec3, Vec3, Vec3, Vec3)> = (0..1 << 17)
+        .map(|_| {
+            let v0 = r.in_box(Vec3::splat(-1.0), Vec3::ONE);
+            let o = r.in_box(Vec3::splat(-2.0), Vec3::splat(2.0));
+            let d = (r.in_box(Vec3::splat(-1.0), Vec3::ONE) - o).normalize();
+            (
+                o,
+                d,
+                v0,
+                v0 + r.in_box(Vec3::splat(-0.5), Vec3::splat(0.5)),
+                v0 + r.in_box(Vec3::splat(-0.5), Vec3::splat(0.5)),
+            )
+        })
+        .collect();
+    let triangle_tolerance = Tolerance::ulps(16).flushing_subnormals();
+    row(&eq.run(
+        "intersect_triangle",
+        &triangles,
+        |_, &(o, d, a, b, c)| (intersect::intersect_triangle(o, d, a, b, c),),
+        triangle_tolerance,
+    )?);
+    let boxes: Vec<(Vec3, Vec3, Vec3, Vec3, f32)> =
+        triangles.iter().map(|&(o, d, a, b, _)| (o, intersect::safe_inverse(d), a.min(b), a.max(b), MISS)).collect();
+    row(&eq.run(
+        "intersect_aabb",
+        &boxes,
+        |_, &(o, i, lo, hi, t)| (intersect::intersect_aabb(o, i, lo, hi, t),),
+        Tolerance::ulps(4).flushing_subnormals(),
+    )?);
+
+    let tokyo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/threejs/LittlestTokyo.glb");
+    let scene = tracer::scene::load(&tokyo).with_context(|| format!("loading {}", tokyo.display()))?;
+    let bvh = tracer::bvh::build(&scene.triangles)?;
+    let packed = pack(&scene, &bvh, &RenderSettings::default())?;
+    eq.set_scene(&packed.scene)?;
+    let b = scene.bounds();
+    let (lo, hi) = (b.min - b.diagonal() * 0.1, b.max + b.diagonal() * 0.1);
+    let rays: Vec<(Vec3, Vec3, f32)> = (0..rays)
+        .map(|_| {
+            let o = r.in_box(lo, hi);
+            (o, (r.in_box(b.min, b.max) - o).normalize(), MISS)
+        })
+        .collect();
+    let closest =
+        eq.run("trace_closest", &rays, |s, &(o, d, t)| (traverse::trace_closest(s, o, d, t),), triangle_tolerance)?;
+    row(&closest);
+    let (cpu, gl) = (closest.output(Backend::Cpu).unwrap_or(&[]), closest.output(Backend::Gl).unwrap_or(&[]));
+    let other_triangle = cpu.iter().zip(gl).filter(|((a,), (b,))| a.triangle != b.triangle).count();
+    row(&eq.run("occluded", &rays, |s, &(o, d, t)| (traverse::occluded(s, o, d, t),), Tolerance::EXACT)?);
+
+    let duck = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/khronos/Duck/glTF-Binary/Duck.glb");
+    let scene = tracer::scene::load(&duck).with_context(|| format!("loading {}", duck.display()))?;
+    let packed = pack(&scene, &tracer::bvh::build(&scene.triangles)?, &RenderSettings::default())?;
+    eq.set_scene(&packed.scene)?;
+    let lookups: Vec<(u32, Vec2)> =
+        (0..1 << 16).map(|_| (0, Vec2::new(r.unit() * 3.0 - 1.0, r.unit() * 3.0 - 1.0))).collect();
+    row(&eq.run(
+        "sample_texture",
+        &lookups,
+        |s, &(i, uv)| (scene_data::sample_texture(s, i, uv),),
+        Tolerance::ulps(16).flushing_subnormals(),
+    )?);
+
+    println!("\ntrace_closest: {other_triangle} of {} rays hit a different triangle on GL", rays.len());
+    println!("(timings: one run on a shared machine; compare backends within this run only)");
+    Ok(())
+}

@@ -1,0 +1,240 @@
+//! "Model no more than a scene needs", in numbers: for each test scene, its `Features`, the
+//! size of the kernel variant generated for them, the GL driver's compile + link time and
+//! first-frame time, and the packed data's GPU memory (used and allocated), each against the
+//! all-features build (`Features::all()`) measured in the same run.
+//!
+//! ```sh
+//! cargo run --release --example feature_sizes [-- REPEATS]
+//! ```
+//!
+//! Times are medians of REPEATS (default 5) runs, alternating between the scene's variant and
+//! the all-features kernel over the same data, on a headless EGL context (Mesa llvmpipe on a
+//! machine without a GPU), with Mesa's on-disk shader cache disabled so that every compile is a
+//! real one. llvmpipe compiles GLSL to its IR at link time and JITs machine code at the first
+//! draw, so the first-frame column (renderer creation, uploads and one 1x1 frame) includes
+//! what compile + link leaves out. WebGL2 compile times come from the web backend (a column is
+//! left for them).
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use lightport_codegen::Target;
+use tracer::backend::gl::{compile_program, GlRenderer, HeadlessContext};
+use tracer::kernel::scene_data::SHADING_TEXELS;
+use tracer::pack::{pack, texture_shape, Features, Packed, RenderSettings, Strategy};
+use tracer::scene::{self, Scene, Sky};
+
+/// Texture size limit used for the memory layout (llvmpipe's GL_MAX_TEXTURE_SIZE).
+const MAX_TEXTURE_SIZE: u32 = 16384;
+
+/// Generated sizes of one kernel variant, and its GL times (one entry per repeat).
+struct Variant {
+    glsl: lightport_codegen::Generated,
+    glsl_lines: usize,
+    wgsl_bytes: usize,
+    compile_link: Vec<Duration>,
+    first_frame: Vec<Duration>,
+}
+
+struct Memory {
+    used: usize,
+    allocated: usize,
+    /// What the all-features kernel needs bound for the same scene.
+    all_features_allocated: usize,
+}
+
+fn shared(path: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes").join(path)
+}
+
+fn median(mut times: Vec<Duration>) -> Duration {
+    times.sort();
+    times[times.len() / 2]
+}
+
+fn packed(scene: &Scene) -> Result<Packed> {
+    let bvh = tracer::bvh::build(&scene.triangles).context("BVH")?;
+    // 1x1: the first-frame time is then the driver's cost, not the path tracing.
+    let settings = RenderSettings { width: 1, height: 1, strategy: Strategy::Mis, max_depth: 8 };
+    Ok(pack(scene, &bvh, &settings)?)
+}
+
+impl Variant {
+    fn new(features: Features) -> Result<Variant> {
+        let glsl = tracer::kernel::path_tracer_shader(&features, Target::GlslEs300)?;
+        let wgsl = tracer::kernel::path_tracer_shader(&features, Target::Wgsl)?;
+        let glsl_lines = glsl.source.lines().count();
+        Ok(Variant { glsl, glsl_lines, wgsl_bytes: wgsl.source.len(), compile_link: vec![], first_frame: vec![] })
+    }
+
+    /// One more measurement of compile + link on `context`, and of a renderer's creation and
+    /// first 1x1 frame over `packed` with this variant's features.
+    fn measure(&mut self, context: &HeadlessContext, packed: &Packed, features: Features) -> Result<()> {
+        // Renderers make their own contexts current: take this one back first.
+        context.make_current()?;
+        let gl = context.glow();
+        let start = Instant::now();
+        let program = compile_program(&gl, &self.glsl)?;
+        self.compile_link.push(start.elapsed());
+        // SAFETY: the program was created on this context, which is current.
+        unsafe { glow::HasContext::delete_program(&gl, program) };
+
+        let mut p = packed.clone();
+        // The all-features variant runs over the scene's own data: arrays it does not use
+        // are bound as one zero texel, as the renderer does for any declared array.
+        p.features = features;
+        let start = Instant::now();
+        let mut r = GlRenderer::headless(p, 0)?;
+        r.render_frame()?;
+        r.finish()?;
+        self.first_frame.push(start.elapsed());
+        Ok(())
+    }
+}
+
+fn memory(packed: &Packed) -> Result<Memory> {
+    let arrays = packed.arrays(MAX_TEXTURE_SIZE)?;
+    let used = arrays.iter().map(|a| a.texels * a.texel_bytes).sum();
+    let allocated: usize = arrays.iter().map(|a| a.allocated() * a.texel_bytes).sum();
+    // The all-features kernel reads per-vertex normals and UVs for every hit, so it needs the
+    // shading array even for flat scenes; every other array it declares but the scene lacks is
+    // one zero texel (9 arrays in all).
+    let mut all = allocated;
+    if !packed.features.shading {
+        let texels = packed.triangle_count * SHADING_TEXELS as usize;
+        let (w, h) = texture_shape(texels, MAX_TEXTURE_SIZE).context("shading array too large")?;
+        all += w as usize * h as usize * 16;
+    }
+    all += (9 - arrays.len() - usize::from(!packed.features.shading)) * 16;
+    Ok(Memory { used, allocated, all_features_allocated: all })
+}
+
+fn feature_list(f: &Features) -> String {
+    let names: Vec<&str> = [
+        (f.emissive_triangles, "emissive"),
+        (f.point_lights, "points"),
+        (f.sky, "sky"),
+        (f.textures, "textures"),
+        (f.shading, "shading"),
+    ]
+    .iter()
+    .filter(|(on, _)| *on)
+    .map(|(_, n)| *n)
+    .collect();
+    if names.is_empty() {
+        "none".into()
+    } else {
+        names.join("+")
+    }
+}
+
+fn kib(bytes: usize) -> String {
+    format!("{:.1}", bytes as f64 / 1024.0)
+}
+
+fn main() -> Result<()> {
+    // Every compile must be a real one, not a hit in Mesa's on-disk cache. Set before the first
+    // EGL call, while the process has one thread.
+    std::env::set_var("MESA_SHADER_CACHE_DISABLE", "true");
+    let repeats: u32 = std::env::args().nth(1).map(|a| a.parse()).transpose().context("REPEATS")?.unwrap_or(5).max(1);
+
+    let with_sky = |mut s: Scene, sky: Sky| {
+        s.sky = Some(sky);
+        s
+    };
+    let venice = scene::load_sky(&shared("hdri/venice_sunset_1k.hdr"), 1.0, 0.0).context("venice sky")?;
+    let load = |p: &str| scene::load(&shared(p)).with_context(|| format!("loading {p}"));
+    let scenes: Vec<(&str, Scene)> = vec![
+        ("Cornell box (built-in)", scene::cornell_box()),
+        (
+            "sky-lit plane (uniform sky)",
+            with_sky(scene::diffuse_plane(glam::Vec3::splat(0.6)), Sky::uniform(glam::Vec3::ONE)),
+        ),
+        ("BoxTextured (glTF, texture)", load("khronos/BoxTextured/glTF/BoxTextured.gltf")?),
+        (
+            "BoxTextured + venice_sunset sky",
+            with_sky(load("khronos/BoxTextured/glTF/BoxTextured.gltf")?, venice.clone()),
+        ),
+        ("DamagedHelmet (emissive texture)", load("khronos/DamagedHelmet/glTF/DamagedHelmet.gltf")?),
+        ("LightsPunctualLamp (point lights)", load("khronos/LightsPunctualLamp/glTF/LightsPunctualLamp.gltf")?),
+        ("LittlestTokyo", load("threejs/LittlestTokyo.glb")?),
+    ];
+
+    let context = HeadlessContext::new()?;
+    let renderer = GlRenderer::headless(packed(&scenes[0].1)?, 0)?.info().renderer.clone();
+    println!(
+        "GL: {renderer}; medians of {repeats}; Mesa shader cache off. Each scene's variant and the all-features \
+         kernel are measured alternately over the scene's data; ratios are variant / all-features."
+    );
+    println!();
+    println!(
+        "| scene | triangles | features | GLSL bytes | GLSL lines | WGSL bytes | GL compile+link ms | \
+         GL first frame ms | WebGL2 compile ms |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let mut all = Variant::new(Features::all())?;
+    let mut rows = Vec::new();
+    let mut memory_rows = Vec::new();
+    for (name, scene) in &scenes {
+        let p = packed(scene)?;
+        let mut v = Variant::new(p.features)?;
+        let (mut all_compile, mut all_frame) = (Vec::new(), Vec::new());
+        for _ in 0..repeats {
+            // Alternating, so that the shared machine's load falls on both alike.
+            let before = all.compile_link.len();
+            all.measure(&context, &p, Features::all())?;
+            all_compile.extend_from_slice(&all.compile_link[before..]);
+            all_frame.extend_from_slice(&all.first_frame[before..]);
+            v.measure(&context, &p, p.features)?;
+        }
+        let ratio = |a: f64, b: f64| format!("{:.2}", a / b);
+        let ms = |d: Duration| d.as_secs_f64() * 1e3;
+        let (compile, frame) = (median(v.compile_link.clone()), median(v.first_frame.clone()));
+        let (base_compile, base_frame) = (median(all_compile), median(all_frame));
+        rows.push(format!(
+            "| {name} | {} | {} | {} ({}) | {} ({}) | {} ({}) | {:.1} ({}) | {:.1} ({}) | (web backend) |",
+            p.triangle_count,
+            feature_list(&p.features),
+            v.glsl.source.len(),
+            ratio(v.glsl.source.len() as f64, all.glsl.source.len() as f64),
+            v.glsl_lines,
+            ratio(v.glsl_lines as f64, all.glsl_lines as f64),
+            v.wgsl_bytes,
+            ratio(v.wgsl_bytes as f64, all.wgsl_bytes as f64),
+            ms(compile),
+            ratio(ms(compile), ms(base_compile)),
+            ms(frame),
+            ratio(ms(frame), ms(base_frame)),
+        ));
+        memory_rows.push((name, memory(&p)?));
+    }
+    println!(
+        "| all features (baseline) | - | {} | {} | {} | {} | {:.1} | {:.1} | (web backend) |",
+        feature_list(&Features::all()),
+        all.glsl.source.len(),
+        all.glsl_lines,
+        all.wgsl_bytes,
+        median(all.compile_link.clone()).as_secs_f64() * 1e3,
+        median(all.first_frame.clone()).as_secs_f64() * 1e3,
+    );
+    for row in rows {
+        println!("{row}");
+    }
+    println!();
+    println!("Packed scene data on the GPU (RGBA32F/RGBA32UI textures, power-of-two widths up to {MAX_TEXTURE_SIZE}):");
+    println!();
+    println!("| scene | used KiB | allocated KiB | used / allocated | all-features kernel allocated KiB | variant / all-features |");
+    println!("|---|---|---|---|---|---|");
+    for (name, m) in memory_rows {
+        println!(
+            "| {name} | {} | {} | {:.3} | {} | {:.3} |",
+            kib(m.used),
+            kib(m.allocated),
+            m.used as f64 / m.allocated as f64,
+            kib(m.all_features_allocated),
+            m.allocated as f64 / m.all_features_allocated as f64
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,376 @@
+//! The web path tracer end to end: `lightport serve`, the page and its wasm build (`web/`,
+//! built by `scripts/build-web.sh`) in headless Chromium (Debian's `chromium`, driven by
+//! `tests/web/run.mjs` through npm `playwright-core`). The node script only drives the page and
+//! reports what it saw; the statistics and assertions are here.
+//!
+//! Never skipped: without `web/pkg/`, `node`, `tests/web/node_modules` or `/usr/bin/chromium`
+//! these tests fail and say which command installs the missing piece (`scripts/test.sh` runs
+//! them all).
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::Mutex;
+
+use glam::{DVec3, Vec3};
+use serde_json::Value;
+use tracer::backend::cpu::CpuRenderer;
+use tracer::pack::{pack, Packed, RenderSettings, Strategy};
+use tracer::scene::{self, Scene};
+use tracer::stats::Estimate;
+
+/// |CPU - browser| within 5 combined standard errors per region and channel, as for the native
+/// GL backend (tests/render_gl.rs).
+const Z_BOUND: f64 = 5.0;
+/// Regions per side: the image's 4 x 4 blocks, plus the whole image.
+const BLOCKS: usize = 4;
+/// The render size of the browser tests (SwiftShader is slow; the statistics need many frames).
+const SIZE: u32 = 32;
+/// `lightport serve` packs bundles with the default settings; the page keeps their depth.
+const SERVED_MAX_DEPTH: u32 = 8;
+
+/// One browser at a time: Chromium on SwiftShader takes the machine's cores.
+static BROWSER: Mutex<()> = Mutex::new(());
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn shared(path: &str) -> PathBuf {
+    root().join("../shared").join(path)
+}
+
+/// `lightport serve` on a free port, killed when dropped.
+struct Server {
+    child: Child,
+    url: String,
+}
+
+impl Server {
+    fn start(args: &[&str]) -> Server {
+        assert!(
+            root().join("web/pkg/lightport_web_bg.wasm").is_file(),
+            "web/pkg/ is missing: run scripts/build-web.sh (it builds the wasm module the page loads)"
+        );
+        let mut child = Command::new(env!("CARGO_BIN_EXE_lightport"))
+            .arg("serve")
+            .args(["--port", "0"])
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("lightport serve starts");
+        let stdout = child.stdout.take().expect("piped stdout");
+        let mut lines = BufReader::new(stdout).lines();
+        let url = loop {
+            match lines.next() {
+                Some(Ok(line)) => {
+                    if let Some(at) = line.find("http://") {
+                        break line[at..].trim().to_owned();
+                    }
+                }
+                _ => {
+                    let status = child.wait().expect("exit status");
+                    panic!("lightport serve {args:?} exited ({status}) before printing its URL");
+                }
+            }
+        };
+        // Keep draining stdout so the server never blocks on a full pipe.
+        std::thread::spawn(move || for _ in lines {});
+        Server { child, url }
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Runs one scenario of `tests/web/run.mjs` and returns its JSON report.
+fn browse(server: &Server, scenario: &str, options: &[(&str, &str)]) -> Value {
+    let web_tests = root().join("tests/web");
+    assert!(
+        web_tests.join("node_modules/playwright-core").is_dir(),
+        "tests/web/node_modules is missing: run `npm ci` in tests/web (scripts/test.sh does)"
+    );
+    assert!(Path::new("/usr/bin/chromium").is_file(), "Chromium is missing: apt-get install chromium");
+    let out = std::env::temp_dir().join(format!("lightport-web-{scenario}-{}.json", std::process::id()));
+    let _guard = BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let mut command = Command::new("node");
+    command.current_dir(&web_tests).arg("run.mjs").arg(scenario).args(["--url", &server.url]);
+    command.arg("--out").arg(&out);
+    for (k, v) in options {
+        command.arg(format!("--{k}")).arg(v);
+    }
+    let status = command.status().expect("node runs (apt-get install nodejs npm)");
+    assert!(status.success(), "tests/web/run.mjs {scenario} failed ({status}); see its output above");
+    let text = std::fs::read_to_string(&out).expect("the scenario's report");
+    let _ = std::fs::remove_file(&out);
+    serde_json::from_str(&text).expect("a JSON report")
+}
+
+fn no_page_error(report: &Value) {
+    assert!(report["error"].is_null(), "the page reported an error: {}", report["error"]);
+}
+
+/// Batch means per region and channel: for each batch, the mean of the samples it added over
+/// each 4 x 4 block and (last) the whole image. `sums` are running sums after each batch.
+fn batch_regions(sums: &[Vec<DVec3>], frames_per_batch: f64) -> Vec<Vec<DVec3>> {
+    let size = SIZE as usize;
+    let bs = size / BLOCKS;
+    let mut previous = vec![DVec3::ZERO; size * size];
+    let mut out = Vec::new();
+    for batch in sums {
+        let mut regions = vec![DVec3::ZERO; BLOCKS * BLOCKS + 1];
+        for y in 0..size {
+            for x in 0..size {
+                let i = y * size + x;
+                let sample_mean = (batch[i] - previous[i]) / frames_per_batch;
+                regions[(y / bs) * BLOCKS + x / bs] += sample_mean / (bs * bs) as f64;
+                regions[BLOCKS * BLOCKS] += sample_mean / (size * size) as f64;
+            }
+        }
+        out.push(regions);
+        previous.clone_from(batch);
+    }
+    out
+}
+
+fn estimate(batches: &[Vec<DVec3>], region: usize, channel: usize) -> Estimate {
+    Estimate::from_samples(&batches.iter().map(|b| b[region][channel]).collect::<Vec<_>>())
+}
+
+fn packed(scene: &Scene, strategy: Strategy) -> Packed {
+    let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
+    let settings = RenderSettings { width: SIZE, height: SIZE, strategy, max_depth: SERVED_MAX_DEPTH };
+    pack(scene, &bvh, &settings).expect("pack")
+}
+
+/// Renders `scene_name` in the browser and `scene` on the CPU in `batches` x `frames` frames
+/// and asserts that every region agrees within the bound.
+fn assert_browser_agrees_with_cpu(server: &Server, scene_name: &str, scene: &Scene, strategy: Strategy) {
+    let (batches, frames) = (16usize, 16u32);
+    let size = format!("{SIZE}x{SIZE}");
+    let (batch_text, frame_text) = (batches.to_string(), frames.to_string());
+    let report = browse(
+        server,
+        "accumulate",
+        &[
+            ("scene", scene_name),
+            ("size", &size),
+            ("strategy", strategy.name()),
+            ("batches", &batch_text),
+            ("frames", &frame_text),
+        ],
+    );
+    no_page_error(&report);
+    let info = &report["info"];
+    eprintln!("{scene_name}: {} on {} ({})", info["name"], info["glRenderer"], info["glVersion"]);
+    assert_eq!(info["strategy"], strategy.name());
+    let mut browser_sums = Vec::new();
+    for (b, batch) in report["batches"].as_array().expect("batches").iter().enumerate() {
+        let spp = batch["spp"].as_u64().expect("spp");
+        assert_eq!(spp, (b as u64 + 1) * frames as u64, "frames rendered by batch {b}");
+        assert_eq!((batch["width"].as_u64(), batch["height"].as_u64()), (Some(SIZE as u64), Some(SIZE as u64)));
+        let data: Vec<f64> =
+            batch["data"].as_array().expect("data").iter().map(|v| v.as_f64().unwrap_or(f64::NAN)).collect();
+        assert_eq!(data.len(), (SIZE * SIZE * 4) as usize);
+        // w counts the finite samples: none may have been dropped.
+        let rejected = data.chunks_exact(4).filter(|t| t[3] != spp as f64).count();
+        assert_eq!(rejected, 0, "{scene_name}: pixels with non-finite samples in the browser");
+        browser_sums.push(data.chunks_exact(4).map(|t| DVec3::new(t[0], t[1], t[2])).collect::<Vec<_>>());
+    }
+    assert_eq!(browser_sums.len(), batches);
+
+    let mut cpu = CpuRenderer::new(packed(scene, strategy), 7);
+    let mut cpu_sums = Vec::new();
+    for _ in 0..batches {
+        for _ in 0..frames {
+            cpu.render_frame();
+        }
+        let n = cpu.frames() as f64;
+        cpu_sums.push(cpu.image().pixels.iter().map(|p| p.as_dvec3() * n).collect::<Vec<_>>());
+    }
+    assert_eq!(cpu.rejected_samples(), 0);
+
+    let browser = batch_regions(&browser_sums, frames as f64);
+    let cpu = batch_regions(&cpu_sums, frames as f64);
+    let mut worst = 0.0f64;
+    for region in 0..BLOCKS * BLOCKS + 1 {
+        for c in 0..3 {
+            let (a, b) = (estimate(&cpu, region, c), estimate(&browser, region, c));
+            let z = a.z_score(&b);
+            assert!(
+                z < Z_BOUND,
+                "{scene_name} region {region} channel {c}: CPU {} ± {} vs browser {} ± {} (z = {z:.2})",
+                a.mean,
+                a.std_err,
+                b.mean,
+                b.std_err
+            );
+            worst = worst.max(z);
+        }
+    }
+    let whole = estimate(&browser, BLOCKS * BLOCKS, 1);
+    assert!(whole.mean > 0.0, "{scene_name}: the browser's image is black");
+    eprintln!(
+        "{scene_name} {strategy:?} {SIZE}x{SIZE} x {} frames: max z {worst:.2}; whole-image green {:.4} ± {:.4}",
+        batches as u32 * frames,
+        whole.mean,
+        whole.std_err
+    );
+}
+
+#[test]
+fn the_browser_agrees_with_the_cpu_on_the_cornell_box() {
+    let server = Server::start(&[]);
+    assert_browser_agrees_with_cpu(&server, "cornell-box", &scene::cornell_box(), Strategy::Mis);
+}
+
+#[test]
+fn the_browser_agrees_with_the_cpu_on_a_textured_scene() {
+    let gltf = shared("scenes/khronos/BoxTextured/glTF/BoxTextured.gltf");
+    let sky = shared("scenes/hdri/venice_sunset_1k.hdr");
+    let server = Server::start(&[gltf.to_str().unwrap(), "--sky", sky.to_str().unwrap()]);
+    let mut scene = scene::load(&gltf).expect("BoxTextured");
+    scene.sky = Some(scene::load_sky(&sky, 1.0, 0.0).expect("sky"));
+    assert_browser_agrees_with_cpu(&server, "BoxTextured", &scene, Strategy::Mis);
+}
+
+#[test]
+fn the_second_visit_takes_the_scene_from_the_client_cache() {
+    let server = Server::start(&[]);
+    let report = browse(&server, "cache", &[("scene", "cornell-box"), ("size", "16x16")]);
+    let visit = |name: &str| {
+        let v = &report[name];
+        no_page_error(v);
+        (v["bundleRequests"].as_array().expect("requests").len(), v["bytesFetched"].as_u64().expect("bytes"))
+    };
+    let (requests, bytes) = visit("first");
+    assert_eq!(requests, 1, "the first visit downloads the bundle once: {}", report["first"]);
+    assert!(bytes > 0);
+    let first = &report["first"];
+    assert_eq!(first["usage"]["scenes"], 1, "{first}");
+    assert_eq!(first["usage"]["bytes"].as_u64(), Some(bytes), "the cache holds the bundle: {first}");
+
+    let (requests, bytes) = visit("second");
+    assert_eq!((requests, bytes), (0, 0), "the second visit fetches no scene bytes: {}", report["second"]);
+    assert_eq!(report["second"]["sources"][0]["fromCache"], true);
+    let readout = report["second"]["readout"].as_str().unwrap_or("");
+    assert!(readout.contains("1 scene"), "the page shows the cache use: {readout:?}");
+
+    assert_eq!(report["cleared"]["usage"]["scenes"], 0, "clear cache empties it");
+    let (requests, bytes) = visit("third");
+    assert!(requests == 1 && bytes > 0, "after clearing, the scene is downloaded again: {}", report["third"]);
+}
+
+#[test]
+fn camera_input_restarts_the_accumulation() {
+    let server = Server::start(&[]);
+    let report = browse(&server, "camera", &[("scene", "cornell-box"), ("size", "32x32")]);
+    no_page_error(&report);
+    let steps = &report["steps"];
+    let step = |name: &str| steps[name].as_u64().unwrap_or_else(|| panic!("{name} in {steps}"));
+    assert_eq!(step("beforeDrag"), 8);
+    assert_eq!(step("afterDrag"), 0, "a mouse drag restarts the accumulation: {steps}");
+    assert_eq!(step("afterDragRendered"), 8);
+    assert_eq!(step("afterWheel"), 0, "the wheel restarts the accumulation: {steps}");
+    assert_eq!(step("afterWheelRendered"), 3);
+    assert_eq!(step("afterStrategy"), 0, "a strategy change restarts the accumulation: {steps}");
+    // The drag turned the view: the image changed (the box's walls moved across the pixels).
+    let image =
+        |name: &str| -> Vec<f64> { report[name].as_array().expect("image").iter().filter_map(Value::as_f64).collect() };
+    let (before, after) = (image("before"), image("after"));
+    assert_eq!(before.len(), after.len());
+    let changed = before
+        .chunks_exact(4)
+        .zip(after.chunks_exact(4))
+        .filter(|(a, b)| (a[0] - b[0]).abs() > 0.5 * (a[0].abs() + 1.0))
+        .count();
+    assert!(changed > before.len() / 4 / 20, "the drag must move the view: {changed} pixels changed");
+}
+
+#[test]
+fn a_bad_dropped_file_shows_an_error_and_the_page_keeps_working() {
+    let server = Server::start(&[]);
+    let dir = shared("scenes/khronos/BoxTextured/glTF");
+    let files: Vec<String> = ["BoxTextured.gltf", "BoxTextured0.bin", "CesiumLogoFlat.png"]
+        .iter()
+        .map(|f| dir.join(f).to_string_lossy().into_owned())
+        .collect();
+    let files = files.join(",");
+    let report = browse(&server, "drop", &[("scene", "cornell-box"), ("size", "16x16"), ("files", &files)]);
+    no_page_error(&report);
+    let bad = report["badError"].as_str().expect("an error for the broken file");
+    assert!(bad.contains("broken.glb"), "the error names the file: {bad}");
+    assert_eq!(report["messageVisible"], true, "the error is shown on the page");
+    let after = &report["afterBad"];
+    assert_eq!(after["name"], "cornell-box", "the previous scene stays: {after}");
+    assert_eq!(after["after"].as_u64(), after["before"].as_u64().map(|n| n + 2), "it keeps rendering: {after}");
+    let good = &report["good"];
+    assert!(good["error"].is_null(), "{good}");
+    assert_eq!(good["info"]["name"], "BoxTextured.gltf", "{good}");
+    assert_eq!(good["info"]["triangles"], 12);
+    assert_eq!(good["info"]["features"]["textures"], true, "the dropped PNG was found: {good}");
+    assert_eq!(good["spp"], 2);
+}
+
+#[test]
+fn a_scene_beyond_the_texture_limit_is_reported_on_the_page() {
+    let server = Server::start(&[]);
+    let report = browse(&server, "limits", &[("scene", "cornell-box"), ("size", "16x16"), ("limit", "4")]);
+    let error = report["error"].as_str().expect("an error");
+    assert!(error.contains("GL_MAX_TEXTURE_SIZE 4"), "{error}");
+    assert!(report["messageText"].as_str().unwrap_or("").contains("does not fit"), "{report}");
+}
+
+#[test]
+fn the_page_survives_webgl_context_loss() {
+    let server = Server::start(&[]);
+    let report = browse(&server, "context", &[("scene", "cornell-box"), ("size", "16x16")]);
+    no_page_error(&report);
+    let message = report["whileLost"]["message"].as_str().unwrap_or("");
+    assert!(message.contains("lost"), "the loss is shown: {message:?}");
+    let restored = &report["restored"];
+    assert!(restored["error"].is_null(), "{restored}");
+    assert_eq!(restored["spp"], 3, "rendering continues after the restore: {restored}");
+    assert!(restored["sum"].as_f64().unwrap_or(0.0) > 0.0, "the restored renderer draws the scene");
+}
+
+/// The viewer's camera changes go through `GlRenderer::set_uniforms`, which must restart the
+/// accumulation and render exactly what a renderer created at the new camera renders (same
+/// seed, same device). Native GL (EGL), no browser.
+#[test]
+fn set_uniforms_renders_like_a_fresh_renderer() {
+    use tracer::backend::gl::GlRenderer;
+    let base = packed(&scene::cornell_box(), Strategy::Mis);
+    let mut moved = base.clone();
+    moved.scene.camera_position += Vec3::new(0.2, -0.1, 0.3);
+    moved.scene.strategy = Strategy::Nee.uniform_value();
+    let camera = (moved.scene.camera_position, moved.scene.strategy);
+
+    let mut reused = GlRenderer::headless(base, 5).expect("GL");
+    for _ in 0..3 {
+        reused.render_frame().expect("frame");
+    }
+    reused
+        .set_uniforms(|s| {
+            s.camera_position = camera.0;
+            s.strategy = camera.1;
+        })
+        .expect("set_uniforms");
+    assert_eq!(reused.frames(), 0);
+    let mut fresh = GlRenderer::headless(moved, 5).expect("GL");
+    for _ in 0..4 {
+        reused.render_frame().expect("frame");
+        fresh.render_frame().expect("frame");
+    }
+    let (a, b) = (reused.accumulation().expect("readback"), fresh.accumulation().expect("readback"));
+    assert!(a.iter().zip(&b).all(|(x, y)| x == y), "same uniforms and seed must give the same accumulation");
+
+    let err = reused.set_uniforms(|s| s.width += 1).expect_err("the size is fixed");
+    assert!(err.to_string().contains("fixed"), "{err}");
+    assert_eq!(reused.packed().scene.width, SIZE, "a refused change leaves the size as it was");
+}

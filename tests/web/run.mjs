@@ -1,0 +1,319 @@
+// Drives the Lightport page in headless Chromium (Debian's /usr/bin/chromium through
+// playwright-core) and writes what it observed as JSON. It decides nothing: the Rust side
+// (tests/web.rs, examples/bench_web.rs) does the statistics and the assertions.
+//
+//   node run.mjs SCENARIO --url http://127.0.0.1:PORT/ --out result.json [options]
+//
+// Scenarios: accumulate, cache, camera, drop, limits, context, bench (see each function).
+
+import { chromium } from 'playwright-core';
+import { mkdtempSync, rmSync, writeFileSync, readFileSync } from 'node:fs';
+import { tmpdir } from 'node:os';
+import { join } from 'node:path';
+
+const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
+// The flags DESIGN.md lists for WebGL2 on SwiftShader (the user data dir is given separately).
+const ARGS = [
+  '--headless=new', '--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--disable-gpu',
+  '--disable-background-networking', '--disable-component-update', '--disable-sync', '--no-first-run',
+  '--disable-quic',
+];
+
+function parseArgs(argv) {
+  const [scenario, ...rest] = argv;
+  const options = { scenario };
+  for (let i = 0; i < rest.length; i += 2) {
+    if (!rest[i].startsWith('--')) throw new Error(`unexpected argument ${rest[i]}`);
+    options[rest[i].slice(2)] = rest[i + 1];
+  }
+  for (const required of ['url', 'out']) {
+    if (!options[required]) throw new Error(`--${required} is required`);
+  }
+  return options;
+}
+
+async function withBrowser(profile, action) {
+  const context = await chromium.launchPersistentContext(profile, {
+    executablePath: CHROMIUM,
+    headless: true,
+    args: ARGS,
+    viewport: { width: 900, height: 700 },
+  });
+  try {
+    return await action(context);
+  } finally {
+    await context.close();
+  }
+}
+
+function freshProfile() {
+  return mkdtempSync(join(tmpdir(), 'lightport-chromium-'));
+}
+
+// Opens the page and waits until the first scene is shown (or the page reports why not).
+// Records every request the page makes and the console's errors.
+async function open(context, baseUrl, query, timeoutMs = 240000) {
+  const page = context.pages()[0] || (await context.newPage());
+  const requests = [];
+  const consoleErrors = [];
+  page.on('request', (r) => requests.push(new URL(r.url()).pathname));
+  page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
+  page.on('pageerror', (e) => consoleErrors.push(String(e)));
+  const url = new URL(baseUrl);
+  for (const [k, v] of Object.entries(query)) url.searchParams.set(k, v);
+  const navigationStart = Date.now();
+  await page.goto(url.toString());
+  await page.waitForFunction(() => window.lightport && window.lightport.ready, null, { timeout: timeoutMs });
+  const state = await page.evaluate(() => ({ error: window.lightport.error, info: window.lightport.info() }));
+  return { page, requests, consoleErrors, navigationStart, ...state };
+}
+
+function bundleRequests(requests) {
+  return requests.filter((p) => p.startsWith('/bundles/'));
+}
+
+// Renders `batches` x `frames` frames of a scene at a small size, reading the accumulation
+// back after each batch: independent batch means for the statistics.
+async function accumulate(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const { page, error, info, consoleErrors } =
+        await open(context, o.url, { scene: o.scene, size: o.size, strategy: o.strategy, paused: '1' });
+      if (error) return { error, consoleErrors };
+      const batches = [];
+      for (let b = 0; b < Number(o.batches); b++) {
+        await page.evaluate((n) => window.lightport.renderFrames(n), Number(o.frames));
+        batches.push(await page.evaluate(() => window.lightport.readAccumulation()));
+      }
+      return { info, batches, consoleErrors };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
+// Two visits with the same browser profile: the second must take the scene from the page's
+// cache. Reports the bundle requests and bytes of each visit, and the cache read-out.
+async function cache(o) {
+  const profile = freshProfile();
+  const visit = async () => withBrowser(profile, async (context) => {
+    const { page, requests, error, consoleErrors } = await open(context, o.url, { scene: o.scene, size: o.size });
+    await page.waitForFunction(() => window.lightport.frames > 0, null, { timeout: 120000 });
+    return {
+      error,
+      consoleErrors,
+      bundleRequests: bundleRequests(requests),
+      bytesFetched: await page.evaluate(() => window.lightport.bytesFetched),
+      sources: await page.evaluate(() => window.lightport.bundleSources),
+      usage: await page.evaluate(() => window.lightport.cacheUsage()),
+      readout: await page.textContent('#cache-use'),
+    };
+  });
+  try {
+    const first = await visit();
+    const second = await visit();
+    // "Clear cache" empties it: a third visit downloads again.
+    const cleared = await withBrowser(profile, async (context) => {
+      const { page } = await open(context, o.url, { scene: o.scene, size: o.size });
+      await page.click('#clear-cache');
+      await page.waitForFunction(() => window.lightport.cacheUsage().scenes === 0, null, { timeout: 10000 });
+      return { usage: await page.evaluate(() => window.lightport.cacheUsage()) };
+    });
+    const third = await visit();
+    return { first, second, cleared, third };
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
+// Mouse and wheel input on the canvas restart the accumulation.
+async function camera(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const { page, error } = await open(context, o.url, { scene: o.scene, size: o.size, paused: '1' });
+      if (error) return { error };
+      const spp = () => page.evaluate(() => window.lightport.spp());
+      const render = (n) => page.evaluate((k) => window.lightport.renderFrames(k), n);
+      const image = () => page.evaluate(() => window.lightport.readAccumulation().data);
+      const box = await page.locator('#view').boundingBox();
+      const cx = box.x + box.width / 2;
+      const cy = box.y + box.height / 2;
+      const steps = {};
+      await render(8);
+      steps.beforeDrag = await spp();
+      const before = await image();
+      await page.mouse.move(cx, cy);
+      await page.mouse.down();
+      await page.mouse.move(cx + 60, cy + 10, { steps: 4 });
+      await page.mouse.up();
+      steps.afterDrag = await spp();
+      await render(8);
+      steps.afterDragRendered = await spp();
+      const after = await image();
+      await page.mouse.move(cx, cy);
+      await page.mouse.wheel(0, 200);
+      await page.waitForTimeout(100);
+      steps.afterWheel = await spp();
+      await render(3);
+      steps.afterWheelRendered = await spp();
+      await page.selectOption('#strategy', 'nee');
+      steps.afterStrategy = await spp();
+      const errorAfter = await page.evaluate(() => window.lightport.error);
+      return { steps, before, after, error: errorAfter };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
+// A broken file dropped on the page shows an error and the page keeps rendering; then a
+// good .gltf with its files (through the file input) replaces the scene.
+async function drop(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const { page, error } = await open(context, o.url, { scene: o.scene, size: o.size, paused: '1' });
+      if (error) return { error };
+      await page.evaluate(() => window.lightport.renderFrames(2));
+      // A real drop event with a DataTransfer, as a file manager would send.
+      await page.evaluate(() => {
+        const data = new DataTransfer();
+        data.items.add(new File([new Uint8Array([0x67, 0x6c, 0x54, 0x46, 2, 0, 0, 0, 99, 1, 2])], 'broken.glb'));
+        document.dispatchEvent(new DragEvent('drop', { dataTransfer: data, bubbles: true, cancelable: true }));
+      });
+      await page.waitForFunction(() => window.lightport.error, null, { timeout: 30000 });
+      const badError = await page.evaluate(() => window.lightport.error);
+      const messageVisible = await page.isVisible('#message');
+      const messageText = await page.textContent('#message');
+      const afterBad = await page.evaluate(() => {
+        const before = window.lightport.spp();
+        window.lightport.renderFrames(2);
+        return { before, after: window.lightport.spp(), name: window.lightport.info().name };
+      });
+      const files = (o.files || '').split(',').filter(Boolean).map((path) => ({
+        name: path.split('/').pop(),
+        mimeType: 'application/octet-stream',
+        buffer: readFileSync(path),
+      }));
+      let good = null;
+      if (files.length) {
+        await page.evaluate(() => { window.lightport.error = null; });
+        await page.setInputFiles('#file-input', files);
+        await page.waitForFunction(
+          (name) => window.lightport.error || window.lightport.info().name === name,
+          files[0].name,
+          { timeout: 120000 },
+        );
+        const rendered = await page.evaluate(() => {
+          window.lightport.renderFrames(2);
+          return { spp: window.lightport.spp(), info: window.lightport.info(), error: window.lightport.error };
+        });
+        good = { ...rendered, readout: await page.textContent('#scene-info') };
+      }
+      return { badError, messageVisible, messageText, afterBad, good };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
+// A device texture limit too small for the scene is reported on the page.
+async function limits(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const { page, error } =
+        await open(context, o.url, { scene: o.scene, size: o.size, paused: '1', maxTextureSize: o.limit });
+      return { error, messageText: await page.textContent('#message'), info: await page.evaluate(() => window.lightport.info()) };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
+// WEBGL_lose_context: the page shows the loss, then recreates the renderer and continues.
+async function contextLoss(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const { page, error } = await open(context, o.url, { scene: o.scene, size: o.size, paused: '1' });
+      if (error) return { error };
+      await page.evaluate(() => window.lightport.renderFrames(4));
+      await page.evaluate(() => {
+        const gl = document.querySelector('#view').getContext('webgl2');
+        window.__loseContext = gl.getExtension('WEBGL_lose_context');
+        window.__loseContext.loseContext();
+      });
+      await page.waitForFunction(() => window.lightport.info().contextLost, null, { timeout: 10000 });
+      const whileLost = await page.evaluate(() => ({
+        message: document.querySelector('#message').textContent,
+        spp: window.lightport.spp(),
+      }));
+      await page.evaluate(() => window.__loseContext.restoreContext());
+      await page.waitForFunction(() => !window.lightport.info().contextLost, null, { timeout: 30000 });
+      const restored = await page.evaluate(() => {
+        window.lightport.renderFrames(3);
+        return { spp: window.lightport.spp(), error: window.lightport.error, sum: window.lightport.readAccumulation().data.reduce((a, b) => a + b, 0) };
+      });
+      return { whileLost, restored };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
+// Frame time at a fixed size, and navigation-to-first-frame with a cold and a warm cache.
+async function bench(o) {
+  const results = [];
+  for (const scene of o.scenes.split(',')) {
+    const profile = freshProfile();
+    try {
+      const row = { scene };
+      for (const visit of ['cold', 'warm']) {
+        await withBrowser(profile, async (context) => {
+          const { page, error, navigationStart } = await open(context, o.url, { scene, size: o.size, paused: '1' });
+          if (error) throw new Error(`${scene}: ${error}`);
+          await page.evaluate(() => window.lightport.renderFrames(1));
+          const timing = await page.evaluate(() => ({
+            firstFrameMs: window.lightport.firstFrameMs,
+            fromCache: window.lightport.bundleSources.at(-1).fromCache,
+            bytes: window.lightport.bundleSources.at(-1).bytes,
+          }));
+          row[`${visit}FirstFrameMs`] = timing.firstFrameMs;
+          row[`${visit}FromCache`] = timing.fromCache;
+          row.bundleBytes = timing.bytes;
+          row[`${visit}WallMs`] = Date.now() - navigationStart;
+          if (visit === 'warm') {
+            await page.evaluate(() => window.lightport.renderFrames(2)); // warm up
+            const frames = Number(o.frames);
+            row.frameMs = await page.evaluate((n) => window.lightport.renderFrames(n), frames);
+            row.info = await page.evaluate(() => window.lightport.info());
+          }
+        });
+      }
+      results.push(row);
+      process.stderr.write(`${JSON.stringify(row)}\n`);
+    } finally {
+      rmSync(profile, { recursive: true, force: true });
+    }
+  }
+  return { results };
+}
+
+const SCENARIOS = { accumulate, cache, camera, drop, limits, context: contextLoss, bench };
+
+const options = parseArgs(process.argv.slice(2));
+const run = SCENARIOS[options.scenario];
+if (!run) {
+  console.error(`unknown scenario ${options.scenario}: ${Object.keys(SCENARIOS).join(', ')}`);
+  process.exit(2);
+}
+try {
+  const result = await run(options);
+  writeFileSync(options.out, JSON.stringify(result));
+} catch (e) {
+  console.error(e && e.stack ? e.stack : String(e));
+  process.exit(1);
+}

@@ -1,0 +1,437 @@
+// The page around the wasm viewer: the frame loop, camera input, controls, read-outs, the
+// scene list and the bundle cache. Query parameters (for tests and benchmarks):
+//   scene=NAME        the served scene to open first (default: the first listed)
+//   size=WxH          a fixed render size instead of the canvas size x resolution scale
+//   strategy=mis|nee|bsdf, paused=1 (no frame loop: frames only through the test hook),
+//   budget=BYTES      the cache budget.
+
+import init, { Viewer } from './pkg/lightport_web.js';
+import { BundleCache, DEFAULT_BUDGET_BYTES } from './cache.js';
+
+const params = new URLSearchParams(location.search);
+const $ = (id) => document.getElementById(id);
+const canvas = $('view');
+const stage = $('stage');
+
+const cache = new BundleCache(Number(params.get('budget')) || DEFAULT_BUDGET_BYTES);
+let viewer = null;
+let scenes = [];
+let currentName = '';
+let paused = params.get('paused') === '1';
+let lost = false;
+let busy = false; // a scene is being loaded
+let hasScene = false;
+const fixedSize = /^(\d+)x(\d+)$/.exec(params.get('size') || '');
+
+// The test hook: what the browser tests read and drive.
+const hook = {
+  ready: false, // wasm loaded, first scene shown (or failed: see `error`)
+  frames: 0, // frames rendered by this page, all scenes together
+  error: null, // the last error shown to the user
+  firstFrameMs: null, // performance.now() at the first frame drawn (from navigation start)
+  bundleSources: [], // per loaded bundle: { name, fromCache, bytes }
+  get bytesFetched() { return cache.bytesFetched; },
+  spp: () => (viewer ? viewer.spp() : 0),
+  info: () => (viewer ? viewer.sceneInfo() : null),
+  cacheUsage: () => cache.usage(),
+  pause() { paused = true; },
+  resume() { paused = false; },
+  // Renders `n` frames now and waits for the GPU; returns milliseconds per frame.
+  renderFrames(n) {
+    const start = performance.now();
+    for (let i = 0; i < n; i++) frame();
+    viewer.sync();
+    return (performance.now() - start) / Math.max(n, 1);
+  },
+  // { width, height, spp, data: number[] (rgba per pixel, rows from the top; rgb sum, a count) }
+  readAccumulation() {
+    const info = viewer.sceneInfo();
+    return { width: info.width, height: info.height, spp: viewer.spp(), data: Array.from(viewer.readAccumulation()) };
+  },
+  loadScene: (name) => loadServedScene(name),
+  setStrategy: (name) => guarded(() => { viewer.setStrategy(name); $('strategy').value = name; }),
+  orbit: (yaw, pitch) => guarded(() => viewer.orbit(yaw, pitch)),
+  clearCache: () => clearCache(),
+  get viewer() { return viewer; },
+};
+window.lightport = hook;
+
+function showMessage(text, kind = 'error') {
+  const box = $('message');
+  box.textContent = text;
+  box.className = kind;
+  box.hidden = false;
+  if (kind === 'error') {
+    hook.error = text;
+    console.error(text);
+  }
+}
+
+function hideMessage() {
+  $('message').hidden = true;
+}
+
+function guarded(action) {
+  try {
+    return action();
+  } catch (e) {
+    showMessage(String(e.message || e));
+    return undefined;
+  }
+}
+
+function formatBytes(n) {
+  const units = ['B', 'KB', 'MB', 'GB'];
+  let i = 0;
+  while (n >= 1000 && i < units.length - 1) { n /= 1000; i++; }
+  return `${n.toFixed(i === 0 ? 0 : 1)} ${units[i]}`;
+}
+
+function formatRate(n) {
+  if (!Number.isFinite(n) || n <= 0) return '–';
+  const units = ['', 'k', 'M', 'G'];
+  let i = 0;
+  while (n >= 1000 && i < units.length - 1) { n /= 1000; i++; }
+  return `${n.toFixed(1)}${units[i]}`;
+}
+
+// ---- frame loop -------------------------------------------------------------------------
+
+let frameMs = null; // moving average of the time between rendered frames
+let lastFrameAt = null;
+
+function frame() {
+  if (!viewer || lost) return;
+  try {
+    viewer.frame();
+  } catch (e) {
+    showMessage(String(e.message || e));
+    paused = true;
+    return;
+  }
+  hook.frames++;
+  if (hook.firstFrameMs === null) {
+    viewer.sync(); // the first frame counts once it is on screen, not when it is queued
+    hook.firstFrameMs = performance.now();
+  }
+}
+
+function tick(now) {
+  if (!paused && !busy && viewer && !lost && hasScene) {
+    applyHeldKeys(now);
+    frame();
+    if (lastFrameAt !== null) {
+      const dt = now - lastFrameAt;
+      frameMs = frameMs === null ? dt : 0.9 * frameMs + 0.1 * dt;
+    }
+    lastFrameAt = now;
+  } else {
+    lastFrameAt = null;
+  }
+  updateReadouts();
+  requestAnimationFrame(tick);
+}
+
+function updateReadouts() {
+  if (!viewer) return;
+  const info = viewer.sceneInfo();
+  $('spp').textContent = info.spp;
+  $('size').textContent = `${info.width}×${info.height}`;
+  if (frameMs !== null) {
+    const samples = (info.width * info.height * 1000) / frameMs;
+    const segmentRays = info.strategy === 'bsdf' ? 1 : 2;
+    $('frame-time').textContent = `${frameMs.toFixed(1)} ms`;
+    $('samples-rate').textContent = formatRate(samples);
+    $('ray-rate').textContent = formatRate(samples * info.maxDepth * segmentRays);
+  }
+  $('bytes-fetched').textContent = formatBytes(cache.bytesFetched);
+}
+
+function updateCacheReadout() {
+  const u = cache.usage();
+  $('cache-use').textContent = cache.available
+    ? `${formatBytes(u.bytes)} of ${formatBytes(u.budget)}, ${u.scenes} scene${u.scenes === 1 ? '' : 's'}`
+    : 'unavailable (the Cache API needs a secure context)';
+}
+
+// ---- size ---------------------------------------------------------------------------------
+
+function renderSize() {
+  if (fixedSize) return [Number(fixedSize[1]), Number(fixedSize[2])];
+  const scale = Number($('scale').value);
+  const dpr = window.devicePixelRatio || 1;
+  const w = Math.max(1, Math.round(stage.clientWidth * dpr * scale));
+  const h = Math.max(1, Math.round(stage.clientHeight * dpr * scale));
+  return [w, h];
+}
+
+function applySize() {
+  if (!viewer) return;
+  const [w, h] = renderSize();
+  guarded(() => viewer.setSize(w, h));
+  frameMs = null;
+}
+
+// ---- scenes -------------------------------------------------------------------------------
+
+async function loadServedScene(name) {
+  const scene = scenes.find((s) => s.name === name);
+  if (!scene) {
+    showMessage(`unknown scene ${name}`);
+    return;
+  }
+  busy = true;
+  showMessage(`loading ${scene.name} (${formatBytes(scene.bytes.raw)})…`, 'info');
+  try {
+    const { bytes, fromCache } = await cache.fetch(scene.url, (received) => {
+      showMessage(`downloading ${scene.name}: ${formatBytes(received)}`, 'info');
+    });
+    hook.bundleSources.push({ name: scene.name, fromCache, bytes: bytes.byteLength });
+    viewer.loadBundle(new Uint8Array(bytes));
+    hasScene = true;
+    currentName = scene.name;
+    $('scene').value = scene.name;
+    $('screenshot').disabled = false;
+    $('scene-info').textContent = `${scene.name}: ${scene.triangles.toLocaleString()} triangles${fromCache ? ' (cached)' : ''}`;
+    hideMessage();
+  } catch (e) {
+    showMessage(`${scene.name}: ${e.message || e}`);
+  } finally {
+    busy = false;
+    frameMs = null;
+    updateCacheReadout();
+  }
+}
+
+async function loadFiles(fileList) {
+  const files = Array.from(fileList || []);
+  if (files.length === 0) return;
+  busy = true;
+  showMessage(`loading ${files.map((f) => f.name).join(', ')}…`, 'info');
+  try {
+    for (const file of files) {
+      const bytes = new Uint8Array(await file.arrayBuffer());
+      viewer.addDroppedFile(file.webkitRelativePath || file.name, bytes);
+    }
+    const info = viewer.loadDropped();
+    hasScene = true;
+    currentName = info.name;
+    $('scene').value = '';
+    $('screenshot').disabled = false;
+    $('scene-info').textContent =
+      `${info.name}: ${info.triangles.toLocaleString()} triangles, loaded in ${info.loadMs.toFixed(0)} ms, ` +
+      `BVH + pack ${info.buildAndPackMs.toFixed(0)} ms`;
+    if (info.warnings) showMessage(`${info.name}: ${info.warnings}`, 'info');
+    else hideMessage();
+  } catch (e) {
+    showMessage(`could not open the dropped files: ${e.message || e}`);
+  } finally {
+    busy = false;
+    frameMs = null;
+  }
+}
+
+async function clearCache() {
+  await cache.clear();
+  updateCacheReadout();
+}
+
+// ---- camera input -------------------------------------------------------------------------
+
+const pointers = new Map(); // pointerId -> {x, y}
+const heldKeys = new Set();
+let lastKeysAt = null;
+
+function cameraAction(action) {
+  guarded(action);
+  frameMs = null;
+}
+
+canvas.addEventListener('pointerdown', (e) => {
+  canvas.setPointerCapture(e.pointerId);
+  canvas.focus();
+  pointers.set(e.pointerId, { x: e.clientX, y: e.clientY, button: e.button, shift: e.shiftKey });
+});
+
+canvas.addEventListener('pointermove', (e) => {
+  const p = pointers.get(e.pointerId);
+  if (!p || !viewer) return;
+  const height = canvas.clientHeight || 1;
+  if (pointers.size === 2) {
+    // Two fingers: pinch to dolly, move together to pan.
+    const [a, b] = [...pointers.values()];
+    const before = Math.hypot(a.x - b.x, a.y - b.y);
+    const dx = (e.clientX - p.x) / 2;
+    const dy = (e.clientY - p.y) / 2;
+    p.x = e.clientX;
+    p.y = e.clientY;
+    const after = Math.hypot(a.x - b.x, a.y - b.y);
+    cameraAction(() => {
+      if (before > 0 && after > 0) viewer.dolly(before / after);
+      viewer.pan(-dx / height, dy / height);
+    });
+    return;
+  }
+  const dx = e.clientX - p.x;
+  const dy = e.clientY - p.y;
+  p.x = e.clientX;
+  p.y = e.clientY;
+  if (dx === 0 && dy === 0) return;
+  const radians = Math.PI / height;
+  const fly = $('mode').value === 'fly';
+  if (p.button === 2 || p.button === 1 || p.shift) {
+    cameraAction(() => viewer.pan(-dx / height, dy / height));
+  } else if (fly) {
+    cameraAction(() => viewer.look(dx * radians * 0.5, -dy * radians * 0.5));
+  } else {
+    cameraAction(() => viewer.orbit(dx * radians, -dy * radians));
+  }
+});
+
+for (const type of ['pointerup', 'pointercancel']) {
+  canvas.addEventListener(type, (e) => pointers.delete(e.pointerId));
+}
+canvas.addEventListener('contextmenu', (e) => e.preventDefault());
+
+canvas.addEventListener('wheel', (e) => {
+  e.preventDefault();
+  if (viewer) cameraAction(() => viewer.dolly(Math.exp(Math.max(-100, Math.min(100, e.deltaY)) * 0.002)));
+}, { passive: false });
+
+const FLY_KEYS = { w: [1, 0, 0], s: [-1, 0, 0], a: [0, -1, 0], d: [0, 1, 0], e: [0, 0, 1], q: [0, 0, -1] };
+canvas.addEventListener('keydown', (e) => {
+  const key = e.key.toLowerCase();
+  if (key in FLY_KEYS) {
+    heldKeys.add(key);
+    e.preventDefault();
+  }
+});
+canvas.addEventListener('keyup', (e) => heldKeys.delete(e.key.toLowerCase()));
+canvas.addEventListener('blur', () => heldKeys.clear());
+
+// Fly keys move at a quarter of the scene's size per second while held.
+function applyHeldKeys(now) {
+  if (heldKeys.size === 0 || !viewer) {
+    lastKeysAt = null;
+    return;
+  }
+  const dt = lastKeysAt === null ? 1 / 60 : Math.min(0.1, (now - lastKeysAt) / 1000);
+  lastKeysAt = now;
+  const step = [0, 0, 0];
+  for (const key of heldKeys) FLY_KEYS[key].forEach((v, i) => { step[i] += v * dt * 0.25; });
+  cameraAction(() => viewer.fly(step[0], step[1], step[2]));
+}
+
+// ---- drop zone ----------------------------------------------------------------------------
+
+let dragDepth = 0;
+document.addEventListener('dragenter', (e) => {
+  e.preventDefault();
+  dragDepth++;
+  $('drop-hint').hidden = false;
+});
+document.addEventListener('dragleave', () => {
+  dragDepth = Math.max(0, dragDepth - 1);
+  if (dragDepth === 0) $('drop-hint').hidden = true;
+});
+document.addEventListener('dragover', (e) => e.preventDefault());
+document.addEventListener('drop', (e) => {
+  e.preventDefault();
+  dragDepth = 0;
+  $('drop-hint').hidden = true;
+  loadFiles(e.dataTransfer && e.dataTransfer.files);
+});
+$('file-input').addEventListener('change', (e) => {
+  loadFiles(e.target.files);
+  e.target.value = '';
+});
+
+// ---- controls -----------------------------------------------------------------------------
+
+$('scene').addEventListener('change', (e) => { if (e.target.value) loadServedScene(e.target.value); });
+$('strategy').addEventListener('change', (e) => cameraAction(() => viewer.setStrategy(e.target.value)));
+$('scale').addEventListener('change', applySize);
+$('reset-camera').addEventListener('click', () => cameraAction(() => viewer.resetCamera()));
+$('clear-cache').addEventListener('click', clearCache);
+$('screenshot').addEventListener('click', () => guarded(() => {
+  const png = viewer.screenshotPng();
+  const link = document.createElement('a');
+  link.href = URL.createObjectURL(new Blob([png], { type: 'image/png' }));
+  link.download = `${currentName.replace(/\.[^.]*$/, '') || 'lightport'}-${viewer.spp()}spp.png`;
+  link.click();
+  setTimeout(() => URL.revokeObjectURL(link.href), 10000);
+}));
+
+if (!fixedSize) {
+  stage.classList.add('fill');
+  let resizeTimer = null;
+  new ResizeObserver(() => {
+    clearTimeout(resizeTimer);
+    resizeTimer = setTimeout(applySize, 200); // recreating the renderer is not free
+  }).observe(stage);
+}
+
+// ---- context loss -------------------------------------------------------------------------
+
+canvas.addEventListener('webglcontextlost', (e) => {
+  e.preventDefault(); // tells the browser the page will handle restoration
+  lost = true;
+  if (viewer) viewer.contextLost();
+  showMessage('The WebGL context was lost (GPU reset or too many contexts); waiting for the browser to restore it…', 'info');
+});
+canvas.addEventListener('webglcontextrestored', () => {
+  lost = false;
+  if (!viewer) return;
+  try {
+    viewer.contextRestored();
+    hideMessage();
+  } catch (e) {
+    showMessage(`restoring the WebGL context failed: ${e.message || e}`);
+  }
+});
+
+// ---- start --------------------------------------------------------------------------------
+
+async function main() {
+  try {
+    await init();
+  } catch (e) {
+    showMessage(`the WebAssembly module did not load: ${e.message || e}`);
+    hook.ready = true;
+    return;
+  }
+  try {
+    viewer = new Viewer(canvas);
+  } catch (e) {
+    showMessage(String(e.message || e));
+    hook.ready = true;
+    return;
+  }
+  const [w, h] = renderSize();
+  guarded(() => viewer.setSize(w, h));
+  if (params.get('maxTextureSize')) viewer.setMaxTextureSize(Number(params.get('maxTextureSize')));
+  if (params.get('strategy')) hook.setStrategy(params.get('strategy'));
+  await cache.reconcile().catch((e) => console.warn(`cache: ${e}`));
+  updateCacheReadout();
+  try {
+    const response = await fetch('/scenes.json');
+    if (!response.ok) throw new Error(`HTTP ${response.status}`);
+    scenes = (await response.json()).scenes || [];
+  } catch (e) {
+    showMessage(`the scene list (/scenes.json) did not load: ${e.message || e}; drop a .glb to render it`);
+  }
+  const select = $('scene');
+  for (const s of scenes) {
+    const option = document.createElement('option');
+    option.value = s.name;
+    option.textContent = `${s.name} (${s.triangles.toLocaleString()} triangles, ${formatBytes(s.bytes.raw)})`;
+    select.append(option);
+  }
+  select.disabled = scenes.length === 0;
+  const first = params.get('scene') || (scenes[0] && scenes[0].name);
+  if (first) await loadServedScene(first);
+  hook.ready = true;
+  requestAnimationFrame(tick);
+}
+
+main();
