@@ -130,9 +130,6 @@ fn render(args: &RenderArgs) -> Result<()> {
         scene.sky = Some(s);
     }
     let load_time = t0.elapsed();
-    let t1 = Instant::now();
-    let bvh = tracer::bvh::build(&scene.triangles).context("building the BVH")?;
-    let bvh_time = t1.elapsed();
     let settings = RenderSettings {
         width: args.width,
         height: args.height,
@@ -143,9 +140,10 @@ fn render(args: &RenderArgs) -> Result<()> {
         },
         max_depth: args.max_depth,
     };
-    let t2 = Instant::now();
-    let packed = tracer::pack::pack(&scene, &bvh, &settings).context("packing the scene")?;
-    let pack_time = t2.elapsed();
+    // Textures are packed while the BVH builds.
+    let t1 = Instant::now();
+    let (bvh, packed) = tracer::pack::build_and_pack(&scene, &settings).context("building the BVH and packing")?;
+    let build_time = t1.elapsed();
     let features = packed.features;
     let lights = packed.light_count;
 
@@ -186,8 +184,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     println!("triangles    {}", scene.triangles.len());
     println!("lights       {lights} (features: {features:?})");
     println!("load         {:.1} ms", load_time.as_secs_f64() * 1e3);
-    println!("BVH build    {:.1} ms ({} nodes)", bvh_time.as_secs_f64() * 1e3, bvh.nodes.len());
-    println!("pack         {:.1} ms", pack_time.as_secs_f64() * 1e3);
+    println!("BVH + pack   {:.1} ms ({} BVH nodes)", build_time.as_secs_f64() * 1e3, bvh.nodes.len());
     println!(
         "render       {:.2} s, {} spp at {}x{}, {:.2} M samples/s ({:?} backend, {:?} strategy)",
         render_time.as_secs_f64(),

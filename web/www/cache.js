@@ -3,7 +3,7 @@
 // needs revalidation), under a size budget with least-recently-used eviction. Last-use times
 // and sizes live in localStorage (a few bytes per scene, read synchronously).
 //
-// Default budget: 1 GiB. Bundles store the packed arrays as RGBA32F texels, uncompressed
+// Default budget: 1 GiB. Bundles store the packed arrays as 32-bit texels, uncompressed
 // (gzip is only the transfer encoding), so they are large. Measured with `lightport serve`
 // (docs/web.md; raw bytes, as cached): Cornell box 4.8 KB (8.4 MB with a 1024x512 HDR sky, which
 // every scene served with --sky carries), Avocado 25 MB, DamagedHelmet 45 MB, LittlestTokyo
