@@ -150,21 +150,13 @@ pub(crate) fn decode_limited(
     .unwrap_or_else(|| Err(err("the image decoder failed unexpectedly".into())))
 }
 
-/// The sRGB transfer function's inverse (IEC 61966-2-1).
-pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
+/// The sRGB transfer function's inverse: the kernel's own function (one definition).
+pub use crate::kernel::scene_data::srgb_to_linear;
 
-/// A packed sRGBA8 texel (red in the low byte) as linear RGBA: the kernel's decoding
-/// (`kernel::scene_data::decode_srgba8`), for code outside the kernel.
+/// A packed sRGBA8 texel (red in the low byte) as linear RGBA, for code outside the kernel:
+/// the kernel's `decode_srgba8`, so both decode identically.
 pub fn srgba8_to_linear(texel: u32) -> Vec4 {
-    let [r, g, b, a] = texel.to_le_bytes();
-    let channel = |v: u8| srgb_to_linear(f32::from(v) / 255.0);
-    Vec4::new(channel(r), channel(g), channel(b), f32::from(a) / 255.0)
+    crate::kernel::scene_data::decode_srgba8(texel)
 }
 
 impl Texture {
