@@ -12,10 +12,23 @@
 //! machine without a GPU), with Mesa's on-disk shader cache disabled so that every compile is a
 //! real one. llvmpipe compiles GLSL to its IR at link time and JITs machine code at the first
 //! draw, so the first-frame column (renderer creation, uploads and one 1x1 frame) includes
-//! what compile + link leaves out. WebGL2 compile times come from the web backend (a column is
-//! left for them).
+//! what compile + link leaves out.
+//!
+//! WebGL2: the same variants compiled and linked in headless Chromium (ANGLE on SwiftShader
+//! here) by the web page's `compileProgram` hook, driven by `tests/web/run.mjs compile` (node +
+//! npm `playwright-core`) with the GPU program caches off and every source made unique; the time
+//! runs from the first compile call until `getProgramParameter(LINK_STATUS)` returns (which waits
+//! for the link whether or not the browser compiles in parallel). ANGLE's Vulkan backend goes on
+//! building the program's pipeline (SwiftShader's JIT) in the background after that; deleting the
+//! program waits for it, so the second WebGL2 column runs until a round trip queued behind the
+//! deletion returns: the whole cost of the program, which a page pays before its first frame.
+//! Each variant is measured right after the all-features kernel, REPEATS times, medians. The page is served by `lightport serve` from the same target
+//! directory (`cargo build --release` first) and needs `web/pkg` (scripts/build-web.sh) and `npm
+//! ci` in tests/web; without them the column says why it is empty.
 
-use std::path::Path;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
@@ -133,6 +146,131 @@ fn kib(bytes: usize) -> String {
     format!("{:.1}", bytes as f64 / 1024.0)
 }
 
+/// A child process killed when dropped.
+struct Killed(Child);
+
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// WebGL2 times of one program, one entry per repeat (ms).
+struct WebTimes {
+    /// Until `LINK_STATUS` returns.
+    link: Vec<f64>,
+    /// Until the GPU process has finished with the program (background pipeline build included).
+    built: Vec<f64>,
+}
+
+/// WebGL2 times of each fragment shader in `fragments` (name, source), measured in that order
+/// each repeat, in headless Chromium. Returns the renderer's description too.
+fn webgl2_compile_times(fragments: &[(String, String)], repeats: u32) -> Result<(String, Vec<WebTimes>)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let lightport = match std::env::var_os("LIGHTPORT") {
+        Some(path) => PathBuf::from(path),
+        // target/<profile>/examples/feature_sizes -> target/<profile>/lightport
+        None => std::env::current_exe()?
+            .parent()
+            .and_then(Path::parent)
+            .context("locating the target directory")?
+            .join("lightport"),
+    };
+    anyhow::ensure!(
+        lightport.is_file(),
+        "{} is missing: build it with `cargo build --release` (or set LIGHTPORT=path)",
+        lightport.display()
+    );
+    anyhow::ensure!(
+        root.join("web/pkg/lightport_web_bg.wasm").is_file(),
+        "web/pkg is missing: run scripts/build-web.sh"
+    );
+    anyhow::ensure!(
+        root.join("tests/web/node_modules/playwright-core").is_dir(),
+        "tests/web/node_modules is missing: run `npm ci` in tests/web"
+    );
+    let mut child = Command::new(&lightport)
+        .args(["serve", "--port", "0"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .with_context(|| format!("starting {} serve", lightport.display()))?;
+    let stdout = child.stdout.take().context("the server's stdout")?;
+    let _server = Killed(child);
+    let (sender, receiver) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            if let Some(at) = line.find("http://") {
+                let _ = sender.send(line[at..].trim().to_owned());
+            }
+        }
+    });
+    let url = receiver.recv_timeout(Duration::from_secs(120)).context("`lightport serve` printed no URL")?;
+
+    let temp = std::env::temp_dir();
+    let (shaders, report) = (
+        temp.join(format!("lightport-feature-sizes-{}.json", std::process::id())),
+        temp.join(format!("lightport-feature-sizes-{}-out.json", std::process::id())),
+    );
+    let fragments: Vec<serde_json::Value> =
+        fragments.iter().map(|(name, source)| serde_json::json!({ "name": name, "source": source })).collect();
+    let input = serde_json::json!({ "vertex": lightport_codegen::fullscreen_vertex_shader(), "fragments": fragments });
+    std::fs::write(&shaders, serde_json::to_vec(&input)?)?;
+    let status = Command::new("node")
+        .current_dir(root.join("tests/web"))
+        .args(["run.mjs", "compile", "--url", &url, "--repeats", &repeats.to_string(), "--deadline", "3000"])
+        .arg("--shaders")
+        .arg(&shaders)
+        .arg("--out")
+        .arg(&report)
+        .status()
+        .context("running node (apt-get install nodejs npm)");
+    let _ = std::fs::remove_file(&shaders);
+    let status = status?;
+    anyhow::ensure!(status.success(), "tests/web/run.mjs compile failed ({status})");
+    let text = std::fs::read_to_string(&report).context("the driver's report")?;
+    let _ = std::fs::remove_file(&report);
+    let value: serde_json::Value = serde_json::from_str(&text)?;
+    if let Some(error) = value.get("error").filter(|e| !e.is_null()) {
+        anyhow::bail!("the page reported: {error}");
+    }
+    let numbers = |v: &serde_json::Value| -> Option<Vec<f64>> {
+        v.as_array().map(|a| a.iter().filter_map(serde_json::Value::as_f64).collect())
+    };
+    let times = value["times"]
+        .as_array()
+        .context("no times")?
+        .iter()
+        .map(|t| {
+            let (link, settled) = (numbers(&t["ms"])?, numbers(&t["settledMs"])?);
+            let built = link.iter().zip(&settled).map(|(a, b)| a + b).collect();
+            Some(WebTimes { link, built })
+        })
+        .collect::<Option<Vec<_>>>()
+        .context("malformed times")?;
+    anyhow::ensure!(
+        times.len() == input["fragments"].as_array().map_or(0, Vec::len)
+            && times.iter().all(|t| t.link.len() == repeats as usize && t.built.len() == repeats as usize),
+        "the driver measured {} programs, not every one {repeats} times",
+        times.len()
+    );
+    let gl = &value["gl"];
+    let renderer = format!(
+        "{} ({}; KHR_parallel_shader_compile {})",
+        gl["renderer"].as_str().unwrap_or("?"),
+        gl["version"].as_str().unwrap_or("?"),
+        if gl["parallelCompile"] == true { "present, not used" } else { "absent" }
+    );
+    Ok((renderer, times))
+}
+
+fn median_f64(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values[values.len() / 2]
+}
+
 fn main() -> Result<()> {
     // Every compile must be a real one, not a hit in Mesa's on-disk cache. Set before the first
     // EGL call, while the process has one thread.
@@ -167,14 +305,9 @@ fn main() -> Result<()> {
         "GL: {renderer}; medians of {repeats}; Mesa shader cache off. Each scene's variant and the all-features \
          kernel are measured alternately over the scene's data; ratios are variant / all-features."
     );
-    println!();
-    println!(
-        "| scene | triangles | features | GLSL bytes | GLSL lines | WGSL bytes | GL compile+link ms | \
-         GL first frame ms | WebGL2 compile ms |"
-    );
-    println!("|---|---|---|---|---|---|---|---|---|");
     let mut all = Variant::new(Features::all())?;
     let mut rows = Vec::new();
+    let mut sources = Vec::new();
     let mut memory_rows = Vec::new();
     for (name, scene) in &scenes {
         let p = packed(scene)?;
@@ -193,7 +326,7 @@ fn main() -> Result<()> {
         let (compile, frame) = (median(v.compile_link.clone()), median(v.first_frame.clone()));
         let (base_compile, base_frame) = (median(all_compile), median(all_frame));
         rows.push(format!(
-            "| {name} | {} | {} | {} ({}) | {} ({}) | {} ({}) | {:.1} ({}) | {:.1} ({}) | (web backend) |",
+            "| {name} | {} | {} | {} ({}) | {} ({}) | {} ({}) | {:.1} ({}) | {:.1} ({}) |",
             p.triangle_count,
             feature_list(&p.features),
             v.glsl.source.len(),
@@ -207,10 +340,52 @@ fn main() -> Result<()> {
             ms(frame),
             ratio(ms(frame), ms(base_frame)),
         ));
+        sources.push(v.glsl.source.clone());
         memory_rows.push((name, memory(&p)?));
     }
+
+    // WebGL2: each variant right after the all-features kernel, REPEATS times.
+    let fragments: Vec<(String, String)> = sources
+        .iter()
+        .enumerate()
+        .flat_map(|(i, source)| {
+            [(format!("all-features ({i})"), all.glsl.source.clone()), (format!("variant {i}"), source.clone())]
+        })
+        .collect();
+    eprintln!("WebGL2: compiling {} programs x {repeats} in headless Chromium...", fragments.len());
+    let (web_baseline, web_columns) = match webgl2_compile_times(&fragments, repeats) {
+        Ok((renderer, times)) => {
+            println!("WebGL2: {renderer}; GPU program caches off; medians of {repeats}.");
+            let baseline = |pick: fn(&WebTimes) -> &Vec<f64>| {
+                median_f64(times.iter().step_by(2).flat_map(|t| pick(t).clone()).collect())
+            };
+            let baseline =
+                format!("{:.1} | {:.1}", baseline(|t: &WebTimes| &t.link), baseline(|t: &WebTimes| &t.built));
+            let columns: Vec<String> = times
+                .chunks_exact(2)
+                .map(|pair| {
+                    let cell = |pick: fn(&WebTimes) -> &Vec<f64>| {
+                        let (base, variant) = (median_f64(pick(&pair[0]).clone()), median_f64(pick(&pair[1]).clone()));
+                        format!("{variant:.1} ({:.2})", variant / base)
+                    };
+                    format!("{} | {}", cell(|t: &WebTimes| &t.link), cell(|t: &WebTimes| &t.built))
+                })
+                .collect();
+            (baseline, columns)
+        }
+        Err(e) => {
+            eprintln!("warning: WebGL2 compile times not measured: {e:#}");
+            ("not measured | not measured".to_string(), vec!["not measured | not measured".to_string(); rows.len()])
+        }
+    };
+    println!();
     println!(
-        "| all features (baseline) | - | {} | {} | {} | {} | {:.1} | {:.1} | (web backend) |",
+        "| scene | triangles | features | GLSL bytes | GLSL lines | WGSL bytes | GL compile+link ms | \
+         GL first frame ms | WebGL2 compile+link ms | WebGL2 until the pipeline is built ms |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "| all features (baseline) | - | {} | {} | {} | {} | {:.1} | {:.1} | {web_baseline} |",
         feature_list(&Features::all()),
         all.glsl.source.len(),
         all.glsl_lines,
@@ -218,8 +393,8 @@ fn main() -> Result<()> {
         median(all.compile_link.clone()).as_secs_f64() * 1e3,
         median(all.first_frame.clone()).as_secs_f64() * 1e3,
     );
-    for row in rows {
-        println!("{row}");
+    for (row, web) in rows.iter().zip(&web_columns) {
+        println!("{row} {web} |");
     }
     println!();
     println!("Packed scene data on the GPU (RGBA32F/RGBA32UI textures, power-of-two widths up to {MAX_TEXTURE_SIZE}):");

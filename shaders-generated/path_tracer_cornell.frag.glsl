@@ -5,7 +5,7 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (tracer/src/kernel/scene_data.rs:42)
+// resources: Scene (tracer/src/kernel/scene_data.rs:44)
 uniform highp sampler2D scene_triangles;
 uniform highp usampler2D scene_nodes;
 uniform highp sampler2D scene_materials;
@@ -38,7 +38,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:97)
+// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:99)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -47,7 +47,7 @@ struct TriangleData {
     uint light;
 };
 
-// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:107)
+// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:109)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -55,7 +55,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// traverse::Hit (tracer/src/kernel/traverse.rs:17)
+// traverse::Hit (tracer/src/kernel/traverse.rs:20)
 struct Hit {
     uint triangle;
     float t;
@@ -63,12 +63,10 @@ struct Hit {
     float v;
 };
 
-// traverse::Node (tracer/src/kernel/traverse.rs:26)
-struct Node {
-    vec3 min_;
-    vec3 max_;
-    uint first;
-    uint count;
+// traverse::NodeHits (tracer/src/kernel/traverse.rs:30)
+struct NodeHits {
+    vec4 t;
+    uvec4 entries;
 };
 
 // camera::Ray (tracer/src/kernel/camera.rs:11)
@@ -94,23 +92,23 @@ const float INV_PI = 0.31830987;
 const float MISS = 3.4028235e38;
 // scene_data::TRIANGLE_TEXELS (tracer/src/kernel/scene_data.rs:14)
 const uint TRIANGLE_TEXELS = 3u;
-// scene_data::NODE_TEXELS (tracer/src/kernel/scene_data.rs:21)
-const uint NODE_TEXELS = 2u;
-// scene_data::MATERIAL_TEXELS (tracer/src/kernel/scene_data.rs:23)
+// scene_data::NODE_TEXELS (tracer/src/kernel/scene_data.rs:23)
+const uint NODE_TEXELS = 7u;
+// scene_data::MATERIAL_TEXELS (tracer/src/kernel/scene_data.rs:25)
 const uint MATERIAL_TEXELS = 2u;
-// scene_data::LIGHT_TEXELS (tracer/src/kernel/scene_data.rs:26)
+// scene_data::LIGHT_TEXELS (tracer/src/kernel/scene_data.rs:28)
 const uint LIGHT_TEXELS = 3u;
-// scene_data::LIGHT_TRIANGLE (tracer/src/kernel/scene_data.rs:27)
+// scene_data::LIGHT_TRIANGLE (tracer/src/kernel/scene_data.rs:29)
 const uint LIGHT_TRIANGLE = 0u;
-// scene_data::NONE (tracer/src/kernel/scene_data.rs:33)
+// scene_data::NONE (tracer/src/kernel/scene_data.rs:35)
 const uint NONE = 0xffffffffu;
-// scene_data::STRATEGY_BSDF (tracer/src/kernel/scene_data.rs:91)
+// scene_data::STRATEGY_BSDF (tracer/src/kernel/scene_data.rs:93)
 const uint STRATEGY_BSDF = 0u;
-// scene_data::STRATEGY_NEE (tracer/src/kernel/scene_data.rs:92)
+// scene_data::STRATEGY_NEE (tracer/src/kernel/scene_data.rs:94)
 const uint STRATEGY_NEE = 1u;
-// scene_data::STRATEGY_MIS (tracer/src/kernel/scene_data.rs:93)
+// scene_data::STRATEGY_MIS (tracer/src/kernel/scene_data.rs:95)
 const uint STRATEGY_MIS = 2u;
-// traverse::STACK_SIZE (tracer/src/kernel/traverse.rs:13)
+// traverse::STACK_SIZE (tracer/src/kernel/traverse.rs:16)
 const uint STACK_SIZE = 64u;
 // integrator::RR_START_DEPTH (tracer/src/kernel/integrator.rs:24)
 const uint RR_START_DEPTH = 3u;
@@ -212,52 +210,59 @@ vec3 safe_inverse(vec3 dir) {
     return vec3(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// traverse::fetch_node (tracer/src/kernel/traverse.rs:33)
-Node fetch_node(uint index) {
-    uvec4 a = lp_fetch_uvec4(scene_nodes, index * NODE_TEXELS);
-    uvec4 b = lp_fetch_uvec4(scene_nodes, index * NODE_TEXELS + 1u);
-    return Node(vec3(uintBitsToFloat(a.x), uintBitsToFloat(a.y), uintBitsToFloat(a.z)), vec3(uintBitsToFloat(b.x), uintBitsToFloat(b.y), uintBitsToFloat(b.z)), a.w, b.w);
+// traverse::near_planes (tracer/src/kernel/traverse.rs:53)
+uvec3 near_planes(vec3 inv_dir) {
+    return uvec3(inv_dir.x < 0.0 ? 1u : 0u, inv_dir.y < 0.0 ? 1u : 0u, inv_dir.z < 0.0 ? 1u : 0u);
 }
 
-// intersect::max_no_nan (tracer/src/kernel/intersect.rs:94)
-float max_no_nan(float a, float b) {
-    return a > b ? a : b;
-}
-
-// intersect::min_no_nan (tracer/src/kernel/intersect.rs:85)
-float min_no_nan(float a, float b) {
-    return a < b ? a : b;
-}
-
-// intersect::intersect_aabb (tracer/src/kernel/intersect.rs:104)
-float intersect_aabb(vec3 origin, vec3 inv_dir, vec3 bmin, vec3 bmax, float t_max) {
-    vec3 t0 = (bmin - origin) * inv_dir;
-    vec3 t1 = (bmax - origin) * inv_dir;
-    vec3 far = vec3(max_no_nan(t0.x, t1.x), max_no_nan(t0.y, t1.y), max_no_nan(t0.z, t1.z));
-    vec3 near = vec3(min_no_nan(t0.x, t1.x), min_no_nan(t0.y, t1.y), min_no_nan(t0.z, t1.z));
-    float enter = max_no_nan(max_no_nan(max_no_nan(near.x, near.y), near.z), 0.0);
-    float exit = min_no_nan(min_no_nan(far.x, far.y), far.z);
-    if (exit == 0.0) {
-        float far_x = far.x == 0.0 ? MISS : far.x;
-        float far_y = far.y == 0.0 ? MISS : far.y;
-        float far_z = far.z == 0.0 ? MISS : far.z;
-        exit = min_no_nan(min_no_nan(far_x, far_y), far_z);
-    }
-    float exit_1 = min_no_nan(exit * 1.0000008, t_max);
-    return enter <= exit_1 ? enter : MISS;
-}
-
-// traverse::stack_entry (tracer/src/kernel/traverse.rs:50)
+// traverse::stack_entry (tracer/src/kernel/traverse.rs:41)
 uint stack_entry(uint first, uint count) {
     return (first << 8) | count;
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:115)
+// traverse::bits_to_vec4 (tracer/src/kernel/traverse.rs:46)
+vec4 bits_to_vec4(uvec4 bits) {
+    return vec4(uintBitsToFloat(bits.x), uintBitsToFloat(bits.y), uintBitsToFloat(bits.z), uintBitsToFloat(bits.w));
+}
+
+// traverse::zero_to_miss (tracer/src/kernel/traverse.rs:62)
+vec4 zero_to_miss(vec4 v) {
+    return vec4(v.x == 0.0 ? MISS : v.x, v.y == 0.0 ? MISS : v.y, v.z == 0.0 ? MISS : v.z, v.w == 0.0 ? MISS : v.w);
+}
+
+// traverse::intersect_node (tracer/src/kernel/traverse.rs:77)
+NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float t_max) {
+    uint base = node * NODE_TEXELS;
+    vec4 ox = vec4(origin.x);
+    vec4 oy = vec4(origin.y);
+    vec4 oz = vec4(origin.z);
+    vec4 enter_x = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + near.x)) - ox) * inv_dir.x;
+    vec4 exit_x = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + 1u - near.x)) - ox) * inv_dir.x;
+    vec4 enter_y = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + 2u + near.y)) - oy) * inv_dir.y;
+    vec4 exit_y = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + 3u - near.y)) - oy) * inv_dir.y;
+    vec4 enter_z = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + 4u + near.z)) - oz) * inv_dir.z;
+    vec4 exit_z = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + 5u - near.z)) - oz) * inv_dir.z;
+    vec4 enter = max(max(max(enter_x, enter_y), enter_z), vec4(0.0));
+    vec4 exit = min(min(exit_x, exit_y), exit_z);
+    if ((exit.x == 0.0) || (exit.y == 0.0) || (exit.z == 0.0) || (exit.w == 0.0)) {
+        exit = min(min(zero_to_miss(exit_x), zero_to_miss(exit_y)), zero_to_miss(exit_z));
+    }
+    vec4 exit_1 = min(exit * 1.0000008, vec4(t_max));
+    vec4 t = vec4(enter.x <= exit_1.x ? enter.x : MISS, enter.y <= exit_1.y ? enter.y : MISS, enter.z <= exit_1.z ? enter.z : MISS, enter.w <= exit_1.w ? enter.w : MISS);
+    return NodeHits(t, lp_fetch_uvec4(scene_nodes, base + 6u));
+}
+
+// traverse::is_leaf (tracer/src/kernel/traverse.rs:135)
+bool is_leaf(uint entry) {
+    return (entry & 255u) > 0u;
+}
+
+// scene_data::index_of (tracer/src/kernel/scene_data.rs:117)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:123)
+// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:125)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -294,60 +299,115 @@ TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2)
     return TriangleHit(t, u, v);
 }
 
-// traverse::trace_closest (tracer/src/kernel/traverse.rs:55)
+// traverse::intersect_leaf (tracer/src/kernel/traverse.rs:109)
+void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
+    uint first = entry >> 8;
+    uint i_end = first + (entry & 255u);
+    for (uint i = first; i < i_end; ++i) {
+        TriangleData tri = fetch_triangle(i);
+        TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+        if (h.t < hit.t) {
+            hit = Hit(i, h.t, h.u, h.v);
+        }
+    }
+}
+
+// traverse::trace_closest (tracer/src/kernel/traverse.rs:148)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
+    uvec3 near = near_planes(inv_dir);
     Hit hit = Hit(NONE, t_max, 0.0, 0.0);
     uint stack[64];
-    for (int i_1 = 0; i_1 < 64; ++i_1) { stack[i_1] = 0u; }
+    for (int i = 0; i < 64; ++i) { stack[i] = 0u; }
     float stack_t[64];
-    for (int i_2 = 0; i_2 < 64; ++i_2) { stack_t[i_2] = 0.0; }
-    uint sp = 0u;
-    Node root = fetch_node(0u);
-    float root_t = intersect_aabb(origin, inv_dir, root.min_, root.max_, t_max);
-    if (root_t < MISS) {
-        stack[0u] = stack_entry(root.first, root.count);
-        stack_t[0u] = root_t;
-        sp = 1u;
-    }
+    for (int i_1 = 0; i_1 < 64; ++i_1) { stack_t[i_1] = 0.0; }
+    stack[0u] = stack_entry(0u, 0u);
+    uint sp = 1u;
     while (sp > 0u) {
         sp -= 1u;
         if (stack_t[sp] > hit.t) {
             continue;
         }
-        uint first = stack[sp] >> 8;
-        uint count = stack[sp] & 255u;
-        if (count > 0u) {
-            uint i_end = first + count;
-            for (uint i = first; i < i_end; ++i) {
-                TriangleData tri = fetch_triangle(i);
-                TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-                if (h.t < hit.t) {
-                    hit = Hit(i, h.t, h.u, h.v);
-                }
-            }
-        } else {
-            Node left = fetch_node(first);
-            Node right = fetch_node(first + 1u);
-            float t_left = intersect_aabb(origin, inv_dir, left.min_, left.max_, hit.t);
-            float t_right = intersect_aabb(origin, inv_dir, right.min_, right.max_, hit.t);
-            bool left_first = t_left <= t_right;
-            uint left_entry = stack_entry(left.first, left.count);
-            uint right_entry = stack_entry(right.first, right.count);
-            uint near = left_first ? left_entry : right_entry;
-            uint far = left_first ? right_entry : left_entry;
-            float t_near = left_first ? t_left : t_right;
-            float t_far = left_first ? t_right : t_left;
-            if (t_far < MISS && sp < STACK_SIZE) {
-                stack[sp] = far;
-                stack_t[sp] = t_far;
-                sp += 1u;
-            }
-            if (t_near < MISS && sp < STACK_SIZE) {
-                stack[sp] = near;
-                stack_t[sp] = t_near;
-                sp += 1u;
-            }
+        NodeHits n = intersect_node(stack[sp] >> 8, origin, inv_dir, near, hit.t);
+        float t0 = n.t.x;
+        float t1 = n.t.y;
+        float t2 = n.t.z;
+        float t3 = n.t.w;
+        uint e0 = n.entries.x;
+        uint e1 = n.entries.y;
+        uint e2 = n.entries.z;
+        uint e3 = n.entries.w;
+        if (t1 < t0) {
+            float t = t0;
+            t0 = t1;
+            t1 = t;
+            uint e = e0;
+            e0 = e1;
+            e1 = e;
+        }
+        if (t3 < t2) {
+            float t_1 = t2;
+            t2 = t3;
+            t3 = t_1;
+            uint e_1 = e2;
+            e2 = e3;
+            e3 = e_1;
+        }
+        if (t2 < t0) {
+            float t_2 = t0;
+            t0 = t2;
+            t2 = t_2;
+            uint e_2 = e0;
+            e0 = e2;
+            e2 = e_2;
+        }
+        if (t3 < t1) {
+            float t_3 = t1;
+            t1 = t3;
+            t3 = t_3;
+            uint e_3 = e1;
+            e1 = e3;
+            e3 = e_3;
+        }
+        if (t2 < t1) {
+            float t_4 = t1;
+            t1 = t2;
+            t2 = t_4;
+            uint e_4 = e1;
+            e1 = e2;
+            e2 = e_4;
+        }
+        if (t0 < MISS && t0 <= hit.t && is_leaf(e0)) {
+            intersect_leaf(e0, origin, dir, hit);
+        }
+        if (t1 < MISS && t1 <= hit.t && is_leaf(e1)) {
+            intersect_leaf(e1, origin, dir, hit);
+        }
+        if (t2 < MISS && t2 <= hit.t && is_leaf(e2)) {
+            intersect_leaf(e2, origin, dir, hit);
+        }
+        if (t3 < MISS && t3 <= hit.t && is_leaf(e3)) {
+            intersect_leaf(e3, origin, dir, hit);
+        }
+        if (t3 < MISS && t3 <= hit.t && !is_leaf(e3) && sp < STACK_SIZE) {
+            stack[sp] = e3;
+            stack_t[sp] = t3;
+            sp += 1u;
+        }
+        if (t2 < MISS && t2 <= hit.t && !is_leaf(e2) && sp < STACK_SIZE) {
+            stack[sp] = e2;
+            stack_t[sp] = t2;
+            sp += 1u;
+        }
+        if (t1 < MISS && t1 <= hit.t && !is_leaf(e1) && sp < STACK_SIZE) {
+            stack[sp] = e1;
+            stack_t[sp] = t1;
+            sp += 1u;
+        }
+        if (t0 < MISS && t0 <= hit.t && !is_leaf(e0) && sp < STACK_SIZE) {
+            stack[sp] = e0;
+            stack_t[sp] = t0;
+            sp += 1u;
         }
     }
     return hit;
@@ -376,7 +436,7 @@ float hit_emission_weight(float bsdf_pdf, float light_pdf) {
     }
 }
 
-// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:131)
+// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:133)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
@@ -454,40 +514,67 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// traverse::occluded (tracer/src/kernel/traverse.rs:112)
+// traverse::leaf_occludes (tracer/src/kernel/traverse.rs:121)
+bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
+    uint first = entry >> 8;
+    bool blocked = false;
+    uint i_end = first + (entry & 255u);
+    for (uint i = first; i < i_end; ++i) {
+        TriangleData tri = fetch_triangle(i);
+        if (intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max) {
+            blocked = true;
+            break;
+        }
+    }
+    return blocked;
+}
+
+// traverse::occluded (tracer/src/kernel/traverse.rs:254)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
+    uvec3 near = near_planes(inv_dir);
     uint stack[64];
-    for (int i_1 = 0; i_1 < 64; ++i_1) { stack[i_1] = 0u; }
-    uint sp = 0u;
-    Node root = fetch_node(0u);
-    if (intersect_aabb(origin, inv_dir, root.min_, root.max_, t_max) < MISS) {
-        stack[0u] = stack_entry(root.first, root.count);
-        sp = 1u;
-    }
-    while (sp > 0u) {
+    for (int i = 0; i < 64; ++i) { stack[i] = 0u; }
+    stack[0u] = stack_entry(0u, 0u);
+    uint sp = 1u;
+    bool blocked = false;
+    while (sp > 0u && !blocked) {
         sp -= 1u;
-        uint first = stack[sp] >> 8;
-        uint count = stack[sp] & 255u;
-        if (count > 0u) {
-            uint i_end = first + count;
-            for (uint i = first; i < i_end; ++i) {
-                TriangleData tri = fetch_triangle(i);
-                if (intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max) {
-                    return true;
-                }
+        NodeHits n = intersect_node(stack[sp] >> 8, origin, inv_dir, near, t_max);
+        if (n.t.x < MISS) {
+            if (is_leaf(n.entries.x)) {
+                blocked = leaf_occludes(n.entries.x, origin, dir, t_max);
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = n.entries.x;
+                sp += 1u;
             }
-        } else {
-            for (uint c = 0u; c < 2u; ++c) {
-                Node child = fetch_node(first + c);
-                if (intersect_aabb(origin, inv_dir, child.min_, child.max_, t_max) < MISS && sp < STACK_SIZE) {
-                    stack[sp] = stack_entry(child.first, child.count);
-                    sp += 1u;
-                }
+        }
+        if (n.t.y < MISS && !blocked) {
+            if (is_leaf(n.entries.y)) {
+                blocked = leaf_occludes(n.entries.y, origin, dir, t_max);
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = n.entries.y;
+                sp += 1u;
+            }
+        }
+        if (n.t.z < MISS && !blocked) {
+            if (is_leaf(n.entries.z)) {
+                blocked = leaf_occludes(n.entries.z, origin, dir, t_max);
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = n.entries.z;
+                sp += 1u;
+            }
+        }
+        if (n.t.w < MISS && !blocked) {
+            if (is_leaf(n.entries.w)) {
+                blocked = leaf_occludes(n.entries.w, origin, dir, t_max);
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = n.entries.w;
+                sp += 1u;
             }
         }
     }
-    return false;
+    return blocked;
 }
 
 // sampling::onb_to_world (tracer/src/kernel/sampling.rs:33)

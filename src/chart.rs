@@ -1,5 +1,5 @@
 //! `lightport chart`: speed against accuracy. Each scene is rendered with each strategy (BSDF,
-//! NEE, MIS) on each backend (CPU, GL) at 1, 2, 4, ... samples per pixel; each checkpoint's
+//! NEE, MIS) on each backend (CPU, GL, web) at 1, 2, 4, ... samples per pixel; each checkpoint's
 //! render time and error against a converged reference (RMSE and relMSE) go to a CSV and an SVG
 //! chart (error against time, log-log, with the −½ slope an unbiased estimator's RMSE follows).
 //!
@@ -12,6 +12,13 @@
 //! Times count rendering only (GL: up to `glFinish`), not renderer creation, the GL driver's
 //! shader compile (a throwaway renderer draws one frame first), image read-back or the error
 //! computation.
+//!
+//! The web backend (`--backends web`) renders in the real web client: `lightport serve` serves
+//! the page and its wasm build, and `tests/web/run.mjs chart` drives headless Chromium (WebGL2 on
+//! SwiftShader here) through npm `playwright-core`, handing the page this chart's own bundle (the
+//! same packed data as the other backends) and reading the accumulation back at each checkpoint.
+//! The page times its frames itself (see [`web`]). Missing pieces (`web/pkg`, node, the npm
+//! driver, Chromium) skip the backend with a warning naming the command that installs them.
 
 use std::fmt::Write as _;
 use std::hash::{Hash, Hasher};
@@ -56,8 +63,9 @@ pub struct ChartArgs {
     /// Maximum path length in segments.
     #[arg(long, default_value_t = 8)]
     pub max_depth: u32,
-    /// Backends to chart (a backend that cannot start is skipped with a warning).
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ChartBackend::Cpu, ChartBackend::Gl])]
+    /// Backends to chart (a backend that cannot start is skipped with a warning naming what is
+    /// missing).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ChartBackend::Cpu, ChartBackend::Gl, ChartBackend::Web])]
     pub backends: Vec<ChartBackend>,
     /// Strategies to chart.
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ChartStrategy::Bsdf, ChartStrategy::Nee, ChartStrategy::Mis])]
@@ -71,12 +79,19 @@ pub struct ChartArgs {
     /// Seed of the charted renders.
     #[arg(long, default_value_t = 1)]
     pub seed: u32,
+    /// Longest the web backend may take for one scene (browser start, page load and every
+    /// line), in seconds; past it the browser is closed and the web backend skipped.
+    #[arg(long, default_value_t = 1800.0)]
+    pub web_timeout: f64,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum ChartBackend {
     Cpu,
+    /// OpenGL ES 3.0 through headless EGL (Mesa llvmpipe without a GPU).
     Gl,
+    /// WebGL2 in headless Chromium: the web client (`web/`) served by `lightport serve`.
+    Web,
 }
 
 impl ChartBackend {
@@ -84,6 +99,7 @@ impl ChartBackend {
         match self {
             ChartBackend::Cpu => "cpu",
             ChartBackend::Gl => "gl",
+            ChartBackend::Web => "web",
         }
     }
 }
@@ -135,6 +151,10 @@ pub fn chart(args: &ChartArgs) -> Result<()> {
     ensure!(args.spp >= 1 && args.reference_spp >= 1, "--spp and --reference-spp must be at least 1");
     ensure!(args.max_depth >= 1, "--max-depth must be at least 1");
     ensure!(!args.backends.is_empty() && !args.strategies.is_empty(), "nothing to chart");
+    ensure!(
+        args.web_timeout.is_finite() && args.web_timeout > 0.0 && args.web_timeout <= 86400.0,
+        "--web-timeout must be between 0 and 86400 seconds"
+    );
     let names = if args.scenes.is_empty() { vec!["cornell".to_string()] } else { args.scenes.clone() };
     std::fs::create_dir_all(&args.out_dir).with_context(|| format!("creating {}", args.out_dir.display()))?;
     let kernel_hash = kernel_hash()?;
@@ -315,6 +335,7 @@ impl Renderer {
         Ok(match backend {
             ChartBackend::Cpu => Renderer::Cpu(Box::new(CpuRenderer::new(packed, seed))),
             ChartBackend::Gl => Renderer::Gl(Box::new(GlRenderer::headless(packed, seed)?)),
+            ChartBackend::Web => bail!("the web backend renders in a browser (web::lines), not in this process"),
         })
     }
 
@@ -395,6 +416,14 @@ fn run_scene(scene: &ChartScene, args: &ChartArgs, kernel_hash: u64) -> Result<(
     let mut packed = packed_scene(&scene.scene, args, Strategy::Mis)?;
     let mut lines: Vec<Vec<Point>> = Vec::new();
     for &backend in &args.backends {
+        if backend == ChartBackend::Web {
+            let strategies: Vec<Strategy> = args.strategies.iter().map(|&s| s.into()).collect();
+            match web::lines(&scene.slug, &packed, &strategies, args, &reference) {
+                Ok(web_lines) => lines.extend(web_lines),
+                Err(e) => eprintln!("warning: skipping the web backend: {e:#}"),
+            }
+            continue;
+        }
         for &strategy in &args.strategies {
             let strategy = Strategy::from(strategy);
             packed.apply(&RenderSettings { width: args.size, height: args.size, strategy, max_depth: args.max_depth });
@@ -415,9 +444,16 @@ fn run_scene(scene: &ChartScene, args: &ChartArgs, kernel_hash: u64) -> Result<(
         format!("{}: {}x{}, max depth {}, reference {source}", scene.slug, args.size, args.size, args.max_depth);
     draw_chart(&svg, &title, &lines).with_context(|| format!("drawing {}", svg.display()))?;
     let png = args.out_dir.join(format!("{}-equal-time.png", scene.slug));
-    let crops = equal_time_strip(&png, args.size, &reference, &lines)?;
+    let labelled = args.out_dir.join(format!("{}-equal-time.svg", scene.slug));
+    let reference_label =
+        if source == "analytic" { "exact".to_string() } else { format!("{} spp · cpu mis", args.reference_spp) };
+    let crops = equal_time_strip(&png, &labelled, args.size, &reference, &reference_label, &lines)?;
     print_summary(&lines);
-    println!("equal-time crops ({png}): reference, {crops}", png = png.display());
+    println!(
+        "equal-time crops ({png}, labelled: {labelled}): reference, {crops}",
+        png = png.display(),
+        labelled = labelled.display()
+    );
     println!("wrote {} and {}", csv.display(), svg.display());
     Ok(())
 }
@@ -471,10 +507,20 @@ fn print_summary(lines: &[Vec<Point>]) {
     }
 }
 
-/// Writes the reference and, for each line, its checkpoint with the most samples that fits in
-/// the time budget every line reached (the smallest final time), side by side, scaled up 3x.
-/// Returns the order and sample counts, for the caption.
-fn equal_time_strip(path: &Path, size: u32, reference: &[Vec3], lines: &[Vec<Point>]) -> Result<String> {
+/// The equal-time comparison: the reference and, for each line, its checkpoint with the most
+/// samples within the time every line reached (the smallest final time). Writes them side by
+/// side as a PNG strip (scaled up 3x, unlabelled, in the returned order) and as a labelled SVG
+/// grid (a row per backend, the reference first; each crop titled with its strategy, backend,
+/// samples and time; the crops are embedded PNGs at their rendered size, drawn enlarged with
+/// `image-rendering: pixelated`). Returns the order, sample counts and times, for the caption.
+fn equal_time_strip(
+    png: &Path,
+    svg: &Path,
+    size: u32,
+    reference: &[Vec3],
+    reference_label: &str,
+    lines: &[Vec<Point>],
+) -> Result<String> {
     let budget = lines.iter().filter_map(|l| l.last()).map(|p| p.seconds).fold(f64::INFINITY, f64::min);
     let picks: Vec<&Point> =
         lines.iter().filter_map(|l| l.iter().rev().find(|p| p.seconds <= budget).or(l.first())).collect();
@@ -492,12 +538,119 @@ fn equal_time_strip(path: &Path, size: u32, reference: &[Vec3], lines: &[Vec<Poi
             }
         }
     }
-    tracer::output::write_image(path, &Image { width: tile * count, height: tile, pixels })?;
+    tracer::output::write_image(png, &Image { width: tile * count, height: tile, pixels })?;
+    let text = equal_time_svg(size, reference, reference_label, &picks, budget)?;
+    std::fs::write(svg, text).with_context(|| format!("writing {}", svg.display()))?;
     Ok(picks
         .iter()
         .map(|p| format!("{} {} ({} spp, {:.3} s)", p.backend.name(), p.strategy.name(), p.spp, p.seconds))
         .collect::<Vec<_>>()
         .join(", "))
+}
+
+/// The labelled equal-time grid (see [`equal_time_strip`]).
+fn equal_time_svg(
+    size: u32,
+    reference: &[Vec3],
+    reference_label: &str,
+    picks: &[&Point],
+    budget: f64,
+) -> Result<String> {
+    // Rows: one per backend, in the order charted; the reference opens the first row.
+    let mut rows: Vec<(ChartBackend, Vec<&Point>)> = Vec::new();
+    for p in picks {
+        match rows.iter_mut().find(|(b, _)| *b == p.backend) {
+            Some((_, row)) => row.push(p),
+            None => rows.push((p.backend, vec![p])),
+        }
+    }
+    if rows.is_empty() {
+        rows.push((ChartBackend::Cpu, Vec::new()));
+    }
+    let columns = 1 + rows.iter().map(|(_, r)| r.len()).max().unwrap_or(0);
+    let (tile, gap, label, title) = (size.max(160), 10u32, 34u32, 30u32);
+    let (width, height) =
+        ((columns as u32 * (tile + gap) + gap).max(420), title + rows.len() as u32 * (label + tile + gap) + gap);
+    let mut out = String::new();
+    write!(
+        out,
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" xmlns:xlink=\"http://www.w3.org/1999/xlink\" \
+         width=\"{width}\" height=\"{height}\" viewBox=\"0 0 {width} {height}\" font-family=\"sans-serif\">\n\
+         <rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n\
+         <text x=\"{gap}\" y=\"20\" font-size=\"15\">Equal time: ≤ {} per line (the shortest line's total)</text>\n",
+        seconds(budget)
+    )?;
+    let cell = |out: &mut String, row: usize, column: usize, heading: &str, detail: &str, pixels: &[Vec3]| {
+        let x = gap + column as u32 * (tile + gap);
+        let y = title + row as u32 * (label + tile + gap);
+        let png = png_bytes(&Image { width: size, height: size, pixels: pixels.to_vec() })?;
+        write!(
+            out,
+            "<text x=\"{x}\" y=\"{}\" font-size=\"13\" font-weight=\"bold\">{heading}</text>\n\
+             <text x=\"{x}\" y=\"{}\" font-size=\"12\" fill=\"#444\">{detail}</text>\n\
+             <image x=\"{x}\" y=\"{}\" width=\"{tile}\" height=\"{tile}\" preserveAspectRatio=\"none\" \
+             style=\"image-rendering:pixelated\" xlink:href=\"data:image/png;base64,{}\"/>\n",
+            y + 14,
+            y + 29,
+            y + label,
+            base64(&png)
+        )?;
+        anyhow::Ok(())
+    };
+    cell(&mut out, 0, 0, "reference", reference_label, reference)?;
+    for (r, (_, row)) in rows.iter().enumerate() {
+        for (c, p) in row.iter().enumerate() {
+            let heading = format!("{} · {}", p.strategy.name(), p.backend.name());
+            let detail = format!("{} spp · {}", p.spp, seconds(p.seconds));
+            cell(&mut out, r, c + 1, &heading, &detail, &p.image.pixels)?;
+        }
+    }
+    out.push_str("</svg>\n");
+    Ok(out)
+}
+
+/// A duration for a label, to about 3 significant digits.
+fn seconds(s: f64) -> String {
+    if s >= 1.0 {
+        format!("{s:.2} s")
+    } else if s >= 0.01 {
+        format!("{s:.3} s")
+    } else {
+        format!("{:.2} ms", s * 1e3)
+    }
+}
+
+/// An image as PNG bytes, tone-mapped like the CLI's PNG output.
+fn png_bytes(image: &Image) -> Result<Vec<u8>> {
+    let mut png = Vec::new();
+    let encoder = image::codecs::png::PngEncoder::new(&mut png);
+    image::ImageEncoder::write_image(
+        encoder,
+        &tracer::output::to_srgb8(image),
+        image.width,
+        image.height,
+        image::ExtendedColorType::Rgb8,
+    )
+    .context("encoding a PNG")?;
+    Ok(png)
+}
+
+/// Standard base64 with padding (RFC 4648), for data URIs.
+fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [chunk[0], *chunk.get(1).unwrap_or(&0), *chunk.get(2).unwrap_or(&0)];
+        let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
+        for i in 0..4 {
+            if i <= chunk.len() {
+                out.push(ALPHABET[(n >> (18 - 6 * i) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
 }
 
 fn draw_chart(path: &Path, title: &str, lines: &[Vec<Point>]) -> Result<()> {
@@ -566,6 +719,14 @@ fn draw_chart(path: &Path, title: &str, lines: &[Vec<Point>]) -> Result<()> {
                     );
                     chart.draw_series(points.iter().map(|p| TriangleMarker::new(*p, 4, style)))?;
                 }
+                ChartBackend::Web => {
+                    chart.draw_series(DashedLineSeries::new(points.clone(), 2, 3, style))?.label(label).legend(
+                        move |(x, y)| {
+                            PathElement::new(vec![(x, y), (x + 18, y)], ShapeStyle { stroke_width: 1, ..style })
+                        },
+                    );
+                    chart.draw_series(points.iter().map(|p| Cross::new(*p, 4, style)))?;
+                }
             }
         }
         // The guide: an unbiased estimator's RMSE falls as time^-1/2 (its MSE as time^-1),
@@ -597,6 +758,265 @@ fn draw_chart(path: &Path, title: &str, lines: &[Vec<Point>]) -> Result<()> {
     Ok(())
 }
 
+/// The web backend: the chart's lines rendered by the web client in headless Chromium.
+///
+/// `lightport serve --port 0` (this executable) serves the page (`web/www/`) and its wasm build
+/// (`web/pkg/`); `tests/web/run.mjs chart` (node + npm `playwright-core`) opens it with
+/// `?bundle=...&size=...&seed=...&paused=1`, answering the bundle URL with this chart's own
+/// bundle ([`tracer::bundle`] of the packed scene the other backends render), so the page
+/// renders the same data with the same seed. For each strategy the page restarts the
+/// accumulation and renders up to each checkpoint; it times, with `performance.now()`, the
+/// frames it renders (accumulation pass and the display pass to the canvas) and the wait for
+/// them to finish (a 1-pixel `readPixels`). Not timed: browser start, page load, bundle decode
+/// and upload, shader compile, one warm-up frame (the driver JITs the kernel at its first draw,
+/// as the GL backend's throwaway renderer pays for natively) and the float read-back after each
+/// checkpoint. The driver writes the accumulations (rgb sums and finite-sample counts) as JSON.
+mod web {
+    use std::io::{BufRead, BufReader};
+    use std::path::{Path, PathBuf};
+    use std::process::{Child, Command, Stdio};
+    use std::time::{Duration, Instant};
+
+    use anyhow::{bail, ensure, Context, Result};
+    use glam::Vec3;
+    use serde_json::Value;
+    use tracer::backend::Image;
+    use tracer::pack::{Packed, Strategy};
+
+    use super::{checkpoints, ChartArgs, ChartBackend, Point};
+
+    /// The web client's directory (`www/` and the wasm build in `pkg/`), as `lightport serve`'s default.
+    const WEB_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/web");
+    /// The node driver and its `node_modules`.
+    const DRIVER_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/web");
+    /// How long `lightport serve` may take to print its URL.
+    const SERVER_START: Duration = Duration::from_secs(120);
+
+    /// What the web backend needs, found: Chromium's path is passed on to the driver.
+    pub(super) struct Tools {
+        chromium: PathBuf,
+    }
+
+    /// Checks every prerequisite; the error names each missing one and the command that
+    /// installs it.
+    pub(super) fn prerequisites() -> Result<Tools> {
+        let mut missing = Vec::new();
+        if !Path::new(WEB_DIR).join("pkg/lightport_web_bg.wasm").is_file() {
+            missing.push(format!("{WEB_DIR}/pkg (the wasm build): run scripts/build-web.sh"));
+        }
+        let node = Command::new("node").arg("--version").stdout(Stdio::null()).stderr(Stdio::null()).status();
+        if !node.is_ok_and(|s| s.success()) {
+            missing.push("node: apt-get install nodejs npm".into());
+        }
+        if !Path::new(DRIVER_DIR).join("node_modules/playwright-core").is_dir() {
+            missing.push(format!("{DRIVER_DIR}/node_modules (npm playwright-core): run `npm ci` in tests/web"));
+        }
+        let chromium = std::env::var_os("CHROMIUM").map_or_else(|| PathBuf::from("/usr/bin/chromium"), PathBuf::from);
+        if !chromium.is_file() {
+            missing.push(format!("{} (Chromium): apt-get install chromium", chromium.display()));
+        }
+        if !missing.is_empty() {
+            bail!("missing {} (scripts/test.sh installs them all)", missing.join("; "));
+        }
+        Ok(Tools { chromium })
+    }
+
+    /// A child process killed when dropped (the server; the driver on early returns).
+    struct Killed(Child);
+
+    impl Drop for Killed {
+        fn drop(&mut self) {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+
+    /// Starts `lightport serve --port 0` and returns it with its URL.
+    fn start_server() -> Result<(Killed, String)> {
+        let exe = std::env::current_exe().context("finding the lightport executable")?;
+        let mut child = Command::new(&exe)
+            .args(["serve", "--port", "0"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .with_context(|| format!("starting {} serve", exe.display()))?;
+        let stdout = child.stdout.take().context("the server's stdout")?;
+        let stderr = child.stderr.take().context("the server's stderr")?;
+        let server = Killed(child);
+        let (sender, receiver) = std::sync::mpsc::channel();
+        // Reads until the URL, then keeps draining so that the server never blocks on a pipe.
+        std::thread::spawn(move || {
+            let mut sent = false;
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                if !sent {
+                    if let Some(at) = line.find("http://") {
+                        let _ = sender.send(line[at..].trim().to_owned());
+                        sent = true;
+                    }
+                }
+            }
+        });
+        let errors = std::thread::spawn(move || {
+            let mut text = String::new();
+            // Drained to the end (the server must never block on it); the first lines kept.
+            for (i, line) in BufReader::new(stderr).lines().map_while(Result::ok).enumerate() {
+                if i < 50 {
+                    text.push_str(&line);
+                    text.push('\n');
+                }
+            }
+            text
+        });
+        match receiver.recv_timeout(SERVER_START) {
+            Ok(url) => Ok((server, url)),
+            Err(_) => {
+                drop(server);
+                let said = errors.join().unwrap_or_default();
+                bail!("`{} serve --port 0` printed no URL: {}", exe.display(), said.trim())
+            }
+        }
+    }
+
+    /// Renders every strategy's line in the browser; see the module's documentation.
+    pub(super) fn lines(
+        slug: &str,
+        packed: &Packed,
+        strategies: &[Strategy],
+        args: &ChartArgs,
+        reference: &[Vec3],
+    ) -> Result<Vec<Vec<Point>>> {
+        let tools = prerequisites()?;
+        let deadline = Duration::from_secs_f64(args.web_timeout);
+        let temp = std::env::temp_dir();
+        let stem = format!("lightport-chart-{}-{slug}", std::process::id());
+        let (bundle, report) = (temp.join(format!("{stem}.lpb")), temp.join(format!("{stem}.json")));
+        std::fs::write(&bundle, tracer::bundle::encode_named(slug, packed))
+            .with_context(|| format!("writing {}", bundle.display()))?;
+        let result = (|| {
+            let (_server, url) = start_server()?;
+            let spp: Vec<String> = checkpoints(args.spp).iter().map(u32::to_string).collect();
+            let names: Vec<&str> = strategies.iter().map(|s| s.name()).collect();
+            let size = format!("{0}x{0}", args.size);
+            let mut command = Command::new("node");
+            command
+                .current_dir(DRIVER_DIR)
+                .args(["run.mjs", "chart", "--url", &url, "--size", &size])
+                .args(["--seed", &args.seed.to_string(), "--strategies", &names.join(","), "--checkpoints"])
+                .arg(spp.join(","))
+                .arg("--deadline")
+                .arg(format!("{}", args.web_timeout))
+                .arg("--bundle")
+                .arg(&bundle)
+                .arg("--out")
+                .arg(&report)
+                .env("CHROMIUM", &tools.chromium)
+                .stdin(Stdio::null());
+            let start = Instant::now();
+            let mut driver = Killed(command.spawn().context("starting node tests/web/run.mjs")?);
+            // The driver gives up by itself at the deadline (closing the browser); this is the
+            // backstop should node itself hang.
+            let status = loop {
+                if let Some(status) = driver.0.try_wait()? {
+                    break status;
+                }
+                if start.elapsed() > deadline + Duration::from_secs(30) {
+                    bail!("the browser driver did not finish within --web-timeout {} s", args.web_timeout);
+                }
+                std::thread::sleep(Duration::from_millis(100));
+            };
+            match status.code() {
+                Some(0) => {}
+                Some(3) => bail!("the page did not finish within --web-timeout {} s", args.web_timeout),
+                _ => bail!("tests/web/run.mjs chart failed ({status}); its output is above"),
+            }
+            let text = std::fs::read_to_string(&report).with_context(|| format!("reading {}", report.display()))?;
+            let value: Value = serde_json::from_str(&text).context("the driver's report is not JSON")?;
+            from_report(&value, strategies, args.size, &checkpoints(args.spp), reference)
+        })();
+        let _ = std::fs::remove_file(&bundle);
+        let _ = std::fs::remove_file(&report);
+        result
+    }
+
+    /// The lines of the driver's report, checked against what was asked for.
+    pub(super) fn from_report(
+        report: &Value,
+        strategies: &[Strategy],
+        size: u32,
+        checkpoints: &[u32],
+        reference: &[Vec3],
+    ) -> Result<Vec<Vec<Point>>> {
+        if let Some(error) = report.get("error").filter(|e| !e.is_null()) {
+            let error = error.as_str().map_or_else(|| error.to_string(), str::to_owned);
+            let hint = if error.contains("another kernel") { " (scripts/build-web.sh rebuilds the page)" } else { "" };
+            bail!("the page reported: {error}{hint}");
+        }
+        let gl = &report["gl"];
+        println!(
+            "web: headless Chromium, {} ({}); untimed warm-up frame {:.0} ms",
+            gl["renderer"].as_str().unwrap_or("?"),
+            gl["version"].as_str().unwrap_or("?"),
+            report["warmUpMs"].as_f64().unwrap_or(f64::NAN)
+        );
+        let reported = report["lines"].as_array().context("the report has no lines")?;
+        ensure!(
+            reported.len() == strategies.len(),
+            "{} lines reported, {} asked for",
+            reported.len(),
+            strategies.len()
+        );
+        let pixels = (size * size) as usize;
+        let mut lines = Vec::new();
+        for (line, &strategy) in reported.iter().zip(strategies) {
+            ensure!(line["strategy"] == strategy.name(), "line {} reported for {}", line["strategy"], strategy.name());
+            let reported = line["points"].as_array().context("a line without points")?;
+            ensure!(
+                reported.len() == checkpoints.len(),
+                "{}: {} checkpoints reported",
+                strategy.name(),
+                reported.len()
+            );
+            let mut points = Vec::new();
+            for (p, &spp) in reported.iter().zip(checkpoints) {
+                let what = || format!("{} at {spp} spp", strategy.name());
+                ensure!(p["spp"].as_u64() == Some(spp as u64), "{}: the report says {} spp", what(), p["spp"]);
+                ensure!(
+                    (p["width"].as_u64(), p["height"].as_u64()) == (Some(size as u64), Some(size as u64)),
+                    "{}: the page rendered {}x{}, not {size}x{size}",
+                    what(),
+                    p["width"],
+                    p["height"]
+                );
+                let ms = p["ms"].as_f64().filter(|ms| ms.is_finite() && *ms >= 0.0);
+                let ms = ms.with_context(|| format!("{}: no render time", what()))?;
+                let data = p["data"].as_array().with_context(|| format!("{}: no image", what()))?;
+                ensure!(data.len() == pixels * 4, "{}: {} values for {pixels} RGBA pixels", what(), data.len());
+                let values: Vec<f32> = data.iter().map(|v| v.as_f64().map_or(f32::NAN, |v| v as f32)).collect();
+                let n = spp as f32;
+                let image = Image {
+                    width: size,
+                    height: size,
+                    pixels: values.chunks_exact(4).map(|t| Vec3::new(t[0], t[1], t[2]) / n).collect(),
+                };
+                let accepted: f64 = values.chunks_exact(4).map(|t| t[3] as f64).sum();
+                points.push(Point {
+                    backend: ChartBackend::Web,
+                    strategy,
+                    spp,
+                    seconds: ms / 1e3,
+                    rmse: tracer::stats::rmse(&image.pixels, reference)?,
+                    rel_mse: tracer::stats::rel_mse(&image.pixels, reference)?,
+                    rejected: (spp as u64 * pixels as u64).saturating_sub(accepted.round() as u64),
+                    image,
+                });
+            }
+            lines.push(points);
+        }
+        Ok(lines)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -622,6 +1042,7 @@ mod tests {
             out_dir: out.join("chart"),
             reference_dir: out.join("reference"),
             seed: 1,
+            web_timeout: 60.0,
         }
     }
 
@@ -645,6 +1066,11 @@ mod tests {
         let svg = std::fs::read_to_string(a.out_dir.join("furnace.svg")).unwrap();
         assert!(svg.starts_with("<svg") && svg.contains("mis cpu") && svg.contains("slope"));
         assert!(a.out_dir.join("furnace-equal-time.png").exists());
+        let crops = std::fs::read_to_string(a.out_dir.join("furnace-equal-time.svg")).unwrap();
+        for label in ["reference", "exact", "bsdf · cpu", "nee · cpu", "mis · cpu", " spp · "] {
+            assert!(crops.contains(label), "the equal-time SVG labels {label:?}");
+        }
+        assert_eq!(crops.matches("data:image/png;base64,").count(), 4, "the reference and 3 crops");
         let _ = std::fs::remove_dir_all(dir);
     }
 
@@ -672,6 +1098,62 @@ mod tests {
         let mut a = args(&["cornell"], &dir);
         a.spp = 0;
         assert!(chart(&a).is_err());
+    }
+
+    #[test]
+    fn base64_matches_rfc_4648() {
+        for (input, output) in
+            [("", ""), ("f", "Zg=="), ("fo", "Zm8="), ("foo", "Zm9v"), ("foob", "Zm9vYg=="), ("foobar", "Zm9vYmFy")]
+        {
+            assert_eq!(base64(input.as_bytes()), output);
+        }
+        assert_eq!(base64(&[0xff, 0xfe, 0x00]), "//4A");
+    }
+
+    /// A driver report for one strategy at 2x2, checkpoints 1 and 2, whose accumulation is
+    /// `value` per sample.
+    fn report(value: f64) -> serde_json::Value {
+        let data = |spp: f64| (0..4).flat_map(|_| [value * spp, value * spp, value * spp, spp]).collect::<Vec<f64>>();
+        serde_json::json!({
+            "gl": { "renderer": "test", "version": "test" },
+            "warmUpMs": 1.0,
+            "lines": [{ "strategy": "mis", "points": [
+                { "spp": 1, "ms": 2.0, "width": 2, "height": 2, "data": data(1.0) },
+                { "spp": 2, "ms": 5.0, "width": 2, "height": 2, "data": data(2.0) },
+            ]}],
+        })
+    }
+
+    #[test]
+    fn web_reports_become_points_and_bad_ones_errors() {
+        let reference = vec![Vec3::splat(0.5); 4];
+        let lines = web::from_report(&report(0.5), &[Strategy::Mis], 2, &[1, 2], &reference).unwrap();
+        let line = &lines[0];
+        assert_eq!(line.iter().map(|p| (p.spp, p.seconds)).collect::<Vec<_>>(), [(1, 0.002), (2, 0.005)]);
+        assert!(line.iter().all(|p| p.rmse == 0.0 && p.rejected == 0 && p.backend == ChartBackend::Web));
+        let off = web::from_report(&report(0.75), &[Strategy::Mis], 2, &[1, 2], &reference).unwrap();
+        assert!((off[0][1].rmse - 0.25).abs() < 1e-6, "the mean of the sums is compared: {}", off[0][1].rmse);
+
+        let refused = |report: serde_json::Value, strategies: &[Strategy], size: u32, spp: &[u32]| {
+            format!(
+                "{:#}",
+                web::from_report(&report, strategies, size, spp, &reference[..(size * size) as usize]).unwrap_err()
+            )
+        };
+        let mut error = report(0.5);
+        error["error"] = "no WebGL2".into();
+        assert!(refused(error, &[Strategy::Mis], 2, &[1, 2]).contains("the page reported: no WebGL2"));
+        assert!(refused(report(0.5), &[Strategy::Nee], 2, &[1, 2]).contains("reported for nee"));
+        assert!(refused(report(0.5), &[Strategy::Mis], 2, &[1, 4]).contains("says 2 spp"));
+        assert!(refused(report(0.5), &[Strategy::Mis], 1, &[1, 2]).contains("not 1x1"));
+        assert!(refused(report(0.5), &[Strategy::Mis, Strategy::Bsdf], 2, &[1, 2]).contains("1 lines reported"));
+        let mut short = report(0.5);
+        short["lines"][0]["points"][1]["data"] = serde_json::json!([1.0, 2.0]);
+        assert!(refused(short, &[Strategy::Mis], 2, &[1, 2]).contains("2 values for 4 RGBA pixels"));
+        let mut no_time = report(0.5);
+        no_time["lines"][0]["points"][0]["ms"] = serde_json::Value::Null;
+        assert!(refused(no_time, &[Strategy::Mis], 2, &[1, 2]).contains("no render time"));
+        assert!(refused(serde_json::json!({}), &[Strategy::Mis], 2, &[1, 2]).contains("no lines"));
     }
 
     #[test]

@@ -3,7 +3,8 @@
 use std::path::Path;
 
 use glam::{Vec2, Vec3};
-use tracer::bvh::{self, BuildOptions, BuildQuality, Bvh, BvhError};
+use tracer::bvh::{self, BuildOptions, BuildQuality, Bvh, BvhError, WIDE};
+use tracer::kernel::traverse::STACK_SIZE;
 use tracer::scene::{self, Scene, Triangle};
 
 /// xorshift32 with a float helper.
@@ -106,9 +107,49 @@ fn compare_with_brute_force(name: &str, tris: &[Triangle], bvh: &Bvh, rays: usiz
     hits
 }
 
+/// The 4-wide hierarchy the kernel traverses: every binary leaf appears in exactly one wide
+/// slot with its box, every wide node is referenced once, and the depth fits the stack.
+fn check_wide(name: &str, bvh: &Bvh) -> (u32, u32) {
+    let wide = bvh.widen().unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert!(wide.stack_needed <= STACK_SIZE as u32, "{name}: needs a stack of {}", wide.stack_needed);
+    assert!(wide.stack_needed <= 3 * wide.depth, "{name}: at most three pending nodes per level");
+    let mut leaves: Vec<(u32, u32, [u32; 6])> = Vec::new();
+    let mut referenced = vec![0u32; wide.nodes.len()];
+    referenced[0] = 1;
+    for n in &wide.nodes {
+        assert!((1..=WIDE as u32).contains(&n.children), "{name}: {} children", n.children);
+        for c in 0..WIDE {
+            if c >= n.children as usize {
+                assert!(n.min[c].cmpgt(n.max[c]).all(), "{name}: unused slot {c} must be an empty box");
+                continue;
+            }
+            if n.count[c] == 0 {
+                referenced[n.first[c] as usize] += 1;
+            } else {
+                let (lo, hi) = (n.min[c], n.max[c]);
+                let bits = [lo.x, lo.y, lo.z, hi.x, hi.y, hi.z].map(f32::to_bits);
+                leaves.push((n.first[c], n.count[c], bits));
+            }
+        }
+    }
+    assert!(referenced.iter().all(|&r| r == 1), "{name}: every wide node is referenced once");
+    let mut expected: Vec<(u32, u32, [u32; 6])> = bvh
+        .nodes
+        .iter()
+        .filter(|n| n.is_leaf())
+        .map(|n| (n.first, n.count, [n.min.x, n.min.y, n.min.z, n.max.x, n.max.y, n.max.z].map(f32::to_bits)))
+        .collect();
+    leaves.sort();
+    expected.sort();
+    assert_eq!(leaves, expected, "{name}: the wide hierarchy keeps every leaf, with its box");
+    (wide.depth, wide.stack_needed)
+}
+
 fn check(name: &str, tris: &[Triangle], rays: usize) {
     let bvh = bvh::build(tris).unwrap();
     bvh.validate(tris).unwrap_or_else(|e| panic!("{name}: {e}"));
+    let (wide_depth, stack) = check_wide(name, &bvh);
+    println!("{name}: binary depth {}, 4-wide depth {wide_depth}, stack needed {stack}", bvh.depth());
     assert!(leaf_sizes_within(&bvh, BuildOptions::default().max_leaf_size));
     let hits = compare_with_brute_force(name, tris, &bvh, rays, 0x9E37_79B9);
     assert!(hits > rays / 10, "{name}: only {hits} of {rays} rays hit: the comparison proves little");
@@ -174,6 +215,23 @@ fn edge_cases() {
     let point = vec![tri(Vec3::ONE, Vec3::ONE, Vec3::ONE); 100];
     let b = bvh::build(&point).unwrap();
     b.validate(&point).unwrap();
+    check_wide("point", &b);
+    // A single leaf: the wide root has one child.
+    let wide = bvh::build(&one).unwrap().widen().unwrap();
+    assert_eq!((wide.nodes.len(), wide.depth, wide.stack_needed, wide.nodes[0].children), (1, 1, 0, 1));
+    // Deep binary trees: triangles at exponentially growing distances along a line.
+    let line: Vec<Triangle> = (0..2000)
+        .map(|i| 1.01f32.powi(i))
+        .map(|x| tri(Vec3::new(x, 0.0, 0.0), Vec3::new(x, 1.0, 0.0), Vec3::new(x, 0.0, 1.0)))
+        .collect();
+    let b = bvh::build(&line).unwrap();
+    println!("line: binary depth {}, 4-wide depth and stack {:?}", b.depth(), check_wide("line", &b));
+    // Many identical triangles build a chain; leaves are intersected at once, so it needs
+    // almost no stack however deep it is.
+    let many = vec![tri(Vec3::ZERO, Vec3::X, Vec3::Y); 5_000];
+    let b = bvh::build(&many).unwrap();
+    let (depth, stack) = check_wide("identical", &b);
+    assert!(depth > 100 && stack <= 2, "identical: depth {depth}, stack {stack}");
 
     // Many identical triangles: all tie; the smallest index wins.
     let same = vec![tri(Vec3::ZERO, Vec3::X, Vec3::Y); 50];
@@ -212,6 +270,7 @@ fn validate_catches_broken_hierarchies() {
     cycle.nodes[c].count = 0;
     assert!(cycle.validate(&tris).is_err(), "child pointing back at the root");
     let _ = cycle.depth(); // terminates on a cyclic graph
+    assert!(cycle.widen().is_err(), "widening refuses a cyclic graph instead of looping");
     let _ = cycle.intersect_closest(&tris, Vec3::ZERO, Vec3::X, 1.0); // and traversal returns
 }
 

@@ -10,7 +10,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use common::TestRng;
-use glam::{IVec2, UVec4, Vec2, Vec3};
+use glam::{IVec2, UVec3, UVec4, Vec2, Vec3};
 use tracer::backend::harness::{Backend, Equivalence, Outcome, Tolerance, Values};
 use tracer::kernel::intersect::{self, TriangleHit, MISS};
 use tracer::kernel::scene_data::{self, Scene, NONE};
@@ -270,7 +270,9 @@ fn values_not_matching_the_layout_are_refused() {
     assert!(e.to_string().contains("do not follow the generated harness layout"), "{e}");
     let e = eq.run("no_such_function", &[(1u32,)], |_, &(x,)| (x,), Tolerance::EXACT).unwrap_err();
     assert!(e.to_string().contains("no_such_function"), "{e}");
-    let e = eq.run("fetch_node", &[(0u32,)], |s, &(i,)| (traverse::fetch_node(s, i),), Tolerance::EXACT).unwrap_err();
+    let e = eq
+        .run("fetch_triangle", &[(0u32,)], |s, &(i,)| (scene_data::fetch_triangle(s, i),), Tolerance::EXACT)
+        .unwrap_err();
     assert!(e.to_string().contains("no scene was set"), "{e}");
 }
 
@@ -660,6 +662,49 @@ fn ray_box_agrees() {
 // ---------------------------------------------------------------------------------------------
 // Full BVH traversal on LittlestTokyo.
 
+type NodeArgs = (u32, Vec3, Vec3, UVec3, f32);
+
+/// `per_node` rays at each node of `k`'s BVH, aimed through one of its children, a quarter of
+/// them axis-parallel from that child's face plane (the slab test's rare "exit == 0" path),
+/// some with a short `t_max`.
+fn node_rays(k: &Scene, per_node: usize, seed: u64) -> Vec<NodeArgs> {
+    let mut r = TestRng::new(seed);
+    let nodes = k.nodes.len() as u32 / scene_data::NODE_TEXELS;
+    let mut out = Vec::new();
+    for node in 0..nodes {
+        let texel = |t: u32| k.nodes.as_slice()[(node * scene_data::NODE_TEXELS + t) as usize];
+        let used = (0..4).filter(|&c| f32::from_bits(texel(0)[c]) <= f32::from_bits(texel(1)[c])).count();
+        for _ in 0..per_node {
+            let c = (r.next_u32() as usize) % used.max(1);
+            let corner = |lo: u32| {
+                Vec3::new(
+                    f32::from_bits(texel(lo)[c]),
+                    f32::from_bits(texel(lo + 2)[c]),
+                    f32::from_bits(texel(lo + 4)[c]),
+                )
+            };
+            let (lo, hi) = (corner(0), corner(1));
+            let target = lo + (hi - lo) * Vec3::new(r.f32(), r.f32(), r.f32());
+            let mut origin = target + r.unit_vector() * (hi - lo).length().max(1e-3) * 2.0;
+            let mut dir = (target - origin).normalize_or(Vec3::X);
+            if r.f32() < 0.25 {
+                let axis = (r.next_u32() % 3) as usize;
+                dir = Vec3::ZERO;
+                dir[axis] = if r.f32() < 0.5 { 1.0 } else { -1.0 };
+                let face = (r.next_u32() % 3) as usize;
+                origin = target - dir * (hi - lo).length();
+                if face != axis {
+                    origin[face] = if r.f32() < 0.5 { lo[face] } else { hi[face] };
+                }
+            }
+            let inv_dir = intersect::safe_inverse(dir);
+            let t_max = if r.f32() < 0.2 { r.range(0.0, 2.0 * (target - origin).length()) } else { MISS };
+            out.push((node, origin, inv_dir, traverse::near_planes(inv_dir), t_max));
+        }
+    }
+    out
+}
+
 #[test]
 fn bvh_traversal_on_littlest_tokyo() {
     let scene = tracer::scene::load(&shared("scenes/threejs/LittlestTokyo.glb")).expect("LittlestTokyo loads");
@@ -785,8 +830,14 @@ fn texture_and_scene_fetches_agree() {
         |s, &(i,)| (scene_data::fetch_triangle(s, i),),
         Tolerance::EXACT,
     );
-    let nodes: Vec<(u32,)> = (0..k.nodes.len() as u32 / scene_data::NODE_TEXELS).map(|i| (i,)).collect();
-    assert_equivalent(&mut eq, "fetch_node", &nodes, |s, &(i,)| (traverse::fetch_node(s, i),), Tolerance::EXACT);
+    let node_rays = node_rays(&k, 16, 11);
+    assert_equivalent(
+        &mut eq,
+        "intersect_node",
+        &node_rays,
+        |s, &(node, origin, inv_dir, near, t_max)| (traverse::intersect_node(s, node, origin, inv_dir, near, t_max),),
+        Tolerance::EXACT,
+    );
     let materials: Vec<(u32,)> = (0..k.materials.len() as u32 / scene_data::MATERIAL_TEXELS).map(|i| (i,)).collect();
     assert_equivalent(
         &mut eq,

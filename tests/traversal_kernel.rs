@@ -2,9 +2,9 @@
 //! same closest hits as brute force over the packed triangles.
 
 use glam::Vec3;
-use tracer::kernel::intersect::{intersect_triangle, MISS};
-use tracer::kernel::scene_data::{fetch_triangle, NONE};
-use tracer::kernel::traverse::{occluded, trace_closest};
+use tracer::kernel::intersect::{intersect_aabb, intersect_triangle, safe_inverse, MISS};
+use tracer::kernel::scene_data::{fetch_triangle, NODE_TEXELS, NONE};
+use tracer::kernel::traverse::{intersect_node, near_planes, occluded, trace_closest};
 use tracer::pack::{pack, RenderSettings};
 use tracer::scene::{self, Scene};
 
@@ -63,7 +63,55 @@ fn check(scene: &Scene, rays: usize) {
         }
     }
     assert!(hits > rays / 10, "too few rays hit ({hits} of {rays}): the test would prove little");
+    check_node_tests(k, &mut rng);
     assert!(ties < rays / 100, "{ties} near-ties out of {rays}");
+}
+
+/// The four-lane node test gives, lane by lane, exactly `intersect_aabb` on each child's box
+/// (and a miss for unused slots), for rays through every node, axis-parallel ones from face
+/// planes included.
+fn check_node_tests(k: &tracer::kernel::scene_data::Scene, rng: &mut XorShift) {
+    let nodes = k.nodes.as_slice();
+    let mut rare = 0;
+    for node in 0..(nodes.len() as u32 / NODE_TEXELS) {
+        let texel = |t: u32| nodes[(node * NODE_TEXELS + t) as usize];
+        let corner = |lo: u32, c: usize| {
+            Vec3::new(f32::from_bits(texel(lo)[c]), f32::from_bits(texel(lo + 2)[c]), f32::from_bits(texel(lo + 4)[c]))
+        };
+        for ray in 0..24 {
+            let c = ray % 4;
+            let (lo, hi) = (corner(0, c), corner(1, c));
+            let used = lo.cmple(hi).all();
+            let target = if used { rng.in_box(lo, hi) } else { Vec3::ZERO };
+            let (origin, dir) = if ray % 3 == 0 {
+                // Axis-parallel, starting on one of the child's face planes.
+                let axis = (ray / 3) % 3;
+                let mut dir = Vec3::ZERO;
+                dir[axis] = if rng.next() < 0.5 { 1.0 } else { -1.0 };
+                let mut origin = target - dir * 10.0;
+                let face = (axis + 1) % 3;
+                origin[face] = if rng.next() < 0.5 { lo[face] } else { hi[face] };
+                rare += 1;
+                (origin, dir)
+            } else {
+                let origin = target + (Vec3::new(rng.next(), rng.next(), rng.next()) - 0.5) * 20.0;
+                (origin, (target - origin).normalize_or(Vec3::Y))
+            };
+            let t_max = if ray % 5 == 0 { 2.0 * rng.next() } else { MISS };
+            let inv = safe_inverse(dir);
+            let got = intersect_node(k, node, origin, inv, near_planes(inv), t_max).t.to_array();
+            for (lane, got) in got.into_iter().enumerate() {
+                let (lo, hi) = (corner(0, lane), corner(1, lane));
+                let want = if lo.cmple(hi).all() { intersect_aabb(origin, inv, lo, hi, t_max) } else { MISS };
+                assert_eq!(
+                    got.to_bits(),
+                    want.to_bits(),
+                    "node {node} lane {lane}, ray {origin:?} {dir:?} t_max {t_max}"
+                );
+            }
+        }
+    }
+    assert!(rare > 0);
 }
 
 #[test]

@@ -20,6 +20,8 @@
 
 use std::sync::Arc;
 
+use rayon::prelude::*;
+
 pub use kernel_dsl_ir as ir;
 pub use kernel_dsl_macros::kernel;
 
@@ -58,10 +60,50 @@ impl<T: Copy + Default> Texels<T> {
         Texels { data: unsafe { data.assume_init() } }
     }
 
+    /// `count * N` texels written straight into the shared allocation in parallel (rayon), `N`
+    /// at a time: texels `N * i .. N * i + N` are `group(i)`. For large arrays with a fixed
+    /// number of texels per item (triangles).
+    pub fn par_from_groups<const N: usize>(count: usize, group: impl Fn(usize) -> [T; N] + Sync) -> Self
+    where
+        T: Send + Sync,
+    {
+        if N == 0 {
+            return Texels::new(Vec::new());
+        }
+        let mut data = Arc::<[T]>::new_uninit_slice(count * N);
+        let Some(slots) = Arc::get_mut(&mut data) else {
+            // Not reached (a new `Arc` is unique); the safe way round, should it ever be.
+            return Texels { data: (0..count).flat_map(group).collect() };
+        };
+        slots.par_chunks_mut(N).with_min_len(1 << 12).enumerate().for_each(|(i, chunk)| {
+            for (slot, texel) in chunk.iter_mut().zip(group(i)) {
+                slot.write(texel);
+            }
+        });
+        // SAFETY: the chunks cover every slot and each chunk (N slots) was written from the N
+        // texels of its group. (Should `group` panic, rayon passes the panic on and the `Arc`
+        // is dropped as `MaybeUninit`, which reads nothing.)
+        Texels { data: unsafe { data.assume_init() } }
+    }
+
     /// `len` texels filled by `fill` in place, starting from zero (`T::default()`): for arrays
     /// assembled from slices (a texture atlas), at copy speed and without an intermediate `Vec`.
     pub fn from_fill(len: usize, fill: impl FnOnce(&mut [T])) -> Self {
         let mut texels = Texels::from_fn(len, |_| T::default());
+        if let Some(slots) = Arc::get_mut(&mut texels.data) {
+            fill(slots);
+        }
+        texels
+    }
+
+    /// [`Texels::from_fill`] for large arrays: the zeros are written in parallel (rayon) before
+    /// `fill` runs. The first write to a large fresh allocation is mostly page faults, which
+    /// then happen on every thread instead of one.
+    pub fn par_from_fill(len: usize, fill: impl FnOnce(&mut [T])) -> Self
+    where
+        T: Send + Sync,
+    {
+        let mut texels = Texels::par_from_groups::<1>(len, |_| [T::default()]);
         if let Some(slots) = Arc::get_mut(&mut texels.data) {
             fill(slots);
         }
@@ -121,10 +163,20 @@ mod tests {
         assert_eq!(squares.as_slice(), &[0, 1, 4, 9, 16]);
         let filled = Texels::from_fill(4, |t: &mut [u32]| t[1..3].copy_from_slice(&[7, 8]));
         assert_eq!(filled.as_slice(), &[0, 7, 8, 0]);
+        let filled = Texels::par_from_fill(100_000, |t: &mut [u32]| t[1..3].copy_from_slice(&[7, 8]));
+        assert_eq!(
+            (&filled.as_slice()[..4], filled.as_slice()[4..].iter().all(|&t| t == 0)),
+            (&[0, 7, 8, 0][..], true)
+        );
         let collected: Texels<u32> = (0..3).collect();
         assert_eq!(collected, Texels::new(vec![0, 1, 2]));
         assert!(std::ptr::eq(squares.clone().as_slice(), squares.as_slice()));
         assert_eq!(Texels::<u32>::from_fn(0, |_| 1).len(), 0);
+        let pairs = Texels::par_from_groups(10_000, |i| [i as u32, !(i as u32)]);
+        assert!(pairs.as_slice().chunks(2).enumerate().all(|(i, p)| p == [i as u32, !(i as u32)]));
+        assert_eq!(pairs.len(), 20_000);
+        assert_eq!(Texels::<u32>::par_from_groups(0, |_| [1, 2, 3]).len(), 0);
+        assert_eq!(Texels::<u32>::par_from_groups::<0>(5, |_| []).len(), 0);
     }
 
     #[test]

@@ -4,7 +4,9 @@
 //
 //   node run.mjs SCENARIO --url http://127.0.0.1:PORT/ --out result.json [options]
 //
-// Scenarios: accumulate, cache, camera, drop, limits, context, bench (see each function).
+// Scenarios: accumulate, cache, camera, drop, limits, context, bench, chart, compile (see each
+// function). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
+// long, so that a hung page never hangs the caller.
 
 import { chromium } from 'playwright-core';
 import { mkdtempSync, rmSync, writeFileSync, readFileSync } from 'node:fs';
@@ -32,11 +34,11 @@ function parseArgs(argv) {
   return options;
 }
 
-async function withBrowser(profile, action) {
+async function withBrowser(profile, action, extraArgs = []) {
   const context = await chromium.launchPersistentContext(profile, {
     executablePath: CHROMIUM,
     headless: true,
-    args: ARGS,
+    args: [...ARGS, ...extraArgs],
     viewport: { width: 900, height: 700 },
   });
   try {
@@ -302,13 +304,123 @@ async function bench(o) {
   return { results };
 }
 
-const SCENARIOS = { accumulate, cache, camera, drop, limits, context: contextLoss, bench };
+// The browser's WebGL2 implementation (unmasked where the browser allows it).
+async function webgl2Info(page) {
+  return page.evaluate(() => {
+    const gl = document.createElement('canvas').getContext('webgl2');
+    if (!gl) return { renderer: 'no WebGL2', version: '', parallelCompile: false };
+    const debug = gl.getExtension('WEBGL_debug_renderer_info');
+    return {
+      renderer: gl.getParameter(debug ? debug.UNMASKED_RENDERER_WEBGL : gl.RENDERER),
+      version: gl.getParameter(gl.VERSION),
+      parallelCompile: Boolean(gl.getExtension('KHR_parallel_shader_compile')),
+    };
+  });
+}
+
+// `lightport chart --backends web`: one line per strategy over the chart's own bundle (`--bundle
+// FILE`, handed to the page at a URL of this driver's: the page and its wasm come from `lightport
+// serve`), at cumulative `--checkpoints` (e.g. 1,2,4). The page times its own work: the frames
+// (accumulation pass + display pass to the canvas) and the wait for the GPU (a 1-pixel read-back),
+// with performance.now(); not the page load, bundle upload, shader compile, the untimed warm-up
+// frame (the driver's shader JIT) or the float read-back after each checkpoint.
+async function chart(o) {
+  const strategies = (o.strategies || 'mis').split(',');
+  const checkpoints = (o.checkpoints || '1').split(',').map(Number);
+  if (!o.bundle) throw new Error('--bundle FILE is required');
+  if (checkpoints.some((c, i) => !Number.isInteger(c) || c < 1 || (i > 0 && c <= checkpoints[i - 1]))) {
+    throw new Error(`--checkpoints must be increasing positive integers: ${o.checkpoints}`);
+  }
+  const bundleBytes = readFileSync(o.bundle);
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      await context.route((url) => url.pathname === '/lightport-chart/scene.lpb', (route) =>
+        route.fulfill({ status: 200, contentType: 'application/octet-stream', body: bundleBytes }));
+      const { page, error, info, consoleErrors } = await open(context, o.url, {
+        bundle: '/lightport-chart/scene.lpb', size: o.size, seed: o.seed || '1', strategy: strategies[0], paused: '1',
+      });
+      if (error) return { error, consoleErrors };
+      const pageError = () => page.evaluate(() => window.lightport.error);
+      // The warm-up frame: the driver compiles (JITs) the kernel at the first draw.
+      const warmUpMs = await page.evaluate(() => window.lightport.renderFrames(1));
+      const lines = [];
+      for (const strategy of strategies) {
+        // Restarts the accumulation: frame 0 of the seed's sequence, as a fresh renderer.
+        await page.evaluate((s) => window.lightport.setStrategy(s), strategy);
+        const points = [];
+        let ms = 0;
+        for (const spp of checkpoints) {
+          const frames = spp - (await page.evaluate(() => window.lightport.spp()));
+          ms += frames * (await page.evaluate((n) => window.lightport.renderFrames(n), frames));
+          const e = await pageError();
+          if (e) return { error: e, consoleErrors };
+          const image = await page.evaluate(() => window.lightport.readAccumulation());
+          if (image.spp !== spp) return { error: `${strategy}: ${image.spp} spp rendered, ${spp} expected`, consoleErrors };
+          points.push({ spp, ms, width: image.width, height: image.height, data: image.data });
+        }
+        lines.push({ strategy, points, info: await page.evaluate(() => window.lightport.info()) });
+      }
+      return { info, gl: await webgl2Info(page), warmUpMs, lines, consoleErrors };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
+// examples/feature_sizes.rs: WebGL2 compile + link time of GLSL ES 3.00 programs. `--shaders
+// FILE` holds { vertex, fragments: [{ name, source }] }; each repeat measures every fragment
+// shader once, in order (the caller alternates variants with its baseline), in one browser whose
+// GPU program caches are off (`--disable-gpu-program-cache`, `--disable-gpu-shader-disk-cache`;
+// the page also makes every source unique), so that a repeat compiles again rather than finding
+// the program cached. Reports per program `ms` (until LINK_STATUS) and `settledMs` (the work the
+// GPU process still did after it: see the page's compileProgram).
+async function compile(o) {
+  const { vertex, fragments } = JSON.parse(readFileSync(o.shaders, 'utf8'));
+  const repeats = Number(o.repeats || '5');
+  if (!Number.isInteger(repeats) || repeats < 1) throw new Error(`--repeats must be a positive integer: ${o.repeats}`);
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const { page, error, consoleErrors } = await open(context, o.url, { scene: '', paused: '1' });
+      if (error) return { error, consoleErrors };
+      const times = fragments.map(() => []);
+      const settled = fragments.map(() => []);
+      for (let r = 0; r < repeats; r++) {
+        for (const [i, f] of fragments.entries()) {
+          const result = await page.evaluate(([v, s]) => window.lightport.compileProgram(v, s), [vertex, f.source]);
+          if (!result.ok) return { error: `${f.name} does not compile or link in WebGL2: ${result.log}`, consoleErrors };
+          times[i].push(result.ms);
+          settled[i].push(result.settledMs);
+        }
+      }
+      const gl = await webgl2Info(page);
+      return { gl, times: fragments.map((f, i) => ({ name: f.name, ms: times[i], settledMs: settled[i] })), consoleErrors };
+    }, ['--disable-gpu-program-cache', '--disable-gpu-shader-disk-cache']);
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
+const SCENARIOS = { accumulate, cache, camera, drop, limits, context: contextLoss, bench, chart, compile };
 
 const options = parseArgs(process.argv.slice(2));
 const run = SCENARIOS[options.scenario];
 if (!run) {
   console.error(`unknown scenario ${options.scenario}: ${Object.keys(SCENARIOS).join(', ')}`);
   process.exit(2);
+}
+if (options.deadline !== undefined) {
+  const seconds = Number(options.deadline);
+  if (!(seconds > 0)) {
+    console.error(`--deadline must be a positive number of seconds: ${options.deadline}`);
+    process.exit(2);
+  }
+  // process.exit runs playwright's exit handler, which kills the browser it launched.
+  setTimeout(() => {
+    console.error(`run.mjs ${options.scenario}: gave up after the --deadline of ${seconds} s (the page did not finish)`);
+    process.exit(3);
+  }, seconds * 1000).unref();
 }
 try {
   const result = await run(options);

@@ -1,5 +1,6 @@
-//! Bounding volume hierarchy over a scene's triangles, in the flat binary layout the kernel
-//! traverses.
+//! Bounding volume hierarchy over a scene's triangles: built binary ([`Bvh`], the layout
+//! below, also the reference for tests), then widened to the 4-wide hierarchy the kernel
+//! traverses ([`Bvh::widen`], [`WideBvh`]; packed by `tracer::pack`).
 //!
 //! # Layout
 //! * `nodes[0]` is the root. A node with `count == 0` is interior: its children are
@@ -65,6 +66,46 @@ pub struct Bvh {
     pub nodes: Vec<BvhNode>,
     /// Reordered index -> original triangle index: leaves' triangles, in leaf order.
     pub triangle_order: Vec<u32>,
+}
+
+/// Children per node of the hierarchy the kernel traverses ([`Bvh::widen`]).
+pub const WIDE: usize = 4;
+
+/// A node of the 4-wide hierarchy: up to [`WIDE`] children, each a box and either a wide node
+/// (`count == 0`, `first` its index) or a leaf (triangles `first .. first + count` of the
+/// reordered list). Slots from `children` on are unused: empty boxes (min `f32::MAX`, max
+/// `-f32::MAX`) that every slab test misses.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WideNode {
+    pub min: [Vec3; WIDE],
+    pub max: [Vec3; WIDE],
+    pub first: [u32; WIDE],
+    pub count: [u32; WIDE],
+    /// Number of used slots (1..=4; slots are filled from 0).
+    pub children: u32,
+}
+
+impl WideNode {
+    /// A node with no children.
+    pub const EMPTY: WideNode = WideNode {
+        min: [Vec3::splat(f32::MAX); WIDE],
+        max: [Vec3::splat(-f32::MAX); WIDE],
+        first: [0; WIDE],
+        count: [0; WIDE],
+        children: 0,
+    };
+}
+
+/// The 4-wide hierarchy ([`Bvh::widen`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct WideBvh {
+    pub nodes: Vec<WideNode>,
+    /// Depth in wide levels (1 for a root whose children are all leaves).
+    pub depth: u32,
+    /// The most entries the kernel's traversal stack can hold at once for this tree, whatever
+    /// the ray: visiting a node pushes its `k` child nodes (leaves are intersected at once) and
+    /// pops the nearest, so a node needs `max(k, k - 1 + the most any child node needs)`.
+    pub stack_needed: u32,
 }
 
 /// Why a BVH could not be built.
@@ -392,6 +433,86 @@ impl Bvh {
             }
         }
         max
+    }
+
+    /// The 4-wide hierarchy the kernel traverses (see [`WideBvh`]). Each wide node takes a
+    /// binary node's children and repeatedly replaces the interior child with the largest
+    /// surface area by its two children, until it has [`WIDE`] children or only leaves, so that
+    /// one box test of four lanes replaces about two levels of the binary tree. Leaves and
+    /// triangle order are kept, so `triangle_order` still applies. Wide nodes are stored depth
+    /// first, root at 0.
+    pub fn widen(&self) -> Result<WideBvh, BvhError> {
+        let internal = |m: &str| BvhError::Internal(m.to_owned());
+        let node = |i: usize| self.nodes.get(i).ok_or_else(|| internal("node index out of range"));
+        node(0)?;
+        let mut nodes = vec![WideNode::EMPTY];
+        let mut depth = 1;
+        // (binary node, wide node to fill, its level)
+        let mut stack: Vec<(usize, usize, u32)> = vec![(0, 0, 1)];
+        while let Some((b, w, level)) = stack.pop() {
+            // Every wide node opens at least one distinct binary interior node (a tree has
+            // fewer of those than nodes): more means the binary graph is not a tree.
+            if nodes.len() > self.nodes.len() {
+                return Err(internal("the node graph is not a tree"));
+            }
+            depth = depth.max(level);
+            let mut children = [0usize; WIDE];
+            let mut len = 1;
+            children[0] = b;
+            if !node(b)?.is_leaf() {
+                let n = node(b)?;
+                children[0] = n.first as usize;
+                children[1] = n.first as usize + 1;
+                len = 2;
+            }
+            while len < WIDE {
+                let mut widest: Option<(usize, f32)> = None;
+                for (slot, &c) in children[..len].iter().enumerate() {
+                    let n = node(c)?;
+                    if !n.is_leaf() && widest.is_none_or(|(_, area)| n.half_area() > area) {
+                        widest = Some((slot, n.half_area()));
+                    }
+                }
+                let Some((slot, _)) = widest else { break };
+                let first = node(children[slot])?.first as usize;
+                children[slot] = first;
+                children[len] = first + 1;
+                len += 1;
+            }
+            let mut out = WideNode::EMPTY;
+            let pending = stack.len();
+            for (slot, &c) in children[..len].iter().enumerate() {
+                let n = node(c)?;
+                out.min[slot] = n.min;
+                out.max[slot] = n.max;
+                if n.is_leaf() {
+                    out.first[slot] = n.first;
+                    out.count[slot] = n.count;
+                } else {
+                    out.first[slot] = nodes.len() as u32;
+                    stack.push((c, nodes.len(), level + 1));
+                    nodes.push(WideNode::EMPTY);
+                }
+            }
+            // Siblings are numbered in slot order; visit the first one's subtree first.
+            stack[pending..].reverse();
+            out.children = len as u32;
+            nodes[w] = out;
+        }
+        // Children come after their parent: one reverse pass sees them first.
+        let mut need = vec![0u32; nodes.len()];
+        for i in (0..nodes.len()).rev() {
+            let n = &nodes[i];
+            let (mut k, mut most) = (0u32, 0u32);
+            for c in 0..n.children as usize {
+                if n.count[c] == 0 {
+                    k += 1;
+                    most = most.max(need.get(n.first[c] as usize).copied().unwrap_or(0));
+                }
+            }
+            need[i] = if k == 0 { 0 } else { k.max(k - 1 + most) };
+        }
+        Ok(WideBvh { nodes, depth, stack_needed: need[0] })
     }
 
     /// Surface-area-heuristic cost with unit traversal and intersection costs:

@@ -7,13 +7,14 @@
 
 use glam::{UVec4, Vec3, Vec4};
 use kernel_dsl::Texels;
+use rayon::prelude::*;
 
 use crate::bvh::Bvh;
 use crate::kernel::scene_data::{
     self, Scene as KernelScene, LIGHT_POINT, LIGHT_SKY, LIGHT_TEXELS, LIGHT_TRIANGLE, MATERIAL_TEXELS, NODE_TEXELS,
     SHADING_TEXELS, TEXTURE_TEXELS_PER_ELEMENT, TRIANGLE_TEXELS,
 };
-use crate::scene::{srgb_to_linear, Scene, Wrap};
+use crate::scene::{Scene, Wrap};
 
 /// What a scene uses; decides what is packed and, on GPUs, which kernel variant is generated.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -137,8 +138,10 @@ pub enum PackError {
     BadBvh(u32),
     #[error("{what} needs {texels} texels, more than a {max}x{max} texture holds")]
     TooLarge { what: &'static str, texels: usize, max: u32 },
-    #[error("the BVH is {depth} levels deep; the kernel's traversal stack holds {max}")]
-    BvhTooDeep { depth: u32, max: u32 },
+    #[error("the BVH needs a traversal stack of {needed} entries; the kernel's holds {max}")]
+    BvhTooDeep { needed: u32, max: u32 },
+    #[error(transparent)]
+    Bvh(crate::bvh::BvhError),
     #[error("the image size {width}x{height} is invalid (each side 1..=16384)")]
     BadSize { width: u32, height: u32 },
     #[error("a BVH leaf holds {triangles} triangles; the kernel's traversal takes at most {max}")]
@@ -174,7 +177,7 @@ fn wrap_code(w: Wrap) -> u32 {
     }
 }
 
-fn luminance(c: Vec3) -> f32 {
+pub(crate) fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
@@ -217,23 +220,18 @@ pub struct PackedTextures {
     pub emissive_mean_luminance: Vec<Option<f32>>,
 }
 
-/// Packs the textures of `scene` (see [`PackedTextures`]).
+/// Packs the textures of `scene` (see [`PackedTextures`]). A loaded scene's textures already
+/// lie in one atlas in the packed layout ([`crate::scene::TextureTexels`]): that atlas is
+/// shared, not copied; other textures (made by hand, or a scene's textures changed after
+/// loading) are copied into a new one.
 pub fn pack_textures(scene: &Scene) -> PackedTextures {
     let textures = &scene.textures;
     let used = scene.materials.iter().any(|m| m.base_color_texture.is_some() || m.emissive_texture.is_some())
         && !textures.is_empty();
     let mut emissive_mean_luminance = vec![None; textures.len()];
-    let srgb_lut: [f32; 256] = std::array::from_fn(|v| srgb_to_linear(v as f32 / 255.0));
     for m in &scene.materials {
         if let Some(i) = m.emissive_texture.filter(|i| (*i as usize) < textures.len()) {
-            emissive_mean_luminance[i as usize].get_or_insert_with(|| {
-                let t = &textures[i as usize];
-                let sum = t.texels.iter().fold(Vec3::ZERO, |sum, &texel| {
-                    let [r, g, b, _] = texel.to_le_bytes();
-                    sum + Vec3::new(srgb_lut[r as usize], srgb_lut[g as usize], srgb_lut[b as usize])
-                });
-                luminance(sum / t.texels.len().max(1) as f32)
-            });
+            emissive_mean_luminance[i as usize].get_or_insert_with(|| textures[i as usize].texels.mean_luminance());
         }
     }
     if !used {
@@ -255,22 +253,33 @@ pub fn pack_textures(scene: &Scene) -> PackedTextures {
         ranges.push(elements..elements + len);
         elements += len;
     }
-    let texels = Texels::from_fill(elements, |atlas| {
-        for (t, range) in textures.iter().zip(ranges) {
-            let Some(out) = atlas.get_mut(range) else { continue };
-            let words = t.texels.chunks_exact(per);
-            let tail = words.remainder();
-            for (element, four) in out.iter_mut().zip(words) {
-                *element = UVec4::new(four[0], four[1], four[2], four[3]);
+    // The atlas of the first texture is the packed one when every texture lies in it where
+    // the packed layout puts it, and nothing else does.
+    let atlas = textures[0].texels.atlas();
+    let shared = atlas.len() == elements
+        && textures.iter().zip(&ranges).all(|(t, range)| {
+            std::ptr::eq(t.texels.atlas().as_slice(), atlas.as_slice()) && t.texels.first_element() == range.start
+        });
+    let texels = if shared {
+        atlas.clone()
+    } else {
+        Texels::from_fill(elements, |atlas| {
+            for (t, range) in textures.iter().zip(ranges) {
+                let Some(out) = atlas.get_mut(range) else { continue };
+                let words = t.texels.chunks_exact(per);
+                let tail = words.remainder();
+                for (element, four) in out.iter_mut().zip(words) {
+                    *element = UVec4::new(four[0], four[1], four[2], four[3]);
+                }
+                if let Some(last) = out.get_mut(t.texels.len() / per).filter(|_| !tail.is_empty()) {
+                    // A partial last element: the lanes past the texture stay zero.
+                    let mut lanes = [0u32; 4];
+                    lanes[..tail.len()].copy_from_slice(tail);
+                    *last = UVec4::from_array(lanes);
+                }
             }
-            if let Some(last) = out.get_mut(t.texels.len() / per).filter(|_| !tail.is_empty()) {
-                // A partial last element: the lanes past the texture stay zero.
-                let mut lanes = [0u32; 4];
-                lanes[..tail.len()].copy_from_slice(tail);
-                *last = UVec4::from_array(lanes);
-            }
-        }
-    });
+        })
+    };
     PackedTextures { used, texels, info: Texels::new(info), emissive_mean_luminance }
 }
 
@@ -324,11 +333,10 @@ pub fn pack_with_textures(
     if tri_count >= MAX_EXACT || bvh.nodes.len() >= MAX_EXACT {
         return Err(PackError::TooManyTriangles(tri_count));
     }
-    // Ordered traversal keeps at most one pending node per level on its stack.
-    let depth = bvh.depth();
+    let wide = bvh.widen().map_err(PackError::Bvh)?;
     let max = crate::kernel::traverse::STACK_SIZE as u32;
-    if depth > max {
-        return Err(PackError::BvhTooDeep { depth, max });
+    if wide.stack_needed > max {
+        return Err(PackError::BvhTooDeep { needed: wide.stack_needed, max });
     }
     // The traversal stack carries a leaf's triangle count in 8 bits.
     let max_leaf = crate::kernel::traverse::MAX_LEAF_TRIANGLES;
@@ -342,16 +350,25 @@ pub fn pack_with_textures(
         .collect::<Result<_, _>>()?;
 
     let textures_used = textures.used;
-    let smooth = ordered.iter().any(|t| {
+    // The passes over every triangle run in parallel (they read the triangles in BVH order,
+    // scattered in memory).
+    let smooth = ordered.par_iter().any(|t| {
         let face = (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]).normalize_or_zero();
         t.normals.iter().any(|n| n.dot(face) < 0.9999)
     });
-    let emissive_triangles: Vec<u32> = ordered
-        .iter()
-        .enumerate()
-        .filter(|(_, t)| scene.materials.get(t.material as usize).is_some_and(|m| m.is_emissive()))
-        .map(|(i, _)| i as u32)
-        .collect();
+    let emissive_material: Vec<bool> = scene.materials.iter().map(|m| m.is_emissive()).collect();
+    let emissive = |t: &crate::scene::Triangle| emissive_material.get(t.material as usize).copied().unwrap_or(false);
+    // Indices in BVH order, ascending. Which triangles emit is read in scene order (a stream
+    // through memory, not a gather), then permuted.
+    let emissive_triangles: Vec<u32> = if emissive_material.contains(&true) {
+        let emits: Vec<bool> = scene.triangles.par_iter().map(emissive).collect();
+        (bvh.triangle_order.par_iter().with_min_len(1 << 12).enumerate())
+            .filter(|(_, &t)| emits[t as usize])
+            .map(|(i, _)| i as u32)
+            .collect()
+    } else {
+        Vec::new()
+    };
     let features = Features {
         sky: scene.sky.is_some(),
         textures: textures_used,
@@ -365,7 +382,6 @@ pub fn pack_with_textures(
     let radius = (0.5 * bounds.diagonal().length()).max(1e-6);
     let mut light_weights = Vec::new();
     let mut light_data: Vec<(u32, Vec4, Vec4)> = Vec::new();
-    let mut triangle_light = vec![None; tri_count];
     let texture_mean = &textures.emissive_mean_luminance;
     for &ti in &emissive_triangles {
         let t = ordered[ti as usize];
@@ -373,7 +389,6 @@ pub fn pack_with_textures(
         let texture_mean =
             m.emissive_texture.and_then(|i| texture_mean.get(i as usize).copied().flatten()).unwrap_or(1.0);
         let area = 0.5 * (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]).length();
-        triangle_light[ti as usize] = Some(light_data.len() as u32);
         light_weights.push(luminance(m.emission) as f64 * texture_mean as f64 * area as f64 * std::f64::consts::PI);
         light_data.push((LIGHT_TRIANGLE, Vec4::new(ti as f32, 0.0, 0.0, 0.0), Vec4::ZERO));
     }
@@ -444,28 +459,47 @@ pub fn pack_with_textures(
     }
 
     // The large arrays are written straight into their shared allocations (no copy).
-    let triangles = Texels::from_fn(tri_count * TRIANGLE_TEXELS as usize, |k| {
-        let (i, t) = (k / 3, ordered[k / 3]);
-        match k % 3 {
-            0 => t.positions[0].extend(t.material as f32),
-            1 => t.positions[1].extend(index_value(triangle_light[i])),
-            _ => t.positions[2].extend(0.0),
+    // Emissive triangle `i`'s light is its position in `emissive_triangles` (they come first).
+    let triangle_light = |i: usize, t: &crate::scene::Triangle| {
+        if emissive(t) {
+            emissive_triangles.binary_search(&(i as u32)).ok().map(|l| l as u32)
+        } else {
+            None
         }
+    };
+    let triangles = Texels::par_from_groups::<{ TRIANGLE_TEXELS as usize }>(tri_count, |i| {
+        let t = ordered[i];
+        [
+            t.positions[0].extend(t.material as f32),
+            t.positions[1].extend(index_value(triangle_light(i, t))),
+            t.positions[2].extend(0.0),
+        ]
     });
-    let shading_texels = if features.shading { tri_count * SHADING_TEXELS as usize } else { 0 };
-    let shading = Texels::from_fn(shading_texels, |k| {
-        let t = ordered[k / 4];
-        match k % 4 {
-            0 => t.normals[0].extend(t.uvs[0].x),
-            1 => t.normals[1].extend(t.uvs[0].y),
-            2 => t.normals[2].extend(t.uvs[1].x),
-            _ => Vec4::new(t.uvs[1].y, t.uvs[2].x, t.uvs[2].y, 0.0),
+    let shading = if features.shading {
+        Texels::par_from_groups::<{ SHADING_TEXELS as usize }>(tri_count, |i| {
+            let t = ordered[i];
+            [
+                t.normals[0].extend(t.uvs[0].x),
+                t.normals[1].extend(t.uvs[0].y),
+                t.normals[2].extend(t.uvs[1].x),
+                Vec4::new(t.uvs[1].y, t.uvs[2].x, t.uvs[2].y, 0.0),
+            ]
+        })
+    } else {
+        Texels::default()
+    };
+    let nodes = Texels::from_fn(wide.nodes.len() * NODE_TEXELS as usize, |k| {
+        let n = &wide.nodes[k / NODE_TEXELS as usize];
+        let lanes = |f: &dyn Fn(usize) -> u32| UVec4::new(f(0), f(1), f(2), f(3));
+        match k % NODE_TEXELS as usize {
+            0 => lanes(&|c| n.min[c].x.to_bits()),
+            1 => lanes(&|c| n.max[c].x.to_bits()),
+            2 => lanes(&|c| n.min[c].y.to_bits()),
+            3 => lanes(&|c| n.max[c].y.to_bits()),
+            4 => lanes(&|c| n.min[c].z.to_bits()),
+            5 => lanes(&|c| n.max[c].z.to_bits()),
+            _ => lanes(&|c| crate::kernel::traverse::stack_entry(n.first[c], n.count[c])),
         }
-    });
-    let nodes = Texels::from_fn(bvh.nodes.len() * NODE_TEXELS as usize, |k| {
-        let n = &bvh.nodes[k / 2];
-        let (corner, payload) = if k % 2 == 0 { (n.min, n.first) } else { (n.max, n.count) };
-        UVec4::new(corner.x.to_bits(), corner.y.to_bits(), corner.z.to_bits(), payload)
     });
     let mut materials = Vec::with_capacity(scene.materials.len() * MATERIAL_TEXELS as usize);
     let texture_index = |i: Option<u32>| if features.textures { index_value(i) } else { -1.0 };
@@ -568,7 +602,7 @@ impl Packed {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::{cornell_box, Material, Texture};
+    use crate::scene::{cornell_box, srgb_to_linear, Material, Texture};
 
     fn texture(width: u32, height: u32, first_word: u32) -> Texture {
         let texels = (0..width * height).map(|i| first_word + i).collect();
@@ -598,6 +632,60 @@ mod tests {
         );
     }
 
+    /// The Cornell box with textures decoded as loaders do (one shared atlas): a 3x1 and a 2x3.
+    fn loaded_textures_box() -> Scene {
+        use crate::scene::texture::{decode_textures, probe_srgb, PendingTexture, Probed};
+        let png = |w, h| {
+            let image = image::RgbaImage::from_fn(w, h, |x, y| image::Rgba([x as u8, y as u8, 7, 200]));
+            let mut out = std::io::Cursor::new(Vec::new());
+            image.write_to(&mut out, image::ImageFormat::Png).unwrap();
+            out.into_inner()
+        };
+        let files = [png(3, 1), png(2, 3)];
+        let headers: Vec<_> = files
+            .iter()
+            .map(|f| match probe_srgb(f, "test", u64::MAX).unwrap() {
+                Probed::Image(h) => h,
+                Probed::Unsupported(_) => unreachable!(),
+            })
+            .collect();
+        let images: Vec<_> = files.iter().map(|f| f.as_slice()).zip(&headers).collect();
+        let pending = |image| PendingTexture { image, wrap_s: Wrap::Repeat, wrap_t: Wrap::Repeat };
+        let mut scene = cornell_box();
+        scene.textures = decode_textures(&images, &[pending(0), pending(1)], &[]).unwrap();
+        scene.materials[0].base_color_texture = Some(1);
+        scene
+    }
+
+    #[test]
+    fn loaded_textures_are_shared_and_others_copied_into_the_same_layout() {
+        let scene = loaded_textures_box();
+        let packed = pack_textures(&scene);
+        assert!(std::ptr::eq(packed.texels.as_slice(), scene.textures[0].texels.atlas().as_slice()));
+        // The same texels in textures of their own: copied, the same bytes.
+        let mut copied = scene.clone();
+        for t in &mut copied.textures {
+            t.texels = t.texels.to_vec().into();
+        }
+        let copy = pack_textures(&copied);
+        assert!(!std::ptr::eq(copy.texels.as_slice(), packed.texels.as_slice()));
+        assert_eq!(copy, packed);
+        // Reordered, or one dropped: the shared atlas no longer matches the layout.
+        let mut reordered = scene.clone();
+        reordered.textures.reverse();
+        let mut expected = reordered.clone();
+        for t in &mut expected.textures {
+            t.texels = t.texels.to_vec().into();
+        }
+        assert_eq!(pack_textures(&reordered), pack_textures(&expected));
+        let mut first_only = scene.clone();
+        first_only.textures.truncate(1);
+        first_only.materials[0].base_color_texture = Some(0);
+        let packed = pack_textures(&first_only);
+        assert_eq!(packed.texels.len(), 1);
+        assert_eq!(packed.texels.as_slice()[0].w, 0);
+    }
+
     #[test]
     fn unused_textures_are_not_packed() {
         let mut scene = textured_box();
@@ -614,7 +702,7 @@ mod tests {
         scene.textures = vec![Texture {
             width: 2,
             height: 1,
-            texels: vec![0x00bc_bcbc, 0xff00_0000],
+            texels: vec![0x00bc_bcbc, 0xff00_0000].into(),
             wrap_s: Wrap::Repeat,
             wrap_t: Wrap::Repeat,
         }];

@@ -164,6 +164,8 @@ pub struct Viewer {
     options: GlOptions,
     context_lost: bool,
     dropped: Vec<DroppedFile>,
+    /// Selects the random sequence, as the native backends' `seed` does (`setSeed`).
+    seed: u32,
 }
 
 #[wasm_bindgen]
@@ -200,6 +202,7 @@ impl Viewer {
             options: GlOptions::default(),
             context_lost: false,
             dropped: Vec::new(),
+            seed: 1,
         })
     }
 
@@ -258,7 +261,7 @@ impl Viewer {
         self.canvas.set_width(packed.scene.width);
         self.canvas.set_height(packed.scene.height);
         let gl = glow::Context::from_webgl2_context(self.context.clone());
-        let renderer = GlRenderer::with_options(gl, packed.clone(), 1, &self.options).map_err(js_error)?;
+        let renderer = GlRenderer::with_options(gl, packed.clone(), self.seed, &self.options).map_err(js_error)?;
         let display = DisplayPass::new(renderer.gl()).map_err(|e| JsError::new(&e))?;
         Ok(Running { renderer, display: Some(display) })
     }
@@ -389,6 +392,21 @@ impl Viewer {
         }
         self.settings.max_depth = depth;
         self.update_uniforms()
+    }
+
+    /// Selects the random sequence (default 1): the same seed, scene and settings render the
+    /// same samples as the native backends with that seed (`lightport chart` compares them).
+    /// Recreates the renderer: the accumulation restarts.
+    #[wasm_bindgen(js_name = setSeed)]
+    pub fn set_seed(&mut self, seed: u32) -> Result<(), JsError> {
+        if seed == self.seed {
+            return Ok(());
+        }
+        self.seed = seed;
+        if self.running.is_some() {
+            self.rebuild()?;
+        }
+        Ok(())
     }
 
     /// Uses at most this texture size, below the device's (0: the device's own). For checking

@@ -1,8 +1,12 @@
 // The page around the wasm viewer: the frame loop, camera input, controls, read-outs, the
 // scene list and the bundle cache. Query parameters (for tests and benchmarks):
-//   scene=NAME        the served scene to open first (default: the first listed)
+//   scene=NAME        the served scene to open first (default: the first listed; `scene=`
+//                     with no name: none)
+//   bundle=URL        open the scene bundle at URL instead (fetched as is, not cached: what
+//                     `lightport chart` renders; its driver hands the page the chart's own bundle)
 //   size=WxH          a fixed render size instead of the canvas size x resolution scale
-//   strategy=mis|nee|bsdf, paused=1 (no frame loop: frames only through the test hook),
+//   strategy=mis|nee|bsdf, seed=N (the random sequence; default 1),
+//   paused=1          no frame loop: frames only through the test hook,
 //   budget=BYTES      the cache budget.
 
 import init, { Viewer } from './pkg/lightport_web.js';
@@ -49,6 +53,15 @@ const hook = {
     return { width: info.width, height: info.height, spp: viewer.spp(), data: Array.from(viewer.readAccumulation()) };
   },
   loadScene: (name) => loadServedScene(name),
+  loadBundleUrl: (url) => loadBundleUrl(url),
+  // Compiles and links `vertex` + `fragment` (GLSL ES 3.00) on a WebGL2 context of its own
+  // and returns { ms, ok, log }: milliseconds from the first compile call until
+  // getProgramParameter(LINK_STATUS) returns, which waits for the link whether or not the
+  // browser compiles in parallel (KHR_parallel_shader_compile is never queried). The program
+  // is deleted. A unique comment is appended to both sources, so that no cache keyed by the
+  // source text (the browser's or the driver's) answers instead of a compile. For
+  // examples/feature_sizes.rs (through tests/web/run.mjs compile).
+  compileProgram: (vertex, fragment) => compileProgram(vertex, fragment),
   setStrategy: (name) => guarded(() => { viewer.setStrategy(name); $('strategy').value = name; }),
   orbit: (yaw, pitch) => guarded(() => viewer.orbit(yaw, pitch)),
   clearCache: () => clearCache(),
@@ -201,6 +214,73 @@ async function loadServedScene(name) {
     frameMs = null;
     updateCacheReadout();
   }
+}
+
+async function loadBundleUrl(url) {
+  busy = true;
+  showMessage(`loading ${url}…`, 'info');
+  try {
+    const response = await fetch(url, { cache: 'no-store' });
+    if (!response.ok) throw new Error(`HTTP ${response.status}`);
+    const bytes = await response.arrayBuffer();
+    hook.bundleSources.push({ name: url, fromCache: false, bytes: bytes.byteLength });
+    const info = viewer.loadBundle(new Uint8Array(bytes));
+    hasScene = true;
+    currentName = info.name || url;
+    $('scene').value = '';
+    $('screenshot').disabled = false;
+    $('scene-info').textContent = `${currentName}: ${info.triangles.toLocaleString()} triangles`;
+    hideMessage();
+  } catch (e) {
+    showMessage(`${url}: ${e.message || e}`);
+  } finally {
+    busy = false;
+    frameMs = null;
+  }
+}
+
+let compileContext = null;
+let compileCount = 0;
+
+function compileProgram(vertex, fragment) {
+  compileCount++;
+  const nonce = `\n// lightport compileProgram ${compileCount} ${performance.now()} ${Math.random()}\n`;
+  if (!compileContext) {
+    compileContext = document.createElement('canvas').getContext('webgl2');
+    if (!compileContext) throw new Error('no WebGL2 context for compiling');
+  }
+  const gl = compileContext;
+  const start = performance.now();
+  const program = gl.createProgram();
+  const shaders = [[gl.VERTEX_SHADER, vertex], [gl.FRAGMENT_SHADER, fragment]].map(([type, source]) => {
+    const shader = gl.createShader(type);
+    gl.shaderSource(shader, source + nonce);
+    gl.compileShader(shader);
+    gl.attachShader(program, shader);
+    return shader;
+  });
+  gl.linkProgram(program);
+  const ok = gl.getProgramParameter(program, gl.LINK_STATUS);
+  const linked = performance.now();
+  const ms = linked - start;
+  let log = '';
+  if (!ok) {
+    log = [gl.getProgramInfoLog(program), ...shaders.map((s) => gl.getShaderInfoLog(s))].filter(Boolean).join('\n');
+    if (gl.isContextLost()) log = `the WebGL context was lost. ${log}`;
+  }
+  for (const shader of shaders) {
+    gl.detachShader(program, shader);
+    gl.deleteShader(shader);
+  }
+  gl.deleteProgram(program);
+  // A round trip to the GPU process, queued behind the deletion: ANGLE (Vulkan backend) keeps
+  // building the program's pipeline in the background after LINK_STATUS, and deleting the
+  // program waits for that. So the next measurement starts on an idle GPU process, and this
+  // reports what the background work took.
+  gl.finish();
+  gl.getError();
+  const settledMs = performance.now() - linked;
+  return { ms, settledMs, ok: Boolean(ok), log };
 }
 
 async function loadFiles(fileList) {
@@ -411,6 +491,11 @@ async function main() {
   guarded(() => viewer.setSize(w, h));
   if (params.get('maxTextureSize')) viewer.setMaxTextureSize(Number(params.get('maxTextureSize')));
   if (params.get('strategy')) hook.setStrategy(params.get('strategy'));
+  if (params.get('seed')) {
+    const seed = Number(params.get('seed'));
+    if (Number.isInteger(seed) && seed >= 0 && seed <= 0xffffffff) guarded(() => viewer.setSeed(seed));
+    else showMessage(`invalid seed ${params.get('seed')} (an integer 0..=4294967295)`);
+  }
   await cache.reconcile().catch((e) => console.warn(`cache: ${e}`));
   updateCacheReadout();
   try {
@@ -428,8 +513,12 @@ async function main() {
     select.append(option);
   }
   select.disabled = scenes.length === 0;
-  const first = params.get('scene') || (scenes[0] && scenes[0].name);
-  if (first) await loadServedScene(first);
+  if (params.get('bundle')) {
+    await loadBundleUrl(params.get('bundle'));
+  } else {
+    const first = params.has('scene') ? params.get('scene') : scenes[0] && scenes[0].name;
+    if (first) await loadServedScene(first);
+  }
   hook.ready = true;
   requestAnimationFrame(tick);
 }

@@ -214,13 +214,13 @@ mod kernel_structs {
     use crate::kernel::lights::LightSample;
     use crate::kernel::sampling::Onb;
     use crate::kernel::scene_data::{MaterialData, TriangleData};
-    use crate::kernel::traverse::{Hit, Node};
+    use crate::kernel::traverse::{Hit, NodeHits};
 
     harness_struct_words! {
         Ray { origin, dir }
         TriangleHit { t, u, v }
         Hit { triangle, t, u, v }
-        Node { min, max, first, count }
+        NodeHits { t, entries }
         TriangleData { v0, v1, v2, material, light }
         MaterialData { base_color, base_texture, emission, emissive_texture }
         Onb { tangent, bitangent, normal }
@@ -1234,7 +1234,7 @@ mod tests {
     #[test]
     fn kernel_struct_words_follow_the_ir() {
         use crate::kernel::{camera::Ray, intersect::TriangleHit, lights::LightSample, sampling::Onb};
-        use crate::kernel::{scene_data::MaterialData, scene_data::TriangleData, traverse::Node};
+        use crate::kernel::{scene_data::MaterialData, scene_data::TriangleData, traverse::NodeHits};
         fn top_fields<T: Words>() -> Vec<String> {
             let mut out = Vec::new();
             T::layout("", &mut out);
@@ -1246,7 +1246,7 @@ mod tests {
             ("Ray", top_fields::<Ray>()),
             ("TriangleHit", top_fields::<TriangleHit>()),
             ("Hit", top_fields::<Hit>()),
-            ("Node", top_fields::<Node>()),
+            ("NodeHits", top_fields::<NodeHits>()),
             ("TriangleData", top_fields::<TriangleData>()),
             ("MaterialData", top_fields::<MaterialData>()),
             ("Onb", top_fields::<Onb>()),

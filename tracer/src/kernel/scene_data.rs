@@ -14,11 +14,13 @@ pub mod scene_data {
     pub const TRIANGLE_TEXELS: u32 = 3;
     /// Texels per triangle in `shading`: `[n0, u0]`, `[n1, v0]`, `[n2, u1]`, `[v1, u2, v2, 0]`.
     pub const SHADING_TEXELS: u32 = 4;
-    /// Texels per BVH node (in `nodes`, integer texels): `[min, first]`, `[max, count]`, the
-    /// corners as their f32 bit patterns (count 0: interior, children at `first` and
-    /// `first + 1`; else a leaf of triangles `first..first + count`). Integer texels spare
-    /// traversal any float-to-index conversion.
-    pub const NODE_TEXELS: u32 = 2;
+    /// Texels per node of the 4-wide BVH (in `nodes`, integer texels, one lane per child):
+    /// `[min x]`, `[max x]`, `[min y]`, `[max y]`, `[min z]`, `[max z]` as f32 bit patterns, then
+    /// the children's stack entries `first << 8 | count` (count 0: a node, `first` its index;
+    /// else a leaf of triangles `first..first + count`). Unused slots have an empty box
+    /// (min `f32::MAX`, max `-f32::MAX`) that every ray misses. Node 0 is the root. Integer
+    /// texels spare traversal any float-to-index conversion.
+    pub const NODE_TEXELS: u32 = 7;
     /// Texels per material: `[base colour, base texture or -1]`, `[emission, emissive texture or -1]`.
     pub const MATERIAL_TEXELS: u32 = 2;
     /// Texels per light: `[alias threshold, alias index, pmf, kind]`, `[position or triangle index, 0]`,

@@ -1,15 +1,18 @@
 #[kernel_dsl::kernel]
 pub mod traverse {
-    //! BVH traversal with an ordered stack: the nearer child is visited first, and subtrees
-    //! entered beyond the closest hit so far are skipped.
+    //! Traversal of the 4-wide BVH (`tracer::bvh::Bvh::widen`, packed by `tracer::pack`) with an
+    //! ordered stack: a node's four boxes are tested at once (one `Vec4` lane per child: SSE on
+    //! the CPU, vec4 in shaders), hit children are pushed farthest first so that the nearest is
+    //! visited next, and subtrees entered beyond the closest hit so far are skipped.
 
-    use glam::Vec3;
+    use glam::{UVec3, UVec4, Vec3, Vec4};
 
-    use crate::kernel::intersect::{intersect_aabb, intersect_triangle, safe_inverse, MISS};
+    use crate::kernel::intersect::{intersect_triangle, safe_inverse, MISS};
     use crate::kernel::scene_data::{fetch_triangle, Scene, NODE_TEXELS, NONE};
 
-    /// Traversal stack depth. A deeper tree would drop subtrees (never write out of bounds);
-    /// `tracer::bvh` keeps trees well below it.
+    /// Traversal stack depth: `tracer::pack` refuses a tree that could need more
+    /// (`tracer::bvh::WideBvh::stack_needed`; a deeper stack would drop subtrees, never write
+    /// out of bounds).
     pub const STACK_SIZE: usize = 64;
 
     /// The closest hit: triangle index (in BVH order) or NONE, distance and barycentrics.
@@ -21,124 +24,276 @@ pub mod traverse {
         pub v: f32,
     }
 
-    /// A node's box and payload.
+    /// The slab tests of a node's four children: entry distance per child (`MISS` for a miss
+    /// or an unused slot) and each child's stack entry.
     #[derive(Clone, Copy, Debug, PartialEq)]
-    pub struct Node {
-        pub min: Vec3,
-        pub max: Vec3,
-        pub first: u32,
-        pub count: u32,
-    }
-
-    pub fn fetch_node(scene: &Scene, index: u32) -> Node {
-        let a = scene.nodes.fetch(index * NODE_TEXELS);
-        let b = scene.nodes.fetch(index * NODE_TEXELS + 1);
-        Node {
-            min: Vec3::new(f32::from_bits(a.x), f32::from_bits(a.y), f32::from_bits(a.z)),
-            max: Vec3::new(f32::from_bits(b.x), f32::from_bits(b.y), f32::from_bits(b.z)),
-            first: a.w,
-            count: b.w,
-        }
+    pub struct NodeHits {
+        pub t: Vec4,
+        pub entries: UVec4,
     }
 
     /// Largest leaf the stack encoding holds (`tracer::pack` refuses larger leaves).
     pub const MAX_LEAF_TRIANGLES: u32 = 255;
 
-    /// A stack entry for a node: its `first` and `count` in one word (`first < 2^24`, which
-    /// packing guarantees, and `count <= MAX_LEAF_TRIANGLES`). Carrying them on the stack
-    /// means a popped node is never fetched again: only its children are.
+    /// A stack entry: a child's `first` and `count` in one word (`first < 2^24`, which packing
+    /// guarantees, and `count <= MAX_LEAF_TRIANGLES`); count 0 is a node, `first` its index.
+    /// Nodes store their children's entries, so a popped entry needs no other fetch.
     pub fn stack_entry(first: u32, count: u32) -> u32 {
         (first << 8) | count
     }
 
+    /// Four f32 from their bit patterns (node texels are integer texels).
+    pub fn bits_to_vec4(bits: UVec4) -> Vec4 {
+        Vec4::new(f32::from_bits(bits.x), f32::from_bits(bits.y), f32::from_bits(bits.z), f32::from_bits(bits.w))
+    }
+
+    /// Per axis, which of a node's two plane texels the ray enters through: the minimum planes
+    /// (0) for a positive direction, the maximum planes (1) for a negative one. Choosing by
+    /// the ray's sign once makes the per-node slab test free of min/max on the distances.
+    pub fn near_planes(inv_dir: Vec3) -> UVec3 {
+        UVec3::new(
+            if inv_dir.x < 0.0 { 1 } else { 0 },
+            if inv_dir.y < 0.0 { 1 } else { 0 },
+            if inv_dir.z < 0.0 { 1 } else { 0 },
+        )
+    }
+
+    /// `v` with zero lanes replaced by `MISS` (see `intersect_node`).
+    pub fn zero_to_miss(v: Vec4) -> Vec4 {
+        Vec4::new(
+            if v.x == 0.0 { MISS } else { v.x },
+            if v.y == 0.0 { MISS } else { v.y },
+            if v.z == 0.0 { MISS } else { v.z },
+            if v.w == 0.0 { MISS } else { v.w },
+        )
+    }
+
+    /// Slab tests of the four children of `node` for t in [0, t_max], lane by lane the same
+    /// arithmetic as `intersect::intersect_aabb` (the same result for every box, bit for bit):
+    /// entry distance (0 when the origin is inside) or `MISS`. `inv_dir` comes from
+    /// `safe_inverse`, `near` from `near_planes`. (`#[inline(always)]` only affects the CPU
+    /// build: inlined into both traversals, the node test keeps the ray in registers.)
+    #[inline(always)]
+    pub fn intersect_node(scene: &Scene, node: u32, origin: Vec3, inv_dir: Vec3, near: UVec3, t_max: f32) -> NodeHits {
+        let base = node * NODE_TEXELS;
+        let ox = Vec4::splat(origin.x);
+        let oy = Vec4::splat(origin.y);
+        let oz = Vec4::splat(origin.z);
+        let enter_x = (bits_to_vec4(scene.nodes.fetch(base + near.x)) - ox) * inv_dir.x;
+        let exit_x = (bits_to_vec4(scene.nodes.fetch(base + 1 - near.x)) - ox) * inv_dir.x;
+        let enter_y = (bits_to_vec4(scene.nodes.fetch(base + 2 + near.y)) - oy) * inv_dir.y;
+        let exit_y = (bits_to_vec4(scene.nodes.fetch(base + 3 - near.y)) - oy) * inv_dir.y;
+        let enter_z = (bits_to_vec4(scene.nodes.fetch(base + 4 + near.z)) - oz) * inv_dir.z;
+        let exit_z = (bits_to_vec4(scene.nodes.fetch(base + 5 - near.z)) - oz) * inv_dir.z;
+        let enter = enter_x.max(enter_y).max(enter_z).max(Vec4::ZERO);
+        let mut exit = exit_x.min(exit_y).min(exit_z);
+        if exit.x == 0.0 || exit.y == 0.0 || exit.z == 0.0 || exit.w == 0.0 {
+            // An origin on a face plane with the ray parallel to that face (see
+            // `intersect_aabb`): treat such axes as unbounded. Lanes whose exit is not 0 keep
+            // it (a zero plane distance there is not the smallest), so all lanes may be redone.
+            exit = zero_to_miss(exit_x).min(zero_to_miss(exit_y)).min(zero_to_miss(exit_z));
+        }
+        // Widened by 1 + 2 * gamma(3) as in `intersect_aabb`.
+        let exit = (exit * 1.000_000_8).min(Vec4::splat(t_max));
+        let t = Vec4::new(
+            if enter.x <= exit.x { enter.x } else { MISS },
+            if enter.y <= exit.y { enter.y } else { MISS },
+            if enter.z <= exit.z { enter.z } else { MISS },
+            if enter.w <= exit.w { enter.w } else { MISS },
+        );
+        NodeHits { t, entries: scene.nodes.fetch(base + 6) }
+    }
+
+    /// Intersects the triangles of the leaf `entry` (a stack entry with count > 0), keeping
+    /// the closest hit in `hit`.
+    pub fn intersect_leaf(scene: &Scene, entry: u32, origin: Vec3, dir: Vec3, hit: &mut Hit) {
+        let first = entry >> 8;
+        for i in first..first + (entry & 255) {
+            let tri = fetch_triangle(scene, i);
+            let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+            if h.t < hit.t {
+                *hit = Hit { triangle: i, t: h.t, u: h.u, v: h.v };
+            }
+        }
+    }
+
+    /// Whether any triangle of the leaf `entry` is hit for t in (0, t_max).
+    pub fn leaf_occludes(scene: &Scene, entry: u32, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        let first = entry >> 8;
+        let mut blocked = false;
+        for i in first..first + (entry & 255) {
+            let tri = fetch_triangle(scene, i);
+            if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
+                blocked = true;
+                break;
+            }
+        }
+        blocked
+    }
+
+    /// Whether a stack entry is a leaf.
+    pub fn is_leaf(entry: u32) -> bool {
+        (entry & 255) > 0
+    }
+
     /// Closest intersection along `origin + t * dir` for t in (0, t_max).
+    ///
+    /// Leaf children are intersected as soon as their node is visited, nearest first; only
+    /// child nodes go on the stack. So a chain of leaves (as degenerate geometry builds) never
+    /// deepens the stack, and `tracer::bvh::WideBvh::stack_needed` bounds it exactly. (Pushing
+    /// leaves too would save about 6 % of the instructions on the Cornell box but needs a stack
+    /// proportional to such chains.)
+    // The DSL has no `std::mem::swap`: the sorting network swaps through temporaries.
+    #[allow(clippy::manual_swap)]
     pub fn trace_closest(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
         let inv_dir = safe_inverse(dir);
+        let near = near_planes(inv_dir);
         let mut hit = Hit { triangle: NONE, t: t_max, u: 0.0, v: 0.0 };
         let mut stack = [0u32; STACK_SIZE];
         let mut stack_t = [0.0f32; STACK_SIZE];
-        let mut sp: usize = 0;
-        let root = fetch_node(scene, 0);
-        let root_t = intersect_aabb(origin, inv_dir, root.min, root.max, t_max);
-        if root_t < MISS {
-            stack[0] = stack_entry(root.first, root.count);
-            stack_t[0] = root_t;
-            sp = 1;
-        }
+        // The root is entered unconditionally: its children's boxes are the first test.
+        stack[0] = stack_entry(0, 0);
+        let mut sp: usize = 1;
         while sp > 0 {
             sp -= 1;
             if stack_t[sp] > hit.t {
                 continue;
             }
-            let first = stack[sp] >> 8;
-            let count = stack[sp] & 255;
-            if count > 0 {
-                for i in first..first + count {
-                    let tri = fetch_triangle(scene, i);
-                    let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-                    if h.t < hit.t {
-                        hit = Hit { triangle: i, t: h.t, u: h.u, v: h.v };
-                    }
-                }
-            } else {
-                let left = fetch_node(scene, first);
-                let right = fetch_node(scene, first + 1);
-                let t_left = intersect_aabb(origin, inv_dir, left.min, left.max, hit.t);
-                let t_right = intersect_aabb(origin, inv_dir, right.min, right.max, hit.t);
-                // Push the farther child first so that the nearer one is popped next.
-                let left_first = t_left <= t_right;
-                let left_entry = stack_entry(left.first, left.count);
-                let right_entry = stack_entry(right.first, right.count);
-                let near = if left_first { left_entry } else { right_entry };
-                let far = if left_first { right_entry } else { left_entry };
-                let t_near = if left_first { t_left } else { t_right };
-                let t_far = if left_first { t_right } else { t_left };
-                if t_far < MISS && sp < STACK_SIZE {
-                    stack[sp] = far;
-                    stack_t[sp] = t_far;
-                    sp += 1;
-                }
-                if t_near < MISS && sp < STACK_SIZE {
-                    stack[sp] = near;
-                    stack_t[sp] = t_near;
-                    sp += 1;
-                }
+            let n = intersect_node(scene, stack[sp] >> 8, origin, inv_dir, near, hit.t);
+            let mut t0 = n.t.x;
+            let mut t1 = n.t.y;
+            let mut t2 = n.t.z;
+            let mut t3 = n.t.w;
+            let mut e0 = n.entries.x;
+            let mut e1 = n.entries.y;
+            let mut e2 = n.entries.z;
+            let mut e3 = n.entries.w;
+            // Sort the children by distance (a five-exchange sorting network; misses last).
+            if t1 < t0 {
+                let t = t0;
+                t0 = t1;
+                t1 = t;
+                let e = e0;
+                e0 = e1;
+                e1 = e;
+            }
+            if t3 < t2 {
+                let t = t2;
+                t2 = t3;
+                t3 = t;
+                let e = e2;
+                e2 = e3;
+                e3 = e;
+            }
+            if t2 < t0 {
+                let t = t0;
+                t0 = t2;
+                t2 = t;
+                let e = e0;
+                e0 = e2;
+                e2 = e;
+            }
+            if t3 < t1 {
+                let t = t1;
+                t1 = t3;
+                t3 = t;
+                let e = e1;
+                e1 = e3;
+                e3 = e;
+            }
+            if t2 < t1 {
+                let t = t1;
+                t1 = t2;
+                t2 = t;
+                let e = e1;
+                e1 = e2;
+                e2 = e;
+            }
+            // Leaf children now, nearest first (a leaf whose box lies beyond the closest hit
+            // so far is skipped), then the child nodes are pushed, farthest first so that the
+            // nearest is popped next.
+            if t0 < MISS && t0 <= hit.t && is_leaf(e0) {
+                intersect_leaf(scene, e0, origin, dir, &mut hit);
+            }
+            if t1 < MISS && t1 <= hit.t && is_leaf(e1) {
+                intersect_leaf(scene, e1, origin, dir, &mut hit);
+            }
+            if t2 < MISS && t2 <= hit.t && is_leaf(e2) {
+                intersect_leaf(scene, e2, origin, dir, &mut hit);
+            }
+            if t3 < MISS && t3 <= hit.t && is_leaf(e3) {
+                intersect_leaf(scene, e3, origin, dir, &mut hit);
+            }
+            if t3 < MISS && t3 <= hit.t && !is_leaf(e3) && sp < STACK_SIZE {
+                stack[sp] = e3;
+                stack_t[sp] = t3;
+                sp += 1;
+            }
+            if t2 < MISS && t2 <= hit.t && !is_leaf(e2) && sp < STACK_SIZE {
+                stack[sp] = e2;
+                stack_t[sp] = t2;
+                sp += 1;
+            }
+            if t1 < MISS && t1 <= hit.t && !is_leaf(e1) && sp < STACK_SIZE {
+                stack[sp] = e1;
+                stack_t[sp] = t1;
+                sp += 1;
+            }
+            if t0 < MISS && t0 <= hit.t && !is_leaf(e0) && sp < STACK_SIZE {
+                stack[sp] = e0;
+                stack_t[sp] = t0;
+                sp += 1;
             }
         }
         hit
     }
 
     /// Whether anything blocks `origin + t * dir` for t in (0, t_max): the shadow-ray test.
+    /// Any hit ends it, so children are visited in slot order; leaves at once, as in
+    /// `trace_closest`.
     pub fn occluded(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
         let inv_dir = safe_inverse(dir);
+        let near = near_planes(inv_dir);
         let mut stack = [0u32; STACK_SIZE];
-        let mut sp: usize = 0;
-        let root = fetch_node(scene, 0);
-        if intersect_aabb(origin, inv_dir, root.min, root.max, t_max) < MISS {
-            stack[0] = stack_entry(root.first, root.count);
-            sp = 1;
-        }
-        while sp > 0 {
+        stack[0] = stack_entry(0, 0);
+        let mut sp: usize = 1;
+        let mut blocked = false;
+        while sp > 0 && !blocked {
             sp -= 1;
-            let first = stack[sp] >> 8;
-            let count = stack[sp] & 255;
-            if count > 0 {
-                for i in first..first + count {
-                    let tri = fetch_triangle(scene, i);
-                    if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
-                        return true;
-                    }
+            let n = intersect_node(scene, stack[sp] >> 8, origin, inv_dir, near, t_max);
+            if n.t.x < MISS {
+                if is_leaf(n.entries.x) {
+                    blocked = leaf_occludes(scene, n.entries.x, origin, dir, t_max);
+                } else if sp < STACK_SIZE {
+                    stack[sp] = n.entries.x;
+                    sp += 1;
                 }
-            } else {
-                for c in 0..2u32 {
-                    let child = fetch_node(scene, first + c);
-                    if intersect_aabb(origin, inv_dir, child.min, child.max, t_max) < MISS && sp < STACK_SIZE {
-                        stack[sp] = stack_entry(child.first, child.count);
-                        sp += 1;
-                    }
+            }
+            if n.t.y < MISS && !blocked {
+                if is_leaf(n.entries.y) {
+                    blocked = leaf_occludes(scene, n.entries.y, origin, dir, t_max);
+                } else if sp < STACK_SIZE {
+                    stack[sp] = n.entries.y;
+                    sp += 1;
+                }
+            }
+            if n.t.z < MISS && !blocked {
+                if is_leaf(n.entries.z) {
+                    blocked = leaf_occludes(scene, n.entries.z, origin, dir, t_max);
+                } else if sp < STACK_SIZE {
+                    stack[sp] = n.entries.z;
+                    sp += 1;
+                }
+            }
+            if n.t.w < MISS && !blocked {
+                if is_leaf(n.entries.w) {
+                    blocked = leaf_occludes(scene, n.entries.w, origin, dir, t_max);
+                } else if sp < STACK_SIZE {
+                    stack[sp] = n.entries.w;
+                    sp += 1;
                 }
             }
         }
-        false
+        blocked
     }
 }

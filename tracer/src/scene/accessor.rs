@@ -64,10 +64,22 @@ impl<'a> Buffers<'a> {
     pub(crate) fn view(&mut self, index: usize) -> Result<(&[u8], Option<usize>), SceneError> {
         let view =
             self.root.buffer_views.get(index).ok_or_else(|| malformed(format!("bufferView {index} does not exist")))?;
+        self.buffer(view.buffer.value())?;
+        self.loaded_view(index)
+    }
+
+    /// [`Buffers::view`] of a view whose buffer is loaded already (by an earlier `view`).
+    pub(crate) fn loaded_view(&self, index: usize) -> Result<(&[u8], Option<usize>), SceneError> {
+        let view =
+            self.root.buffer_views.get(index).ok_or_else(|| malformed(format!("bufferView {index} does not exist")))?;
         let offset = view.byte_offset.map_or(0, |o| o.0);
         let length = view.byte_length.0;
         let stride = view.byte_stride.map(|s| s.0);
-        let buffer = self.buffer(view.buffer.value())?;
+        let buffer = self
+            .loaded
+            .get(view.buffer.value())
+            .and_then(|b| b.as_deref())
+            .ok_or_else(|| malformed(format!("buffer {} is not loaded", view.buffer.value())))?;
         let end = offset
             .checked_add(length)
             .ok_or_else(|| malformed(format!("bufferView {index}: offset + length overflows")))?;

@@ -19,10 +19,10 @@ use gltf::json::Root;
 use serde_json::{Map, Value};
 
 use super::accessor::Buffers;
-use super::texture::{decode_srgb, Decoded, Image};
+use super::texture::{decode_textures, probe_srgb, ImageHeader, PendingTexture, Probed};
 use super::util::{read_file, read_uri};
 use super::{
-    flat_normal, Aabb, Camera, LoadOptions, Material, PointLight, Scene, SceneError, Texture, Triangle, Warnings, Wrap,
+    flat_normal, Aabb, Camera, LoadOptions, Material, PointLight, Scene, SceneError, Triangle, Warnings, Wrap,
     MAX_SCENE_TEXELS, MAX_TRIANGLES,
 };
 
@@ -98,6 +98,7 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>, options: &LoadOpti
         textures: Vec::new(),
         texture_map: HashMap::new(),
         images: HashMap::new(),
+        probed: Vec::new(),
         meshes: HashMap::new(),
         point_lights: Vec::new(),
         camera: None,
@@ -290,10 +291,13 @@ struct Loader<'a> {
     triangles: Vec<Triangle>,
     materials: Vec<Material>,
     material_map: HashMap<Option<usize>, u32>,
-    textures: Vec<Texture>,
+    /// The scene's textures, decoded at the end of loading ([`decode_textures`]).
+    textures: Vec<PendingTexture>,
     texture_map: HashMap<usize, Option<u32>>,
-    /// glTF image -> the texture holding its texels (`None`: unsupported or missing).
+    /// glTF image -> the first texture showing it (`None`: unsupported or missing).
     images: HashMap<usize, Option<u32>>,
+    /// The images probed, in the order [`PendingTexture::image`] refers to.
+    probed: Vec<(ImageSource, ImageHeader)>,
     meshes: HashMap<usize, Rc<Vec<LocalPrimitive>>>,
     point_lights: Vec<PointLight>,
     camera: Option<FoundCamera>,
@@ -319,10 +323,11 @@ impl Loader<'_> {
             };
             return Err(SceneError::NoTriangles(why));
         }
+        let textures = self.decode_textures()?;
         let mut scene = Scene {
             triangles: self.triangles,
             materials: self.materials,
-            textures: self.textures,
+            textures,
             point_lights: self.point_lights,
             camera: Camera::default(),
             sky: None,
@@ -744,29 +749,24 @@ impl Loader<'_> {
         }
         let image = tex.source.value();
         let result = match self.images.get(&image).copied() {
-            // Decoded before for another glTF texture: share it, or copy it for other wrap modes.
+            // Probed before for another glTF texture: share it, or copy it for other wrap modes.
             Some(Some(first)) => match self.textures.get(first as usize) {
                 Some(t) if (t.wrap_s, t.wrap_t) == (wrap_s, wrap_t) => Some(first),
                 Some(t) => {
-                    if (t.texels.len() as u64) > self.texel_budget()? {
+                    let image = t.image;
+                    let texels = self.probed.get(image).map_or(0, |(_, header)| header.texels());
+                    if texels > self.texel_budget()? {
                         return Err(texel_budget_error());
                     }
-                    let copy = Texture { wrap_s, wrap_t, ..t.clone() };
-                    self.textures.push(copy);
+                    self.textures.push(PendingTexture { image, wrap_s, wrap_t });
                     Some(self.textures.len() as u32 - 1)
                 }
                 None => None,
             },
             Some(None) => None,
             None => {
-                let id = self.decode_image(image)?.map(|img| {
-                    self.textures.push(Texture {
-                        width: img.width,
-                        height: img.height,
-                        texels: img.texels,
-                        wrap_s,
-                        wrap_t,
-                    });
+                let id = self.probe_image(image)?.map(|image| {
+                    self.textures.push(PendingTexture { image, wrap_s, wrap_t });
                     self.textures.len() as u32 - 1
                 });
                 self.images.insert(image, id);
@@ -779,29 +779,46 @@ impl Loader<'_> {
 
     /// Texels the scene's textures may still add.
     fn texel_budget(&self) -> Result<u64, SceneError> {
-        let used: u64 = self.textures.iter().map(|t| t.texels.len() as u64).sum();
+        let used: u64 = self.textures.iter().filter_map(|t| self.probed.get(t.image)).map(|(_, h)| h.texels()).sum();
         match MAX_SCENE_TEXELS.checked_sub(used) {
             Some(left) if left > 0 => Ok(left),
             _ => Err(texel_budget_error()),
         }
     }
 
-    /// Decodes image `index`. `None` (warned) when its format is not supported, or its file is
-    /// missing and that is allowed.
-    fn decode_image(&mut self, index: usize) -> Result<Option<Image>, SceneError> {
+    /// Decodes the textures (all images probed), in parallel, into one shared atlas.
+    fn decode_textures(&self) -> Result<Vec<super::Texture>, SceneError> {
+        let images = self
+            .probed
+            .iter()
+            .map(|(source, header)| {
+                let bytes = match source {
+                    ImageSource::View(view) => self.buffers.loaded_view(*view)?.0,
+                    ImageSource::Bytes(bytes) => bytes.as_slice(),
+                };
+                Ok((bytes, header))
+            })
+            .collect::<Result<Vec<_>, SceneError>>()?;
+        decode_textures(&images, &self.textures, &self.materials)
+    }
+
+    /// Reads image `index` and its header (decoded later, with the others: see
+    /// [`Loader::decode_textures`]); its index in `probed`. `None` (warned) when its format is
+    /// not supported, or its file is missing and that is allowed.
+    fn probe_image(&mut self, index: usize) -> Result<Option<usize>, SceneError> {
         let budget = self.texel_budget()?;
         let json = self.root.images.get(index).ok_or_else(|| malformed(format!("image {index} does not exist")))?;
         let name = match &json.uri {
             Some(uri) if !uri.starts_with("data:") => format!("{index} ({uri})"),
             _ => index.to_string(),
         };
-        let decoded = match (&json.buffer_view, &json.uri) {
+        let (probed, source) = match (&json.buffer_view, &json.uri) {
             (Some(view), _) => {
                 let (bytes, _) = self.buffers.view(view.value())?;
-                decode_srgb(bytes, &name, budget)?
+                (probe_srgb(bytes, &name, budget)?, ImageSource::View(view.value()))
             }
             (None, Some(uri)) => match read_uri(uri, self.base_dir, &format!("image {name}")) {
-                Ok(bytes) => decode_srgb(&bytes, &name, budget)?,
+                Ok(bytes) => (probe_srgb(&bytes, &name, budget)?, ImageSource::Bytes(bytes)),
                 Err(SceneError::Io { path, .. }) if self.allow_missing_textures => {
                     let key = format!("missing image {}", path.display());
                     self.warnings.once(&key, || {
@@ -813,18 +830,28 @@ impl Loader<'_> {
             },
             (None, None) => return Err(malformed(format!("image {index} has neither a uri nor a bufferView"))),
         };
-        let img = match decoded {
-            Decoded::Image(img) => Some(img),
-            Decoded::Unsupported(format) => {
+        match probed {
+            Probed::Image(header) => {
+                self.probed.push((source, header));
+                Ok(Some(self.probed.len() - 1))
+            }
+            Probed::Unsupported(format) => {
                 let key = format!("image format {format}");
                 self.warnings.once(&key, || {
                     format!("image format {format} is not supported (PNG and JPEG are): textures using it are dropped")
                 });
-                None
+                Ok(None)
             }
-        };
-        Ok(img)
+        }
     }
+}
+
+/// Where a probed image's bytes are.
+enum ImageSource {
+    /// In a buffer view (loaded in `Buffers`).
+    View(usize),
+    /// Read from a file or a data URI.
+    Bytes(Vec<u8>),
 }
 
 fn texel_budget_error() -> SceneError {

@@ -57,7 +57,7 @@ mod gltf_loader;
 mod obj_loader;
 mod sky;
 pub mod stability;
-mod texture;
+pub(crate) mod texture;
 mod util;
 
 use std::path::{Path, PathBuf};
@@ -67,7 +67,7 @@ use glam::{Vec2, Vec3};
 pub use generate::{cornell_box, diffuse_plane, white_furnace};
 pub use gltf_loader::load_gltf_slice;
 pub use sky::load_sky;
-pub use texture::{srgb_to_linear, srgba8_to_linear};
+pub use texture::{srgb_to_linear, srgba8_to_linear, TextureTexels};
 
 /// Most triangles a loaded scene may have after instancing (each [`Triangle`] is 100 bytes,
 /// so this caps a scene's triangle list at about 1.7 GB).
@@ -183,8 +183,9 @@ pub struct Texture {
     /// `width * height` texels, one `u32` each: 8-bit RGBA as stored in the image file (colour
     /// **sRGB-encoded**, alpha linear), red in the low byte (`r | g << 8 | b << 16 | a << 24`).
     /// This is the packed layout every backend reads; the kernel decodes sRGB to linear when it
-    /// samples, [`Texture::linear`] does the same on the CPU side.
-    pub texels: Vec<u32>,
+    /// samples, [`Texture::linear`] does the same on the CPU side. Loaded scenes' textures share
+    /// one atlas, which packing shares too (see [`TextureTexels`]); `Vec::into` makes one.
+    pub texels: TextureTexels,
     /// Wrapping along u.
     pub wrap_s: Wrap,
     /// Wrapping along v.

@@ -12,10 +12,10 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
-use super::texture::{catch_decoder_panic, decode_srgb, Decoded};
+use super::texture::{catch_decoder_panic, decode_textures, probe_srgb, ImageHeader, PendingTexture, Probed};
 use super::util::read_file;
 use super::{
-    flat_normal, Camera, LoadOptions, Material, Scene, SceneError, Texture, Triangle, Warnings, Wrap, MAX_SCENE_TEXELS,
+    flat_normal, Camera, LoadOptions, Material, Scene, SceneError, Triangle, Warnings, Wrap, MAX_SCENE_TEXELS,
     MAX_TRIANGLES,
 };
 
@@ -54,7 +54,7 @@ pub(crate) fn load_obj(path: &Path, options: &LoadOptions) -> Result<Scene, Scen
     let mtl_materials = materials.map_err(|e| obj_error(format!("material library: {e}")))?;
 
     let mut warnings = Warnings::default();
-    let mut textures = Vec::new();
+    let mut textures = Textures::default();
     let mut texture_cache: HashMap<String, Option<u32>> = HashMap::new();
     let mut materials = Vec::with_capacity(mtl_materials.len() + 1);
     for m in &mtl_materials {
@@ -122,6 +122,8 @@ pub(crate) fn load_obj(path: &Path, options: &LoadOptions) -> Result<Scene, Scen
     if triangles.is_empty() {
         return Err(SceneError::NoTriangles(" (the OBJ has no faces)".into()));
     }
+    let images: Vec<(&[u8], &ImageHeader)> = textures.images.iter().map(|(b, h)| (b.as_slice(), h)).collect();
+    let textures = decode_textures(&images, &textures.textures, &materials)?;
     let mut scene = Scene {
         triangles,
         materials,
@@ -137,10 +139,17 @@ pub(crate) fn load_obj(path: &Path, options: &LoadOptions) -> Result<Scene, Scen
     Ok(scene)
 }
 
+/// The MTL textures, probed (each image is one texture), decoded once the materials are read.
+#[derive(Default)]
+struct Textures {
+    images: Vec<(Vec<u8>, ImageHeader)>,
+    textures: Vec<PendingTexture>,
+}
+
 fn convert_material(
     m: &tobj::Material,
     dir: &Path,
-    textures: &mut Vec<Texture>,
+    textures: &mut Textures,
     cache: &mut HashMap<String, Option<u32>>,
     warnings: &mut Warnings,
     options: &LoadOptions,
@@ -188,7 +197,7 @@ fn convert_material(
 fn texture(
     spec: &str,
     dir: &Path,
-    textures: &mut Vec<Texture>,
+    textures: &mut Textures,
     cache: &mut HashMap<String, Option<u32>>,
     warnings: &mut Warnings,
     options: &LoadOptions,
@@ -215,23 +224,19 @@ fn texture(
         }
         Err(e) => return Err(e),
     };
-    let used: u64 = textures.iter().map(|t| t.texels.len() as u64).sum();
+    let used: u64 = textures.images.iter().map(|(_, header)| header.texels()).sum();
     let budget = MAX_SCENE_TEXELS.saturating_sub(used);
     if budget == 0 {
         return Err(SceneError::TooLarge(format!("the scene's textures have more than {MAX_SCENE_TEXELS} texels")));
     }
-    let id = match decode_srgb(&bytes, &path.display().to_string(), budget)? {
-        Decoded::Image(img) => {
-            textures.push(Texture {
-                width: img.width,
-                height: img.height,
-                texels: img.texels,
-                wrap_s: Wrap::Repeat,
-                wrap_t: Wrap::Repeat,
-            });
-            Some(textures.len() as u32 - 1)
+    let id = match probe_srgb(&bytes, &path.display().to_string(), budget)? {
+        Probed::Image(header) => {
+            textures.images.push((bytes, header));
+            let image = textures.images.len() - 1;
+            textures.textures.push(PendingTexture { image, wrap_s: Wrap::Repeat, wrap_t: Wrap::Repeat });
+            Some(textures.textures.len() as u32 - 1)
         }
-        Decoded::Unsupported(format) => {
+        Probed::Unsupported(format) => {
             let key = format!("image format {format}");
             warnings.once(&key, || {
                 format!("image format {format} is not supported (PNG and JPEG are): textures using it are dropped")

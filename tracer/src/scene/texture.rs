@@ -3,28 +3,129 @@
 //! linear), red in the low byte. The kernel decodes sRGB to linear when it samples
 //! (`kernel::scene_data::decode_srgba8`), so textures cost 4 bytes per texel from the decoder
 //! to the GPU.
+//!
+//! Loaders probe each image when a material first uses it (format, size and the texel budget
+//! are checked then, from the header) and decode all of a scene's textures at the end, in
+//! parallel, into one atlas in the kernel's `texture_texels` layout ([`TextureTexels`]), which
+//! packing then shares instead of copying.
 
 use std::io::Cursor;
+use std::ops::Deref;
+use std::sync::{Arc, OnceLock};
 
-use glam::Vec4;
+use glam::{UVec4, Vec3, Vec4};
 use image::{ColorType, DynamicImage, ImageDecoder, ImageFormat, ImageReader, Limits};
+use kernel_dsl::Texels;
+use rayon::prelude::*;
 
-use super::{SceneError, Texture, MAX_IMAGE_TEXELS, MAX_TEXTURE_DIMENSION};
+use super::{Material, SceneError, Texture, Wrap, MAX_IMAGE_TEXELS, MAX_TEXTURE_DIMENSION};
+use crate::kernel::scene_data::TEXTURE_TEXELS_PER_ELEMENT;
 
 /// Largest allocation an image decoder may make (bytes).
 const MAX_DECODE_BYTES: u64 = 2 << 30;
 
-/// A decoded texture image.
-pub(crate) struct Image {
-    pub width: u32,
-    pub height: u32,
-    /// Packed sRGBA8 texels (see the module docs), row 0 = top.
-    pub texels: Vec<u32>,
+/// Texels per atlas element (`UVec4`).
+const PER_ELEMENT: usize = TEXTURE_TEXELS_PER_ELEMENT as usize;
+
+/// A texture's texels ([`Texture::texels`]): `width * height` packed sRGBA8 texels, one `u32`
+/// each, dereferencing to `[u32]` (immutable; cloning shares them).
+///
+/// They lie in an atlas in the kernel's `texture_texels` layout: four texels per `UVec4`
+/// element, starting on an element boundary, the lanes after the last texel zero. Loaders
+/// decode all of a scene's textures into one atlas, in scene order, which is exactly the
+/// packed layout, so `pack::pack_textures` shares it instead of copying it. A texture made
+/// from a `Vec` has an atlas of its own (and is copied when packed).
+#[derive(Clone)]
+pub struct TextureTexels {
+    atlas: Texels<UVec4>,
+    /// First element of the texture in `atlas`.
+    first: usize,
+    /// Number of texels.
+    len: usize,
+    /// [`TextureTexels::mean_luminance`], once computed (loaders compute it while decoding
+    /// emissive textures). Shared by clones: the texels cannot change.
+    mean_luminance: Arc<OnceLock<f32>>,
 }
 
-/// What decoding an embedded image gave.
-pub(crate) enum Decoded {
-    Image(Image),
+impl TextureTexels {
+    /// The atlas holding these texels, from element [`TextureTexels::first_element`] on.
+    pub fn atlas(&self) -> &Texels<UVec4> {
+        &self.atlas
+    }
+
+    /// Index of the atlas element holding the first texel.
+    pub fn first_element(&self) -> usize {
+        self.first
+    }
+
+    /// Mean linear luminance (sRGB decoded, alpha ignored), the estimate of an emissive
+    /// texture's power used for light selection. Computed once.
+    pub fn mean_luminance(&self) -> f32 {
+        *self.mean_luminance.get_or_init(|| mean_luminance(self))
+    }
+}
+
+impl Deref for TextureTexels {
+    type Target = [u32];
+
+    fn deref(&self) -> &[u32] {
+        let words: &[u32] = bytemuck::cast_slice(self.atlas.as_slice());
+        words.get(self.first * PER_ELEMENT..).and_then(|w| w.get(..self.len)).unwrap_or(&[])
+    }
+}
+
+impl From<Vec<u32>> for TextureTexels {
+    fn from(texels: Vec<u32>) -> Self {
+        let atlas = Texels::from_fn(texels.len().div_ceil(PER_ELEMENT), |e| {
+            let mut lanes = [0u32; PER_ELEMENT];
+            let four = texels.get(e * PER_ELEMENT..).unwrap_or(&[]);
+            let four = &four[..four.len().min(PER_ELEMENT)];
+            lanes[..four.len()].copy_from_slice(four);
+            UVec4::from_array(lanes)
+        });
+        TextureTexels { atlas, first: 0, len: texels.len(), mean_luminance: Arc::default() }
+    }
+}
+
+impl FromIterator<u32> for TextureTexels {
+    fn from_iter<I: IntoIterator<Item = u32>>(iter: I) -> Self {
+        iter.into_iter().collect::<Vec<u32>>().into()
+    }
+}
+
+impl PartialEq for TextureTexels {
+    fn eq(&self, other: &Self) -> bool {
+        **self == **other
+    }
+}
+
+impl std::fmt::Debug for TextureTexels {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(self.iter()).finish()
+    }
+}
+
+/// Mean linear luminance of packed sRGBA8 texels (alpha ignored), summed in texel order.
+fn mean_luminance(texels: &[u32]) -> f32 {
+    let srgb_lut: [f32; 256] = std::array::from_fn(|v| srgb_to_linear(v as f32 / 255.0));
+    let sum = texels.iter().fold(Vec3::ZERO, |sum, &texel| {
+        let [r, g, b, _] = texel.to_le_bytes();
+        sum + Vec3::new(srgb_lut[r as usize], srgb_lut[g as usize], srgb_lut[b as usize])
+    });
+    crate::pack::luminance(sum / texels.len().max(1) as f32)
+}
+
+/// An image whose header was read ([`probe_srgb`]), to be decoded later.
+pub(crate) struct ImageHeader {
+    pub width: u32,
+    pub height: u32,
+    format: ImageFormat,
+    name: String,
+}
+
+/// What probing an image gave.
+pub(crate) enum Probed {
+    Image(ImageHeader),
     /// A recognised image format Lightport does not decode (named), e.g. WebP or KTX2.
     Unsupported(String),
 }
@@ -38,60 +139,166 @@ pub(crate) fn limits() -> Limits {
     limits
 }
 
-/// Decodes a PNG or JPEG whose colour channels are sRGB-encoded into packed sRGBA8 texels.
-/// Formats other than PNG and JPEG come back as [`Decoded::Unsupported`]; corrupt PNG/JPEG data
-/// is an error, and so is an image with more than `max_texels` texels (checked from its header).
-/// 16-bit images are rounded to 8 bits per channel (albedo and emission masks need no more).
-pub(crate) fn decode_srgb(bytes: &[u8], name: &str, max_texels: u64) -> Result<Decoded, SceneError> {
+/// Reads the header of a PNG or JPEG whose colour channels are sRGB-encoded, for
+/// [`ImageHeader::decode_into`]. Formats other than PNG and JPEG come back as
+/// [`Probed::Unsupported`]; a corrupt header is an error, and so is an image with more than
+/// `max_texels` texels.
+pub(crate) fn probe_srgb(bytes: &[u8], name: &str, max_texels: u64) -> Result<Probed, SceneError> {
     let err = |message: String| SceneError::Image { name: name.to_owned(), message };
     if bytes.is_empty() {
         return Err(err("empty image data".into()));
     }
     let format = if bytes.starts_with(b"\xABKTX 20\xBB") {
-        return Ok(Decoded::Unsupported("KTX2 (KHR_texture_basisu)".into()));
+        return Ok(Probed::Unsupported("KTX2 (KHR_texture_basisu)".into()));
     } else {
         match image::guess_format(bytes) {
             Ok(f @ (ImageFormat::Png | ImageFormat::Jpeg)) => f,
-            Ok(other) => return Ok(Decoded::Unsupported(format!("{other:?}"))),
+            Ok(other) => return Ok(Probed::Unsupported(format!("{other:?}"))),
             Err(_) => return Err(err("not a PNG or JPEG image".into())),
         }
     };
     let max_texels = max_texels.min(MAX_IMAGE_TEXELS);
-    let cannot = move |e: image::ImageError| err(format!("cannot decode {format:?}: {e}"));
-    let image = catch_decoder_panic(|| -> Result<Image, SceneError> {
+    let (width, height) = catch_decoder_panic(|| -> Result<(u32, u32), SceneError> {
         let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
         reader.limits(limits());
-        let decoder = reader.into_decoder().map_err(cannot)?;
-        let (width, height) = decoder.dimensions();
-        if width == 0 || height == 0 {
-            return Err(err("image has no texels".into()));
-        }
-        check_texels(width, height, max_texels, name)?;
-        let count = width as usize * height as usize;
-        let channels = match decoder.color_type() {
-            ColorType::L8 => 1,
-            ColorType::La8 => 2,
-            ColorType::Rgb8 => 3,
-            ColorType::Rgba8 => 4,
-            _ => {
-                // Deeper formats (16-bit PNG) go through the image crate's conversion.
-                let rgba = DynamicImage::from_decoder(decoder).map_err(cannot)?.into_rgba8();
-                let texels = rgba.pixels().map(|p| u32::from_le_bytes(p.0)).collect();
-                return Ok(Image { width, height, texels });
-            }
-        };
-        // Decode into the texel buffer itself, then widen each texel to RGBA in place.
-        let mut texels = vec![0u32; count];
-        let bytes = words_as_bytes_mut(&mut texels);
-        decoder.read_image(&mut bytes[..count * channels]).map_err(cannot)?;
-        widen_to_rgba_in_place(bytes, channels);
-        if cfg!(target_endian = "big") {
-            texels.iter_mut().for_each(|t| *t = u32::from_le(*t));
-        }
-        Ok(Image { width, height, texels })
+        let decoder = reader.into_decoder().map_err(|e| err(format!("cannot decode {format:?}: {e}")))?;
+        Ok(decoder.dimensions())
     })
     .unwrap_or_else(|| Err(err("the image decoder failed unexpectedly".into())))?;
-    Ok(Decoded::Image(image))
+    if width == 0 || height == 0 {
+        return Err(err("image has no texels".into()));
+    }
+    check_texels(width, height, max_texels, name)?;
+    Ok(Probed::Image(ImageHeader { width, height, format, name: name.to_owned() }))
+}
+
+impl ImageHeader {
+    /// Number of texels.
+    pub fn texels(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.height)
+    }
+
+    /// Decodes `bytes` (the image probed) into `out`, `width * height` packed sRGBA8 texels
+    /// (see the module docs). Corrupt data is an error. 16-bit images are rounded to 8 bits
+    /// per channel (albedo and emission masks need no more).
+    pub(crate) fn decode_into(&self, bytes: &[u8], out: &mut [u32]) -> Result<(), SceneError> {
+        let err = |message: String| SceneError::Image { name: self.name.clone(), message };
+        let format = self.format;
+        let cannot = |e: image::ImageError| err(format!("cannot decode {format:?}: {e}"));
+        let count = out.len();
+        catch_decoder_panic(|| -> Result<(), SceneError> {
+            let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
+            reader.limits(limits());
+            let decoder = reader.into_decoder().map_err(cannot)?;
+            let (width, height) = decoder.dimensions();
+            if (width, height) != (self.width, self.height) || count as u64 != self.texels() {
+                return Err(err("the image changed size between its header and its pixels".into()));
+            }
+            let channels = match decoder.color_type() {
+                ColorType::L8 => 1,
+                ColorType::La8 => 2,
+                ColorType::Rgb8 => 3,
+                ColorType::Rgba8 => 4,
+                _ => {
+                    // Deeper formats (16-bit PNG) go through the image crate's conversion.
+                    let rgba = DynamicImage::from_decoder(decoder).map_err(cannot)?.into_rgba8();
+                    for (texel, p) in out.iter_mut().zip(rgba.pixels()) {
+                        *texel = u32::from_le_bytes(p.0);
+                    }
+                    return Ok(());
+                }
+            };
+            // Decode into the texels themselves, then widen each texel to RGBA in place.
+            let bytes: &mut [u8] = bytemuck::cast_slice_mut(out);
+            decoder.read_image(&mut bytes[..count * channels]).map_err(cannot)?;
+            widen_to_rgba_in_place(bytes, channels);
+            if cfg!(target_endian = "big") {
+                out.iter_mut().for_each(|t| *t = u32::from_le(*t));
+            }
+            Ok(())
+        })
+        .unwrap_or_else(|| Err(err("the image decoder failed unexpectedly".into())))
+    }
+}
+
+/// A texture of a scene being loaded, its image probed but not decoded yet.
+pub(crate) struct PendingTexture {
+    /// Index of its image in the list given to [`decode_textures`].
+    pub image: usize,
+    pub wrap_s: Wrap,
+    pub wrap_t: Wrap,
+}
+
+/// Decodes the scene's textures into one shared atlas (see [`TextureTexels`]), in parallel:
+/// `images` are the probed images with their bytes, `textures` the scene's textures in order
+/// (several may show the same image, with other wrap modes: each gets its own copy, as the
+/// packed layout has). The mean luminance of the textures `materials` emit through is computed
+/// while their texels are at hand. On failure, the error of the first failing image.
+pub(crate) fn decode_textures(
+    images: &[(&[u8], &ImageHeader)],
+    textures: &[PendingTexture],
+    materials: &[Material],
+) -> Result<Vec<Texture>, SceneError> {
+    let emissive: Vec<bool> =
+        (0..textures.len() as u32).map(|i| materials.iter().any(|m| m.emissive_texture == Some(i))).collect();
+    // Each texture's first element and image header, in scene order.
+    let mut layout = Vec::with_capacity(textures.len());
+    let mut elements = 0usize;
+    for t in textures {
+        let header = images.get(t.image).ok_or_else(|| SceneError::Malformed("a texture has no image".into()))?.1;
+        layout.push((elements, header));
+        elements += (header.texels() as usize).div_ceil(PER_ELEMENT);
+    }
+    let mut results = Vec::new();
+    let atlas = Texels::<UVec4>::par_from_fill(elements, |atlas| {
+        // Each image's slots: the first is decoded into, the others are copies of it.
+        let mut targets: Vec<Vec<(usize, &mut [u32])>> = images.iter().map(|_| Vec::new()).collect();
+        let mut rest: &mut [u32] = bytemuck::cast_slice_mut(atlas);
+        for (i, (t, &(_, header))) in textures.iter().zip(&layout).enumerate() {
+            let len = header.texels() as usize;
+            let (slot, after) = std::mem::take(&mut rest).split_at_mut(len.div_ceil(PER_ELEMENT) * PER_ELEMENT);
+            rest = after;
+            if let Some(list) = targets.get_mut(t.image) {
+                list.push((i, &mut slot[..len]));
+            }
+        }
+        results = targets
+            .into_par_iter()
+            .zip(images)
+            .map(|(mut slots, &(bytes, header))| -> Result<Option<f32>, SceneError> {
+                let Some(((_, first), copies)) = slots.split_first_mut() else { return Ok(None) };
+                header.decode_into(bytes, first)?;
+                for (_, copy) in copies {
+                    copy.copy_from_slice(first);
+                }
+                let emitted = slots.iter().any(|(i, _)| emissive.get(*i).copied().unwrap_or(false));
+                Ok(emitted.then(|| mean_luminance(slots[0].1)))
+            })
+            .collect::<Vec<_>>();
+    });
+    let mut means = Vec::with_capacity(results.len());
+    for r in results {
+        means.push(r?);
+    }
+    Ok(textures
+        .iter()
+        .zip(layout)
+        .map(|(t, (first, header))| {
+            let mean = means.get(t.image).copied().flatten();
+            Texture {
+                width: header.width,
+                height: header.height,
+                texels: TextureTexels {
+                    atlas: atlas.clone(),
+                    first,
+                    len: header.texels() as usize,
+                    mean_luminance: Arc::new(mean.map(OnceLock::from).unwrap_or_default()),
+                },
+                wrap_s: t.wrap_s,
+                wrap_t: t.wrap_t,
+            }
+        })
+        .collect())
 }
 
 fn check_texels(w: u32, h: u32, max_texels: u64, name: &str) -> Result<(), SceneError> {
@@ -103,30 +310,35 @@ fn check_texels(w: u32, h: u32, max_texels: u64, name: &str) -> Result<(), Scene
     Ok(())
 }
 
-/// The bytes of a texel buffer, to decode into.
-fn words_as_bytes_mut(words: &mut [u32]) -> &mut [u8] {
-    // SAFETY: u8 has no alignment requirement and no invalid bit patterns; the byte slice
-    // covers exactly the words' memory and borrows them mutably for its lifetime.
-    unsafe { std::slice::from_raw_parts_mut(words.as_mut_ptr().cast::<u8>(), std::mem::size_of_val(words)) }
-}
-
 /// `bytes` holds `bytes.len() / 4` texels of `channels` (1: L, 2: LA, 3: RGB, 4: RGBA) bytes
 /// each, packed at its start; rewrites them as RGBA (grey replicated, alpha 255 when absent).
-/// Runs from the last texel back, so no texel is overwritten before it is read: texel `i`
-/// is read from `channels * i..` and written to `4 * i..`, at or after where it was.
 fn widen_to_rgba_in_place(bytes: &mut [u8], channels: usize) {
-    if channels == 4 {
-        return;
+    match channels {
+        1 => widen::<1>(bytes, |&[l]| [l, l, l, 255]),
+        2 => widen::<2>(bytes, |&[l, a]| [l, l, l, a]),
+        3 => widen::<3>(bytes, |&[r, g, b]| [r, g, b, 255]),
+        _ => {}
     }
+}
+
+/// [`widen_to_rgba_in_place`] for `C` channels. Runs from the last texel back, so no texel is
+/// overwritten before it is read: texel `i` is read from `C * i..` and written to `4 * i..`,
+/// at or after where it was. Whole blocks of texels are read before any of them is written,
+/// which lets the compiler vectorise the conversion.
+fn widen<const C: usize>(bytes: &mut [u8], rgba: impl Fn(&[u8; C]) -> [u8; 4]) {
+    const BLOCK: usize = 16;
     let count = bytes.len() / 4;
-    for i in (0..count).rev() {
-        let at = channels * i;
-        let rgba = match channels {
-            1 => [bytes[at], bytes[at], bytes[at], 255],
-            2 => [bytes[at], bytes[at], bytes[at], bytes[at + 1]],
-            _ => [bytes[at], bytes[at + 1], bytes[at + 2], 255],
-        };
-        bytes[4 * i..4 * i + 4].copy_from_slice(&rgba);
+    let blocks = count / BLOCK;
+    // The texels after the last whole block, last first.
+    for i in (blocks * BLOCK..count).rev() {
+        let texel: [u8; C] = std::array::from_fn(|k| bytes[C * i + k]);
+        bytes[4 * i..4 * i + 4].copy_from_slice(&rgba(&texel));
+    }
+    for block in (0..blocks).rev() {
+        let mut texels = [[0u8; C]; BLOCK];
+        texels.as_flattened_mut().copy_from_slice(&bytes[C * BLOCK * block..C * BLOCK * (block + 1)]);
+        let widened = texels.map(|t| rgba(&t));
+        bytes[4 * BLOCK * block..4 * BLOCK * (block + 1)].copy_from_slice(widened.as_flattened());
     }
 }
 
@@ -180,6 +392,27 @@ mod tests {
     use super::*;
 
     #[test]
+    fn widening_whole_blocks_matches_widening_texel_by_texel() {
+        for channels in 1..=3 {
+            for count in [15, 16, 17, 40, 100] {
+                let packed: Vec<u8> = (0..count * channels).map(|i| (i * 7 + channels) as u8).collect();
+                let expected: Vec<u8> = packed
+                    .chunks(channels)
+                    .flat_map(|p| match channels {
+                        1 => [p[0], p[0], p[0], 255],
+                        2 => [p[0], p[0], p[0], p[1]],
+                        _ => [p[0], p[1], p[2], 255],
+                    })
+                    .collect();
+                let mut bytes = vec![0u8; 4 * count];
+                bytes[..packed.len()].copy_from_slice(&packed);
+                widen_to_rgba_in_place(&mut bytes, channels);
+                assert_eq!(bytes, expected, "{channels} channels, {count} texels");
+            }
+        }
+    }
+
+    #[test]
     fn widening_in_place_gives_rgba_for_every_channel_count() {
         // Three texels per layout, packed at the start of a 12-byte buffer.
         let cases: [(usize, &[u8], [u8; 12]); 4] = [
@@ -202,11 +435,17 @@ mod tests {
         out.into_inner()
     }
 
-    fn decode(bytes: &[u8]) -> Image {
-        match decode_srgb(bytes, "test", u64::MAX).unwrap() {
-            Decoded::Image(image) => image,
-            Decoded::Unsupported(f) => panic!("unsupported {f}"),
+    fn header(bytes: &[u8]) -> ImageHeader {
+        match probe_srgb(bytes, "test", u64::MAX).unwrap() {
+            Probed::Image(header) => header,
+            Probed::Unsupported(f) => panic!("unsupported {f}"),
         }
+    }
+
+    fn decode(bytes: &[u8]) -> Texture {
+        let header = header(bytes);
+        let texture = PendingTexture { image: 0, wrap_s: Wrap::Repeat, wrap_t: Wrap::Repeat };
+        decode_textures(&[(bytes, &header)], &[texture], &[]).unwrap().remove(0)
     }
 
     #[test]
@@ -222,19 +461,55 @@ mod tests {
                 .collect()
         };
         let rgb = DynamicImage::ImageRgba8(rgba.clone()).to_rgb8();
-        assert_eq!(decode(&png(DynamicImage::ImageRgba8(rgba.clone()))).texels, expected(true, false));
-        assert_eq!(decode(&png(DynamicImage::ImageRgb8(rgb))).texels, expected(false, false));
+        assert_eq!(*decode(&png(DynamicImage::ImageRgba8(rgba.clone()))).texels, expected(true, false));
+        assert_eq!(*decode(&png(DynamicImage::ImageRgb8(rgb))).texels, expected(false, false));
         // Grey images: the red channel as the grey level.
         let luma = image::GrayImage::from_fn(3, 2, |x, y| image::Luma([rgba.get_pixel(x, y).0[0]]));
         let luma_alpha = image::GrayAlphaImage::from_fn(3, 2, |x, y| {
             image::LumaA([rgba.get_pixel(x, y).0[0], rgba.get_pixel(x, y).0[3]])
         });
-        assert_eq!(decode(&png(DynamicImage::ImageLuma8(luma))).texels, expected(false, true));
-        assert_eq!(decode(&png(DynamicImage::ImageLumaA8(luma_alpha))).texels, expected(true, true));
+        assert_eq!(*decode(&png(DynamicImage::ImageLuma8(luma))).texels, expected(false, true));
+        assert_eq!(*decode(&png(DynamicImage::ImageLumaA8(luma_alpha))).texels, expected(true, true));
         // 16 bits per channel: rounded to 8.
         let deep =
             image::ImageBuffer::<image::Rgba<u16>, _>::from_fn(1, 1, |_, _| image::Rgba([65535, 257 * 9, 0, 65535]));
-        assert_eq!(decode(&png(DynamicImage::ImageRgba16(deep))).texels, vec![u32::from_le_bytes([255, 9, 0, 255])]);
+        assert_eq!(*decode(&png(DynamicImage::ImageRgba16(deep))).texels, [u32::from_le_bytes([255, 9, 0, 255])]);
+    }
+
+    #[test]
+    fn textures_are_decoded_into_one_atlas_in_the_packed_layout() {
+        // A 3x1 image shown by two textures (other wrap modes: a copy each) and a 2x3 one.
+        let a = image::RgbaImage::from_fn(3, 1, |x, _| image::Rgba([x as u8 + 1, 2, 3, 4]));
+        let b = image::RgbaImage::from_fn(2, 3, |x, y| image::Rgba([10 * y as u8 + x as u8, 0, 0, 255]));
+        let (a, b) = (png(DynamicImage::ImageRgba8(a)), png(DynamicImage::ImageRgba8(b)));
+        let (ha, hb) = (header(&a), header(&b));
+        let pending = |image, wrap_s| PendingTexture { image, wrap_s, wrap_t: Wrap::Repeat };
+        let textures = [pending(0, Wrap::Repeat), pending(1, Wrap::Repeat), pending(0, Wrap::ClampToEdge)];
+        let mut emitter = Material::emissive("e", Vec3::ONE, Vec3::ONE);
+        emitter.emissive_texture = Some(1);
+        let decoded = decode_textures(&[(&a, &ha), (&b, &hb)], &textures, &[emitter]).unwrap();
+        let atlas = decoded[0].texels.atlas();
+        assert!(decoded.iter().all(|t| std::ptr::eq(t.texels.atlas().as_slice(), atlas.as_slice())));
+        let firsts: Vec<usize> = decoded.iter().map(|t| t.texels.first_element()).collect();
+        assert_eq!(firsts, [0, 1, 3]);
+        let first = UVec4::from_array([1, 2, 3, 0].map(|x| if x == 0 { 0 } else { u32::from_le_bytes([x, 2, 3, 4]) }));
+        let second = [0u8, 1, 10, 11, 20, 21].map(|r| u32::from_le_bytes([r, 0, 0, 255]));
+        assert_eq!(
+            atlas.as_slice(),
+            &[first, UVec4::from_slice(&second[..4]), UVec4::new(second[4], second[5], 0, 0), first]
+        );
+        assert_eq!(*decoded[1].texels, second);
+        assert_eq!((decoded[2].wrap_s, decoded[2].width, decoded[2].height), (Wrap::ClampToEdge, 3, 1));
+        // The emissive texture's mean was computed while decoding; it is the one computed later.
+        assert!(decoded[1].texels.mean_luminance.get().is_some() && decoded[0].texels.mean_luminance.get().is_none());
+        let fresh: TextureTexels = decoded[1].texels.to_vec().into();
+        assert_eq!(decoded[1].texels.mean_luminance().to_bits(), fresh.mean_luminance().to_bits());
+        assert_eq!(fresh, decoded[1].texels);
+        // A corrupt image is an error, the first one's when several are.
+        let mut cut = b.clone();
+        cut.truncate(b.len() - 20);
+        let err = decode_textures(&[(&a, &ha), (&cut, &hb)], &textures, &[]).unwrap_err();
+        assert!(matches!(err, SceneError::Image { .. }), "{err}");
     }
 
     #[test]
