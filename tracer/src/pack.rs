@@ -488,18 +488,18 @@ pub fn pack_with_textures(
     } else {
         Texels::default()
     };
-    let nodes = Texels::from_fn(wide.nodes.len() * NODE_TEXELS as usize, |k| {
-        let n = &wide.nodes[k / NODE_TEXELS as usize];
-        let lanes = |f: &dyn Fn(usize) -> u32| UVec4::new(f(0), f(1), f(2), f(3));
-        match k % NODE_TEXELS as usize {
-            0 => lanes(&|c| n.min[c].x.to_bits()),
-            1 => lanes(&|c| n.max[c].x.to_bits()),
-            2 => lanes(&|c| n.min[c].y.to_bits()),
-            3 => lanes(&|c| n.max[c].y.to_bits()),
-            4 => lanes(&|c| n.min[c].z.to_bits()),
-            5 => lanes(&|c| n.max[c].z.to_bits()),
-            _ => lanes(&|c| crate::kernel::traverse::stack_entry(n.first[c], n.count[c])),
-        }
+    let nodes = Texels::par_from_groups::<{ NODE_TEXELS as usize }>(wide.nodes.len(), |i| {
+        let n = &wide.nodes[i];
+        let bits = |v: [f32; 4]| UVec4::from_array(v.map(f32::to_bits));
+        [
+            bits(n.min.map(|c| c.x)),
+            bits(n.max.map(|c| c.x)),
+            bits(n.min.map(|c| c.y)),
+            bits(n.max.map(|c| c.y)),
+            bits(n.min.map(|c| c.z)),
+            bits(n.max.map(|c| c.z)),
+            UVec4::from_array(std::array::from_fn(|c| crate::kernel::traverse::stack_entry(n.first[c], n.count[c]))),
+        ]
     });
     let mut materials = Vec::with_capacity(scene.materials.len() * MATERIAL_TEXELS as usize);
     let texture_index = |i: Option<u32>| if features.textures { index_value(i) } else { -1.0 };
