@@ -9,7 +9,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::TestRng;
+use common::{node_child_box, TestRng};
 use glam::{IVec2, UVec3, UVec4, Vec2, Vec3};
 use tracer::backend::harness::{Backend, Equivalence, Outcome, Tolerance, Values};
 use tracer::kernel::intersect::{self, TriangleHit, MISS};
@@ -672,18 +672,10 @@ fn node_rays(k: &Scene, per_node: usize, seed: u64) -> Vec<NodeArgs> {
     let nodes = k.nodes.len() as u32 / scene_data::NODE_TEXELS;
     let mut out = Vec::new();
     for node in 0..nodes {
-        let texel = |t: u32| k.nodes.as_slice()[(node * scene_data::NODE_TEXELS + t) as usize];
-        let used = (0..4).filter(|&c| f32::from_bits(texel(0)[c]) <= f32::from_bits(texel(1)[c])).count();
+        let used = (0..4).filter(|&c| node_child_box(k, node, c).0.x <= node_child_box(k, node, c).1.x).count();
         for _ in 0..per_node {
             let c = (r.next_u32() as usize) % used.max(1);
-            let corner = |lo: u32| {
-                Vec3::new(
-                    f32::from_bits(texel(lo)[c]),
-                    f32::from_bits(texel(lo + 2)[c]),
-                    f32::from_bits(texel(lo + 4)[c]),
-                )
-            };
-            let (lo, hi) = (corner(0), corner(1));
+            let (lo, hi) = node_child_box(k, node, c);
             let target = lo + (hi - lo) * Vec3::new(r.f32(), r.f32(), r.f32());
             let mut origin = target + r.unit_vector() * (hi - lo).length().max(1e-3) * 2.0;
             let mut dir = (target - origin).normalize_or(Vec3::X);

@@ -1,6 +1,9 @@
 //! The kernel's BVH traversal (DSL code, run on the CPU over the packed arrays) finds the
 //! same closest hits as brute force over the packed triangles.
 
+mod common;
+
+use common::node_child_box;
 use glam::Vec3;
 use tracer::kernel::intersect::{intersect_aabb, intersect_triangle, safe_inverse, MISS};
 use tracer::kernel::scene_data::{fetch_triangle, NODE_TEXELS, NONE};
@@ -74,13 +77,9 @@ fn check_node_tests(k: &tracer::kernel::scene_data::Scene, rng: &mut XorShift) {
     let nodes = k.nodes.as_slice();
     let mut rare = 0;
     for node in 0..(nodes.len() as u32 / NODE_TEXELS) {
-        let texel = |t: u32| nodes[(node * NODE_TEXELS + t) as usize];
-        let corner = |lo: u32, c: usize| {
-            Vec3::new(f32::from_bits(texel(lo)[c]), f32::from_bits(texel(lo + 2)[c]), f32::from_bits(texel(lo + 4)[c]))
-        };
         for ray in 0..24 {
             let c = ray % 4;
-            let (lo, hi) = (corner(0, c), corner(1, c));
+            let (lo, hi) = node_child_box(k, node, c);
             let used = lo.cmple(hi).all();
             let target = if used { rng.in_box(lo, hi) } else { Vec3::ZERO };
             let (origin, dir) = if ray % 3 == 0 {
@@ -101,7 +100,7 @@ fn check_node_tests(k: &tracer::kernel::scene_data::Scene, rng: &mut XorShift) {
             let inv = safe_inverse(dir);
             let got = intersect_node(k, node, origin, inv, near_planes(inv), t_max).t.to_array();
             for (lane, got) in got.into_iter().enumerate() {
-                let (lo, hi) = (corner(0, lane), corner(1, lane));
+                let (lo, hi) = node_child_box(k, node, lane);
                 let want = if lo.cmple(hi).all() { intersect_aabb(origin, inv, lo, hi, t_max) } else { MISS };
                 assert_eq!(
                     got.to_bits(),

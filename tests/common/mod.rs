@@ -119,3 +119,12 @@ pub fn assert_within_sigmas(what: &str, estimate: f64, expected: f64, variance: 
     assert!(z.abs() <= sigmas, "{what}: {estimate} vs {expected}: {z:.2} standard errors ({se:e}) off");
     z
 }
+
+/// The box of child `child` (0..4) of packed BVH node `node`, decoded from the node's plane
+/// texels (layout: `tracer::kernel::scene_data::NODE_TEXELS`). Unused slots give an empty box
+/// (min > max).
+pub fn node_child_box(scene: &tracer::kernel::scene_data::Scene, node: u32, child: usize) -> (Vec3, Vec3) {
+    use tracer::kernel::scene_data::NODE_TEXELS;
+    let plane = |t: u32| f32::from_bits(scene.nodes.as_slice()[(node * NODE_TEXELS + t) as usize][child]);
+    (Vec3::new(plane(0), plane(2), plane(4)), Vec3::new(plane(1), plane(3), plane(5)))
+}

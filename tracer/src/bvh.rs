@@ -456,15 +456,9 @@ impl Bvh {
                 return Err(internal("the node graph is not a tree"));
             }
             depth = depth.max(level);
-            let mut children = [0usize; WIDE];
-            let mut len = 1;
-            children[0] = b;
-            if !node(b)?.is_leaf() {
-                let n = node(b)?;
-                children[0] = n.first as usize;
-                children[1] = n.first as usize + 1;
-                len = 2;
-            }
+            let n = node(b)?;
+            let (mut children, mut len) =
+                if n.is_leaf() { ([b, 0, 0, 0], 1) } else { ([n.first as usize, n.first as usize + 1, 0, 0], 2) };
             while len < WIDE {
                 let mut widest: Option<(usize, f32)> = None;
                 for (slot, &c) in children[..len].iter().enumerate() {
