@@ -5,10 +5,11 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (tracer/src/kernel/scene_data.rs:44)
+// resources: Scene (tracer/src/kernel/scene_data.rs:42)
 uniform highp sampler2D scene_triangles;
 uniform highp sampler2D scene_shading;
-uniform highp usampler2D scene_nodes;
+uniform highp sampler2D scene_nodes;
+uniform highp usampler2D scene_node_children;
 uniform highp sampler2D scene_materials;
 uniform highp sampler2D scene_lights;
 uniform highp usampler2D scene_texture_texels;
@@ -32,6 +33,7 @@ uniform uint scene_sky_height;
 uniform float scene_sky_intensity;
 uniform float scene_sky_rotation;
 uniform float scene_scene_scale;
+uniform uint scene_leaf_stack_limit;
 uniform uint scene_has_sky;
 uniform uint scene_has_textures;
 uniform uint scene_has_shading;
@@ -53,7 +55,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:99)
+// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:106)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -62,7 +64,7 @@ struct TriangleData {
     uint light;
 };
 
-// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:109)
+// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:116)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -70,7 +72,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// traverse::Hit (tracer/src/kernel/traverse.rs:20)
+// traverse::Hit (tracer/src/kernel/traverse.rs:21)
 struct Hit {
     uint triangle;
     float t;
@@ -78,7 +80,7 @@ struct Hit {
     float v;
 };
 
-// traverse::NodeHits (tracer/src/kernel/traverse.rs:30)
+// traverse::NodeHits (tracer/src/kernel/traverse.rs:31)
 struct NodeHits {
     vec4 t;
     uvec4 entries;
@@ -109,33 +111,33 @@ const float MISS = 3.4028235e38;
 const uint TRIANGLE_TEXELS = 3u;
 // scene_data::SHADING_TEXELS (tracer/src/kernel/scene_data.rs:16)
 const uint SHADING_TEXELS = 4u;
-// scene_data::NODE_TEXELS (tracer/src/kernel/scene_data.rs:23)
-const uint NODE_TEXELS = 7u;
-// scene_data::MATERIAL_TEXELS (tracer/src/kernel/scene_data.rs:25)
+// scene_data::NODE_TEXELS (tracer/src/kernel/scene_data.rs:21)
+const uint NODE_TEXELS = 6u;
+// scene_data::MATERIAL_TEXELS (tracer/src/kernel/scene_data.rs:23)
 const uint MATERIAL_TEXELS = 2u;
-// scene_data::LIGHT_TEXELS (tracer/src/kernel/scene_data.rs:28)
+// scene_data::LIGHT_TEXELS (tracer/src/kernel/scene_data.rs:26)
 const uint LIGHT_TEXELS = 3u;
-// scene_data::LIGHT_TRIANGLE (tracer/src/kernel/scene_data.rs:29)
+// scene_data::LIGHT_TRIANGLE (tracer/src/kernel/scene_data.rs:27)
 const uint LIGHT_TRIANGLE = 0u;
-// scene_data::LIGHT_POINT (tracer/src/kernel/scene_data.rs:30)
+// scene_data::LIGHT_POINT (tracer/src/kernel/scene_data.rs:28)
 const uint LIGHT_POINT = 1u;
-// scene_data::LIGHT_SKY (tracer/src/kernel/scene_data.rs:31)
+// scene_data::LIGHT_SKY (tracer/src/kernel/scene_data.rs:29)
 const uint LIGHT_SKY = 2u;
-// scene_data::TEXTURE_TEXELS_PER_ELEMENT (tracer/src/kernel/scene_data.rs:33)
+// scene_data::TEXTURE_TEXELS_PER_ELEMENT (tracer/src/kernel/scene_data.rs:31)
 const uint TEXTURE_TEXELS_PER_ELEMENT = 4u;
-// scene_data::NONE (tracer/src/kernel/scene_data.rs:35)
+// scene_data::NONE (tracer/src/kernel/scene_data.rs:33)
 const uint NONE = 0xffffffffu;
-// scene_data::WRAP_CLAMP (tracer/src/kernel/scene_data.rs:37)
+// scene_data::WRAP_CLAMP (tracer/src/kernel/scene_data.rs:35)
 const uint WRAP_CLAMP = 1u;
-// scene_data::WRAP_MIRROR (tracer/src/kernel/scene_data.rs:38)
+// scene_data::WRAP_MIRROR (tracer/src/kernel/scene_data.rs:36)
 const uint WRAP_MIRROR = 2u;
-// scene_data::STRATEGY_BSDF (tracer/src/kernel/scene_data.rs:93)
+// scene_data::STRATEGY_BSDF (tracer/src/kernel/scene_data.rs:100)
 const uint STRATEGY_BSDF = 0u;
-// scene_data::STRATEGY_NEE (tracer/src/kernel/scene_data.rs:94)
+// scene_data::STRATEGY_NEE (tracer/src/kernel/scene_data.rs:101)
 const uint STRATEGY_NEE = 1u;
-// scene_data::STRATEGY_MIS (tracer/src/kernel/scene_data.rs:95)
+// scene_data::STRATEGY_MIS (tracer/src/kernel/scene_data.rs:102)
 const uint STRATEGY_MIS = 2u;
-// traverse::STACK_SIZE (tracer/src/kernel/traverse.rs:16)
+// traverse::STACK_SIZE (tracer/src/kernel/traverse.rs:17)
 const uint STACK_SIZE = 64u;
 // integrator::RR_START_DEPTH (tracer/src/kernel/integrator.rs:24)
 const uint RR_START_DEPTH = 3u;
@@ -288,59 +290,27 @@ vec3 safe_inverse(vec3 dir) {
     return vec3(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// traverse::near_planes (tracer/src/kernel/traverse.rs:53)
+// traverse::near_planes (tracer/src/kernel/traverse.rs:49)
 uvec3 near_planes(vec3 inv_dir) {
     return uvec3(inv_dir.x < 0.0 ? 1u : 0u, inv_dir.y < 0.0 ? 1u : 0u, inv_dir.z < 0.0 ? 1u : 0u);
 }
 
-// traverse::stack_entry (tracer/src/kernel/traverse.rs:41)
+// traverse::stack_entry (tracer/src/kernel/traverse.rs:42)
 uint stack_entry(uint first, uint count) {
     return (first << 8) | count;
 }
 
-// traverse::bits_to_vec4 (tracer/src/kernel/traverse.rs:46)
-vec4 bits_to_vec4(uvec4 bits) {
-    return vec4(uintBitsToFloat(bits.x), uintBitsToFloat(bits.y), uintBitsToFloat(bits.z), uintBitsToFloat(bits.w));
-}
-
-// traverse::zero_to_miss (tracer/src/kernel/traverse.rs:62)
-vec4 zero_to_miss(vec4 v) {
-    return vec4(v.x == 0.0 ? MISS : v.x, v.y == 0.0 ? MISS : v.y, v.z == 0.0 ? MISS : v.z, v.w == 0.0 ? MISS : v.w);
-}
-
-// traverse::intersect_node (tracer/src/kernel/traverse.rs:77)
-NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float t_max) {
-    uint base = node * NODE_TEXELS;
-    vec4 ox = vec4(origin.x);
-    vec4 oy = vec4(origin.y);
-    vec4 oz = vec4(origin.z);
-    vec4 enter_x = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + near.x)) - ox) * inv_dir.x;
-    vec4 exit_x = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + 1u - near.x)) - ox) * inv_dir.x;
-    vec4 enter_y = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + 2u + near.y)) - oy) * inv_dir.y;
-    vec4 exit_y = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + 3u - near.y)) - oy) * inv_dir.y;
-    vec4 enter_z = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + 4u + near.z)) - oz) * inv_dir.z;
-    vec4 exit_z = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + 5u - near.z)) - oz) * inv_dir.z;
-    vec4 enter = max(max(max(enter_x, enter_y), enter_z), vec4(0.0));
-    vec4 exit = min(min(exit_x, exit_y), exit_z);
-    if ((exit.x == 0.0) || (exit.y == 0.0) || (exit.z == 0.0) || (exit.w == 0.0)) {
-        exit = min(min(zero_to_miss(exit_x), zero_to_miss(exit_y)), zero_to_miss(exit_z));
-    }
-    vec4 exit_1 = min(exit * 1.0000008, vec4(t_max));
-    vec4 t = vec4(enter.x <= exit_1.x ? enter.x : MISS, enter.y <= exit_1.y ? enter.y : MISS, enter.z <= exit_1.z ? enter.z : MISS, enter.w <= exit_1.w ? enter.w : MISS);
-    return NodeHits(t, lp_fetch_uvec4(scene_nodes, base + 6u));
-}
-
-// traverse::is_leaf (tracer/src/kernel/traverse.rs:135)
+// traverse::is_leaf (tracer/src/kernel/traverse.rs:131)
 bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:117)
+// scene_data::index_of (tracer/src/kernel/scene_data.rs:124)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:125)
+// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:132)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -377,7 +347,7 @@ TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2)
     return TriangleHit(t, u, v);
 }
 
-// traverse::intersect_leaf (tracer/src/kernel/traverse.rs:109)
+// traverse::intersect_leaf (tracer/src/kernel/traverse.rs:105)
 void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
     uint first = entry >> 8;
     uint i_end = first + (entry & 255u);
@@ -390,7 +360,34 @@ void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
     }
 }
 
-// traverse::trace_closest (tracer/src/kernel/traverse.rs:148)
+// traverse::zero_to_miss (tracer/src/kernel/traverse.rs:58)
+vec4 zero_to_miss(vec4 v) {
+    return vec4(v.x == 0.0 ? MISS : v.x, v.y == 0.0 ? MISS : v.y, v.z == 0.0 ? MISS : v.z, v.w == 0.0 ? MISS : v.w);
+}
+
+// traverse::intersect_node (tracer/src/kernel/traverse.rs:73)
+NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float t_max) {
+    uint base = node * NODE_TEXELS;
+    vec4 ox = vec4(origin.x);
+    vec4 oy = vec4(origin.y);
+    vec4 oz = vec4(origin.z);
+    vec4 enter_x = (lp_fetch_vec4(scene_nodes, base + near.x) - ox) * inv_dir.x;
+    vec4 exit_x = (lp_fetch_vec4(scene_nodes, base + 1u - near.x) - ox) * inv_dir.x;
+    vec4 enter_y = (lp_fetch_vec4(scene_nodes, base + 2u + near.y) - oy) * inv_dir.y;
+    vec4 exit_y = (lp_fetch_vec4(scene_nodes, base + 3u - near.y) - oy) * inv_dir.y;
+    vec4 enter_z = (lp_fetch_vec4(scene_nodes, base + 4u + near.z) - oz) * inv_dir.z;
+    vec4 exit_z = (lp_fetch_vec4(scene_nodes, base + 5u - near.z) - oz) * inv_dir.z;
+    vec4 enter = max(max(max(enter_x, enter_y), enter_z), vec4(0.0));
+    vec4 exit = min(min(exit_x, exit_y), exit_z);
+    if ((exit.x == 0.0) || (exit.y == 0.0) || (exit.z == 0.0) || (exit.w == 0.0)) {
+        exit = min(min(zero_to_miss(exit_x), zero_to_miss(exit_y)), zero_to_miss(exit_z));
+    }
+    vec4 exit_1 = min(exit * 1.0000008, vec4(t_max));
+    vec4 t = vec4(enter.x <= exit_1.x ? enter.x : MISS, enter.y <= exit_1.y ? enter.y : MISS, enter.z <= exit_1.z ? enter.z : MISS, enter.w <= exit_1.w ? enter.w : MISS);
+    return NodeHits(t, lp_fetch_uvec4(scene_node_children, node));
+}
+
+// traverse::trace_closest (tracer/src/kernel/traverse.rs:145)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -399,6 +396,7 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     for (int i = 0; i < 64; ++i) { stack[i] = 0u; }
     float stack_t[64];
     for (int i_1 = 0; i_1 < 64; ++i_1) { stack_t[i_1] = 0.0; }
+    uint leaf_limit = scene_leaf_stack_limit;
     stack[0u] = stack_entry(0u, 0u);
     uint sp = 1u;
     while (sp > 0u) {
@@ -406,7 +404,12 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
         if (stack_t[sp] > hit.t) {
             continue;
         }
-        NodeHits n = intersect_node(stack[sp] >> 8, origin, inv_dir, near, hit.t);
+        uint entry = stack[sp];
+        if (is_leaf(entry)) {
+            intersect_leaf(entry, origin, dir, hit);
+            continue;
+        }
+        NodeHits n = intersect_node(entry >> 8, origin, inv_dir, near, hit.t);
         float t0 = n.t.x;
         float t1 = n.t.y;
         float t2 = n.t.z;
@@ -455,37 +458,41 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
             e1 = e2;
             e2 = e_4;
         }
-        if (t0 < MISS && t0 <= hit.t && is_leaf(e0)) {
-            intersect_leaf(e0, origin, dir, hit);
+        if (t3 < MISS) {
+            if (sp >= leaf_limit && is_leaf(e3)) {
+                intersect_leaf(e3, origin, dir, hit);
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = e3;
+                stack_t[sp] = t3;
+                sp += 1u;
+            }
         }
-        if (t1 < MISS && t1 <= hit.t && is_leaf(e1)) {
-            intersect_leaf(e1, origin, dir, hit);
+        if (t2 < MISS) {
+            if (sp >= leaf_limit && is_leaf(e2)) {
+                intersect_leaf(e2, origin, dir, hit);
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = e2;
+                stack_t[sp] = t2;
+                sp += 1u;
+            }
         }
-        if (t2 < MISS && t2 <= hit.t && is_leaf(e2)) {
-            intersect_leaf(e2, origin, dir, hit);
+        if (t1 < MISS) {
+            if (sp >= leaf_limit && is_leaf(e1)) {
+                intersect_leaf(e1, origin, dir, hit);
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = e1;
+                stack_t[sp] = t1;
+                sp += 1u;
+            }
         }
-        if (t3 < MISS && t3 <= hit.t && is_leaf(e3)) {
-            intersect_leaf(e3, origin, dir, hit);
-        }
-        if (t3 < MISS && t3 <= hit.t && !is_leaf(e3) && sp < STACK_SIZE) {
-            stack[sp] = e3;
-            stack_t[sp] = t3;
-            sp += 1u;
-        }
-        if (t2 < MISS && t2 <= hit.t && !is_leaf(e2) && sp < STACK_SIZE) {
-            stack[sp] = e2;
-            stack_t[sp] = t2;
-            sp += 1u;
-        }
-        if (t1 < MISS && t1 <= hit.t && !is_leaf(e1) && sp < STACK_SIZE) {
-            stack[sp] = e1;
-            stack_t[sp] = t1;
-            sp += 1u;
-        }
-        if (t0 < MISS && t0 <= hit.t && !is_leaf(e0) && sp < STACK_SIZE) {
-            stack[sp] = e0;
-            stack_t[sp] = t0;
-            sp += 1u;
+        if (t0 < MISS) {
+            if (sp >= leaf_limit && is_leaf(e0)) {
+                intersect_leaf(e0, origin, dir, hit);
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = e0;
+                stack_t[sp] = t0;
+                sp += 1u;
+            }
         }
     }
     return hit;
@@ -532,7 +539,7 @@ vec3 sky_radiance(vec3 dir) {
     return lp_fetch_vec4(scene_sky, i).xyz * scene_sky_intensity;
 }
 
-// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:145)
+// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:152)
 vec3 shading_normal(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec3 n0 = lp_fetch_vec4(scene_shading, base).xyz;
@@ -541,7 +548,7 @@ vec3 shading_normal(uint index, float u, float v) {
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
-// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:133)
+// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:140)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
@@ -553,7 +560,7 @@ float area_pdf_to_solid_angle(float pmf, float area, float dist, float cos_light
     return !(cos_light > 0.0) || !(area > 0.0) ? 0.0 : pmf * dist * dist / (area * cos_light);
 }
 
-// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:164)
+// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:171)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -566,12 +573,12 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::srgb_to_linear (tracer/src/kernel/scene_data.rs:181)
+// scene_data::srgb_to_linear (tracer/src/kernel/scene_data.rs:188)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// scene_data::decode_srgba8 (tracer/src/kernel/scene_data.rs:190)
+// scene_data::decode_srgba8 (tracer/src/kernel/scene_data.rs:197)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -580,7 +587,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel (tracer/src/kernel/scene_data.rs:200)
+// scene_data::texel (tracer/src/kernel/scene_data.rs:207)
 vec4 texel(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -593,7 +600,7 @@ vec4 texel(uvec4 info, int x, int y) {
     return decode_srgba8(word);
 }
 
-// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:221)
+// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:228)
 vec4 sample_texture(uint index, vec2 uv) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = uv.x * lp_u32_to_f32(info.y) - 0.5;
@@ -607,7 +614,7 @@ vec4 sample_texture(uint index, vec2 uv) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::texcoord (tracer/src/kernel/scene_data.rs:154)
+// scene_data::texcoord (tracer/src/kernel/scene_data.rs:161)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -745,7 +752,7 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// traverse::leaf_occludes (tracer/src/kernel/traverse.rs:121)
+// traverse::leaf_occludes (tracer/src/kernel/traverse.rs:117)
 bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     uint first = entry >> 8;
     bool blocked = false;
@@ -760,7 +767,7 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::occluded (tracer/src/kernel/traverse.rs:254)
+// traverse::occluded (tracer/src/kernel/traverse.rs:260)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);

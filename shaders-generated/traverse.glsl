@@ -5,9 +5,11 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (tracer/src/kernel/scene_data.rs:44)
+// resources: Scene (tracer/src/kernel/scene_data.rs:42)
 uniform highp sampler2D scene_triangles;
-uniform highp usampler2D scene_nodes;
+uniform highp sampler2D scene_nodes;
+uniform highp usampler2D scene_node_children;
+uniform uint scene_leaf_stack_limit;
 
 // intersect::TriangleHit (tracer/src/kernel/intersect.rs:13)
 struct TriangleHit {
@@ -16,7 +18,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:99)
+// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:106)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -25,7 +27,7 @@ struct TriangleData {
     uint light;
 };
 
-// traverse::Hit (tracer/src/kernel/traverse.rs:20)
+// traverse::Hit (tracer/src/kernel/traverse.rs:21)
 struct Hit {
     uint triangle;
     float t;
@@ -33,7 +35,7 @@ struct Hit {
     float v;
 };
 
-// traverse::NodeHits (tracer/src/kernel/traverse.rs:30)
+// traverse::NodeHits (tracer/src/kernel/traverse.rs:31)
 struct NodeHits {
     vec4 t;
     uvec4 entries;
@@ -43,11 +45,11 @@ struct NodeHits {
 const float MISS = 3.4028235e38;
 // scene_data::TRIANGLE_TEXELS (tracer/src/kernel/scene_data.rs:14)
 const uint TRIANGLE_TEXELS = 3u;
-// scene_data::NODE_TEXELS (tracer/src/kernel/scene_data.rs:23)
-const uint NODE_TEXELS = 7u;
-// scene_data::NONE (tracer/src/kernel/scene_data.rs:35)
+// scene_data::NODE_TEXELS (tracer/src/kernel/scene_data.rs:21)
+const uint NODE_TEXELS = 6u;
+// scene_data::NONE (tracer/src/kernel/scene_data.rs:33)
 const uint NONE = 0xffffffffu;
-// traverse::STACK_SIZE (tracer/src/kernel/traverse.rs:16)
+// traverse::STACK_SIZE (tracer/src/kernel/traverse.rs:17)
 const uint STACK_SIZE = 64u;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -74,38 +76,33 @@ uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
 }
 
-// traverse::stack_entry (tracer/src/kernel/traverse.rs:41)
+// traverse::stack_entry (tracer/src/kernel/traverse.rs:42)
 uint stack_entry(uint first, uint count) {
     return (first << 8) | count;
 }
 
-// traverse::bits_to_vec4 (tracer/src/kernel/traverse.rs:46)
-vec4 bits_to_vec4(uvec4 bits) {
-    return vec4(uintBitsToFloat(bits.x), uintBitsToFloat(bits.y), uintBitsToFloat(bits.z), uintBitsToFloat(bits.w));
-}
-
-// traverse::near_planes (tracer/src/kernel/traverse.rs:53)
+// traverse::near_planes (tracer/src/kernel/traverse.rs:49)
 uvec3 near_planes(vec3 inv_dir) {
     return uvec3(inv_dir.x < 0.0 ? 1u : 0u, inv_dir.y < 0.0 ? 1u : 0u, inv_dir.z < 0.0 ? 1u : 0u);
 }
 
-// traverse::zero_to_miss (tracer/src/kernel/traverse.rs:62)
+// traverse::zero_to_miss (tracer/src/kernel/traverse.rs:58)
 vec4 zero_to_miss(vec4 v) {
     return vec4(v.x == 0.0 ? MISS : v.x, v.y == 0.0 ? MISS : v.y, v.z == 0.0 ? MISS : v.z, v.w == 0.0 ? MISS : v.w);
 }
 
-// traverse::intersect_node (tracer/src/kernel/traverse.rs:77)
+// traverse::intersect_node (tracer/src/kernel/traverse.rs:73)
 NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float t_max) {
     uint base = node * NODE_TEXELS;
     vec4 ox = vec4(origin.x);
     vec4 oy = vec4(origin.y);
     vec4 oz = vec4(origin.z);
-    vec4 enter_x = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + near.x)) - ox) * inv_dir.x;
-    vec4 exit_x = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + 1u - near.x)) - ox) * inv_dir.x;
-    vec4 enter_y = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + 2u + near.y)) - oy) * inv_dir.y;
-    vec4 exit_y = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + 3u - near.y)) - oy) * inv_dir.y;
-    vec4 enter_z = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + 4u + near.z)) - oz) * inv_dir.z;
-    vec4 exit_z = (bits_to_vec4(lp_fetch_uvec4(scene_nodes, base + 5u - near.z)) - oz) * inv_dir.z;
+    vec4 enter_x = (lp_fetch_vec4(scene_nodes, base + near.x) - ox) * inv_dir.x;
+    vec4 exit_x = (lp_fetch_vec4(scene_nodes, base + 1u - near.x) - ox) * inv_dir.x;
+    vec4 enter_y = (lp_fetch_vec4(scene_nodes, base + 2u + near.y) - oy) * inv_dir.y;
+    vec4 exit_y = (lp_fetch_vec4(scene_nodes, base + 3u - near.y) - oy) * inv_dir.y;
+    vec4 enter_z = (lp_fetch_vec4(scene_nodes, base + 4u + near.z) - oz) * inv_dir.z;
+    vec4 exit_z = (lp_fetch_vec4(scene_nodes, base + 5u - near.z) - oz) * inv_dir.z;
     vec4 enter = max(max(max(enter_x, enter_y), enter_z), vec4(0.0));
     vec4 exit = min(min(exit_x, exit_y), exit_z);
     if ((exit.x == 0.0) || (exit.y == 0.0) || (exit.z == 0.0) || (exit.w == 0.0)) {
@@ -113,15 +110,15 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
     }
     vec4 exit_1 = min(exit * 1.0000008, vec4(t_max));
     vec4 t = vec4(enter.x <= exit_1.x ? enter.x : MISS, enter.y <= exit_1.y ? enter.y : MISS, enter.z <= exit_1.z ? enter.z : MISS, enter.w <= exit_1.w ? enter.w : MISS);
-    return NodeHits(t, lp_fetch_uvec4(scene_nodes, base + 6u));
+    return NodeHits(t, lp_fetch_uvec4(scene_node_children, node));
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:117)
+// scene_data::index_of (tracer/src/kernel/scene_data.rs:124)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:125)
+// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:132)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -158,7 +155,7 @@ TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2)
     return TriangleHit(t, u, v);
 }
 
-// traverse::intersect_leaf (tracer/src/kernel/traverse.rs:109)
+// traverse::intersect_leaf (tracer/src/kernel/traverse.rs:105)
 void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
     uint first = entry >> 8;
     uint i_end = first + (entry & 255u);
@@ -171,7 +168,7 @@ void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
     }
 }
 
-// traverse::leaf_occludes (tracer/src/kernel/traverse.rs:121)
+// traverse::leaf_occludes (tracer/src/kernel/traverse.rs:117)
 bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     uint first = entry >> 8;
     bool blocked = false;
@@ -186,7 +183,7 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::is_leaf (tracer/src/kernel/traverse.rs:135)
+// traverse::is_leaf (tracer/src/kernel/traverse.rs:131)
 bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
 }
@@ -200,7 +197,7 @@ vec3 safe_inverse(vec3 dir) {
     return vec3(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// traverse::trace_closest (tracer/src/kernel/traverse.rs:148)
+// traverse::trace_closest (tracer/src/kernel/traverse.rs:145)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -209,6 +206,7 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     for (int i = 0; i < 64; ++i) { stack[i] = 0u; }
     float stack_t[64];
     for (int i_1 = 0; i_1 < 64; ++i_1) { stack_t[i_1] = 0.0; }
+    uint leaf_limit = scene_leaf_stack_limit;
     stack[0u] = stack_entry(0u, 0u);
     uint sp = 1u;
     while (sp > 0u) {
@@ -216,7 +214,12 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
         if (stack_t[sp] > hit.t) {
             continue;
         }
-        NodeHits n = intersect_node(stack[sp] >> 8, origin, inv_dir, near, hit.t);
+        uint entry = stack[sp];
+        if (is_leaf(entry)) {
+            intersect_leaf(entry, origin, dir, hit);
+            continue;
+        }
+        NodeHits n = intersect_node(entry >> 8, origin, inv_dir, near, hit.t);
         float t0 = n.t.x;
         float t1 = n.t.y;
         float t2 = n.t.z;
@@ -265,43 +268,47 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
             e1 = e2;
             e2 = e_4;
         }
-        if (t0 < MISS && t0 <= hit.t && is_leaf(e0)) {
-            intersect_leaf(e0, origin, dir, hit);
+        if (t3 < MISS) {
+            if (sp >= leaf_limit && is_leaf(e3)) {
+                intersect_leaf(e3, origin, dir, hit);
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = e3;
+                stack_t[sp] = t3;
+                sp += 1u;
+            }
         }
-        if (t1 < MISS && t1 <= hit.t && is_leaf(e1)) {
-            intersect_leaf(e1, origin, dir, hit);
+        if (t2 < MISS) {
+            if (sp >= leaf_limit && is_leaf(e2)) {
+                intersect_leaf(e2, origin, dir, hit);
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = e2;
+                stack_t[sp] = t2;
+                sp += 1u;
+            }
         }
-        if (t2 < MISS && t2 <= hit.t && is_leaf(e2)) {
-            intersect_leaf(e2, origin, dir, hit);
+        if (t1 < MISS) {
+            if (sp >= leaf_limit && is_leaf(e1)) {
+                intersect_leaf(e1, origin, dir, hit);
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = e1;
+                stack_t[sp] = t1;
+                sp += 1u;
+            }
         }
-        if (t3 < MISS && t3 <= hit.t && is_leaf(e3)) {
-            intersect_leaf(e3, origin, dir, hit);
-        }
-        if (t3 < MISS && t3 <= hit.t && !is_leaf(e3) && sp < STACK_SIZE) {
-            stack[sp] = e3;
-            stack_t[sp] = t3;
-            sp += 1u;
-        }
-        if (t2 < MISS && t2 <= hit.t && !is_leaf(e2) && sp < STACK_SIZE) {
-            stack[sp] = e2;
-            stack_t[sp] = t2;
-            sp += 1u;
-        }
-        if (t1 < MISS && t1 <= hit.t && !is_leaf(e1) && sp < STACK_SIZE) {
-            stack[sp] = e1;
-            stack_t[sp] = t1;
-            sp += 1u;
-        }
-        if (t0 < MISS && t0 <= hit.t && !is_leaf(e0) && sp < STACK_SIZE) {
-            stack[sp] = e0;
-            stack_t[sp] = t0;
-            sp += 1u;
+        if (t0 < MISS) {
+            if (sp >= leaf_limit && is_leaf(e0)) {
+                intersect_leaf(e0, origin, dir, hit);
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = e0;
+                stack_t[sp] = t0;
+                sp += 1u;
+            }
         }
     }
     return hit;
 }
 
-// traverse::occluded (tracer/src/kernel/traverse.rs:254)
+// traverse::occluded (tracer/src/kernel/traverse.rs:260)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);

@@ -113,6 +113,15 @@ fn check_wide(name: &str, bvh: &Bvh) -> (u32, u32) {
     let wide = bvh.widen().unwrap_or_else(|e| panic!("{name}: {e}"));
     assert!(wide.stack_needed <= STACK_SIZE as u32, "{name}: needs a stack of {}", wide.stack_needed);
     assert!(wide.stack_needed <= 3 * wide.depth, "{name}: at most three pending nodes per level");
+    // Pushing leaves too: at most three more entries per level (and never fewer than nodes).
+    let with_leaves = wide.stack_needed_with_leaves;
+    assert!(
+        wide.stack_needed <= with_leaves && with_leaves <= 3 * wide.depth + 1,
+        "{name}: stack {} with leaves pushed, {} without, depth {}",
+        with_leaves,
+        wide.stack_needed,
+        wide.depth
+    );
     let mut leaves: Vec<(u32, u32, [u32; 6])> = Vec::new();
     let mut referenced = vec![0u32; wide.nodes.len()];
     referenced[0] = 1;
@@ -218,7 +227,10 @@ fn edge_cases() {
     check_wide("point", &b);
     // A single leaf: the wide root has one child.
     let wide = bvh::build(&one).unwrap().widen().unwrap();
-    assert_eq!((wide.nodes.len(), wide.depth, wide.stack_needed, wide.nodes[0].children), (1, 1, 0, 1));
+    assert_eq!(
+        (wide.nodes.len(), wide.depth, wide.stack_needed, wide.stack_needed_with_leaves, wide.nodes[0].children),
+        (1, 1, 0, 1, 1)
+    );
     // Deep binary trees: triangles at exponentially growing distances along a line.
     let line: Vec<Triangle> = (0..2000)
         .map(|i| 1.01f32.powi(i))
@@ -232,6 +244,9 @@ fn edge_cases() {
     let b = bvh::build(&many).unwrap();
     let (depth, stack) = check_wide("identical", &b);
     assert!(depth > 100 && stack <= 2, "identical: depth {depth}, stack {stack}");
+    // Pushing its leaves would need far more than the kernel's stack (the chain is what
+    // `tracer::pack`'s leaf_stack_limit is for).
+    assert!(b.widen().unwrap().stack_needed_with_leaves > STACK_SIZE as u32);
 
     // Many identical triangles: all tie; the smallest index wins.
     let same = vec![tri(Vec3::ZERO, Vec3::X, Vec3::Y); 50];

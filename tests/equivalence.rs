@@ -797,6 +797,24 @@ fn bvh_traversal_on_littlest_tokyo() {
     }
     println!("occluded: {disagreements} rays where GL and CPU bounded any-hit answers differ");
     assert!(disagreements * 1000 <= rays.len(), "{disagreements} bounded any-hit disagreements");
+
+    // Closest hits with every leaf intersected as soon as its node is visited (the path the
+    // kernel takes beyond `leaf_stack_limit`, for trees too deep to push every leaf): GL still
+    // agrees with the CPU, and both with the hits above.
+    assert_eq!(packed.scene.leaf_stack_limit, traverse::STACK_SIZE as u32, "Tokyo fits with every leaf pushed");
+    let mut at_once = packed.scene.clone();
+    at_once.leaf_stack_limit = 0;
+    eq.set_scene(&at_once).expect("scene uploads");
+    let some = &rays[..20_000];
+    let closest_at_once =
+        eq.run("trace_closest", some, |s, &(o, d, t)| (traverse::trace_closest(s, o, d, t),), TRIANGLE).expect("runs");
+    report(&closest_at_once);
+    let gl_at_once = closest_at_once.output(Backend::Gl).unwrap();
+    let near = |a: &Hit, b: &Hit| {
+        a.triangle == b.triangle || (a.triangle != NONE && b.triangle != NONE && (a.t - b.t).abs() <= 1e-5 * b.t)
+    };
+    let differ = (0..some.len()).filter(|&i| !near(&gl_at_once[i].0, &cpu[i].0)).count();
+    assert_eq!(differ, 0, "leaves intersected at once: {differ} GL hits are neither the same triangle nor a near-tie");
 }
 
 // ---------------------------------------------------------------------------------------------

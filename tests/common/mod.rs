@@ -125,6 +125,6 @@ pub fn assert_within_sigmas(what: &str, estimate: f64, expected: f64, variance: 
 /// (min > max).
 pub fn node_child_box(scene: &tracer::kernel::scene_data::Scene, node: u32, child: usize) -> (Vec3, Vec3) {
     use tracer::kernel::scene_data::NODE_TEXELS;
-    let plane = |t: u32| f32::from_bits(scene.nodes.as_slice()[(node * NODE_TEXELS + t) as usize][child]);
+    let plane = |t: u32| scene.nodes.as_slice()[(node * NODE_TEXELS + t) as usize][child];
     (Vec3::new(plane(0), plane(2), plane(4)), Vec3::new(plane(1), plane(3), plane(5)))
 }

@@ -36,7 +36,8 @@ use crate::pack::{Features, Packed};
 /// The first bytes of every bundle.
 pub const MAGIC: [u8; 8] = *b"LPBUNDLE";
 /// Bumped whenever the layout or the meaning of a field changes; readers accept only their own.
-pub const VERSION: u32 = 1;
+/// (2: node planes as float texels, `node_children`, `leaf_stack_limit`.)
+pub const VERSION: u32 = 2;
 /// The largest bundle accepted (and produced): well within wasm32's 4 GiB address space.
 pub const MAX_BUNDLE_BYTES: u64 = 1 << 30;
 /// File extension used for bundles (the server serves `/bundles/<hash>.lpb`).
@@ -601,6 +602,7 @@ record!(Scene {
     triangles,
     shading,
     nodes,
+    node_children,
     materials,
     lights,
     texture_texels,
@@ -624,6 +626,7 @@ record!(Scene {
     sky_intensity,
     sky_rotation,
     scene_scale,
+    leaf_stack_limit,
     has_sky,
     has_textures,
     has_shading,

@@ -103,9 +103,15 @@ pub struct WideBvh {
     /// Depth in wide levels (1 for a root whose children are all leaves).
     pub depth: u32,
     /// The most entries the kernel's traversal stack can hold at once for this tree, whatever
-    /// the ray: visiting a node pushes its `k` child nodes (leaves are intersected at once) and
-    /// pops the nearest, so a node needs `max(k, k - 1 + the most any child node needs)`.
+    /// the ray, when only child nodes are pushed (leaves intersected at once): visiting a node
+    /// pushes its `k` child nodes and pops the nearest, so a node needs
+    /// `max(k, k - 1 + the most any child node needs)`. Chains of leaves (degenerate geometry)
+    /// do not deepen it.
     pub stack_needed: u32,
+    /// The same bound when leaf children are pushed too (`k` counts every child): about three
+    /// entries per level, so long chains can exceed the kernel's stack (see
+    /// `tracer::pack`'s `leaf_stack_limit`).
+    pub stack_needed_with_leaves: u32,
 }
 
 /// Why a BVH could not be built.
@@ -493,20 +499,27 @@ impl Bvh {
             out.children = len as u32;
             nodes[w] = out;
         }
-        // Children come after their parent: one reverse pass sees them first.
-        let mut need = vec![0u32; nodes.len()];
+        // Children come after their parent: one reverse pass sees them first. Per node: the
+        // stack needed pushing child nodes only, and pushing leaves too.
+        let mut need = vec![(0u32, 0u32); nodes.len()];
         for i in (0..nodes.len()).rev() {
             let n = &nodes[i];
-            let (mut k, mut most) = (0u32, 0u32);
+            let (mut k, mut most, mut most_with_leaves) = (0u32, 0u32, 0u32);
             for c in 0..n.children as usize {
                 if n.count[c] == 0 {
+                    let (child, child_with_leaves) = need.get(n.first[c] as usize).copied().unwrap_or((0, 0));
                     k += 1;
-                    most = most.max(need.get(n.first[c] as usize).copied().unwrap_or(0));
+                    most = most.max(child);
+                    most_with_leaves = most_with_leaves.max(child_with_leaves);
                 }
             }
-            need[i] = if k == 0 { 0 } else { k.max(k - 1 + most) };
+            let all = n.children;
+            need[i] = (
+                if k == 0 { 0 } else { k.max(k - 1 + most) },
+                if all == 0 { 0 } else { all.max(all - 1 + most_with_leaves) },
+            );
         }
-        Ok(WideBvh { nodes, depth, stack_needed: need[0] })
+        Ok(WideBvh { nodes, depth, stack_needed: need[0].0, stack_needed_with_leaves: need[0].1 })
     }
 
     /// Surface-area-heuristic cost with unit traversal and intersection costs:

@@ -338,6 +338,10 @@ pub fn pack_with_textures(
     if wide.stack_needed > max {
         return Err(PackError::BvhTooDeep { needed: wide.stack_needed, max });
     }
+    // Closest-hit traversal pushes leaves too while the stack has room for them: child nodes
+    // alone never need more than `stack_needed` entries and leaves are pushed only below the
+    // limit, so at most `limit + stack_needed` entries are ever held.
+    let leaf_stack_limit = if wide.stack_needed_with_leaves <= max { max } else { max - wide.stack_needed };
     // The traversal stack carries a leaf's triangle count in 8 bits.
     let max_leaf = crate::kernel::traverse::MAX_LEAF_TRIANGLES;
     if let Some(leaf) = bvh.nodes.iter().find(|n| n.count > max_leaf) {
@@ -490,16 +494,19 @@ pub fn pack_with_textures(
     };
     let nodes = Texels::par_from_groups::<{ NODE_TEXELS as usize }>(wide.nodes.len(), |i| {
         let n = &wide.nodes[i];
-        let bits = |v: [f32; 4]| UVec4::from_array(v.map(f32::to_bits));
+        let lanes = |v: [f32; 4]| Vec4::from_array(v);
         [
-            bits(n.min.map(|c| c.x)),
-            bits(n.max.map(|c| c.x)),
-            bits(n.min.map(|c| c.y)),
-            bits(n.max.map(|c| c.y)),
-            bits(n.min.map(|c| c.z)),
-            bits(n.max.map(|c| c.z)),
-            UVec4::from_array(std::array::from_fn(|c| crate::kernel::traverse::stack_entry(n.first[c], n.count[c]))),
+            lanes(n.min.map(|c| c.x)),
+            lanes(n.max.map(|c| c.x)),
+            lanes(n.min.map(|c| c.y)),
+            lanes(n.max.map(|c| c.y)),
+            lanes(n.min.map(|c| c.z)),
+            lanes(n.max.map(|c| c.z)),
         ]
+    });
+    let node_children = Texels::par_from_groups::<1>(wide.nodes.len(), |i| {
+        let n = &wide.nodes[i];
+        [UVec4::from_array(std::array::from_fn(|c| crate::kernel::traverse::stack_entry(n.first[c], n.count[c])))]
     });
     let mut materials = Vec::with_capacity(scene.materials.len() * MATERIAL_TEXELS as usize);
     let texture_index = |i: Option<u32>| if features.textures { index_value(i) } else { -1.0 };
@@ -520,6 +527,7 @@ pub fn pack_with_textures(
         triangles,
         shading,
         nodes,
+        node_children,
         materials: Texels::new(materials),
         lights: Texels::new(lights),
         texture_texels: textures.texels.clone(),
@@ -543,6 +551,7 @@ pub fn pack_with_textures(
         sky_intensity: sky.map_or(0.0, |s| s.intensity),
         sky_rotation: sky.map_or(0.0, |s| s.rotation),
         scene_scale: if scene_scale.is_finite() { scene_scale } else { 1.0 },
+        leaf_stack_limit,
         has_sky: features.sky as u32,
         has_textures: features.textures as u32,
         has_shading: features.shading as u32,
@@ -572,10 +581,11 @@ impl Packed {
     /// does not use are absent.
     pub fn arrays(&self, max_texture_size: u32) -> Result<Vec<ArrayStats>, PackError> {
         let s = &self.scene;
-        let list: [(&'static str, usize); 9] = [
+        let list: [(&'static str, usize); 10] = [
             ("triangles", s.triangles.len()),
             ("shading", s.shading.len()),
             ("nodes", s.nodes.len()),
+            ("node_children", s.node_children.len()),
             ("materials", s.materials.len()),
             ("lights", s.lights.len()),
             ("texture_texels", s.texture_texels.len()),

@@ -100,7 +100,8 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
     bind_scene_fields!(scene;
         triangles: Vec4s,
         shading: Vec4s,
-        nodes: UVec4s,
+        nodes: Vec4s,
+        node_children: UVec4s,
         materials: Vec4s,
         lights: Vec4s,
         texture_texels: UVec4s,
@@ -124,6 +125,7 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
         sky_intensity: F32,
         sky_rotation: F32,
         scene_scale: F32,
+        leaf_stack_limit: U32,
         has_sky: U32,
         has_textures: U32,
         has_shading: U32,

@@ -14,13 +14,11 @@ pub mod scene_data {
     pub const TRIANGLE_TEXELS: u32 = 3;
     /// Texels per triangle in `shading`: `[n0, u0]`, `[n1, v0]`, `[n2, u1]`, `[v1, u2, v2, 0]`.
     pub const SHADING_TEXELS: u32 = 4;
-    /// Texels per node of the 4-wide BVH (in `nodes`, integer texels, one lane per child):
-    /// `[min x]`, `[max x]`, `[min y]`, `[max y]`, `[min z]`, `[max z]` as f32 bit patterns, then
-    /// the children's stack entries `first << 8 | count` (count 0: a node, `first` its index;
-    /// else a leaf of triangles `first..first + count`). Unused slots have an empty box
-    /// (min `f32::MAX`, max `-f32::MAX`) that every ray misses. Node 0 is the root. Integer
-    /// texels spare traversal any float-to-index conversion.
-    pub const NODE_TEXELS: u32 = 7;
+    /// Texels per node of the 4-wide BVH in `nodes`, one lane per child: the box planes
+    /// `[min x]`, `[max x]`, `[min y]`, `[max y]`, `[min z]`, `[max z]`. Unused slots have an
+    /// empty box (min `f32::MAX`, max `-f32::MAX`) that every ray misses. Node 0 is the root.
+    /// The children themselves are in `node_children` (one texel per node).
+    pub const NODE_TEXELS: u32 = 6;
     /// Texels per material: `[base colour, base texture or -1]`, `[emission, emissive texture or -1]`.
     pub const MATERIAL_TEXELS: u32 = 2;
     /// Texels per light: `[alias threshold, alias index, pmf, kind]`, `[position or triangle index, 0]`,
@@ -44,7 +42,12 @@ pub mod scene_data {
     pub struct Scene {
         pub triangles: Texels<Vec4>,
         pub shading: Texels<Vec4>,
-        pub nodes: Texels<UVec4>,
+        pub nodes: Texels<Vec4>,
+        /// Per node, its four children's stack entries `first << 8 | count` (count 0: a node,
+        /// `first` its index; else a leaf of triangles `first..first + count`). Integer texels
+        /// spare traversal any float-to-index conversion; the planes stay float texels, which
+        /// the slab test reads without conversion.
+        pub node_children: Texels<UVec4>,
         pub materials: Texels<Vec4>,
         pub lights: Texels<Vec4>,
         /// Albedo/emission texels of every texture, back to back, four per element: texel `i` is
@@ -80,6 +83,10 @@ pub mod scene_data {
         pub sky_rotation: f32,
         /// Largest absolute coordinate of the scene: scales self-intersection offsets.
         pub scene_scale: f32,
+        /// Closest-hit traversal pushes leaves onto its stack while it holds fewer entries than
+        /// this, and intersects them at once beyond (`tracer::pack` chooses it so that the stack
+        /// cannot overflow: `STACK_SIZE` for any tree that fits with every leaf pushed).
+        pub leaf_stack_limit: u32,
         /// Feature flags (0 or 1). Codegen can specialise on them, removing the code and data of
         /// features a scene does not use.
         pub has_sky: u32,

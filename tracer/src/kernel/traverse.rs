@@ -10,9 +10,10 @@ pub mod traverse {
     use crate::kernel::intersect::{intersect_triangle, safe_inverse, MISS};
     use crate::kernel::scene_data::{fetch_triangle, Scene, NODE_TEXELS, NONE};
 
-    /// Traversal stack depth: `tracer::pack` refuses a tree that could need more
-    /// (`tracer::bvh::WideBvh::stack_needed`; a deeper stack would drop subtrees, never write
-    /// out of bounds).
+    /// Traversal stack depth: `tracer::pack` refuses a tree whose child nodes alone could need
+    /// more (`tracer::bvh::WideBvh::stack_needed`) and limits the leaves pushed on top of them
+    /// (`Scene::leaf_stack_limit`). A deeper stack would drop subtrees, never write out of
+    /// bounds.
     pub const STACK_SIZE: usize = 64;
 
     /// The closest hit: triangle index (in BVH order) or NONE, distance and barycentrics.
@@ -40,11 +41,6 @@ pub mod traverse {
     /// Nodes store their children's entries, so a popped entry needs no other fetch.
     pub fn stack_entry(first: u32, count: u32) -> u32 {
         (first << 8) | count
-    }
-
-    /// Four f32 from their bit patterns (node texels are integer texels).
-    pub fn bits_to_vec4(bits: UVec4) -> Vec4 {
-        Vec4::new(f32::from_bits(bits.x), f32::from_bits(bits.y), f32::from_bits(bits.z), f32::from_bits(bits.w))
     }
 
     /// Per axis, which of a node's two plane texels the ray enters through: the minimum planes
@@ -79,12 +75,12 @@ pub mod traverse {
         let ox = Vec4::splat(origin.x);
         let oy = Vec4::splat(origin.y);
         let oz = Vec4::splat(origin.z);
-        let enter_x = (bits_to_vec4(scene.nodes.fetch(base + near.x)) - ox) * inv_dir.x;
-        let exit_x = (bits_to_vec4(scene.nodes.fetch(base + 1 - near.x)) - ox) * inv_dir.x;
-        let enter_y = (bits_to_vec4(scene.nodes.fetch(base + 2 + near.y)) - oy) * inv_dir.y;
-        let exit_y = (bits_to_vec4(scene.nodes.fetch(base + 3 - near.y)) - oy) * inv_dir.y;
-        let enter_z = (bits_to_vec4(scene.nodes.fetch(base + 4 + near.z)) - oz) * inv_dir.z;
-        let exit_z = (bits_to_vec4(scene.nodes.fetch(base + 5 - near.z)) - oz) * inv_dir.z;
+        let enter_x = (scene.nodes.fetch(base + near.x) - ox) * inv_dir.x;
+        let exit_x = (scene.nodes.fetch(base + 1 - near.x) - ox) * inv_dir.x;
+        let enter_y = (scene.nodes.fetch(base + 2 + near.y) - oy) * inv_dir.y;
+        let exit_y = (scene.nodes.fetch(base + 3 - near.y) - oy) * inv_dir.y;
+        let enter_z = (scene.nodes.fetch(base + 4 + near.z) - oz) * inv_dir.z;
+        let exit_z = (scene.nodes.fetch(base + 5 - near.z) - oz) * inv_dir.z;
         let enter = enter_x.max(enter_y).max(enter_z).max(Vec4::ZERO);
         let mut exit = exit_x.min(exit_y).min(exit_z);
         if exit.x == 0.0 || exit.y == 0.0 || exit.z == 0.0 || exit.w == 0.0 {
@@ -101,7 +97,7 @@ pub mod traverse {
             if enter.z <= exit.z { enter.z } else { MISS },
             if enter.w <= exit.w { enter.w } else { MISS },
         );
-        NodeHits { t, entries: scene.nodes.fetch(base + 6) }
+        NodeHits { t, entries: scene.node_children.fetch(node) }
     }
 
     /// Intersects the triangles of the leaf `entry` (a stack entry with count > 0), keeping
@@ -138,11 +134,12 @@ pub mod traverse {
 
     /// Closest intersection along `origin + t * dir` for t in (0, t_max).
     ///
-    /// Leaf children are intersected as soon as their node is visited, nearest first; only
-    /// child nodes go on the stack. So a chain of leaves (as degenerate geometry builds) never
-    /// deepens the stack, and `tracer::bvh::WideBvh::stack_needed` bounds it exactly. (Pushing
-    /// leaves too would save about 6 % of the instructions on the Cornell box but needs a stack
-    /// proportional to such chains.)
+    /// Hit children are pushed farthest first, leaves included, so that the nearest is popped
+    /// next; a popped leaf is intersected. Pushing leaves keeps one leaf test in the loop (a
+    /// compact loop, most of the time in registers), but chains of leaves, as degenerate
+    /// geometry builds, would deepen the stack by up to three entries per level: leaves are
+    /// pushed only below `scene.leaf_stack_limit` entries and intersected at once beyond it
+    /// (see `tracer::pack`, which sets the limit so that the stack cannot overflow).
     // The DSL has no `std::mem::swap`: the sorting network swaps through temporaries.
     #[allow(clippy::manual_swap)]
     pub fn trace_closest(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
@@ -151,6 +148,7 @@ pub mod traverse {
         let mut hit = Hit { triangle: NONE, t: t_max, u: 0.0, v: 0.0 };
         let mut stack = [0u32; STACK_SIZE];
         let mut stack_t = [0.0f32; STACK_SIZE];
+        let leaf_limit = scene.leaf_stack_limit as usize;
         // The root is entered unconditionally: its children's boxes are the first test.
         stack[0] = stack_entry(0, 0);
         let mut sp: usize = 1;
@@ -159,7 +157,12 @@ pub mod traverse {
             if stack_t[sp] > hit.t {
                 continue;
             }
-            let n = intersect_node(scene, stack[sp] >> 8, origin, inv_dir, near, hit.t);
+            let entry = stack[sp];
+            if is_leaf(entry) {
+                intersect_leaf(scene, entry, origin, dir, &mut hit);
+                continue;
+            }
+            let n = intersect_node(scene, entry >> 8, origin, inv_dir, near, hit.t);
             let mut t0 = n.t.x;
             let mut t1 = n.t.y;
             let mut t2 = n.t.z;
@@ -209,48 +212,51 @@ pub mod traverse {
                 e1 = e2;
                 e2 = e;
             }
-            // Leaf children now, nearest first (a leaf whose box lies beyond the closest hit
-            // so far is skipped), then the child nodes are pushed, farthest first so that the
-            // nearest is popped next.
-            if t0 < MISS && t0 <= hit.t && is_leaf(e0) {
-                intersect_leaf(scene, e0, origin, dir, &mut hit);
+            // Farthest first. (The box tests were clipped to the closest hit, so every hit
+            // child is worth visiting; the pop test above catches hits found meanwhile.)
+            if t3 < MISS {
+                if sp >= leaf_limit && is_leaf(e3) {
+                    intersect_leaf(scene, e3, origin, dir, &mut hit);
+                } else if sp < STACK_SIZE {
+                    stack[sp] = e3;
+                    stack_t[sp] = t3;
+                    sp += 1;
+                }
             }
-            if t1 < MISS && t1 <= hit.t && is_leaf(e1) {
-                intersect_leaf(scene, e1, origin, dir, &mut hit);
+            if t2 < MISS {
+                if sp >= leaf_limit && is_leaf(e2) {
+                    intersect_leaf(scene, e2, origin, dir, &mut hit);
+                } else if sp < STACK_SIZE {
+                    stack[sp] = e2;
+                    stack_t[sp] = t2;
+                    sp += 1;
+                }
             }
-            if t2 < MISS && t2 <= hit.t && is_leaf(e2) {
-                intersect_leaf(scene, e2, origin, dir, &mut hit);
+            if t1 < MISS {
+                if sp >= leaf_limit && is_leaf(e1) {
+                    intersect_leaf(scene, e1, origin, dir, &mut hit);
+                } else if sp < STACK_SIZE {
+                    stack[sp] = e1;
+                    stack_t[sp] = t1;
+                    sp += 1;
+                }
             }
-            if t3 < MISS && t3 <= hit.t && is_leaf(e3) {
-                intersect_leaf(scene, e3, origin, dir, &mut hit);
-            }
-            if t3 < MISS && t3 <= hit.t && !is_leaf(e3) && sp < STACK_SIZE {
-                stack[sp] = e3;
-                stack_t[sp] = t3;
-                sp += 1;
-            }
-            if t2 < MISS && t2 <= hit.t && !is_leaf(e2) && sp < STACK_SIZE {
-                stack[sp] = e2;
-                stack_t[sp] = t2;
-                sp += 1;
-            }
-            if t1 < MISS && t1 <= hit.t && !is_leaf(e1) && sp < STACK_SIZE {
-                stack[sp] = e1;
-                stack_t[sp] = t1;
-                sp += 1;
-            }
-            if t0 < MISS && t0 <= hit.t && !is_leaf(e0) && sp < STACK_SIZE {
-                stack[sp] = e0;
-                stack_t[sp] = t0;
-                sp += 1;
+            if t0 < MISS {
+                if sp >= leaf_limit && is_leaf(e0) {
+                    intersect_leaf(scene, e0, origin, dir, &mut hit);
+                } else if sp < STACK_SIZE {
+                    stack[sp] = e0;
+                    stack_t[sp] = t0;
+                    sp += 1;
+                }
             }
         }
         hit
     }
 
     /// Whether anything blocks `origin + t * dir` for t in (0, t_max): the shadow-ray test.
-    /// Any hit ends it, so children are visited in slot order; leaves at once, as in
-    /// `trace_closest`.
+    /// Any hit ends it, so children are visited in slot order, and leaves are intersected at
+    /// once: the stack holds child nodes only (`tracer::bvh::WideBvh::stack_needed` bounds it).
     pub fn occluded(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
         let inv_dir = safe_inverse(dir);
         let near = near_planes(inv_dir);
