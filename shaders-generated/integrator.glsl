@@ -5,7 +5,7 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (tracer/src/kernel/scene_data.rs:42)
+// resources: Scene (tracer/src/kernel/scene_data.rs:44)
 uniform highp sampler2D scene_triangles;
 uniform highp sampler2D scene_shading;
 uniform highp sampler2D scene_nodes;
@@ -55,7 +55,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:106)
+// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:108)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -64,7 +64,7 @@ struct TriangleData {
     uint light;
 };
 
-// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:116)
+// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:118)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -115,27 +115,27 @@ const uint SHADING_TEXELS = 4u;
 const uint NODE_TEXELS = 6u;
 // scene_data::MATERIAL_TEXELS (tracer/src/kernel/scene_data.rs:23)
 const uint MATERIAL_TEXELS = 2u;
-// scene_data::LIGHT_TEXELS (tracer/src/kernel/scene_data.rs:26)
+// scene_data::LIGHT_TEXELS (tracer/src/kernel/scene_data.rs:28)
 const uint LIGHT_TEXELS = 3u;
-// scene_data::LIGHT_TRIANGLE (tracer/src/kernel/scene_data.rs:27)
+// scene_data::LIGHT_TRIANGLE (tracer/src/kernel/scene_data.rs:29)
 const uint LIGHT_TRIANGLE = 0u;
-// scene_data::LIGHT_POINT (tracer/src/kernel/scene_data.rs:28)
+// scene_data::LIGHT_POINT (tracer/src/kernel/scene_data.rs:30)
 const uint LIGHT_POINT = 1u;
-// scene_data::LIGHT_SKY (tracer/src/kernel/scene_data.rs:29)
+// scene_data::LIGHT_SKY (tracer/src/kernel/scene_data.rs:31)
 const uint LIGHT_SKY = 2u;
-// scene_data::TEXTURE_TEXELS_PER_ELEMENT (tracer/src/kernel/scene_data.rs:31)
+// scene_data::TEXTURE_TEXELS_PER_ELEMENT (tracer/src/kernel/scene_data.rs:33)
 const uint TEXTURE_TEXELS_PER_ELEMENT = 4u;
-// scene_data::NONE (tracer/src/kernel/scene_data.rs:33)
+// scene_data::NONE (tracer/src/kernel/scene_data.rs:35)
 const uint NONE = 0xffffffffu;
-// scene_data::WRAP_CLAMP (tracer/src/kernel/scene_data.rs:35)
+// scene_data::WRAP_CLAMP (tracer/src/kernel/scene_data.rs:37)
 const uint WRAP_CLAMP = 1u;
-// scene_data::WRAP_MIRROR (tracer/src/kernel/scene_data.rs:36)
+// scene_data::WRAP_MIRROR (tracer/src/kernel/scene_data.rs:38)
 const uint WRAP_MIRROR = 2u;
-// scene_data::STRATEGY_BSDF (tracer/src/kernel/scene_data.rs:100)
+// scene_data::STRATEGY_BSDF (tracer/src/kernel/scene_data.rs:102)
 const uint STRATEGY_BSDF = 0u;
-// scene_data::STRATEGY_NEE (tracer/src/kernel/scene_data.rs:101)
+// scene_data::STRATEGY_NEE (tracer/src/kernel/scene_data.rs:103)
 const uint STRATEGY_NEE = 1u;
-// scene_data::STRATEGY_MIS (tracer/src/kernel/scene_data.rs:102)
+// scene_data::STRATEGY_MIS (tracer/src/kernel/scene_data.rs:104)
 const uint STRATEGY_MIS = 2u;
 // traverse::STACK_SIZE (tracer/src/kernel/traverse.rs:17)
 const uint STACK_SIZE = 64u;
@@ -212,7 +212,7 @@ vec3 offset_origin(vec3 p, vec3 n) {
     return p + n * eps;
 }
 
-// lights::power_heuristic (tracer/src/kernel/lights.rs:212)
+// lights::power_heuristic (tracer/src/kernel/lights.rs:211)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
@@ -305,12 +305,12 @@ bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:124)
+// scene_data::index_of (tracer/src/kernel/scene_data.rs:126)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:132)
+// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:134)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -539,7 +539,7 @@ vec3 sky_radiance(vec3 dir) {
     return lp_fetch_vec4(scene_sky, i).xyz * scene_sky_intensity;
 }
 
-// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:152)
+// scene_data::shading_normal (tracer/src/kernel/scene_data.rs:154)
 vec3 shading_normal(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec3 n0 = lp_fetch_vec4(scene_shading, base).xyz;
@@ -548,7 +548,7 @@ vec3 shading_normal(uint index, float u, float v) {
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
-// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:140)
+// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:142)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
@@ -560,7 +560,7 @@ float area_pdf_to_solid_angle(float pmf, float area, float dist, float cos_light
     return !(cos_light > 0.0) || !(area > 0.0) ? 0.0 : pmf * dist * dist / (area * cos_light);
 }
 
-// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:171)
+// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:173)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -573,12 +573,12 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::srgb_to_linear (tracer/src/kernel/scene_data.rs:188)
+// scene_data::srgb_to_linear (tracer/src/kernel/scene_data.rs:190)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// scene_data::decode_srgba8 (tracer/src/kernel/scene_data.rs:197)
+// scene_data::decode_srgba8 (tracer/src/kernel/scene_data.rs:199)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -587,7 +587,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel (tracer/src/kernel/scene_data.rs:207)
+// scene_data::texel (tracer/src/kernel/scene_data.rs:209)
 vec4 texel(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -600,7 +600,7 @@ vec4 texel(uvec4 info, int x, int y) {
     return decode_srgba8(word);
 }
 
-// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:228)
+// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:230)
 vec4 sample_texture(uint index, vec2 uv) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = uv.x * lp_u32_to_f32(info.y) - 0.5;
@@ -614,7 +614,7 @@ vec4 sample_texture(uint index, vec2 uv) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::texcoord (tracer/src/kernel/scene_data.rs:161)
+// scene_data::texcoord (tracer/src/kernel/scene_data.rs:163)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -712,10 +712,9 @@ LightSample sample_light(vec3 p, vec3 u) {
         }
         float dist = sqrt(dist2);
         vec3 dir = to_light / dist;
-        vec3 n = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
-        float area2 = length(n);
-        float cos_light = area2 > 0.0 ? -dot(n, dir) / area2 : 0.0;
-        float pdf = area_pdf_to_solid_angle(pmf, 0.5 * area2, dist, cos_light);
+        vec3 normal = vec3(data.y, data.z, data.w);
+        float area = lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS + 2u).x;
+        float pdf = area_pdf_to_solid_angle(pmf, area, dist, -dot(normal, dir));
         if (!(pdf > 0.0)) {
             return none;
         }
@@ -841,7 +840,7 @@ vec3 sample_cosine_around(vec3 n, float u1, float u2) {
     return onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2));
 }
 
-// lights::finite_or_zero (tracer/src/kernel/lights.rs:224)
+// lights::finite_or_zero (tracer/src/kernel/lights.rs:223)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

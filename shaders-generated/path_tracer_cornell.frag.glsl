@@ -5,7 +5,7 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (tracer/src/kernel/scene_data.rs:42)
+// resources: Scene (tracer/src/kernel/scene_data.rs:44)
 uniform highp sampler2D scene_triangles;
 uniform highp sampler2D scene_nodes;
 uniform highp usampler2D scene_node_children;
@@ -40,7 +40,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:106)
+// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:108)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -49,7 +49,7 @@ struct TriangleData {
     uint light;
 };
 
-// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:116)
+// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:118)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -98,17 +98,17 @@ const uint TRIANGLE_TEXELS = 3u;
 const uint NODE_TEXELS = 6u;
 // scene_data::MATERIAL_TEXELS (tracer/src/kernel/scene_data.rs:23)
 const uint MATERIAL_TEXELS = 2u;
-// scene_data::LIGHT_TEXELS (tracer/src/kernel/scene_data.rs:26)
+// scene_data::LIGHT_TEXELS (tracer/src/kernel/scene_data.rs:28)
 const uint LIGHT_TEXELS = 3u;
-// scene_data::LIGHT_TRIANGLE (tracer/src/kernel/scene_data.rs:27)
+// scene_data::LIGHT_TRIANGLE (tracer/src/kernel/scene_data.rs:29)
 const uint LIGHT_TRIANGLE = 0u;
-// scene_data::NONE (tracer/src/kernel/scene_data.rs:33)
+// scene_data::NONE (tracer/src/kernel/scene_data.rs:35)
 const uint NONE = 0xffffffffu;
-// scene_data::STRATEGY_BSDF (tracer/src/kernel/scene_data.rs:100)
+// scene_data::STRATEGY_BSDF (tracer/src/kernel/scene_data.rs:102)
 const uint STRATEGY_BSDF = 0u;
-// scene_data::STRATEGY_NEE (tracer/src/kernel/scene_data.rs:101)
+// scene_data::STRATEGY_NEE (tracer/src/kernel/scene_data.rs:103)
 const uint STRATEGY_NEE = 1u;
-// scene_data::STRATEGY_MIS (tracer/src/kernel/scene_data.rs:102)
+// scene_data::STRATEGY_MIS (tracer/src/kernel/scene_data.rs:104)
 const uint STRATEGY_MIS = 2u;
 // traverse::STACK_SIZE (tracer/src/kernel/traverse.rs:17)
 const uint STACK_SIZE = 64u;
@@ -227,12 +227,12 @@ bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:124)
+// scene_data::index_of (tracer/src/kernel/scene_data.rs:126)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:132)
+// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:134)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -425,7 +425,7 @@ float light_pmf(uint index) {
     return lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS).z;
 }
 
-// lights::power_heuristic (tracer/src/kernel/lights.rs:212)
+// lights::power_heuristic (tracer/src/kernel/lights.rs:211)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
@@ -443,7 +443,7 @@ float hit_emission_weight(float bsdf_pdf, float light_pdf) {
     }
 }
 
-// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:140)
+// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:142)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
@@ -507,10 +507,9 @@ LightSample sample_light(vec3 p, vec3 u) {
         }
         float dist = sqrt(dist2);
         vec3 dir = to_light / dist;
-        vec3 n = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
-        float area2 = length(n);
-        float cos_light = area2 > 0.0 ? -dot(n, dir) / area2 : 0.0;
-        float pdf = area_pdf_to_solid_angle(pmf, 0.5 * area2, dist, cos_light);
+        vec3 normal = vec3(data.y, data.z, data.w);
+        float area = lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS + 2u).x;
+        float pdf = area_pdf_to_solid_angle(pmf, area, dist, -dot(normal, dir));
         if (!(pdf > 0.0)) {
             return none;
         }
@@ -610,7 +609,7 @@ vec3 sample_cosine_around(vec3 n, float u1, float u2) {
     return onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2));
 }
 
-// lights::finite_or_zero (tracer/src/kernel/lights.rs:224)
+// lights::finite_or_zero (tracer/src/kernel/lights.rs:223)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

@@ -5,7 +5,7 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (tracer/src/kernel/scene_data.rs:42)
+// resources: Scene (tracer/src/kernel/scene_data.rs:44)
 uniform highp sampler2D scene_triangles;
 uniform highp sampler2D scene_nodes;
 uniform highp usampler2D scene_node_children;
@@ -18,7 +18,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:106)
+// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:108)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -47,7 +47,7 @@ const float MISS = 3.4028235e38;
 const uint TRIANGLE_TEXELS = 3u;
 // scene_data::NODE_TEXELS (tracer/src/kernel/scene_data.rs:21)
 const uint NODE_TEXELS = 6u;
-// scene_data::NONE (tracer/src/kernel/scene_data.rs:33)
+// scene_data::NONE (tracer/src/kernel/scene_data.rs:35)
 const uint NONE = 0xffffffffu;
 // traverse::STACK_SIZE (tracer/src/kernel/traverse.rs:17)
 const uint STACK_SIZE = 64u;
@@ -113,12 +113,12 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
     return NodeHits(t, lp_fetch_uvec4(scene_node_children, node));
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:124)
+// scene_data::index_of (tracer/src/kernel/scene_data.rs:126)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:132)
+// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:134)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);

@@ -36,7 +36,8 @@ use crate::pack::{Features, Packed};
 /// The first bytes of every bundle.
 pub const MAGIC: [u8; 8] = *b"LPBUNDLE";
 /// Bumped whenever the layout or the meaning of a field changes; readers accept only their own.
-/// (2: node planes as float texels, `node_children`, `leaf_stack_limit`.)
+/// (2: node planes as float texels, `node_children`, `leaf_stack_limit`, triangle lights with
+/// their normal and area.)
 pub const VERSION: u32 = 2;
 /// The largest bundle accepted (and produced): well within wasm32's 4 GiB address space.
 pub const MAX_BUNDLE_BYTES: u64 = 1 << 30;

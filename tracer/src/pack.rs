@@ -392,9 +392,18 @@ pub fn pack_with_textures(
         let m = &scene.materials[t.material as usize];
         let texture_mean =
             m.emissive_texture.and_then(|i| texture_mean.get(i as usize).copied().flatten()).unwrap_or(1.0);
-        let area = 0.5 * (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]).length();
+        // The same arithmetic as the kernel's for a hit triangle (`integrator`), so that both
+        // MIS pdfs of a light use the same area.
+        let face = (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]);
+        let area2 = face.length();
+        let area = 0.5 * area2;
+        let normal = if area2 > 0.0 { face / area2 } else { Vec3::ZERO };
         light_weights.push(luminance(m.emission) as f64 * texture_mean as f64 * area as f64 * std::f64::consts::PI);
-        light_data.push((LIGHT_TRIANGLE, Vec4::new(ti as f32, 0.0, 0.0, 0.0), Vec4::ZERO));
+        light_data.push((
+            LIGHT_TRIANGLE,
+            Vec4::new(ti as f32, normal.x, normal.y, normal.z),
+            Vec4::new(area, 0.0, 0.0, 0.0),
+        ));
     }
     for p in &scene.point_lights {
         light_weights.push(luminance(p.intensity) as f64 * 4.0 * std::f64::consts::PI);
@@ -625,6 +634,26 @@ mod tests {
         scene.textures = vec![texture(3, 1, 100), texture(5, 1, 200)];
         scene.materials[0].base_color_texture = Some(0);
         scene
+    }
+
+    #[test]
+    fn triangle_lights_carry_their_unit_normal_and_area() {
+        let scene = cornell_box();
+        let bvh = crate::bvh::build(&scene.triangles).unwrap();
+        let packed = pack(&scene, &bvh, &RenderSettings::default()).unwrap();
+        let k = &packed.scene;
+        let lights: Vec<&[Vec4]> = k.lights.as_slice().chunks(LIGHT_TEXELS as usize).collect();
+        let triangle_lights: Vec<_> = lights.iter().filter(|l| l[0].w as u32 == LIGHT_TRIANGLE).collect();
+        assert_eq!(triangle_lights.len(), 2, "the Cornell box light is one quad");
+        for l in triangle_lights {
+            let t = crate::kernel::scene_data::fetch_triangle(k, l[1].x as u32);
+            let face = (t.v1 - t.v0).cross(t.v2 - t.v0);
+            let normal = Vec3::new(l[1].y, l[1].z, l[1].w);
+            assert!((normal - face.normalize()).length() < 1e-6, "{normal} vs {face}");
+            assert_eq!(l[2].x, 0.5 * face.length());
+            // The ceiling light faces down into the room.
+            assert!(normal.y < -0.99, "{normal}");
+        }
     }
 
     #[test]

@@ -167,10 +167,9 @@ pub mod lights {
             }
             let dist = dist2.sqrt();
             let dir = to_light / dist;
-            let n = (tri.v1 - tri.v0).cross(tri.v2 - tri.v0);
-            let area2 = n.length();
-            let cos_light = if area2 > 0.0 { -n.dot(dir) / area2 } else { 0.0 };
-            let pdf = area_pdf_to_solid_angle(pmf, 0.5 * area2, dist, cos_light);
+            let normal = Vec3::new(data.y, data.z, data.w);
+            let area = scene.lights.fetch(index * LIGHT_TEXELS + 2).x;
+            let pdf = area_pdf_to_solid_angle(pmf, area, dist, -normal.dot(dir));
             if !(pdf > 0.0) {
                 return none;
             }

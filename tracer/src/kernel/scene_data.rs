@@ -21,8 +21,10 @@ pub mod scene_data {
     pub const NODE_TEXELS: u32 = 6;
     /// Texels per material: `[base colour, base texture or -1]`, `[emission, emissive texture or -1]`.
     pub const MATERIAL_TEXELS: u32 = 2;
-    /// Texels per light: `[alias threshold, alias index, pmf, kind]`, `[position or triangle index, 0]`,
-    /// `[intensity, 0]`.
+    /// Texels per light: `[alias threshold, alias index, pmf, kind]`, then by kind: a triangle
+    /// `[triangle index, unit front normal]`, `[area, 0, 0, 0]` (fixed per light, so light
+    /// sampling does not recompute them); a point light `[position, 0]`, `[intensity, 0]`; the
+    /// sky two zero texels.
     pub const LIGHT_TEXELS: u32 = 3;
     pub const LIGHT_TRIANGLE: u32 = 0;
     pub const LIGHT_POINT: u32 = 1;
