@@ -1,6 +1,7 @@
 //! BVH build benchmark: `cargo run --release --example bench_build [-- --quick]`
 //!
-//! Loads LittlestTokyo (141,802 triangles) and generates a scene of about 1.2 M triangles, then
+//! Loads LittlestTokyo (141,802 triangles) and generates a scene of 1.23 M triangles
+//! (`tracer::scene::terrain_and_spheres`), then
 //! builds BVHs with a plain median-split builder (the baseline, written here) and obvhs'
 //! presets, printing build time, size, SAH cost and a CPU ray-cast rate with the reference
 //! traversal. Ratios are against the median-split baseline measured in the same run. The
@@ -15,21 +16,9 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use tracer::bvh::{self, BuildOptions, BuildQuality, Bvh, BvhNode};
 use tracer::scene::{self, Aabb, Camera, Triangle};
-
-/// xorshift32.
-struct Rng(u32);
-
-impl Rng {
-    fn float(&mut self) -> f32 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 17;
-        self.0 ^= self.0 << 5;
-        (self.0 >> 8) as f32 / (1u32 << 24) as f32
-    }
-}
 
 const CHILD_FLAG: &str = "--default-builder-only";
 
@@ -44,7 +33,8 @@ fn main() -> anyhow::Result<()> {
     let tokyo_load = t0.elapsed();
 
     let t0 = Instant::now();
-    let (big, big_camera) = generated_scene();
+    let generated = scene::terrain_and_spheres();
+    let (big, big_camera) = (generated.triangles, generated.camera);
     let big_gen = t0.elapsed();
 
     if child {
@@ -111,51 +101,6 @@ fn process_cpu_ns() -> Option<u64> {
         total += stat.split_whitespace().next()?.parse::<u64>().ok()?;
     }
     Some(total)
-}
-
-/// A terrain heightfield (600 x 600 quads) with 500 UV spheres (32 x 16) scattered over it:
-/// 1,232,000 triangles, mixing a 2.5D surface with overlapping closed objects.
-fn generated_scene() -> (Vec<Triangle>, Camera) {
-    let mut tris = Vec::with_capacity(1_232_000);
-    let n = 600;
-    let height = |x: f32, z: f32| 2.0 * (x * 0.05).sin() * (z * 0.07).cos() + 0.5 * (x * 0.31 + z * 0.17).sin();
-    let p = |i: usize, j: usize| {
-        let (x, z) = (i as f32 * 0.2 - 60.0, j as f32 * 0.2 - 60.0);
-        Vec3::new(x, height(x, z), z)
-    };
-    for i in 0..n {
-        for j in 0..n {
-            let (a, b, c, d) = (p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1));
-            tris.push(triangle(a, c, b));
-            tris.push(triangle(a, d, c));
-        }
-    }
-    let mut rng = Rng(0x1234_5678);
-    for _ in 0..500 {
-        let (x, z) = (rng.float() * 110.0 - 55.0, rng.float() * 110.0 - 55.0);
-        let r = 0.3 + 2.0 * rng.float();
-        let center = Vec3::new(x, height(x, z) + r * 0.5, z);
-        let (seg, rings) = (32, 16);
-        let at = |s: usize, k: usize| {
-            let (phi, theta) =
-                (s as f32 / seg as f32 * std::f32::consts::TAU, k as f32 / rings as f32 * std::f32::consts::PI);
-            center + r * Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
-        };
-        for s in 0..seg {
-            for k in 0..rings {
-                let (a, b, c, d) = (at(s, k), at(s + 1, k), at(s + 1, k + 1), at(s, k + 1));
-                tris.push(triangle(a, b, c));
-                tris.push(triangle(a, c, d));
-            }
-        }
-    }
-    let camera = Camera::look_at(Vec3::new(0.0, 25.0, 70.0), Vec3::ZERO, Vec3::Y, 50f32.to_radians());
-    (tris, camera)
-}
-
-fn triangle(a: Vec3, b: Vec3, c: Vec3) -> Triangle {
-    let n = (b - a).cross(c - a).normalize_or(Vec3::Y);
-    Triangle { positions: [a, b, c], normals: [n; 3], uvs: [Vec2::ZERO; 3], material: 0 }
 }
 
 struct Row {

@@ -1,12 +1,13 @@
-//! CPU backend benchmark: samples/s and rays/s on the Cornell box and LittlestTokyo, plus
-//! BVH build + packing time. Every figure is also given as a ratio to a baseline measured in
+//! CPU backend benchmark: samples/s and rays/s on the Cornell box, LittlestTokyo and a generated
+//! scene of 1.23 M triangles (`tracer::scene::terrain_and_spheres`), plus BVH build + packing
+//! time. Every figure is also given as a ratio to a baseline measured in
 //! the same run (the same work on one thread), so numbers from different machines compare.
 //!
 //! Build + pack is reported per part (BVH, textures, geometry), sequentially and with the
 //! textures packed in parallel with the BVH build (`pack::build_and_pack`), the minimum of
 //! several runs. "pack geometry" is also the cost of repacking after a geometry change.
 //!
-//! `cargo run --release --example bench_cpu [-- --quick] [--scene cornell|tokyo]`
+//! `cargo run --release --example bench_cpu [-- --quick] [--scene cornell|tokyo|generated]`
 
 use std::time::Instant;
 
@@ -99,7 +100,7 @@ fn min_ms<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, String, T) {
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let quick = args.iter().any(|a| a == "--quick");
-    // `--scene cornell` or `--scene tokyo`: only that scene (e.g. for profiling).
+    // `--scene cornell`, `--scene tokyo` or `--scene generated`: only that scene (e.g. for profiling).
     let only = args.iter().position(|a| a == "--scene").and_then(|i| args.get(i + 1)).map(|s| s.to_lowercase());
     let wanted = |name: &str| only.as_ref().is_none_or(|o| name.to_lowercase().contains(o.as_str()));
     let threads = rayon::current_num_threads();
@@ -119,6 +120,12 @@ fn main() {
             }
             Err(e) => println!("LittlestTokyo skipped: {e}"),
         }
+    }
+    if wanted("generated") {
+        let t = Instant::now();
+        let s = tracer::scene::terrain_and_spheres();
+        println!("generated (terrain and spheres): made in {:.0} ms", t.elapsed().as_secs_f64() * 1e3);
+        scenes.push(("generated", s));
     }
 
     // Build + pack: minimum of several runs after a warm-up. "sequential" is the BVH build

@@ -1,4 +1,5 @@
-//! Scenes generated in code: the embedded Cornell box and small analytic test scenes.
+//! Scenes generated in code: the embedded Cornell box, small analytic test scenes and a large
+//! benchmark scene.
 
 use glam::{Vec2, Vec3};
 
@@ -121,9 +122,77 @@ pub fn diffuse_plane(albedo: Vec3) -> Scene {
     }
 }
 
+/// A large scene for benchmarks: a terrain heightfield (600 x 600 quads, 120 m across) with 500
+/// UV spheres (32 x 16 quads, radius 0.3 to 2.3 m) scattered over it, 1,232,000 triangles
+/// mixing a 2.5D surface with overlapping closed objects; one grey diffuse material under a
+/// uniform sky, the camera 25 m up looking at the centre.
+pub fn terrain_and_spheres() -> Scene {
+    let mut t = Vec::with_capacity(1_232_000);
+    let n = 600;
+    let height = |x: f32, z: f32| 2.0 * (x * 0.05).sin() * (z * 0.07).cos() + 0.5 * (x * 0.31 + z * 0.17).sin();
+    let p = |i: usize, j: usize| {
+        let (x, z) = (i as f32 * 0.2 - 60.0, j as f32 * 0.2 - 60.0);
+        v(x, height(x, z), z)
+    };
+    let flat = |positions: [Vec3; 3]| Triangle {
+        positions,
+        normals: [flat_normal(&positions); 3],
+        uvs: [Vec2::ZERO; 3],
+        material: 0,
+    };
+    for i in 0..n {
+        for j in 0..n {
+            let (a, b, c, d) = (p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1));
+            t.push(flat([a, c, b]));
+            t.push(flat([a, d, c]));
+        }
+    }
+    // xorshift32: the same spheres on every run.
+    let mut state = 0x1234_5678u32;
+    let mut random = || {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        (state >> 8) as f32 / (1u32 << 24) as f32
+    };
+    for _ in 0..500 {
+        let (x, z) = (random() * 110.0 - 55.0, random() * 110.0 - 55.0);
+        let r = 0.3 + 2.0 * random();
+        let center = v(x, height(x, z) + r * 0.5, z);
+        let (segments, rings) = (32, 16);
+        let at = |s: usize, k: usize| {
+            let phi = s as f32 / segments as f32 * std::f32::consts::TAU;
+            let theta = k as f32 / rings as f32 * std::f32::consts::PI;
+            center + r * v(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
+        };
+        for s in 0..segments {
+            for k in 0..rings {
+                let (a, b, c, d) = (at(s, k), at(s + 1, k), at(s + 1, k + 1), at(s, k + 1));
+                t.push(flat([a, b, c]));
+                t.push(flat([a, c, d]));
+            }
+        }
+    }
+    Scene {
+        triangles: t,
+        materials: vec![Material::diffuse("ground", Vec3::splat(0.5))],
+        sky: Some(super::Sky::uniform(Vec3::ONE)),
+        camera: Camera::look_at(v(0.0, 25.0, 70.0), Vec3::ZERO, Vec3::Y, 50f32.to_radians()),
+        ..Scene::default()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_benchmark_scene_is_valid_and_as_large_as_documented() {
+        let s = terrain_and_spheres();
+        s.validate().unwrap();
+        assert_eq!(s.triangles.len(), 1_232_000);
+        assert!(s.sky.is_some() && s.emissive_triangle_count() == 0);
+    }
 
     #[test]
     fn cornell_box_is_valid_and_closed_towards_the_camera() {

@@ -64,7 +64,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
-pub use generate::{cornell_box, diffuse_plane, white_furnace};
+pub use generate::{cornell_box, diffuse_plane, terrain_and_spheres, white_furnace};
 pub use gltf_loader::load_gltf_slice;
 pub use sky::load_sky;
 pub use texture::{srgb_to_linear, srgba8_to_linear, TextureTexels};
