@@ -1,7 +1,9 @@
 //! The path-tracing kernel on the CPU backend: analytic scenes, agreement of the three
 //! sampling strategies, MIS variance, and no NaN/Inf in the accumulation.
 
-use glam::Vec3;
+mod common;
+
+use glam::{DVec3, Vec3};
 use tracer::backend::cpu::CpuRenderer;
 use tracer::pack::{pack, RenderSettings, Strategy};
 use tracer::scene::{self, Scene, Sky};
@@ -9,38 +11,25 @@ use tracer::stats::Estimate;
 
 /// Renders `frames` frames and returns the renderer plus, per frame, the mean of each of the
 /// 4 x 4 image regions and, last, of the whole image (red, green, blue).
-fn render(scene: &Scene, strategy: Strategy, size: u32, frames: u32, max_depth: u32) -> (CpuRenderer, Vec<Vec<Vec3>>) {
+fn render(scene: &Scene, strategy: Strategy, size: u32, frames: u32, max_depth: u32) -> (CpuRenderer, Vec<Vec<DVec3>>) {
     let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
     let settings = RenderSettings { width: size, height: size, strategy, max_depth };
     let mut r = CpuRenderer::new(pack(scene, &bvh, &settings).expect("pack"), 7);
     let mut per_frame = Vec::new();
-    let mut previous = vec![Vec3::ZERO; 17];
+    let mut previous = vec![DVec3::ZERO; 17];
     for _ in 0..frames {
         r.render_frame();
         let img = r.image();
-        let n = r.frames() as f32;
-        let mut sums = block_sums(&img.pixels, size, 4);
-        sums.push(img.mean());
-        per_frame.push(sums.iter().zip(&previous).map(|(s, p)| *s * n - *p).collect());
-        previous = sums.iter().map(|s| *s * n).collect();
+        let n = r.frames() as f64;
+        let sums = common::region_means(size, 4, |i| img.pixels[i].as_dvec3() * n);
+        per_frame.push(sums.iter().zip(&previous).map(|(s, p)| *s - *p).collect());
+        previous = sums;
     }
     (r, per_frame)
 }
 
-/// Mean of each block of a `blocks x blocks` grid.
-fn block_sums(pixels: &[Vec3], size: u32, blocks: u32) -> Vec<Vec3> {
-    let bs = size / blocks;
-    let mut out = vec![Vec3::ZERO; (blocks * blocks) as usize];
-    for y in 0..size {
-        for x in 0..size {
-            out[((y / bs) * blocks + x / bs) as usize] += pixels[(y * size + x) as usize] / (bs * bs) as f32;
-        }
-    }
-    out
-}
-
-fn estimate(per_frame: &[Vec<Vec3>], block: usize, channel: usize) -> Estimate {
-    let samples: Vec<f64> = per_frame.iter().map(|f| f[block][channel] as f64).collect();
+fn estimate(per_frame: &[Vec<DVec3>], block: usize, channel: usize) -> Estimate {
+    let samples: Vec<f64> = per_frame.iter().map(|f| f[block][channel]).collect();
     Estimate::from_samples(&samples)
 }
 

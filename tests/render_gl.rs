@@ -2,6 +2,8 @@
 //! kernel over the same packed data must estimate the same image. Never skipped: a machine
 //! without a usable GL fails these tests with the reason.
 
+mod common;
+
 use std::path::Path;
 use std::time::Instant;
 
@@ -43,21 +45,6 @@ struct Run {
     seconds: f64,
 }
 
-/// Region means of the samples added since `previous` (per-pixel running sums, rgb).
-fn frame_regions(sums: &[DVec3], previous: &[DVec3], size: u32) -> Vec<DVec3> {
-    let bs = size / BLOCKS;
-    let mut out = vec![DVec3::ZERO; (BLOCKS * BLOCKS) as usize + 1];
-    for y in 0..size {
-        for x in 0..size {
-            let i = (y * size + x) as usize;
-            let sample = sums[i] - previous[i];
-            out[((y / bs) * BLOCKS + x / bs) as usize] += sample / (bs * bs) as f64;
-            out[(BLOCKS * BLOCKS) as usize] += sample / (size * size) as f64;
-        }
-    }
-    out
-}
-
 fn run_cpu(packed: Packed, seed: u32, frames: u32) -> Run {
     let size = packed.scene.width;
     let mut r = CpuRenderer::new(packed, seed);
@@ -68,7 +55,7 @@ fn run_cpu(packed: Packed, seed: u32, frames: u32) -> Run {
         r.render_frame();
         let n = r.frames() as f64;
         let sums: Vec<DVec3> = r.image().pixels.iter().map(|p| p.as_dvec3() * n).collect();
-        per_frame.push(frame_regions(&sums, &previous, size));
+        per_frame.push(common::region_means(size, BLOCKS, |i| sums[i] - previous[i]));
         previous = sums;
     }
     Run { per_frame, rejected: r.rejected_samples(), seconds: t.elapsed().as_secs_f64() }
@@ -83,7 +70,7 @@ fn run_gl(packed: Packed, seed: u32, frames: u32) -> Run {
     for _ in 0..frames {
         r.render_frame().expect("GL frame");
         let sums: Vec<DVec3> = r.accumulation().expect("readback").iter().map(|a| a.xyz().as_dvec3()).collect();
-        per_frame.push(frame_regions(&sums, &previous, size));
+        per_frame.push(common::region_means(size, BLOCKS, |i| sums[i] - previous[i]));
         previous = sums;
     }
     let rejected = r.rejected_samples().expect("readback");

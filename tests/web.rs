@@ -7,6 +7,8 @@
 //! these tests fail and say which command installs the missing piece (`scripts/test.sh` runs
 //! them all).
 
+mod common;
+
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -23,7 +25,7 @@ use tracer::stats::Estimate;
 /// GL backend (tests/render_gl.rs).
 const Z_BOUND: f64 = 5.0;
 /// Regions per side: the image's 4 x 4 blocks, plus the whole image.
-const BLOCKS: usize = 4;
+const BLOCKS: u32 = 4;
 /// The render size of the browser tests (SwiftShader is slow; the statistics need many frames).
 const SIZE: u32 = 32;
 /// `lightport serve` packs bundles with the default settings; the page keeps their depth.
@@ -118,21 +120,10 @@ fn no_page_error(report: &Value) {
 /// Batch means per region and channel: for each batch, the mean of the samples it added over
 /// each 4 x 4 block and (last) the whole image. `sums` are running sums after each batch.
 fn batch_regions(sums: &[Vec<DVec3>], frames_per_batch: f64) -> Vec<Vec<DVec3>> {
-    let size = SIZE as usize;
-    let bs = size / BLOCKS;
-    let mut previous = vec![DVec3::ZERO; size * size];
+    let mut previous = vec![DVec3::ZERO; (SIZE * SIZE) as usize];
     let mut out = Vec::new();
     for batch in sums {
-        let mut regions = vec![DVec3::ZERO; BLOCKS * BLOCKS + 1];
-        for y in 0..size {
-            for x in 0..size {
-                let i = y * size + x;
-                let sample_mean = (batch[i] - previous[i]) / frames_per_batch;
-                regions[(y / bs) * BLOCKS + x / bs] += sample_mean / (bs * bs) as f64;
-                regions[BLOCKS * BLOCKS] += sample_mean / (size * size) as f64;
-            }
-        }
-        out.push(regions);
+        out.push(common::region_means(SIZE, BLOCKS, |i| (batch[i] - previous[i]) / frames_per_batch));
         previous.clone_from(batch);
     }
     out
@@ -198,7 +189,7 @@ fn assert_browser_agrees_with_cpu(server: &Server, scene_name: &str, scene: &Sce
     let browser = batch_regions(&browser_sums, frames as f64);
     let cpu = batch_regions(&cpu_sums, frames as f64);
     let mut worst = 0.0f64;
-    for region in 0..BLOCKS * BLOCKS + 1 {
+    for region in 0..(BLOCKS * BLOCKS) as usize + 1 {
         for c in 0..3 {
             let (a, b) = (estimate(&cpu, region, c), estimate(&browser, region, c));
             let z = a.z_score(&b);
@@ -213,7 +204,7 @@ fn assert_browser_agrees_with_cpu(server: &Server, scene_name: &str, scene: &Sce
             worst = worst.max(z);
         }
     }
-    let whole = estimate(&browser, BLOCKS * BLOCKS, 1);
+    let whole = estimate(&browser, (BLOCKS * BLOCKS) as usize, 1);
     assert!(whole.mean > 0.0, "{scene_name}: the browser's image is black");
     eprintln!(
         "{scene_name} {strategy:?} {SIZE}x{SIZE} x {} frames: max z {worst:.2}; whole-image green {:.4} ± {:.4}",

@@ -120,6 +120,22 @@ pub fn assert_within_sigmas(what: &str, estimate: f64, expected: f64, variance: 
     z
 }
 
+/// Means over the regions the statistical agreement tests compare: each block of a
+/// `blocks x blocks` grid over a `size x size` image, then (last) the whole image, of
+/// `pixel(i)` for pixel `i = y * size + x`.
+pub fn region_means(size: u32, blocks: u32, pixel: impl Fn(usize) -> DVec3) -> Vec<DVec3> {
+    let bs = size / blocks;
+    let mut out = vec![DVec3::ZERO; (blocks * blocks) as usize + 1];
+    for y in 0..size {
+        for x in 0..size {
+            let value = pixel((y * size + x) as usize);
+            out[((y / bs) * blocks + x / bs) as usize] += value / (bs * bs) as f64;
+            out[(blocks * blocks) as usize] += value / (size * size) as f64;
+        }
+    }
+    out
+}
+
 /// The box of child `child` (0..4) of packed BVH node `node`, decoded from the node's plane
 /// texels (layout: `tracer::kernel::scene_data::NODE_TEXELS`). Unused slots give an empty box
 /// (min > max).
