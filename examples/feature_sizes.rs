@@ -26,9 +26,11 @@
 //! directory (`cargo build --release` first) and needs `web/pkg` (scripts/build-web.sh) and `npm
 //! ci` in tests/web; without them the column says why it is empty.
 
-use std::io::{BufRead, BufReader};
+#[path = "../src/serve_child.rs"]
+mod serve_child;
+
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
@@ -146,16 +148,6 @@ fn kib(bytes: usize) -> String {
     format!("{:.1}", bytes as f64 / 1024.0)
 }
 
-/// A child process killed when dropped.
-struct Killed(Child);
-
-impl Drop for Killed {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
 /// WebGL2 times of one program, one entry per repeat (ms).
 struct WebTimes {
     /// Until `LINK_STATUS` returns.
@@ -190,24 +182,7 @@ fn webgl2_compile_times(fragments: &[(String, String)], repeats: u32) -> Result<
         root.join("tests/web/node_modules/playwright-core").is_dir(),
         "tests/web/node_modules is missing: run `npm ci` in tests/web"
     );
-    let mut child = Command::new(&lightport)
-        .args(["serve", "--port", "0"])
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .with_context(|| format!("starting {} serve", lightport.display()))?;
-    let stdout = child.stdout.take().context("the server's stdout")?;
-    let _server = Killed(child);
-    let (sender, receiver) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-            if let Some(at) = line.find("http://") {
-                let _ = sender.send(line[at..].trim().to_owned());
-            }
-        }
-    });
-    let url = receiver.recv_timeout(Duration::from_secs(120)).context("`lightport serve` printed no URL")?;
+    let (_server, url) = serve_child::start_serve(&lightport, &[], Duration::from_secs(120), true)?;
 
     let temp = std::env::temp_dir();
     let (shaders, report) = (

@@ -755,15 +755,16 @@ fn draw_chart(path: &Path, title: &str, lines: &[Vec<Point>]) -> Result<()> {
 /// as the GL backend's throwaway renderer pays for natively) and the float read-back after each
 /// checkpoint. The driver writes the accumulations (rgb sums and finite-sample counts) as JSON.
 mod web {
-    use std::io::{BufRead, BufReader};
     use std::path::{Path, PathBuf};
-    use std::process::{Child, Command, Stdio};
+    use std::process::{Command, Stdio};
     use std::time::{Duration, Instant};
 
     use anyhow::{bail, ensure, Context, Result};
     use glam::Vec3;
     use serde_json::Value;
     use tracer::backend::Image;
+
+    use crate::serve_child::{start_serve, Killed};
     use tracer::pack::{Packed, Strategy};
 
     use super::{checkpoints, ChartArgs, ChartBackend, Point};
@@ -804,61 +805,10 @@ mod web {
         Ok(Tools { chromium })
     }
 
-    /// A child process killed when dropped (the server; the driver on early returns).
-    struct Killed(Child);
-
-    impl Drop for Killed {
-        fn drop(&mut self) {
-            let _ = self.0.kill();
-            let _ = self.0.wait();
-        }
-    }
-
-    /// Starts `lightport serve --port 0` and returns it with its URL.
+    /// Starts `lightport serve --port 0` (this executable) and returns it with its URL.
     fn start_server() -> Result<(Killed, String)> {
         let exe = std::env::current_exe().context("finding the lightport executable")?;
-        let mut child = Command::new(&exe)
-            .args(["serve", "--port", "0"])
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .with_context(|| format!("starting {} serve", exe.display()))?;
-        let stdout = child.stdout.take().context("the server's stdout")?;
-        let stderr = child.stderr.take().context("the server's stderr")?;
-        let server = Killed(child);
-        let (sender, receiver) = std::sync::mpsc::channel();
-        // Reads until the URL, then keeps draining so that the server never blocks on a pipe.
-        std::thread::spawn(move || {
-            let mut sent = false;
-            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-                if !sent {
-                    if let Some(at) = line.find("http://") {
-                        let _ = sender.send(line[at..].trim().to_owned());
-                        sent = true;
-                    }
-                }
-            }
-        });
-        let errors = std::thread::spawn(move || {
-            let mut text = String::new();
-            // Drained to the end (the server must never block on it); the first lines kept.
-            for (i, line) in BufReader::new(stderr).lines().map_while(Result::ok).enumerate() {
-                if i < 50 {
-                    text.push_str(&line);
-                    text.push('\n');
-                }
-            }
-            text
-        });
-        match receiver.recv_timeout(SERVER_START) {
-            Ok(url) => Ok((server, url)),
-            Err(_) => {
-                drop(server);
-                let said = errors.join().unwrap_or_default();
-                bail!("`{} serve --port 0` printed no URL: {}", exe.display(), said.trim())
-            }
-        }
+        start_serve(&exe, &[], SERVER_START, false)
     }
 
     /// Renders every strategy's line in the browser; see the module's documentation.

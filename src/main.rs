@@ -2,6 +2,7 @@
 
 mod chart;
 mod serve;
+mod serve_child;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;

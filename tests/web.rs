@@ -8,11 +8,13 @@
 //! them all).
 
 mod common;
+#[path = "../src/serve_child.rs"]
+mod serve_child;
 
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::sync::Mutex;
+use std::time::Duration;
 
 use glam::{DVec3, Vec3};
 use serde_json::Value;
@@ -44,7 +46,7 @@ fn shared(path: &str) -> PathBuf {
 
 /// `lightport serve` on a free port, killed when dropped.
 struct Server {
-    child: Child,
+    _process: serve_child::Killed,
     url: String,
 }
 
@@ -54,39 +56,10 @@ impl Server {
             root().join("web/pkg/lightport_web_bg.wasm").is_file(),
             "web/pkg/ is missing: run scripts/build-web.sh (it builds the wasm module the page loads)"
         );
-        let mut child = Command::new(env!("CARGO_BIN_EXE_lightport"))
-            .arg("serve")
-            .args(["--port", "0"])
-            .args(args)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("lightport serve starts");
-        let stdout = child.stdout.take().expect("piped stdout");
-        let mut lines = BufReader::new(stdout).lines();
-        let url = loop {
-            match lines.next() {
-                Some(Ok(line)) => {
-                    if let Some(at) = line.find("http://") {
-                        break line[at..].trim().to_owned();
-                    }
-                }
-                _ => {
-                    let status = child.wait().expect("exit status");
-                    panic!("lightport serve {args:?} exited ({status}) before printing its URL");
-                }
-            }
-        };
-        // Keep draining stdout so the server never blocks on a full pipe.
-        std::thread::spawn(move || for _ in lines {});
-        Server { child, url }
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        let exe = Path::new(env!("CARGO_BIN_EXE_lightport"));
+        let (process, url) = serve_child::start_serve(exe, args, Duration::from_secs(120), true)
+            .unwrap_or_else(|e| panic!("lightport serve {args:?}: {e}"));
+        Server { _process: process, url }
     }
 }
 
