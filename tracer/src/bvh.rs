@@ -502,6 +502,8 @@ impl Bvh {
         // Children come after their parent: one reverse pass sees them first. Per node: the
         // stack needed pushing child nodes only, and pushing leaves too.
         let mut need = vec![(0u32, 0u32); nodes.len()];
+        // `pushed` entries go on the stack and the nearest is popped at once.
+        let bound = |pushed: u32, most_below: u32| if pushed == 0 { 0 } else { pushed.max(pushed - 1 + most_below) };
         for i in (0..nodes.len()).rev() {
             let n = &nodes[i];
             let (mut k, mut most, mut most_with_leaves) = (0u32, 0u32, 0u32);
@@ -513,11 +515,7 @@ impl Bvh {
                     most_with_leaves = most_with_leaves.max(child_with_leaves);
                 }
             }
-            let all = n.children;
-            need[i] = (
-                if k == 0 { 0 } else { k.max(k - 1 + most) },
-                if all == 0 { 0 } else { all.max(all - 1 + most_with_leaves) },
-            );
+            need[i] = (bound(k, most), bound(n.children, most_with_leaves));
         }
         Ok(WideBvh { nodes, depth, stack_needed: need[0].0, stack_needed_with_leaves: need[0].1 })
     }

@@ -503,14 +503,13 @@ pub fn pack_with_textures(
     };
     let nodes = Texels::par_from_groups::<{ NODE_TEXELS as usize }>(wide.nodes.len(), |i| {
         let n = &wide.nodes[i];
-        let lanes = |v: [f32; 4]| Vec4::from_array(v);
         [
-            lanes(n.min.map(|c| c.x)),
-            lanes(n.max.map(|c| c.x)),
-            lanes(n.min.map(|c| c.y)),
-            lanes(n.max.map(|c| c.y)),
-            lanes(n.min.map(|c| c.z)),
-            lanes(n.max.map(|c| c.z)),
+            Vec4::from_array(n.min.map(|c| c.x)),
+            Vec4::from_array(n.max.map(|c| c.x)),
+            Vec4::from_array(n.min.map(|c| c.y)),
+            Vec4::from_array(n.max.map(|c| c.y)),
+            Vec4::from_array(n.min.map(|c| c.z)),
+            Vec4::from_array(n.max.map(|c| c.z)),
         ]
     });
     let node_children = Texels::par_from_groups::<1>(wide.nodes.len(), |i| {
