@@ -2,11 +2,17 @@
 //! packed scenes, printed as a table with the ratio GL / CPU.
 //!
 //! ```sh
-//! cargo run --release --example bench_backends [-- FRAMES]
+//! cargo run --release --example bench_backends [-- FRAMES] [--size N]
 //! ```
 //!
 //! Each backend renders one untimed warm-up frame (the GL driver compiles its shader on the
 //! first draw), then FRAMES frames (default 8) timed with `glFinish` before and after.
+//! `--size N` renders both scenes at NxN (default: the Cornell box at 256x256, LittlestTokyo at
+//! 128x128; a GPU wants more pixels per draw to be busy).
+//!
+//! The last column times the GL backend again with `leaf_stack_limit` 0: the same shader, but
+//! `trace_closest` intersects every leaf as soon as its node is hit instead of pushing it (the
+//! traversal order `tracer::pack` falls back to for trees whose leaves would not fit the stack).
 
 use std::path::Path;
 use std::time::Instant;
@@ -22,6 +28,7 @@ struct Row {
     triangles: usize,
     cpu: f64,
     gl: f64,
+    gl_leaves_at_once: f64,
 }
 
 fn packed(scene: &tracer::scene::Scene, size: u32) -> Result<Packed> {
@@ -59,11 +66,21 @@ fn time_gl(p: &Packed, frames: u32) -> Result<(f64, String)> {
 }
 
 fn main() -> Result<()> {
-    let frames: u32 = std::env::args().nth(1).map(|a| a.parse()).transpose().context("FRAMES")?.unwrap_or(8);
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let size: Option<u32> = match args.iter().position(|a| a == "--size") {
+        Some(i) => Some(args.get(i + 1).context("--size needs a value")?.parse().context("--size")?),
+        None => None,
+    };
+    let frames: u32 =
+        args.first().filter(|a| !a.starts_with("--")).map(|a| a.parse()).transpose().context("FRAMES")?.unwrap_or(8);
     let tokyo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/threejs/LittlestTokyo.glb");
     let scenes = [
-        ("Cornell box".to_string(), tracer::scene::cornell_box(), 256),
-        ("LittlestTokyo".to_string(), tracer::scene::load(&tokyo).context("loading LittlestTokyo")?, 128),
+        ("Cornell box".to_string(), tracer::scene::cornell_box(), size.unwrap_or(256)),
+        (
+            "LittlestTokyo".to_string(),
+            tracer::scene::load(&tokyo).context("loading LittlestTokyo")?,
+            size.unwrap_or(128),
+        ),
     ];
     let mut rows = Vec::new();
     let mut renderer = String::new();
@@ -72,24 +89,28 @@ fn main() -> Result<()> {
         let cpu = time_cpu(&p, frames);
         let (gl, r) = time_gl(&p, frames)?;
         renderer = r;
-        rows.push(Row { scene: name, size, triangles: p.triangle_count, cpu, gl });
+        let mut at_once = p.clone();
+        at_once.scene.leaf_stack_limit = 0;
+        let (gl_leaves_at_once, _) = time_gl(&at_once, frames)?;
+        rows.push(Row { scene: name, size, triangles: p.triangle_count, cpu, gl, gl_leaves_at_once });
     }
     println!(
         "{frames} frames, MIS, max depth 8; CPU: {} threads; GL: {renderer}",
         std::thread::available_parallelism().map_or(1, |n| n.get())
     );
-    println!("| scene | size | triangles | CPU Msamples/s | GL Msamples/s | GL / CPU |");
-    println!("|---|---|---|---|---|---|");
+    println!("| scene | size | triangles | CPU Msamples/s | GL Msamples/s | GL / CPU | GL, leaves at once / pushed |");
+    println!("|---|---|---|---|---|---|---|");
     for r in rows {
         println!(
-            "| {} | {}x{} | {} | {:.3} | {:.3} | {:.2} |",
+            "| {} | {}x{} | {} | {:.3} | {:.3} | {:.2} | {:.2} |",
             r.scene,
             r.size,
             r.size,
             r.triangles,
             r.cpu / 1e6,
             r.gl / 1e6,
-            r.gl / r.cpu
+            r.gl / r.cpu,
+            r.gl_leaves_at_once / r.gl
         );
     }
     Ok(())

@@ -212,7 +212,7 @@ vec3 offset_origin(vec3 p, vec3 n) {
     return p + n * eps;
 }
 
-// lights::power_heuristic (tracer/src/kernel/lights.rs:211)
+// lights::power_heuristic (tracer/src/kernel/lights.rs:213)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
@@ -387,7 +387,7 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
     return NodeHits(t, lp_fetch_uvec4(scene_node_children, node));
 }
 
-// traverse::trace_closest (tracer/src/kernel/traverse.rs:145)
+// traverse::trace_closest (tracer/src/kernel/traverse.rs:147)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -692,7 +692,7 @@ vec3 sky_direction(vec2 uv) {
     return vec3(s * sin(phi), cos(theta), -s * cos(phi));
 }
 
-// lights::sample_light (tracer/src/kernel/lights.rs:151)
+// lights::sample_light (tracer/src/kernel/lights.rs:153)
 LightSample sample_light(vec3 p, vec3 u) {
     LightSample none = LightSample(vec3(0.0, 1.0, 0.0), 0.0, vec3(0.0), 0.0, false);
     uint index = choose_light(u.x);
@@ -766,7 +766,7 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::occluded (tracer/src/kernel/traverse.rs:260)
+// traverse::occluded (tracer/src/kernel/traverse.rs:264)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -840,12 +840,12 @@ vec3 sample_cosine_around(vec3 n, float u1, float u2) {
     return onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2));
 }
 
-// lights::finite_or_zero (tracer/src/kernel/lights.rs:223)
+// lights::finite_or_zero (tracer/src/kernel/lights.rs:225)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }
 
-// integrator::render_sample (tracer/src/kernel/integrator.rs:46)
+// integrator::render_sample (tracer/src/kernel/integrator.rs:48)
 vec4 render_sample(uint x, uint y) {
     uint rng = pixel_seed(y * scene_width + x, scene_frame_seed);
     vec2 film = vec2(lp_u32_to_f32(x) + random_float(rng), lp_u32_to_f32(y) + random_float(rng));

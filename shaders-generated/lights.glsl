@@ -343,7 +343,7 @@ vec2 uniform_sample_triangle(float u1, float u2) {
     return vec2(s * (1.0 - u2), s * u2);
 }
 
-// lights::sample_light (tracer/src/kernel/lights.rs:151)
+// lights::sample_light (tracer/src/kernel/lights.rs:153)
 LightSample sample_light(vec3 p, vec3 u) {
     LightSample none = LightSample(vec3(0.0, 1.0, 0.0), 0.0, vec3(0.0), 0.0, false);
     uint index = choose_light(u.x);
@@ -402,14 +402,14 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// lights::power_heuristic (tracer/src/kernel/lights.rs:211)
+// lights::power_heuristic (tracer/src/kernel/lights.rs:213)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
     return a2 + b2 > 0.0 ? a2 / (a2 + b2) : 0.0;
 }
 
-// lights::finite_or_zero (tracer/src/kernel/lights.rs:223)
+// lights::finite_or_zero (tracer/src/kernel/lights.rs:225)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

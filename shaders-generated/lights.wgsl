@@ -316,7 +316,7 @@ fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
     return vec2<f32>(s * (1.0 - u2), s * u2);
 }
 
-// lights::sample_light (tracer/src/kernel/lights.rs:151)
+// lights::sample_light (tracer/src/kernel/lights.rs:153)
 fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     let none: LightSample = LightSample(vec3<f32>(0.0, 1.0, 0.0), 0.0, vec3<f32>(0.0), 0.0, false);
     let index: u32 = choose_light(u.x);
@@ -375,14 +375,14 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     }
 }
 
-// lights::power_heuristic (tracer/src/kernel/lights.rs:211)
+// lights::power_heuristic (tracer/src/kernel/lights.rs:213)
 fn power_heuristic(a: f32, b: f32) -> f32 {
     let a2: f32 = a * a;
     let b2: f32 = b * b;
     return select(0.0, a2 / (a2 + b2), a2 + b2 > 0.0);
 }
 
-// lights::finite_or_zero (tracer/src/kernel/lights.rs:223)
+// lights::finite_or_zero (tracer/src/kernel/lights.rs:225)
 fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }

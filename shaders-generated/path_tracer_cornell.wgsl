@@ -295,7 +295,7 @@ fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u
     return NodeHits(t, scene_node_children[node]);
 }
 
-// traverse::trace_closest (tracer/src/kernel/traverse.rs:145)
+// traverse::trace_closest (tracer/src/kernel/traverse.rs:147)
 fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -409,7 +409,7 @@ fn light_pmf(index: u32) -> f32 {
     return scene_lights[index * LIGHT_TEXELS].z;
 }
 
-// lights::power_heuristic (tracer/src/kernel/lights.rs:211)
+// lights::power_heuristic (tracer/src/kernel/lights.rs:213)
 fn power_heuristic(a: f32, b: f32) -> f32 {
     let a2: f32 = a * a;
     let b2: f32 = b * b;
@@ -471,7 +471,7 @@ fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
     return vec2<f32>(s * (1.0 - u2), s * u2);
 }
 
-// lights::sample_light (tracer/src/kernel/lights.rs:151)
+// lights::sample_light (tracer/src/kernel/lights.rs:153)
 fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     let none: LightSample = LightSample(vec3<f32>(0.0, 1.0, 0.0), 0.0, vec3<f32>(0.0), 0.0, false);
     let index: u32 = choose_light(u.x);
@@ -519,7 +519,7 @@ fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> b
     return blocked;
 }
 
-// traverse::occluded (tracer/src/kernel/traverse.rs:260)
+// traverse::occluded (tracer/src/kernel/traverse.rs:264)
 fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -592,12 +592,12 @@ fn sample_cosine_around(n: vec3<f32>, u1: f32, u2: f32) -> vec3<f32> {
     return onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2));
 }
 
-// lights::finite_or_zero (tracer/src/kernel/lights.rs:223)
+// lights::finite_or_zero (tracer/src/kernel/lights.rs:225)
 fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }
 
-// integrator::render_sample (tracer/src/kernel/integrator.rs:46)
+// integrator::render_sample (tracer/src/kernel/integrator.rs:48)
 fn render_sample(x: u32, y: u32) -> vec4<f32> {
     var rng: u32 = pixel_seed(y * scene.width + x, scene.frame_seed);
     let film: vec2<f32> = vec2<f32>(lp_u32_to_f32(x) + random_float(&rng), lp_u32_to_f32(y) + random_float(&rng));

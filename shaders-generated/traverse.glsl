@@ -197,7 +197,7 @@ vec3 safe_inverse(vec3 dir) {
     return vec3(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// traverse::trace_closest (tracer/src/kernel/traverse.rs:145)
+// traverse::trace_closest (tracer/src/kernel/traverse.rs:147)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -308,7 +308,7 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     return hit;
 }
 
-// traverse::occluded (tracer/src/kernel/traverse.rs:260)
+// traverse::occluded (tracer/src/kernel/traverse.rs:264)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);

@@ -183,7 +183,7 @@ fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// traverse::trace_closest (tracer/src/kernel/traverse.rs:145)
+// traverse::trace_closest (tracer/src/kernel/traverse.rs:147)
 fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -292,7 +292,7 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     return hit;
 }
 
-// traverse::occluded (tracer/src/kernel/traverse.rs:260)
+// traverse::occluded (tracer/src/kernel/traverse.rs:264)
 fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);

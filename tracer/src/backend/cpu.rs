@@ -6,6 +6,7 @@ use rayon::prelude::*;
 
 use super::{frame_seed, Image};
 use crate::kernel::integrator::render_sample;
+use crate::kernel::scene_data::Scene;
 use crate::pack::Packed;
 
 pub struct CpuRenderer {
@@ -38,15 +39,11 @@ impl CpuRenderer {
         self.packed.scene.frame_seed = frame_seed(self.frames, self.seed);
         let scene = &self.packed.scene;
         let width = scene.width as usize;
-        self.accumulation.par_chunks_mut(width).zip(self.squares.par_chunks_mut(width)).enumerate().for_each(
-            |(y, (row, squares))| {
-                for (x, (acc, sq)) in row.iter_mut().zip(squares).enumerate() {
-                    let sample = render_sample(scene, x as u32, y as u32);
-                    *acc += sample;
-                    *sq += sample.xyz() * sample.xyz();
-                }
-            },
-        );
+        self.accumulation
+            .par_chunks_mut(width)
+            .zip(self.squares.par_chunks_mut(width))
+            .enumerate()
+            .for_each(|(y, (row, squares))| render_row_fastest(scene, y as u32, row, squares));
         self.frames += 1;
     }
 
@@ -80,5 +77,67 @@ impl CpuRenderer {
                 ((*q / n - mean * mean) * (n / (n - 1.0))).max(Vec3::ZERO)
             })
             .collect()
+    }
+}
+
+/// One sample for each pixel of row `y`, added to the row's sums.
+#[inline(always)]
+fn render_row(scene: &Scene, y: u32, row: &mut [Vec4], squares: &mut [Vec3]) {
+    for (x, (acc, sq)) in row.iter_mut().zip(squares).enumerate() {
+        let sample = render_sample(scene, x as u32, y);
+        *acc += sample;
+        *sq += sample.xyz() * sample.xyz();
+    }
+}
+
+/// `render_row` compiled for the fastest instruction set this CPU has. The kernel's hot
+/// functions are `#[inline(always)]`, so they are compiled again inside `render_row_avx2`:
+/// the same code with VEX encodings (three-operand SSE, fewer register moves), about 5 % fewer
+/// instructions. The samples are the same bit for bit: Rust never fuses a multiply and an add
+/// on its own, and the other instructions round alike (a unit test compares the two).
+fn render_row_fastest(scene: &Scene, y: u32, row: &mut [Vec4], squares: &mut [Vec3]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU has the features `render_row_avx2` is compiled for (checked above;
+        // the detection is cached, so the check costs a load per row).
+        return unsafe { render_row_avx2(scene, y, row, squares) };
+    }
+    render_row(scene, y, row, squares)
+}
+
+/// `render_row` compiled for AVX2 and FMA. Safe to call only on a CPU that has them.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+unsafe fn render_row_avx2(scene: &Scene, y: u32, row: &mut [Vec4], squares: &mut [Vec3]) {
+    render_row(scene, y, row, squares)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pack::{pack, RenderSettings};
+
+    /// Every row the dispatched renderer gives equals the baseline build's, bit for bit: on the
+    /// Cornell box (area lights) and the generated terrain (a sky, deep paths), two frames each.
+    #[test]
+    fn fastest_rows_equal_baseline_rows() {
+        for scene in [crate::scene::cornell_box(), crate::scene::terrain_and_spheres()] {
+            let bvh = crate::bvh::build(&scene.triangles).unwrap();
+            let settings = RenderSettings { width: 48, height: 32, ..Default::default() };
+            let mut packed = pack(&scene, &bvh, &settings).unwrap();
+            for frame in 0..2 {
+                packed.scene.frame_seed = frame_seed(frame, 7);
+                for y in 0..settings.height {
+                    let w = settings.width as usize;
+                    let (mut base, mut base_sq) = (vec![Vec4::ZERO; w], vec![Vec3::ZERO; w]);
+                    let (mut fast, mut fast_sq) = (vec![Vec4::ZERO; w], vec![Vec3::ZERO; w]);
+                    render_row(&packed.scene, y, &mut base, &mut base_sq);
+                    render_row_fastest(&packed.scene, y, &mut fast, &mut fast_sq);
+                    let bits = |v: &[Vec4]| v.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
+                    assert_eq!(bits(&base), bits(&fast), "row {y}, frame {frame}");
+                    assert!(base.iter().any(|p| p.x > 0.0), "row {y} is black: the test would prove nothing");
+                }
+            }
+        }
     }
 }

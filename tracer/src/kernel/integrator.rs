@@ -43,6 +43,8 @@ pub mod integrator {
     }
 
     /// One path sample through pixel (x, y): (radiance, 1), or zero when it was not finite.
+    // Inlined into the CPU backend's row loop, which is also compiled for AVX2 (backend/cpu.rs).
+    #[inline(always)]
     pub fn render_sample(scene: &Scene, x: u32, y: u32) -> Vec4 {
         let mut rng = pixel_seed(y * scene.width + x, scene.frame_seed);
         let film = Vec2::new(x as f32 + random_float(&mut rng), y as f32 + random_float(&mut rng));

@@ -148,6 +148,8 @@ pub mod lights {
     }
 
     /// Samples one light for the shading point `p`. `u` are three uniforms in [0, 1).
+    // Inlined into the CPU backend's row loop, which is also compiled for AVX2 (backend/cpu.rs).
+    #[inline(always)]
     pub fn sample_light(scene: &Scene, p: Vec3, u: Vec3) -> LightSample {
         let none = LightSample { dir: Vec3::Y, dist: 0.0, radiance: Vec3::ZERO, pdf: 0.0, delta: false };
         let index = choose_light(scene, u.x);

@@ -142,6 +142,8 @@ pub mod traverse {
     /// (see `tracer::pack`, which sets the limit so that the stack cannot overflow).
     // The DSL has no `std::mem::swap`: the sorting network swaps through temporaries.
     #[allow(clippy::manual_swap)]
+    // Inlined into the CPU backend's row loop, which is also compiled for AVX2 (backend/cpu.rs).
+    #[inline(always)]
     pub fn trace_closest(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
         let inv_dir = safe_inverse(dir);
         let near = near_planes(inv_dir);
@@ -257,6 +259,8 @@ pub mod traverse {
     /// Whether anything blocks `origin + t * dir` for t in (0, t_max): the shadow-ray test.
     /// Any hit ends it, so children are visited in slot order, and leaves are intersected at
     /// once: the stack holds child nodes only (`tracer::bvh::WideBvh::stack_needed` bounds it).
+    // Inlined into the CPU backend's row loop, which is also compiled for AVX2 (backend/cpu.rs).
+    #[inline(always)]
     pub fn occluded(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
         let inv_dir = safe_inverse(dir);
         let near = near_planes(inv_dir);
