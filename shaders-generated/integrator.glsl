@@ -387,7 +387,7 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
     return NodeHits(t, lp_fetch_uvec4(scene_node_children, node));
 }
 
-// traverse::trace_closest (tracer/src/kernel/traverse.rs:147)
+// traverse::trace_closest (tracer/src/kernel/traverse.rs:148)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -397,101 +397,103 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     float stack_t[64];
     for (int i_1 = 0; i_1 < 64; ++i_1) { stack_t[i_1] = 0.0; }
     uint leaf_limit = scene_leaf_stack_limit;
-    stack[0u] = stack_entry(0u, 0u);
-    uint sp = 1u;
-    while (sp > 0u) {
-        sp -= 1u;
-        if (stack_t[sp] > hit.t) {
-            continue;
-        }
-        uint entry = stack[sp];
+    uint sp = 0u;
+    uint entry = stack_entry(0u, 0u);
+    bool visiting = true;
+    while (visiting) {
+        bool descend = false;
         if (is_leaf(entry)) {
             intersect_leaf(entry, origin, dir, hit);
-            continue;
-        }
-        NodeHits n = intersect_node(entry >> 8, origin, inv_dir, near, hit.t);
-        float t0 = n.t.x;
-        float t1 = n.t.y;
-        float t2 = n.t.z;
-        float t3 = n.t.w;
-        uint e0 = n.entries.x;
-        uint e1 = n.entries.y;
-        uint e2 = n.entries.z;
-        uint e3 = n.entries.w;
-        if (t1 < t0) {
-            float t = t0;
-            t0 = t1;
-            t1 = t;
-            uint e = e0;
-            e0 = e1;
-            e1 = e;
-        }
-        if (t3 < t2) {
-            float t_1 = t2;
-            t2 = t3;
-            t3 = t_1;
-            uint e_1 = e2;
-            e2 = e3;
-            e3 = e_1;
-        }
-        if (t2 < t0) {
-            float t_2 = t0;
-            t0 = t2;
-            t2 = t_2;
-            uint e_2 = e0;
-            e0 = e2;
-            e2 = e_2;
-        }
-        if (t3 < t1) {
-            float t_3 = t1;
-            t1 = t3;
-            t3 = t_3;
-            uint e_3 = e1;
-            e1 = e3;
-            e3 = e_3;
-        }
-        if (t2 < t1) {
-            float t_4 = t1;
-            t1 = t2;
-            t2 = t_4;
-            uint e_4 = e1;
-            e1 = e2;
-            e2 = e_4;
-        }
-        if (t3 < MISS) {
-            if (sp >= leaf_limit && is_leaf(e3)) {
-                intersect_leaf(e3, origin, dir, hit);
-            } else if (sp < STACK_SIZE) {
-                stack[sp] = e3;
-                stack_t[sp] = t3;
-                sp += 1u;
+        } else {
+            NodeHits n = intersect_node(entry >> 8, origin, inv_dir, near, hit.t);
+            float t0 = n.t.x;
+            float t1 = n.t.y;
+            float t2 = n.t.z;
+            float t3 = n.t.w;
+            uint e0 = n.entries.x;
+            uint e1 = n.entries.y;
+            uint e2 = n.entries.z;
+            uint e3 = n.entries.w;
+            if (t1 < t0) {
+                float t = t0;
+                t0 = t1;
+                t1 = t;
+                uint e = e0;
+                e0 = e1;
+                e1 = e;
+            }
+            if (t3 < t2) {
+                float t_1 = t2;
+                t2 = t3;
+                t3 = t_1;
+                uint e_1 = e2;
+                e2 = e3;
+                e3 = e_1;
+            }
+            if (t2 < t0) {
+                float t_2 = t0;
+                t0 = t2;
+                t2 = t_2;
+                uint e_2 = e0;
+                e0 = e2;
+                e2 = e_2;
+            }
+            if (t3 < t1) {
+                float t_3 = t1;
+                t1 = t3;
+                t3 = t_3;
+                uint e_3 = e1;
+                e1 = e3;
+                e3 = e_3;
+            }
+            if (t2 < t1) {
+                float t_4 = t1;
+                t1 = t2;
+                t2 = t_4;
+                uint e_4 = e1;
+                e1 = e2;
+                e2 = e_4;
+            }
+            if (t3 < MISS) {
+                if (sp >= leaf_limit && is_leaf(e3)) {
+                    intersect_leaf(e3, origin, dir, hit);
+                } else if (sp < STACK_SIZE) {
+                    stack[sp] = e3;
+                    stack_t[sp] = t3;
+                    sp += 1u;
+                }
+            }
+            if (t2 < MISS) {
+                if (sp >= leaf_limit && is_leaf(e2)) {
+                    intersect_leaf(e2, origin, dir, hit);
+                } else if (sp < STACK_SIZE) {
+                    stack[sp] = e2;
+                    stack_t[sp] = t2;
+                    sp += 1u;
+                }
+            }
+            if (t1 < MISS) {
+                if (sp >= leaf_limit && is_leaf(e1)) {
+                    intersect_leaf(e1, origin, dir, hit);
+                } else if (sp < STACK_SIZE) {
+                    stack[sp] = e1;
+                    stack_t[sp] = t1;
+                    sp += 1u;
+                }
+            }
+            if (t0 < MISS) {
+                entry = e0;
+                descend = true;
             }
         }
-        if (t2 < MISS) {
-            if (sp >= leaf_limit && is_leaf(e2)) {
-                intersect_leaf(e2, origin, dir, hit);
-            } else if (sp < STACK_SIZE) {
-                stack[sp] = e2;
-                stack_t[sp] = t2;
-                sp += 1u;
-            }
-        }
-        if (t1 < MISS) {
-            if (sp >= leaf_limit && is_leaf(e1)) {
-                intersect_leaf(e1, origin, dir, hit);
-            } else if (sp < STACK_SIZE) {
-                stack[sp] = e1;
-                stack_t[sp] = t1;
-                sp += 1u;
-            }
-        }
-        if (t0 < MISS) {
-            if (sp >= leaf_limit && is_leaf(e0)) {
-                intersect_leaf(e0, origin, dir, hit);
-            } else if (sp < STACK_SIZE) {
-                stack[sp] = e0;
-                stack_t[sp] = t0;
-                sp += 1u;
+        if (!descend) {
+            visiting = false;
+            while (sp > 0u && !visiting) {
+                sp -= 1u;
+                if (!(stack_t[sp] > hit.t)) {
+                    entry = stack[sp];
+                    visiting = true;
+                }
             }
         }
     }
@@ -766,7 +768,7 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::occluded (tracer/src/kernel/traverse.rs:264)
+// traverse::occluded (tracer/src/kernel/traverse.rs:270)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);

@@ -295,7 +295,7 @@ fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u
     return NodeHits(t, scene_node_children[node]);
 }
 
-// traverse::trace_closest (tracer/src/kernel/traverse.rs:147)
+// traverse::trace_closest (tracer/src/kernel/traverse.rs:148)
 fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -303,101 +303,103 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     var stack: array<u32, 64>;
     var stack_t: array<f32, 64>;
     let leaf_limit: u32 = scene.leaf_stack_limit;
-    stack[0u] = stack_entry(0u, 0u);
-    var sp: u32 = 1u;
-    while sp > 0u {
-        sp -= 1u;
-        if stack_t[sp] > hit.t {
-            continue;
-        }
-        let entry: u32 = stack[sp];
+    var sp: u32 = 0u;
+    var entry: u32 = stack_entry(0u, 0u);
+    var visiting: bool = true;
+    while visiting {
+        var descend: bool = false;
         if is_leaf(entry) {
             intersect_leaf(entry, origin, dir, &hit);
-            continue;
-        }
-        let n: NodeHits = intersect_node(entry >> 8u, origin, inv_dir, near, hit.t);
-        var t0: f32 = n.t.x;
-        var t1: f32 = n.t.y;
-        var t2: f32 = n.t.z;
-        var t3: f32 = n.t.w;
-        var e0: u32 = n.entries.x;
-        var e1: u32 = n.entries.y;
-        var e2: u32 = n.entries.z;
-        var e3: u32 = n.entries.w;
-        if t1 < t0 {
-            let t: f32 = t0;
-            t0 = t1;
-            t1 = t;
-            let e: u32 = e0;
-            e0 = e1;
-            e1 = e;
-        }
-        if t3 < t2 {
-            let t_1: f32 = t2;
-            t2 = t3;
-            t3 = t_1;
-            let e_1: u32 = e2;
-            e2 = e3;
-            e3 = e_1;
-        }
-        if t2 < t0 {
-            let t_2: f32 = t0;
-            t0 = t2;
-            t2 = t_2;
-            let e_2: u32 = e0;
-            e0 = e2;
-            e2 = e_2;
-        }
-        if t3 < t1 {
-            let t_3: f32 = t1;
-            t1 = t3;
-            t3 = t_3;
-            let e_3: u32 = e1;
-            e1 = e3;
-            e3 = e_3;
-        }
-        if t2 < t1 {
-            let t_4: f32 = t1;
-            t1 = t2;
-            t2 = t_4;
-            let e_4: u32 = e1;
-            e1 = e2;
-            e2 = e_4;
-        }
-        if t3 < MISS {
-            if sp >= leaf_limit && is_leaf(e3) {
-                intersect_leaf(e3, origin, dir, &hit);
-            } else if sp < STACK_SIZE {
-                stack[sp] = e3;
-                stack_t[sp] = t3;
-                sp += 1u;
+        } else {
+            let n: NodeHits = intersect_node(entry >> 8u, origin, inv_dir, near, hit.t);
+            var t0: f32 = n.t.x;
+            var t1: f32 = n.t.y;
+            var t2: f32 = n.t.z;
+            var t3: f32 = n.t.w;
+            var e0: u32 = n.entries.x;
+            var e1: u32 = n.entries.y;
+            var e2: u32 = n.entries.z;
+            var e3: u32 = n.entries.w;
+            if t1 < t0 {
+                let t: f32 = t0;
+                t0 = t1;
+                t1 = t;
+                let e: u32 = e0;
+                e0 = e1;
+                e1 = e;
+            }
+            if t3 < t2 {
+                let t_1: f32 = t2;
+                t2 = t3;
+                t3 = t_1;
+                let e_1: u32 = e2;
+                e2 = e3;
+                e3 = e_1;
+            }
+            if t2 < t0 {
+                let t_2: f32 = t0;
+                t0 = t2;
+                t2 = t_2;
+                let e_2: u32 = e0;
+                e0 = e2;
+                e2 = e_2;
+            }
+            if t3 < t1 {
+                let t_3: f32 = t1;
+                t1 = t3;
+                t3 = t_3;
+                let e_3: u32 = e1;
+                e1 = e3;
+                e3 = e_3;
+            }
+            if t2 < t1 {
+                let t_4: f32 = t1;
+                t1 = t2;
+                t2 = t_4;
+                let e_4: u32 = e1;
+                e1 = e2;
+                e2 = e_4;
+            }
+            if t3 < MISS {
+                if sp >= leaf_limit && is_leaf(e3) {
+                    intersect_leaf(e3, origin, dir, &hit);
+                } else if sp < STACK_SIZE {
+                    stack[sp] = e3;
+                    stack_t[sp] = t3;
+                    sp += 1u;
+                }
+            }
+            if t2 < MISS {
+                if sp >= leaf_limit && is_leaf(e2) {
+                    intersect_leaf(e2, origin, dir, &hit);
+                } else if sp < STACK_SIZE {
+                    stack[sp] = e2;
+                    stack_t[sp] = t2;
+                    sp += 1u;
+                }
+            }
+            if t1 < MISS {
+                if sp >= leaf_limit && is_leaf(e1) {
+                    intersect_leaf(e1, origin, dir, &hit);
+                } else if sp < STACK_SIZE {
+                    stack[sp] = e1;
+                    stack_t[sp] = t1;
+                    sp += 1u;
+                }
+            }
+            if t0 < MISS {
+                entry = e0;
+                descend = true;
             }
         }
-        if t2 < MISS {
-            if sp >= leaf_limit && is_leaf(e2) {
-                intersect_leaf(e2, origin, dir, &hit);
-            } else if sp < STACK_SIZE {
-                stack[sp] = e2;
-                stack_t[sp] = t2;
-                sp += 1u;
-            }
-        }
-        if t1 < MISS {
-            if sp >= leaf_limit && is_leaf(e1) {
-                intersect_leaf(e1, origin, dir, &hit);
-            } else if sp < STACK_SIZE {
-                stack[sp] = e1;
-                stack_t[sp] = t1;
-                sp += 1u;
-            }
-        }
-        if t0 < MISS {
-            if sp >= leaf_limit && is_leaf(e0) {
-                intersect_leaf(e0, origin, dir, &hit);
-            } else if sp < STACK_SIZE {
-                stack[sp] = e0;
-                stack_t[sp] = t0;
-                sp += 1u;
+        if !descend {
+            visiting = false;
+            while sp > 0u && !visiting {
+                sp -= 1u;
+                if !(stack_t[sp] > hit.t) {
+                    entry = stack[sp];
+                    visiting = true;
+                }
             }
         }
     }
@@ -519,7 +521,7 @@ fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> b
     return blocked;
 }
 
-// traverse::occluded (tracer/src/kernel/traverse.rs:264)
+// traverse::occluded (tracer/src/kernel/traverse.rs:270)
 fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);

@@ -134,12 +134,13 @@ pub mod traverse {
 
     /// Closest intersection along `origin + t * dir` for t in (0, t_max).
     ///
-    /// Hit children are pushed farthest first, leaves included, so that the nearest is popped
-    /// next; a popped leaf is intersected. Pushing leaves keeps one leaf test in the loop (a
-    /// compact loop, most of the time in registers), but chains of leaves, as degenerate
-    /// geometry builds, would deepen the stack by up to three entries per level: leaves are
-    /// pushed only below `scene.leaf_stack_limit` entries and intersected at once beyond it
-    /// (see `tracer::pack`, which sets the limit so that the stack cannot overflow).
+    /// A node's nearest hit child is visited next; its other hit children are pushed, farthest
+    /// first and leaves included, and popped (nearest first) when a leaf or a node without hit
+    /// children ends the descent. A visited leaf is intersected. Pushing leaves keeps one leaf
+    /// test in the loop (a compact loop, most of the time in registers), but chains of leaves,
+    /// as degenerate geometry builds, would deepen the stack by up to three entries per level:
+    /// leaves are pushed only below `scene.leaf_stack_limit` entries and intersected at once
+    /// beyond it (see `tracer::pack`, which sets the limit so that the stack cannot overflow).
     // The DSL has no `std::mem::swap`: the sorting network swaps through temporaries.
     #[allow(clippy::manual_swap)]
     // Inlined into the CPU backend's row loop, which is also compiled for AVX2 (backend/cpu.rs).
@@ -151,105 +152,110 @@ pub mod traverse {
         let mut stack = [0u32; STACK_SIZE];
         let mut stack_t = [0.0f32; STACK_SIZE];
         let leaf_limit = scene.leaf_stack_limit as usize;
-        // The root is entered unconditionally: its children's boxes are the first test.
-        stack[0] = stack_entry(0, 0);
-        let mut sp: usize = 1;
-        while sp > 0 {
-            sp -= 1;
-            if stack_t[sp] > hit.t {
-                continue;
-            }
-            let entry = stack[sp];
+        let mut sp: usize = 0;
+        // The entry being visited: the root (entered unconditionally: its children's boxes are
+        // the first test), then the nearest hit child of each node, else the next one popped.
+        let mut entry = stack_entry(0, 0);
+        let mut visiting = true;
+        while visiting {
+            let mut descend = false;
             if is_leaf(entry) {
                 intersect_leaf(scene, entry, origin, dir, &mut hit);
-                continue;
-            }
-            let n = intersect_node(scene, entry >> 8, origin, inv_dir, near, hit.t);
-            let mut t0 = n.t.x;
-            let mut t1 = n.t.y;
-            let mut t2 = n.t.z;
-            let mut t3 = n.t.w;
-            let mut e0 = n.entries.x;
-            let mut e1 = n.entries.y;
-            let mut e2 = n.entries.z;
-            let mut e3 = n.entries.w;
-            // Sort the children by distance (a five-exchange sorting network; misses last).
-            if t1 < t0 {
-                let t = t0;
-                t0 = t1;
-                t1 = t;
-                let e = e0;
-                e0 = e1;
-                e1 = e;
-            }
-            if t3 < t2 {
-                let t = t2;
-                t2 = t3;
-                t3 = t;
-                let e = e2;
-                e2 = e3;
-                e3 = e;
-            }
-            if t2 < t0 {
-                let t = t0;
-                t0 = t2;
-                t2 = t;
-                let e = e0;
-                e0 = e2;
-                e2 = e;
-            }
-            if t3 < t1 {
-                let t = t1;
-                t1 = t3;
-                t3 = t;
-                let e = e1;
-                e1 = e3;
-                e3 = e;
-            }
-            if t2 < t1 {
-                let t = t1;
-                t1 = t2;
-                t2 = t;
-                let e = e1;
-                e1 = e2;
-                e2 = e;
-            }
-            // Farthest first. (The box tests were clipped to the closest hit, so every hit
-            // child is worth visiting; the pop test above catches hits found meanwhile.)
-            if t3 < MISS {
-                if sp >= leaf_limit && is_leaf(e3) {
-                    intersect_leaf(scene, e3, origin, dir, &mut hit);
-                } else if sp < STACK_SIZE {
-                    stack[sp] = e3;
-                    stack_t[sp] = t3;
-                    sp += 1;
+            } else {
+                let n = intersect_node(scene, entry >> 8, origin, inv_dir, near, hit.t);
+                let mut t0 = n.t.x;
+                let mut t1 = n.t.y;
+                let mut t2 = n.t.z;
+                let mut t3 = n.t.w;
+                let mut e0 = n.entries.x;
+                let mut e1 = n.entries.y;
+                let mut e2 = n.entries.z;
+                let mut e3 = n.entries.w;
+                // Sort the children by distance (a five-exchange sorting network; misses last).
+                if t1 < t0 {
+                    let t = t0;
+                    t0 = t1;
+                    t1 = t;
+                    let e = e0;
+                    e0 = e1;
+                    e1 = e;
+                }
+                if t3 < t2 {
+                    let t = t2;
+                    t2 = t3;
+                    t3 = t;
+                    let e = e2;
+                    e2 = e3;
+                    e3 = e;
+                }
+                if t2 < t0 {
+                    let t = t0;
+                    t0 = t2;
+                    t2 = t;
+                    let e = e0;
+                    e0 = e2;
+                    e2 = e;
+                }
+                if t3 < t1 {
+                    let t = t1;
+                    t1 = t3;
+                    t3 = t;
+                    let e = e1;
+                    e1 = e3;
+                    e3 = e;
+                }
+                if t2 < t1 {
+                    let t = t1;
+                    t1 = t2;
+                    t2 = t;
+                    let e = e1;
+                    e1 = e2;
+                    e2 = e;
+                }
+                // Farthest first, the nearest visited next without a round trip through the
+                // stack. (The box tests were clipped to the closest hit, so every hit child is
+                // worth visiting; the pop test below catches hits found meanwhile.)
+                if t3 < MISS {
+                    if sp >= leaf_limit && is_leaf(e3) {
+                        intersect_leaf(scene, e3, origin, dir, &mut hit);
+                    } else if sp < STACK_SIZE {
+                        stack[sp] = e3;
+                        stack_t[sp] = t3;
+                        sp += 1;
+                    }
+                }
+                if t2 < MISS {
+                    if sp >= leaf_limit && is_leaf(e2) {
+                        intersect_leaf(scene, e2, origin, dir, &mut hit);
+                    } else if sp < STACK_SIZE {
+                        stack[sp] = e2;
+                        stack_t[sp] = t2;
+                        sp += 1;
+                    }
+                }
+                if t1 < MISS {
+                    if sp >= leaf_limit && is_leaf(e1) {
+                        intersect_leaf(scene, e1, origin, dir, &mut hit);
+                    } else if sp < STACK_SIZE {
+                        stack[sp] = e1;
+                        stack_t[sp] = t1;
+                        sp += 1;
+                    }
+                }
+                if t0 < MISS {
+                    entry = e0;
+                    descend = true;
                 }
             }
-            if t2 < MISS {
-                if sp >= leaf_limit && is_leaf(e2) {
-                    intersect_leaf(scene, e2, origin, dir, &mut hit);
-                } else if sp < STACK_SIZE {
-                    stack[sp] = e2;
-                    stack_t[sp] = t2;
-                    sp += 1;
-                }
-            }
-            if t1 < MISS {
-                if sp >= leaf_limit && is_leaf(e1) {
-                    intersect_leaf(scene, e1, origin, dir, &mut hit);
-                } else if sp < STACK_SIZE {
-                    stack[sp] = e1;
-                    stack_t[sp] = t1;
-                    sp += 1;
-                }
-            }
-            if t0 < MISS {
-                if sp >= leaf_limit && is_leaf(e0) {
-                    intersect_leaf(scene, e0, origin, dir, &mut hit);
-                } else if sp < STACK_SIZE {
-                    stack[sp] = e0;
-                    stack_t[sp] = t0;
-                    sp += 1;
+            if !descend {
+                // Pop the nearest pending entry that may still hold a closer hit.
+                visiting = false;
+                while sp > 0 && !visiting {
+                    sp -= 1;
+                    if !(stack_t[sp] > hit.t) {
+                        entry = stack[sp];
+                        visiting = true;
+                    }
                 }
             }
         }
