@@ -254,7 +254,7 @@ fn camera_ray(film: vec2<f32>, lens: vec2<f32>) -> Ray {
     }
 }
 
-// intersect::safe_inverse (tracer/src/kernel/intersect.rs:51)
+// intersect::safe_inverse (tracer/src/kernel/intersect.rs:48)
 fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     let tiny: f32 = 1e-20;
     let x: f32 = select(dir.x, select(-tiny, tiny, dir.x >= 0.0), abs(dir.x) < tiny);
@@ -305,19 +305,14 @@ fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3
     let inv_det: f32 = 1.0 / det;
     let s: vec3<f32> = origin - v0;
     let u: f32 = dot(s, p) * inv_det;
-    if !(u >= 0.0 && u <= 1.0) {
-        return miss;
-    }
     let q: vec3<f32> = cross(s, e1);
     let v: f32 = dot(dir, q) * inv_det;
-    if !(v >= 0.0 && u + v <= 1.0) {
-        return miss;
-    }
     let t: f32 = dot(e2, q) * inv_det;
-    if !(t > 0.0 && t < MISS) {
+    if u >= 0.0 && u <= 1.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < MISS {
+        return TriangleHit(t, u, v);
+    } else {
         return miss;
     }
-    return TriangleHit(t, u, v);
 }
 
 // traverse::intersect_leaf (tracer/src/kernel/traverse.rs:105)

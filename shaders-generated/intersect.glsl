@@ -28,22 +28,17 @@ TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2)
     float inv_det = 1.0 / det;
     vec3 s = origin - v0;
     float u = dot(s, p) * inv_det;
-    if (!(u >= 0.0 && u <= 1.0)) {
-        return miss;
-    }
     vec3 q = cross(s, e1);
     float v = dot(dir, q) * inv_det;
-    if (!(v >= 0.0 && u + v <= 1.0)) {
-        return miss;
-    }
     float t = dot(e2, q) * inv_det;
-    if (!(t > 0.0 && t < MISS)) {
+    if (u >= 0.0 && u <= 1.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < MISS) {
+        return TriangleHit(t, u, v);
+    } else {
         return miss;
     }
-    return TriangleHit(t, u, v);
 }
 
-// intersect::safe_inverse (tracer/src/kernel/intersect.rs:51)
+// intersect::safe_inverse (tracer/src/kernel/intersect.rs:48)
 vec3 safe_inverse(vec3 dir) {
     float tiny = 1e-20;
     float x = abs(dir.x) < tiny ? (dir.x >= 0.0 ? tiny : -tiny) : dir.x;
@@ -52,17 +47,17 @@ vec3 safe_inverse(vec3 dir) {
     return vec3(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// intersect::min_no_nan (tracer/src/kernel/intersect.rs:85)
+// intersect::min_no_nan (tracer/src/kernel/intersect.rs:82)
 float min_no_nan(float a, float b) {
     return a < b ? a : b;
 }
 
-// intersect::max_no_nan (tracer/src/kernel/intersect.rs:94)
+// intersect::max_no_nan (tracer/src/kernel/intersect.rs:91)
 float max_no_nan(float a, float b) {
     return a > b ? a : b;
 }
 
-// intersect::intersect_aabb (tracer/src/kernel/intersect.rs:104)
+// intersect::intersect_aabb (tracer/src/kernel/intersect.rs:101)
 float intersect_aabb(vec3 origin, vec3 inv_dir, vec3 bmin, vec3 bmax, float t_max) {
     vec3 t0 = (bmin - origin) * inv_dir;
     vec3 t1 = (bmax - origin) * inv_dir;

@@ -23,22 +23,17 @@ fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3
     let inv_det: f32 = 1.0 / det;
     let s: vec3<f32> = origin - v0;
     let u: f32 = dot(s, p) * inv_det;
-    if !(u >= 0.0 && u <= 1.0) {
-        return miss;
-    }
     let q: vec3<f32> = cross(s, e1);
     let v: f32 = dot(dir, q) * inv_det;
-    if !(v >= 0.0 && u + v <= 1.0) {
-        return miss;
-    }
     let t: f32 = dot(e2, q) * inv_det;
-    if !(t > 0.0 && t < MISS) {
+    if u >= 0.0 && u <= 1.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < MISS {
+        return TriangleHit(t, u, v);
+    } else {
         return miss;
     }
-    return TriangleHit(t, u, v);
 }
 
-// intersect::safe_inverse (tracer/src/kernel/intersect.rs:51)
+// intersect::safe_inverse (tracer/src/kernel/intersect.rs:48)
 fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     let tiny: f32 = 1e-20;
     let x: f32 = select(dir.x, select(-tiny, tiny, dir.x >= 0.0), abs(dir.x) < tiny);
@@ -47,17 +42,17 @@ fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// intersect::min_no_nan (tracer/src/kernel/intersect.rs:85)
+// intersect::min_no_nan (tracer/src/kernel/intersect.rs:82)
 fn min_no_nan(a: f32, b: f32) -> f32 {
     return select(b, a, a < b);
 }
 
-// intersect::max_no_nan (tracer/src/kernel/intersect.rs:94)
+// intersect::max_no_nan (tracer/src/kernel/intersect.rs:91)
 fn max_no_nan(a: f32, b: f32) -> f32 {
     return select(b, a, a > b);
 }
 
-// intersect::intersect_aabb (tracer/src/kernel/intersect.rs:104)
+// intersect::intersect_aabb (tracer/src/kernel/intersect.rs:101)
 fn intersect_aabb(origin: vec3<f32>, inv_dir: vec3<f32>, bmin: vec3<f32>, bmax: vec3<f32>, t_max: f32) -> f32 {
     let t0: vec3<f32> = (bmin - origin) * inv_dir;
     let t1: vec3<f32> = (bmax - origin) * inv_dir;

@@ -251,7 +251,7 @@ Ray camera_ray(vec2 film, vec2 lens) {
     }
 }
 
-// intersect::safe_inverse (tracer/src/kernel/intersect.rs:51)
+// intersect::safe_inverse (tracer/src/kernel/intersect.rs:48)
 vec3 safe_inverse(vec3 dir) {
     float tiny = 1e-20;
     float x = abs(dir.x) < tiny ? (dir.x >= 0.0 ? tiny : -tiny) : dir.x;
@@ -302,19 +302,14 @@ TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2)
     float inv_det = 1.0 / det;
     vec3 s = origin - v0;
     float u = dot(s, p) * inv_det;
-    if (!(u >= 0.0 && u <= 1.0)) {
-        return miss;
-    }
     vec3 q = cross(s, e1);
     float v = dot(dir, q) * inv_det;
-    if (!(v >= 0.0 && u + v <= 1.0)) {
-        return miss;
-    }
     float t = dot(e2, q) * inv_det;
-    if (!(t > 0.0 && t < MISS)) {
+    if (u >= 0.0 && u <= 1.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < MISS) {
+        return TriangleHit(t, u, v);
+    } else {
         return miss;
     }
-    return TriangleHit(t, u, v);
 }
 
 // traverse::intersect_leaf (tracer/src/kernel/traverse.rs:105)

@@ -38,6 +38,24 @@ pub mod subset {
         *state = state.wrapping_add(by);
     }
 
+    /// `if` values of struct type: in a `let`, an assignment, a `return` and a tail. WGSL's
+    /// `select` takes scalars and vectors only, so these become statements there.
+    pub fn pick(a: Inner, b: Inner, first: bool) -> Inner {
+        let chosen = if first { a } else { b };
+        let mut other = a;
+        if chosen.b > 3 {
+            other = if chosen.a > 1.0 { b } else { a };
+        }
+        if other.b > chosen.b {
+            return if first { other } else { chosen };
+        }
+        if first {
+            b
+        } else {
+            a
+        }
+    }
+
     pub fn set_field(o: &mut Outer, x: f32) {
         o.inner.a = x;
         o.values[1] = x * 2.0;

@@ -438,6 +438,18 @@ impl<'a> Emitter<'a> {
         Ok(())
     }
 
+    /// Whether `e` becomes statements: block-like values, and an `if` whose value is a struct
+    /// or an array. WGSL's `select` takes scalars and vectors only; GLSL ES 3.00 drivers differ
+    /// on `?:` over structs (Mesa takes it, ANGLE in Chromium fails the page's shader).
+    fn is_statement_value(&self, e: &Expr) -> bool {
+        is_block_like(e) || self.if_needs_statements(e)
+    }
+
+    fn if_needs_statements(&self, e: &Expr) -> bool {
+        let e = strip_parens(e);
+        matches!(e.kind, K::If { .. }) && matches!(self.types.ty(e), Ty::Struct(_) | Ty::Array(..))
+    }
+
     fn value_into(&mut self, e: &Expr, dest: &Dest) -> R<()> {
         let e = strip_parens(e);
         match &e.kind {
@@ -449,7 +461,7 @@ impl<'a> Emitter<'a> {
                     self.value_into(o, dest)?;
                 }
             }
-            K::If { cond, then, otherwise } if !is_simple_if(e) => {
+            K::If { cond, then, otherwise } if !is_simple_if(e) || self.if_needs_statements(e) => {
                 self.mark(e.span);
                 let c = self.expr(cond)?;
                 if self.glsl() {
@@ -599,7 +611,9 @@ impl<'a> Emitter<'a> {
                 let id = self.types.lets[&infer::stmt_key(s)];
                 let b = self.types.bindings[id].clone();
                 self.mark(*span);
-                let needs_var = b.mutable || matches!(b.ty, Ty::Array(..)) || init.as_ref().is_none_or(is_block_like);
+                let needs_var = b.mutable
+                    || matches!(b.ty, Ty::Array(..))
+                    || init.as_ref().is_none_or(|i| self.is_statement_value(i));
                 let kw = match (self.glsl(), needs_var) {
                     (true, _) => "",
                     (false, true) => "var ",
@@ -608,7 +622,7 @@ impl<'a> Emitter<'a> {
                 let d = self.decl(&b.ty, &b.out_name);
                 match init {
                     None => self.line(&format!("{kw}{d};")),
-                    Some(init) if is_block_like(init) => {
+                    Some(init) if self.is_statement_value(init) => {
                         self.line(&format!("{kw}{d};"));
                         self.value_into(init, &Dest::Assign(b.out_name.clone()))?;
                     }
@@ -728,7 +742,7 @@ impl<'a> Emitter<'a> {
             K::Assign { op, place, value } => {
                 self.mark(e.span);
                 let p = self.place(place)?;
-                if is_block_like(value) {
+                if self.is_statement_value(value) {
                     if let Some(op) = op {
                         let t = self.types.ty(value).clone();
                         let tmp = self.fresh("value");
@@ -913,6 +927,12 @@ impl<'a> Emitter<'a> {
                 };
                 if has_effects(t) || has_effects(o_tail) {
                     return Err(self.error(span, "bind this `if` to a `let` first: its branches have side effects"));
+                }
+                if self.if_needs_statements(e) {
+                    return Err(self.error(
+                        span,
+                        "bind this `if` to a `let` first: its value is a struct or an array, which `select` (WGSL) and `?:` (GLSL ES) cannot choose portably",
+                    ));
                 }
                 let c = self.expr(cond)?;
                 let a = self.expr(t)?;

@@ -30,19 +30,16 @@ pub mod intersect {
         let inv_det = 1.0 / det;
         let s = origin - v0;
         let u = s.dot(p) * inv_det;
-        if !(u >= 0.0 && u <= 1.0) {
-            return miss;
-        }
         let q = s.cross(e1);
         let v = dir.dot(q) * inv_det;
-        if !(v >= 0.0 && u + v <= 1.0) {
-            return miss;
-        }
         let t = e2.dot(q) * inv_det;
-        if !(t > 0.0 && t < MISS) {
-            return miss;
+        // One test of all the conditions rather than a return after each: each would be a
+        // branch that rays take or not almost at random.
+        if u >= 0.0 && u <= 1.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < MISS {
+            TriangleHit { t, u, v }
+        } else {
+            miss
         }
-        TriangleHit { t, u, v }
     }
 
     /// `1 / dir` with zero components replaced by a tiny value of the same sign (-0.0 counts as
