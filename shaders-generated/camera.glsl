@@ -37,7 +37,7 @@ vec2 sample_disk(float u1, float u2) {
     return vec2(r * cos(phi), r * sin(phi));
 }
 
-// camera::camera_ray (tracer/src/kernel/camera.rs:25)
+// camera::camera_ray (tracer/src/kernel/camera.rs:27)
 Ray camera_ray(vec2 film, vec2 lens) {
     float ndc_x = 2.0 * film.x / lp_u32_to_f32(scene_width) - 1.0;
     float ndc_y = 1.0 - 2.0 * film.y / lp_u32_to_f32(scene_height);

@@ -35,7 +35,7 @@ fn sample_disk(u1: f32, u2: f32) -> vec2<f32> {
     return vec2<f32>(r * cos(phi), r * sin(phi));
 }
 
-// camera::camera_ray (tracer/src/kernel/camera.rs:25)
+// camera::camera_ray (tracer/src/kernel/camera.rs:27)
 fn camera_ray(film: vec2<f32>, lens: vec2<f32>) -> Ray {
     let ndc_x: f32 = 2.0 * film.x / lp_u32_to_f32(scene.width) - 1.0;
     let ndc_y: f32 = 1.0 - 2.0 * film.y / lp_u32_to_f32(scene.height);

@@ -238,7 +238,7 @@ vec2 texcoord(uint index, float u, float v) {
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
 
-// lights::triangle_emission (tracer/src/kernel/lights.rs:53)
+// lights::triangle_emission (tracer/src/kernel/lights.rs:55)
 vec3 triangle_emission(uint triangle, uint material, float u, float v) {
     MaterialData m = fetch_material(material);
     vec3 e = m.emission;
@@ -248,12 +248,12 @@ vec3 triangle_emission(uint triangle, uint material, float u, float v) {
     return e;
 }
 
-// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:65)
+// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:67)
 float area_pdf_to_solid_angle(float pmf, float area, float dist, float cos_light) {
     return !(cos_light > 0.0) || !(area > 0.0) ? 0.0 : pmf * dist * dist / (area * cos_light);
 }
 
-// lights::sky_direction (tracer/src/kernel/lights.rs:74)
+// lights::sky_direction (tracer/src/kernel/lights.rs:76)
 vec3 sky_direction(vec2 uv) {
     float phi = (uv.x - 0.5) * 2.0 * PI + scene_sky_rotation;
     float theta = uv.y * PI;
@@ -261,7 +261,7 @@ vec3 sky_direction(vec2 uv) {
     return vec3(s * sin(phi), cos(theta), -s * cos(phi));
 }
 
-// lights::sky_texel_coords (tracer/src/kernel/lights.rs:82)
+// lights::sky_texel_coords (tracer/src/kernel/lights.rs:84)
 vec2 sky_texel_coords(vec3 dir) {
     float phi = atan(dir.x, -dir.z) - scene_sky_rotation;
     float u = phi * (0.5 * INV_PI) + 0.5;
@@ -272,14 +272,14 @@ vec2 sky_texel_coords(vec3 dir) {
     return vec2(min(floor(u_1 * w), w - 1.0), min(floor(v * h), h - 1.0));
 }
 
-// lights::sky_radiance (tracer/src/kernel/lights.rs:92)
+// lights::sky_radiance (tracer/src/kernel/lights.rs:94)
 vec3 sky_radiance(vec3 dir) {
     vec2 c = sky_texel_coords(dir);
     uint i = lp_f32_to_u32(c.y) * scene_sky_width + lp_f32_to_u32(c.x);
     return lp_fetch_vec4(scene_sky, i).xyz * scene_sky_intensity;
 }
 
-// lights::sky_texel_pmf (tracer/src/kernel/lights.rs:99)
+// lights::sky_texel_pmf (tracer/src/kernel/lights.rs:101)
 float sky_texel_pmf(uint col, uint row) {
     float row_hi = lp_fetch_vec4(scene_sky_rows, row).x;
     float row_lo = row > 0u ? lp_fetch_vec4(scene_sky_rows, row - 1u).x : 0.0;
@@ -289,7 +289,7 @@ float sky_texel_pmf(uint col, uint row) {
     return (row_hi - row_lo) * (col_hi - col_lo);
 }
 
-// lights::sky_pdf (tracer/src/kernel/lights.rs:109)
+// lights::sky_pdf (tracer/src/kernel/lights.rs:111)
 float sky_pdf(vec3 dir) {
     vec2 c = sky_texel_coords(dir);
     float pmf = sky_texel_pmf(lp_f32_to_u32(c.x), lp_f32_to_u32(c.y));
@@ -297,7 +297,7 @@ float sky_pdf(vec3 dir) {
     return sin_theta <= 0.0 ? 0.0 : pmf * lp_u32_to_f32(scene_sky_width * scene_sky_height) / (2.0 * PI * PI * sin_theta);
 }
 
-// lights::search_sky_row (tracer/src/kernel/lights.rs:121)
+// lights::search_sky_row (tracer/src/kernel/lights.rs:123)
 uint search_sky_row(float u) {
     uint lo = 0u;
     uint hi = scene_sky_height - 1u;
@@ -312,7 +312,7 @@ uint search_sky_row(float u) {
     return lo;
 }
 
-// lights::search_sky_column (tracer/src/kernel/lights.rs:135)
+// lights::search_sky_column (tracer/src/kernel/lights.rs:137)
 uint search_sky_column(uint row, float u) {
     uint base = row * scene_sky_width;
     uint lo = 0u;
@@ -343,7 +343,7 @@ vec2 uniform_sample_triangle(float u1, float u2) {
     return vec2(s * (1.0 - u2), s * u2);
 }
 
-// lights::sample_light (tracer/src/kernel/lights.rs:153)
+// lights::sample_light (tracer/src/kernel/lights.rs:155)
 LightSample sample_light(vec3 p, vec3 u) {
     LightSample none = LightSample(vec3(0.0, 1.0, 0.0), 0.0, vec3(0.0), 0.0, false);
     uint index = choose_light(u.x);
@@ -402,14 +402,14 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// lights::power_heuristic (tracer/src/kernel/lights.rs:213)
+// lights::power_heuristic (tracer/src/kernel/lights.rs:215)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
     return a2 + b2 > 0.0 ? a2 / (a2 + b2) : 0.0;
 }
 
-// lights::finite_or_zero (tracer/src/kernel/lights.rs:225)
+// lights::finite_or_zero (tracer/src/kernel/lights.rs:227)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

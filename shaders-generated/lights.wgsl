@@ -211,7 +211,7 @@ fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
 
-// lights::triangle_emission (tracer/src/kernel/lights.rs:53)
+// lights::triangle_emission (tracer/src/kernel/lights.rs:55)
 fn triangle_emission(triangle: u32, material: u32, u: f32, v: f32) -> vec3<f32> {
     let m: MaterialData = fetch_material(material);
     var e: vec3<f32> = m.emission;
@@ -221,12 +221,12 @@ fn triangle_emission(triangle: u32, material: u32, u: f32, v: f32) -> vec3<f32> 
     return e;
 }
 
-// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:65)
+// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:67)
 fn area_pdf_to_solid_angle(pmf: f32, area: f32, dist: f32, cos_light: f32) -> f32 {
     return select(pmf * dist * dist / (area * cos_light), 0.0, !(cos_light > 0.0) || !(area > 0.0));
 }
 
-// lights::sky_direction (tracer/src/kernel/lights.rs:74)
+// lights::sky_direction (tracer/src/kernel/lights.rs:76)
 fn sky_direction(uv: vec2<f32>) -> vec3<f32> {
     let phi: f32 = (uv.x - 0.5) * 2.0 * PI + scene.sky_rotation;
     let theta: f32 = uv.y * PI;
@@ -234,7 +234,7 @@ fn sky_direction(uv: vec2<f32>) -> vec3<f32> {
     return vec3<f32>(s * sin(phi), cos(theta), -s * cos(phi));
 }
 
-// lights::sky_texel_coords (tracer/src/kernel/lights.rs:82)
+// lights::sky_texel_coords (tracer/src/kernel/lights.rs:84)
 fn sky_texel_coords(dir: vec3<f32>) -> vec2<f32> {
     let phi: f32 = atan2(dir.x, -dir.z) - scene.sky_rotation;
     let u: f32 = phi * (0.5 * INV_PI) + 0.5;
@@ -245,14 +245,14 @@ fn sky_texel_coords(dir: vec3<f32>) -> vec2<f32> {
     return vec2<f32>(min(floor(u_1 * w), w - 1.0), min(floor(v * h), h - 1.0));
 }
 
-// lights::sky_radiance (tracer/src/kernel/lights.rs:92)
+// lights::sky_radiance (tracer/src/kernel/lights.rs:94)
 fn sky_radiance(dir: vec3<f32>) -> vec3<f32> {
     let c: vec2<f32> = sky_texel_coords(dir);
     let i: u32 = lp_f32_to_u32(c.y) * scene.sky_width + lp_f32_to_u32(c.x);
     return scene_sky[i].xyz * scene.sky_intensity;
 }
 
-// lights::sky_texel_pmf (tracer/src/kernel/lights.rs:99)
+// lights::sky_texel_pmf (tracer/src/kernel/lights.rs:101)
 fn sky_texel_pmf(col: u32, row: u32) -> f32 {
     let row_hi: f32 = scene_sky_rows[row].x;
     let row_lo: f32 = select(0.0, scene_sky_rows[row - 1u].x, row > 0u);
@@ -262,7 +262,7 @@ fn sky_texel_pmf(col: u32, row: u32) -> f32 {
     return (row_hi - row_lo) * (col_hi - col_lo);
 }
 
-// lights::sky_pdf (tracer/src/kernel/lights.rs:109)
+// lights::sky_pdf (tracer/src/kernel/lights.rs:111)
 fn sky_pdf(dir: vec3<f32>) -> f32 {
     let c: vec2<f32> = sky_texel_coords(dir);
     let pmf: f32 = sky_texel_pmf(lp_f32_to_u32(c.x), lp_f32_to_u32(c.y));
@@ -270,7 +270,7 @@ fn sky_pdf(dir: vec3<f32>) -> f32 {
     return select(pmf * lp_u32_to_f32(scene.sky_width * scene.sky_height) / (2.0 * PI * PI * sin_theta), 0.0, sin_theta <= 0.0);
 }
 
-// lights::search_sky_row (tracer/src/kernel/lights.rs:121)
+// lights::search_sky_row (tracer/src/kernel/lights.rs:123)
 fn search_sky_row(u: f32) -> u32 {
     var lo: u32 = 0u;
     var hi: u32 = scene.sky_height - 1u;
@@ -285,7 +285,7 @@ fn search_sky_row(u: f32) -> u32 {
     return lo;
 }
 
-// lights::search_sky_column (tracer/src/kernel/lights.rs:135)
+// lights::search_sky_column (tracer/src/kernel/lights.rs:137)
 fn search_sky_column(row: u32, u: f32) -> u32 {
     let base: u32 = row * scene.sky_width;
     var lo: u32 = 0u;
@@ -316,7 +316,7 @@ fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
     return vec2<f32>(s * (1.0 - u2), s * u2);
 }
 
-// lights::sample_light (tracer/src/kernel/lights.rs:153)
+// lights::sample_light (tracer/src/kernel/lights.rs:155)
 fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     let none: LightSample = LightSample(vec3<f32>(0.0, 1.0, 0.0), 0.0, vec3<f32>(0.0), 0.0, false);
     let index: u32 = choose_light(u.x);
@@ -375,14 +375,14 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     }
 }
 
-// lights::power_heuristic (tracer/src/kernel/lights.rs:213)
+// lights::power_heuristic (tracer/src/kernel/lights.rs:215)
 fn power_heuristic(a: f32, b: f32) -> f32 {
     let a2: f32 = a * a;
     let b2: f32 = b * b;
     return select(0.0, a2 / (a2 + b2), a2 + b2 > 0.0);
 }
 
-// lights::finite_or_zero (tracer/src/kernel/lights.rs:225)
+// lights::finite_or_zero (tracer/src/kernel/lights.rs:227)
 fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }

@@ -188,7 +188,7 @@ vec2 sample_disk(float u1, float u2) {
     return vec2(r * cos(phi), r * sin(phi));
 }
 
-// camera::camera_ray (tracer/src/kernel/camera.rs:25)
+// camera::camera_ray (tracer/src/kernel/camera.rs:27)
 Ray camera_ray(vec2 film, vec2 lens) {
     float ndc_x = 2.0 * film.x / lp_u32_to_f32(scene_width) - 1.0;
     float ndc_y = 1.0 - 2.0 * film.y / lp_u32_to_f32(scene_height);
@@ -422,7 +422,7 @@ float light_pmf(uint index) {
     return lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS).z;
 }
 
-// lights::power_heuristic (tracer/src/kernel/lights.rs:213)
+// lights::power_heuristic (tracer/src/kernel/lights.rs:215)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
@@ -447,12 +447,12 @@ MaterialData fetch_material(uint index) {
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:65)
+// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:67)
 float area_pdf_to_solid_angle(float pmf, float area, float dist, float cos_light) {
     return !(cos_light > 0.0) || !(area > 0.0) ? 0.0 : pmf * dist * dist / (area * cos_light);
 }
 
-// lights::triangle_emission (tracer/src/kernel/lights.rs:53)
+// lights::triangle_emission (tracer/src/kernel/lights.rs:55)
 vec3 triangle_emission(uint triangle, uint material, float u, float v) {
     MaterialData m = fetch_material(material);
     vec3 e = m.emission;
@@ -484,7 +484,7 @@ vec2 uniform_sample_triangle(float u1, float u2) {
     return vec2(s * (1.0 - u2), s * u2);
 }
 
-// lights::sample_light (tracer/src/kernel/lights.rs:153)
+// lights::sample_light (tracer/src/kernel/lights.rs:155)
 LightSample sample_light(vec3 p, vec3 u) {
     LightSample none = LightSample(vec3(0.0, 1.0, 0.0), 0.0, vec3(0.0), 0.0, false);
     uint index = choose_light(u.x);
@@ -606,7 +606,7 @@ vec3 sample_cosine_around(vec3 n, float u1, float u2) {
     return onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2));
 }
 
-// lights::finite_or_zero (tracer/src/kernel/lights.rs:225)
+// lights::finite_or_zero (tracer/src/kernel/lights.rs:227)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

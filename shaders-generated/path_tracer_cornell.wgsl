@@ -174,7 +174,7 @@ fn sample_disk(u1: f32, u2: f32) -> vec2<f32> {
     return vec2<f32>(r * cos(phi), r * sin(phi));
 }
 
-// camera::camera_ray (tracer/src/kernel/camera.rs:25)
+// camera::camera_ray (tracer/src/kernel/camera.rs:27)
 fn camera_ray(film: vec2<f32>, lens: vec2<f32>) -> Ray {
     let ndc_x: f32 = 2.0 * film.x / lp_u32_to_f32(scene.width) - 1.0;
     let ndc_y: f32 = 1.0 - 2.0 * film.y / lp_u32_to_f32(scene.height);
@@ -406,7 +406,7 @@ fn light_pmf(index: u32) -> f32 {
     return scene_lights[index * LIGHT_TEXELS].z;
 }
 
-// lights::power_heuristic (tracer/src/kernel/lights.rs:213)
+// lights::power_heuristic (tracer/src/kernel/lights.rs:215)
 fn power_heuristic(a: f32, b: f32) -> f32 {
     let a2: f32 = a * a;
     let b2: f32 = b * b;
@@ -431,12 +431,12 @@ fn fetch_material(index: u32) -> MaterialData {
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:65)
+// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:67)
 fn area_pdf_to_solid_angle(pmf: f32, area: f32, dist: f32, cos_light: f32) -> f32 {
     return select(pmf * dist * dist / (area * cos_light), 0.0, !(cos_light > 0.0) || !(area > 0.0));
 }
 
-// lights::triangle_emission (tracer/src/kernel/lights.rs:53)
+// lights::triangle_emission (tracer/src/kernel/lights.rs:55)
 fn triangle_emission(triangle: u32, material: u32, u: f32, v: f32) -> vec3<f32> {
     let m: MaterialData = fetch_material(material);
     var e: vec3<f32> = m.emission;
@@ -468,7 +468,7 @@ fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
     return vec2<f32>(s * (1.0 - u2), s * u2);
 }
 
-// lights::sample_light (tracer/src/kernel/lights.rs:153)
+// lights::sample_light (tracer/src/kernel/lights.rs:155)
 fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     let none: LightSample = LightSample(vec3<f32>(0.0, 1.0, 0.0), 0.0, vec3<f32>(0.0), 0.0, false);
     let index: u32 = choose_light(u.x);
@@ -589,7 +589,7 @@ fn sample_cosine_around(n: vec3<f32>, u1: f32, u2: f32) -> vec3<f32> {
     return onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2));
 }
 
-// lights::finite_or_zero (tracer/src/kernel/lights.rs:225)
+// lights::finite_or_zero (tracer/src/kernel/lights.rs:227)
 fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }

@@ -22,6 +22,8 @@ pub mod camera {
 
     /// The ray through film position `film` (pixel units, origin at the top-left corner) with
     /// lens uniforms `lens`.
+    // Inlined into the CPU backend's row loop, which is also compiled for AVX2 (backend/cpu.rs).
+    #[inline(always)]
     pub fn camera_ray(scene: &Scene, film: Vec2, lens: Vec2) -> Ray {
         let ndc_x = 2.0 * film.x / scene.width as f32 - 1.0;
         let ndc_y = 1.0 - 2.0 * film.y / scene.height as f32;

@@ -50,6 +50,8 @@ pub mod lights {
     }
 
     /// Emitted radiance of a triangle's material at barycentrics (u, v).
+    // Inlined into the CPU backend's row loop, which is also compiled for AVX2 (backend/cpu.rs).
+    #[inline(always)]
     pub fn triangle_emission(scene: &Scene, triangle: u32, material: u32, u: f32, v: f32) -> Vec3 {
         let m = fetch_material(scene, material);
         let mut e = m.emission;
