@@ -337,7 +337,7 @@ TriangleData fetch_triangle(uint index) {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
 }
 
-// sampling::uniform_sample_triangle (tracer/src/kernel/sampling.rs:58)
+// sampling::uniform_sample_triangle (tracer/src/kernel/sampling.rs:81)
 vec2 uniform_sample_triangle(float u1, float u2) {
     float s = sqrt(u1);
     return vec2(s * (1.0 - u2), s * u2);

@@ -310,7 +310,7 @@ fn fetch_triangle(index: u32) -> TriangleData {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
 }
 
-// sampling::uniform_sample_triangle (tracer/src/kernel/sampling.rs:58)
+// sampling::uniform_sample_triangle (tracer/src/kernel/sampling.rs:81)
 fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
     let s: f32 = sqrt(u1);
     return vec2<f32>(s * (1.0 - u2), s * u2);

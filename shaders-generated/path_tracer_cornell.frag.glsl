@@ -136,6 +136,15 @@ bool lp_is_finite(float x) {
     return (floatBitsToUint(x) & 0x7f800000u) != 0x7f800000u;
 }
 
+// Rust's round: halves away from zero (GLSL's round() may pick either).
+float lp_round(float x) {
+    float t = trunc(x);
+    if (abs(x - t) >= 0.5) {
+        t += sign(x);
+    }
+    return t;
+}
+
 float lp_max_element_vec3(vec3 v) {
     return max(max(v.x, v.y), v.z);
 }
@@ -478,7 +487,7 @@ uint choose_light(float u) {
     }
 }
 
-// sampling::uniform_sample_triangle (tracer/src/kernel/sampling.rs:58)
+// sampling::uniform_sample_triangle (tracer/src/kernel/sampling.rs:81)
 vec2 uniform_sample_triangle(float u1, float u2) {
     float s = sqrt(u1);
     return vec2(s * (1.0 - u2), s * u2);
@@ -593,15 +602,34 @@ Onb onb_from_normal(vec3 n) {
     return Onb(vec3(1.0 + sign_ * n.x * n.x * a, sign_ * b, -sign_ * n.x), vec3(b, sign_ + n.y * n.y * a, -n.y), n);
 }
 
+// sampling::cos_sin_turns (tracer/src/kernel/sampling.rs:50)
+vec2 cos_sin_turns(float t) {
+    float quarters = lp_round(t * 4.0);
+    float x = (t * 4.0 - quarters) * (0.5 * PI);
+    float x2 = x * x;
+    float s = x * (1.0 + x2 * (-1.0 / 6.0 + x2 * (1.0 / 120.0 + x2 * (-1.0 / 5040.0 + x2 * (1.0 / 362880.0)))));
+    float c = 1.0 + x2 * (-0.5 + x2 * (1.0 / 24.0 + x2 * (-1.0 / 720.0 + x2 * (1.0 / 40320.0))));
+    uint q = lp_f32_to_u32(quarters) & 3u;
+    if (q == 0u) {
+        return vec2(c, s);
+    } else if (q == 1u) {
+        return vec2(-s, c);
+    } else if (q == 2u) {
+        return vec2(-c, -s);
+    } else {
+        return vec2(s, -c);
+    }
+}
+
 // sampling::cosine_sample_hemisphere (tracer/src/kernel/sampling.rs:39)
 vec3 cosine_sample_hemisphere(float u1, float u2) {
     float r = sqrt(u1);
-    float phi = 2.0 * PI * u2;
+    vec2 cs = cos_sin_turns(u2);
     float z = sqrt(max(1.0 - u1, 0.0));
-    return vec3(r * cos(phi), r * sin(phi), z);
+    return vec3(r * cs.x, r * cs.y, z);
 }
 
-// sampling::sample_cosine_around (tracer/src/kernel/sampling.rs:52)
+// sampling::sample_cosine_around (tracer/src/kernel/sampling.rs:75)
 vec3 sample_cosine_around(vec3 n, float u1, float u2) {
     return onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2));
 }

@@ -134,6 +134,15 @@ fn lp_is_finite(x: f32) -> bool {
     return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
 }
 
+// Rust's round: halves away from zero (WGSL's round() goes to even).
+fn lp_round(x: f32) -> f32 {
+    var t: f32 = trunc(x);
+    if abs(x - t) >= 0.5 {
+        t += sign(x);
+    }
+    return t;
+}
+
 fn lp_max_element_vec3(v: vec3<f32>) -> f32 {
     return max(max(v.x, v.y), v.z);
 }
@@ -462,7 +471,7 @@ fn choose_light(u: f32) -> u32 {
     }
 }
 
-// sampling::uniform_sample_triangle (tracer/src/kernel/sampling.rs:58)
+// sampling::uniform_sample_triangle (tracer/src/kernel/sampling.rs:81)
 fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
     let s: f32 = sqrt(u1);
     return vec2<f32>(s * (1.0 - u2), s * u2);
@@ -576,15 +585,34 @@ fn onb_from_normal(n: vec3<f32>) -> Onb {
     return Onb(vec3<f32>(1.0 + sign_ * n.x * n.x * a, sign_ * b, -sign_ * n.x), vec3<f32>(b, sign_ + n.y * n.y * a, -n.y), n);
 }
 
+// sampling::cos_sin_turns (tracer/src/kernel/sampling.rs:50)
+fn cos_sin_turns(t: f32) -> vec2<f32> {
+    let quarters: f32 = lp_round(t * 4.0);
+    let x: f32 = (t * 4.0 - quarters) * (0.5 * PI);
+    let x2: f32 = x * x;
+    let s: f32 = x * (1.0 + x2 * (-1.0 / 6.0 + x2 * (1.0 / 120.0 + x2 * (-1.0 / 5040.0 + x2 * (1.0 / 362880.0)))));
+    let c: f32 = 1.0 + x2 * (-0.5 + x2 * (1.0 / 24.0 + x2 * (-1.0 / 720.0 + x2 * (1.0 / 40320.0))));
+    let q: u32 = lp_f32_to_u32(quarters) & 3u;
+    if q == 0u {
+        return vec2<f32>(c, s);
+    } else if q == 1u {
+        return vec2<f32>(-s, c);
+    } else if q == 2u {
+        return vec2<f32>(-c, -s);
+    } else {
+        return vec2<f32>(s, -c);
+    }
+}
+
 // sampling::cosine_sample_hemisphere (tracer/src/kernel/sampling.rs:39)
 fn cosine_sample_hemisphere(u1: f32, u2: f32) -> vec3<f32> {
     let r: f32 = sqrt(u1);
-    let phi: f32 = 2.0 * PI * u2;
+    let cs: vec2<f32> = cos_sin_turns(u2);
     let z: f32 = sqrt(max(1.0 - u1, 0.0));
-    return vec3<f32>(r * cos(phi), r * sin(phi), z);
+    return vec3<f32>(r * cs.x, r * cs.y, z);
 }
 
-// sampling::sample_cosine_around (tracer/src/kernel/sampling.rs:52)
+// sampling::sample_cosine_around (tracer/src/kernel/sampling.rs:75)
 fn sample_cosine_around(n: vec3<f32>, u1: f32, u2: f32) -> vec3<f32> {
     return onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2));
 }

@@ -17,6 +17,27 @@ const float PI = 3.1415927;
 // sampling::INV_PI (tracer/src/kernel/sampling.rs:9)
 const float INV_PI = 0.31830987;
 
+// Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
+// f32 as u32 saturates like Rust: NaN and negatives give 0, too large gives u32::MAX.
+uint lp_f32_to_u32(float x) {
+    if (x >= 4294967296.0) {
+        return 4294967295u;
+    }
+    if (x > 0.0) {
+        return uint(x);
+    }
+    return 0u;
+}
+
+// Rust's round: halves away from zero (GLSL's round() may pick either).
+float lp_round(float x) {
+    float t = trunc(x);
+    if (abs(x - t) >= 0.5) {
+        t += sign(x);
+    }
+    return t;
+}
+
 // sampling::onb_from_normal (tracer/src/kernel/sampling.rs:21)
 Onb onb_from_normal(vec3 n) {
     float sign_ = n.z >= 0.0 ? 1.0 : -1.0;
@@ -30,25 +51,44 @@ vec3 onb_to_world(Onb onb, vec3 v) {
     return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
 }
 
+// sampling::cos_sin_turns (tracer/src/kernel/sampling.rs:50)
+vec2 cos_sin_turns(float t) {
+    float quarters = lp_round(t * 4.0);
+    float x = (t * 4.0 - quarters) * (0.5 * PI);
+    float x2 = x * x;
+    float s = x * (1.0 + x2 * (-1.0 / 6.0 + x2 * (1.0 / 120.0 + x2 * (-1.0 / 5040.0 + x2 * (1.0 / 362880.0)))));
+    float c = 1.0 + x2 * (-0.5 + x2 * (1.0 / 24.0 + x2 * (-1.0 / 720.0 + x2 * (1.0 / 40320.0))));
+    uint q = lp_f32_to_u32(quarters) & 3u;
+    if (q == 0u) {
+        return vec2(c, s);
+    } else if (q == 1u) {
+        return vec2(-s, c);
+    } else if (q == 2u) {
+        return vec2(-c, -s);
+    } else {
+        return vec2(s, -c);
+    }
+}
+
 // sampling::cosine_sample_hemisphere (tracer/src/kernel/sampling.rs:39)
 vec3 cosine_sample_hemisphere(float u1, float u2) {
     float r = sqrt(u1);
-    float phi = 2.0 * PI * u2;
+    vec2 cs = cos_sin_turns(u2);
     float z = sqrt(max(1.0 - u1, 0.0));
-    return vec3(r * cos(phi), r * sin(phi), z);
+    return vec3(r * cs.x, r * cs.y, z);
 }
 
-// sampling::cosine_hemisphere_pdf (tracer/src/kernel/sampling.rs:47)
+// sampling::cosine_hemisphere_pdf (tracer/src/kernel/sampling.rs:70)
 float cosine_hemisphere_pdf(float cos_theta) {
     return max(cos_theta, 0.0) * INV_PI;
 }
 
-// sampling::sample_cosine_around (tracer/src/kernel/sampling.rs:52)
+// sampling::sample_cosine_around (tracer/src/kernel/sampling.rs:75)
 vec3 sample_cosine_around(vec3 n, float u1, float u2) {
     return onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2));
 }
 
-// sampling::uniform_sample_triangle (tracer/src/kernel/sampling.rs:58)
+// sampling::uniform_sample_triangle (tracer/src/kernel/sampling.rs:81)
 vec2 uniform_sample_triangle(float u1, float u2) {
     float s = sqrt(u1);
     return vec2(s * (1.0 - u2), s * u2);

@@ -12,6 +12,27 @@ const PI: f32 = 3.1415927;
 // sampling::INV_PI (tracer/src/kernel/sampling.rs:9)
 const INV_PI: f32 = 0.31830987;
 
+// Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
+// f32 as u32 saturates like Rust: NaN and negatives give 0, too large gives u32::MAX.
+fn lp_f32_to_u32(x: f32) -> u32 {
+    if x >= 4294967296.0 {
+        return 4294967295u;
+    }
+    if x > 0.0 {
+        return u32(x);
+    }
+    return 0u;
+}
+
+// Rust's round: halves away from zero (WGSL's round() goes to even).
+fn lp_round(x: f32) -> f32 {
+    var t: f32 = trunc(x);
+    if abs(x - t) >= 0.5 {
+        t += sign(x);
+    }
+    return t;
+}
+
 // sampling::onb_from_normal (tracer/src/kernel/sampling.rs:21)
 fn onb_from_normal(n: vec3<f32>) -> Onb {
     let sign_: f32 = select(-1.0, 1.0, n.z >= 0.0);
@@ -25,25 +46,44 @@ fn onb_to_world(onb: Onb, v: vec3<f32>) -> vec3<f32> {
     return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
 }
 
+// sampling::cos_sin_turns (tracer/src/kernel/sampling.rs:50)
+fn cos_sin_turns(t: f32) -> vec2<f32> {
+    let quarters: f32 = lp_round(t * 4.0);
+    let x: f32 = (t * 4.0 - quarters) * (0.5 * PI);
+    let x2: f32 = x * x;
+    let s: f32 = x * (1.0 + x2 * (-1.0 / 6.0 + x2 * (1.0 / 120.0 + x2 * (-1.0 / 5040.0 + x2 * (1.0 / 362880.0)))));
+    let c: f32 = 1.0 + x2 * (-0.5 + x2 * (1.0 / 24.0 + x2 * (-1.0 / 720.0 + x2 * (1.0 / 40320.0))));
+    let q: u32 = lp_f32_to_u32(quarters) & 3u;
+    if q == 0u {
+        return vec2<f32>(c, s);
+    } else if q == 1u {
+        return vec2<f32>(-s, c);
+    } else if q == 2u {
+        return vec2<f32>(-c, -s);
+    } else {
+        return vec2<f32>(s, -c);
+    }
+}
+
 // sampling::cosine_sample_hemisphere (tracer/src/kernel/sampling.rs:39)
 fn cosine_sample_hemisphere(u1: f32, u2: f32) -> vec3<f32> {
     let r: f32 = sqrt(u1);
-    let phi: f32 = 2.0 * PI * u2;
+    let cs: vec2<f32> = cos_sin_turns(u2);
     let z: f32 = sqrt(max(1.0 - u1, 0.0));
-    return vec3<f32>(r * cos(phi), r * sin(phi), z);
+    return vec3<f32>(r * cs.x, r * cs.y, z);
 }
 
-// sampling::cosine_hemisphere_pdf (tracer/src/kernel/sampling.rs:47)
+// sampling::cosine_hemisphere_pdf (tracer/src/kernel/sampling.rs:70)
 fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
     return max(cos_theta, 0.0) * INV_PI;
 }
 
-// sampling::sample_cosine_around (tracer/src/kernel/sampling.rs:52)
+// sampling::sample_cosine_around (tracer/src/kernel/sampling.rs:75)
 fn sample_cosine_around(n: vec3<f32>, u1: f32, u2: f32) -> vec3<f32> {
     return onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2));
 }
 
-// sampling::uniform_sample_triangle (tracer/src/kernel/sampling.rs:58)
+// sampling::uniform_sample_triangle (tracer/src/kernel/sampling.rs:81)
 fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
     let s: f32 = sqrt(u1);
     return vec2<f32>(s * (1.0 - u2), s * u2);

@@ -12,8 +12,8 @@ use glam::{Vec2, Vec3};
 use tracer::kernel::intersect::{intersect_aabb, intersect_triangle, safe_inverse, TriangleHit, MISS};
 use tracer::kernel::rng::{pixel_seed, random_float, random_u32, wang_hash};
 use tracer::kernel::sampling::{
-    cosine_hemisphere_pdf, cosine_sample_hemisphere, onb_from_normal, onb_to_world, sample_cosine_around,
-    uniform_sample_triangle, INV_PI, PI,
+    cos_sin_turns, cosine_hemisphere_pdf, cosine_sample_hemisphere, onb_from_normal, onb_to_world,
+    sample_cosine_around, uniform_sample_triangle, INV_PI, PI,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -313,6 +313,24 @@ fn onb_to_world_maps_local_axes() {
 
 /// The largest value `random_float` returns.
 const BELOW_ONE: f32 = 1.0 - 1.0 / 16_777_216.0;
+
+#[test]
+fn cos_sin_turns_is_within_2e7_of_cos_and_sin() {
+    // Every quarter-turn boundary, the ends, and 2^20 + 1 evenly spaced points of [0, 1].
+    let n = 1 << 20;
+    let points = (0..=n).map(|i| i as f32 / n as f32).chain([0.125, 0.375, 0.625, 0.875, BELOW_ONE]);
+    let mut worst = 0.0f64;
+    for t in points {
+        let cs = cos_sin_turns(t);
+        let angle = std::f64::consts::TAU * t as f64;
+        let error = (cs.x as f64 - angle.cos()).abs().max((cs.y as f64 - angle.sin()).abs());
+        worst = worst.max(error);
+        assert!(error <= 2e-7, "t = {t}: ({}, {}), error {error:e}", cs.x, cs.y);
+    }
+    // Dropping the last term of either polynomial breaks the bound: 3e-7 (sine) and 4e-6
+    // (cosine) at an eighth of a turn.
+    println!("worst error {worst:e}");
+}
 
 #[test]
 fn cosine_samples_are_unit_and_in_the_hemisphere() {

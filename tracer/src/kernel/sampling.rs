@@ -38,9 +38,32 @@ pub mod sampling {
     /// (Malley's method on the polar disk mapping). Its pdf is `cos_theta / PI`.
     pub fn cosine_sample_hemisphere(u1: f32, u2: f32) -> Vec3 {
         let r = u1.sqrt();
-        let phi = 2.0 * PI * u2;
+        let cs = cos_sin_turns(u2);
         let z = (1.0 - u1).max(0.0).sqrt();
-        Vec3::new(r * phi.cos(), r * phi.sin(), z)
+        Vec3::new(r * cs.x, r * cs.y, z)
+    }
+
+    /// (cos, sin) of the angle `2π t` for t in [0, 1], within 2e-7: the quarter turn nearest
+    /// to t, then Taylor polynomials (to degree 8 and 9) on the remaining eighth of a turn at
+    /// most, rotated by the quarter turns. The same arithmetic on every target, with no call:
+    /// on a CPU, `sin`/`cos` are a library call that took 4 % of a Cornell box sample's time.
+    pub fn cos_sin_turns(t: f32) -> Vec2 {
+        let quarters = (t * 4.0).round();
+        let x = (t * 4.0 - quarters) * (0.5 * PI);
+        let x2 = x * x;
+        let s = x * (1.0 + x2 * (-1.0 / 6.0 + x2 * (1.0 / 120.0 + x2 * (-1.0 / 5040.0 + x2 * (1.0 / 362880.0)))));
+        let c = 1.0 + x2 * (-0.5 + x2 * (1.0 / 24.0 + x2 * (-1.0 / 720.0 + x2 * (1.0 / 40320.0))));
+        // Quarter turns 0 to 4 (4 is a whole turn): rotate (c, s) by 90 degrees each.
+        let q = (quarters as u32) & 3;
+        if q == 0 {
+            Vec2::new(c, s)
+        } else if q == 1 {
+            Vec2::new(-s, c)
+        } else if q == 2 {
+            Vec2::new(-c, -s)
+        } else {
+            Vec2::new(s, -c)
+        }
     }
 
     /// The solid-angle pdf of `cosine_sample_hemisphere` for a direction at `cos_theta`.
