@@ -222,35 +222,6 @@ fn strip_parens(e: &Expr) -> &Expr {
     }
 }
 
-/// Block-like values become statements (`T x; if (c) { x = a; } else { x = b; }`), except an
-/// `if` whose branches are single pure expressions: that stays a `?:` / `select`.
-fn is_block_like(e: &Expr) -> bool {
-    let e = strip_parens(e);
-    match &e.kind {
-        K::If { .. } => !is_simple_if(e),
-        K::Match { .. } | K::Block(_) => true,
-        _ => false,
-    }
-}
-
-fn is_simple_if(e: &Expr) -> bool {
-    let K::If { then, otherwise: Some(o), .. } = &strip_parens(e).kind else {
-        return false;
-    };
-    let Some(t) = then.tail.as_deref().filter(|_| then.stmts.is_empty()) else {
-        return false;
-    };
-    let o = strip_parens(o);
-    let o_tail = match &o.kind {
-        K::Block(b) if b.stmts.is_empty() => b.tail.as_deref(),
-        K::If { .. } => Some(o),
-        _ => None,
-    };
-    let simple_branch =
-        |x: &Expr| !has_effects(x) && (!matches!(strip_parens(x).kind, K::If { .. }) || is_simple_if(x));
-    matches!(o_tail, Some(ot) if simple_branch(t) && simple_branch(ot))
-}
-
 fn wrap(s: (String, u8), min: u8) -> String {
     if s.1 < min {
         format!("({})", s.0)
@@ -438,16 +409,44 @@ impl<'a> Emitter<'a> {
         Ok(())
     }
 
-    /// Whether `e` becomes statements: block-like values, and an `if` whose value is a struct
-    /// or an array. WGSL's `select` takes scalars and vectors only; GLSL ES 3.00 drivers differ
-    /// on `?:` over structs (Mesa takes it, ANGLE in Chromium fails the page's shader).
-    fn is_statement_value(&self, e: &Expr) -> bool {
-        is_block_like(e) || self.if_needs_statements(e)
+    /// Block-like values become statements (`T x; if (c) { x = a; } else { x = b; }`), except an
+    /// `if` whose branches are single pure expressions: that stays a `?:` / `select`.
+    fn is_block_like(&self, e: &Expr) -> bool {
+        let e = strip_parens(e);
+        match &e.kind {
+            K::If { .. } => !self.is_simple_if(e),
+            K::Match { .. } | K::Block(_) => true,
+            _ => false,
+        }
     }
 
-    fn if_needs_statements(&self, e: &Expr) -> bool {
-        let e = strip_parens(e);
-        matches!(e.kind, K::If { .. }) && matches!(self.types.ty(e), Ty::Struct(_) | Ty::Array(..))
+    /// An `if` that can be a `?:` / `select`: pure single-expression branches, and a scalar or
+    /// vector value. WGSL's `select` takes nothing else; GLSL ES 3.00 drivers differ on `?:`
+    /// over structs (Mesa takes it, ANGLE in Chromium fails the page's shader).
+    fn is_simple_if(&self, e: &Expr) -> bool {
+        let K::If { then, otherwise: Some(o), .. } = &strip_parens(e).kind else {
+            return false;
+        };
+        if self.is_composite(e) {
+            return false;
+        }
+        let Some(t) = then.tail.as_deref().filter(|_| then.stmts.is_empty()) else {
+            return false;
+        };
+        let o = strip_parens(o);
+        let o_tail = match &o.kind {
+            K::Block(b) if b.stmts.is_empty() => b.tail.as_deref(),
+            K::If { .. } => Some(o),
+            _ => None,
+        };
+        let simple_branch =
+            |x: &Expr| !has_effects(x) && (!matches!(strip_parens(x).kind, K::If { .. }) || self.is_simple_if(x));
+        matches!(o_tail, Some(ot) if simple_branch(t) && simple_branch(ot))
+    }
+
+    /// Whether the value of `e` is a struct or an array.
+    fn is_composite(&self, e: &Expr) -> bool {
+        matches!(self.types.ty(strip_parens(e)), Ty::Struct(_) | Ty::Array(..))
     }
 
     fn value_into(&mut self, e: &Expr, dest: &Dest) -> R<()> {
@@ -461,7 +460,7 @@ impl<'a> Emitter<'a> {
                     self.value_into(o, dest)?;
                 }
             }
-            K::If { cond, then, otherwise } if !is_simple_if(e) || self.if_needs_statements(e) => {
+            K::If { cond, then, otherwise } if !self.is_simple_if(e) => {
                 self.mark(e.span);
                 let c = self.expr(cond)?;
                 if self.glsl() {
@@ -611,9 +610,8 @@ impl<'a> Emitter<'a> {
                 let id = self.types.lets[&infer::stmt_key(s)];
                 let b = self.types.bindings[id].clone();
                 self.mark(*span);
-                let needs_var = b.mutable
-                    || matches!(b.ty, Ty::Array(..))
-                    || init.as_ref().is_none_or(|i| self.is_statement_value(i));
+                let needs_var =
+                    b.mutable || matches!(b.ty, Ty::Array(..)) || init.as_ref().is_none_or(|i| self.is_block_like(i));
                 let kw = match (self.glsl(), needs_var) {
                     (true, _) => "",
                     (false, true) => "var ",
@@ -622,7 +620,7 @@ impl<'a> Emitter<'a> {
                 let d = self.decl(&b.ty, &b.out_name);
                 match init {
                     None => self.line(&format!("{kw}{d};")),
-                    Some(init) if self.is_statement_value(init) => {
+                    Some(init) if self.is_block_like(init) => {
                         self.line(&format!("{kw}{d};"));
                         self.value_into(init, &Dest::Assign(b.out_name.clone()))?;
                     }
@@ -742,7 +740,7 @@ impl<'a> Emitter<'a> {
             K::Assign { op, place, value } => {
                 self.mark(e.span);
                 let p = self.place(place)?;
-                if self.is_statement_value(value) {
+                if self.is_block_like(value) {
                     if let Some(op) = op {
                         let t = self.types.ty(value).clone();
                         let tmp = self.fresh("value");
@@ -928,7 +926,7 @@ impl<'a> Emitter<'a> {
                 if has_effects(t) || has_effects(o_tail) {
                     return Err(self.error(span, "bind this `if` to a `let` first: its branches have side effects"));
                 }
-                if self.if_needs_statements(e) {
+                if self.is_composite(e) {
                     return Err(self.error(
                         span,
                         "bind this `if` to a `let` first: its value is a struct or an array, which `select` (WGSL) and `?:` (GLSL ES) cannot choose portably",
