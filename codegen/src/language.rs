@@ -1,0 +1,283 @@
+//! The interface between the target-independent lowering (`lower/`) and one shading language
+//! (`glsl/`, `wgsl/`, ...).
+//!
+//! The lowering decides everything that is the same in every language: which functions,
+//! structs, consts and resources are emitted and in which order, what becomes a statement and
+//! what an expression, which branches specialisation removes, names, the source map, and which
+//! divergence helper (`lp_*`) a construct needs. It writes the core that all C-family shading
+//! languages share (blocks in braces, `;`-terminated statements, `return`/`break`/`continue`,
+//! assignments, calls, field access, indexing, constructors `T(..)`, operators with C
+//! precedence) and asks a [`Language`] for everything else: type and declaration syntax,
+//! literals, conversions, pointers, control-flow headers, resource declarations and fetches,
+//! helper bodies, entry points and the harness shader.
+//!
+//! A new target is a new module with the same files as `glsl/` and `wgsl/` and an
+//! implementation of this trait; the compiler lists what it has to provide. Entry kinds grow
+//! the same way: a new kind is a new method here (with a default that refuses it, so a
+//! language that cannot express it says so) and a new [`crate::EntryPoint`] shape.
+
+use std::collections::BTreeSet;
+
+use crate::ir::BinOp;
+use crate::types::{Scalar, Ty};
+use crate::Harness;
+
+/// Semantic helpers: functions that keep the DSL's (Rust's) meaning where a language's
+/// built-in differs. The lowering or the language asks for one; the language writes its
+/// body ([`Language::helper`]). Emitted once each, in this order (dependencies first).
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) enum Helper {
+    U32ToF32,
+    I32ToF32,
+    F32ToU32,
+    F32ToI32,
+    DivI32,
+    RemI32,
+    FmodF32,
+    IsNan,
+    IsInfinite,
+    IsFinite,
+    Signum,
+    Round,
+    /// `x - trunc(x)` for the type named `ty` in the target language (helper name suffix
+    /// `suffix`).
+    Fract {
+        ty: String,
+        suffix: String,
+    },
+    LengthSquared {
+        ty: String,
+        suffix: String,
+    },
+    /// A left-to-right fold of the `n` components of a vector with `op` (`min`, `max`, `+`
+    /// or `*`).
+    Reduce {
+        op: &'static str,
+        ty: String,
+        n: u8,
+        suffix: String,
+        scalar: Scalar,
+    },
+    FetchVec4,
+    FetchUVec4,
+}
+
+/// Helpers a language asks for while writing an expression.
+pub(crate) type Helpers = BTreeSet<Helper>;
+
+/// Reinterpretations of a 32-bit value as another type (no conversion of the value).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Bitcast {
+    F32ToU32,
+    U32ToF32,
+    I32ToU32,
+    U32ToI32,
+}
+
+/// An expression's text and its precedence ([`prec`]): the lowering parenthesises an operand
+/// whose precedence is below what its context needs.
+pub(crate) type Text = (String, u8);
+
+/// Operator precedence, the same in every C-family shading language (WGSL's stricter grammar
+/// for bitwise operators and shifts is kept by the lowering's operand rules).
+pub(crate) mod prec {
+    pub const TERNARY: u8 = 3;
+    pub const LOR: u8 = 4;
+    pub const LAND: u8 = 5;
+    pub const BOR: u8 = 6;
+    pub const BXOR: u8 = 7;
+    pub const BAND: u8 = 8;
+    pub const EQ: u8 = 9;
+    pub const REL: u8 = 10;
+    pub const SHIFT: u8 = 11;
+    pub const ADD: u8 = 12;
+    pub const MUL: u8 = 13;
+    pub const UNARY: u8 = 14;
+    pub const ATOM: u8 = 16;
+
+    /// `s`, parenthesised when its precedence is below `min`.
+    pub fn wrap(s: super::Text, min: u8) -> String {
+        if s.1 < min {
+            format!("({})", s.0)
+        } else {
+            s.0
+        }
+    }
+}
+
+/// One `#[resources]` struct's fields that the emitted code uses, in declaration order.
+pub(crate) struct ResourceBlock {
+    /// The Rust struct name (`Scene`).
+    pub name: String,
+    /// Its global name in generated code (`scene`); a field's global is `{global}_{field}`.
+    pub global: String,
+    /// `Scene (file:line)`, for the comment above the declarations.
+    pub origin: String,
+    pub fields: Vec<ResourceField>,
+}
+
+pub(crate) struct ResourceField {
+    /// The Rust field name.
+    pub name: String,
+    pub kind: ResourceKind,
+}
+
+pub(crate) enum ResourceKind {
+    /// `Texels<Vec4>` (`unsigned: false`) or `Texels<UVec4>`: an array of 4-component texels.
+    Texels { unsigned: bool },
+    /// A scalar or vector set once per dispatch, with the language's type name.
+    Uniform { type_name: String },
+}
+
+/// One argument of the kernel function a harness calls: its value decoded from input words.
+pub(crate) struct HarnessArg {
+    /// The local that holds it (`lp_arg0`).
+    pub name: String,
+    pub type_name: String,
+    /// An expression building the value from the input words.
+    pub value: String,
+    /// `&mut` parameter: passed by reference, its final value is an output.
+    pub by_ref: bool,
+}
+
+/// What a language needs to write an equivalence-test harness shader (see [`Harness`]).
+pub(crate) struct HarnessShader<'h> {
+    pub layout: &'h Harness,
+    /// The kernel function's name in generated code.
+    pub function: String,
+    pub args: Vec<HarnessArg>,
+    /// The return type's name, or `None` for a function without a value.
+    pub result_type: Option<String>,
+    /// `lp_w[k] = word;` statements storing every output word (return value first, then each
+    /// `&mut` argument's final value); they read the result from `lp_result`.
+    pub stores: Vec<String>,
+}
+
+/// Everything that is one shading language's own. See the module documentation for what
+/// stays in the lowering.
+pub(crate) trait Language {
+    // ------------------------------------------------------------ names and types
+
+    /// Keywords, reserved words and built-ins a kernel name must not take (it gets a `_`).
+    fn reserved_words(&self) -> &'static [&'static str];
+    /// Prefixes the language reserves for itself (`gl_`).
+    fn reserved_prefixes(&self) -> &'static [&'static str] {
+        &[]
+    }
+    fn scalar_type(&self, s: Scalar) -> &'static str;
+    fn vector_type(&self, s: Scalar, n: u8) -> String;
+    /// The name of a type as a value (parameter type, constructor, return type). Structs are
+    /// named by [`crate::names::safe`].
+    fn type_name(&self, t: &Ty) -> String {
+        match t {
+            Ty::Scalar(s) => self.scalar_type(*s).to_string(),
+            Ty::IntVar(_) => self.scalar_type(Scalar::I32).to_string(),
+            Ty::Vector(s, n) => self.vector_type(*s, *n),
+            Ty::Struct(name) => crate::names::safe(name),
+            Ty::Array(elem, n) => self.array_type(&self.type_name(elem), *n),
+            Ty::RefMut(inner) => self.type_name(inner),
+            Ty::Unit | Ty::Never => "void".into(),
+            Ty::Texels(_) | Ty::Resource(_) => "<resource>".into(),
+        }
+    }
+    fn array_type(&self, elem: &str, n: u32) -> String;
+    /// A typed name: a struct field, a parameter, the part of a local declaration after its
+    /// keyword.
+    fn decl(&self, t: &Ty, name: &str) -> String;
+    /// A local binding without its initialiser: `T name` / `var name: T` / `let name: T`.
+    fn local(&self, t: &Ty, name: &str, mutable: bool) -> String;
+    fn struct_decl(&self, name: &str, field_decls: &[String]) -> String;
+    fn const_decl(&self, decl: &str, value: &str) -> String;
+
+    // ------------------------------------------------------------ functions
+
+    /// The function's first line, ending in `{`.
+    fn function_head(&self, name: &str, params: &[String], ret: &Ty) -> String;
+    /// A `&mut T` parameter.
+    fn ref_param(&self, t: &Ty, name: &str) -> String;
+    /// Whether a by-value parameter must be copied into a local to be assigned or indexed
+    /// (the lowering then declares the parameter under another name and copies it).
+    fn param_needs_copy(&self, t: &Ty, mutable: bool) -> bool;
+
+    // ------------------------------------------------------------ statements
+
+    /// `if (c) {` / `if c {` (an `else if` is `} else ` followed by this).
+    fn if_head(&self, cond: &str) -> String;
+    fn while_head(&self, cond: &str) -> String;
+    fn loop_head(&self) -> String;
+    /// `for` over `start..end` (`cmp` is `<` or `<=`) with the loop variable `var` of type
+    /// `type_name`.
+    fn for_range_head(&self, var: &str, type_name: &str, start: &str, cmp: &str, end: &str) -> String;
+    /// A statement evaluating `value` for its effects; `used` when it is neither a call nor of
+    /// unit type (some languages reject an unused value).
+    fn discard(&self, value: &str, used: bool) -> String;
+    /// Whether locals start zeroed (a `[0; N]` initialiser then needs no code).
+    fn locals_start_zeroed(&self) -> bool;
+    /// A statement setting each of the `len` elements of `array` to `value`, with `index` as
+    /// the loop variable.
+    fn fill_array(&self, array: &str, len: u32, index: &str, value: &str) -> String;
+
+    // ------------------------------------------------------------ expressions
+
+    /// An integer literal of a signed (`unsigned: false`) or unsigned 32-bit type.
+    fn int_literal(&self, digits: &str, unsigned: bool) -> String;
+    /// The amount of a shift by a literal (`rhs_ty` its type in Rust).
+    fn shift_amount(&self, amount: Text, rhs_ty: &Ty) -> Text;
+    fn bitcast(&self, b: Bitcast) -> &'static str;
+    /// `*p` of a `&mut` parameter.
+    fn deref(&self, pointer: Text) -> Text;
+    /// `&mut place` passed to a `&mut` parameter.
+    fn address_of(&self, place: Text) -> Text;
+    /// A `&mut` value used as its target (fields, indexing, method receivers).
+    fn auto_deref(&self, pointer: Text) -> Text;
+    /// `if c { a } else { b }` as an expression.
+    fn select(&self, cond: Text, then: Text, otherwise: Text) -> Text;
+    /// A constructor of the all-zero value of `type_name`, if the language has one.
+    fn zero_value(&self, type_name: &str) -> Option<String>;
+    /// A language spelling for a binary operation, or `Ok(None)` for the C operator; `Err`
+    /// for one the language cannot express (the message says what to write instead).
+    fn binary(
+        &self,
+        op: BinOp,
+        l: &Text,
+        lt: &Ty,
+        r: &Text,
+        rt: &Ty,
+        helpers: &mut Helpers,
+    ) -> Result<Option<Text>, String>;
+    /// The name of a built-in function where it differs from the common one (`atan2`).
+    fn builtin(&self, name: &'static str) -> &'static str {
+        name
+    }
+    /// Field `field` of resource struct global `global`.
+    fn resource_field(&self, global: &str, field: &str, texels: bool) -> String;
+    /// Texel `index` of the texel array `texels`.
+    fn fetch(&self, texels: &str, index: &str, unsigned: bool, helpers: &mut Helpers) -> String;
+
+    // ------------------------------------------------------------ the file around the functions
+
+    /// The first lines: version, the `header` comment, precision and the like.
+    fn preamble(&self, header: &str) -> String;
+    fn resources(&self, blocks: &[ResourceBlock]) -> String;
+    fn helper(&self, h: &Helper) -> String;
+    /// The entry point around `fn(&Resources, x: u32, y: u32) -> Vec4` named `function` (see
+    /// [`crate::EntryPoint`]).
+    fn pixel_entry(&self, function: &str) -> String;
+
+    // ------------------------------------------------------------ the equivalence harness
+
+    /// Input word `k` of the current invocation.
+    fn harness_word(&self, k: u32) -> String;
+    /// A scalar of type `s` from the input word `word`.
+    fn decode_word(&self, s: Scalar, word: &str) -> String {
+        match s {
+            Scalar::F32 => format!("{}({word})", self.bitcast(Bitcast::U32ToF32)),
+            Scalar::I32 => format!("{}({word})", self.bitcast(Bitcast::U32ToI32)),
+            Scalar::Bool => format!("({word} != 0u)"),
+            Scalar::U32 | Scalar::USize => word.to_string(),
+        }
+    }
+    /// The output word of a scalar `value` of type `s`.
+    fn encode_word(&self, s: Scalar, value: &str) -> String;
+    fn harness_shader(&self, h: &HarnessShader) -> String;
+}
