@@ -139,6 +139,20 @@ fn the_subset_module_generates_valid_glsl_and_wgsl() {
 }
 
 #[test]
+fn the_header_says_how_to_regenerate_only_when_the_caller_says_so() {
+    let program = Program::link(&[subset::kernel_ir()]).unwrap();
+    for target in [Target::GlslEs300, Target::Wgsl] {
+        let plain = program.emit(target, &Selection::default()).unwrap().source;
+        let header = plain.lines().find(|l| l.starts_with("// Generated")).expect("a header line");
+        assert!(header.ends_with("(modules: subset). Do not edit."), "{header}");
+        assert!(!plain.contains("cargo run"), "a user's shader names no command of this repository");
+        let selection = Selection { regenerate: Some("run `make shaders`".into()), ..Selection::default() };
+        let noted = program.emit(target, &selection).unwrap().source;
+        assert!(noted.contains("(modules: subset). Do not edit: run `make shaders`.\n"), "{noted}");
+    }
+}
+
+#[test]
 fn the_subset_module_runs_on_the_cpu() {
     let data = subset::Data {
         texels: kernel_dsl::Texels::new(vec![glam::Vec4::ONE; 4]),

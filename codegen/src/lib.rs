@@ -108,6 +108,9 @@ pub struct Selection {
     pub entry: Option<EntryPoint>,
     /// Also emit an equivalence-test harness around a kernel function (see [`Harness`]).
     pub harness: Option<String>,
+    /// How the file is regenerated, for its header (`Do not edit: {regenerate}.`), e.g.
+    /// "regenerate with `cargo run -- shaders`". None: the header only says not to edit it.
+    pub regenerate: Option<String>,
 }
 
 /// The layout of a generated equivalence-test harness: a `main` that calls one kernel
@@ -187,6 +190,7 @@ impl Selection {
             specialize,
             entry: Some(EntryPoint { function: function.to_string() }),
             harness: None,
+            regenerate: None,
         }
     }
 

@@ -67,9 +67,22 @@ pub fn path_tracer_shader(
     features: &crate::pack::Features,
     target: lightport_codegen::Target,
 ) -> Result<lightport_codegen::Generated, ShaderError> {
+    path_tracer_shader_for(features, target, None)
+}
+
+/// [`path_tracer_shader`], with `regenerate` (how the file is regenerated) in its header.
+fn path_tracer_shader_for(
+    features: &crate::pack::Features,
+    target: lightport_codegen::Target,
+    regenerate: Option<&str>,
+) -> Result<lightport_codegen::Generated, ShaderError> {
     use lightport_codegen::{Program, Selection};
     let program = Program::link(&modules())?;
-    let generated = program.emit(target, &Selection::entry("render_sample", features.specialization()))?;
+    let selection = Selection {
+        regenerate: regenerate.map(str::to_string),
+        ..Selection::entry("render_sample", features.specialization())
+    };
+    let generated = program.emit(target, &selection)?;
     #[cfg(feature = "validate")]
     lightport_codegen::validate::validate(&generated)?;
     Ok(generated)
@@ -94,7 +107,8 @@ pub fn generated_shaders() -> Result<Vec<GeneratedFile>, ShaderError> {
     let mut files = Vec::new();
     for module in program.module_names() {
         for target in [Target::GlslEs300, Target::Wgsl] {
-            let generated = program.emit(target, &Selection::module(&program, &module))?;
+            let selection = Selection { regenerate: Some(REGENERATE.into()), ..Selection::module(&program, &module) };
+            let generated = program.emit(target, &selection)?;
             lightport_codegen::validate::validate(&generated)?;
             files.push(GeneratedFile { name: format!("{module}.{}", target.extension()), source: generated.source });
         }
@@ -103,13 +117,17 @@ pub fn generated_shaders() -> Result<Vec<GeneratedFile>, ShaderError> {
     let variants = [("path_tracer", crate::pack::Features::all()), ("path_tracer_cornell", cornell_features())];
     for (name, features) in variants {
         for target in [Target::GlslEs300, Target::Wgsl] {
-            let generated = path_tracer_shader(&features, target)?;
+            let generated = path_tracer_shader_for(&features, target, Some(REGENERATE))?;
             let ext = if target == Target::GlslEs300 { "frag.glsl" } else { "wgsl" };
             files.push(GeneratedFile { name: format!("{name}.{ext}"), source: generated.source });
         }
     }
     Ok(files)
 }
+
+/// How `shaders-generated/` is regenerated, for the header of its files.
+#[cfg(feature = "validate")]
+const REGENERATE: &str = "regenerate with `cargo run -- shaders`";
 
 /// What the built-in Cornell box uses: emissive triangles only.
 #[cfg(feature = "validate")]
