@@ -193,15 +193,17 @@ fn webgl2_compile_times(fragments: &[(String, String)], repeats: u32) -> Result<
         fragments.iter().map(|(name, source)| serde_json::json!({ "name": name, "source": source })).collect();
     let input = serde_json::json!({ "vertex": lightport_codegen::fullscreen_vertex_shader(), "fragments": fragments });
     std::fs::write(&shaders, serde_json::to_vec(&input)?)?;
-    let status = Command::new("node")
-        .current_dir(root.join("tests/web"))
-        .args(["run.mjs", "compile", "--url", &url, "--repeats", &repeats.to_string(), "--deadline", "3000"])
-        .arg("--shaders")
-        .arg(&shaders)
-        .arg("--out")
-        .arg(&report)
-        .status()
-        .context("running node (apt-get install nodejs npm)");
+    let status = serve_child::run_tied(
+        Command::new("node")
+            .current_dir(root.join("tests/web"))
+            .args(["run.mjs", "compile", "--url", &url, "--repeats", &repeats.to_string(), "--deadline", "3000"])
+            .arg("--shaders")
+            .arg(&shaders)
+            .arg("--out")
+            .arg(&report)
+            .arg("--exit-on-stdin-eof"),
+    )
+    .context("running node (apt-get install nodejs npm)");
     let _ = std::fs::remove_file(&shaders);
     let status = status?;
     anyhow::ensure!(status.success(), "tests/web/run.mjs compile failed ({status})");

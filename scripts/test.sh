@@ -47,5 +47,15 @@ step "generated shaders are fresh"
 cargo run -q -- shaders --check >/dev/null || cargo run -q -- shaders --check
 
 step "tests"
-cargo test --workspace --all-targets
-cargo test --workspace --doc
+# Every process the tests start carries this marker in its environment, so that any left running
+# afterwards is found (scripts/leftover-processes.sh), whether the tests passed or not.
+session="$$-$(date +%s%N)"
+status=0
+LIGHTPORT_TEST_SESSION=$session cargo test --workspace --all-targets || status=$?
+if [ "$status" -eq 0 ]; then
+    LIGHTPORT_TEST_SESSION=$session cargo test --workspace --doc || status=$?
+fi
+
+step "no process outlives the tests"
+scripts/leftover-processes.sh "$session" || status=1
+exit "$status"

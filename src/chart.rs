@@ -843,14 +843,14 @@ mod web {
                 .arg(&bundle)
                 .arg("--out")
                 .arg(&report)
-                .env("CHROMIUM", &tools.chromium)
-                .stdin(Stdio::null());
+                .arg("--exit-on-stdin-eof")
+                .env("CHROMIUM", &tools.chromium);
             let start = Instant::now();
-            let mut driver = Killed(command.spawn().context("starting node tests/web/run.mjs")?);
+            let mut driver = Killed::spawn_tied(&mut command).context("starting node tests/web/run.mjs")?;
             // The driver gives up by itself at the deadline (closing the browser); this is the
             // backstop should node itself hang.
             let status = loop {
-                if let Some(status) = driver.0.try_wait()? {
+                if let Some(status) = driver.child().try_wait()? {
                     break status;
                 }
                 if start.elapsed() > deadline + Duration::from_secs(30) {

@@ -96,6 +96,10 @@ pub struct ServeArgs {
     /// Seconds a client has to send each request head.
     #[arg(long, default_value_t = 10.0)]
     timeout: f64,
+    /// Exit when stdin reaches its end: for a parent (a test, `lightport chart`) that holds the
+    /// other end of a pipe, which the kernel closes when the parent ends however it ends.
+    #[arg(long)]
+    exit_on_stdin_eof: bool,
 }
 
 /// One response body, ready to send.
@@ -158,6 +162,9 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
     if !(args.timeout.is_finite() && args.timeout > 0.0 && args.timeout <= 3600.0) {
         bail!("--timeout must be between 0 and 3600 seconds");
     }
+    if args.exit_on_stdin_eof {
+        exit_on_stdin_eof();
+    }
     let mut routes = HashMap::new();
     let reports = add_scenes(args, &mut routes)?;
     add_assets(&args.web, &mut routes)?;
@@ -188,6 +195,17 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
     println!("serving {} scene(s) at http://{addr}/", reports.len());
     std::io::stdout().flush()?;
     run(listener, site)
+}
+
+/// Ends the process when stdin reaches its end (or fails): started before the scenes load, so
+/// that a parent that ends during a long start-up leaves nothing behind either.
+fn exit_on_stdin_eof() {
+    std::thread::spawn(|| {
+        let _ = std::io::copy(&mut std::io::stdin().lock(), &mut std::io::sink());
+        // Not eprintln!: it panics when stderr is a pipe whose reader (the parent) is gone.
+        let _ = writeln!(std::io::stderr(), "stdin closed (--exit-on-stdin-eof): exiting");
+        std::process::exit(0);
+    });
 }
 
 /// Loads, builds, packs, encodes and compresses every scene; all failures are reported together.

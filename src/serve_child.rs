@@ -1,41 +1,84 @@
-//! `lightport serve --port 0` as a child process, for what drives the web page: `lightport
-//! chart`'s web line, `examples/feature_sizes.rs` and `tests/web.rs`. It is started, its URL is
-//! read from its output, its output keeps being drained (a full pipe would block the server),
-//! and it is killed when dropped. The `lightport` package has no library, so the example and the
-//! test include this file with `#[path]`; it needs only `std` and `anyhow`.
+//! Child processes that end with their parent, and `lightport serve --port 0` as one, for what
+//! drives the web page: `lightport chart`'s web line, `examples/feature_sizes.rs`, `tests/web.rs`
+//! and `tests/export.rs`. The `lightport` package has no library, so the example and the tests
+//! include this file with `#[path]`; it needs only `std` and `anyhow`.
+//!
+//! # Why a stdin pipe
+//! A child started here gets a pipe as its stdin whose write end only this process holds (std
+//! opens pipes close-on-exec, so no other child inherits it), and the child is told to exit at
+//! end of file (`lightport serve --exit-on-stdin-eof`, `tests/web/run.mjs --exit-on-stdin-eof`).
+//! The kernel closes that end whenever this process ends, however it ends: a test that panics,
+//! a test binary that returns with a child in a `static` (statics are never dropped), `exit`,
+//! abort or `SIGKILL`. Dropping a [`Killed`] also kills the child at once. `PR_SET_PDEATHSIG`
+//! was the alternative and is not used for our own children: it fires when the *thread* that
+//! spawned the child ends (each Rust test runs on its own thread, so a server shared through a
+//! `static` would die with the first test), it is Linux-only, and it is lost across a set-uid
+//! exec. It serves for programs that cannot watch a pipe (nginx in tests/export.rs), owned by
+//! one test's thread.
+
+// Each includer uses a different part of this file.
+#![allow(dead_code)]
 
 use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, ChildStdin, Command, ExitStatus, Stdio};
 use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 
-/// A child process killed (and waited for) when dropped.
-pub struct Killed(pub Child);
+/// A child process killed (and waited for) when dropped; its stdin is a pipe held open until
+/// then, so a child that exits at end of file on stdin also ends when this process ends.
+pub struct Killed {
+    child: Child,
+    _lifeline: Option<ChildStdin>,
+}
+
+impl Killed {
+    /// Spawns `command` with a stdin pipe that only this process holds (see the module docs):
+    /// the child must exit at end of file on its stdin to end with this process.
+    pub fn spawn_tied(command: &mut Command) -> std::io::Result<Killed> {
+        let mut child = command.stdin(Stdio::piped()).spawn()?;
+        let lifeline = child.stdin.take();
+        Ok(Killed { child, _lifeline: lifeline })
+    }
+
+    pub fn child(&mut self) -> &mut Child {
+        &mut self.child
+    }
+
+    /// Waits for the child to exit (the pipe stays open until then).
+    pub fn wait(mut self) -> std::io::Result<ExitStatus> {
+        self.child.wait()
+    }
+}
 
 impl Drop for Killed {
     fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
+        let _ = self.child.kill();
+        let _ = self.child.wait();
     }
+}
+
+/// Runs `command` as [`Killed::spawn_tied`] does and waits for it.
+pub fn run_tied(command: &mut Command) -> std::io::Result<ExitStatus> {
+    Killed::spawn_tied(command)?.wait()
 }
 
 /// Starts `exe serve --port 0 ARGS` and waits up to `timeout` for the URL it prints. Its stderr
 /// is passed on to ours when `echo_stderr`; either way, the error for a server that prints no
-/// URL quotes its first lines.
+/// URL quotes its first lines. The server's output keeps being drained (a full pipe would
+/// block it); it exits when the returned handle is dropped or this process ends.
 pub fn start_serve(exe: &Path, args: &[&str], timeout: Duration, echo_stderr: bool) -> Result<(Killed, String)> {
-    let mut child = Command::new(exe)
-        .args(["serve", "--port", "0"])
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .with_context(|| format!("starting {} serve", exe.display()))?;
-    let stdout = child.stdout.take().context("the server's stdout")?;
-    let stderr = child.stderr.take().context("the server's stderr")?;
-    let server = Killed(child);
+    let mut server = Killed::spawn_tied(
+        Command::new(exe)
+            .args(["serve", "--port", "0", "--exit-on-stdin-eof"])
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped()),
+    )
+    .with_context(|| format!("starting {} serve", exe.display()))?;
+    let stdout = server.child().stdout.take().context("the server's stdout")?;
+    let stderr = server.child().stderr.take().context("the server's stderr")?;
     let (sender, receiver) = std::sync::mpsc::channel();
     std::thread::spawn(move || {
         let mut sent = false;

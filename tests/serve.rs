@@ -7,7 +7,7 @@
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, ChildStdin, Command, Stdio};
 use std::sync::{mpsc, Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
@@ -17,6 +17,10 @@ const SERVER_TIMEOUT_S: u64 = 2;
 
 struct Server {
     child: Child,
+    /// The server's stdin (`--exit-on-stdin-eof`): the kernel closes it when this test binary
+    /// ends, however it ends, and the server exits then, also the one in a `static`, which is
+    /// never dropped.
+    lifeline: Option<ChildStdin>,
     port: u16,
     /// The page directory given to the server (kept alive as long as the server).
     _web: TempDir,
@@ -93,12 +97,14 @@ fn start(args: &[&str], web: TempDir) -> Result<Server, (Option<i32>, String)> {
     let mut child = Command::new(env!("CARGO_BIN_EXE_lightport"))
         .arg("serve")
         .args(args)
-        .args(["--port", "0", "--timeout", &SERVER_TIMEOUT_S.to_string(), "--web"])
+        .args(["--port", "0", "--timeout", &SERVER_TIMEOUT_S.to_string(), "--exit-on-stdin-eof", "--web"])
         .arg(&web.0)
+        .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .expect("start lightport");
+    let lifeline = child.stdin.take().unwrap();
     let (tx, rx) = mpsc::channel();
     let stdout = child.stdout.take().unwrap();
     std::thread::spawn(move || {
@@ -133,7 +139,7 @@ fn start(args: &[&str], web: TempDir) -> Result<Server, (Option<i32>, String)> {
                 if let Some(rest) = line.strip_prefix("serving ") {
                     let url = rest.rsplit(' ').next().unwrap();
                     let port = url.trim_end_matches('/').rsplit(':').next().unwrap().parse().unwrap();
-                    return Ok(Server { child, port, _web: web, stderr, startup });
+                    return Ok(Server { child, lifeline: Some(lifeline), port, _web: web, stderr, startup });
                 }
                 startup.push(line);
             }
@@ -510,4 +516,21 @@ fn names_are_unique_and_start_up_prints_the_sizes() {
             [&scene["triangles"], &scene["bytes"]["raw"], &scene["bytes"]["gzip"]].map(|v| v.to_string())
         );
     }
+}
+
+#[test]
+fn the_server_exits_when_its_parent_ends() {
+    let mut s = start(&[], web_dir(false)).unwrap_or_else(|(code, err)| panic!("serve exited ({code:?}): {err}"));
+    // What the kernel does to the pipe when this process ends, however it ends.
+    drop(s.lifeline.take());
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        if let Some(status) = s.child.try_wait().unwrap() {
+            assert!(status.success(), "{status}");
+            break;
+        }
+        assert!(Instant::now() < deadline, "the server still runs 10 s after its stdin closed");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(s.stderr_contains("stdin closed"), "{}", s.stderr.lock().unwrap());
 }

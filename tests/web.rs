@@ -75,11 +75,11 @@ fn browse(server: &Server, scenario: &str, options: &[(&str, &str)]) -> Value {
     let _guard = BROWSER.lock().unwrap_or_else(|e| e.into_inner());
     let mut command = Command::new("node");
     command.current_dir(&web_tests).arg("run.mjs").arg(scenario).args(["--url", &server.url]);
-    command.arg("--out").arg(&out);
+    command.arg("--out").arg(&out).arg("--exit-on-stdin-eof");
     for (k, v) in options {
         command.arg(format!("--{k}")).arg(v);
     }
-    let status = command.status().expect("node runs (apt-get install nodejs npm)");
+    let status = serve_child::run_tied(&mut command).expect("node runs (apt-get install nodejs npm)");
     assert!(status.success(), "tests/web/run.mjs {scenario} failed ({status}); see its output above");
     let text = std::fs::read_to_string(&out).expect("the scenario's report");
     let _ = std::fs::remove_file(&out);

@@ -6,7 +6,10 @@
 //
 // Scenarios: accumulate, cache, camera, drop, limits, context, bench, chart, compile (see each
 // function). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
-// long, so that a hung page never hangs the caller.
+// long, so that a hung page never hangs the caller. `--exit-on-stdin-eof` (no value): exit 4,
+// closing the browser, when stdin reaches its end: the caller holds the pipe's other end, which
+// the kernel closes when the caller ends however it ends (src/serve_child.rs), so neither this
+// driver nor its browser outlives a test binary that panics, aborts or is killed.
 
 import { chromium } from 'playwright-core';
 import { mkdtempSync, rmSync, writeFileSync, readFileSync } from 'node:fs';
@@ -26,6 +29,11 @@ function parseArgs(argv) {
   const options = { scenario };
   for (let i = 0; i < rest.length; i += 2) {
     if (!rest[i].startsWith('--')) throw new Error(`unexpected argument ${rest[i]}`);
+    if (rest[i] === '--exit-on-stdin-eof') {
+      options.exitOnStdinEof = true;
+      i -= 1;
+      continue;
+    }
     options[rest[i].slice(2)] = rest[i + 1];
   }
   for (const required of ['url', 'out']) {
@@ -422,6 +430,17 @@ if (options.deadline !== undefined) {
     process.exit(3);
   }, seconds * 1000).unref();
 }
+if (options.exitOnStdinEof) {
+  // process.exit runs playwright's exit handler, which kills the browser's process group.
+  const orphaned = () => {
+    console.error(`run.mjs ${options.scenario}: stdin closed (the caller ended): exiting`);
+    process.exit(4);
+  };
+  process.stdin.on('end', orphaned);
+  process.stdin.on('error', orphaned);
+  process.stdin.resume();
+  process.stdin.unref();
+}
 try {
   const result = await run(options);
   writeFileSync(options.out, JSON.stringify(result));
@@ -429,3 +448,4 @@ try {
   console.error(e && e.stack ? e.stack : String(e));
   process.exit(1);
 }
+process.exit(0);
