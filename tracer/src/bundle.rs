@@ -45,6 +45,8 @@ pub const MAX_BUNDLE_BYTES: u64 = 1 << 30;
 pub const EXTENSION: &str = "lpb";
 
 const HEADER_BYTES: usize = 8 + 4 + 4 + 8;
+/// The longest path a bundle may ask for (the page's depth control goes as far).
+pub const MAX_DEPTH: u32 = 64;
 const ALIGN: usize = 16;
 const NAME_FIELD: &str = "meta.name";
 const KERNEL_FIELD: &str = "meta.kernel";
@@ -156,6 +158,37 @@ fn check_consistency(p: &Packed) -> Result<(), BundleError> {
     let fail = |what: String| Err(BundleError::Inconsistent(what));
     if !(1..=16384).contains(&s.width) || !(1..=16384).contains(&s.height) {
         return fail(format!("image size {}x{} (each side must be 1..=16384)", s.width, s.height));
+    }
+    // Uniforms the kernel takes as they are: a NaN scale or camera, an unbounded depth or an
+    // unknown strategy would make every sample NaN, or a frame never end (found by fuzzing).
+    let vectors = [
+        ("camera_position", s.camera_position),
+        ("camera_right", s.camera_right),
+        ("camera_up", s.camera_up),
+        ("camera_forward", s.camera_forward),
+    ];
+    if let Some((name, v)) = vectors.iter().find(|(_, v)| !v.is_finite()) {
+        return fail(format!("{name} {v} is not finite"));
+    }
+    let scalars = [
+        ("lens_radius", s.lens_radius, 0.0),
+        ("focus_distance", s.focus_distance, f32::MIN_POSITIVE),
+        ("sky_intensity", s.sky_intensity, 0.0),
+        ("sky_rotation", s.sky_rotation, f32::MIN),
+        ("scene_scale", s.scene_scale, 0.0),
+    ];
+    if let Some((name, v, min)) = scalars.iter().find(|(_, v, min)| !(v.is_finite() && v >= min)) {
+        return fail(format!("{name} is {v} (must be finite and at least {min})"));
+    }
+    if !(1..=MAX_DEPTH).contains(&s.max_depth) {
+        return fail(format!("max_depth {} (must be 1..={MAX_DEPTH})", s.max_depth));
+    }
+    if s.strategy > crate::kernel::scene_data::STRATEGY_MIS {
+        return fail(format!("strategy {} (0, 1 or 2)", s.strategy));
+    }
+    let stack = crate::kernel::traverse::STACK_SIZE as u32;
+    if s.leaf_stack_limit > stack {
+        return fail(format!("leaf_stack_limit {} is above the traversal stack ({stack})", s.leaf_stack_limit));
     }
     if Some(s.triangles.len()) != p.triangle_count.checked_mul(TRIANGLE_TEXELS as usize) {
         return fail(format!("{} triangle texels for {} triangles", s.triangles.len(), p.triangle_count));

@@ -66,7 +66,8 @@ use glam::{Vec2, Vec3};
 
 pub use generate::{cornell_box, diffuse_plane, terrain_and_spheres, white_furnace};
 pub use gltf_loader::load_gltf_slice;
-pub use sky::load_sky;
+pub use obj_loader::load_obj_slice;
+pub use sky::{load_sky, load_sky_slice, SkyFormat};
 pub use texture::{srgb_to_linear, srgba8_to_linear, TextureTexels};
 
 /// Most triangles a loaded scene may have after instancing (each [`Triangle`] is 100 bytes,

@@ -28,17 +28,39 @@ pub(crate) fn load_obj(path: &Path, options: &LoadOptions) -> Result<Scene, Scen
         Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
         _ => PathBuf::from("."),
     };
+    load_obj_from(&bytes, path, &|name| read_file(&dir.join(name)), options)
+}
+
+/// Loads an OBJ from memory. `read` supplies the files it names (MTL libraries from `mtllib`,
+/// texture maps from the MTL), given their path relative to the OBJ's folder as written in the
+/// file (backslashes turned into slashes); return [`SceneError::Io`] for a missing file.
+/// `name` names the OBJ in errors.
+pub fn load_obj_slice(
+    bytes: &[u8],
+    name: &str,
+    read: &dyn Fn(&Path) -> Result<Vec<u8>, SceneError>,
+    options: &LoadOptions,
+) -> Result<Scene, SceneError> {
+    load_obj_from(bytes, Path::new(name), read, options)
+}
+
+fn load_obj_from(
+    bytes: &[u8],
+    path: &Path,
+    read: &dyn Fn(&Path) -> Result<Vec<u8>, SceneError>,
+    options: &LoadOptions,
+) -> Result<Scene, SceneError> {
     let obj_error = |message: String| SceneError::Obj { path: path.to_owned(), message };
     let mtl_failure: RefCell<Option<SceneError>> = RefCell::new(None);
     let parse_options =
         tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
     let parsed = catch_decoder_panic(|| {
-        tobj::load_obj_buf(&mut Cursor::new(&bytes), &parse_options, |mtl| {
-            let full = dir.join(mtl);
-            let result = read_file(&full).and_then(|b| {
+        tobj::load_obj_buf(&mut Cursor::new(bytes), &parse_options, |mtl| {
+            let result = read(mtl).and_then(|b| {
+                check_mtl_colours(&b).map_err(|message| SceneError::Obj { path: mtl.to_owned(), message })?;
                 catch_decoder_panic(|| tobj::load_mtl_buf(&mut Cursor::new(b)))
                     .unwrap_or(Err(tobj::LoadError::GenericFailure))
-                    .map_err(|e| SceneError::Obj { path: full.clone(), message: e.to_string() })
+                    .map_err(|e| SceneError::Obj { path: mtl.to_owned(), message: e.to_string() })
             });
             result.map_err(|e| {
                 mtl_failure.borrow_mut().get_or_insert(e);
@@ -58,7 +80,7 @@ pub(crate) fn load_obj(path: &Path, options: &LoadOptions) -> Result<Scene, Scen
     let mut texture_cache: HashMap<String, Option<u32>> = HashMap::new();
     let mut materials = Vec::with_capacity(mtl_materials.len() + 1);
     for m in &mtl_materials {
-        materials.push(convert_material(m, &dir, &mut textures, &mut texture_cache, &mut warnings, options)?);
+        materials.push(convert_material(m, read, &mut textures, &mut texture_cache, &mut warnings, options)?);
     }
     let mut default_material = None;
 
@@ -139,6 +161,21 @@ pub(crate) fn load_obj(path: &Path, options: &LoadOptions) -> Result<Scene, Scen
     Ok(scene)
 }
 
+/// Refuses MTL colour statements with fewer than three values (`Kd 0.5 0`), on which tobj
+/// 4 panics (`parse_float3` unwraps); found by fuzzing. Other lines are tobj's to judge.
+fn check_mtl_colours(mtl: &[u8]) -> Result<(), String> {
+    for (n, line) in String::from_utf8_lossy(mtl).lines().enumerate() {
+        let mut words = line.split_whitespace();
+        if let Some(key @ ("Ka" | "Kd" | "Ks" | "Ke")) = words.next() {
+            let values = words.count();
+            if values < 3 {
+                return Err(format!("line {}: {key} needs three values (r g b), found {values}", n + 1));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// The MTL textures, probed (each image is one texture), decoded once the materials are read.
 #[derive(Default)]
 struct Textures {
@@ -148,7 +185,7 @@ struct Textures {
 
 fn convert_material(
     m: &tobj::Material,
-    dir: &Path,
+    read: &dyn Fn(&Path) -> Result<Vec<u8>, SceneError>,
     textures: &mut Textures,
     cache: &mut HashMap<String, Option<u32>>,
     warnings: &mut Warnings,
@@ -182,11 +219,11 @@ fn convert_material(
         warnings.once("MTL bump", || "MTL bump and normal maps are not supported: they are ignored".into());
     }
     let base_color_texture = match &m.diffuse_texture {
-        Some(t) => texture(t, dir, textures, cache, warnings, options)?,
+        Some(t) => texture(t, read, textures, cache, warnings, options)?,
         None => None,
     };
     let emissive_texture = match m.unknown_param.get("map_Ke") {
-        Some(t) if emission.max_element() > 0.0 => texture(t, dir, textures, cache, warnings, options)?,
+        Some(t) if emission.max_element() > 0.0 => texture(t, read, textures, cache, warnings, options)?,
         _ => None,
     };
     Ok(Material { name: m.name.clone(), base_color, base_color_texture, emission, emissive_texture })
@@ -196,7 +233,7 @@ fn convert_material(
 /// skipped with a warning; the file name is the last word.
 fn texture(
     spec: &str,
-    dir: &Path,
+    read: &dyn Fn(&Path) -> Result<Vec<u8>, SceneError>,
     textures: &mut Textures,
     cache: &mut HashMap<String, Option<u32>>,
     warnings: &mut Warnings,
@@ -213,12 +250,13 @@ fn texture(
     if let Some(&t) = cache.get(file) {
         return Ok(t);
     }
-    let path = dir.join(file.replace('\\', "/"));
-    let bytes = match read_file(&path) {
+    let path = PathBuf::from(file.replace('\\', "/"));
+    let bytes = match read(&path) {
         Ok(bytes) => bytes,
-        Err(SceneError::Io { .. }) if options.allow_missing_textures => {
-            let key = format!("missing image {}", path.display());
-            warnings.once(&key, || format!("image file {} is missing: textures using it are dropped", path.display()));
+        Err(SceneError::Io { path: missing, .. }) if options.allow_missing_textures => {
+            let key = format!("missing image {}", missing.display());
+            warnings
+                .once(&key, || format!("image file {} is missing: textures using it are dropped", missing.display()));
             cache.insert(file.to_owned(), None);
             return Ok(None);
         }

@@ -16,22 +16,51 @@ use super::{SceneError, Sky, MAX_IMAGE_TEXELS, MAX_RADIANCE};
 /// infinite or huge texel is an error naming it, not something silently clamped: it means a
 /// broken file); negative values (which some EXR tools produce) are clamped to zero.
 pub fn load_sky(path: &Path, intensity: f32, rotation: f32) -> Result<Sky, SceneError> {
+    check_parameters(intensity, rotation)?;
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
+    let format = match ext.as_str() {
+        "hdr" => SkyFormat::Hdr,
+        "exr" => SkyFormat::Exr,
+        _ => return Err(SceneError::UnsupportedFileType(ext)),
+    };
+    let bytes = read_file(path)?;
+    load_sky_slice(&bytes, format, &path.display().to_string(), intensity, rotation)
+}
+
+/// The file formats a sky is read from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SkyFormat {
+    /// Radiance RGBE (`.hdr`).
+    Hdr,
+    /// OpenEXR (`.exr`).
+    Exr,
+}
+
+fn check_parameters(intensity: f32, rotation: f32) -> Result<(), SceneError> {
     if !(intensity.is_finite() && intensity >= 0.0) {
         return Err(SceneError::InvalidParameter(format!("sky intensity must be finite and >= 0, got {intensity}")));
     }
     if !rotation.is_finite() {
         return Err(SceneError::InvalidParameter(format!("sky rotation must be finite, got {rotation}")));
     }
-    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
-    let format = match ext.as_str() {
-        "hdr" => ImageFormat::Hdr,
-        "exr" => ImageFormat::OpenExr,
-        _ => return Err(SceneError::UnsupportedFileType(ext)),
+    Ok(())
+}
+
+/// [`load_sky`] from bytes in memory; `name` names the image in errors.
+pub fn load_sky_slice(
+    bytes: &[u8],
+    format: SkyFormat,
+    name: &str,
+    intensity: f32,
+    rotation: f32,
+) -> Result<Sky, SceneError> {
+    check_parameters(intensity, rotation)?;
+    let format = match format {
+        SkyFormat::Hdr => ImageFormat::Hdr,
+        SkyFormat::Exr => ImageFormat::OpenExr,
     };
-    let bytes = read_file(path)?;
-    let name = path.display().to_string();
-    let err = |message: String| SceneError::Image { name: name.clone(), message };
-    let img = decode_limited(&bytes, format, MAX_IMAGE_TEXELS, &name)?;
+    let err = |message: String| SceneError::Image { name: name.to_owned(), message };
+    let img = decode_limited(bytes, format, MAX_IMAGE_TEXELS, name)?;
     let (width, height) = (img.width(), img.height());
     if width == 0 || height == 0 {
         return Err(err("image has no texels".into()));

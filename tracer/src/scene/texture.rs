@@ -169,7 +169,44 @@ pub(crate) fn probe_srgb(bytes: &[u8], name: &str, max_texels: u64) -> Result<Pr
         return Err(err("image has no texels".into()));
     }
     check_texels(width, height, max_texels, name)?;
+    check_backed(bytes, format, width, height).map_err(err)?;
     Ok(Probed::Image(ImageHeader { width, height, format, name: name.to_owned() }))
+}
+
+/// The most a deflate stream can expand (a 258-byte match in 2 bits: 1032 to 1).
+const DEFLATE_MAX_RATIO: u64 = 1032;
+
+/// Refuses an image whose file is too short for the size its header declares, before its
+/// texels are allocated (a 100-byte PNG saying 8192 x 8192 would otherwise cost 256 MiB). The
+/// bounds are what the formats can possibly compress to: a PNG's filtered rows (a filter byte
+/// plus the row's pixel bits) deflated at most [`DEFLATE_MAX_RATIO`] to 1; a Huffman-coded JPEG
+/// spends at least one bit per 8 x 8 block of its full-resolution component (the DC code).
+fn check_backed(bytes: &[u8], format: ImageFormat, width: u32, height: u32) -> Result<(), String> {
+    let (w, h) = (u64::from(width), u64::from(height));
+    let needed = match format {
+        ImageFormat::Png => {
+            // IHDR follows the 8-byte signature and its chunk's length and type.
+            let (depth, colour) = (bytes.get(24).copied().unwrap_or(1), bytes.get(25).copied().unwrap_or(0));
+            let channels = match colour {
+                2 => 3,
+                4 => 2,
+                6 => 4,
+                _ => 1,
+            };
+            let row_bytes = 1 + (w * channels * u64::from(depth.max(1))).div_ceil(8);
+            (h * row_bytes).div_ceil(DEFLATE_MAX_RATIO)
+        }
+        ImageFormat::Jpeg => (w.div_ceil(8) * h.div_ceil(8)).div_ceil(8),
+        _ => 0,
+    };
+    if (bytes.len() as u64) < needed {
+        return Err(format!(
+            "the header declares {width} x {height} texels, which take at least {needed} bytes of {format:?} data, \
+             but the file has {} (truncated or corrupt)",
+            bytes.len()
+        ));
+    }
+    Ok(())
 }
 
 impl ImageHeader {
@@ -510,6 +547,23 @@ mod tests {
         cut.truncate(b.len() - 20);
         let err = decode_textures(&[(&a, &ha), (&cut, &hb)], &textures, &[]).unwrap_err();
         assert!(matches!(err, SceneError::Image { .. }), "{err}");
+    }
+
+    #[test]
+    fn an_image_too_short_for_its_declared_size_is_refused_before_decoding() {
+        // A real 64 x 64 RGBA PNG, then the same bytes claiming 8192 x 8192 (the IHDR CRC is
+        // not checked by the header probe, so only the size check can refuse it early).
+        let small = png(DynamicImage::ImageRgba8(image::RgbaImage::new(64, 64)));
+        assert!(matches!(probe_srgb(&small, "small", u64::MAX), Ok(Probed::Image(_))));
+        assert_eq!(check_backed(&small, ImageFormat::Png, 64, 64), Ok(()));
+        let err = check_backed(&small, ImageFormat::Png, 8192, 8192).unwrap_err();
+        assert!(err.contains("8192 x 8192") && err.contains("truncated"), "{err}");
+        // 8192 x 8192 RGBA8 rows: 8192 x (1 + 32768) bytes, deflated at most 1032:1.
+        assert!(err.contains(&(8192u64 * 32769).div_ceil(1032).to_string()), "{err}");
+        // JPEG: one bit per 8 x 8 block at least.
+        assert!(check_backed(&[0; 100], ImageFormat::Jpeg, 80, 80).is_ok());
+        assert!(check_backed(&[0; 100], ImageFormat::Jpeg, 8192, 8192).is_err());
+        assert!(check_backed(&[0; 16384], ImageFormat::Jpeg, 8192, 1024).is_ok());
     }
 
     #[test]
