@@ -108,6 +108,9 @@ enum BackendArg {
     Cpu,
     /// OpenGL ES 3.0 through a headless EGL context (any GL driver; Mesa llvmpipe without a GPU).
     Gl,
+    /// The WGSL kernel as a compute shader through wgpu (Vulkan/Metal/DX12; Mesa lavapipe
+    /// without a GPU).
+    Wgpu,
 }
 
 fn render(args: &RenderArgs) -> Result<()> {
@@ -175,6 +178,16 @@ fn render(args: &RenderArgs) -> Result<()> {
             }
             (r.image()?, r.rejected_samples()?)
         }
+        BackendArg::Wgpu => {
+            let mut r = tracer::backend::wgpu::WgpuRenderer::headless(packed, args.seed)
+                .context("starting the wgpu backend")?;
+            for _ in 0..args.spp {
+                r.render_frame()?;
+                r.finish()?;
+                bar.inc(1);
+            }
+            (r.image()?, r.rejected_samples()?)
+        }
     };
     let render_time = t3.elapsed();
     bar.finish_and_clear();
@@ -196,6 +209,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         match args.backend {
             BackendArg::Cpu => "cpu",
             BackendArg::Gl => "gl",
+            BackendArg::Wgpu => "wgpu",
         },
         settings.strategy.name()
     );

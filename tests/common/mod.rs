@@ -7,6 +7,8 @@
 // Each test file uses a different part of this module.
 #![allow(dead_code)]
 
+pub mod agreement;
+
 use glam::{DVec3, Vec3};
 
 /// xorshift64* (Vigna 2016): a fast, good-enough generator for test inputs. Deterministic,

@@ -7,6 +7,8 @@ pub mod cpu;
 pub mod egl;
 pub mod gl;
 pub mod harness;
+#[cfg(feature = "wgpu")]
+pub mod wgpu;
 
 use glam::Vec3;
 

@@ -1,0 +1,138 @@
+//! The wgpu backend (Vulkan; Mesa lavapipe in CI) against the CPU backend: the generated WGSL
+//! compute kernel over the same packed data must estimate the same image. Never skipped: a
+//! machine without a Vulkan driver fails these tests with the reason (and the package to
+//! install).
+//!
+//! Lean: lavapipe runs the kernel on the CPU, so the images are small and the frames few, yet
+//! each comparison is the same 5-sigma test as the GL backend's (`render_gl.rs`).
+
+mod common;
+
+use common::agreement::{self, accumulated_sums, assert_agrees_with_cpu, packed, Frames};
+use glam::DVec3;
+use tracer::backend::wgpu::{WgpuDevice, WgpuError, WgpuOptions, WgpuRenderer};
+use tracer::pack::{Packed, RenderSettings, Strategy};
+use tracer::scene;
+
+fn wgpu_renderer(packed: Packed, seed: u32) -> WgpuRenderer {
+    WgpuRenderer::headless(packed, seed).unwrap_or_else(|e| panic!("the wgpu backend must run here: {e}"))
+}
+
+impl Frames for WgpuRenderer {
+    fn frame(&mut self) {
+        self.render_frame().expect("wgpu frame");
+    }
+    fn sums(&mut self) -> Vec<DVec3> {
+        accumulated_sums(&self.accumulation().expect("readback"))
+    }
+    fn rejected(&mut self) -> u64 {
+        self.rejected_samples().expect("readback")
+    }
+}
+
+fn boxed(packed: Packed, seed: u32) -> Box<dyn Frames> {
+    Box::new(wgpu_renderer(packed, seed))
+}
+
+#[test]
+fn wgpu_agrees_with_cpu_on_the_cornell_box() {
+    assert_agrees_with_cpu("wgpu", &mut boxed, "Cornell box", &scene::cornell_box(), 32, 128, 6);
+}
+
+#[test]
+fn wgpu_agrees_with_cpu_on_a_textured_scene() {
+    assert_agrees_with_cpu("wgpu", &mut boxed, "BoxTextured", &agreement::textured_box(), 32, 96, 6);
+}
+
+#[test]
+fn wgpu_agrees_with_cpu_under_an_hdr_sky() {
+    assert_agrees_with_cpu("wgpu", &mut boxed, "plane under venice_sunset", &agreement::sky_lit_plane(), 32, 96, 4);
+}
+
+#[test]
+fn the_random_sequence_matches_the_cpu() {
+    agreement::assert_same_random_sequence("wgpu", &mut |p, seed| {
+        let mut r = wgpu_renderer(p, seed);
+        r.render_frame().expect("frame");
+        r.image().expect("readback").pixels
+    });
+}
+
+#[test]
+fn a_scene_beyond_the_storage_buffer_limit_is_a_clear_error() {
+    let p = packed(&scene::cornell_box(), Strategy::Mis, 16, 4);
+    let small = WgpuOptions { max_storage_buffer_binding_size: Some(256) };
+    let err = match WgpuRenderer::headless_with_options(p.clone(), 0, &small) {
+        Err(e) => e,
+        Ok(_) => panic!("a 256-byte binding limit cannot hold the Cornell box"),
+    };
+    let message = err.to_string();
+    assert!(matches!(err, WgpuError::SceneTooLarge { max: 256, .. }), "{message}");
+    assert!(
+        message.contains("max_storage_buffer_binding_size is 256") && message.contains("scene_triangles"),
+        "{message}"
+    );
+
+    // The scene fits 64 KiB; a 128x128 image's accumulation (256 KiB) does not.
+    let mut big = p;
+    big.apply(&RenderSettings { width: 128, height: 128, strategy: Strategy::Mis, max_depth: 4 });
+    let limit = WgpuOptions { max_storage_buffer_binding_size: Some(64 << 10) };
+    let err = match WgpuRenderer::headless_with_options(big, 0, &limit) {
+        Err(e) => e,
+        Ok(_) => panic!("a 128x128 accumulation cannot fit a 64 KiB binding"),
+    };
+    assert!(matches!(err, WgpuError::ImageTooLarge { needed: 262144, .. }), "{err}");
+    assert!(
+        err.to_string().contains("128x128") && err.to_string().contains("max_storage_buffer_binding_size"),
+        "{err}"
+    );
+}
+
+/// A shader error that wgpu reports names the generated line and the Rust source it came from.
+#[test]
+fn shader_errors_point_at_the_rust_source() {
+    let device = WgpuDevice::native().unwrap_or_else(|e| panic!("the wgpu backend must run here: {e}"));
+    let features = tracer::pack::Features { emissive_triangles: true, ..Default::default() };
+    let mut generated = tracer::kernel::path_tracer_shader(&features, lightport_codegen::Target::Wgsl).unwrap();
+    let mut lines: Vec<String> = generated.source.lines().map(String::from).collect();
+    let at = lines.iter().position(|l| l.starts_with("fn power_heuristic(")).expect("power_heuristic") + 1;
+    lines.insert(at, "    let broken: f32 = undeclared_thing;".into());
+    generated.source = lines.join("\n");
+    let err = device.compile(&generated).expect_err("the shader is broken");
+    let message = err.to_string();
+    eprintln!("{message}");
+    assert!(matches!(err, WgpuError::Compile { .. }), "{message}");
+    assert!(message.contains("undeclared_thing"), "wgpu's message: {message}");
+    assert!(message.contains(&format!("generated line {}", at + 1)), "{message}");
+    assert!(
+        message.contains("tracer/src/kernel/lights.rs") && message.contains("lights::power_heuristic"),
+        "{message}"
+    );
+}
+
+#[test]
+fn the_adapter_is_named_and_its_limits_are_used() {
+    let r = wgpu_renderer(packed(&scene::cornell_box(), Strategy::Mis, 8, 2), 0);
+    let info = r.info();
+    eprintln!("{info:?}");
+    assert!(!info.adapter.is_empty(), "{info:?}");
+    assert!(info.max_storage_buffer_binding_size >= 128 << 20, "WebGPU's default at least: {info:?}");
+}
+
+/// Restarting drops every sample; changing the camera through `set_uniforms` changes the image.
+#[test]
+fn restart_and_uniform_updates_take_effect() {
+    let mut r = wgpu_renderer(packed(&scene::cornell_box(), Strategy::Mis, 16, 3), 0);
+    r.render_frame().unwrap();
+    r.render_frame().unwrap();
+    let before = r.image().unwrap();
+    r.restart().unwrap();
+    assert_eq!(r.frames(), 0);
+    assert!(r.accumulation().unwrap().iter().all(|a| *a == glam::Vec4::ZERO), "restart clears the sums");
+    r.set_uniforms(|s| s.camera_position += s.camera_forward * 10.0).unwrap();
+    r.render_frame().unwrap();
+    let moved = r.image().unwrap();
+    assert_ne!(before.mean(), moved.mean(), "the camera moved behind the back wall");
+    let err = r.set_uniforms(|s| s.width = 17).expect_err("the size is fixed");
+    assert!(matches!(err, WgpuError::SizeChanged { .. }), "{err}");
+}
