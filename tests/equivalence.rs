@@ -981,6 +981,10 @@ fn radiance_samples(n: usize, seed: u64) -> Vec<Vec3> {
 /// The tone curves end in values in [0, 1]: 2e-6 absolute (about 1/2000 of an 8-bit step), or
 /// 64 ULP where GPUs' `pow`/`log2` (exp2(y log2 x), not correctly rounded) meet small values.
 const TONE: Tolerance = Tolerance::ulps(64).with_absolute(2e-6).flushing_subnormals();
+/// AgX takes `log2`, a 6th-degree polynomial and `pow(2.2)` of it: the GPU's log2/pow errors
+/// grow to 1.35e-5 absolute on llvmpipe (1/290 of an 8-bit display step); 3e-5 is allowed.
+/// `tone_map` and `display_srgb` include AgX.
+const TONE_AGX: Tolerance = Tolerance::ulps(64).with_absolute(3e-5).flushing_subnormals();
 
 #[test]
 fn tone_mapping_agrees() {
@@ -991,15 +995,15 @@ fn tone_mapping_agrees() {
         radiance.iter().filter(|c| c.is_finite() && c.min_element() >= 0.0).map(|&c| (c,)).collect();
     assert_equivalent(&mut eq, "pbr_neutral", &finite, |_, &(c,)| (tonemap::pbr_neutral(c),), TONE);
     assert_equivalent(&mut eq, "aces_fitted", &finite, |_, &(c,)| (tonemap::aces_fitted(c),), TONE);
-    assert_equivalent(&mut eq, "agx", &finite, |_, &(c,)| (tonemap::agx(c),), TONE);
+    assert_equivalent(&mut eq, "agx", &finite, |_, &(c,)| (tonemap::agx(c),), TONE_AGX);
     let mut r = TestRng::new(22);
     let calls: Vec<(Vec3, u32, f32)> = radiance
         .iter()
         .enumerate()
         .map(|(i, &c)| (c, i as u32 % 5, if i % 3 == 0 { 1.0 } else { r.range(-8.0, 8.0).exp2() }))
         .collect();
-    assert_equivalent(&mut eq, "tone_map", &calls, |_, &(c, op, e)| (tonemap::tone_map(c, op, e),), TONE);
-    assert_equivalent(&mut eq, "display_srgb", &calls, |_, &(c, op, e)| (tonemap::display_srgb(c, op, e),), TONE);
+    assert_equivalent(&mut eq, "tone_map", &calls, |_, &(c, op, e)| (tonemap::tone_map(c, op, e),), TONE_AGX);
+    assert_equivalent(&mut eq, "display_srgb", &calls, |_, &(c, op, e)| (tonemap::display_srgb(c, op, e),), TONE_AGX);
     let channels: Vec<(f32,)> =
         (0..=1 << 12).map(|i| (i as f32 / 4096.0,)).chain([(0.0031308,), (0.0031308f32.next_up(),)]).collect();
     assert_equivalent(&mut eq, "linear_to_srgb", &channels, |_, &(c,)| (tonemap::linear_to_srgb(c),), SRGB);
