@@ -309,7 +309,7 @@ fn reference(scene: &ChartScene, args: &ChartArgs, kernel_hash: u64) -> Result<(
     let noise = r.variance().iter().map(|v| v.as_dvec3().element_sum()).sum::<f64>() / (3.0 * pixels as f64) / n;
     std::fs::create_dir_all(&args.reference_dir)
         .with_context(|| format!("creating {}", args.reference_dir.display()))?;
-    tracer::output::write_image(&exr, &image)?;
+    tracer::output::write_image(&exr, &image, &tracer::output::Display::CLAMP)?;
     std::fs::write(&txt, format!("{key}noise_mse: {noise:e}\n"))
         .with_context(|| format!("writing {}", txt.display()))?;
     Ok((image.pixels, noise, "rendered"))
@@ -539,7 +539,11 @@ fn equal_time_strip(
             }
         }
     }
-    tracer::output::write_image(png, &Image { width: tile * count, height: tile, pixels })?;
+    tracer::output::write_image(
+        png,
+        &Image { width: tile * count, height: tile, pixels },
+        &tracer::output::Display::CLAMP,
+    )?;
     let text = equal_time_svg(size, reference, reference_label, &picks, budget)?;
     std::fs::write(svg, text).with_context(|| format!("writing {}", svg.display()))?;
     Ok(picks

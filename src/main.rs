@@ -91,9 +91,19 @@ struct RenderArgs {
     /// Random seed (the same seed gives the same image).
     #[arg(long, default_value_t = 0)]
     seed: u32,
-    /// Output image: .png (sRGB, clamped) or .exr (linear float).
+    /// Output image: .png (exposure, tone curve, sRGB) or .exr (linear float, untouched).
     #[arg(long, short, default_value = "out.png")]
     out: PathBuf,
+    /// Tone curve for PNG output (EXR stays linear).
+    #[arg(long, value_enum, default_value_t = ToneMapArg::Neutral)]
+    tonemap: ToneMapArg,
+    /// Exposure in stops for PNG output: radiance is scaled by 2^EV before the tone curve.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_name = "EV")]
+    exposure: f32,
+    /// Refuse the scene when loading it gives any warning (a texture that cannot be used, an
+    /// unsupported feature, nothing lighting it) instead of rendering it anyway.
+    #[arg(long)]
+    strict: bool,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -101,6 +111,29 @@ enum StrategyArg {
     Bsdf,
     Nee,
     Mis,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum ToneMapArg {
+    /// Clamp to [0, 1] (bright radiance clips to white).
+    None,
+    /// Khronos PBR Neutral: base colours kept, highlights rolled off to white.
+    Neutral,
+    /// ACES filmic (Stephen Hill's fit).
+    Aces,
+    /// AgX (default look).
+    Agx,
+}
+
+impl From<ToneMapArg> for tracer::output::ToneMap {
+    fn from(t: ToneMapArg) -> Self {
+        match t {
+            ToneMapArg::None => Self::None,
+            ToneMapArg::Neutral => Self::Neutral,
+            ToneMapArg::Aces => Self::Aces,
+            ToneMapArg::Agx => Self::Agx,
+        }
+    }
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -120,19 +153,23 @@ fn render(args: &RenderArgs) -> Result<()> {
     if args.spp == 0 {
         bail!("--spp must be at least 1");
     }
+    if !args.exposure.is_finite() || args.exposure.abs() > 64.0 {
+        bail!("--exposure must be a finite number of stops within ±64");
+    }
     let t0 = Instant::now();
+    let options = tracer::scene::LoadOptions { strict: args.strict };
     let mut scene = match &args.scene {
-        Some(path) => tracer::scene::load(path).with_context(|| format!("loading {}", path.display()))?,
+        Some(path) => {
+            tracer::scene::load_with(path, &options).with_context(|| format!("loading {}", path.display()))?
+        }
         None => tracer::scene::cornell_box(),
     };
-    for w in &scene.warnings {
-        eprintln!("warning: {w}");
-    }
     if let Some(sky) = &args.sky {
         let s = tracer::scene::load_sky(sky, args.sky_intensity, args.sky_rotation.to_radians())
             .with_context(|| format!("loading sky {}", sky.display()))?;
         scene.sky = Some(s);
     }
+    report_warnings(&scene, "", args.strict)?;
     let load_time = t0.elapsed();
     let settings = RenderSettings {
         width: args.width,
@@ -191,7 +228,8 @@ fn render(args: &RenderArgs) -> Result<()> {
     };
     let render_time = t3.elapsed();
     bar.finish_and_clear();
-    tracer::output::write_image(&args.out, &image)?;
+    let display = tracer::output::Display { tone_map: args.tonemap.into(), exposure: args.exposure };
+    tracer::output::write_image(&args.out, &image, &display)?;
 
     let samples = args.spp as f64 * args.width as f64 * args.height as f64;
     println!("scene        {}", args.scene.as_ref().map_or("built-in Cornell box".into(), |p| p.display().to_string()));
@@ -217,6 +255,19 @@ fn render(args: &RenderArgs) -> Result<()> {
         println!("warning      {rejected} non-finite samples were dropped");
     }
     println!("wrote        {}", args.out.display());
+    Ok(())
+}
+
+/// Prints a loaded scene's warnings (its loader's, and [`tracer::scene::Scene::unlit_warning`]
+/// once its sky is set), each prefixed with `prefix`; with `strict`, any warning is an error.
+pub(crate) fn report_warnings(scene: &tracer::scene::Scene, prefix: &str, strict: bool) -> Result<()> {
+    let warnings: Vec<String> = scene.warnings.iter().cloned().chain(scene.unlit_warning()).collect();
+    if strict && !warnings.is_empty() {
+        bail!("--strict: the scene has {} warning(s): {}", warnings.len(), warnings.join("; "));
+    }
+    for w in &warnings {
+        eprintln!("warning: {prefix}{w}");
+    }
     Ok(())
 }
 

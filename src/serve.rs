@@ -100,6 +100,9 @@ pub struct ServeArgs {
     /// other end of a pipe, which the kernel closes when the parent ends however it ends.
     #[arg(long)]
     exit_on_stdin_eof: bool,
+    /// Refuse (serve nothing) when loading a scene gives any warning, instead of serving it anyway.
+    #[arg(long)]
+    strict: bool,
 }
 
 /// One response body, ready to send.
@@ -235,15 +238,13 @@ fn add_scenes(args: &ServeArgs, routes: &mut HashMap<String, Resource>) -> Resul
         let t0 = Instant::now();
         let packed = (|| -> Result<tracer::pack::Packed> {
             let mut scene = match path {
-                Some(path) => tracer::scene::load(path)?,
+                Some(path) => tracer::scene::load_with(path, &tracer::scene::LoadOptions { strict: args.strict })?,
                 None => tracer::scene::cornell_box(),
             };
-            for w in &scene.warnings {
-                eprintln!("warning: {name}: {w}");
-            }
             if sky.is_some() {
                 scene.sky = sky.clone();
             }
+            crate::report_warnings(&scene, &format!("{name}: "), args.strict)?;
             let bvh = tracer::bvh::build(&scene.triangles).context("building the BVH")?;
             tracer::pack::pack(&scene, &bvh, &tracer::pack::RenderSettings::default()).context("packing")
         })();

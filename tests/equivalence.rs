@@ -953,6 +953,62 @@ fn srgb_decoding_agrees() {
     assert_equivalent(&mut eq, "srgb_to_linear", &channels, |_, &(c,)| (scene_data::srgb_to_linear(c),), SRGB);
 }
 
+/// Radiance for the tone curves: log-uniform over 2^-20..2^16 per channel (greys and saturated
+/// colours alike), and zeros, negatives, NaN and infinities, which display as black.
+fn radiance_samples(n: usize, seed: u64) -> Vec<Vec3> {
+    let mut r = TestRng::new(seed);
+    let mut v = vec![
+        Vec3::ZERO,
+        Vec3::ONE,
+        Vec3::splat(0.18),
+        Vec3::splat(0.76),
+        Vec3::new(1e6, 0.0, 0.0),
+        Vec3::new(-1.0, 0.5, 2.0),
+        Vec3::new(f32::NAN, 1.0, f32::INFINITY),
+        Vec3::new(f32::NEG_INFINITY, f32::MAX, f32::MIN_POSITIVE),
+    ];
+    while v.len() < n {
+        let channel = |r: &mut TestRng| r.range(-20.0, 16.0).exp2();
+        v.push(if r.f32() < 0.25 {
+            Vec3::splat(channel(&mut r))
+        } else {
+            Vec3::new(channel(&mut r), channel(&mut r), channel(&mut r))
+        });
+    }
+    v
+}
+
+/// The tone curves end in values in [0, 1]: 2e-6 absolute (about 1/2000 of an 8-bit step), or
+/// 64 ULP where GPUs' `pow`/`log2` (exp2(y log2 x), not correctly rounded) meet small values.
+const TONE: Tolerance = Tolerance::ulps(64).with_absolute(2e-6).flushing_subnormals();
+/// AgX takes `log2`, a 6th-degree polynomial and `pow(2.2)` of it: the GPU's log2/pow errors
+/// grow to 1.35e-5 absolute on llvmpipe (1/290 of an 8-bit display step); 3e-5 is allowed.
+/// `tone_map` and `display_srgb` include AgX.
+const TONE_AGX: Tolerance = Tolerance::ulps(64).with_absolute(3e-5).flushing_subnormals();
+
+#[test]
+fn tone_mapping_agrees() {
+    use tracer::kernel::tonemap;
+    let mut eq = equivalence();
+    let radiance = radiance_samples(1 << 14, 21);
+    let finite: Vec<(Vec3,)> =
+        radiance.iter().filter(|c| c.is_finite() && c.min_element() >= 0.0).map(|&c| (c,)).collect();
+    assert_equivalent(&mut eq, "pbr_neutral", &finite, |_, &(c,)| (tonemap::pbr_neutral(c),), TONE);
+    assert_equivalent(&mut eq, "aces_fitted", &finite, |_, &(c,)| (tonemap::aces_fitted(c),), TONE);
+    assert_equivalent(&mut eq, "agx", &finite, |_, &(c,)| (tonemap::agx(c),), TONE_AGX);
+    let mut r = TestRng::new(22);
+    let calls: Vec<(Vec3, u32, f32)> = radiance
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| (c, i as u32 % 5, if i % 3 == 0 { 1.0 } else { r.range(-8.0, 8.0).exp2() }))
+        .collect();
+    assert_equivalent(&mut eq, "tone_map", &calls, |_, &(c, op, e)| (tonemap::tone_map(c, op, e),), TONE_AGX);
+    assert_equivalent(&mut eq, "display_srgb", &calls, |_, &(c, op, e)| (tonemap::display_srgb(c, op, e),), TONE_AGX);
+    let channels: Vec<(f32,)> =
+        (0..=1 << 12).map(|i| (i as f32 / 4096.0,)).chain([(0.0031308,), (0.0031308f32.next_up(),)]).collect();
+    assert_equivalent(&mut eq, "linear_to_srgb", &channels, |_, &(c,)| (tonemap::linear_to_srgb(c),), SRGB);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Divergence hazards: the DSL's rule (Rust's meaning) on every target.
 

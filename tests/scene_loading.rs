@@ -69,15 +69,51 @@ fn manifest_scenes_load_with_their_triangle_counts() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
+fn strict() -> LoadOptions {
+    LoadOptions { strict: true }
+}
+
 #[test]
-fn pica_pica_reports_its_missing_texture() {
+fn pica_pica_loads_with_one_warning_for_its_missing_texture() {
     let path = shared("extra/kajiya/pica_pica_-_mini_diorama_01/scene.gltf");
-    let strict = scene::load(&path).unwrap_err();
-    assert!(matches!(strict, SceneError::Io { .. }), "{strict}");
-    assert!(strict.to_string().contains("Wax_Pastel_Label_02_baseColor.png"), "{strict}");
-    let lenient = scene::load_with(&path, &LoadOptions { allow_missing_textures: true }).unwrap();
-    assert_eq!(lenient.triangles.len(), 76_274);
-    assert!(lenient.warnings.iter().any(|w| w.contains("Wax_Pastel_Label_02_baseColor.png")), "{:?}", lenient.warnings);
+    let s = scene::load(&path).unwrap();
+    assert_eq!(s.triangles.len(), 76_274);
+    let missing: Vec<&String> = s.warnings.iter().filter(|w| w.contains("Wax_Pastel_Label_02_baseColor.png")).collect();
+    assert_eq!(missing.len(), 1, "{:?}", s.warnings);
+    // The warning names the material that lost its texture; that material keeps its factors.
+    let wax = s.materials.iter().position(|m| missing[0].contains(&format!("{:?}", m.name))).expect("material named");
+    assert_eq!(s.materials[wax].base_color_texture, None);
+    // Its four other textures (decals) are kept.
+    assert_eq!(s.textures.len(), 4);
+    assert_eq!(s.materials.iter().filter(|m| m.base_color_texture.is_some()).count(), 4);
+    let e = scene::load_with(&path, &strict()).unwrap_err();
+    assert!(matches!(e, SceneError::Io { .. }) && e.to_string().contains("Wax_Pastel_Label_02_baseColor.png"), "{e}");
+}
+
+#[test]
+fn webp_textures_are_decoded_in_preference_to_their_fallback() {
+    // BoxTextured with its texture's EXT_texture_webp image (solid red) beside the PNG fallback.
+    let dir = scratch("webp");
+    let gltf = std::fs::read_to_string(shared("khronos/BoxTextured/glTF/BoxTextured.gltf")).unwrap();
+    let gltf = gltf
+        .replace(r#""source": 0"#, r#""source": 0, "extensions": {"EXT_texture_webp": {"source": 1}}"#)
+        .replace(r#""uri": "CesiumLogoFlat.png""#, r#""uri": "CesiumLogoFlat.png"}, {"uri": "red.webp""#)
+        .replacen("{", r#"{"extensionsUsed": ["EXT_texture_webp"], "extensionsRequired": ["EXT_texture_webp"],"#, 1);
+    for f in ["BoxTextured0.bin", "CesiumLogoFlat.png"] {
+        std::fs::copy(shared(&format!("khronos/BoxTextured/glTF/{f}")), dir.join(f)).unwrap();
+    }
+    let webp = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/gltf-validator-tests/ext/EXT_texture_webp"));
+    for (file, alpha) in [("VP8L_red.webp", 1.0), ("VP8_red.webp", 1.0), ("VP8X_red_transparent.webp", 128.0 / 255.0)] {
+        std::fs::copy(webp.join("data/image").join(file), dir.join("red.webp")).unwrap();
+        std::fs::write(dir.join("box.gltf"), &gltf).unwrap();
+        let s = scene::load_with(&dir.join("box.gltf"), &strict()).unwrap_or_else(|e| panic!("{file}: {e}"));
+        assert!(s.warnings.is_empty(), "{file}: {:?}", s.warnings);
+        assert_eq!(s.textures.len(), 1, "{file}");
+        let t = &s.textures[0];
+        let texel = t.linear(0).unwrap();
+        assert!((texel.x - 1.0).abs() < 0.02 && texel.y < 0.02 && texel.z < 0.02, "{file}: {texel}");
+        assert!((texel.w - alpha).abs() < 0.02, "{file}: alpha {}", texel.w);
+    }
 }
 
 #[test]
@@ -554,29 +590,37 @@ fn malformed_files_are_refused() {
     let e = expect_error("truncated .bin", scene::load(&write("truncated-bin.gltf", gltf.as_bytes())));
     assert!(e.to_string().contains("truncated"), "{e}");
 
-    // Missing texture file: an error, or a warning when allowed.
+    // A texture that cannot be used (missing, unreadable, corrupt, truncated): a warning naming
+    // the file and the material, which keeps its factors; an error when loading is strict.
     let textured = std::fs::read_to_string(shared("khronos/BoxTextured/glTF/BoxTextured.gltf")).unwrap();
     std::fs::copy(shared("khronos/BoxTextured/glTF/BoxTextured0.bin"), dir.join("BoxTextured0.bin")).unwrap();
     let p = write("missing-texture.gltf", textured.as_bytes());
-    let e = expect_error("missing texture", scene::load(&p));
-    assert!(e.to_string().contains("CesiumLogoFlat.png"), "{e}");
-    let lenient = scene::load_with(&p, &LoadOptions { allow_missing_textures: true }).unwrap();
-    assert!(lenient.textures.is_empty() && lenient.warnings.iter().any(|w| w.contains("CesiumLogoFlat.png")));
+    let forgiven = |what: &str| {
+        let s = scene::load(&p).unwrap_or_else(|e| panic!("{what}: {e}"));
+        assert!(s.textures.is_empty() && s.materials.iter().all(|m| m.base_color_texture.is_none()), "{what}");
+        let named = s.warnings.iter().filter(|w| w.contains("CesiumLogoFlat.png") && w.contains("\"Texture\""));
+        assert_eq!(named.count(), 1, "{what}: {:?}", s.warnings);
+        let e = expect_error(what, scene::load_with(&p, &strict()));
+        assert!(e.to_string().contains("CesiumLogoFlat.png"), "{what}: {e}");
+    };
+    forgiven("missing texture");
+    std::fs::create_dir_all(dir.join("CesiumLogoFlat.png")).unwrap();
+    forgiven("unreadable texture (a folder)");
+    std::fs::remove_dir(dir.join("CesiumLogoFlat.png")).unwrap();
 
     // An image whose header claims an absurd size is refused before its pixels are decoded.
     for (w, h) in [(16384u32, 8192u32), (100_000, 4)] {
         write("CesiumLogoFlat.png", &png_header(w, h));
-        let e = expect_error(&format!("{w} x {h} texture"), scene::load(&p));
+        let e = expect_error(&format!("{w} x {h} texture"), scene::load_with(&p, &strict()));
         assert!(matches!(e, SceneError::TooLarge(_)) || e.to_string().contains("limit"), "{e}");
     }
 
-    // A corrupt texture is an error even when missing ones are allowed.
     write("CesiumLogoFlat.png", &garbage[..100]);
-    expect_error("corrupt texture", scene::load_with(&p, &LoadOptions { allow_missing_textures: true }));
+    forgiven("corrupt texture");
     let mut png = std::fs::read(shared("khronos/BoxTextured/glTF/CesiumLogoFlat.png")).unwrap();
     png.truncate(png.len() / 2);
     write("CesiumLogoFlat.png", &png);
-    expect_error("truncated texture", scene::load(&p));
+    forgiven("truncated texture (fails when its pixels are decoded)");
 
     // OBJ: out-of-range face, missing MTL, NaN vertex.
     expect_error("obj face out of range", scene::load(&write("bad-face.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")));

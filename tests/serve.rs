@@ -489,6 +489,14 @@ fn missing_or_malformed_scenes_stop_the_server_at_start() {
 }
 
 #[test]
+fn strict_refuses_scenes_with_warnings() {
+    let pica = format!("{SCENES}/extra/kajiya/pica_pica_-_mini_diorama_01/scene.gltf");
+    let unlit = format!("{SCENES}/extra/kajiya/cornell_box/scene.gltf");
+    refuses(&["--strict", &pica], &["Wax_Pastel_Label_02_baseColor.png", "1 of 2 scene(s) failed to load"]);
+    refuses(&["--strict", &unlit], &["nothing lights the scene", "--sky", "1 of 2 scene(s) failed to load"]);
+}
+
+#[test]
 fn a_missing_wasm_build_is_reported_with_the_command_that_builds_it() {
     let s = start(&[], web_dir(false)).unwrap_or_else(|(code, err)| panic!("serve exited ({code:?}): {err}"));
     assert!(s.stderr_contains("scripts/build-web.sh"), "{}", s.stderr.lock().unwrap());

@@ -1,10 +1,11 @@
-//! Writing rendered images. PNG is tone-mapped for display: linear radiance is clamped to
-//! [0, 1] (no exposure change, no curve) and encoded with the sRGB transfer function. EXR
-//! stays linear float, for comparisons and further processing.
+//! Writing rendered images. PNG is for display: exposure and a tone curve
+//! ([`Display`], the kernel's `tonemap` module, which the shaders share), then the sRGB
+//! encoding. EXR stays linear float, untouched, for comparisons and further processing.
 
 use std::path::Path;
 
 use crate::backend::Image;
+use crate::kernel::tonemap;
 
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
@@ -14,27 +15,79 @@ pub enum OutputError {
     Write { path: String, source: image::ImageError },
 }
 
-pub fn linear_to_srgb(c: f32) -> f32 {
-    let c = if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 };
-    if c <= 0.003_130_8 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
+/// A tone curve from linear radiance to display values (the kernel's `tonemap` module).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ToneMap {
+    /// Clamp to [0, 1]: radiance above 1 clips to white.
+    None,
+    /// Khronos PBR Neutral: colours up to 0.76 unchanged, brighter ones rolled off to white.
+    #[default]
+    Neutral,
+    /// The fitted ACES filmic curve (Stephen Hill's fit).
+    Aces,
+    /// AgX (Troy Sobotka), default look.
+    Agx,
+}
+
+impl ToneMap {
+    /// The operator's id in the kernel (`tonemap::TONEMAP_*`).
+    pub fn kernel_id(self) -> u32 {
+        match self {
+            ToneMap::None => tonemap::TONEMAP_NONE,
+            ToneMap::Neutral => tonemap::TONEMAP_NEUTRAL,
+            ToneMap::Aces => tonemap::TONEMAP_ACES,
+            ToneMap::Agx => tonemap::TONEMAP_AGX,
+        }
     }
 }
 
-/// 8-bit sRGB pixels of `image` (RGB, row-major, top row first).
-pub fn to_srgb8(image: &Image) -> Vec<u8> {
-    image.pixels.iter().flat_map(|p| [p.x, p.y, p.z]).map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8).collect()
+/// How linear radiance becomes a displayed (PNG) pixel.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Display {
+    pub tone_map: ToneMap,
+    /// Exposure in stops: radiance is scaled by `2^exposure` before the tone curve.
+    pub exposure: f32,
 }
 
-pub fn write_image(path: &Path, image: &Image) -> Result<(), OutputError> {
+impl Display {
+    /// Radiance clamped to [0, 1] at exposure 0 (no curve): what Lightport wrote before tone
+    /// mapping, and what the page's display pass still shows.
+    pub const CLAMP: Display = Display { tone_map: ToneMap::None, exposure: 0.0 };
+
+    /// sRGB-encoded display values in [0, 1] of linear radiance `c`.
+    pub fn srgb(&self, c: glam::Vec3) -> glam::Vec3 {
+        tonemap::display_srgb(c, self.tone_map.kernel_id(), self.exposure.exp2())
+    }
+}
+
+/// The sRGB transfer function of a linear value, clamped to [0, 1] first (non-finite: 0).
+pub fn linear_to_srgb(c: f32) -> f32 {
+    tonemap::linear_to_srgb(tonemap::clamp_unit(tonemap::displayable(c)))
+}
+
+/// 8-bit sRGB pixels of `image` (RGB, row-major, top row first), clamped ([`Display::CLAMP`]).
+pub fn to_srgb8(image: &Image) -> Vec<u8> {
+    to_display_srgb8(image, &Display::CLAMP)
+}
+
+/// 8-bit sRGB pixels of `image` (RGB, row-major, top row first) through `display`.
+pub fn to_display_srgb8(image: &Image, display: &Display) -> Vec<u8> {
+    image.pixels.iter().flat_map(|p| display.srgb(*p).to_array()).map(|c| (c * 255.0 + 0.5) as u8).collect()
+}
+
+/// Writes `image` as PNG (through `display`) or EXR (linear, `display` unused), by extension.
+pub fn write_image(path: &Path, image: &Image, display: &Display) -> Result<(), OutputError> {
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let err = |source| OutputError::Write { path: path.display().to_string(), source };
     match ext.as_str() {
-        "png" => {
-            image::save_buffer(path, &to_srgb8(image), image.width, image.height, image::ColorType::Rgb8).map_err(err)
-        }
+        "png" => image::save_buffer(
+            path,
+            &to_display_srgb8(image, display),
+            image.width,
+            image.height,
+            image::ColorType::Rgb8,
+        )
+        .map_err(err),
         "exr" => {
             let data: Vec<f32> = image.pixels.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
             let buffer = image::Rgb32FImage::from_raw(image.width, image.height, data)

@@ -20,6 +20,8 @@ mod rng_src;
 mod sampling_src;
 #[path = "scene_data.rs"]
 mod scene_data_src;
+#[path = "tonemap.rs"]
+mod tonemap_src;
 #[path = "traverse.rs"]
 mod traverse_src;
 
@@ -30,6 +32,7 @@ pub use lights_src::lights;
 pub use rng_src::rng;
 pub use sampling_src::sampling;
 pub use scene_data_src::scene_data;
+pub use tonemap_src::tonemap;
 pub use traverse_src::traverse;
 
 /// Every kernel module's IR, in link order.
@@ -43,12 +46,13 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
         camera::kernel_ir(),
         lights::kernel_ir(),
         integrator::kernel_ir(),
+        tonemap::kernel_ir(),
     ]
 }
 
 /// Every kernel module's captured description, as the macro serialised it (what
 /// [`modules`] parses): a stable text to fingerprint the kernel with.
-pub fn ir_json() -> [&'static str; 8] {
+pub fn ir_json() -> [&'static str; 9] {
     [
         rng::KERNEL_IR_JSON,
         sampling::KERNEL_IR_JSON,
@@ -58,6 +62,7 @@ pub fn ir_json() -> [&'static str; 8] {
         camera::KERNEL_IR_JSON,
         lights::KERNEL_IR_JSON,
         integrator::KERNEL_IR_JSON,
+        tonemap::KERNEL_IR_JSON,
     ]
 }
 

@@ -19,7 +19,10 @@ use gltf::json::Root;
 use serde_json::{Map, Value};
 
 use super::accessor::Buffers;
-use super::texture::{decode_textures, probe_srgb, ImageHeader, PendingTexture, Probed};
+use super::texture::{
+    decode_textures_forgiving, is_texture_problem, material_label, probe_srgb, ImageHeader, ImageProblems,
+    PendingTexture, Probed,
+};
 use super::util::{read_file, read_uri};
 use super::{
     flat_normal, Aabb, Camera, LoadOptions, Material, PointLight, Scene, SceneError, Triangle, Warnings, Wrap,
@@ -28,7 +31,7 @@ use super::{
 
 /// Extensions Lightport implements.
 const SUPPORTED_EXTENSIONS: &[&str] =
-    &["KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_mesh_quantization"];
+    &["KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_mesh_quantization", "EXT_texture_webp"];
 
 /// Extensions whose absence only changes the look, so a file requiring them is still rendered
 /// (with a warning): material models, texture transforms, variants, animation.
@@ -50,7 +53,7 @@ fn extension_note(ext: &str) -> &'static str {
             "compressed primitives are read from their uncompressed fallback, or skipped"
         }
         "KHR_materials_variants" => "the default materials are used",
-        "KHR_texture_basisu" | "EXT_texture_webp" | "EXT_texture_avif" | "MSFT_texture_dds" => {
+        "KHR_texture_basisu" | "EXT_texture_avif" | "MSFT_texture_dds" => {
             "the fallback PNG/JPEG image is used when there is one"
         }
         "KHR_node_visibility" => "every node is rendered visible",
@@ -103,7 +106,11 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>, options: &LoadOpti
         point_lights: Vec::new(),
         camera: None,
         saw_orthographic: false,
-        allow_missing_textures: options.allow_missing_textures,
+        strict: options.strict,
+        problems: ImageProblems::default(),
+        texture_problems: HashMap::new(),
+        image_problems: HashMap::new(),
+        material_label: String::new(),
         mesh_instances: 0,
     };
     loader.run()
@@ -302,7 +309,15 @@ struct Loader<'a> {
     point_lights: Vec<PointLight>,
     camera: Option<FoundCamera>,
     saw_orthographic: bool,
-    allow_missing_textures: bool,
+    /// [`LoadOptions::strict`].
+    strict: bool,
+    /// Texture images that cannot be used (warned about at the end).
+    problems: ImageProblems,
+    /// glTF texture / image -> its entry in `problems`.
+    texture_problems: HashMap<usize, usize>,
+    image_problems: HashMap<usize, usize>,
+    /// The material being converted, as warnings name it.
+    material_label: String,
     mesh_instances: usize,
 }
 
@@ -324,6 +339,7 @@ impl Loader<'_> {
             return Err(SceneError::NoTriangles(why));
         }
         let textures = self.decode_textures()?;
+        std::mem::take(&mut self.problems).warn(&mut self.warnings);
         let mut scene = Scene {
             triangles: self.triangles,
             materials: self.materials,
@@ -661,6 +677,7 @@ impl Loader<'_> {
     fn convert_material(&mut self, index: usize) -> Result<Material, SceneError> {
         let m = self.root.materials.get(index).ok_or_else(|| malformed(format!("material {index} does not exist")))?;
         let what = format!("material {index}");
+        self.material_label = material_label(self.materials.len(), m.name.as_deref().unwrap_or_default());
         let [r, g, b, _alpha] = m.pbr_metallic_roughness.base_color_factor.0;
         let base_color = Vec3::new(r, g, b);
         if !base_color.is_finite() {
@@ -722,6 +739,9 @@ impl Loader<'_> {
 
     fn texture(&mut self, index: usize) -> Result<Option<u32>, SceneError> {
         if let Some(&t) = self.texture_map.get(&index) {
+            if let Some(&problem) = self.texture_problems.get(&index) {
+                self.problems.used_by(problem, &self.material_label);
+            }
             return Ok(t);
         }
         let tex = self.root.textures.get(index).ok_or_else(|| malformed(format!("texture {index} does not exist")))?;
@@ -739,15 +759,25 @@ impl Loader<'_> {
                 (wrap(sampler.wrap_s), wrap(sampler.wrap_t))
             }
         };
-        if tex.source.value() == u32::MAX as usize {
-            // No core source: the image is only given by an extension (WebP, KTX2, ...).
+        // EXT_texture_webp's image is preferred to the core one (a fallback), as the extension asks.
+        let webp = tex.extensions.as_ref().and_then(|e| e.others.get("EXT_texture_webp"));
+        let webp_source = match webp.and_then(|w| w.get("source")) {
+            None => None,
+            Some(source) => {
+                Some(source.as_u64().map(|s| s as usize).filter(|&s| s < self.root.images.len()).ok_or_else(|| {
+                    malformed(format!("texture {index}: EXT_texture_webp source {source} is not an image"))
+                })?)
+            }
+        };
+        if webp_source.is_none() && tex.source.value() == u32::MAX as usize {
+            // No core source: the image is only given by an extension Lightport does not read (KTX2, ...).
             self.warnings.once("texture without a source", || {
                 "textures whose image is only provided by an extension are dropped".into()
             });
             self.texture_map.insert(index, None);
             return Ok(None);
         }
-        let image = tex.source.value();
+        let image = webp_source.unwrap_or(tex.source.value());
         let result = match self.images.get(&image).copied() {
             // Probed before for another glTF texture: share it, or copy it for other wrap modes.
             Some(Some(first)) => match self.textures.get(first as usize) {
@@ -763,9 +793,19 @@ impl Loader<'_> {
                 }
                 None => None,
             },
-            Some(None) => None,
+            Some(None) => {
+                if let Some(&problem) = self.image_problems.get(&image) {
+                    self.problems.used_by(problem, &self.material_label);
+                    self.texture_problems.insert(index, problem);
+                }
+                None
+            }
             None => {
-                let id = self.probe_image(image)?.map(|image| {
+                let probed = self.probe_image(image)?;
+                if let Some(&problem) = self.image_problems.get(&image) {
+                    self.texture_problems.insert(index, problem);
+                }
+                let id = probed.map(|image| {
                     self.textures.push(PendingTexture { image, wrap_s, wrap_t });
                     self.textures.len() as u32 - 1
                 });
@@ -786,8 +826,9 @@ impl Loader<'_> {
         }
     }
 
-    /// Decodes the textures (all images probed), in parallel, into one shared atlas.
-    fn decode_textures(&self) -> Result<Vec<super::Texture>, SceneError> {
+    /// Decodes the textures (all images probed), in parallel, into one shared atlas. Images
+    /// that do not decode are dropped with a warning unless loading is strict.
+    fn decode_textures(&mut self) -> Result<Vec<super::Texture>, SceneError> {
         let images = self
             .probed
             .iter()
@@ -799,12 +840,14 @@ impl Loader<'_> {
                 Ok((bytes, header))
             })
             .collect::<Result<Vec<_>, SceneError>>()?;
-        decode_textures(&images, &self.textures, &self.materials)
+        let textures = std::mem::take(&mut self.textures);
+        decode_textures_forgiving(&images, textures, &mut self.materials, &mut self.problems, self.strict)
     }
 
     /// Reads image `index` and its header (decoded later, with the others: see
     /// [`Loader::decode_textures`]); its index in `probed`. `None` (warned) when its format is
-    /// not supported, or its file is missing and that is allowed.
+    /// not supported, or (unless loading is strict) its file is missing or unreadable or its
+    /// header does not decode.
     fn probe_image(&mut self, index: usize) -> Result<Option<usize>, SceneError> {
         let budget = self.texel_budget()?;
         let json = self.root.images.get(index).ok_or_else(|| malformed(format!("image {index} does not exist")))?;
@@ -812,23 +855,24 @@ impl Loader<'_> {
             Some(uri) if !uri.starts_with("data:") => format!("{index} ({uri})"),
             _ => index.to_string(),
         };
-        let (probed, source) = match (&json.buffer_view, &json.uri) {
+        let probed = match (&json.buffer_view, &json.uri) {
             (Some(view), _) => {
                 let (bytes, _) = self.buffers.view(view.value())?;
-                (probe_srgb(bytes, &name, budget)?, ImageSource::View(view.value()))
+                probe_srgb(bytes, &name, budget).map(|p| (p, ImageSource::View(view.value())))
             }
-            (None, Some(uri)) => match read_uri(uri, self.base_dir, &format!("image {name}")) {
-                Ok(bytes) => (probe_srgb(&bytes, &name, budget)?, ImageSource::Bytes(bytes)),
-                Err(SceneError::Io { path, .. }) if self.allow_missing_textures => {
-                    let key = format!("missing image {}", path.display());
-                    self.warnings.once(&key, || {
-                        format!("image file {} is missing: textures using it are dropped", path.display())
-                    });
-                    return Ok(None);
-                }
-                Err(e) => return Err(e),
-            },
+            (None, Some(uri)) => read_uri(uri, self.base_dir, &format!("image {name}"))
+                .and_then(|bytes| Ok((probe_srgb(&bytes, &name, budget)?, ImageSource::Bytes(bytes)))),
             (None, None) => return Err(malformed(format!("image {index} has neither a uri nor a bufferView"))),
+        };
+        let (probed, source) = match probed {
+            Ok(p) => p,
+            Err(e) if !self.strict && is_texture_problem(&e) => {
+                let problem = self.problems.add(format!("image {name}"), &e);
+                self.problems.used_by(problem, &self.material_label);
+                self.image_problems.insert(index, problem);
+                return Ok(None);
+            }
+            Err(e) => return Err(e),
         };
         match probed {
             Probed::Image(header) => {
@@ -838,7 +882,9 @@ impl Loader<'_> {
             Probed::Unsupported(format) => {
                 let key = format!("image format {format}");
                 self.warnings.once(&key, || {
-                    format!("image format {format} is not supported (PNG and JPEG are): textures using it are dropped")
+                    format!(
+                        "image format {format} is not supported (PNG, JPEG and WebP are): textures using it are dropped"
+                    )
                 });
                 Ok(None)
             }

@@ -159,6 +159,16 @@ impl Material {
     pub fn is_emissive(&self) -> bool {
         self.emission.max_element() > 0.0
     }
+
+    /// Its texture references (indices into [`Scene::textures`]), every map it has.
+    pub fn texture_slots(&self) -> [Option<u32>; 2] {
+        [self.base_color_texture, self.emissive_texture]
+    }
+
+    /// [`Material::texture_slots`], to rewrite (loaders drop textures that fail to decode).
+    pub(crate) fn texture_slots_mut(&mut self) -> [&mut Option<u32>; 2] {
+        [&mut self.base_color_texture, &mut self.emissive_texture]
+    }
 }
 
 /// Texture coordinate wrapping, as glTF samplers define it.
@@ -403,12 +413,16 @@ pub enum SceneError {
 }
 
 /// Loader settings.
+///
+/// By default loading is forgiving, as other glTF viewers are: a texture whose image file is
+/// missing or unreadable, or whose data does not decode, is dropped with a warning naming the
+/// image and the materials using it, and those materials render with their factors. A
+/// malformed scene file (truncated buffers, out-of-range indices, ...) is an error either way.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct LoadOptions {
-    /// When a texture's image **file** is missing, drop the texture (the material keeps its
-    /// factor) and warn, instead of refusing the scene. Off by default: a missing file usually
-    /// means a broken export. Corrupt image data is an error either way.
-    pub allow_missing_textures: bool,
+    /// Refuse the scene, with the image's own error, when a texture cannot be used, instead
+    /// of warning (`lightport render --strict` also refuses scenes with any other warning).
+    pub strict: bool,
 }
 
 /// Loads a scene with default [`LoadOptions`], choosing the format from the file extension:
@@ -439,6 +453,23 @@ impl Scene {
             }
         }
         b
+    }
+
+    /// Whether anything lights the scene: an emissive triangle, a point light with power, or
+    /// a sky that is not black. Without any, every image of it is black.
+    pub fn has_light(&self) -> bool {
+        let sky =
+            self.sky.as_ref().is_some_and(|s| s.intensity > 0.0 && s.texels.iter().any(|t| t.max_element() > 0.0));
+        sky || self.point_lights.iter().any(|l| l.intensity.max_element() > 0.0) || self.emissive_triangle_count() > 0
+    }
+
+    /// The warning for a scene that nothing lights ([`Scene::has_light`]), saying how to light it.
+    pub fn unlit_warning(&self) -> Option<String> {
+        (!self.has_light()).then(|| {
+            "nothing lights the scene (no emissive material, no point light, no sky): it will render black; give it a \
+             sky (`--sky FILE.hdr`, an equirectangular .hdr or .exr) or add emitters or lights to the file"
+                .to_owned()
+        })
     }
 
     /// Number of triangles whose material emits light.

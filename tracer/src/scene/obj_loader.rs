@@ -12,7 +12,10 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
-use super::texture::{catch_decoder_panic, decode_textures, probe_srgb, ImageHeader, PendingTexture, Probed};
+use super::texture::{
+    catch_decoder_panic, decode_textures_forgiving, is_texture_problem, material_label, probe_srgb, ImageHeader,
+    ImageProblems, PendingTexture, Probed,
+};
 use super::util::read_file;
 use super::{
     flat_normal, Camera, LoadOptions, Material, Scene, SceneError, Triangle, Warnings, Wrap, MAX_SCENE_TEXELS,
@@ -76,11 +79,18 @@ fn load_obj_from(
     let mtl_materials = materials.map_err(|e| obj_error(format!("material library: {e}")))?;
 
     let mut warnings = Warnings::default();
-    let mut textures = Textures::default();
-    let mut texture_cache: HashMap<String, Option<u32>> = HashMap::new();
+    let mut textures = Textures {
+        read,
+        strict: options.strict,
+        images: Vec::new(),
+        textures: Vec::new(),
+        cache: HashMap::new(),
+        problems: ImageProblems::default(),
+    };
     let mut materials = Vec::with_capacity(mtl_materials.len() + 1);
     for m in &mtl_materials {
-        materials.push(convert_material(m, read, &mut textures, &mut texture_cache, &mut warnings, options)?);
+        let label = material_label(materials.len(), &m.name);
+        materials.push(convert_material(m, &label, &mut textures, &mut warnings)?);
     }
     let mut default_material = None;
 
@@ -145,7 +155,10 @@ fn load_obj_from(
         return Err(SceneError::NoTriangles(" (the OBJ has no faces)".into()));
     }
     let images: Vec<(&[u8], &ImageHeader)> = textures.images.iter().map(|(b, h)| (b.as_slice(), h)).collect();
-    let textures = decode_textures(&images, &textures.textures, &materials)?;
+    let mut problems = textures.problems;
+    let textures =
+        decode_textures_forgiving(&images, textures.textures, &mut materials, &mut problems, options.strict)?;
+    problems.warn(&mut warnings);
     let mut scene = Scene {
         triangles,
         materials,
@@ -177,19 +190,24 @@ fn check_mtl_colours(mtl: &[u8]) -> Result<(), String> {
 }
 
 /// The MTL textures, probed (each image is one texture), decoded once the materials are read.
-#[derive(Default)]
-struct Textures {
+struct Textures<'r> {
+    /// Reads a file named relative to the OBJ's folder (see [`load_obj_slice`]).
+    read: &'r dyn Fn(&Path) -> Result<Vec<u8>, SceneError>,
+    /// [`LoadOptions::strict`].
+    strict: bool,
     images: Vec<(Vec<u8>, ImageHeader)>,
     textures: Vec<PendingTexture>,
+    /// Map file name -> its texture (`Err`: its entry in `problems`).
+    cache: HashMap<String, Result<Option<u32>, usize>>,
+    problems: ImageProblems,
 }
 
+/// `label`: how warnings name the material.
 fn convert_material(
     m: &tobj::Material,
-    read: &dyn Fn(&Path) -> Result<Vec<u8>, SceneError>,
+    label: &str,
     textures: &mut Textures,
-    cache: &mut HashMap<String, Option<u32>>,
     warnings: &mut Warnings,
-    options: &LoadOptions,
 ) -> Result<Material, SceneError> {
     let what = format!("MTL material {:?}", m.name);
     let color = |c: Option<[f32; 3]>, default: f32, name: &str| -> Result<Vec3, SceneError> {
@@ -219,69 +237,75 @@ fn convert_material(
         warnings.once("MTL bump", || "MTL bump and normal maps are not supported: they are ignored".into());
     }
     let base_color_texture = match &m.diffuse_texture {
-        Some(t) => texture(t, read, textures, cache, warnings, options)?,
+        Some(t) => textures.texture(t, label, warnings)?,
         None => None,
     };
     let emissive_texture = match m.unknown_param.get("map_Ke") {
-        Some(t) if emission.max_element() > 0.0 => texture(t, read, textures, cache, warnings, options)?,
+        Some(t) if emission.max_element() > 0.0 => textures.texture(t, label, warnings)?,
         _ => None,
     };
     Ok(Material { name: m.name.clone(), base_color, base_color_texture, emission, emissive_texture })
 }
 
-/// Loads an MTL texture map (relative to the OBJ's folder). Map options (`-bm 1 ...`) are
-/// skipped with a warning; the file name is the last word.
-fn texture(
-    spec: &str,
-    read: &dyn Fn(&Path) -> Result<Vec<u8>, SceneError>,
-    textures: &mut Textures,
-    cache: &mut HashMap<String, Option<u32>>,
-    warnings: &mut Warnings,
-    options: &LoadOptions,
-) -> Result<Option<u32>, SceneError> {
-    let file = if spec.starts_with('-') {
-        warnings.once("MTL map options", || {
-            "MTL texture map options (-bm, -s, ...) are not supported: they are ignored".into()
-        });
-        spec.split_whitespace().last().unwrap_or(spec)
-    } else {
-        spec
-    };
-    if let Some(&t) = cache.get(file) {
-        return Ok(t);
-    }
-    let path = PathBuf::from(file.replace('\\', "/"));
-    let bytes = match read(&path) {
-        Ok(bytes) => bytes,
-        Err(SceneError::Io { path: missing, .. }) if options.allow_missing_textures => {
-            let key = format!("missing image {}", missing.display());
-            warnings
-                .once(&key, || format!("image file {} is missing: textures using it are dropped", missing.display()));
-            cache.insert(file.to_owned(), None);
-            return Ok(None);
-        }
-        Err(e) => return Err(e),
-    };
-    let used: u64 = textures.images.iter().map(|(_, header)| header.texels()).sum();
-    let budget = MAX_SCENE_TEXELS.saturating_sub(used);
-    if budget == 0 {
-        return Err(SceneError::TooLarge(format!("the scene's textures have more than {MAX_SCENE_TEXELS} texels")));
-    }
-    let id = match probe_srgb(&bytes, &path.display().to_string(), budget)? {
-        Probed::Image(header) => {
-            textures.images.push((bytes, header));
-            let image = textures.images.len() - 1;
-            textures.textures.push(PendingTexture { image, wrap_s: Wrap::Repeat, wrap_t: Wrap::Repeat });
-            Some(textures.textures.len() as u32 - 1)
-        }
-        Probed::Unsupported(format) => {
-            let key = format!("image format {format}");
-            warnings.once(&key, || {
-                format!("image format {format} is not supported (PNG and JPEG are): textures using it are dropped")
+impl Textures<'_> {
+    /// Loads an MTL texture map (relative to the OBJ's folder) for material `label`. Map
+    /// options (`-bm 1 ...`) are skipped with a warning; the file name is the last word. A
+    /// missing, unreadable or undecodable image is `None` (recorded in `problems`) unless
+    /// loading is strict.
+    fn texture(&mut self, spec: &str, label: &str, warnings: &mut Warnings) -> Result<Option<u32>, SceneError> {
+        let file = if spec.starts_with('-') {
+            warnings.once("MTL map options", || {
+                "MTL texture map options (-bm, -s, ...) are not supported: they are ignored".into()
             });
-            None
+            spec.split_whitespace().last().unwrap_or(spec)
+        } else {
+            spec
+        };
+        match self.cache.get(file) {
+            Some(Ok(t)) => return Ok(*t),
+            Some(&Err(problem)) => {
+                self.problems.used_by(problem, label);
+                return Ok(None);
+            }
+            None => {}
         }
-    };
-    cache.insert(file.to_owned(), id);
-    Ok(id)
+        let path = PathBuf::from(file.replace('\\', "/"));
+        let result = match self.probe(&path, warnings) {
+            Err(e) if !self.strict && is_texture_problem(&e) => {
+                let problem = self.problems.add(format!("image {}", path.display()), &e);
+                self.problems.used_by(problem, label);
+                Err(problem)
+            }
+            other => Ok(other?),
+        };
+        self.cache.insert(file.to_owned(), result);
+        Ok(result.unwrap_or(None))
+    }
+
+    /// Reads and probes the image at `path` (see [`Textures::texture`]).
+    fn probe(&mut self, path: &Path, warnings: &mut Warnings) -> Result<Option<u32>, SceneError> {
+        let bytes = (self.read)(path)?;
+        let used: u64 = self.images.iter().map(|(_, header)| header.texels()).sum();
+        let budget = MAX_SCENE_TEXELS.saturating_sub(used);
+        if budget == 0 {
+            return Err(SceneError::TooLarge(format!("the scene's textures have more than {MAX_SCENE_TEXELS} texels")));
+        }
+        Ok(match probe_srgb(&bytes, &path.display().to_string(), budget)? {
+            Probed::Image(header) => {
+                self.images.push((bytes, header));
+                let image = self.images.len() - 1;
+                self.textures.push(PendingTexture { image, wrap_s: Wrap::Repeat, wrap_t: Wrap::Repeat });
+                Some(self.textures.len() as u32 - 1)
+            }
+            Probed::Unsupported(format) => {
+                let key = format!("image format {format}");
+                warnings.once(&key, || {
+                    format!(
+                        "image format {format} is not supported (PNG, JPEG and WebP are): textures using it are dropped"
+                    )
+                });
+                None
+            }
+        })
+    }
 }

@@ -1,4 +1,4 @@
-//! Image decoding (PNG/JPEG for textures) with size limits, straight into the packed texel
+//! Image decoding (PNG, JPEG and WebP for textures) with size limits, straight into the packed texel
 //! layout: one `u32` per texel, 8-bit RGBA as stored in the file (colour sRGB-encoded, alpha
 //! linear), red in the low byte. The kernel decodes sRGB to linear when it samples
 //! (`kernel::scene_data::decode_srgba8`), so textures cost 4 bytes per texel from the decoder
@@ -139,8 +139,8 @@ pub(crate) fn limits() -> Limits {
     limits
 }
 
-/// Reads the header of a PNG or JPEG whose colour channels are sRGB-encoded, for
-/// [`ImageHeader::decode_into`]. Formats other than PNG and JPEG come back as
+/// Reads the header of a PNG, JPEG or WebP whose colour channels are sRGB-encoded, for
+/// [`ImageHeader::decode_into`]. Other formats come back as
 /// [`Probed::Unsupported`]; a corrupt header is an error, and so is an image with more than
 /// `max_texels` texels.
 pub(crate) fn probe_srgb(bytes: &[u8], name: &str, max_texels: u64) -> Result<Probed, SceneError> {
@@ -152,9 +152,9 @@ pub(crate) fn probe_srgb(bytes: &[u8], name: &str, max_texels: u64) -> Result<Pr
         return Ok(Probed::Unsupported("KTX2 (KHR_texture_basisu)".into()));
     } else {
         match image::guess_format(bytes) {
-            Ok(f @ (ImageFormat::Png | ImageFormat::Jpeg)) => f,
+            Ok(f @ (ImageFormat::Png | ImageFormat::Jpeg | ImageFormat::WebP)) => f,
             Ok(other) => return Ok(Probed::Unsupported(format!("{other:?}"))),
-            Err(_) => return Err(err("not a PNG or JPEG image".into())),
+            Err(_) => return Err(err("not a PNG, JPEG or WebP image".into())),
         }
     };
     let max_texels = max_texels.min(MAX_IMAGE_TEXELS);
@@ -270,19 +270,23 @@ pub(crate) struct PendingTexture {
 /// `images` are the probed images with their bytes, `textures` the scene's textures in order
 /// (several may show the same image, with other wrap modes: each gets its own copy, as the
 /// packed layout has). The mean luminance of the textures `materials` emit through is computed
-/// while their texels are at hand. On failure, the error of the first failing image.
+/// while their texels are at hand. On failure, every failing image (index in `images`) with
+/// its error, in image order.
 pub(crate) fn decode_textures(
     images: &[(&[u8], &ImageHeader)],
     textures: &[PendingTexture],
     materials: &[Material],
-) -> Result<Vec<Texture>, SceneError> {
+) -> Result<Vec<Texture>, Vec<(usize, SceneError)>> {
     let emissive: Vec<bool> =
         (0..textures.len() as u32).map(|i| materials.iter().any(|m| m.emissive_texture == Some(i))).collect();
     // Each texture's first element and image header, in scene order.
     let mut layout = Vec::with_capacity(textures.len());
     let mut elements = 0usize;
     for t in textures {
-        let header = images.get(t.image).ok_or_else(|| SceneError::Malformed("a texture has no image".into()))?.1;
+        let header = images
+            .get(t.image)
+            .ok_or_else(|| vec![(t.image, SceneError::Malformed("a texture has no image".into()))])?
+            .1;
         layout.push((elements, header));
         elements += (header.texels() as usize).div_ceil(PER_ELEMENT);
     }
@@ -314,8 +318,15 @@ pub(crate) fn decode_textures(
             .collect::<Vec<_>>();
     });
     let mut means = Vec::with_capacity(results.len());
-    for r in results {
-        means.push(r?);
+    let mut failures = Vec::new();
+    for (image, r) in results.into_iter().enumerate() {
+        match r {
+            Ok(mean) => means.push(mean),
+            Err(e) => failures.push((image, e)),
+        }
+    }
+    if !failures.is_empty() {
+        return Err(failures);
     }
     Ok(textures
         .iter()
@@ -336,6 +347,119 @@ pub(crate) fn decode_textures(
             }
         })
         .collect())
+}
+
+/// [`decode_textures`], forgiving: an image that does not decode is reported in `problems`
+/// (naming the materials that used it), its textures are dropped and the materials render
+/// with their factors; the others are decoded again without it. With `strict`, the first
+/// failure is the error.
+pub(crate) fn decode_textures_forgiving(
+    images: &[(&[u8], &ImageHeader)],
+    mut textures: Vec<PendingTexture>,
+    materials: &mut [Material],
+    problems: &mut ImageProblems,
+    strict: bool,
+) -> Result<Vec<Texture>, SceneError> {
+    loop {
+        let failures = match decode_textures(images, &textures, materials) {
+            Ok(decoded) => return Ok(decoded),
+            Err(failures) => failures,
+        };
+        if strict || failures.iter().any(|(_, e)| !is_texture_problem(e)) {
+            let (_, first) = failures.into_iter().find(|(_, e)| strict || !is_texture_problem(e)).expect("non-empty");
+            return Err(first);
+        }
+        for (image, error) in &failures {
+            let name = images.get(*image).map_or_else(|| image.to_string(), |(_, h)| format!("image {}", h.name));
+            let id = problems.add(name, error);
+            for (m, material) in materials.iter().enumerate() {
+                let uses = material
+                    .texture_slots()
+                    .iter()
+                    .flatten()
+                    .any(|&t| textures.get(t as usize).is_some_and(|t| t.image == *image));
+                if uses {
+                    problems.used_by(id, &material_label(m, &material.name));
+                }
+            }
+        }
+        // Drop the failed images' textures; the others keep their order.
+        let failed = |t: &PendingTexture| failures.iter().any(|(image, _)| *image == t.image);
+        let mut kept = 0u32;
+        let remap: Vec<Option<u32>> = textures
+            .iter()
+            .map(|t| {
+                (!failed(t)).then(|| {
+                    kept += 1;
+                    kept - 1
+                })
+            })
+            .collect();
+        for material in materials.iter_mut() {
+            for slot in material.texture_slots_mut() {
+                *slot = slot.and_then(|t| remap.get(t as usize).copied().flatten());
+            }
+        }
+        textures.retain(|t| !failed(t));
+    }
+}
+
+/// Whether a loading error is about one texture's image (a missing or unreadable file, data
+/// that does not decode), which a forgiving load turns into a warning, rather than about the
+/// scene file itself.
+pub(crate) fn is_texture_problem(e: &SceneError) -> bool {
+    matches!(e, SceneError::Io { .. } | SceneError::Image { .. })
+}
+
+/// How warnings name a material: its name in the file, else its index.
+pub(crate) fn material_label(index: usize, name: &str) -> String {
+    if name.is_empty() {
+        format!("material {index}")
+    } else {
+        format!("material {index} {name:?}")
+    }
+}
+
+/// Texture images that could not be used, each with why and the materials that asked for it:
+/// one warning per image ([`ImageProblems::warn`]).
+#[derive(Default)]
+pub(crate) struct ImageProblems {
+    list: Vec<ImageProblem>,
+}
+
+struct ImageProblem {
+    image: String,
+    reason: String,
+    materials: Vec<String>,
+}
+
+impl ImageProblems {
+    /// Records that `image` cannot be used because of `reason`; its id for [`ImageProblems::used_by`].
+    pub(crate) fn add(&mut self, image: String, reason: &SceneError) -> usize {
+        self.list.push(ImageProblem { image, reason: reason.to_string(), materials: Vec::new() });
+        self.list.len() - 1
+    }
+
+    /// Records that `material` wanted the image of problem `id`.
+    pub(crate) fn used_by(&mut self, id: usize, material: &str) {
+        if let Some(p) = self.list.get_mut(id) {
+            if !p.materials.iter().any(|m| m == material) {
+                p.materials.push(material.to_owned());
+            }
+        }
+    }
+
+    /// One warning per image, naming it, why, and the materials that render without it.
+    pub(crate) fn warn(self, warnings: &mut super::Warnings) {
+        for p in self.list {
+            let users = match p.materials.len() {
+                0 => "no material uses it".to_owned(),
+                1 => format!("{} renders with its factors instead", p.materials[0]),
+                _ => format!("{} render with their factors instead", p.materials.join(", ")),
+            };
+            warnings.once(&format!("texture {}", p.image), || format!("texture ignored: {}; {users}", p.reason));
+        }
+    }
 }
 
 fn check_texels(w: u32, h: u32, max_texels: u64, name: &str) -> Result<(), SceneError> {
@@ -482,7 +606,7 @@ mod tests {
     fn decode(bytes: &[u8]) -> Texture {
         let header = header(bytes);
         let texture = PendingTexture { image: 0, wrap_s: Wrap::Repeat, wrap_t: Wrap::Repeat };
-        decode_textures(&[(bytes, &header)], &[texture], &[]).unwrap().remove(0)
+        decode_textures(&[(bytes, &header)], &[texture], &[]).map_err(|f| f[0].1.to_string()).unwrap().remove(0)
     }
 
     #[test]
@@ -524,7 +648,8 @@ mod tests {
         let textures = [pending(0, Wrap::Repeat), pending(1, Wrap::Repeat), pending(0, Wrap::ClampToEdge)];
         let mut emitter = Material::emissive("e", Vec3::ONE, Vec3::ONE);
         emitter.emissive_texture = Some(1);
-        let decoded = decode_textures(&[(&a, &ha), (&b, &hb)], &textures, &[emitter]).unwrap();
+        let decoded =
+            decode_textures(&[(&a, &ha), (&b, &hb)], &textures, &[emitter]).map_err(|f| f[0].1.to_string()).unwrap();
         let atlas = decoded[0].texels.atlas();
         assert!(decoded.iter().all(|t| std::ptr::eq(t.texels.atlas().as_slice(), atlas.as_slice())));
         let firsts: Vec<usize> = decoded.iter().map(|t| t.texels.first_element()).collect();
@@ -542,11 +667,59 @@ mod tests {
         let fresh: TextureTexels = decoded[1].texels.to_vec().into();
         assert_eq!(decoded[1].texels.mean_luminance().to_bits(), fresh.mean_luminance().to_bits());
         assert_eq!(fresh, decoded[1].texels);
-        // A corrupt image is an error, the first one's when several are.
+        // A corrupt image is an error, named by its index.
         let mut cut = b.clone();
         cut.truncate(b.len() - 20);
-        let err = decode_textures(&[(&a, &ha), (&cut, &hb)], &textures, &[]).unwrap_err();
-        assert!(matches!(err, SceneError::Image { .. }), "{err}");
+        let Err(failures) = decode_textures(&[(&a, &ha), (&cut, &hb)], &textures, &[]) else { panic!("decoded") };
+        assert!(matches!(failures[..], [(1, SceneError::Image { .. })]), "{:?}", failures);
+    }
+
+    #[test]
+    fn images_that_do_not_decode_are_dropped_and_their_materials_named() {
+        // Image 1 is cut short: it probes but does not decode. Textures 0 and 2 show image 0.
+        let a =
+            png(DynamicImage::ImageRgba8(image::RgbaImage::from_fn(3, 1, |x, _| image::Rgba([x as u8, 0, 0, 255]))));
+        let b = png(DynamicImage::ImageRgba8(image::RgbaImage::from_fn(2, 3, |_, _| image::Rgba([9, 9, 9, 255]))));
+        let mut cut = b.clone();
+        cut.truncate(b.len() - 20);
+        let (ha, hb) = (header(&a), header(&cut));
+        let pending = |image, wrap_s| PendingTexture { image, wrap_s, wrap_t: Wrap::Repeat };
+        let textures = vec![pending(0, Wrap::Repeat), pending(1, Wrap::Repeat), pending(0, Wrap::ClampToEdge)];
+        let mut materials = vec![Material::diffuse("plain", Vec3::ONE), Material::diffuse("", Vec3::ONE)];
+        materials[0].base_color_texture = Some(2);
+        materials[1].base_color_texture = Some(1);
+        materials[1].emission = Vec3::ONE;
+        materials[1].emissive_texture = Some(0);
+        let images = [(a.as_slice(), &ha), (cut.as_slice(), &hb)];
+
+        let mut problems = ImageProblems::default();
+        let strict =
+            decode_textures_forgiving(&images, textures.clone_pending(), &mut materials.clone(), &mut problems, true);
+        assert!(matches!(strict, Err(SceneError::Image { .. })));
+
+        let mut problems = ImageProblems::default();
+        let decoded = decode_textures_forgiving(&images, textures, &mut materials, &mut problems, false).unwrap();
+        // The failed texture is gone; the others keep their order, the materials follow them.
+        assert_eq!(decoded.len(), 2);
+        assert_eq!((decoded[1].wrap_s, decoded[1].width), (Wrap::ClampToEdge, 3));
+        assert_eq!(materials[0].base_color_texture, Some(1));
+        assert_eq!((materials[1].base_color_texture, materials[1].emissive_texture), (None, Some(0)));
+        let mut warnings = super::super::Warnings::default();
+        problems.warn(&mut warnings);
+        let warnings = warnings.into_vec();
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(warnings[0].contains("image test") && warnings[0].contains("material 1 renders"), "{warnings:?}");
+    }
+
+    /// Copies of pending textures (the type is not `Clone`: loaders never copy them).
+    trait ClonePending {
+        fn clone_pending(&self) -> Vec<PendingTexture>;
+    }
+
+    impl ClonePending for Vec<PendingTexture> {
+        fn clone_pending(&self) -> Vec<PendingTexture> {
+            self.iter().map(|t| PendingTexture { image: t.image, wrap_s: t.wrap_s, wrap_t: t.wrap_t }).collect()
+        }
     }
 
     #[test]
