@@ -206,6 +206,14 @@ fn y_up_and_z_up_exports_load_to_the_same_geometry() {
         let normals = a.normals.iter().zip(&b.normals).map(|(p, q)| (*p - *q).length()).fold(0.0, f32::max);
         assert!(normals < 1e-5, "triangle {i} normals: {:?} vs {:?}", a.normals, b.normals);
     }
+    // The point light and the camera go through the same conversion.
+    assert_eq!(y.point_lights.len(), 1);
+    assert_eq!(z.point_lights.len(), 1);
+    let (ly, lz) = (y.point_lights[0], z.point_lights[0]);
+    assert!((ly.position - lz.position).length() < 1e-4 && ly.intensity == lz.intensity, "{ly:?} vs {lz:?}");
+    let (cy, cz) = (y.camera, z.camera);
+    assert!((cy.position - cz.position).length() < 1e-4, "{cy:?} vs {cz:?}");
+    assert!((cy.forward() - cz.forward()).length() < 1e-5 && (cy.yfov - cz.yfov).abs() < 1e-6, "{cy:?} vs {cz:?}");
 }
 
 #[test]
@@ -308,6 +316,13 @@ fn materials_cameras_and_unsupported_content() {
     let barbarian = load("blender_293_barbarian_7400_binary.fbx");
     println!("barbarian: {} triangles, warnings {:?}", barbarian.triangles.len(), barbarian.warnings);
     assert!(barbarian.warnings.iter().any(|w| w.contains("skinning")), "{:?}", barbarian.warnings);
+    assert!(barbarian.warnings.iter().any(|w| w.contains("directional lights")), "{:?}", barbarian.warnings);
+    // Its camera (Blender's, 49.1° vertical field of view) looks at the character: the scene's
+    // centre is inside its view cone.
+    let c = barbarian.camera;
+    assert!((c.yfov.to_degrees() - 49.13).abs() < 0.01, "{c:?}");
+    let to_centre = (barbarian.bounds().center() - c.position).normalize();
+    assert!(c.forward().angle_between(to_centre) < 0.5 * c.yfov, "{c:?} vs {to_centre}");
 
     // 3ds Max's PBR material: the base colour is read, metal-roughness is warned about.
     let max = load("max_pbr_metal_rough_material_7700_ascii.fbx");

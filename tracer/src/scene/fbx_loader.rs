@@ -240,7 +240,7 @@ impl Loader<'_> {
             w.once("procedural geometry", || "FBX procedural geometry is not supported: it is ignored".into());
         }
         for warning in &fbx.metadata.warnings {
-            let what = format!("{}", &*warning.description);
+            let what = warning.description.to_string();
             let count = warning.count;
             w.once(&format!("ufbx {what}"), || format!("the FBX file has problems ufbx repaired: {what} ({count}x)"));
         }
@@ -465,8 +465,8 @@ impl Loader<'_> {
     /// exists, else the relative path (whose read error then names it).
     fn texture_path(&self, t: &ufbx::Texture) -> PathBuf {
         let native = |s: &str| s.replace('\\', "/");
-        let relative = native(&*t.relative_filename);
-        let absolute = native(&*t.absolute_filename);
+        let relative = native(&t.relative_filename);
+        let absolute = native(&t.absolute_filename);
         let is_windows_absolute = |s: &str| s.as_bytes().get(1) == Some(&b':') || s.starts_with("//");
         let mut candidates = Vec::new();
         if !relative.is_empty() {
