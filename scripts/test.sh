@@ -20,6 +20,15 @@ if [ ${#missing[@]} -gt 0 ]; then
     "${sudo[@]}" apt-get update
     "${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends "${missing[@]}"
 fi
+# The FBX loader builds the ufbx C library (the `cc` crate): a C compiler and the C library's
+# headers. rustc already links through `cc`, but `--no-install-recommends` leaves libc6-dev out.
+if ! command -v cc >/dev/null || [ ! -e /usr/include/stdlib.h ]; then
+    step "installing gcc libc6-dev"
+    sudo=()
+    if [ "$(id -u)" -ne 0 ]; then sudo=(sudo); fi
+    "${sudo[@]}" apt-get update
+    "${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends gcc libc6-dev
+fi
 if ! command -v npm >/dev/null; then
     step "installing nodejs npm"
     sudo=()

@@ -44,7 +44,7 @@ const CACHE_VERSION: u32 = 1;
 pub struct ChartArgs {
     /// Scenes: `cornell` (built in), `furnace` (white furnace, analytic reference), `sky-plane`
     /// (diffuse plane under a uniform sky, analytic), a stability scene (`tiny-bright-light`,
-    /// `large-light-close`, `sky-through-opening`, ...), or a .gltf/.glb/.obj file. Default: cornell.
+    /// `large-light-close`, `sky-through-opening`, ...), or a .gltf/.glb/.obj/.fbx file. Default: cornell.
     pub scenes: Vec<String>,
     /// Equirectangular sky (.hdr or .exr) for every scene.
     #[arg(long)]

@@ -19,7 +19,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Path-trace a scene (glTF, GLB or OBJ; without SCENE, a built-in Cornell box) to an image.
+    /// Path-trace a scene (glTF, GLB, OBJ or FBX; without SCENE, a built-in Cornell box) to an image.
     Render(RenderArgs),
     /// Speed against accuracy: render scenes with each strategy on each backend at increasing
     /// sample counts; write error-against-time charts (SVG), CSV and equal-time crops.
@@ -61,7 +61,7 @@ fn main() -> ExitCode {
 
 #[derive(clap::Args)]
 struct RenderArgs {
-    /// Scene file (.gltf, .glb, .obj). Default: the Cornell box generated in code.
+    /// Scene file (.gltf, .glb, .obj, .fbx). Default: the Cornell box generated in code.
     scene: Option<PathBuf>,
     /// Equirectangular sky (.hdr or .exr).
     #[arg(long)]

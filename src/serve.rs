@@ -82,7 +82,7 @@ const MAX_ASSET_BYTES: u64 = 256 << 20;
 
 #[derive(clap::Args)]
 pub struct ServeArgs {
-    /// Scenes to serve (.gltf, .glb, .obj), after the built-in Cornell box.
+    /// Scenes to serve (.gltf, .glb, .obj, .fbx), after the built-in Cornell box.
     scenes: Vec<PathBuf>,
     /// Port on 127.0.0.1 (0: any free port; the URL printed says which).
     #[arg(long, default_value_t = 8080)]

@@ -568,7 +568,7 @@ fn malformed_files_are_refused() {
         x ^= x << 5;
         garbage.push(x as u8);
     }
-    for ext in ["gltf", "glb", "obj"] {
+    for ext in ["gltf", "glb", "obj", "fbx"] {
         expect_error(&format!("garbage .{ext}"), scene::load(&write(&format!("garbage.{ext}"), &garbage)));
         expect_error(&format!("empty .{ext}"), scene::load(&write(&format!("empty.{ext}"), b"")));
     }
@@ -576,7 +576,7 @@ fn malformed_files_are_refused() {
     magic_garbage.extend_from_slice(&(garbage.len() as u32 + 12).to_le_bytes());
     magic_garbage.extend_from_slice(&garbage);
     expect_error("glb magic + garbage", scene::load(&write("magic.glb", &magic_garbage)));
-    expect_error("unknown extension", scene::load(&write("scene.fbx", b"...")));
+    expect_error("unknown extension", scene::load(&write("scene.blend", b"...")));
     expect_error("missing file", scene::load(&dir.join("nope.gltf")));
 
     // Missing .bin.

@@ -19,8 +19,8 @@ use std::process::{Child, Command, Stdio};
 use std::sync::{mpsc, Arc, Mutex};
 use std::time::{Duration, Instant};
 
-/// A `lightport serve` child process, killed when dropped (and, on Linux, when this process
-/// dies in any way: a fuzzer that aborts on a finding must not leave a server behind).
+/// A `lightport serve` child process, killed when dropped and tied to this process by its stdin
+/// (`--exit-on-stdin-eof`): a fuzzer that aborts on a finding must not leave a server behind.
 pub struct Server {
     child: Child,
     pub addr: SocketAddr,
@@ -39,21 +39,15 @@ impl Server {
     /// Starts `BINARY serve ARGS --port 0` and waits (up to 120 s) for its URL line.
     pub fn start(binary: &Path, args: &[OsString]) -> Result<Server, String> {
         let mut command = Command::new(binary);
-        command.arg("serve").args(args).args(["--port", "0"]).stdout(Stdio::piped()).stderr(Stdio::piped());
-        #[cfg(target_os = "linux")]
-        {
-            use std::os::unix::process::CommandExt;
-            // SAFETY: prctl is async-signal-safe; nothing else runs between fork and exec.
-            unsafe {
-                command.pre_exec(|| {
-                    if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) == 0 {
-                        Ok(())
-                    } else {
-                        Err(std::io::Error::last_os_error())
-                    }
-                });
-            }
-        }
+        // The server exits when its stdin (held by `child`) closes, however this process ends: a
+        // fuzzer that aborts on a finding leaves no server behind (the same tie the tests use).
+        command
+            .arg("serve")
+            .args(args)
+            .args(["--port", "0", "--exit-on-stdin-eof"])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
         let mut child = command.spawn().map_err(|e| format!("cannot start {}: {e}", binary.display()))?;
         let stdout = child.stdout.take().ok_or("no stdout")?;
         let (tx, rx) = mpsc::channel();

@@ -21,6 +21,11 @@ pub struct DroppedFile {
 pub enum DropError {
     #[error("no .glb or .gltf file among the dropped files ({0})")]
     NoScene(String),
+    /// The browser build has no FBX parser (ufbx is C): the server converts FBX scenes.
+    #[error(
+        "{0}: FBX scenes are converted on the server side: run `lightport serve {0}` and pick it from the scene list"
+    )]
+    ServerSideFormat(String),
     #[error("drop one scene at a time: {0}")]
     SeveralScenes(String),
     #[error("{scene} references {uri:?}, which was not dropped with it (drop the .gltf together with its .bin and image files)")]
@@ -62,6 +67,9 @@ fn scene_file(files: &[DroppedFile]) -> Result<&DroppedFile, DropError> {
     match scenes.as_slice() {
         [one] => Ok(one),
         [] => {
+            if let Some(fbx) = files.iter().find(|f| extension(&f.name) == "fbx") {
+                return Err(DropError::ServerSideFormat(base_name(&fbx.name).to_owned()));
+            }
             let names: Vec<&str> = files.iter().map(|f| f.name.as_str()).collect();
             Err(DropError::NoScene(if names.is_empty() { "nothing was dropped".into() } else { names.join(", ") }))
         }
@@ -178,6 +186,10 @@ mod tests {
         assert!(err.to_string().contains("CesiumLogoFlat.png"), "{err}");
         let err = load_dropped(&[gltf.clone(), gltf]).expect_err("two scenes");
         assert!(matches!(err, DropError::SeveralScenes(_)), "{err}");
+
+        let fbx = DroppedFile { name: "models/scene.fbx".into(), bytes: b"Kaydara FBX Binary  \0".to_vec() };
+        let err = load_dropped(&[fbx]).expect_err("FBX is converted by the server");
+        assert!(err.to_string().contains("lightport serve scene.fbx"), "{err}");
 
         let garbage = DroppedFile { name: "broken.glb".into(), bytes: b"glTF\x02\0\0\0garbage".to_vec() };
         let err = load_dropped(&[garbage]).expect_err("not glTF");

@@ -25,7 +25,7 @@ use super::texture::{
 };
 use super::util::{read_file, read_uri};
 use super::{
-    flat_normal, Aabb, Camera, LoadOptions, Material, PointLight, Scene, SceneError, Triangle, Warnings, Wrap,
+    flat_normal, Camera, FoundCamera, LoadOptions, Material, PointLight, Scene, SceneError, Triangle, Warnings, Wrap,
     MAX_SCENE_TEXELS, MAX_TRIANGLES,
 };
 
@@ -282,14 +282,6 @@ struct LocalPrimitive {
     material: u32,
 }
 
-/// The first perspective camera found, before its focus distance is known.
-struct FoundCamera {
-    position: Vec3,
-    forward: Vec3,
-    up: Vec3,
-    yfov: f32,
-}
-
 struct Loader<'a> {
     root: &'a Root,
     buffers: Buffers<'a>,
@@ -351,7 +343,7 @@ impl Loader<'_> {
         };
         let bounds = scene.bounds();
         scene.camera = match self.camera {
-            Some(c) => finish_camera(c, &bounds),
+            Some(c) => c.finish(&bounds),
             None => {
                 if self.saw_orthographic {
                     self.warnings.once("orthographic camera", || {
@@ -902,20 +894,6 @@ enum ImageSource {
 
 fn texel_budget_error() -> SceneError {
     SceneError::TooLarge(format!("the scene's textures have more than {MAX_SCENE_TEXELS} texels"))
-}
-
-fn finish_camera(c: FoundCamera, bounds: &Aabb) -> Camera {
-    let radius = 0.5 * bounds.diagonal().length();
-    let along = (bounds.center() - c.position).dot(c.forward);
-    let focus = if along.is_finite() && along > 1e-3 * radius.max(1e-6) { along } else { radius.max(1.0) };
-    Camera {
-        position: c.position,
-        target: c.position + c.forward * focus,
-        up: c.up,
-        yfov: c.yfov,
-        aperture_radius: 0.0,
-        focus_distance: focus,
-    }
 }
 
 fn semantic_name(s: &Checked<Semantic>) -> String {

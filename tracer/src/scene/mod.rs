@@ -1,4 +1,4 @@
-//! Scenes: loading, flattening and validating `.gltf`/`.glb`/`.obj` files (+ `.hdr`/`.exr` skies)
+//! Scenes: loading, flattening and validating `.gltf`/`.glb`/`.obj`/`.fbx` files (+ `.hdr`/`.exr` skies)
 //! into one renderer-agnostic [`Scene`], plus small generated scenes for tests.
 //!
 //! # Conventions
@@ -31,6 +31,11 @@
 //! * `KHR_lights_punctual`: point lights; **spot lights become point lights** (cone ignored,
 //!   warned); directional lights are skipped (warned); `range` is ignored (physical falloff).
 //! * OBJ/MTL: see the `obj_loader` notes: `Kd`, `map_Kd`, `Ke`, `map_Ke`; a default camera.
+//! * FBX (binary and ASCII, 6.1 to 7.7, native builds only: the parser is the ufbx C library):
+//!   see the `fbx_loader` notes. Axis systems and units are converted to +Y-up metres; meshes,
+//!   normals, the first UV set, base colour and emission (factors and textures, embedded or
+//!   external), point lights and the first perspective camera are read; skinning, blend shapes,
+//!   animation, NURBS and other light kinds are warned about.
 //!
 //! # Extensions and warnings
 //! A glTF file **requiring** an extension Lightport cannot honour is refused
@@ -52,6 +57,10 @@
 //! `catch_unwind` as a last line of defence.
 
 mod accessor;
+// ufbx is C, built with the system C compiler; there is none for wasm32-unknown-unknown, so the
+// browser build has no FBX loader (`lightport serve` converts FBX scenes into bundles instead).
+#[cfg(not(target_arch = "wasm32"))]
+mod fbx_loader;
 mod generate;
 mod gltf_loader;
 mod obj_loader;
@@ -236,6 +245,33 @@ impl Default for Camera {
     }
 }
 
+/// A loader's first perspective camera, before its focus distance is known.
+pub(crate) struct FoundCamera {
+    pub position: Vec3,
+    /// Unit view direction.
+    pub forward: Vec3,
+    /// Unit up hint.
+    pub up: Vec3,
+    pub yfov: f32,
+}
+
+impl FoundCamera {
+    /// The camera, focused where its view axis passes the centre of `bounds` (the scene's).
+    pub(crate) fn finish(self, bounds: &Aabb) -> Camera {
+        let radius = 0.5 * bounds.diagonal().length();
+        let along = (bounds.center() - self.position).dot(self.forward);
+        let focus = if along.is_finite() && along > 1e-3 * radius.max(1e-6) { along } else { radius.max(1.0) };
+        Camera {
+            position: self.position,
+            target: self.position + self.forward * focus,
+            up: self.up,
+            yfov: self.yfov,
+            aperture_radius: 0.0,
+            focus_distance: focus,
+        }
+    }
+}
+
 /// Vertical field of view of generated cameras (45°).
 pub const DEFAULT_YFOV: f32 = std::f32::consts::FRAC_PI_4;
 
@@ -374,7 +410,7 @@ pub enum SceneError {
         source: std::io::Error,
     },
     /// The file extension names no format Lightport reads.
-    #[error("unsupported file type {0:?}: expected .gltf, .glb or .obj (scenes), .hdr or .exr (skies)")]
+    #[error("unsupported file type {0:?}: expected .gltf, .glb, .obj or .fbx (scenes), .hdr or .exr (skies)")]
     UnsupportedFileType(String),
     /// The file is not valid glTF (bad container, JSON or schema).
     #[error("invalid glTF: {0}")]
@@ -407,6 +443,14 @@ pub enum SceneError {
         /// What went wrong.
         message: String,
     },
+    /// The FBX parser (ufbx) refused the file, or this build has no FBX loader (wasm32).
+    #[error("FBX {path}: {message}")]
+    Fbx {
+        /// The FBX file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
     /// A parameter passed to a loader is out of range.
     #[error("invalid parameter: {0}")]
     InvalidParameter(String),
@@ -426,7 +470,8 @@ pub struct LoadOptions {
 }
 
 /// Loads a scene with default [`LoadOptions`], choosing the format from the file extension:
-/// `.gltf`/`.glb` (glTF 2.0) or `.obj` (Wavefront, with its MTL libraries).
+/// `.gltf`/`.glb` (glTF 2.0), `.obj` (Wavefront, with its MTL libraries) or `.fbx` (Autodesk
+/// FBX, binary or ASCII; not in wasm32 builds).
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
     load_with(path, &LoadOptions::default())
 }
@@ -437,6 +482,14 @@ pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError
     match ext.as_str() {
         "gltf" | "glb" => gltf_loader::load_gltf(path, options),
         "obj" => obj_loader::load_obj(path, options),
+        #[cfg(not(target_arch = "wasm32"))]
+        "fbx" => fbx_loader::load_fbx(path, options),
+        #[cfg(target_arch = "wasm32")]
+        "fbx" => Err(SceneError::Fbx {
+            path: path.to_owned(),
+            message: "the browser build cannot read FBX: convert it on the server side (`lightport serve scene.fbx`)"
+                .into(),
+        }),
         _ => Err(SceneError::UnsupportedFileType(
             path.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default(),
         )),
