@@ -299,7 +299,9 @@ fn texture_paths_fall_back_to_the_file_name_and_missing_files_are_named() {
     let s = scene::load(&bare.join(fbx)).unwrap();
     assert!(s.textures.is_empty(), "{:?}", s.textures);
     assert!(
-        s.warnings.iter().any(|w| w.contains("texture ignored") && w.contains("checkerboard_") && w.contains("factors")),
+        s.warnings
+            .iter()
+            .any(|w| w.contains("texture ignored") && w.contains("checkerboard_") && w.contains("factors")),
         "{:?}",
         s.warnings
     );

@@ -135,6 +135,9 @@ fn bundle_with_count(count: u64) -> Vec<u8> {
     bytes
 }
 
+/// One refusal check: loads a crafted input, `Err` says what went wrong.
+type LoadCase = dyn Fn() -> Result<(), String>;
+
 #[test]
 fn inputs_declaring_huge_sizes_are_refused_before_allocating_them() {
     let four_gib = 4u64 << 30;
@@ -148,7 +151,7 @@ fn inputs_declaring_huge_sizes_are_refused_before_allocating_them() {
         b[16..24].copy_from_slice(&four_gib.to_le_bytes());
         b
     };
-    let cases: Vec<(&str, Box<dyn Fn() -> Result<(), String>>)> = vec![
+    let cases: Vec<(&str, Box<LoadCase>)> = vec![
         ("a 4 GiB buffer backed by 36 bytes", Box::new(move || gltf(&triangle_gltf(3, four_gib)))),
         ("a 2^32-element accessor", Box::new(|| gltf(&triangle_gltf(u32::MAX as u64 + 1, 36)))),
         ("a 2^26-element accessor in 36 bytes", Box::new(|| gltf(&triangle_gltf(1 << 26, 36)))),

@@ -431,7 +431,9 @@ impl Loader<'_> {
             t.video.as_ref().map(|v| &*v.content).filter(|c| !c.is_empty())
         };
         let (key, name) = match embedded {
-            Some(_) => (format!("embedded {}", t.element.element_id), format!("embedded texture {:?}", &*t.element.name)),
+            Some(_) => {
+                (format!("embedded {}", t.element.element_id), format!("embedded texture {:?}", &*t.element.name))
+            }
             None => {
                 let path = self.texture_path(t).display().to_string();
                 (path.clone(), format!("image {path}"))
