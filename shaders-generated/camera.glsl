@@ -5,7 +5,7 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (tracer/src/kernel/scene_data.rs:44)
+// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:44)
 uniform vec3 scene_camera_position;
 uniform vec3 scene_camera_right;
 uniform vec3 scene_camera_up;
@@ -15,13 +15,13 @@ uniform float scene_focus_distance;
 uniform uint scene_width;
 uniform uint scene_height;
 
-// camera::Ray (tracer/src/kernel/camera.rs:11)
+// camera::Ray (lightport-tracer/src/kernel/camera.rs:11)
 struct Ray {
     vec3 origin;
     vec3 dir;
 };
 
-// sampling::PI (tracer/src/kernel/sampling.rs:8)
+// sampling::PI (lightport-tracer/src/kernel/sampling.rs:8)
 const float PI = 3.1415927;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -30,14 +30,14 @@ float lp_u32_to_f32(uint x) {
     return float(x >> 16u) * 65536.0 + float(x & 65535u);
 }
 
-// camera::sample_disk (tracer/src/kernel/camera.rs:17)
+// camera::sample_disk (lightport-tracer/src/kernel/camera.rs:17)
 vec2 sample_disk(float u1, float u2) {
     float r = sqrt(u1);
     float phi = 2.0 * PI * u2;
     return vec2(r * cos(phi), r * sin(phi));
 }
 
-// camera::camera_ray (tracer/src/kernel/camera.rs:27)
+// camera::camera_ray (lightport-tracer/src/kernel/camera.rs:27)
 Ray camera_ray(vec2 film, vec2 lens) {
     float ndc_x = 2.0 * film.x / lp_u32_to_f32(scene_width) - 1.0;
     float ndc_y = 1.0 - 2.0 * film.y / lp_u32_to_f32(scene_height);

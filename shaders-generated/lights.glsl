@@ -5,7 +5,7 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (tracer/src/kernel/scene_data.rs:44)
+// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:44)
 uniform highp sampler2D scene_triangles;
 uniform highp sampler2D scene_shading;
 uniform highp sampler2D scene_materials;
@@ -24,7 +24,7 @@ uniform uint scene_has_textures;
 uniform uint scene_has_triangle_lights;
 uniform uint scene_has_point_lights;
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:108)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:108)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -33,7 +33,7 @@ struct TriangleData {
     uint light;
 };
 
-// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:118)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:118)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -41,7 +41,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// lights::LightSample (tracer/src/kernel/lights.rs:17)
+// lights::LightSample (lightport-tracer/src/kernel/lights.rs:17)
 struct LightSample {
     vec3 dir;
     float dist;
@@ -50,33 +50,33 @@ struct LightSample {
     bool delta;
 };
 
-// sampling::PI (tracer/src/kernel/sampling.rs:8)
+// sampling::PI (lightport-tracer/src/kernel/sampling.rs:8)
 const float PI = 3.1415927;
-// sampling::INV_PI (tracer/src/kernel/sampling.rs:9)
+// sampling::INV_PI (lightport-tracer/src/kernel/sampling.rs:9)
 const float INV_PI = 0.31830987;
-// intersect::MISS (tracer/src/kernel/intersect.rs:9)
+// intersect::MISS (lightport-tracer/src/kernel/intersect.rs:9)
 const float MISS = 3.4028235e38;
-// scene_data::TRIANGLE_TEXELS (tracer/src/kernel/scene_data.rs:14)
+// scene_data::TRIANGLE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:14)
 const uint TRIANGLE_TEXELS = 3u;
-// scene_data::SHADING_TEXELS (tracer/src/kernel/scene_data.rs:16)
+// scene_data::SHADING_TEXELS (lightport-tracer/src/kernel/scene_data.rs:16)
 const uint SHADING_TEXELS = 4u;
-// scene_data::MATERIAL_TEXELS (tracer/src/kernel/scene_data.rs:23)
+// scene_data::MATERIAL_TEXELS (lightport-tracer/src/kernel/scene_data.rs:23)
 const uint MATERIAL_TEXELS = 2u;
-// scene_data::LIGHT_TEXELS (tracer/src/kernel/scene_data.rs:28)
+// scene_data::LIGHT_TEXELS (lightport-tracer/src/kernel/scene_data.rs:28)
 const uint LIGHT_TEXELS = 3u;
-// scene_data::LIGHT_TRIANGLE (tracer/src/kernel/scene_data.rs:29)
+// scene_data::LIGHT_TRIANGLE (lightport-tracer/src/kernel/scene_data.rs:29)
 const uint LIGHT_TRIANGLE = 0u;
-// scene_data::LIGHT_POINT (tracer/src/kernel/scene_data.rs:30)
+// scene_data::LIGHT_POINT (lightport-tracer/src/kernel/scene_data.rs:30)
 const uint LIGHT_POINT = 1u;
-// scene_data::LIGHT_SKY (tracer/src/kernel/scene_data.rs:31)
+// scene_data::LIGHT_SKY (lightport-tracer/src/kernel/scene_data.rs:31)
 const uint LIGHT_SKY = 2u;
-// scene_data::TEXTURE_TEXELS_PER_ELEMENT (tracer/src/kernel/scene_data.rs:33)
+// scene_data::TEXTURE_TEXELS_PER_ELEMENT (lightport-tracer/src/kernel/scene_data.rs:33)
 const uint TEXTURE_TEXELS_PER_ELEMENT = 4u;
-// scene_data::NONE (tracer/src/kernel/scene_data.rs:35)
+// scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:35)
 const uint NONE = 0xffffffffu;
-// scene_data::WRAP_CLAMP (tracer/src/kernel/scene_data.rs:37)
+// scene_data::WRAP_CLAMP (lightport-tracer/src/kernel/scene_data.rs:37)
 const uint WRAP_CLAMP = 1u;
-// scene_data::WRAP_MIRROR (tracer/src/kernel/scene_data.rs:38)
+// scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:38)
 const uint WRAP_MIRROR = 2u;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -139,17 +139,17 @@ uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
 }
 
-// lights::luminance (tracer/src/kernel/lights.rs:30)
+// lights::luminance (lightport-tracer/src/kernel/lights.rs:30)
 float luminance(vec3 c) {
     return dot(c, vec3(0.2126, 0.7152, 0.0722));
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:126)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:126)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// lights::choose_light (tracer/src/kernel/lights.rs:35)
+// lights::choose_light (lightport-tracer/src/kernel/lights.rs:35)
 uint choose_light(float u) {
     uint n = scene_light_count;
     float scaled = u * lp_u32_to_f32(n);
@@ -162,19 +162,19 @@ uint choose_light(float u) {
     }
 }
 
-// lights::light_pmf (tracer/src/kernel/lights.rs:48)
+// lights::light_pmf (lightport-tracer/src/kernel/lights.rs:48)
 float light_pmf(uint index) {
     return lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS).z;
 }
 
-// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:142)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:142)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::wrap_coordinate (tracer/src/kernel/scene_data.rs:173)
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:173)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -187,12 +187,12 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::srgb_to_linear (tracer/src/kernel/scene_data.rs:190)
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// scene_data::decode_srgba8 (tracer/src/kernel/scene_data.rs:199)
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:199)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -201,7 +201,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel (tracer/src/kernel/scene_data.rs:209)
+// scene_data::texel (lightport-tracer/src/kernel/scene_data.rs:209)
 vec4 texel(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -214,7 +214,7 @@ vec4 texel(uvec4 info, int x, int y) {
     return decode_srgba8(word);
 }
 
-// scene_data::sample_texture (tracer/src/kernel/scene_data.rs:230)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:230)
 vec4 sample_texture(uint index, vec2 uv) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = uv.x * lp_u32_to_f32(info.y) - 0.5;
@@ -228,7 +228,7 @@ vec4 sample_texture(uint index, vec2 uv) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::texcoord (tracer/src/kernel/scene_data.rs:163)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -238,7 +238,7 @@ vec2 texcoord(uint index, float u, float v) {
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
 
-// lights::triangle_emission (tracer/src/kernel/lights.rs:55)
+// lights::triangle_emission (lightport-tracer/src/kernel/lights.rs:55)
 vec3 triangle_emission(uint triangle, uint material, float u, float v) {
     MaterialData m = fetch_material(material);
     vec3 e = m.emission;
@@ -248,12 +248,12 @@ vec3 triangle_emission(uint triangle, uint material, float u, float v) {
     return e;
 }
 
-// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:67)
+// lights::area_pdf_to_solid_angle (lightport-tracer/src/kernel/lights.rs:67)
 float area_pdf_to_solid_angle(float pmf, float area, float dist, float cos_light) {
     return !(cos_light > 0.0) || !(area > 0.0) ? 0.0 : pmf * dist * dist / (area * cos_light);
 }
 
-// lights::sky_direction (tracer/src/kernel/lights.rs:76)
+// lights::sky_direction (lightport-tracer/src/kernel/lights.rs:76)
 vec3 sky_direction(vec2 uv) {
     float phi = (uv.x - 0.5) * 2.0 * PI + scene_sky_rotation;
     float theta = uv.y * PI;
@@ -261,7 +261,7 @@ vec3 sky_direction(vec2 uv) {
     return vec3(s * sin(phi), cos(theta), -s * cos(phi));
 }
 
-// lights::sky_texel_coords (tracer/src/kernel/lights.rs:84)
+// lights::sky_texel_coords (lightport-tracer/src/kernel/lights.rs:84)
 vec2 sky_texel_coords(vec3 dir) {
     float phi = atan(dir.x, -dir.z) - scene_sky_rotation;
     float u = phi * (0.5 * INV_PI) + 0.5;
@@ -272,14 +272,14 @@ vec2 sky_texel_coords(vec3 dir) {
     return vec2(min(floor(u_1 * w), w - 1.0), min(floor(v * h), h - 1.0));
 }
 
-// lights::sky_radiance (tracer/src/kernel/lights.rs:94)
+// lights::sky_radiance (lightport-tracer/src/kernel/lights.rs:94)
 vec3 sky_radiance(vec3 dir) {
     vec2 c = sky_texel_coords(dir);
     uint i = lp_f32_to_u32(c.y) * scene_sky_width + lp_f32_to_u32(c.x);
     return lp_fetch_vec4(scene_sky, i).xyz * scene_sky_intensity;
 }
 
-// lights::sky_texel_pmf (tracer/src/kernel/lights.rs:101)
+// lights::sky_texel_pmf (lightport-tracer/src/kernel/lights.rs:101)
 float sky_texel_pmf(uint col, uint row) {
     float row_hi = lp_fetch_vec4(scene_sky_rows, row).x;
     float row_lo = row > 0u ? lp_fetch_vec4(scene_sky_rows, row - 1u).x : 0.0;
@@ -289,7 +289,7 @@ float sky_texel_pmf(uint col, uint row) {
     return (row_hi - row_lo) * (col_hi - col_lo);
 }
 
-// lights::sky_pdf (tracer/src/kernel/lights.rs:111)
+// lights::sky_pdf (lightport-tracer/src/kernel/lights.rs:111)
 float sky_pdf(vec3 dir) {
     vec2 c = sky_texel_coords(dir);
     float pmf = sky_texel_pmf(lp_f32_to_u32(c.x), lp_f32_to_u32(c.y));
@@ -297,7 +297,7 @@ float sky_pdf(vec3 dir) {
     return sin_theta <= 0.0 ? 0.0 : pmf * lp_u32_to_f32(scene_sky_width * scene_sky_height) / (2.0 * PI * PI * sin_theta);
 }
 
-// lights::search_sky_row (tracer/src/kernel/lights.rs:123)
+// lights::search_sky_row (lightport-tracer/src/kernel/lights.rs:123)
 uint search_sky_row(float u) {
     uint lo = 0u;
     uint hi = scene_sky_height - 1u;
@@ -312,7 +312,7 @@ uint search_sky_row(float u) {
     return lo;
 }
 
-// lights::search_sky_column (tracer/src/kernel/lights.rs:137)
+// lights::search_sky_column (lightport-tracer/src/kernel/lights.rs:137)
 uint search_sky_column(uint row, float u) {
     uint base = row * scene_sky_width;
     uint lo = 0u;
@@ -328,7 +328,7 @@ uint search_sky_column(uint row, float u) {
     return lo;
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:134)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:134)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -337,13 +337,13 @@ TriangleData fetch_triangle(uint index) {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
 }
 
-// sampling::uniform_sample_triangle (tracer/src/kernel/sampling.rs:81)
+// sampling::uniform_sample_triangle (lightport-tracer/src/kernel/sampling.rs:81)
 vec2 uniform_sample_triangle(float u1, float u2) {
     float s = sqrt(u1);
     return vec2(s * (1.0 - u2), s * u2);
 }
 
-// lights::sample_light (tracer/src/kernel/lights.rs:155)
+// lights::sample_light (lightport-tracer/src/kernel/lights.rs:155)
 LightSample sample_light(vec3 p, vec3 u) {
     LightSample none = LightSample(vec3(0.0, 1.0, 0.0), 0.0, vec3(0.0), 0.0, false);
     uint index = choose_light(u.x);
@@ -402,14 +402,14 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// lights::power_heuristic (tracer/src/kernel/lights.rs:215)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:215)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
     return a2 + b2 > 0.0 ? a2 / (a2 + b2) : 0.0;
 }
 
-// lights::finite_or_zero (tracer/src/kernel/lights.rs:227)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:227)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

@@ -5,7 +5,7 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (tracer/src/kernel/scene_data.rs:44)
+// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:44)
 uniform highp sampler2D scene_triangles;
 uniform highp sampler2D scene_nodes;
 uniform highp usampler2D scene_node_children;
@@ -26,21 +26,21 @@ uniform uint scene_light_count;
 uniform float scene_scene_scale;
 uniform uint scene_leaf_stack_limit;
 
-// sampling::Onb (tracer/src/kernel/sampling.rs:13)
+// sampling::Onb (lightport-tracer/src/kernel/sampling.rs:13)
 struct Onb {
     vec3 tangent;
     vec3 bitangent;
     vec3 normal;
 };
 
-// intersect::TriangleHit (tracer/src/kernel/intersect.rs:13)
+// intersect::TriangleHit (lightport-tracer/src/kernel/intersect.rs:13)
 struct TriangleHit {
     float t;
     float u;
     float v;
 };
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:108)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:108)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -49,7 +49,7 @@ struct TriangleData {
     uint light;
 };
 
-// scene_data::MaterialData (tracer/src/kernel/scene_data.rs:118)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:118)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -57,7 +57,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// traverse::Hit (tracer/src/kernel/traverse.rs:21)
+// traverse::Hit (lightport-tracer/src/kernel/traverse.rs:21)
 struct Hit {
     uint triangle;
     float t;
@@ -65,19 +65,19 @@ struct Hit {
     float v;
 };
 
-// traverse::NodeHits (tracer/src/kernel/traverse.rs:31)
+// traverse::NodeHits (lightport-tracer/src/kernel/traverse.rs:31)
 struct NodeHits {
     vec4 t;
     uvec4 entries;
 };
 
-// camera::Ray (tracer/src/kernel/camera.rs:11)
+// camera::Ray (lightport-tracer/src/kernel/camera.rs:11)
 struct Ray {
     vec3 origin;
     vec3 dir;
 };
 
-// lights::LightSample (tracer/src/kernel/lights.rs:17)
+// lights::LightSample (lightport-tracer/src/kernel/lights.rs:17)
 struct LightSample {
     vec3 dir;
     float dist;
@@ -86,33 +86,33 @@ struct LightSample {
     bool delta;
 };
 
-// sampling::PI (tracer/src/kernel/sampling.rs:8)
+// sampling::PI (lightport-tracer/src/kernel/sampling.rs:8)
 const float PI = 3.1415927;
-// sampling::INV_PI (tracer/src/kernel/sampling.rs:9)
+// sampling::INV_PI (lightport-tracer/src/kernel/sampling.rs:9)
 const float INV_PI = 0.31830987;
-// intersect::MISS (tracer/src/kernel/intersect.rs:9)
+// intersect::MISS (lightport-tracer/src/kernel/intersect.rs:9)
 const float MISS = 3.4028235e38;
-// scene_data::TRIANGLE_TEXELS (tracer/src/kernel/scene_data.rs:14)
+// scene_data::TRIANGLE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:14)
 const uint TRIANGLE_TEXELS = 3u;
-// scene_data::NODE_TEXELS (tracer/src/kernel/scene_data.rs:21)
+// scene_data::NODE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:21)
 const uint NODE_TEXELS = 6u;
-// scene_data::MATERIAL_TEXELS (tracer/src/kernel/scene_data.rs:23)
+// scene_data::MATERIAL_TEXELS (lightport-tracer/src/kernel/scene_data.rs:23)
 const uint MATERIAL_TEXELS = 2u;
-// scene_data::LIGHT_TEXELS (tracer/src/kernel/scene_data.rs:28)
+// scene_data::LIGHT_TEXELS (lightport-tracer/src/kernel/scene_data.rs:28)
 const uint LIGHT_TEXELS = 3u;
-// scene_data::LIGHT_TRIANGLE (tracer/src/kernel/scene_data.rs:29)
+// scene_data::LIGHT_TRIANGLE (lightport-tracer/src/kernel/scene_data.rs:29)
 const uint LIGHT_TRIANGLE = 0u;
-// scene_data::NONE (tracer/src/kernel/scene_data.rs:35)
+// scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:35)
 const uint NONE = 0xffffffffu;
-// scene_data::STRATEGY_BSDF (tracer/src/kernel/scene_data.rs:102)
+// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:102)
 const uint STRATEGY_BSDF = 0u;
-// scene_data::STRATEGY_NEE (tracer/src/kernel/scene_data.rs:103)
+// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:103)
 const uint STRATEGY_NEE = 1u;
-// scene_data::STRATEGY_MIS (tracer/src/kernel/scene_data.rs:104)
+// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:104)
 const uint STRATEGY_MIS = 2u;
-// traverse::STACK_SIZE (tracer/src/kernel/traverse.rs:17)
+// traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:17)
 const uint STACK_SIZE = 64u;
-// integrator::RR_START_DEPTH (tracer/src/kernel/integrator.rs:24)
+// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:24)
 const uint RR_START_DEPTH = 3u;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -161,7 +161,7 @@ uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
 }
 
-// rng::wang_hash (tracer/src/kernel/rng.rs:7)
+// rng::wang_hash (lightport-tracer/src/kernel/rng.rs:7)
 uint wang_hash(uint seed) {
     uint s = seed ^ 61u ^ (seed >> 16);
     s = s * 9u;
@@ -171,13 +171,13 @@ uint wang_hash(uint seed) {
     return s;
 }
 
-// rng::pixel_seed (tracer/src/kernel/rng.rs:32)
+// rng::pixel_seed (lightport-tracer/src/kernel/rng.rs:32)
 uint pixel_seed(uint pixel_index, uint frame_seed) {
     uint s = wang_hash(pixel_index + frame_seed);
     return s == 0u ? 0x9e3779b9u : s;
 }
 
-// rng::random_u32 (tracer/src/kernel/rng.rs:17)
+// rng::random_u32 (lightport-tracer/src/kernel/rng.rs:17)
 uint random_u32(inout uint state) {
     state ^= state << 13;
     state ^= state >> 17;
@@ -185,19 +185,19 @@ uint random_u32(inout uint state) {
     return state;
 }
 
-// rng::random_float (tracer/src/kernel/rng.rs:26)
+// rng::random_float (lightport-tracer/src/kernel/rng.rs:26)
 float random_float(inout uint state) {
     return float(random_u32(state) >> 8) * (1.0 / 16777216.0);
 }
 
-// camera::sample_disk (tracer/src/kernel/camera.rs:17)
+// camera::sample_disk (lightport-tracer/src/kernel/camera.rs:17)
 vec2 sample_disk(float u1, float u2) {
     float r = sqrt(u1);
     float phi = 2.0 * PI * u2;
     return vec2(r * cos(phi), r * sin(phi));
 }
 
-// camera::camera_ray (tracer/src/kernel/camera.rs:27)
+// camera::camera_ray (lightport-tracer/src/kernel/camera.rs:27)
 Ray camera_ray(vec2 film, vec2 lens) {
     float ndc_x = 2.0 * film.x / lp_u32_to_f32(scene_width) - 1.0;
     float ndc_y = 1.0 - 2.0 * film.y / lp_u32_to_f32(scene_height);
@@ -212,7 +212,7 @@ Ray camera_ray(vec2 film, vec2 lens) {
     }
 }
 
-// intersect::safe_inverse (tracer/src/kernel/intersect.rs:48)
+// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:48)
 vec3 safe_inverse(vec3 dir) {
     float tiny = 1e-20;
     float x = abs(dir.x) < tiny ? (dir.x >= 0.0 ? tiny : -tiny) : dir.x;
@@ -221,27 +221,27 @@ vec3 safe_inverse(vec3 dir) {
     return vec3(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// traverse::near_planes (tracer/src/kernel/traverse.rs:49)
+// traverse::near_planes (lightport-tracer/src/kernel/traverse.rs:49)
 uvec3 near_planes(vec3 inv_dir) {
     return uvec3(inv_dir.x < 0.0 ? 1u : 0u, inv_dir.y < 0.0 ? 1u : 0u, inv_dir.z < 0.0 ? 1u : 0u);
 }
 
-// traverse::stack_entry (tracer/src/kernel/traverse.rs:42)
+// traverse::stack_entry (lightport-tracer/src/kernel/traverse.rs:42)
 uint stack_entry(uint first, uint count) {
     return (first << 8) | count;
 }
 
-// traverse::is_leaf (tracer/src/kernel/traverse.rs:131)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:131)
 bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:126)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:126)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:134)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:134)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -250,7 +250,7 @@ TriangleData fetch_triangle(uint index) {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
 }
 
-// intersect::intersect_triangle (tracer/src/kernel/intersect.rs:21)
+// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
 TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2) {
     TriangleHit miss = TriangleHit(MISS, 0.0, 0.0);
     vec3 e1 = v1 - v0;
@@ -273,7 +273,7 @@ TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2)
     }
 }
 
-// traverse::intersect_leaf (tracer/src/kernel/traverse.rs:105)
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:105)
 void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
     uint first = entry >> 8;
     uint i_end = first + (entry & 255u);
@@ -286,12 +286,12 @@ void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
     }
 }
 
-// traverse::zero_to_miss (tracer/src/kernel/traverse.rs:58)
+// traverse::zero_to_miss (lightport-tracer/src/kernel/traverse.rs:58)
 vec4 zero_to_miss(vec4 v) {
     return vec4(v.x == 0.0 ? MISS : v.x, v.y == 0.0 ? MISS : v.y, v.z == 0.0 ? MISS : v.z, v.w == 0.0 ? MISS : v.w);
 }
 
-// traverse::intersect_node (tracer/src/kernel/traverse.rs:73)
+// traverse::intersect_node (lightport-tracer/src/kernel/traverse.rs:73)
 NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float t_max) {
     uint base = node * NODE_TEXELS;
     vec4 ox = vec4(origin.x);
@@ -313,7 +313,7 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
     return NodeHits(t, lp_fetch_uvec4(scene_node_children, node));
 }
 
-// traverse::trace_closest (tracer/src/kernel/traverse.rs:148)
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:148)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -426,19 +426,19 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     return hit;
 }
 
-// lights::light_pmf (tracer/src/kernel/lights.rs:48)
+// lights::light_pmf (lightport-tracer/src/kernel/lights.rs:48)
 float light_pmf(uint index) {
     return lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS).z;
 }
 
-// lights::power_heuristic (tracer/src/kernel/lights.rs:215)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:215)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
     return a2 + b2 > 0.0 ? a2 / (a2 + b2) : 0.0;
 }
 
-// integrator::hit_emission_weight (tracer/src/kernel/integrator.rs:35)
+// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:35)
 float hit_emission_weight(float bsdf_pdf, float light_pdf) {
     if (bsdf_pdf <= 0.0 || (scene_strategy == STRATEGY_BSDF)) {
         return 1.0;
@@ -449,32 +449,32 @@ float hit_emission_weight(float bsdf_pdf, float light_pdf) {
     }
 }
 
-// scene_data::fetch_material (tracer/src/kernel/scene_data.rs:142)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:142)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// lights::area_pdf_to_solid_angle (tracer/src/kernel/lights.rs:67)
+// lights::area_pdf_to_solid_angle (lightport-tracer/src/kernel/lights.rs:67)
 float area_pdf_to_solid_angle(float pmf, float area, float dist, float cos_light) {
     return !(cos_light > 0.0) || !(area > 0.0) ? 0.0 : pmf * dist * dist / (area * cos_light);
 }
 
-// lights::triangle_emission (tracer/src/kernel/lights.rs:55)
+// lights::triangle_emission (lightport-tracer/src/kernel/lights.rs:55)
 vec3 triangle_emission(uint triangle, uint material, float u, float v) {
     MaterialData m = fetch_material(material);
     vec3 e = m.emission;
     return e;
 }
 
-// integrator::offset_origin (tracer/src/kernel/integrator.rs:28)
+// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:28)
 vec3 offset_origin(vec3 p, vec3 n) {
     float eps = (lp_max_element_vec3(abs(p)) + scene_scene_scale) * 4e-6;
     return p + n * eps;
 }
 
-// lights::choose_light (tracer/src/kernel/lights.rs:35)
+// lights::choose_light (lightport-tracer/src/kernel/lights.rs:35)
 uint choose_light(float u) {
     uint n = scene_light_count;
     float scaled = u * lp_u32_to_f32(n);
@@ -487,13 +487,13 @@ uint choose_light(float u) {
     }
 }
 
-// sampling::uniform_sample_triangle (tracer/src/kernel/sampling.rs:81)
+// sampling::uniform_sample_triangle (lightport-tracer/src/kernel/sampling.rs:81)
 vec2 uniform_sample_triangle(float u1, float u2) {
     float s = sqrt(u1);
     return vec2(s * (1.0 - u2), s * u2);
 }
 
-// lights::sample_light (tracer/src/kernel/lights.rs:155)
+// lights::sample_light (lightport-tracer/src/kernel/lights.rs:155)
 LightSample sample_light(vec3 p, vec3 u) {
     LightSample none = LightSample(vec3(0.0, 1.0, 0.0), 0.0, vec3(0.0), 0.0, false);
     uint index = choose_light(u.x);
@@ -526,7 +526,7 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// traverse::leaf_occludes (tracer/src/kernel/traverse.rs:117)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:117)
 bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     uint first = entry >> 8;
     bool blocked = false;
@@ -541,7 +541,7 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::occluded (tracer/src/kernel/traverse.rs:270)
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:270)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -589,12 +589,12 @@ bool occluded(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// sampling::onb_to_world (tracer/src/kernel/sampling.rs:33)
+// sampling::onb_to_world (lightport-tracer/src/kernel/sampling.rs:33)
 vec3 onb_to_world(Onb onb, vec3 v) {
     return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
 }
 
-// sampling::onb_from_normal (tracer/src/kernel/sampling.rs:21)
+// sampling::onb_from_normal (lightport-tracer/src/kernel/sampling.rs:21)
 Onb onb_from_normal(vec3 n) {
     float sign_ = n.z >= 0.0 ? 1.0 : -1.0;
     float a = -1.0 / (sign_ + n.z);
@@ -602,7 +602,7 @@ Onb onb_from_normal(vec3 n) {
     return Onb(vec3(1.0 + sign_ * n.x * n.x * a, sign_ * b, -sign_ * n.x), vec3(b, sign_ + n.y * n.y * a, -n.y), n);
 }
 
-// sampling::cos_sin_turns (tracer/src/kernel/sampling.rs:50)
+// sampling::cos_sin_turns (lightport-tracer/src/kernel/sampling.rs:50)
 vec2 cos_sin_turns(float t) {
     float quarters = lp_round(t * 4.0);
     float x = (t * 4.0 - quarters) * (0.5 * PI);
@@ -621,7 +621,7 @@ vec2 cos_sin_turns(float t) {
     }
 }
 
-// sampling::cosine_sample_hemisphere (tracer/src/kernel/sampling.rs:39)
+// sampling::cosine_sample_hemisphere (lightport-tracer/src/kernel/sampling.rs:39)
 vec3 cosine_sample_hemisphere(float u1, float u2) {
     float r = sqrt(u1);
     vec2 cs = cos_sin_turns(u2);
@@ -629,17 +629,17 @@ vec3 cosine_sample_hemisphere(float u1, float u2) {
     return vec3(r * cs.x, r * cs.y, z);
 }
 
-// sampling::sample_cosine_around (tracer/src/kernel/sampling.rs:75)
+// sampling::sample_cosine_around (lightport-tracer/src/kernel/sampling.rs:75)
 vec3 sample_cosine_around(vec3 n, float u1, float u2) {
     return onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2));
 }
 
-// lights::finite_or_zero (tracer/src/kernel/lights.rs:227)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:227)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }
 
-// integrator::render_sample (tracer/src/kernel/integrator.rs:48)
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:48)
 vec4 render_sample(uint x, uint y) {
     uint rng = pixel_seed(y * scene_width + x, scene_frame_seed);
     vec2 film = vec2(lp_u32_to_f32(x) + random_float(rng), lp_u32_to_f32(y) + random_float(rng));

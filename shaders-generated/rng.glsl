@@ -5,7 +5,7 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// rng::wang_hash (tracer/src/kernel/rng.rs:7)
+// rng::wang_hash (lightport-tracer/src/kernel/rng.rs:7)
 uint wang_hash(uint seed) {
     uint s = seed ^ 61u ^ (seed >> 16);
     s = s * 9u;
@@ -15,7 +15,7 @@ uint wang_hash(uint seed) {
     return s;
 }
 
-// rng::random_u32 (tracer/src/kernel/rng.rs:17)
+// rng::random_u32 (lightport-tracer/src/kernel/rng.rs:17)
 uint random_u32(inout uint state) {
     state ^= state << 13;
     state ^= state >> 17;
@@ -23,12 +23,12 @@ uint random_u32(inout uint state) {
     return state;
 }
 
-// rng::random_float (tracer/src/kernel/rng.rs:26)
+// rng::random_float (lightport-tracer/src/kernel/rng.rs:26)
 float random_float(inout uint state) {
     return float(random_u32(state) >> 8) * (1.0 / 16777216.0);
 }
 
-// rng::pixel_seed (tracer/src/kernel/rng.rs:32)
+// rng::pixel_seed (lightport-tracer/src/kernel/rng.rs:32)
 uint pixel_seed(uint pixel_index, uint frame_seed) {
     uint s = wang_hash(pixel_index + frame_seed);
     return s == 0u ? 0x9e3779b9u : s;

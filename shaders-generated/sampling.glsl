@@ -5,16 +5,16 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// sampling::Onb (tracer/src/kernel/sampling.rs:13)
+// sampling::Onb (lightport-tracer/src/kernel/sampling.rs:13)
 struct Onb {
     vec3 tangent;
     vec3 bitangent;
     vec3 normal;
 };
 
-// sampling::PI (tracer/src/kernel/sampling.rs:8)
+// sampling::PI (lightport-tracer/src/kernel/sampling.rs:8)
 const float PI = 3.1415927;
-// sampling::INV_PI (tracer/src/kernel/sampling.rs:9)
+// sampling::INV_PI (lightport-tracer/src/kernel/sampling.rs:9)
 const float INV_PI = 0.31830987;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -38,7 +38,7 @@ float lp_round(float x) {
     return t;
 }
 
-// sampling::onb_from_normal (tracer/src/kernel/sampling.rs:21)
+// sampling::onb_from_normal (lightport-tracer/src/kernel/sampling.rs:21)
 Onb onb_from_normal(vec3 n) {
     float sign_ = n.z >= 0.0 ? 1.0 : -1.0;
     float a = -1.0 / (sign_ + n.z);
@@ -46,12 +46,12 @@ Onb onb_from_normal(vec3 n) {
     return Onb(vec3(1.0 + sign_ * n.x * n.x * a, sign_ * b, -sign_ * n.x), vec3(b, sign_ + n.y * n.y * a, -n.y), n);
 }
 
-// sampling::onb_to_world (tracer/src/kernel/sampling.rs:33)
+// sampling::onb_to_world (lightport-tracer/src/kernel/sampling.rs:33)
 vec3 onb_to_world(Onb onb, vec3 v) {
     return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
 }
 
-// sampling::cos_sin_turns (tracer/src/kernel/sampling.rs:50)
+// sampling::cos_sin_turns (lightport-tracer/src/kernel/sampling.rs:50)
 vec2 cos_sin_turns(float t) {
     float quarters = lp_round(t * 4.0);
     float x = (t * 4.0 - quarters) * (0.5 * PI);
@@ -70,7 +70,7 @@ vec2 cos_sin_turns(float t) {
     }
 }
 
-// sampling::cosine_sample_hemisphere (tracer/src/kernel/sampling.rs:39)
+// sampling::cosine_sample_hemisphere (lightport-tracer/src/kernel/sampling.rs:39)
 vec3 cosine_sample_hemisphere(float u1, float u2) {
     float r = sqrt(u1);
     vec2 cs = cos_sin_turns(u2);
@@ -78,17 +78,17 @@ vec3 cosine_sample_hemisphere(float u1, float u2) {
     return vec3(r * cs.x, r * cs.y, z);
 }
 
-// sampling::cosine_hemisphere_pdf (tracer/src/kernel/sampling.rs:70)
+// sampling::cosine_hemisphere_pdf (lightport-tracer/src/kernel/sampling.rs:70)
 float cosine_hemisphere_pdf(float cos_theta) {
     return max(cos_theta, 0.0) * INV_PI;
 }
 
-// sampling::sample_cosine_around (tracer/src/kernel/sampling.rs:75)
+// sampling::sample_cosine_around (lightport-tracer/src/kernel/sampling.rs:75)
 vec3 sample_cosine_around(vec3 n, float u1, float u2) {
     return onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2));
 }
 
-// sampling::uniform_sample_triangle (tracer/src/kernel/sampling.rs:81)
+// sampling::uniform_sample_triangle (lightport-tracer/src/kernel/sampling.rs:81)
 vec2 uniform_sample_triangle(float u1, float u2) {
     float s = sqrt(u1);
     return vec2(s * (1.0 - u2), s * u2);

@@ -5,15 +5,15 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// tonemap::TONEMAP_NEUTRAL (tracer/src/kernel/tonemap.rs:14)
+// tonemap::TONEMAP_NEUTRAL (lightport-tracer/src/kernel/tonemap.rs:14)
 const uint TONEMAP_NEUTRAL = 1u;
-// tonemap::TONEMAP_ACES (tracer/src/kernel/tonemap.rs:15)
+// tonemap::TONEMAP_ACES (lightport-tracer/src/kernel/tonemap.rs:15)
 const uint TONEMAP_ACES = 2u;
-// tonemap::TONEMAP_AGX (tracer/src/kernel/tonemap.rs:16)
+// tonemap::TONEMAP_AGX (lightport-tracer/src/kernel/tonemap.rs:16)
 const uint TONEMAP_AGX = 3u;
-// tonemap::AGX_MIN_EV (tracer/src/kernel/tonemap.rs:88)
+// tonemap::AGX_MIN_EV (lightport-tracer/src/kernel/tonemap.rs:88)
 const float AGX_MIN_EV = -12.47393;
-// tonemap::AGX_MAX_EV (tracer/src/kernel/tonemap.rs:89)
+// tonemap::AGX_MAX_EV (lightport-tracer/src/kernel/tonemap.rs:89)
 const float AGX_MAX_EV = 4.026069;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -29,22 +29,22 @@ float lp_min_element_vec3(vec3 v) {
     return min(min(v.x, v.y), v.z);
 }
 
-// tonemap::displayable (tracer/src/kernel/tonemap.rs:19)
+// tonemap::displayable (lightport-tracer/src/kernel/tonemap.rs:19)
 float displayable(float c) {
     return lp_is_finite(c) && c > 0.0 ? c : 0.0;
 }
 
-// tonemap::clamp_unit (tracer/src/kernel/tonemap.rs:27)
+// tonemap::clamp_unit (lightport-tracer/src/kernel/tonemap.rs:27)
 float clamp_unit(float c) {
     return clamp(c, 0.0, 1.0);
 }
 
-// tonemap::clamp_unit3 (tracer/src/kernel/tonemap.rs:31)
+// tonemap::clamp_unit3 (lightport-tracer/src/kernel/tonemap.rs:31)
 vec3 clamp_unit3(vec3 c) {
     return vec3(clamp_unit(c.x), clamp_unit(c.y), clamp_unit(c.z));
 }
 
-// tonemap::pbr_neutral (tracer/src/kernel/tonemap.rs:38)
+// tonemap::pbr_neutral (lightport-tracer/src/kernel/tonemap.rs:38)
 vec3 pbr_neutral(vec3 color) {
     float start_compression = 0.8 - 0.04;
     float desaturation = 0.15;
@@ -62,14 +62,14 @@ vec3 pbr_neutral(vec3 color) {
     return scaled + (vec3(new_peak) - scaled) * g;
 }
 
-// tonemap::rrt_and_odt_fit (tracer/src/kernel/tonemap.rs:56)
+// tonemap::rrt_and_odt_fit (lightport-tracer/src/kernel/tonemap.rs:56)
 float rrt_and_odt_fit(float v) {
     float a = v * (v + 0.0245786) - 9.0537e-5;
     float b = v * (0.983729 * v + 0.432951) + 0.238081;
     return a / b;
 }
 
-// tonemap::aces_fitted (tracer/src/kernel/tonemap.rs:64)
+// tonemap::aces_fitted (lightport-tracer/src/kernel/tonemap.rs:64)
 vec3 aces_fitted(vec3 color) {
     vec3 v = vec3(0.59719 * color.x + 0.35458 * color.y + 0.04823 * color.z, 0.076 * color.x + 0.90834 * color.y + 0.01566 * color.z, 0.0284 * color.x + 0.13383 * color.y + 0.83777 * color.z);
     vec3 f = vec3(rrt_and_odt_fit(v.x), rrt_and_odt_fit(v.y), rrt_and_odt_fit(v.z));
@@ -77,20 +77,20 @@ vec3 aces_fitted(vec3 color) {
     return clamp_unit3(out_);
 }
 
-// tonemap::agx_contrast (tracer/src/kernel/tonemap.rs:81)
+// tonemap::agx_contrast (lightport-tracer/src/kernel/tonemap.rs:81)
 float agx_contrast(float x) {
     float x2 = x * x;
     float x4 = x2 * x2;
     return 15.5 * x4 * x2 - 40.14 * x4 * x + 31.96 * x4 - 6.868 * x2 * x + 0.4298 * x2 + 0.1191 * x - 0.00232;
 }
 
-// tonemap::agx_log_encode (tracer/src/kernel/tonemap.rs:91)
+// tonemap::agx_log_encode (lightport-tracer/src/kernel/tonemap.rs:91)
 float agx_log_encode(float v) {
     float ev = clamp(log2(max(v, 1e-10)), AGX_MIN_EV, AGX_MAX_EV);
     return (ev - AGX_MIN_EV) / (AGX_MAX_EV - AGX_MIN_EV);
 }
 
-// tonemap::agx (tracer/src/kernel/tonemap.rs:99)
+// tonemap::agx (lightport-tracer/src/kernel/tonemap.rs:99)
 vec3 agx(vec3 color) {
     vec3 inset = vec3(0.84247905 * color.x + 0.0784336 * color.y + 0.079223745 * color.z, 0.042328242 * color.x + 0.87846863 * color.y + 0.07916613 * color.z, 0.042375654 * color.x + 0.0784336 * color.y + 0.879143 * color.z);
     vec3 s = vec3(agx_contrast(agx_log_encode(inset.x)), agx_contrast(agx_log_encode(inset.y)), agx_contrast(agx_log_encode(inset.z)));
@@ -98,7 +98,7 @@ vec3 agx(vec3 color) {
     return vec3(pow(clamp_unit(outset.x), 2.2), pow(clamp_unit(outset.y), 2.2), pow(clamp_unit(outset.z), 2.2));
 }
 
-// tonemap::tone_map (tracer/src/kernel/tonemap.rs:120)
+// tonemap::tone_map (lightport-tracer/src/kernel/tonemap.rs:120)
 vec3 tone_map(vec3 radiance, uint operator_, float exposure_scale) {
     vec3 c = vec3(displayable(radiance.x * exposure_scale), displayable(radiance.y * exposure_scale), displayable(radiance.z * exposure_scale));
     if (operator_ == TONEMAP_NEUTRAL) {
@@ -112,12 +112,12 @@ vec3 tone_map(vec3 radiance, uint operator_, float exposure_scale) {
     }
 }
 
-// tonemap::linear_to_srgb (tracer/src/kernel/tonemap.rs:138)
+// tonemap::linear_to_srgb (lightport-tracer/src/kernel/tonemap.rs:138)
 float linear_to_srgb(float c) {
     return c <= 0.0031308 ? 12.92 * c : 1.055 * pow(c, 1.0 / 2.4) - 0.055;
 }
 
-// tonemap::display_srgb (tracer/src/kernel/tonemap.rs:148)
+// tonemap::display_srgb (lightport-tracer/src/kernel/tonemap.rs:148)
 vec3 display_srgb(vec3 radiance, uint operator_, float exposure_scale) {
     vec3 c = tone_map(radiance, operator_, exposure_scale);
     return vec3(linear_to_srgb(c.x), linear_to_srgb(c.y), linear_to_srgb(c.z));

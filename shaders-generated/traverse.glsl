@@ -5,20 +5,20 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (tracer/src/kernel/scene_data.rs:44)
+// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:44)
 uniform highp sampler2D scene_triangles;
 uniform highp sampler2D scene_nodes;
 uniform highp usampler2D scene_node_children;
 uniform uint scene_leaf_stack_limit;
 
-// intersect::TriangleHit (tracer/src/kernel/intersect.rs:13)
+// intersect::TriangleHit (lightport-tracer/src/kernel/intersect.rs:13)
 struct TriangleHit {
     float t;
     float u;
     float v;
 };
 
-// scene_data::TriangleData (tracer/src/kernel/scene_data.rs:108)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:108)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -27,7 +27,7 @@ struct TriangleData {
     uint light;
 };
 
-// traverse::Hit (tracer/src/kernel/traverse.rs:21)
+// traverse::Hit (lightport-tracer/src/kernel/traverse.rs:21)
 struct Hit {
     uint triangle;
     float t;
@@ -35,21 +35,21 @@ struct Hit {
     float v;
 };
 
-// traverse::NodeHits (tracer/src/kernel/traverse.rs:31)
+// traverse::NodeHits (lightport-tracer/src/kernel/traverse.rs:31)
 struct NodeHits {
     vec4 t;
     uvec4 entries;
 };
 
-// intersect::MISS (tracer/src/kernel/intersect.rs:9)
+// intersect::MISS (lightport-tracer/src/kernel/intersect.rs:9)
 const float MISS = 3.4028235e38;
-// scene_data::TRIANGLE_TEXELS (tracer/src/kernel/scene_data.rs:14)
+// scene_data::TRIANGLE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:14)
 const uint TRIANGLE_TEXELS = 3u;
-// scene_data::NODE_TEXELS (tracer/src/kernel/scene_data.rs:21)
+// scene_data::NODE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:21)
 const uint NODE_TEXELS = 6u;
-// scene_data::NONE (tracer/src/kernel/scene_data.rs:35)
+// scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:35)
 const uint NONE = 0xffffffffu;
-// traverse::STACK_SIZE (tracer/src/kernel/traverse.rs:17)
+// traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:17)
 const uint STACK_SIZE = 64u;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -76,22 +76,22 @@ uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
 }
 
-// traverse::stack_entry (tracer/src/kernel/traverse.rs:42)
+// traverse::stack_entry (lightport-tracer/src/kernel/traverse.rs:42)
 uint stack_entry(uint first, uint count) {
     return (first << 8) | count;
 }
 
-// traverse::near_planes (tracer/src/kernel/traverse.rs:49)
+// traverse::near_planes (lightport-tracer/src/kernel/traverse.rs:49)
 uvec3 near_planes(vec3 inv_dir) {
     return uvec3(inv_dir.x < 0.0 ? 1u : 0u, inv_dir.y < 0.0 ? 1u : 0u, inv_dir.z < 0.0 ? 1u : 0u);
 }
 
-// traverse::zero_to_miss (tracer/src/kernel/traverse.rs:58)
+// traverse::zero_to_miss (lightport-tracer/src/kernel/traverse.rs:58)
 vec4 zero_to_miss(vec4 v) {
     return vec4(v.x == 0.0 ? MISS : v.x, v.y == 0.0 ? MISS : v.y, v.z == 0.0 ? MISS : v.z, v.w == 0.0 ? MISS : v.w);
 }
 
-// traverse::intersect_node (tracer/src/kernel/traverse.rs:73)
+// traverse::intersect_node (lightport-tracer/src/kernel/traverse.rs:73)
 NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float t_max) {
     uint base = node * NODE_TEXELS;
     vec4 ox = vec4(origin.x);
@@ -113,12 +113,12 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
     return NodeHits(t, lp_fetch_uvec4(scene_node_children, node));
 }
 
-// scene_data::index_of (tracer/src/kernel/scene_data.rs:126)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:126)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (tracer/src/kernel/scene_data.rs:134)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:134)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -127,7 +127,7 @@ TriangleData fetch_triangle(uint index) {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
 }
 
-// intersect::intersect_triangle (tracer/src/kernel/intersect.rs:21)
+// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
 TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2) {
     TriangleHit miss = TriangleHit(MISS, 0.0, 0.0);
     vec3 e1 = v1 - v0;
@@ -150,7 +150,7 @@ TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2)
     }
 }
 
-// traverse::intersect_leaf (tracer/src/kernel/traverse.rs:105)
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:105)
 void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
     uint first = entry >> 8;
     uint i_end = first + (entry & 255u);
@@ -163,7 +163,7 @@ void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
     }
 }
 
-// traverse::leaf_occludes (tracer/src/kernel/traverse.rs:117)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:117)
 bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     uint first = entry >> 8;
     bool blocked = false;
@@ -178,12 +178,12 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::is_leaf (tracer/src/kernel/traverse.rs:131)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:131)
 bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
 }
 
-// intersect::safe_inverse (tracer/src/kernel/intersect.rs:48)
+// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:48)
 vec3 safe_inverse(vec3 dir) {
     float tiny = 1e-20;
     float x = abs(dir.x) < tiny ? (dir.x >= 0.0 ? tiny : -tiny) : dir.x;
@@ -192,7 +192,7 @@ vec3 safe_inverse(vec3 dir) {
     return vec3(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// traverse::trace_closest (tracer/src/kernel/traverse.rs:148)
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:148)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -305,7 +305,7 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     return hit;
 }
 
-// traverse::occluded (tracer/src/kernel/traverse.rs:270)
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:270)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);

@@ -11,8 +11,11 @@
 //!
 //! Layout: `lib.rs` (linking), `infer.rs` (types), `lower/` (the target-independent lowering),
 //! `language.rs` (the trait a target language implements), one module per language
-//! (`glsl/`, `wgsl/`, the same files in each), `validate.rs` (naga and glsl-lang).
+//! (`glsl/`, `wgsl/`, the same files in each), `validate.rs` (naga and glsl-lang), `build.rs`
+//! (generating and validating shaders from a build script: [`build::write_shaders`]).
 
+#[cfg(feature = "validate")]
+pub mod build;
 mod glsl;
 mod infer;
 mod language;

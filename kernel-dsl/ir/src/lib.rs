@@ -12,7 +12,8 @@ use serde::{Deserialize, Serialize};
 pub struct Module {
     /// The module's identifier (`rng` for `mod rng`).
     pub name: String,
-    /// The source file as rustc names it (relative to the workspace root for workspace crates).
+    /// The source file as `<package>/<path in the package>` (`lightport-tracer/src/kernel/rng.rs`),
+    /// the same on every machine; rustc's own name for it when built outside Cargo.
     pub file: String,
     /// Kernel modules this one imports with `use` (last path segment of each module path).
     pub imports: Vec<Import>,

@@ -4,6 +4,8 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
+mod source_tag;
+
 use kernel_dsl_ir as ir;
 use proc_macro2::{Span, TokenStream};
 use quote::quote;
@@ -12,7 +14,7 @@ use syn::Error;
 
 #[proc_macro_attribute]
 pub fn kernel(attr: proc_macro::TokenStream, item: proc_macro::TokenStream) -> proc_macro::TokenStream {
-    let file = proc_macro::Span::call_site().file();
+    let file = source_tag::crate_relative(&proc_macro::Span::call_site().file());
     expand(attr.into(), item.into(), file).into()
 }
 
@@ -1029,7 +1031,7 @@ impl Lowering {
                 let msg = if matches!(first, "std" | "core" | "alloc") || written.len() > 1 {
                     format!("`{what}` is not a kernel function: kernels run on GPUs and can only call kernel functions (of this module, or of another `#[kernel]` module through `super::`/`crate::` or a `use`) and the built-ins of `f32` and glam")
                 } else {
-                    format!("`{what}` is not a kernel function of this module or one imported with `use crate::kernel::module::{what}`: kernels can only call kernel functions and the built-ins of `f32` and glam")
+                    format!("`{what}` is not a kernel function of this module or one imported from another `#[kernel]` module (`use path::to::module::{what};`): kernels can only call kernel functions and the built-ins of `f32` and glam")
                 };
                 self.error(err_at(tokens, msg));
                 return None;
