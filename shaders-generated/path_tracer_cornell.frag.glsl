@@ -111,7 +111,7 @@ const uint STRATEGY_NEE = 1u;
 // scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:104)
 const uint STRATEGY_MIS = 2u;
 // traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:17)
-const uint STACK_SIZE = 64u;
+const uint STACK_SIZE = 11u;
 // integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:24)
 const uint RR_START_DEPTH = 3u;
 
@@ -318,10 +318,10 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
     Hit hit = Hit(NONE, t_max, 0.0, 0.0);
-    uint stack[64];
-    for (int i = 0; i < 64; ++i) { stack[i] = 0u; }
-    float stack_t[64];
-    for (int i_1 = 0; i_1 < 64; ++i_1) { stack_t[i_1] = 0.0; }
+    uint stack[11];
+    for (int i = 0; i < 11; ++i) { stack[i] = 0u; }
+    float stack_t[11];
+    for (int i_1 = 0; i_1 < 11; ++i_1) { stack_t[i_1] = 0.0; }
     uint leaf_limit = scene_leaf_stack_limit;
     uint sp = 0u;
     uint entry = stack_entry(0u, 0u);
@@ -545,8 +545,8 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
-    uint stack[64];
-    for (int i = 0; i < 64; ++i) { stack[i] = 0u; }
+    uint stack[11];
+    for (int i = 0; i < 11; ++i) { stack[i] = 0u; }
     stack[0u] = stack_entry(0u, 0u);
     uint sp = 1u;
     bool blocked = false;

@@ -109,7 +109,7 @@ const STRATEGY_NEE: u32 = 1u;
 // scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:104)
 const STRATEGY_MIS: u32 = 2u;
 // traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:17)
-const STACK_SIZE: u32 = 64u;
+const STACK_SIZE: u32 = 11u;
 // integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:24)
 const RR_START_DEPTH: u32 = 3u;
 
@@ -304,8 +304,8 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
     var hit: Hit = Hit(NONE, t_max, 0.0, 0.0);
-    var stack: array<u32, 64>;
-    var stack_t: array<f32, 64>;
+    var stack: array<u32, 11>;
+    var stack_t: array<f32, 11>;
     let leaf_limit: u32 = scene.leaf_stack_limit;
     var sp: u32 = 0u;
     var entry: u32 = stack_entry(0u, 0u);
@@ -529,7 +529,7 @@ fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> b
 fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
-    var stack: array<u32, 64>;
+    var stack: array<u32, 11>;
     stack[0u] = stack_entry(0u, 0u);
     var sp: u32 = 1u;
     var blocked: bool = false;

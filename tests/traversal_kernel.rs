@@ -171,12 +171,17 @@ fn chain_of_identical_triangles() {
     assert!(wide.stack_needed_with_leaves > stack, "the chain should not fit with leaves pushed: {wide:?}");
     let packed = pack(&s, &bvh, &RenderSettings::default()).expect("pack");
     assert_eq!(packed.scene.leaf_stack_limit, stack - wide.stack_needed);
+    assert_eq!(packed.features.traversal_stack, stack, "a tree this deep keeps the whole stack");
     check(&s, 2_000);
 }
 
 #[test]
 fn trees_that_fit_push_every_leaf() {
     let s = scene::cornell_box();
-    let packed = pack(&s, &tracer::bvh::build(&s.triangles).expect("BVH"), &RenderSettings::default()).expect("pack");
-    assert_eq!(packed.scene.leaf_stack_limit, STACK_SIZE as u32);
+    let bvh = tracer::bvh::build(&s.triangles).expect("BVH");
+    let packed = pack(&s, &bvh, &RenderSettings::default()).expect("pack");
+    // The GPU kernel's stack is sized to the tree, and the limit never stops a push.
+    let need = bvh.widen().expect("wide BVH").stack_needed_with_leaves;
+    assert!(need < STACK_SIZE as u32);
+    assert_eq!((packed.features.traversal_stack, packed.scene.leaf_stack_limit), (need, need));
 }

@@ -105,7 +105,8 @@ pub struct Selection {
     /// Resource fields fixed at code-generation time, as `"Struct.field"` → value (u32
     /// fields). Each use becomes a literal, branches it decides are removed, and functions
     /// and resources only those branches used are not emitted: the kernel variant carries only
-    /// the code a scene needs.
+    /// the code a scene needs. A key without a `.` fixes an integer const (`"STACK_SIZE"`),
+    /// array lengths included: the CPU keeps the Rust value, a GPU variant gets the scene's.
     pub specialize: BTreeMap<String, u32>,
     /// Also emit an entry point (`main`) around a kernel function.
     pub entry: Option<EntryPoint>,

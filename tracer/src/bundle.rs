@@ -37,8 +37,8 @@ use crate::pack::{Features, Packed};
 pub const MAGIC: [u8; 8] = *b"LPBUNDLE";
 /// Bumped whenever the layout or the meaning of a field changes; readers accept only their own.
 /// (2: node planes as float texels, `node_children`, `leaf_stack_limit`, triangle lights with
-/// their normal and area.)
-pub const VERSION: u32 = 2;
+/// their normal and area. 3: `features.traversal_stack`.)
+pub const VERSION: u32 = 3;
 /// The largest bundle accepted (and produced): well within wasm32's 4 GiB address space.
 pub const MAX_BUNDLE_BYTES: u64 = 1 << 30;
 /// File extension used for bundles (the server serves `/bundles/<hash>.lpb`).
@@ -189,6 +189,14 @@ fn check_consistency(p: &Packed) -> Result<(), BundleError> {
     let stack = crate::kernel::traverse::STACK_SIZE as u32;
     if s.leaf_stack_limit > stack {
         return fail(format!("leaf_stack_limit {} is above the traversal stack ({stack})", s.leaf_stack_limit));
+    }
+    // A GPU variant's stack is `traversal_stack` entries: the limit must keep pushes within it.
+    let sized = p.features.traversal_stack;
+    if sized > stack || (sized > 0 && s.leaf_stack_limit > sized) {
+        return fail(format!(
+            "traversal_stack {sized} with leaf_stack_limit {} (the stack is at most {stack} entries and holds the limit)",
+            s.leaf_stack_limit
+        ));
     }
     if Some(s.triangles.len()) != p.triangle_count.checked_mul(TRIANGLE_TEXELS as usize) {
         return fail(format!("{} triangle texels for {} triangles", s.triangles.len(), p.triangle_count));
@@ -631,7 +639,7 @@ macro_rules! record {
 }
 
 record!(Packed { scene, features, triangle_count, light_count });
-record!(Features { sky, textures, shading, point_lights, emissive_triangles });
+record!(Features { sky, textures, shading, point_lights, emissive_triangles, traversal_stack });
 record!(Scene {
     triangles,
     shading,

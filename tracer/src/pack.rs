@@ -25,6 +25,10 @@ pub struct Features {
     pub shading: bool,
     pub point_lights: bool,
     pub emissive_triangles: bool,
+    /// Entries the traversal stack needs for this scene's BVH (`WideBvh::stack_needed*`, at
+    /// most the kernel's `STACK_SIZE`): GPU variants size their stacks to it instead of
+    /// `STACK_SIZE` (the Cornell box needs 11, not 64). 0: not fixed, the kernel's `STACK_SIZE`.
+    pub traversal_stack: u32,
 }
 
 impl Features {
@@ -40,6 +44,7 @@ impl Features {
         ]
         .into_iter()
         .map(|(k, v)| (format!("Scene.{k}"), v as u32))
+        .chain((self.traversal_stack > 0).then(|| ("STACK_SIZE".to_string(), self.traversal_stack)))
         .collect()
     }
 
@@ -49,7 +54,14 @@ impl Features {
 
     /// Every feature on: the unspecialised kernel, for comparisons.
     pub fn all() -> Features {
-        Features { sky: true, textures: true, shading: true, point_lights: true, emissive_triangles: true }
+        Features {
+            sky: true,
+            textures: true,
+            shading: true,
+            point_lights: true,
+            emissive_triangles: true,
+            traversal_stack: 0,
+        }
     }
 }
 
@@ -340,8 +352,15 @@ pub fn pack_with_textures(
     }
     // Closest-hit traversal pushes leaves too while the stack has room for them: child nodes
     // alone never need more than `stack_needed` entries and leaves are pushed only below the
-    // limit, so at most `limit + stack_needed` entries are ever held.
-    let leaf_stack_limit = if wide.stack_needed_with_leaves <= max { max } else { max - wide.stack_needed };
+    // limit, so at most `limit + stack_needed` entries are ever held. A tree that fits with
+    // every leaf pushed gets a stack of exactly its need (at least 1: `occluded` starts with
+    // the root on it), and the limit never stops a push.
+    let (traversal_stack, leaf_stack_limit) = if wide.stack_needed_with_leaves <= max {
+        let need = wide.stack_needed_with_leaves.max(1);
+        (need, need)
+    } else {
+        (max, max - wide.stack_needed)
+    };
     // The traversal stack carries a leaf's triangle count in 8 bits.
     let max_leaf = crate::kernel::traverse::MAX_LEAF_TRIANGLES;
     if let Some(leaf) = bvh.nodes.iter().find(|n| n.count > max_leaf) {
@@ -379,6 +398,7 @@ pub fn pack_with_textures(
         shading: textures_used || smooth,
         point_lights: !scene.point_lights.is_empty(),
         emissive_triangles: !emissive_triangles.is_empty(),
+        traversal_stack,
     };
 
     // Lights: emissive triangles, point lights, then the sky (the kernel expects it last).

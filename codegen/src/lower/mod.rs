@@ -30,6 +30,8 @@ use crate::{CodegenError, Generated, Located, Program, Selection, SourceMapEntry
 type R<T> = Result<T, CodegenError>;
 
 pub(crate) fn emit(program: &Program, target: Target, selection: &Selection) -> R<Generated> {
+    let specialized = specialize::fix_consts(program, &selection.specialize)?;
+    let program = specialized.as_ref().unwrap_or(program);
     let lang = target.language();
     let order = fn_order(program, selection);
     // First pass: which calls survive specialisation. Second pass: only what is reached.

@@ -1,10 +1,50 @@
 //! Specialisation: resource fields fixed at code-generation time ([`crate::Selection::specialize`])
 //! become literals, and the conditions they decide are evaluated here so that the lowering
-//! emits only the live branch.
+//! emits only the live branch. Integer consts can be fixed too (a key without a `.`): the
+//! program is emitted with the const's value replaced, array lengths included.
 
-use super::{strip_parens, Lowerer};
+use std::collections::BTreeMap;
+
+use super::{strip_parens, Lowerer, R};
 use crate::ir::{self, BinOp, Expr, ExprKind as K, UnOp};
-use crate::types::Ty;
+use crate::types::{Scalar, Ty};
+use crate::{infer, CodegenError, Program};
+
+/// `program` with each const named in `specialize` (keys without a `.`) set to its value, or
+/// None when no const is fixed. Only integer consts can be fixed (array lengths, loop bounds).
+pub(super) fn fix_consts(program: &Program, specialize: &BTreeMap<String, u32>) -> R<Option<Program>> {
+    let fixed: Vec<(&String, u32)> =
+        specialize.iter().filter(|(k, _)| !k.contains('.')).map(|(k, v)| (k, *v)).collect();
+    if fixed.is_empty() {
+        return Ok(None);
+    }
+    let mut program = program.clone();
+    for (name, value) in fixed {
+        let ty = program.consts.get(name).map(|c| infer::resolve_type(&program, &c.item.ty));
+        let Some(c) = program.consts.get_mut(name) else {
+            return Err(CodegenError {
+                file: String::new(),
+                span: ir::Span::default(),
+                function: None,
+                message: format!("specialisation fixes `{name}`, which is not a kernel const"),
+            });
+        };
+        if !matches!(ty, Some(Ok(Ty::Scalar(Scalar::U32 | Scalar::I32 | Scalar::USize)))) {
+            return Err(CodegenError {
+                file: c.file.clone(),
+                span: c.item.span,
+                function: None,
+                message: format!("specialisation fixes `{name}`, but only integer consts can be fixed"),
+            });
+        }
+        let suffix = match &c.item.value.kind {
+            K::Lit(ir::Lit::Int { suffix, .. }) => suffix.clone(),
+            _ => None,
+        };
+        c.item.value.kind = K::Lit(ir::Lit::Int { digits: value.to_string(), value: u64::from(value), suffix });
+    }
+    Ok(Some(program))
+}
 
 impl Lowerer<'_> {
     /// The value of a condition fixed by specialisation (`res.flag != 0 && ...`), if any.

@@ -581,6 +581,9 @@ pub struct GlHarness {
     options: GlHarnessOptions,
     limits: GlLimits,
     programs: HashMap<String, HarnessProgram>,
+    /// What the harness shaders are specialised to (`Selection::specialize`), e.g. a packed
+    /// scene's `Features::specialization`, so that a function runs as that scene's kernel has it.
+    specialize: std::collections::BTreeMap<String, u32>,
     /// The scene's uniforms and data textures (every texel array, uploaded once).
     scene: Option<(Scene, HashMap<&'static str, glow::Texture>)>,
     vertex_array: glow::VertexArray,
@@ -620,6 +623,7 @@ impl GlHarness {
             options,
             limits,
             programs: HashMap::new(),
+            specialize: Default::default(),
             scene: None,
             vertex_array,
             #[cfg(feature = "gl")]
@@ -683,6 +687,16 @@ impl GlHarness {
         Ok(())
     }
 
+    /// Specialises the harness shaders from now on as `Selection::specialize` does the kernel's
+    /// (e.g. `packed.features.specialization()`: the scene's traversal stack size and flags).
+    pub fn set_specialization(&mut self, specialize: std::collections::BTreeMap<String, u32>) {
+        if self.specialize != specialize {
+            self.specialize = specialize;
+            let _ = self.activate();
+            self.delete_programs();
+        }
+    }
+
     fn delete_scene(&mut self) {
         if let Some((_, textures)) = self.scene.take() {
             // SAFETY: textures of this context, deleted once (the scene was taken).
@@ -711,9 +725,12 @@ impl GlHarness {
         Ok(&self.programs[function])
     }
 
+    fn selection(&self, function: &str) -> Selection {
+        Selection { specialize: self.specialize.clone(), ..Selection::harness(function) }
+    }
+
     fn compile(&self, function: &str) -> Result<HarnessProgram, HarnessError> {
-        let generated =
-            self.program.emit(Target::GlslEs300, &Selection::harness(function)).map_err(ShaderError::from)?;
+        let generated = self.program.emit(Target::GlslEs300, &self.selection(function)).map_err(ShaderError::from)?;
         #[cfg(feature = "validate")]
         lightport_codegen::validate::validate(&generated).map_err(ShaderError::from)?;
         let layout = generated.harness.clone().ok_or_else(|| HarnessError::Layout {
@@ -1098,6 +1115,14 @@ impl Equivalence {
 
     pub fn scene(&self) -> &Scene {
         &self.scene
+    }
+
+    /// Specialises the GPU side's shaders (see [`GlHarness::set_specialization`]); the CPU runs
+    /// the Rust source, which is never specialised.
+    pub fn set_specialization(&mut self, specialize: std::collections::BTreeMap<String, u32>) {
+        if let Some(gl) = &mut self.gl {
+            gl.set_specialization(specialize);
+        }
     }
 
     fn layout(&mut self, function: &str) -> Result<lightport_codegen::Harness, HarnessError> {

@@ -137,11 +137,16 @@ pub fn generated_shaders() -> Result<Vec<GeneratedFile>, ShaderError> {
 #[cfg(feature = "validate")]
 const REGENERATE: &str = "regenerate with `cargo run -- shaders`";
 
-/// What the built-in Cornell box uses: emissive triangles only.
+/// What the built-in Cornell box uses: emissive triangles only, and a traversal stack of
+/// `CORNELL_STACK` entries (`tests/codegen.rs` checks this against the packed scene).
 #[cfg(feature = "validate")]
 fn cornell_features() -> crate::pack::Features {
-    crate::pack::Features { emissive_triangles: true, ..Default::default() }
+    crate::pack::Features { emissive_triangles: true, traversal_stack: CORNELL_STACK, ..Default::default() }
 }
+
+/// The traversal stack the built-in Cornell box's BVH needs with every leaf pushed.
+#[cfg(feature = "validate")]
+const CORNELL_STACK: u32 = 11;
 
 /// Code generation or validation of the kernel failed (reported against its Rust source).
 #[derive(Debug, thiserror::Error)]
