@@ -3,6 +3,7 @@
 mod chart;
 mod serve;
 mod serve_child;
+mod site;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
