@@ -10,7 +10,8 @@
 //!   "scenes": [                          // in command-line order; the built-in Cornell box first
 //!     {
 //!       "name": "cornell-box",           // unique: file stem, "-2", "-3"... appended on clashes
-//!       "url": "/bundles/<hash>.lpb",    // absolute path on this server
+//!       "url": "bundles/<hash>.lpb",     // relative to scenes.json (served at /bundles/<hash>.lpb;
+//!                                        // an exported site works under any path prefix)
 //!       "hash": "<hash>",                // SHA-256 (hex) of the uncompressed bundle: a cache key
 //!       "bytes": { "raw": 5120, "gzip": 1234 },   // uncompressed and gzip-compressed sizes
 //!       "triangles": 36,
@@ -186,7 +187,7 @@ impl Site {
             let bundle = Resource::new("application/octet-stream", IMMUTABLE, bytes, true)?;
             let compress = t2.elapsed();
             let gzip_bytes = bundle.gzip.as_ref().map_or(bundle.identity.len(), Bytes::len);
-            let url = format!("/bundles/{}.{}", bundle.hash, tracer::bundle::EXTENSION);
+            let url = format!("bundles/{}.{}", bundle.hash, tracer::bundle::EXTENSION);
             let f = packed.features;
             entries.push(serde_json::json!({
                 "name": name,
@@ -210,7 +211,7 @@ impl Site {
                 decode,
                 compress,
             });
-            self.routes.insert(url, bundle);
+            self.routes.insert(format!("/{url}"), bundle);
         }
         if !failures.is_empty() {
             for f in &failures {

@@ -397,8 +397,9 @@ fn scenes_json_lists_content_addressed_bundles() {
     assert_eq!(scenes[1]["features"]["textures"], true);
     for scene in scenes {
         let hash = scene["hash"].as_str().unwrap();
-        assert_eq!(scene["url"].as_str().unwrap(), format!("/bundles/{hash}.lpb"));
-        let r = get(s.port, scene["url"].as_str().unwrap(), &[]);
+        // Relative to /scenes.json, so that an exported site works under any path.
+        assert_eq!(scene["url"].as_str().unwrap(), format!("bundles/{hash}.lpb"));
+        let r = get(s.port, &format!("/{}", scene["url"].as_str().unwrap()), &[]);
         assert_eq!(r.status, 200);
         assert_eq!(r.header("content-encoding"), None, "no Accept-Encoding: identity");
         assert_eq!(r.body.len() as u64, scene["bytes"]["raw"].as_u64().unwrap());
@@ -414,7 +415,7 @@ fn bundles_are_immutable_gzip_and_revalidate_with_etags() {
     let s = server();
     let list = scenes_json(s.port);
     let scene = &list["scenes"][1];
-    let url = scene["url"].as_str().unwrap();
+    let url = &format!("/{}", scene["url"].as_str().unwrap());
     let hash = scene["hash"].as_str().unwrap();
 
     let plain = get(s.port, url, &[("Accept-Encoding", "br;q=1, identity")]);
@@ -449,7 +450,7 @@ fn bundles_are_immutable_gzip_and_revalidate_with_etags() {
 fn many_concurrent_clients_are_all_served() {
     let s = server();
     let list = scenes_json(s.port);
-    let url = list["scenes"][0]["url"].as_str().unwrap().to_string();
+    let url = format!("/{}", list["scenes"][0]["url"].as_str().unwrap());
     let expected_len = list["scenes"][0]["bytes"]["raw"].as_u64().unwrap() as usize;
     let port = s.port;
     let clients: Vec<_> = (0..64)
