@@ -39,10 +39,15 @@ pub fn export(args: &ExportArgs) -> Result<()> {
     site.print_reports();
     for required in ["/index.html", "/pkg/lightport_web_bg.wasm", "/pkg/lightport_web.js"] {
         if !site.routes.contains_key(required) {
-            bail!(
-                "the page is incomplete: {required} is missing under {} (run `bash scripts/build-web.sh`, which builds web/pkg)",
-                args.site.web.display()
-            );
+            match &args.site.web {
+                Some(dir) => bail!(
+                    "the page is incomplete: {required} is missing under --web {} (run `bash scripts/build-web.sh`, which builds web/pkg)",
+                    dir.display()
+                ),
+                None => bail!(
+                    "the page is incomplete: {required} is missing from the page built into this binary: run `bash scripts/build-web.sh`, then rebuild lightport (`cargo build`, or `cargo install --path .`)"
+                ),
+            }
         }
     }
     let t0 = Instant::now();

@@ -85,9 +85,10 @@ pub struct SiteArgs {
     /// Equirectangular sky (.hdr or .exr) added to every scene.
     #[arg(long)]
     pub sky: Option<PathBuf>,
-    /// Directory holding the page (`www/`) and its wasm build (`pkg/`).
-    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/web"))]
-    pub web: PathBuf,
+    /// Directory holding the page (`www/`) and its wasm build (`pkg/`) to use instead of the
+    /// page built into this binary (a page being worked on: no rebuild of lightport needed).
+    #[arg(long)]
+    pub web: Option<PathBuf>,
     /// Refuse (build nothing) when loading a scene gives any warning, instead of using it anyway.
     #[arg(long)]
     pub strict: bool,
@@ -117,7 +118,19 @@ impl Site {
     pub fn build(args: &SiteArgs) -> Result<Site> {
         let mut site = Site { routes: BTreeMap::new(), reports: Vec::new() };
         site.add_scenes(args)?;
-        site.add_assets(&args.web)?;
+        match &args.web {
+            Some(dir) => site.add_assets(&dir_files(dir)?)?,
+            None => {
+                let files: Vec<(String, Vec<u8>)> =
+                    embedded::FILES.iter().map(|(route, bytes)| (route.to_string(), bytes.to_vec())).collect();
+                if !files.iter().any(|(route, _)| route.starts_with("/pkg/")) {
+                    eprintln!(
+                        "warning: this lightport binary was built without the page's wasm (web/pkg/ was missing). Run `bash scripts/build-web.sh`, then rebuild lightport (`cargo build` / `cargo install --path .`), or pass --web DIR"
+                    );
+                }
+                site.add_assets(&files)?;
+            }
+        }
         Ok(site)
     }
 
@@ -229,43 +242,52 @@ impl Site {
         Ok(())
     }
 
-    /// Adds the page (`<web>/www/` at `/`) and its wasm build (`<web>/pkg/` at `/pkg/`): regular
-    /// files only (symbolic links are not followed, so nothing outside the tree is reachable),
-    /// names of letters, digits, `-`, `_` and `.` without a leading dot, read into memory now.
-    fn add_assets(&mut self, web: &Path) -> Result<()> {
-        let www = web.join("www");
-        let pkg = web.join("pkg");
-        let mut files = Vec::new();
-        if www.is_dir() {
-            collect_files(&www, "/", 0, &mut files)?;
-        } else {
-            eprintln!(
-                "warning: {} not found: the page is not served (only /scenes.json and the bundles)",
-                www.display()
-            );
-        }
-        if pkg.is_dir() {
-            collect_files(&pkg, "/pkg/", 0, &mut files)?;
-        } else {
-            eprintln!(
-                "warning: {} is missing: the page's wasm is not built. Run `bash scripts/build-web.sh`, then restart `lightport serve`",
-                pkg.display()
-            );
-        }
-        for (route, path) in files {
-            if self.routes.contains_key(&route) {
-                eprintln!("warning: {} is hidden by the server's own {route}", path.display());
+    /// Adds the page's files (route, bytes), `/index.html` also at `/`.
+    fn add_assets(&mut self, files: &[(String, Vec<u8>)]) -> Result<()> {
+        for (route, bytes) in files {
+            if self.routes.contains_key(route) {
+                eprintln!("warning: the page's {route} is hidden by the server's own");
                 continue;
             }
-            let (ty, compress) = content_type(&route);
-            let bytes = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+            let (ty, compress) = content_type(route);
             if route == "/index.html" {
                 self.routes.insert("/".into(), Resource::new(ty, NO_CACHE, bytes.clone(), compress)?);
             }
-            self.routes.insert(route, Resource::new(ty, NO_CACHE, bytes, compress)?);
+            self.routes.insert(route.clone(), Resource::new(ty, NO_CACHE, bytes.clone(), compress)?);
         }
         Ok(())
     }
+}
+
+/// The page built into the binary by build.rs (the same file rules as [`dir_files`]).
+mod embedded {
+    include!(concat!(env!("OUT_DIR"), "/embedded_web.rs"));
+}
+
+/// The page of `--web DIR`: `DIR/www/` at `/` and its wasm build `DIR/pkg/` at `/pkg/`; regular
+/// files only (symbolic links are not followed, so nothing outside the tree is reachable),
+/// names of letters, digits, `-`, `_` and `.` without a leading dot, read into memory now.
+fn dir_files(web: &Path) -> Result<Vec<(String, Vec<u8>)>> {
+    let www = web.join("www");
+    let pkg = web.join("pkg");
+    let mut files = Vec::new();
+    if www.is_dir() {
+        collect_files(&www, "/", 0, &mut files)?;
+    } else {
+        eprintln!("warning: {} not found: the page is not served (only /scenes.json and the bundles)", www.display());
+    }
+    if pkg.is_dir() {
+        collect_files(&pkg, "/pkg/", 0, &mut files)?;
+    } else {
+        eprintln!(
+            "warning: {} is missing: the page's wasm is not built. Run `bash scripts/build-web.sh`, then restart `lightport serve`",
+            pkg.display()
+        );
+    }
+    files
+        .into_iter()
+        .map(|(route, path)| Ok((route, std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?)))
+        .collect()
 }
 
 /// The scenes' unique names in order, the built-in Cornell box (no path) first: each file's stem,

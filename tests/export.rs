@@ -215,3 +215,49 @@ fn export_refuses_a_non_empty_directory_and_a_missing_wasm_build() {
     assert!(stderr.contains("scripts/build-web.sh"), "the error says what to run: {stderr}");
     assert!(!site.join("scenes.json").exists(), "nothing is written");
 }
+
+/// An installed binary (a copy far from the repository, run from another directory) serves and
+/// exports the page built into it: the same bytes as web/www and web/pkg.
+#[test]
+fn an_installed_binary_serves_and_exports_its_built_in_page() {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let wasm = std::fs::read(repo.join("web/pkg/lightport_web_bg.wasm"))
+        .expect("web/pkg/ is missing: run scripts/build-web.sh, then build lightport again (it embeds the page)");
+    let index = std::fs::read(repo.join("web/www/index.html")).unwrap();
+    let dir = TempDir::new("installed");
+    let (bin, elsewhere) = (dir.0.join("bin"), dir.0.join("elsewhere"));
+    std::fs::create_dir_all(&bin).unwrap();
+    std::fs::create_dir_all(&elsewhere).unwrap();
+    let exe = bin.join("lightport");
+    std::fs::copy(env!("CARGO_BIN_EXE_lightport"), &exe).unwrap();
+
+    let out = Command::new(&exe).current_dir(&elsewhere).args(["export", "--out", "site"]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(std::fs::read(elsewhere.join("site/pkg/lightport_web_bg.wasm")).unwrap() == wasm, "the exported wasm");
+    assert_eq!(std::fs::read(elsewhere.join("site/index.html")).unwrap(), index);
+
+    let mut server = serve_child::Killed::spawn_tied(
+        Command::new(&exe)
+            .current_dir(&elsewhere)
+            .args(["serve", "--port", "0", "--exit-on-stdin-eof"])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped()),
+    )
+    .unwrap();
+    let stdout = server.child().stdout.take().unwrap();
+    let mut stderr = server.child().stderr.take().unwrap();
+    let line = std::io::BufRead::lines(std::io::BufReader::new(stdout))
+        .map_while(Result::ok)
+        .find(|l| l.starts_with("serving "))
+        .expect("the server's URL line");
+    let port: u16 = line.trim_end_matches('/').rsplit(':').next().unwrap().parse().unwrap();
+    let page = get(port, "/", &[]);
+    assert_eq!((page.status, page.body), (200, index));
+    let served = get(port, "/pkg/lightport_web_bg.wasm", &[]);
+    assert_eq!(served.header("content-type"), Some("application/wasm"));
+    assert!(served.status == 200 && served.body == wasm, "the served wasm ({} bytes)", served.body.len());
+    drop(server);
+    let mut said = String::new();
+    let _ = stderr.read_to_string(&mut said);
+    assert!(!said.contains("warning"), "{said}");
+}
