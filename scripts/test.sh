@@ -8,8 +8,9 @@ step() { printf '\n==> %s\n' "$*"; }
 # The GL backend's tests need a GL driver: Mesa's EGL, GLES and software rasteriser (llvmpipe).
 # The wgpu backend's tests (tests/render_wgpu.rs) need a Vulkan driver: Mesa lavapipe and the loader.
 # The web tests (tests/web.rs) need Chromium (WebGL2 on SwiftShader) and node + npm to drive it.
+# tests/export.rs serves an exported site with nginx.
 missing=()
-for package in libegl1 libegl-mesa0 libgles2 libgl1-mesa-dri mesa-vulkan-drivers libvulkan1 chromium; do
+for package in libegl1 libegl-mesa0 libgles2 libgl1-mesa-dri mesa-vulkan-drivers libvulkan1 chromium nginx; do
     status=$(dpkg-query -W -f='${Status}' "$package" 2>/dev/null || true)
     [ "$status" = "install ok installed" ] || missing+=("$package")
 done

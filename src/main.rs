@@ -1,8 +1,10 @@
 //! The `lightport` command line.
 
 mod chart;
+mod export;
 mod serve;
 mod serve_child;
+mod site;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -27,6 +29,10 @@ enum Command {
     /// Serve the web path tracer on 127.0.0.1: the page, its wasm, and a prebuilt bundle per
     /// scene (the built-in Cornell box plus SCENE...). See docs/serve.md.
     Serve(serve::ServeArgs),
+    /// Write the site `serve` answers as files for any static host or CDN: the page, its wasm,
+    /// scenes.json and a bundle per scene (the built-in Cornell box plus SCENE...). See
+    /// docs/deploy.md.
+    Export(export::ExportArgs),
     /// Regenerate the GLSL ES 3.00 and WGSL of every kernel module into shaders-generated/
     /// (each file validated first) and print them.
     Shaders {
@@ -49,6 +55,7 @@ fn main() -> ExitCode {
         Command::Render(args) => render(&args),
         Command::Chart(args) => chart::chart(&args),
         Command::Serve(args) => serve::serve(&args),
+        Command::Export(args) => export::export(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,12 +1,12 @@
-//! `lightport serve`: an HTTP server on 127.0.0.1 for the web path tracer: the page
-//! (`web/www/`), its wasm build (`web/pkg/`, served under `/pkg/`), and one prebuilt bundle per
-//! scene (`tracer::bundle`: loaded, BVH-built and packed at start, so the browser builds nothing).
+//! `lightport serve`: an HTTP/1.1 server on 127.0.0.1 for the web path tracer (hyper 1 on a
+//! small tokio runtime): the page (`web/www/`), its wasm build (`web/pkg/`, served under
+//! `/pkg/`), and one prebuilt bundle per scene, all from the table [`crate::site`] builds at start.
 //!
 //! # Routes
 //! - `/` and `/index.html`: `web/www/index.html`; `/<path>`: any other file of `web/www/`;
 //!   `/pkg/<path>`: the files of `web/pkg/`. `Cache-Control: no-cache` with an `ETag` (so a
 //!   reload revalidates and gets `304`).
-//! - `/scenes.json`: the served scenes (schema below), `Cache-Control: no-cache`, `ETag`.
+//! - `/scenes.json`: the served scenes (schema in [`crate::site`]), `no-cache`, `ETag`.
 //! - `/bundles/<hash>.lpb`: a scene bundle (`tracer::bundle::decode` reads it), content-addressed
 //!   by `<hash>` = SHA-256 of the uncompressed bundle (64 lowercase hex digits), `Cache-Control:
 //!   public, max-age=31536000, immutable`, `ETag: "<hash>"` (`"<hash>-gzip"` for the gzip
@@ -15,53 +15,44 @@
 //!   `Accept-Encoding` allows gzip (a browser's `fetch` then hands the page the uncompressed
 //!   bytes), otherwise uncompressed; `Vary: Accept-Encoding`.
 //!
-//! # `/scenes.json`
-//! ```json
-//! {
-//!   "bundle_version": 1,                 // tracer::bundle::VERSION of every bundle listed
-//!   "scenes": [                          // in command-line order; the built-in Cornell box first
-//!     {
-//!       "name": "cornell-box",           // unique: file stem, "-2", "-3"... appended on clashes
-//!       "url": "/bundles/<hash>.lpb",    // absolute path on this server
-//!       "hash": "<hash>",                // SHA-256 (hex) of the uncompressed bundle: a cache key
-//!       "bytes": { "raw": 5120, "gzip": 1234 },   // uncompressed and gzip-compressed sizes
-//!       "triangles": 36,
-//!       "lights": 2,
-//!       "features": { "sky": false, "textures": false, "shading": false,
-//!                     "point_lights": false, "emissive_triangles": true }
-//!     }
-//!   ]
-//! }
-//! ```
-//!
 //! # What it refuses
 //! Only `GET` and `HEAD` (`405` with `Allow` otherwise). The request path is never joined to a
-//! file-system path: it is looked up, exactly (query string ignored), in a table of routes built
-//! at start, so `..`, `%2e%2e`, backslashes, absolute or unknown paths and directories are all
-//! `404`. Request heads over [`MAX_HEAD_BYTES`] or [`MAX_HEADERS`] headers get `431`; a declared
-//! body over [`MAX_BODY_BYTES`] `413`; a chunked request body `411`. A client has `--timeout`
-//! seconds to send each request head (`408` after that) and each write to it must progress
-//! within [`WRITE_TIMEOUT`], so a slow client holds one worker for a bounded time. A fixed
-//! pool of [`WORKERS`] threads serves connections (HTTP/1.1 keep-alive); past [`QUEUE`] waiting
-//! connections the server answers `503` at once.
+//! file-system path: it is looked up, exactly (query string ignored), in the table of routes, so
+//! `..`, `%2e%2e`, backslashes, absolute or unknown paths and directories are all `404`. hyper
+//! parses requests: heads over [`MAX_HEAD_BYTES`] or with more than [`MAX_HEADERS`] headers get
+//! `431`, malformed ones `400`. A declared body over [`MAX_BODY_BYTES`] gets `413`, a chunked
+//! request body `411`. A client has `--timeout` seconds to send each request head (a trickle of
+//! bytes does not extend it; an idle keep-alive connection has as long for its next request),
+//! after which hyper closes the connection; each write to a client must progress within
+//! [`WRITE_TIMEOUT`]. At most [`MAX_CONNECTIONS`] connections are served at once; past that a
+//! new one gets `503` and is closed.
 //!
-//! # Start-up
-//! Every scene is loaded, BVH-built, packed, encoded and compressed before the server listens.
-//! If any named scene fails, every failure is printed and `serve` exits non-zero without
-//! serving: a scene the user asked for is never silently missing from the page. A missing
-//! `web/pkg/` (or `web/www/`) is reported with the command that builds it; the bundles and
-//! `/scenes.json` are served anyway.
+//! # Shutdown
+//! `SIGINT`, `SIGTERM` and (with `--exit-on-stdin-eof`) the end of stdin stop accepting, let the
+//! requests in progress finish (keep-alive connections are closed after their current answer;
+//! at most [`GRACE`]), and exit with status 0.
 
-use std::collections::HashMap;
-use std::io::{Read, Write};
-use std::net::{Shutdown, TcpListener, TcpStream};
-use std::path::{Path, PathBuf};
-use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
-use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::convert::Infallible;
+use std::future::Future;
+use std::io::Write;
+use std::pin::Pin;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::task::{Context as TaskContext, Poll};
+use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
-use sha2::{Digest, Sha256};
+use bytes::Bytes;
+use http_body_util::{BodyExt, Full, Limited};
+use hyper::body::Incoming;
+use hyper::header::{self, HeaderValue};
+use hyper::{Method, Request, Response, StatusCode};
+use hyper_util::rt::{TokioIo, TokioTimer};
+use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
+use tokio::net::{TcpListener, TcpStream};
+use tokio::sync::Notify;
+
+use crate::site::{Site, SiteArgs};
 
 /// Largest request head (request line and headers) accepted; larger gets `431`.
 pub const MAX_HEAD_BYTES: usize = 16 * 1024;
@@ -69,30 +60,20 @@ pub const MAX_HEAD_BYTES: usize = 16 * 1024;
 pub const MAX_HEADERS: usize = 64;
 /// Largest request body accepted (and discarded: no route takes one); larger gets `413`.
 pub const MAX_BODY_BYTES: u64 = 1024;
-/// Worker threads serving connections.
-pub const WORKERS: usize = 16;
-/// Accepted connections waiting for a worker before new ones get `503`.
-pub const QUEUE: usize = 256;
-/// Longest a single write to a client may block (a client that stops reading is dropped).
+/// Connections served at once; more get `503`.
+pub const MAX_CONNECTIONS: usize = 1024;
+/// Longest a single write to a client may make no progress (a client that stops reading is dropped).
 pub const WRITE_TIMEOUT: Duration = Duration::from_secs(20);
-/// Requests served on one keep-alive connection before it is closed.
-const MAX_REQUESTS_PER_CONNECTION: u32 = 1000;
-/// Size of the files accepted as static assets (the wasm module is a few MB).
-const MAX_ASSET_BYTES: u64 = 256 << 20;
+/// Longest the requests in progress may take to finish after a shutdown is asked for.
+pub const GRACE: Duration = Duration::from_secs(5);
 
 #[derive(clap::Args)]
 pub struct ServeArgs {
-    /// Scenes to serve (.gltf, .glb, .obj, .fbx), after the built-in Cornell box.
-    scenes: Vec<PathBuf>,
+    #[command(flatten)]
+    site: SiteArgs,
     /// Port on 127.0.0.1 (0: any free port; the URL printed says which).
     #[arg(long, default_value_t = 8080)]
     port: u16,
-    /// Equirectangular sky (.hdr or .exr) added to every served scene.
-    #[arg(long)]
-    sky: Option<PathBuf>,
-    /// Directory holding the page (`www/`) and its wasm build (`pkg/`).
-    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/web"))]
-    web: PathBuf,
     /// Seconds a client has to send each request head.
     #[arg(long, default_value_t = 10.0)]
     timeout: f64,
@@ -100,66 +81,12 @@ pub struct ServeArgs {
     /// other end of a pipe, which the kernel closes when the parent ends however it ends.
     #[arg(long)]
     exit_on_stdin_eof: bool,
-    /// Refuse (serve nothing) when loading a scene gives any warning, instead of serving it anyway.
-    #[arg(long)]
-    strict: bool,
 }
 
-/// One response body, ready to send.
-struct Resource {
-    content_type: &'static str,
-    cache_control: &'static str,
-    /// SHA-256 (hex) of `identity`, the base of the ETags.
-    hash: String,
-    identity: Vec<u8>,
-    /// The gzip representation, where it is smaller.
-    gzip: Option<Vec<u8>>,
-}
-
-impl Resource {
-    fn new(content_type: &'static str, cache_control: &'static str, identity: Vec<u8>, compress: bool) -> Result<Self> {
-        let hash = hex(&Sha256::digest(&identity));
-        let gzip = if compress { Some(gzip(&identity)?).filter(|g| g.len() < identity.len()) } else { None };
-        Ok(Resource { content_type, cache_control, hash, identity, gzip })
-    }
-
-    fn etag(&self, gzip: bool) -> String {
-        if gzip {
-            format!("\"{}-gzip\"", self.hash)
-        } else {
-            format!("\"{}\"", self.hash)
-        }
-    }
-}
-
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
-fn gzip(bytes: &[u8]) -> Result<Vec<u8>> {
-    let mut encoder =
-        flate2::write::GzEncoder::new(Vec::with_capacity(bytes.len() / 2), flate2::Compression::default());
-    encoder.write_all(bytes)?;
-    Ok(encoder.finish()?)
-}
-
-/// Everything the server answers, built once at start.
-struct Site {
-    routes: HashMap<String, Resource>,
-    request_timeout: Duration,
-}
-
-/// What start-up measured for one scene.
-struct SceneReport {
-    name: String,
-    triangles: usize,
-    raw_bytes: usize,
-    gzip_bytes: usize,
-    prepare: Duration,
-    encode: Duration,
-    decode: Duration,
-    compress: Duration,
-}
+/// Set once the server listens: from then on, the end of stdin shuts it down gracefully.
+static SERVING: AtomicBool = AtomicBool::new(false);
+/// Notified when stdin ends while serving.
+static STDIN_CLOSED: Notify = Notify::const_new();
 
 pub fn serve(args: &ServeArgs) -> Result<()> {
     if !(args.timeout.is_finite() && args.timeout > 0.0 && args.timeout <= 3600.0) {
@@ -168,438 +95,206 @@ pub fn serve(args: &ServeArgs) -> Result<()> {
     if args.exit_on_stdin_eof {
         exit_on_stdin_eof();
     }
-    let mut routes = HashMap::new();
-    let reports = add_scenes(args, &mut routes)?;
-    add_assets(&args.web, &mut routes)?;
-
-    println!(
-        "{:<24} {:>10} {:>12} {:>12} {:>6} {:>12} {:>9} {:>9} {:>9}",
-        "scene", "triangles", "raw bytes", "gzip bytes", "gzip", "load+BVH+pack", "encode", "decode", "gzip"
-    );
-    for r in &reports {
-        println!(
-            "{:<24} {:>10} {:>12} {:>12} {:>5.1}% {:>10.1} ms {:>6.1} ms {:>6.1} ms {:>6.1} ms",
-            r.name,
-            r.triangles,
-            r.raw_bytes,
-            r.gzip_bytes,
-            100.0 * r.gzip_bytes as f64 / r.raw_bytes.max(1) as f64,
-            r.prepare.as_secs_f64() * 1e3,
-            r.encode.as_secs_f64() * 1e3,
-            r.decode.as_secs_f64() * 1e3,
-            r.compress.as_secs_f64() * 1e3
-        );
-    }
-
-    let listener = TcpListener::bind(("127.0.0.1", args.port))
-        .with_context(|| format!("cannot listen on 127.0.0.1:{} (is the port in use? try --port 0)", args.port))?;
-    let addr = listener.local_addr()?;
-    let site = Arc::new(Site { routes, request_timeout: Duration::from_secs_f64(args.timeout) });
-    println!("serving {} scene(s) at http://{addr}/", reports.len());
-    std::io::stdout().flush()?;
-    run(listener, site)
+    let site = Site::build(&args.site)?;
+    site.print_reports();
+    // Two workers: every answer is a precomputed body, so the work is the copying to sockets.
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .thread_name("serve")
+        .enable_all()
+        .build()
+        .context("starting the tokio runtime")?;
+    let timeout = Duration::from_secs_f64(args.timeout);
+    runtime.block_on(async {
+        let listener = TcpListener::bind(("127.0.0.1", args.port))
+            .await
+            .with_context(|| format!("cannot listen on 127.0.0.1:{} (is the port in use? try --port 0)", args.port))?;
+        let addr = listener.local_addr()?;
+        println!("serving {} scene(s) at http://{addr}/", site.reports.len());
+        std::io::stdout().flush()?;
+        SERVING.store(true, Ordering::SeqCst);
+        run(listener, Arc::new(site), timeout).await
+    })
 }
 
-/// Ends the process when stdin reaches its end (or fails): started before the scenes load, so
-/// that a parent that ends during a long start-up leaves nothing behind either.
+/// Asks for a shutdown when stdin reaches its end (or fails). Started before the scenes load:
+/// a parent that ends during a long start-up leaves nothing behind either (the process exits at
+/// once then); once serving, the shutdown is graceful, with an exit after [`GRACE`] regardless.
 fn exit_on_stdin_eof() {
     std::thread::spawn(|| {
         let _ = std::io::copy(&mut std::io::stdin().lock(), &mut std::io::sink());
         // Not eprintln!: it panics when stderr is a pipe whose reader (the parent) is gone.
         let _ = writeln!(std::io::stderr(), "stdin closed (--exit-on-stdin-eof): exiting");
+        if SERVING.load(Ordering::SeqCst) {
+            STDIN_CLOSED.notify_one();
+            std::thread::sleep(GRACE + Duration::from_secs(1));
+        }
         std::process::exit(0);
     });
 }
 
-/// Loads, builds, packs, encodes and compresses every scene; all failures are reported together.
-fn add_scenes(args: &ServeArgs, routes: &mut HashMap<String, Resource>) -> Result<Vec<SceneReport>> {
-    let sky = match &args.sky {
-        Some(path) => {
-            Some(tracer::scene::load_sky(path, 1.0, 0.0).with_context(|| format!("loading sky {}", path.display()))?)
+/// Resolves when the server should stop: `SIGINT`, `SIGTERM` or the end of stdin.
+async fn shutdown_requested() -> &'static str {
+    #[cfg(unix)]
+    let terminate = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending().await,
         }
-        None => None,
     };
-    let mut sources: Vec<(String, Option<&Path>)> = vec![("cornell-box".to_string(), None)];
-    for path in &args.scenes {
-        let stem = path.file_stem().map_or("scene".into(), |s| s.to_string_lossy().to_string());
-        let mut name = stem.clone();
-        let mut n = 2;
-        while sources.iter().any(|(existing, _)| *existing == name) {
-            name = format!("{stem}-{n}");
-            n += 1;
-        }
-        sources.push((name, Some(path)));
-    }
-
-    let mut reports = Vec::new();
-    let mut entries = Vec::new();
-    let mut failures = Vec::new();
-    for (name, path) in sources {
-        let t0 = Instant::now();
-        let packed = (|| -> Result<tracer::pack::Packed> {
-            let mut scene = match path {
-                Some(path) => tracer::scene::load_with(path, &tracer::scene::LoadOptions { strict: args.strict })?,
-                None => tracer::scene::cornell_box(),
-            };
-            if sky.is_some() {
-                scene.sky = sky.clone();
-            }
-            crate::report_warnings(&scene, &format!("{name}: "), args.strict)?;
-            let bvh = tracer::bvh::build(&scene.triangles).context("building the BVH")?;
-            tracer::pack::pack(&scene, &bvh, &tracer::pack::RenderSettings::default()).context("packing")
-        })();
-        let packed = match packed {
-            Ok(p) => p,
-            Err(e) => {
-                failures.push(format!("{}: {e:#}", path.map_or(name.clone(), |p| p.display().to_string())));
-                continue;
-            }
-        };
-        let prepare = t0.elapsed();
-        let t1 = Instant::now();
-        let bytes = tracer::bundle::encode_named(&name, &packed);
-        let encode = t1.elapsed();
-        // What the page will do (in wasm): a bundle that does not decode is a bug worth
-        // stopping for, and the time is a hint of the page's load time.
-        let t_decode = Instant::now();
-        tracer::bundle::decode(&bytes).with_context(|| format!("{name}: the encoded bundle does not decode"))?;
-        let decode = t_decode.elapsed();
-        let t2 = Instant::now();
-        let bundle = Resource::new("application/octet-stream", IMMUTABLE, bytes, true)?;
-        let compress = t2.elapsed();
-        let gzip_bytes = bundle.gzip.as_ref().map_or(bundle.identity.len(), Vec::len);
-        let url = format!("/bundles/{}.{}", bundle.hash, tracer::bundle::EXTENSION);
-        let f = packed.features;
-        entries.push(serde_json::json!({
-            "name": name,
-            "url": url,
-            "hash": bundle.hash,
-            "bytes": { "raw": bundle.identity.len(), "gzip": gzip_bytes },
-            "triangles": packed.triangle_count,
-            "lights": packed.light_count,
-            "features": {
-                "sky": f.sky, "textures": f.textures, "shading": f.shading,
-                "point_lights": f.point_lights, "emissive_triangles": f.emissive_triangles,
-            },
-        }));
-        reports.push(SceneReport {
-            name,
-            triangles: packed.triangle_count,
-            raw_bytes: bundle.identity.len(),
-            gzip_bytes,
-            prepare,
-            encode,
-            decode,
-            compress,
-        });
-        routes.insert(url, bundle);
-    }
-    if !failures.is_empty() {
-        for f in &failures {
-            eprintln!("error: {f}");
-        }
-        bail!(
-            "{} of {} scene(s) failed to load; nothing is served (fix or leave out the scene(s) above)",
-            failures.len(),
-            failures.len() + reports.len()
-        );
-    }
-    let list = serde_json::json!({ "bundle_version": tracer::bundle::VERSION, "scenes": entries });
-    let json = serde_json::to_vec_pretty(&list)?;
-    routes.insert("/scenes.json".into(), Resource::new("application/json", NO_CACHE, json, true)?);
-    Ok(reports)
-}
-
-const IMMUTABLE: &str = "public, max-age=31536000, immutable";
-const NO_CACHE: &str = "no-cache";
-
-/// Content type by extension, and whether the format is worth compressing.
-fn content_type(path: &Path) -> (&'static str, bool) {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    match ext.as_str() {
-        "html" | "htm" => ("text/html; charset=utf-8", true),
-        "js" | "mjs" => ("text/javascript", true),
-        "wasm" => ("application/wasm", true),
-        "css" => ("text/css; charset=utf-8", true),
-        "json" | "map" => ("application/json", true),
-        "svg" => ("image/svg+xml", true),
-        "txt" | "md" => ("text/plain; charset=utf-8", true),
-        "ts" => ("text/plain; charset=utf-8", true),
-        "png" => ("image/png", false),
-        "jpg" | "jpeg" => ("image/jpeg", false),
-        "ico" => ("image/x-icon", false),
-        "webp" => ("image/webp", false),
-        _ => ("application/octet-stream", true),
+    #[cfg(not(unix))]
+    let terminate = std::future::pending::<()>();
+    tokio::select! {
+        _ = tokio::signal::ctrl_c() => "SIGINT",
+        _ = terminate => "SIGTERM",
+        _ = STDIN_CLOSED.notified() => "the end of stdin",
     }
 }
 
-/// Adds the page (`<web>/www/` at `/`) and its wasm build (`<web>/pkg/` at `/pkg/`): regular
-/// files only (symbolic links are not followed, so nothing outside the tree is reachable),
-/// names of letters, digits, `-`, `_` and `.` without a leading dot, read into memory now.
-fn add_assets(web: &Path, routes: &mut HashMap<String, Resource>) -> Result<()> {
-    let www = web.join("www");
-    let pkg = web.join("pkg");
-    let mut files = Vec::new();
-    if www.is_dir() {
-        collect_files(&www, "/", 0, &mut files)?;
-    } else {
-        eprintln!("warning: {} not found: the page is not served (only /scenes.json and the bundles)", www.display());
-    }
-    if pkg.is_dir() {
-        collect_files(&pkg, "/pkg/", 0, &mut files)?;
-    } else {
-        eprintln!(
-            "warning: {} is missing: the page's wasm is not built. Run `bash scripts/build-web.sh`, then restart `lightport serve`",
-            pkg.display()
-        );
-    }
-    for (route, path) in files {
-        if routes.contains_key(&route) {
-            eprintln!("warning: {} is hidden by the server's own {route}", path.display());
-            continue;
-        }
-        let (ty, compress) = content_type(&path);
-        let bytes = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
-        if route == "/index.html" {
-            routes.insert("/".into(), Resource::new(ty, NO_CACHE, bytes.clone(), compress)?);
-        }
-        routes.insert(route, Resource::new(ty, NO_CACHE, bytes, compress)?);
-    }
-    Ok(())
-}
-
-fn collect_files(dir: &Path, prefix: &str, depth: u32, out: &mut Vec<(String, PathBuf)>) -> Result<()> {
-    const MAX_DEPTH: u32 = 8;
-    let mut entries: Vec<_> = std::fs::read_dir(dir)
-        .with_context(|| format!("reading {}", dir.display()))?
-        .collect::<Result<_, _>>()
-        .with_context(|| format!("reading {}", dir.display()))?;
-    entries.sort_by_key(|e| e.file_name());
-    for entry in entries {
-        let path = entry.path();
-        let name = entry.file_name().to_string_lossy().to_string();
-        let safe = !name.starts_with('.') && name.chars().all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c));
-        let kind = entry.file_type()?;
-        if !safe || kind.is_symlink() {
-            eprintln!("note: not serving {} (hidden, unusual name or symbolic link)", path.display());
-        } else if kind.is_dir() && depth < MAX_DEPTH {
-            collect_files(&path, &format!("{prefix}{name}/"), depth + 1, out)?;
-        } else if kind.is_file() && entry.metadata()?.len() <= MAX_ASSET_BYTES {
-            out.push((format!("{prefix}{name}"), path));
-        } else {
-            eprintln!("note: not serving {} (too deep or too large)", path.display());
-        }
-    }
-    Ok(())
-}
-
-/// Accepts connections and hands them to the worker pool; never returns unless accepting fails.
-fn run(listener: TcpListener, site: Arc<Site>) -> Result<()> {
-    let (sender, receiver): (SyncSender<TcpStream>, Receiver<TcpStream>) = mpsc::sync_channel(QUEUE);
-    let receiver = Arc::new(Mutex::new(receiver));
-    for i in 0..WORKERS {
-        let receiver = Arc::clone(&receiver);
-        let site = Arc::clone(&site);
-        std::thread::Builder::new().name(format!("serve-{i}")).spawn(move || loop {
-            // The lock is held only while waiting for the next connection, not while serving it.
-            let next = receiver.lock().map(|r| r.recv());
-            match next {
-                Ok(Ok(stream)) => serve_connection(stream, &site),
-                _ => return,
-            }
-        })?;
-    }
-    for stream in listener.incoming() {
-        let stream = match stream {
-            Ok(s) => s,
-            // A connection that failed before it was accepted (reset, out of descriptors):
-            // keep accepting the others.
-            Err(e) => {
-                eprintln!("warning: accept failed: {e}");
-                std::thread::sleep(Duration::from_millis(10));
-                continue;
-            }
-        };
-        if let Err(TrySendError::Full(mut stream)) = sender.try_send(stream) {
-            let _ = stream.set_write_timeout(Some(Duration::from_secs(1)));
-            let _ =
-                write_simple(&mut stream, 503, "the server is busy; try again", &[("Retry-After", "1".into())], false);
-        }
-    }
-    Ok(())
-}
-
-/// The parts of a request the server looks at.
-struct RequestHead {
-    method: String,
-    path: String,
-    keep_alive: bool,
-    accepts_gzip: bool,
-    if_none_match: Option<String>,
-    content_length: u64,
-    chunked: bool,
-}
-
-enum ReadOutcome {
-    Request(RequestHead, usize),
-    /// The client closed the connection, or sent nothing before the timeout, between requests.
-    Closed,
-    /// Answer with this status and close.
-    Refuse(u16, &'static str),
-}
-
-fn serve_connection(mut stream: TcpStream, site: &Site) {
-    let _ = stream.set_nodelay(true);
-    let _ = stream.set_write_timeout(Some(WRITE_TIMEOUT));
-    let mut buffer = Vec::with_capacity(4096);
-    for _ in 0..MAX_REQUESTS_PER_CONNECTION {
-        let (head, head_len) = match read_head(&mut stream, &mut buffer, site.request_timeout) {
-            ReadOutcome::Request(head, len) => (head, len),
-            ReadOutcome::Closed => return,
-            ReadOutcome::Refuse(status, message) => {
-                let _ = write_simple(&mut stream, status, message, &[], false);
-                let _ = stream.shutdown(Shutdown::Write);
-                return;
-            }
-        };
-        buffer.drain(..head_len);
-        // Bodies are never used: refuse large or unframed ones, discard small ones.
-        if head.chunked {
-            let _ = write_simple(&mut stream, 411, "request bodies must have a Content-Length", &[], false);
-            return;
-        }
-        if head.content_length > MAX_BODY_BYTES {
-            let _ = write_simple(&mut stream, 413, "request body too large", &[], false);
-            return;
-        }
-        if !discard_body(&mut stream, &mut buffer, head.content_length as usize, site.request_timeout) {
-            return;
-        }
-        let keep_alive = head.keep_alive;
-        let written = respond(&mut stream, site, &head, keep_alive);
-        if written.is_err() || !keep_alive {
-            let _ = stream.shutdown(Shutdown::Write);
-            return;
-        }
-    }
-}
-
-/// Reads until `buffer` holds a complete request head, within `timeout` from now.
-fn read_head(stream: &mut TcpStream, buffer: &mut Vec<u8>, timeout: Duration) -> ReadOutcome {
-    let deadline = Instant::now() + timeout;
+/// Accepts connections until a shutdown is asked for, then lets the ones in progress finish.
+async fn run(listener: TcpListener, site: Arc<Site>, timeout: Duration) -> Result<()> {
+    let graceful = hyper_util::server::graceful::GracefulShutdown::new();
+    let permits = Arc::new(tokio::sync::Semaphore::new(MAX_CONNECTIONS));
+    let shutdown = shutdown_requested();
+    tokio::pin!(shutdown);
     loop {
-        if !buffer.is_empty() {
-            let mut headers = [httparse::EMPTY_HEADER; MAX_HEADERS];
-            let mut request = httparse::Request::new(&mut headers);
-            match request.parse(buffer) {
-                // The whole head may arrive at once: its size is checked here too.
-                Ok(httparse::Status::Complete(len)) if len > MAX_HEAD_BYTES => {
-                    return ReadOutcome::Refuse(431, "request head too large")
+        let (stream, _peer) = tokio::select! {
+            accepted = listener.accept() => match accepted {
+                Ok(connection) => connection,
+                // A connection that failed before it was accepted (reset, out of descriptors):
+                // keep accepting the others.
+                Err(e) => {
+                    let _ = writeln!(std::io::stderr(), "warning: accept failed: {e}");
+                    tokio::time::sleep(Duration::from_millis(10)).await;
+                    continue;
                 }
-                Ok(httparse::Status::Complete(len)) => {
-                    return match RequestHead::from_parsed(&request) {
-                        Ok(head) => ReadOutcome::Request(head, len),
-                        Err(message) => ReadOutcome::Refuse(400, message),
-                    }
-                }
-                Ok(httparse::Status::Partial) => {}
-                Err(httparse::Error::TooManyHeaders) => return ReadOutcome::Refuse(431, "too many request headers"),
-                Err(_) => return ReadOutcome::Refuse(400, "malformed request"),
+            },
+            why = &mut shutdown => {
+                let _ = writeln!(std::io::stderr(), "{why}: shutting down (finishing the requests in progress)");
+                break;
             }
-        }
-        if buffer.len() > MAX_HEAD_BYTES {
-            return ReadOutcome::Refuse(431, "request head too large");
-        }
-        let now = Instant::now();
-        if now >= deadline {
-            return if buffer.is_empty() { ReadOutcome::Closed } else { ReadOutcome::Refuse(408, "request timeout") };
-        }
-        if stream.set_read_timeout(Some(deadline - now)).is_err() {
-            return ReadOutcome::Closed;
-        }
-        let mut chunk = [0u8; 4096];
-        match stream.read(&mut chunk) {
-            Ok(0) => return ReadOutcome::Closed,
-            Ok(n) => buffer.extend_from_slice(&chunk[..n]),
-            Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
-                return if buffer.is_empty() {
-                    ReadOutcome::Closed
-                } else {
-                    ReadOutcome::Refuse(408, "request timeout")
-                };
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(_) => return ReadOutcome::Closed,
-        }
+        };
+        let _ = stream.set_nodelay(true);
+        let io = TokioIo::new(WriteTimeout::new(stream));
+        let permit = permits.clone().try_acquire_owned();
+        let busy = permit.is_err();
+        let site = Arc::clone(&site);
+        let service = hyper::service::service_fn(move |request| {
+            let site = Arc::clone(&site);
+            async move { Ok::<_, Infallible>(if busy { busy_response() } else { respond(&site, request, timeout).await }) }
+        });
+        let mut builder = hyper::server::conn::http1::Builder::new();
+        builder
+            .timer(TokioTimer::new())
+            .header_read_timeout(if busy { Duration::from_secs(1) } else { timeout })
+            .max_buf_size(MAX_HEAD_BYTES.max(8192) + 1024)
+            .max_header_size(MAX_HEAD_BYTES)
+            .max_headers(MAX_HEADERS)
+            .keep_alive(!busy)
+            // A client may send its request and close its sending half (the fuzz target does).
+            .half_close(true);
+        let connection = graceful.watch(builder.serve_connection(io, service));
+        tokio::spawn(async move {
+            // Errors are the client's (reset, timed out, malformed): nothing to do but close.
+            let _ = connection.await;
+            drop(permit);
+        });
     }
+    drop(listener);
+    if tokio::time::timeout(GRACE, graceful.shutdown()).await.is_err() {
+        let _ = writeln!(std::io::stderr(), "some connections did not finish within {GRACE:?}: closing them");
+    }
+    Ok(())
 }
 
-/// Reads and drops `len` body bytes (some may already be in `buffer`); false if the client failed.
-fn discard_body(stream: &mut TcpStream, buffer: &mut Vec<u8>, len: usize, timeout: Duration) -> bool {
-    let buffered = len.min(buffer.len());
-    buffer.drain(..buffered);
-    let mut left = len - buffered;
-    let deadline = Instant::now() + timeout;
-    let mut chunk = [0u8; 1024];
-    while left > 0 {
-        let now = Instant::now();
-        if now >= deadline || stream.set_read_timeout(Some(deadline - now)).is_err() {
-            return false;
-        }
-        match stream.read(&mut chunk[..left.min(1024)]) {
-            Ok(0) | Err(_) => return false,
-            Ok(n) => left -= n,
-        }
-    }
-    true
+type Answer = Response<Full<Bytes>>;
+
+/// A short plain-text response (errors).
+fn simple(status: StatusCode, message: &str) -> Answer {
+    let body = format!("{} {}: {message}\n", status.as_u16(), status.canonical_reason().unwrap_or(""));
+    let mut r = Response::new(Full::new(Bytes::from(body)));
+    *r.status_mut() = status;
+    let h = r.headers_mut();
+    h.insert(header::CONTENT_TYPE, HeaderValue::from_static("text/plain; charset=utf-8"));
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    h.insert(header::SERVER, HeaderValue::from_static("lightport"));
+    r
 }
 
-impl RequestHead {
-    fn from_parsed(request: &httparse::Request) -> Result<RequestHead, &'static str> {
-        let method = request.method.ok_or("no method")?.to_string();
-        let path = request.path.ok_or("no path")?.to_string();
-        let version = request.version.ok_or("no version")?;
-        let mut connection = String::new();
-        let mut accept_encoding = String::new();
-        let mut if_none_match: Option<String> = None;
-        let mut content_length: Option<u64> = None;
-        let mut chunked = false;
-        for h in request.headers.iter() {
-            let value = std::str::from_utf8(h.value).map_err(|_| "a header value is not UTF-8")?.trim();
-            let name = h.name.to_ascii_lowercase();
-            match name.as_str() {
-                "connection" => connection = format!("{connection},{}", value.to_ascii_lowercase()),
-                "accept-encoding" => accept_encoding = format!("{accept_encoding},{}", value.to_ascii_lowercase()),
-                "if-none-match" => {
-                    if_none_match = Some(match if_none_match {
-                        Some(v) => format!("{v},{value}"),
-                        None => value.to_string(),
-                    })
-                }
-                "content-length" => {
-                    let n: u64 = value.parse().map_err(|_| "invalid Content-Length")?;
-                    if content_length.is_some_and(|m| m != n) {
-                        return Err("conflicting Content-Length headers");
-                    }
-                    content_length = Some(n);
-                }
-                "transfer-encoding" => chunked = true,
-                _ => {}
-            }
-        }
-        let has_token = |list: &str, token: &str| list.split(',').any(|t| t.trim() == token);
-        let keep_alive =
-            if version == 0 { has_token(&connection, "keep-alive") } else { !has_token(&connection, "close") };
-        Ok(RequestHead {
-            method,
-            path,
-            keep_alive,
-            accepts_gzip: accepts_gzip(&accept_encoding),
-            if_none_match,
-            content_length: content_length.unwrap_or(0),
-            chunked,
-        })
+fn busy_response() -> Answer {
+    let mut r = simple(StatusCode::SERVICE_UNAVAILABLE, "the server is busy; try again");
+    r.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
+    r
+}
+
+/// The header's values joined with commas (lists such as `Accept-Encoding`).
+fn header_list(request: &Request<Incoming>, name: header::HeaderName) -> String {
+    let values = request.headers().get_all(name).iter().filter_map(|v| v.to_str().ok());
+    values.collect::<Vec<_>>().join(",")
+}
+
+async fn respond(site: &Site, request: Request<Incoming>, timeout: Duration) -> Answer {
+    // Bodies are never used: refuse large or unframed ones, read and drop small ones (within
+    // the request timeout, so a declared body that never comes does not hold the connection).
+    if request.headers().contains_key(header::TRANSFER_ENCODING) {
+        return simple(StatusCode::LENGTH_REQUIRED, "request bodies must have a Content-Length");
     }
+    if hyper::body::Body::size_hint(request.body()).lower() > MAX_BODY_BYTES {
+        return simple(StatusCode::PAYLOAD_TOO_LARGE, "request body too large");
+    }
+    // HEAD is answered as GET is: hyper sends the head only.
+    if !matches!(*request.method(), Method::GET | Method::HEAD) {
+        let mut r = simple(StatusCode::METHOD_NOT_ALLOWED, "only GET and HEAD");
+        r.headers_mut().insert(header::ALLOW, HeaderValue::from_static("GET, HEAD"));
+        return r;
+    }
+    let accepts_gzip = accepts_gzip(&header_list(&request, header::ACCEPT_ENCODING).to_ascii_lowercase());
+    let if_none_match = header_list(&request, header::IF_NONE_MATCH);
+    let path = request.uri().path().to_owned();
+    let body = Limited::new(request.into_body(), MAX_BODY_BYTES as usize);
+    if !matches!(tokio::time::timeout(timeout, body.collect()).await, Ok(Ok(_))) {
+        let mut r = simple(StatusCode::BAD_REQUEST, "the request body did not arrive");
+        r.headers_mut().insert(header::CONNECTION, HeaderValue::from_static("close"));
+        return r;
+    }
+
+    // The route table is the allow-list: the path is only ever a key, never a file name.
+    let Some(resource) = site.routes.get(&path) else {
+        return simple(StatusCode::NOT_FOUND, "not found");
+    };
+    let use_gzip = accepts_gzip && resource.gzip.is_some();
+    let not_modified =
+        !if_none_match.is_empty() && matches_etag(&if_none_match, &[resource.etag(false), resource.etag(true)]);
+    let body = match (&resource.gzip, use_gzip) {
+        _ if not_modified => Bytes::new(),
+        (Some(g), true) => g.clone(),
+        _ => resource.identity.clone(),
+    };
+    let length = body.len();
+    let mut r = Response::new(Full::new(body));
+    let h = r.headers_mut();
+    h.insert(header::SERVER, HeaderValue::from_static("lightport"));
+    h.insert(header::CONTENT_TYPE, HeaderValue::from_static(resource.content_type));
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static(resource.cache_control));
+    if let Ok(etag) = HeaderValue::from_str(&resource.etag(use_gzip)) {
+        h.insert(header::ETAG, etag);
+    }
+    h.insert(header::X_CONTENT_TYPE_OPTIONS, HeaderValue::from_static("nosniff"));
+    if resource.gzip.is_some() {
+        h.insert(header::VARY, HeaderValue::from_static("Accept-Encoding"));
+    }
+    if not_modified {
+        *r.status_mut() = StatusCode::NOT_MODIFIED;
+        return r;
+    }
+    if use_gzip {
+        h.insert(header::CONTENT_ENCODING, HeaderValue::from_static("gzip"));
+    }
+    // hyper sends no body for HEAD, but this length (the GET's).
+    h.insert(header::CONTENT_LENGTH, HeaderValue::from(length));
+    r
 }
 
 /// Whether an `Accept-Encoding` list (lowercase) allows gzip: `gzip`, `x-gzip` or `*` with q > 0.
@@ -630,97 +325,74 @@ fn matches_etag(if_none_match: &str, etags: &[String]) -> bool {
         .any(|tag| tag == "*" || etags.iter().any(|e| tag.trim_start_matches("W/") == e))
 }
 
-fn respond(stream: &mut TcpStream, site: &Site, head: &RequestHead, keep_alive: bool) -> std::io::Result<()> {
-    let is_head = match head.method.as_str() {
-        "GET" => false,
-        "HEAD" => true,
-        _ => {
-            return write_simple(stream, 405, "only GET and HEAD", &[("Allow", "GET, HEAD".into())], keep_alive);
-        }
-    };
-    // The route table is the allow-list: the path is only ever a key, never a file name.
-    let path = head.path.split(['?', '#']).next().unwrap_or("");
-    let Some(resource) = site.routes.get(path) else {
-        return write_simple(stream, 404, "not found", &[], keep_alive);
-    };
-    let use_gzip = head.accepts_gzip && resource.gzip.is_some();
-    let etag = resource.etag(use_gzip);
-    let mut headers: Vec<(&str, String)> = vec![
-        ("Content-Type", resource.content_type.into()),
-        ("Cache-Control", resource.cache_control.into()),
-        ("ETag", etag),
-        ("X-Content-Type-Options", "nosniff".into()),
-    ];
-    if resource.gzip.is_some() {
-        headers.push(("Vary", "Accept-Encoding".into()));
-    }
-    if let Some(inm) = &head.if_none_match {
-        if matches_etag(inm, &[resource.etag(false), resource.etag(true)]) {
-            return write_response(stream, 304, &headers, None, keep_alive);
-        }
-    }
-    let body = match (&resource.gzip, use_gzip) {
-        (Some(g), true) => {
-            headers.push(("Content-Encoding", "gzip".into()));
-            g
-        }
-        _ => &resource.identity,
-    };
-    headers.push(("Content-Length", body.len().to_string()));
-    write_response(stream, 200, &headers, if is_head { None } else { Some(body) }, keep_alive)
+/// A TCP stream whose writes fail with `TimedOut` once one has made no progress for
+/// [`WRITE_TIMEOUT`] (hyper has no write timeout; reads are bounded by its header timeout).
+struct WriteTimeout {
+    stream: TcpStream,
+    /// Running while a write is pending; reset by every write that progresses.
+    stalled: Option<Pin<Box<tokio::time::Sleep>>>,
 }
 
-fn reason(status: u16) -> &'static str {
-    match status {
-        200 => "OK",
-        304 => "Not Modified",
-        400 => "Bad Request",
-        404 => "Not Found",
-        405 => "Method Not Allowed",
-        408 => "Request Timeout",
-        411 => "Length Required",
-        413 => "Content Too Large",
-        431 => "Request Header Fields Too Large",
-        503 => "Service Unavailable",
-        _ => "",
+impl WriteTimeout {
+    fn new(stream: TcpStream) -> Self {
+        WriteTimeout { stream, stalled: None }
+    }
+
+    /// Maps a pending write to an error once it has been pending too long.
+    fn check<T>(&mut self, cx: &mut TaskContext<'_>, poll: Poll<std::io::Result<T>>) -> Poll<std::io::Result<T>> {
+        if poll.is_ready() {
+            self.stalled = None;
+            return poll;
+        }
+        let timer = self.stalled.get_or_insert_with(|| Box::pin(tokio::time::sleep(WRITE_TIMEOUT)));
+        match timer.as_mut().poll(cx) {
+            Poll::Ready(()) => Poll::Ready(Err(std::io::Error::new(
+                std::io::ErrorKind::TimedOut,
+                "the client has not read for too long",
+            ))),
+            Poll::Pending => Poll::Pending,
+        }
     }
 }
 
-/// A short plain-text response (errors).
-fn write_simple(
-    stream: &mut TcpStream,
-    status: u16,
-    message: &str,
-    extra: &[(&str, String)],
-    keep_alive: bool,
-) -> std::io::Result<()> {
-    let body = format!("{status} {}: {message}\n", reason(status));
-    let mut headers: Vec<(&str, String)> = vec![
-        ("Content-Type", "text/plain; charset=utf-8".into()),
-        ("Cache-Control", "no-store".into()),
-        ("Content-Length", body.len().to_string()),
-    ];
-    headers.extend(extra.iter().cloned());
-    write_response(stream, status, &headers, Some(body.as_bytes()), keep_alive)
+impl AsyncRead for WriteTimeout {
+    fn poll_read(
+        mut self: Pin<&mut Self>,
+        cx: &mut TaskContext<'_>,
+        buf: &mut ReadBuf<'_>,
+    ) -> Poll<std::io::Result<()>> {
+        Pin::new(&mut self.stream).poll_read(cx, buf)
+    }
 }
 
-fn write_response(
-    stream: &mut TcpStream,
-    status: u16,
-    headers: &[(&str, String)],
-    body: Option<&[u8]>,
-    keep_alive: bool,
-) -> std::io::Result<()> {
-    let mut head = format!("HTTP/1.1 {status} {}\r\nServer: lightport\r\n", reason(status));
-    for (name, value) in headers {
-        head.push_str(&format!("{name}: {value}\r\n"));
+impl AsyncWrite for WriteTimeout {
+    fn poll_write(mut self: Pin<&mut Self>, cx: &mut TaskContext<'_>, buf: &[u8]) -> Poll<std::io::Result<usize>> {
+        let poll = Pin::new(&mut self.stream).poll_write(cx, buf);
+        self.check(cx, poll)
     }
-    head.push_str(if keep_alive { "Connection: keep-alive\r\n\r\n" } else { "Connection: close\r\n\r\n" });
-    stream.write_all(head.as_bytes())?;
-    if let Some(body) = body {
-        stream.write_all(body)?;
+
+    fn poll_write_vectored(
+        mut self: Pin<&mut Self>,
+        cx: &mut TaskContext<'_>,
+        bufs: &[std::io::IoSlice<'_>],
+    ) -> Poll<std::io::Result<usize>> {
+        let poll = Pin::new(&mut self.stream).poll_write_vectored(cx, bufs);
+        self.check(cx, poll)
     }
-    stream.flush()
+
+    fn is_write_vectored(&self) -> bool {
+        self.stream.is_write_vectored()
+    }
+
+    fn poll_flush(mut self: Pin<&mut Self>, cx: &mut TaskContext<'_>) -> Poll<std::io::Result<()>> {
+        let poll = Pin::new(&mut self.stream).poll_flush(cx);
+        self.check(cx, poll)
+    }
+
+    fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut TaskContext<'_>) -> Poll<std::io::Result<()>> {
+        let poll = Pin::new(&mut self.stream).poll_shutdown(cx);
+        self.check(cx, poll)
+    }
 }
 
 #[cfg(test)]

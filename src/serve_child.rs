@@ -10,11 +10,11 @@
 //! The kernel closes that end whenever this process ends, however it ends: a test that panics,
 //! a test binary that returns with a child in a `static` (statics are never dropped), `exit`,
 //! abort or `SIGKILL`. Dropping a [`Killed`] also kills the child at once. `PR_SET_PDEATHSIG`
-//! was the alternative and is not used for our own children: it fires when the *thread* that
-//! spawned the child ends (each Rust test runs on its own thread, so a server shared through a
-//! `static` would die with the first test), it is Linux-only, and it is lost across a set-uid
-//! exec. It serves for programs that cannot watch a pipe (nginx in tests/export.rs), owned by
-//! one test's thread.
+//! was the alternative and is not used: it fires when the *thread* that spawned the child ends
+//! (each Rust test runs on its own thread, so a server shared through a `static` would die with
+//! the first test), it is Linux-only, and it is lost across a set-uid exec. A program that
+//! cannot watch a pipe (nginx in tests/export.rs) runs under a `sh` that does it for it
+//! ([`Killed::spawn_watched`]).
 
 // Each includer uses a different part of this file.
 #![allow(dead_code)]
@@ -30,7 +30,10 @@ use anyhow::{bail, Context, Result};
 /// then, so a child that exits at end of file on stdin also ends when this process ends.
 pub struct Killed {
     child: Child,
-    _lifeline: Option<ChildStdin>,
+    lifeline: Option<ChildStdin>,
+    /// Dropped by closing the lifeline and waiting (up to 10 s) before killing: a watcher
+    /// ([`Killed::spawn_watched`]) killed at once would leave its program running.
+    graceful: bool,
 }
 
 impl Killed {
@@ -39,7 +42,24 @@ impl Killed {
     pub fn spawn_tied(command: &mut Command) -> std::io::Result<Killed> {
         let mut child = command.stdin(Stdio::piped()).spawn()?;
         let lifeline = child.stdin.take();
-        Ok(Killed { child, _lifeline: lifeline })
+        Ok(Killed { child, lifeline, graceful: false })
+    }
+
+    /// Spawns `program ARGS` under `sh`, which watches the stdin pipe for it: at its end (this
+    /// process ended, or the handle was dropped) `sh` stops the program with `SIGTERM` and waits
+    /// for it. For programs that do not exit at end of file on stdin themselves (nginx). The
+    /// program's own stdin is `/dev/null`; its output goes where `command`'s would.
+    pub fn spawn_watched(program: &Path, args: &[&std::ffi::OsStr]) -> std::io::Result<Killed> {
+        let mut command = Command::new("sh");
+        command
+            .arg("-c")
+            .arg(r#""$@" </dev/null & program=$!; cat >/dev/null; kill -TERM "$program" 2>/dev/null; wait "$program""#)
+            .arg("sh")
+            .arg(program)
+            .args(args);
+        let mut watched = Killed::spawn_tied(&mut command)?;
+        watched.graceful = true;
+        Ok(watched)
     }
 
     pub fn child(&mut self) -> &mut Child {
@@ -54,6 +74,16 @@ impl Killed {
 
 impl Drop for Killed {
     fn drop(&mut self) {
+        if self.graceful {
+            drop(self.lifeline.take());
+            let deadline = std::time::Instant::now() + Duration::from_secs(10);
+            while std::time::Instant::now() < deadline {
+                if let Ok(Some(_)) = self.child.try_wait() {
+                    return;
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
     }

@@ -290,7 +290,10 @@ fn traversal_and_unknown_paths_are_404() {
         "index.html",
     ] {
         let r = raw(s.port, format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").as_bytes());
-        assert_eq!(r.status, 404, "{path}");
+        // hyper refuses a target that starts with a backslash as malformed (no URI form allows
+        // it); the others parse and are looked up, in vain.
+        let expected = if path.starts_with('\\') { 400 } else { 404 };
+        assert_eq!(r.status, expected, "{path}");
         assert!(!String::from_utf8_lossy(&r.body).contains("not an asset"), "{path} leaked a file");
     }
     // A query string does not change the route.
@@ -339,16 +342,28 @@ fn a_slow_client_is_cut_off_and_does_not_block_others() {
     slow.write_all(b"GET /index.html HTTP/1.1\r\nHost: x\r\n").unwrap();
     // Others are served meanwhile.
     assert_eq!(get(s.port, "/index.html", &[]).status, 200);
-    let mut reader = BufReader::new(slow.try_clone().unwrap());
-    // The head never completes: 408 after the server's timeout (a trickle does not extend it).
-    for _ in 0..3 {
-        std::thread::sleep(Duration::from_millis(300));
+    // The head never completes: the connection is closed after the server's timeout, without an
+    // answer (hyper has no automatic response to a header timeout), and a trickle of header
+    // lines, one every 250 ms for as long as the connection lasts, does not extend it.
+    slow.set_read_timeout(Some(Duration::from_millis(250))).unwrap();
+    let mut answer = Vec::new();
+    let closed = loop {
+        let mut buf = [0u8; 256];
+        match slow.read(&mut buf) {
+            Ok(0) => break true,
+            Ok(n) => answer.extend_from_slice(&buf[..n]),
+            Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
+            Err(_) => break true,
+        }
+        if start.elapsed() > Duration::from_secs(SERVER_TIMEOUT_S + 20) {
+            break false;
+        }
         let _ = slow.write_all(b"X-Trickle: 1\r\n");
-    }
-    let r = read_response(&mut reader, false);
-    assert_eq!(r.status, 408);
+    };
     let waited = start.elapsed();
-    assert!(waited < Duration::from_secs(SERVER_TIMEOUT_S + 20), "cut off after {waited:?}");
+    assert!(closed, "a trickling client was still connected after {waited:?}");
+    assert!(waited >= Duration::from_secs(SERVER_TIMEOUT_S), "cut off before the timeout: {waited:?}");
+    assert!(answer.is_empty(), "answered {:?}", String::from_utf8_lossy(&answer));
     // An idle connection is closed silently after the timeout.
     let mut idle = connect(s.port);
     let mut buf = [0u8; 16];
@@ -382,8 +397,9 @@ fn scenes_json_lists_content_addressed_bundles() {
     assert_eq!(scenes[1]["features"]["textures"], true);
     for scene in scenes {
         let hash = scene["hash"].as_str().unwrap();
-        assert_eq!(scene["url"].as_str().unwrap(), format!("/bundles/{hash}.lpb"));
-        let r = get(s.port, scene["url"].as_str().unwrap(), &[]);
+        // Relative to /scenes.json, so that an exported site works under any path.
+        assert_eq!(scene["url"].as_str().unwrap(), format!("bundles/{hash}.lpb"));
+        let r = get(s.port, &format!("/{}", scene["url"].as_str().unwrap()), &[]);
         assert_eq!(r.status, 200);
         assert_eq!(r.header("content-encoding"), None, "no Accept-Encoding: identity");
         assert_eq!(r.body.len() as u64, scene["bytes"]["raw"].as_u64().unwrap());
@@ -399,7 +415,7 @@ fn bundles_are_immutable_gzip_and_revalidate_with_etags() {
     let s = server();
     let list = scenes_json(s.port);
     let scene = &list["scenes"][1];
-    let url = scene["url"].as_str().unwrap();
+    let url = &format!("/{}", scene["url"].as_str().unwrap());
     let hash = scene["hash"].as_str().unwrap();
 
     let plain = get(s.port, url, &[("Accept-Encoding", "br;q=1, identity")]);
@@ -434,7 +450,7 @@ fn bundles_are_immutable_gzip_and_revalidate_with_etags() {
 fn many_concurrent_clients_are_all_served() {
     let s = server();
     let list = scenes_json(s.port);
-    let url = list["scenes"][0]["url"].as_str().unwrap().to_string();
+    let url = format!("/{}", list["scenes"][0]["url"].as_str().unwrap());
     let expected_len = list["scenes"][0]["bytes"]["raw"].as_u64().unwrap() as usize;
     let port = s.port;
     let clients: Vec<_> = (0..64)
@@ -541,4 +557,39 @@ fn the_server_exits_when_its_parent_ends() {
         std::thread::sleep(Duration::from_millis(50));
     }
     assert!(s.stderr_contains("stdin closed"), "{}", s.stderr.lock().unwrap());
+}
+
+#[test]
+fn sigterm_lets_the_request_in_progress_finish() {
+    let mut s = start(&[], web_dir(false)).unwrap_or_else(|(code, err)| panic!("serve exited ({code:?}): {err}"));
+    // A request in progress: its declared body is still arriving when the signal comes.
+    let mut stream = connect(s.port);
+    stream.write_all(b"GET /scenes.json HTTP/1.1\r\nHost: x\r\nContent-Length: 5\r\n\r\nhe").unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    let kill = Command::new("kill").args(["-TERM", &s.child.id().to_string()]).status().expect("kill");
+    assert!(kill.success());
+    assert!(s.stderr_contains("SIGTERM: shutting down"), "{}", s.stderr.lock().unwrap());
+    // No new connections once shutting down.
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while TcpStream::connect(("127.0.0.1", s.port)).is_ok() {
+        assert!(Instant::now() < deadline, "still accepting connections after SIGTERM");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    // The request in progress is answered in full, and its connection then closed.
+    stream.write_all(b"llo").unwrap();
+    let mut reader = BufReader::new(stream);
+    let r = read_response(&mut reader, false);
+    assert_eq!(r.status, 200);
+    assert!(serde_json::from_slice::<serde_json::Value>(&r.body).is_ok(), "the whole scene list");
+    let mut rest = Vec::new();
+    assert_eq!(reader.read_to_end(&mut rest).unwrap_or(0), 0, "closed after the answer");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let status = loop {
+        if let Some(status) = s.child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(Instant::now() < deadline, "the server still runs 10 s after SIGTERM");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(status.success(), "{status}");
 }

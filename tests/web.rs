@@ -7,15 +7,16 @@
 //! these tests fail and say which command installs the missing piece (`scripts/test.sh` runs
 //! them all).
 
+#[path = "common/browser.rs"]
+mod browser;
 mod common;
 #[path = "../src/serve_child.rs"]
 mod serve_child;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
-use std::sync::Mutex;
 use std::time::Duration;
 
+use browser::{browse, no_page_error};
 use glam::{DVec3, Vec3};
 use serde_json::Value;
 use tracer::backend::cpu::CpuRenderer;
@@ -32,9 +33,6 @@ const BLOCKS: u32 = 4;
 const SIZE: u32 = 32;
 /// `lightport serve` packs bundles with the default settings; the page keeps their depth.
 const SERVED_MAX_DEPTH: u32 = 8;
-
-/// One browser at a time: Chromium on SwiftShader takes the machine's cores.
-static BROWSER: Mutex<()> = Mutex::new(());
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -61,33 +59,6 @@ impl Server {
             .unwrap_or_else(|e| panic!("lightport serve {args:?}: {e}"));
         Server { _process: process, url }
     }
-}
-
-/// Runs one scenario of `tests/web/run.mjs` and returns its JSON report.
-fn browse(server: &Server, scenario: &str, options: &[(&str, &str)]) -> Value {
-    let web_tests = root().join("tests/web");
-    assert!(
-        web_tests.join("node_modules/playwright-core").is_dir(),
-        "tests/web/node_modules is missing: run `npm ci` in tests/web (scripts/test.sh does)"
-    );
-    assert!(Path::new("/usr/bin/chromium").is_file(), "Chromium is missing: apt-get install chromium");
-    let out = std::env::temp_dir().join(format!("lightport-web-{scenario}-{}.json", std::process::id()));
-    let _guard = BROWSER.lock().unwrap_or_else(|e| e.into_inner());
-    let mut command = Command::new("node");
-    command.current_dir(&web_tests).arg("run.mjs").arg(scenario).args(["--url", &server.url]);
-    command.arg("--out").arg(&out).arg("--exit-on-stdin-eof");
-    for (k, v) in options {
-        command.arg(format!("--{k}")).arg(v);
-    }
-    let status = serve_child::run_tied(&mut command).expect("node runs (apt-get install nodejs npm)");
-    assert!(status.success(), "tests/web/run.mjs {scenario} failed ({status}); see its output above");
-    let text = std::fs::read_to_string(&out).expect("the scenario's report");
-    let _ = std::fs::remove_file(&out);
-    serde_json::from_str(&text).expect("a JSON report")
-}
-
-fn no_page_error(report: &Value) {
-    assert!(report["error"].is_null(), "the page reported an error: {}", report["error"]);
 }
 
 /// Batch means per region and channel: for each batch, the mean of the samples it added over
@@ -119,7 +90,7 @@ fn assert_browser_agrees_with_cpu(server: &Server, scene_name: &str, scene: &Sce
     let size = format!("{SIZE}x{SIZE}");
     let (batch_text, frame_text) = (batches.to_string(), frames.to_string());
     let report = browse(
-        server,
+        &server.url,
         "accumulate",
         &[
             ("scene", scene_name),
@@ -206,7 +177,7 @@ fn the_browser_agrees_with_the_cpu_on_a_textured_scene() {
 #[test]
 fn the_second_visit_takes_the_scene_from_the_client_cache() {
     let server = Server::start(&[]);
-    let report = browse(&server, "cache", &[("scene", "cornell-box"), ("size", "16x16")]);
+    let report = browse(&server.url, "cache", &[("scene", "cornell-box"), ("size", "16x16")]);
     let visit = |name: &str| {
         let v = &report[name];
         no_page_error(v);
@@ -233,7 +204,7 @@ fn the_second_visit_takes_the_scene_from_the_client_cache() {
 #[test]
 fn camera_input_restarts_the_accumulation() {
     let server = Server::start(&[]);
-    let report = browse(&server, "camera", &[("scene", "cornell-box"), ("size", "32x32")]);
+    let report = browse(&server.url, "camera", &[("scene", "cornell-box"), ("size", "32x32")]);
     no_page_error(&report);
     let steps = &report["steps"];
     let step = |name: &str| steps[name].as_u64().unwrap_or_else(|| panic!("{name} in {steps}"));
@@ -265,7 +236,7 @@ fn a_bad_dropped_file_shows_an_error_and_the_page_keeps_working() {
         .map(|f| dir.join(f).to_string_lossy().into_owned())
         .collect();
     let files = files.join(",");
-    let report = browse(&server, "drop", &[("scene", "cornell-box"), ("size", "16x16"), ("files", &files)]);
+    let report = browse(&server.url, "drop", &[("scene", "cornell-box"), ("size", "16x16"), ("files", &files)]);
     no_page_error(&report);
     let bad = report["badError"].as_str().expect("an error for the broken file");
     assert!(bad.contains("broken.glb"), "the error names the file: {bad}");
@@ -284,7 +255,7 @@ fn a_bad_dropped_file_shows_an_error_and_the_page_keeps_working() {
 #[test]
 fn a_scene_beyond_the_texture_limit_is_reported_on_the_page() {
     let server = Server::start(&[]);
-    let report = browse(&server, "limits", &[("scene", "cornell-box"), ("size", "16x16"), ("limit", "4")]);
+    let report = browse(&server.url, "limits", &[("scene", "cornell-box"), ("size", "16x16"), ("limit", "4")]);
     let error = report["error"].as_str().expect("an error");
     assert!(error.contains("GL_MAX_TEXTURE_SIZE 4"), "{error}");
     assert!(report["messageText"].as_str().unwrap_or("").contains("does not fit"), "{report}");
@@ -293,7 +264,7 @@ fn a_scene_beyond_the_texture_limit_is_reported_on_the_page() {
 #[test]
 fn the_page_survives_webgl_context_loss() {
     let server = Server::start(&[]);
-    let report = browse(&server, "context", &[("scene", "cornell-box"), ("size", "16x16")]);
+    let report = browse(&server.url, "context", &[("scene", "cornell-box"), ("size", "16x16")]);
     no_page_error(&report);
     let message = report["whileLost"]["message"].as_str().unwrap_or("");
     assert!(message.contains("lost"), "the loss is shown: {message:?}");

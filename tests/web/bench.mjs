@@ -44,7 +44,7 @@ const url = await new Promise((resolve, reject) => {
 });
 
 try {
-  const scenes = (await (await fetch(new URL('/scenes.json', url))).json()).scenes;
+  const scenes = (await (await fetch(new URL('scenes.json', url))).json()).scenes;
   const out = join(tmpdir(), `lightport-bench-${process.pid}.json`);
   execFileSync('node', [join(here, 'run.mjs'), 'bench', '--url', url, '--out', out, '--size', size, '--frames', frames,
     '--scenes', scenes.map((s) => s.name).join(',')], { stdio: 'inherit' });

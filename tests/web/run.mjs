@@ -79,7 +79,7 @@ async function open(context, baseUrl, query, timeoutMs = 240000) {
 }
 
 function bundleRequests(requests) {
-  return requests.filter((p) => p.startsWith('/bundles/'));
+  return requests.filter((p) => p.includes('/bundles/'));
 }
 
 // Renders `batches` x `frames` frames of a scene at a small size, reading the accumulation
@@ -109,9 +109,17 @@ async function cache(o) {
   const profile = freshProfile();
   const visit = async () => withBrowser(profile, async (context) => {
     const { page, requests, error, consoleErrors } = await open(context, o.url, { scene: o.scene, size: o.size });
+    if (error) return { error, consoleErrors, bundleRequests: bundleRequests(requests), bytesFetched: 0 };
     await page.waitForFunction(() => window.lightport.frames > 0, null, { timeout: 120000 });
     return {
       error,
+      // What the frames rendered: the sum of the accumulated radiance (0 for a black image).
+      sum: await page.evaluate(() => {
+        const a = window.lightport.readAccumulation();
+        let sum = 0;
+        for (let i = 0; i < a.data.length; i += 4) sum += a.data[i] + a.data[i + 1] + a.data[i + 2];
+        return sum;
+      }),
       consoleErrors,
       bundleRequests: bundleRequests(requests),
       bytesFetched: await page.evaluate(() => window.lightport.bytesFetched),

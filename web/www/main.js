@@ -499,11 +499,15 @@ async function main() {
   await cache.reconcile().catch((e) => console.warn(`cache: ${e}`));
   updateCacheReadout();
   try {
-    const response = await fetch('/scenes.json');
+    // Relative to the page, and each bundle's URL relative to the list: a site exported by
+    // `lightport export` works under any path of a static host.
+    const response = await fetch('scenes.json');
     if (!response.ok) throw new Error(`HTTP ${response.status}`);
     scenes = (await response.json()).scenes || [];
+    // The cache keys on the absolute path.
+    for (const s of scenes) s.url = new URL(s.url, response.url).pathname;
   } catch (e) {
-    showMessage(`the scene list (/scenes.json) did not load: ${e.message || e}; drop a .glb to render it`);
+    showMessage(`the scene list (scenes.json) did not load: ${e.message || e}; drop a .glb to render it`);
   }
   const select = $('scene');
   for (const s of scenes) {
