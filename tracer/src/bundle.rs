@@ -206,6 +206,7 @@ fn check_consistency(p: &Packed) -> Result<(), BundleError> {
         ("lights", f.lights(), s.has_lights),
         ("triangle_lights", f.emissive_triangles, s.has_triangle_lights),
         ("point_lights", f.point_lights, s.has_point_lights),
+        ("metal_rough", f.metal_rough, s.has_metal_rough),
     ];
     for (name, feature, flag) in flags {
         if flag != feature as u32 {
@@ -631,7 +632,7 @@ macro_rules! record {
 }
 
 record!(Packed { scene, features, triangle_count, light_count });
-record!(Features { sky, textures, shading, point_lights, emissive_triangles });
+record!(Features { sky, textures, shading, point_lights, emissive_triangles, metal_rough });
 record!(Scene {
     triangles,
     shading,
@@ -643,6 +644,7 @@ record!(Scene {
     texture_info,
     sky,
     sky_rows,
+    metal_rough,
     camera_position,
     camera_right,
     camera_up,
@@ -667,6 +669,7 @@ record!(Scene {
     has_lights,
     has_triangle_lights,
     has_point_lights,
+    has_metal_rough,
 });
 
 #[cfg(test)]

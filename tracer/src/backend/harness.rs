@@ -212,6 +212,7 @@ mod kernel_structs {
     use crate::kernel::camera::Ray;
     use crate::kernel::intersect::TriangleHit;
     use crate::kernel::lights::LightSample;
+    use crate::kernel::metal_rough::{BrdfSample, Surface};
     use crate::kernel::sampling::Onb;
     use crate::kernel::scene_data::{MaterialData, TriangleData};
     use crate::kernel::traverse::{Hit, NodeHits};
@@ -225,6 +226,8 @@ mod kernel_structs {
         MaterialData { base_color, base_texture, emission, emissive_texture }
         Onb { tangent, bitangent, normal }
         LightSample { dir, dist, radiance, pdf, delta }
+        Surface { diffuse, f0, alpha, specular }
+        BrdfSample { dir, pdf, weight }
     }
 }
 
@@ -1251,6 +1254,8 @@ mod tests {
             ("MaterialData", top_fields::<MaterialData>()),
             ("Onb", top_fields::<Onb>()),
             ("LightSample", top_fields::<LightSample>()),
+            ("Surface", top_fields::<crate::kernel::metal_rough::Surface>()),
+            ("BrdfSample", top_fields::<crate::kernel::metal_rough::BrdfSample>()),
         ];
         let structs: Vec<kernel_dsl::ir::StructDef> = crate::kernel::modules()
             .into_iter()

@@ -182,6 +182,68 @@ pub fn terrain_and_spheres() -> Scene {
     }
 }
 
+/// Khronos' MetalRoughSpheres in code: a 5 x 5 grid of smooth spheres (radius 0.4 m, 1 m
+/// apart, in the plane z = 0) of one copper-coloured base colour, metallic rising from 0 to 1
+/// left to right, roughness from 0 (clamped to `kernel::metal_rough::MIN_ROUGHNESS`) at the
+/// top to 1 at the bottom; lit by a 2 x 2 m area light above and left of the camera (radiance
+/// 12) and a uniform sky (0.25). The camera at (0, 0, 7) looks at the grid's centre (40°).
+/// 12,800 triangles.
+pub fn metal_rough_spheres() -> Scene {
+    const N: usize = 5;
+    let base = Vec3::new(0.95, 0.64, 0.54);
+    let mut materials = Vec::with_capacity(N * N + 1);
+    let mut t = Vec::with_capacity(N * N * 512);
+    for row in 0..N {
+        for column in 0..N {
+            let (metallic, roughness) = (column as f32 / (N - 1) as f32, row as f32 / (N - 1) as f32);
+            let name = format!("metallic {metallic:.2} roughness {roughness:.2}");
+            materials.push(Material::metal_rough(&name, base, metallic, roughness));
+            let center = v(column as f32 - 2.0, 2.0 - row as f32, 0.0);
+            sphere(&mut t, center, 0.4, (row * N + column) as u32);
+        }
+    }
+    let light = materials.len() as u32;
+    materials.push(Material::emissive("light", Vec3::ZERO, Vec3::splat(12.0)));
+    // Facing the grid's centre from (-3, 4, 5).
+    let c = v(-3.0, 4.0, 5.0);
+    let n = (-c).normalize();
+    let u = Vec3::Y.cross(n).normalize();
+    let w = n.cross(u);
+    quad(&mut t, [c - u - w, c + u - w, c + u + w, c - u + w], light);
+    Scene {
+        triangles: t,
+        materials,
+        sky: Some(super::Sky::uniform(Vec3::splat(0.25))),
+        camera: Camera::look_at(v(0.0, 0.0, 7.0), Vec3::ZERO, Vec3::Y, 40f32.to_radians()),
+        ..Scene::default()
+    }
+}
+
+/// Appends a UV sphere (32 segments x 16 rings, outward-facing, smooth normals) to `out`.
+fn sphere(out: &mut Vec<Triangle>, center: Vec3, radius: f32, material: u32) {
+    let (segments, rings) = (32, 16);
+    let dir = |s: usize, k: usize| {
+        let phi = s as f32 / segments as f32 * std::f32::consts::TAU;
+        let theta = k as f32 / rings as f32 * std::f32::consts::PI;
+        v(theta.sin() * phi.cos(), theta.cos(), -theta.sin() * phi.sin())
+    };
+    let uv = |s: usize, k: usize| Vec2::new(s as f32 / segments as f32, k as f32 / rings as f32);
+    for s in 0..segments {
+        for k in 0..rings {
+            let corners = [(s, k), (s, k + 1), (s + 1, k + 1), (s + 1, k)];
+            for [a, b, c] in [[0, 1, 2], [0, 2, 3]] {
+                let normals = [corners[a], corners[b], corners[c]].map(|(s, k)| dir(s, k));
+                let positions = normals.map(|n| center + radius * n);
+                if (positions[1] - positions[0]).cross(positions[2] - positions[0]).length_squared() == 0.0 {
+                    continue; // the degenerate halves of the pole quads
+                }
+                let uvs = [corners[a], corners[b], corners[c]].map(|(s, k)| uv(s, k));
+                out.push(Triangle { positions, normals, uvs, material });
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
