@@ -132,6 +132,7 @@ fn feature_list(f: &Features) -> String {
         (f.sky, "sky"),
         (f.textures, "textures"),
         (f.shading, "shading"),
+        (f.metal_rough, "metal-rough"),
     ]
     .iter()
     .filter(|(on, _)| *on)
@@ -248,6 +249,15 @@ fn median_f64(mut values: Vec<f64>) -> f64 {
     values[values.len() / 2]
 }
 
+/// `scene` with every material made one the Lambert kernel renders (metallic 0, roughness 1, no
+/// metal-roughness texture): the same geometry and lights without `Features::metal_rough`.
+fn lambert(mut scene: Scene) -> Scene {
+    for m in &mut scene.materials {
+        (m.metallic, m.roughness, m.metallic_roughness_texture) = (0.0, 1.0, None);
+    }
+    scene
+}
+
 fn main() -> Result<()> {
     // Every compile must be a real one, not a hit in Mesa's on-disk cache. Set before the first
     // EGL call, while the process has one thread.
@@ -274,6 +284,8 @@ fn main() -> Result<()> {
         ("DamagedHelmet (emissive texture)", load("khronos/DamagedHelmet/glTF/DamagedHelmet.gltf")?),
         ("LightsPunctualLamp (point lights)", load("khronos/LightsPunctualLamp/glTF/LightsPunctualLamp.gltf")?),
         ("LittlestTokyo", load("threejs/LittlestTokyo.glb")?),
+        ("MetalRoughSpheres (built-in, metal-roughness)", scene::metal_rough_spheres()),
+        ("MetalRoughSpheres, every material Lambert", lambert(scene::metal_rough_spheres())),
     ];
 
     let context = HeadlessContext::new()?;

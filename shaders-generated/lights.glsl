@@ -187,6 +187,27 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
+uint texel_word(uvec4 info, int x, int y) {
+    int w = int(info.y);
+    int h = int(info.z);
+    int tx = wrap_coordinate(x, w, info.w & 255u);
+    int ty = wrap_coordinate(y, h, info.w >> 8);
+    uint i = info.x + uint(ty * w + tx);
+    uvec4 four = lp_fetch_uvec4(scene_texture_texels, i / TEXTURE_TEXELS_PER_ELEMENT);
+    uint lane = i % TEXTURE_TEXELS_PER_ELEMENT;
+    return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
+}
+
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
+vec4 decode_unorm8(uint word) {
+    float r = float((word << 24) >> 24) / 255.0;
+    float g = float((word << 16) >> 24) / 255.0;
+    float b = float((word << 8) >> 24) / 255.0;
+    float a = float(word >> 24) / 255.0;
+    return vec4(r, g, b, a);
+}
+
 // scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
@@ -201,21 +222,18 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel (lightport-tracer/src/kernel/scene_data.rs:209)
-vec4 texel(uvec4 info, int x, int y) {
-    int w = int(info.y);
-    int h = int(info.z);
-    int tx = wrap_coordinate(x, w, info.w & 255u);
-    int ty = wrap_coordinate(y, h, info.w >> 8);
-    uint i = info.x + uint(ty * w + tx);
-    uvec4 four = lp_fetch_uvec4(scene_texture_texels, i / TEXTURE_TEXELS_PER_ELEMENT);
-    uint lane = i % TEXTURE_TEXELS_PER_ELEMENT;
-    uint word = lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
-    return decode_srgba8(word);
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
+vec4 texel_as(uvec4 info, int x, int y, bool data) {
+    uint word = texel_word(info, x, y);
+    if (data) {
+        return decode_unorm8(word);
+    } else {
+        return decode_srgba8(word);
+    }
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:230)
-vec4 sample_texture(uint index, vec2 uv) {
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
+vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = uv.x * lp_u32_to_f32(info.y) - 0.5;
     float y = uv.y * lp_u32_to_f32(info.z) - 0.5;
@@ -223,9 +241,14 @@ vec4 sample_texture(uint index, vec2 uv) {
     float fy = y - floor(y);
     int x0 = lp_f32_to_i32(floor(x));
     int y0 = lp_f32_to_i32(floor(y));
-    vec4 top = texel(info, x0, y0) * (1.0 - fx) + texel(info, x0 + 1, y0) * fx;
-    vec4 bottom = texel(info, x0, y0 + 1) * (1.0 - fx) + texel(info, x0 + 1, y0 + 1) * fx;
+    vec4 top = texel_as(info, x0, y0, data) * (1.0 - fx) + texel_as(info, x0 + 1, y0, data) * fx;
+    vec4 bottom = texel_as(info, x0, y0 + 1, data) * (1.0 - fx) + texel_as(info, x0 + 1, y0 + 1, data) * fx;
     return top * (1.0 - fy) + bottom * fy;
+}
+
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:255)
+vec4 sample_texture(uint index, vec2 uv) {
+    return bilinear(index, uv, false);
 }
 
 // scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)

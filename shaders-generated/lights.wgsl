@@ -160,6 +160,27 @@ fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     }
 }
 
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
+fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
+    let w: i32 = bitcast<i32>(info.y);
+    let h: i32 = bitcast<i32>(info.z);
+    let tx: i32 = wrap_coordinate(x, w, info.w & 255u);
+    let ty: i32 = wrap_coordinate(y, h, info.w >> 8u);
+    let i: u32 = info.x + bitcast<u32>(ty * w + tx);
+    let four: vec4<u32> = scene_texture_texels[i / TEXTURE_TEXELS_PER_ELEMENT];
+    let lane: u32 = i % TEXTURE_TEXELS_PER_ELEMENT;
+    return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
+}
+
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
+fn decode_unorm8(word: u32) -> vec4<f32> {
+    let r: f32 = f32((word << 24u) >> 24u) / 255.0;
+    let g: f32 = f32((word << 16u) >> 24u) / 255.0;
+    let b: f32 = f32((word << 8u) >> 24u) / 255.0;
+    let a: f32 = f32(word >> 24u) / 255.0;
+    return vec4<f32>(r, g, b, a);
+}
+
 // scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
 fn srgb_to_linear(c: f32) -> f32 {
     return select(pow((c + 0.055) / 1.055, 2.4), c / 12.92, c <= 0.04045);
@@ -174,21 +195,18 @@ fn decode_srgba8(word: u32) -> vec4<f32> {
     return vec4<f32>(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel (lightport-tracer/src/kernel/scene_data.rs:209)
-fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
-    let w: i32 = bitcast<i32>(info.y);
-    let h: i32 = bitcast<i32>(info.z);
-    let tx: i32 = wrap_coordinate(x, w, info.w & 255u);
-    let ty: i32 = wrap_coordinate(y, h, info.w >> 8u);
-    let i: u32 = info.x + bitcast<u32>(ty * w + tx);
-    let four: vec4<u32> = scene_texture_texels[i / TEXTURE_TEXELS_PER_ELEMENT];
-    let lane: u32 = i % TEXTURE_TEXELS_PER_ELEMENT;
-    let word: u32 = select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
-    return decode_srgba8(word);
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
+fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
+    let word: u32 = texel_word(info, x, y);
+    if data {
+        return decode_unorm8(word);
+    } else {
+        return decode_srgba8(word);
+    }
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:230)
-fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
+fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let info: vec4<u32> = scene_texture_info[index];
     let x: f32 = uv.x * lp_u32_to_f32(info.y) - 0.5;
     let y: f32 = uv.y * lp_u32_to_f32(info.z) - 0.5;
@@ -196,9 +214,14 @@ fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     let fy: f32 = y - floor(y);
     let x0: i32 = lp_f32_to_i32(floor(x));
     let y0: i32 = lp_f32_to_i32(floor(y));
-    let top: vec4<f32> = texel(info, x0, y0) * (1.0 - fx) + texel(info, x0 + 1i, y0) * fx;
-    let bottom: vec4<f32> = texel(info, x0, y0 + 1i) * (1.0 - fx) + texel(info, x0 + 1i, y0 + 1i) * fx;
+    let top: vec4<f32> = texel_as(info, x0, y0, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0, data) * fx;
+    let bottom: vec4<f32> = texel_as(info, x0, y0 + 1i, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0 + 1i, data) * fx;
     return top * (1.0 - fy) + bottom * fy;
+}
+
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:255)
+fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
+    return bilinear(index, uv, false);
 }
 
 // scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)

@@ -93,3 +93,8 @@ vec2 uniform_sample_triangle(float u1, float u2) {
     float s = sqrt(u1);
     return vec2(s * (1.0 - u2), s * u2);
 }
+
+// sampling::onb_to_local (lightport-tracer/src/kernel/sampling.rs:88)
+vec3 onb_to_local(Onb onb, vec3 v) {
+    return vec3(dot(v, onb.tangent), dot(v, onb.bitangent), dot(v, onb.normal));
+}

@@ -88,3 +88,8 @@ fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
     let s: f32 = sqrt(u1);
     return vec2<f32>(s * (1.0 - u2), s * u2);
 }
+
+// sampling::onb_to_local (lightport-tracer/src/kernel/sampling.rs:88)
+fn onb_to_local(onb: Onb, v: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot(v, onb.tangent), dot(v, onb.bitangent), dot(v, onb.normal));
+}

@@ -6,6 +6,7 @@
 @group(0) @binding(2) var<storage, read> scene_materials: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> scene_texture_texels: array<vec4<u32>>;
 @group(0) @binding(4) var<storage, read> scene_texture_info: array<vec4<u32>>;
+@group(0) @binding(5) var<storage, read> scene_metal_rough: array<vec4<f32>>;
 
 // scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:108)
 struct TriangleData {
@@ -22,6 +23,14 @@ struct MaterialData {
     base_texture: u32,
     emission: vec3<f32>,
     emissive_texture: u32,
+}
+
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:281)
+struct MetalRoughData {
+    metallic: f32,
+    roughness: f32,
+    texture_: u32,
+    specular: f32,
 }
 
 // scene_data::TRIANGLE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:14)
@@ -137,8 +146,8 @@ fn decode_srgba8(word: u32) -> vec4<f32> {
     return vec4<f32>(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel (lightport-tracer/src/kernel/scene_data.rs:209)
-fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
+fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     let w: i32 = bitcast<i32>(info.y);
     let h: i32 = bitcast<i32>(info.z);
     let tx: i32 = wrap_coordinate(x, w, info.w & 255u);
@@ -146,12 +155,35 @@ fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
     let i: u32 = info.x + bitcast<u32>(ty * w + tx);
     let four: vec4<u32> = scene_texture_texels[i / TEXTURE_TEXELS_PER_ELEMENT];
     let lane: u32 = i % TEXTURE_TEXELS_PER_ELEMENT;
-    let word: u32 = select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
-    return decode_srgba8(word);
+    return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:230)
-fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
+fn decode_unorm8(word: u32) -> vec4<f32> {
+    let r: f32 = f32((word << 24u) >> 24u) / 255.0;
+    let g: f32 = f32((word << 16u) >> 24u) / 255.0;
+    let b: f32 = f32((word << 8u) >> 24u) / 255.0;
+    let a: f32 = f32(word >> 24u) / 255.0;
+    return vec4<f32>(r, g, b, a);
+}
+
+// scene_data::texel (lightport-tracer/src/kernel/scene_data.rs:240)
+fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
+    return decode_srgba8(texel_word(info, x, y));
+}
+
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
+fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
+    let word: u32 = texel_word(info, x, y);
+    if data {
+        return decode_unorm8(word);
+    } else {
+        return decode_srgba8(word);
+    }
+}
+
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
+fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let info: vec4<u32> = scene_texture_info[index];
     let x: f32 = uv.x * lp_u32_to_f32(info.y) - 0.5;
     let y: f32 = uv.y * lp_u32_to_f32(info.z) - 0.5;
@@ -159,7 +191,23 @@ fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     let fy: f32 = y - floor(y);
     let x0: i32 = lp_f32_to_i32(floor(x));
     let y0: i32 = lp_f32_to_i32(floor(y));
-    let top: vec4<f32> = texel(info, x0, y0) * (1.0 - fx) + texel(info, x0 + 1i, y0) * fx;
-    let bottom: vec4<f32> = texel(info, x0, y0 + 1i) * (1.0 - fx) + texel(info, x0 + 1i, y0 + 1i) * fx;
+    let top: vec4<f32> = texel_as(info, x0, y0, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0, data) * fx;
+    let bottom: vec4<f32> = texel_as(info, x0, y0 + 1i, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0 + 1i, data) * fx;
     return top * (1.0 - fy) + bottom * fy;
+}
+
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:255)
+fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
+    return bilinear(index, uv, false);
+}
+
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:260)
+fn sample_data_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
+    return bilinear(index, uv, true);
+}
+
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:290)
+fn fetch_metal_rough(index: u32) -> MetalRoughData {
+    let t: vec4<f32> = scene_metal_rough[index];
+    return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
 }

@@ -42,7 +42,7 @@ const CACHE_VERSION: u32 = 1;
 
 #[derive(clap::Args)]
 pub struct ChartArgs {
-    /// Scenes: `cornell` (built in), `furnace` (white furnace, analytic reference), `sky-plane`
+    /// Scenes: `cornell`, `metal-rough-spheres` (built in), `furnace` (white furnace, analytic reference), `sky-plane`
     /// (diffuse plane under a uniform sky, analytic), a stability scene (`tiny-bright-light`,
     /// `large-light-close`, `sky-through-opening`, ...), or a .gltf/.glb/.obj/.fbx file. Default: cornell.
     pub scenes: Vec<String>,
@@ -170,6 +170,7 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
     let depth = args.max_depth as i32;
     let mut chart_scene = match name {
         "cornell" => ChartScene::builtin(name, scene::cornell_box(), None),
+        "metal-rough-spheres" => ChartScene::builtin(name, scene::metal_rough_spheres(), None),
         "furnace" => {
             // Albedo a, emission E everywhere: a path of at most D segments collects
             // E (1 + a + ... + a^(D-1)) whatever the strategy.
@@ -191,7 +192,7 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
                 let path = Path::new(name);
                 if !path.exists() {
                     bail!(
-                        "{name} is neither a built-in scene (cornell, furnace, sky-plane, {}) nor an existing file",
+                        "{name} is neither a built-in scene (cornell, metal-rough-spheres, furnace, sky-plane, {}) nor an existing file",
                         scene::stability::stability_cases().iter().map(|c| c.name).collect::<Vec<_>>().join(", ")
                     );
                 }

@@ -68,7 +68,8 @@ fn main() -> ExitCode {
 
 #[derive(clap::Args)]
 struct RenderArgs {
-    /// Scene file (.gltf, .glb, .obj, .fbx). Default: the Cornell box generated in code.
+    /// Scene file (.gltf, .glb, .obj, .fbx), or a scene generated in code: `cornell` (the
+    /// default) or `metal-rough-spheres` (a file of that name takes precedence).
     scene: Option<PathBuf>,
     /// Equirectangular sky (.hdr or .exr).
     #[arg(long)]
@@ -165,11 +166,13 @@ fn render(args: &RenderArgs) -> Result<()> {
     }
     let t0 = Instant::now();
     let options = tracer::scene::LoadOptions { strict: args.strict };
-    let mut scene = match &args.scene {
-        Some(path) => {
+    let builtin = args.scene.as_ref().filter(|p| !p.exists()).and_then(|p| tracer::scene::builtin(p.to_str()?));
+    let mut scene = match (&args.scene, builtin) {
+        (_, Some(generated)) => generated,
+        (Some(path), None) => {
             tracer::scene::load_with(path, &options).with_context(|| format!("loading {}", path.display()))?
         }
-        None => tracer::scene::cornell_box(),
+        (None, None) => tracer::scene::cornell_box(),
     };
     if let Some(sky) = &args.sky {
         let s = tracer::scene::load_sky(sky, args.sky_intensity, args.sky_rotation.to_radians())

@@ -131,6 +131,15 @@ fn gl_agrees_with_cpu_on_a_textured_scene() {
     assert_gl_agrees_with_cpu("BoxTextured", &scene, 32, 128, 6);
 }
 
+/// The metal-roughness kernel (`Features::metal_rough`): 25 spheres from smooth metal to rough
+/// dielectric under an area light and a sky, each strategy.
+#[test]
+fn gl_agrees_with_cpu_on_metal_rough_spheres() {
+    let scene = scene::metal_rough_spheres();
+    assert!(packed(&scene, Strategy::Mis, 4, 2).features.metal_rough);
+    assert_gl_agrees_with_cpu("MetalRoughSpheres", &scene, 32, 128, 4);
+}
+
 fn sky_lit_plane() -> Scene {
     let mut scene = scene::diffuse_plane(Vec3::splat(0.6));
     scene.sky = Some(scene::load_sky(&shared("scenes/hdri/venice_sunset_1k.hdr"), 1.0, 0.0).expect("sky"));

@@ -83,9 +83,10 @@ fn pica_pica_loads_with_one_warning_for_its_missing_texture() {
     // The warning names the material that lost its texture; that material keeps its factors.
     let wax = s.materials.iter().position(|m| missing[0].contains(&format!("{:?}", m.name))).expect("material named");
     assert_eq!(s.materials[wax].base_color_texture, None);
-    // Its four other textures (decals) are kept.
-    assert_eq!(s.textures.len(), 4);
+    // Its other textures are kept: four decals and a metal-roughness map.
+    assert_eq!(s.textures.len(), 5);
     assert_eq!(s.materials.iter().filter(|m| m.base_color_texture.is_some()).count(), 4);
+    assert!(s.materials.iter().any(|m| m.metallic_roughness_texture.is_some()));
     let e = scene::load_with(&path, &strict()).unwrap_err();
     assert!(matches!(e, SceneError::Io { .. }) && e.to_string().contains("Wax_Pastel_Label_02_baseColor.png"), "{e}");
 }

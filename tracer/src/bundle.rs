@@ -37,7 +37,8 @@ use crate::pack::{Features, Packed};
 pub const MAGIC: [u8; 8] = *b"LPBUNDLE";
 /// Bumped whenever the layout or the meaning of a field changes; readers accept only their own.
 /// (2: node planes as float texels, `node_children`, `leaf_stack_limit`, triangle lights with
-/// their normal and area. 3: `features.traversal_stack`.)
+/// their normal and area. 3: `features.traversal_stack`, `features.metal_rough` and
+/// `scene.metal_rough`.)
 pub const VERSION: u32 = 3;
 /// The largest bundle accepted (and produced): well within wasm32's 4 GiB address space.
 pub const MAX_BUNDLE_BYTES: u64 = 1 << 30;
@@ -214,6 +215,7 @@ fn check_consistency(p: &Packed) -> Result<(), BundleError> {
         ("lights", f.lights(), s.has_lights),
         ("triangle_lights", f.emissive_triangles, s.has_triangle_lights),
         ("point_lights", f.point_lights, s.has_point_lights),
+        ("metal_rough", f.metal_rough, s.has_metal_rough),
     ];
     for (name, feature, flag) in flags {
         if flag != feature as u32 {
@@ -639,7 +641,7 @@ macro_rules! record {
 }
 
 record!(Packed { scene, features, triangle_count, light_count });
-record!(Features { sky, textures, shading, point_lights, emissive_triangles, traversal_stack });
+record!(Features { sky, textures, shading, point_lights, emissive_triangles, metal_rough, traversal_stack });
 record!(Scene {
     triangles,
     shading,
@@ -651,6 +653,7 @@ record!(Scene {
     texture_info,
     sky,
     sky_rows,
+    metal_rough,
     camera_position,
     camera_right,
     camera_up,
@@ -675,6 +678,7 @@ record!(Scene {
     has_lights,
     has_triangle_lights,
     has_point_lights,
+    has_metal_rough,
 });
 
 #[cfg(test)]

@@ -25,6 +25,9 @@ pub struct Features {
     pub shading: bool,
     pub point_lights: bool,
     pub emissive_triangles: bool,
+    /// Some material needs the glTF metal-roughness BRDF ([`crate::scene::Material::uses_metal_rough`]):
+    /// the specular code and one more texel per material (`Scene::metal_rough`).
+    pub metal_rough: bool,
     /// Entries the traversal stack needs for this scene's BVH (`WideBvh::stack_needed*`, at
     /// most the kernel's `STACK_SIZE`): GPU variants size their stacks to it instead of
     /// `STACK_SIZE` (the Cornell box needs 11, not 64). 0: not fixed, the kernel's `STACK_SIZE`.
@@ -41,6 +44,7 @@ impl Features {
             ("has_lights", self.lights()),
             ("has_triangle_lights", self.emissive_triangles),
             ("has_point_lights", self.point_lights),
+            ("has_metal_rough", self.metal_rough),
         ]
         .into_iter()
         .map(|(k, v)| (format!("Scene.{k}"), v as u32))
@@ -60,6 +64,7 @@ impl Features {
             shading: true,
             point_lights: true,
             emissive_triangles: true,
+            metal_rough: true,
             traversal_stack: 0,
         }
     }
@@ -238,8 +243,7 @@ pub struct PackedTextures {
 /// loading) are copied into a new one.
 pub fn pack_textures(scene: &Scene) -> PackedTextures {
     let textures = &scene.textures;
-    let used = scene.materials.iter().any(|m| m.base_color_texture.is_some() || m.emissive_texture.is_some())
-        && !textures.is_empty();
+    let used = scene.materials.iter().any(|m| m.texture_slots().iter().any(Option::is_some)) && !textures.is_empty();
     let mut emissive_mean_luminance = vec![None; textures.len()];
     for m in &scene.materials {
         if let Some(i) = m.emissive_texture.filter(|i| (*i as usize) < textures.len()) {
@@ -398,6 +402,7 @@ pub fn pack_with_textures(
         shading: textures_used || smooth,
         point_lights: !scene.point_lights.is_empty(),
         emissive_triangles: !emissive_triangles.is_empty(),
+        metal_rough: scene.materials.iter().any(|m| m.uses_metal_rough()),
         traversal_stack,
     };
 
@@ -542,6 +547,15 @@ pub fn pack_with_textures(
         materials.push(m.base_color.extend(texture_index(m.base_color_texture)));
         materials.push(m.emission.extend(texture_index(m.emissive_texture)));
     }
+    let metal_rough = if features.metal_rough {
+        let texels = scene.materials.iter().map(|m| {
+            let specular = if m.uses_metal_rough() { 1.0 } else { 0.0 };
+            Vec4::new(m.metallic, m.roughness, texture_index(m.metallic_roughness_texture), specular)
+        });
+        Texels::new(texels.collect())
+    } else {
+        Texels::default()
+    };
 
     let cam = &scene.camera;
     let forward = (cam.target - cam.position).normalize_or(Vec3::NEG_Z);
@@ -562,6 +576,7 @@ pub fn pack_with_textures(
         texture_info: textures.info.clone(),
         sky: Texels::new(sky_texels),
         sky_rows: Texels::new(sky_rows),
+        metal_rough,
         camera_position: cam.position,
         camera_right: right * tan_half * aspect,
         camera_up: up * tan_half,
@@ -586,6 +601,7 @@ pub fn pack_with_textures(
         has_lights: features.lights() as u32,
         has_triangle_lights: features.emissive_triangles as u32,
         has_point_lights: features.point_lights as u32,
+        has_metal_rough: features.metal_rough as u32,
     };
     Ok(Packed { scene: kernel_scene, features, triangle_count: tri_count, light_count: light_data.len() })
 }

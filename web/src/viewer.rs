@@ -321,6 +321,7 @@ impl Viewer {
                 ("shading", f.shading),
                 ("pointLights", f.point_lights),
                 ("emissiveTriangles", f.emissive_triangles),
+                ("metalRough", f.metal_rough),
             ] {
                 set(&features, name, on);
             }

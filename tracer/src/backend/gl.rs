@@ -108,6 +108,7 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
         texture_info: UVec4s,
         sky: Vec4s,
         sky_rows: Vec4s,
+        metal_rough: Vec4s,
         camera_position: Vec3,
         camera_right: Vec3,
         camera_up: Vec3,
@@ -132,6 +133,7 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
         has_lights: U32,
         has_triangle_lights: U32,
         has_point_lights: U32,
+        has_metal_rough: U32,
     )
 }
 

@@ -210,10 +210,12 @@ pub use lightport_codegen::HarnessWord;
 
 mod kernel_structs {
     use crate::kernel::camera::Ray;
+    use crate::kernel::integrator::Bounce;
     use crate::kernel::intersect::TriangleHit;
     use crate::kernel::lights::LightSample;
+    use crate::kernel::metal_rough::{BrdfSample, Surface};
     use crate::kernel::sampling::Onb;
-    use crate::kernel::scene_data::{MaterialData, TriangleData};
+    use crate::kernel::scene_data::{MaterialData, MetalRoughData, TriangleData};
     use crate::kernel::traverse::{Hit, NodeHits};
 
     harness_struct_words! {
@@ -225,6 +227,10 @@ mod kernel_structs {
         MaterialData { base_color, base_texture, emission, emissive_texture }
         Onb { tangent, bitangent, normal }
         LightSample { dir, dist, radiance, pdf, delta }
+        Surface { diffuse, f0, alpha, specular }
+        BrdfSample { dir, pdf, weight }
+        MetalRoughData { metallic, roughness, texture, specular }
+        Bounce { direct, dir, pdf, weight }
     }
 }
 
@@ -1276,6 +1282,10 @@ mod tests {
             ("MaterialData", top_fields::<MaterialData>()),
             ("Onb", top_fields::<Onb>()),
             ("LightSample", top_fields::<LightSample>()),
+            ("Surface", top_fields::<crate::kernel::metal_rough::Surface>()),
+            ("BrdfSample", top_fields::<crate::kernel::metal_rough::BrdfSample>()),
+            ("MetalRoughData", top_fields::<crate::kernel::scene_data::MetalRoughData>()),
+            ("Bounce", top_fields::<crate::kernel::integrator::Bounce>()),
         ];
         let structs: Vec<kernel_dsl::ir::StructDef> = crate::kernel::modules()
             .into_iter()
@@ -1292,7 +1302,7 @@ mod tests {
         }
         assert_eq!(
             structs.len(),
-            8,
+            12,
             "a new kernel struct needs a Words impl here: {:?}",
             structs.iter().map(|s| &s.name).collect::<Vec<_>>()
         );

@@ -750,7 +750,7 @@ mod tests {
             assert!(uniform.members.iter().any(|(n, _)| n == "frame_seed"));
         }
         let all = reflect(&crate::kernel::path_tracer_shader(&Features::all(), Target::Wgsl).unwrap()).unwrap();
-        assert_eq!(all.storage.len(), 10, "{:?}", all.storage);
+        assert_eq!(all.storage.len(), 11, "{:?}", all.storage);
     }
 
     /// The uniform offsets follow WGSL's rules: a vec3 is 16-byte aligned and a scalar may

@@ -1,8 +1,7 @@
 #[kernel_dsl::kernel]
 pub mod integrator {
-    //! The path tracer: Lambert BSDF, next event estimation over every light, multiple
-    //! importance sampling with the power heuristic, Russian roulette. The strategy is a
-    //! run-time uniform; all three estimate the same image.
+    //! The path tracer: Lambert or glTF metal-roughness BRDF, next event estimation over every light, MIS
+    //! (power heuristic), Russian roulette. The strategy is a run-time uniform; all three estimate the same image.
 
     use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
 
@@ -12,13 +11,14 @@ pub mod integrator {
         area_pdf_to_solid_angle, finite_or_zero, light_pmf, power_heuristic, sample_light, sky_pdf, sky_radiance,
         triangle_emission,
     };
+    use crate::kernel::metal_rough::{metal_rough_eval, metal_rough_pdf, metal_rough_sample, surface_at};
     use crate::kernel::rng::{pixel_seed, random_float};
-    use crate::kernel::sampling::{sample_cosine_around, INV_PI};
+    use crate::kernel::sampling::{onb_from_normal, onb_to_local, onb_to_world, sample_cosine_around, INV_PI};
     use crate::kernel::scene_data::{
-        fetch_material, fetch_triangle, sample_texture, shading_normal, texcoord, Scene, NONE, STRATEGY_BSDF,
-        STRATEGY_MIS, STRATEGY_NEE,
+        fetch_material, fetch_triangle, sample_texture, shading_normal, texcoord, MaterialData, Scene, NONE,
+        STRATEGY_BSDF, STRATEGY_MIS, STRATEGY_NEE,
     };
-    use crate::kernel::traverse::{occluded, trace_closest};
+    use crate::kernel::traverse::{occluded, trace_closest, Hit};
 
     /// Russian roulette starts after this many path segments.
     pub const RR_START_DEPTH: u32 = 3;
@@ -101,49 +101,129 @@ pub mod integrator {
                 break;
             }
 
-            let mut albedo = material.base_color;
-            if scene.has_textures != 0 && material.base_texture != NONE {
-                albedo *=
-                    sample_texture(scene, material.base_texture, texcoord(scene, hit.triangle, hit.u, hit.v)).xyz();
-            }
-            let surface = offset_origin(scene, p, ng);
+            if scene.has_metal_rough == 0 {
+                let mut albedo = material.base_color;
+                if scene.has_textures != 0 && material.base_texture != NONE {
+                    albedo *=
+                        sample_texture(scene, material.base_texture, texcoord(scene, hit.triangle, hit.u, hit.v)).xyz();
+                }
+                let surface = offset_origin(scene, p, ng);
 
-            // Next event estimation.
-            let u_light = Vec3::new(random_float(&mut rng), random_float(&mut rng), random_float(&mut rng));
-            if scene.has_lights != 0 && scene.light_count > 0 {
-                let ls = sample_light(scene, surface, u_light);
-                let cos = ns.dot(ls.dir);
-                if ls.pdf > 0.0 && cos > 0.0 && ng.dot(ls.dir) > 0.0 && (ls.delta || scene.strategy != STRATEGY_BSDF) {
-                    let mut weight = 1.0;
-                    if !ls.delta && scene.strategy == STRATEGY_MIS {
-                        weight = power_heuristic(ls.pdf, cos * INV_PI);
-                    }
-                    let t_max = if ls.dist < MISS { ls.dist * (1.0 - 1.0e-4) } else { MISS };
-                    if !occluded(scene, surface, ls.dir, t_max) {
-                        radiance += throughput * albedo * (INV_PI * cos * weight / ls.pdf) * ls.radiance;
+                // Next event estimation.
+                let u_light = Vec3::new(random_float(&mut rng), random_float(&mut rng), random_float(&mut rng));
+                if scene.has_lights != 0 && scene.light_count > 0 {
+                    let ls = sample_light(scene, surface, u_light);
+                    let cos = ns.dot(ls.dir);
+                    if ls.pdf > 0.0
+                        && cos > 0.0
+                        && ng.dot(ls.dir) > 0.0
+                        && (ls.delta || scene.strategy != STRATEGY_BSDF)
+                    {
+                        let mut weight = 1.0;
+                        if !ls.delta && scene.strategy == STRATEGY_MIS {
+                            weight = power_heuristic(ls.pdf, cos * INV_PI);
+                        }
+                        let t_max = if ls.dist < MISS { ls.dist * (1.0 - 1.0e-4) } else { MISS };
+                        if !occluded(scene, surface, ls.dir, t_max) {
+                            radiance += throughput * albedo * (INV_PI * cos * weight / ls.pdf) * ls.radiance;
+                        }
                     }
                 }
-            }
 
-            // Continue the path by sampling the Lambert BSDF (cosine-weighted).
-            let next = sample_cosine_around(ns, random_float(&mut rng), random_float(&mut rng));
-            let cos = ns.dot(next);
-            if !(cos > 0.0) || ng.dot(next) <= 0.0 {
-                break;
-            }
-            bsdf_pdf = cos * INV_PI;
-            throughput *= albedo;
-            depth += 1;
-            if depth >= RR_START_DEPTH {
-                let q = throughput.max_element().min(0.95);
-                if random_float(&mut rng) >= q {
+                // Continue the path by sampling the Lambert BSDF (cosine-weighted).
+                let next = sample_cosine_around(ns, random_float(&mut rng), random_float(&mut rng));
+                let cos = ns.dot(next);
+                if !(cos > 0.0) || ng.dot(next) <= 0.0 {
                     break;
                 }
-                throughput /= q;
+                bsdf_pdf = cos * INV_PI;
+                throughput *= albedo;
+                depth += 1;
+                if depth >= RR_START_DEPTH {
+                    let q = throughput.max_element().min(0.95);
+                    if random_float(&mut rng) >= q {
+                        break;
+                    }
+                    throughput /= q;
+                }
+                origin = surface;
+                dir = next;
+            } else {
+                // glTF metal-roughness (`Features::metal_rough`): both lobes, MIS over both.
+                let here = offset_origin(scene, p, ng);
+                let bounce = metal_rough_bounce(scene, &mut rng, hit, material, tri.material, here, dir, ng, ns);
+                radiance += throughput * bounce.direct;
+                if !(bounce.pdf > 0.0) {
+                    break;
+                }
+                bsdf_pdf = bounce.pdf;
+                throughput *= bounce.weight;
+                depth += 1;
+                if depth >= RR_START_DEPTH {
+                    let survival = throughput.max_element().min(0.95);
+                    if random_float(&mut rng) >= survival {
+                        break;
+                    }
+                    throughput /= survival;
+                }
+                origin = here;
+                dir = bounce.dir;
             }
-            origin = surface;
-            dir = next;
         }
         finite_or_zero(radiance)
+    }
+
+    /// One bounce at a glTF metal-roughness surface: the light sampled there (next event
+    /// estimation, MIS-weighted, not yet multiplied by the path throughput) and the BRDF-sampled
+    /// continuation (`pdf` 0 ends the path).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct Bounce {
+        pub direct: Vec3,
+        pub dir: Vec3,
+        pub pdf: f32,
+        pub weight: Vec3,
+    }
+
+    /// Next event estimation and BRDF sampling at `surface` (the hit moved off the surface),
+    /// reached along `dir`, with facing geometric normal `ng` and shading normal `ns`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn metal_rough_bounce(
+        scene: &Scene,
+        rng: &mut u32,
+        hit: Hit,
+        material: MaterialData,
+        material_index: u32,
+        surface: Vec3,
+        dir: Vec3,
+        ng: Vec3,
+        ns: Vec3,
+    ) -> Bounce {
+        let s = surface_at(scene, material, material_index, hit.triangle, hit.u, hit.v);
+        // The BRDF needs the viewer above its normal: the shading normal while it is, else the
+        // geometric one (which always faces the viewer).
+        let n = if ns.dot(dir) < 0.0 { ns } else { ng };
+        let frame = onb_from_normal(n);
+        let wo = onb_to_local(frame, -dir);
+        let mut direct = Vec3::ZERO;
+        let u_light = Vec3::new(random_float(rng), random_float(rng), random_float(rng));
+        if scene.has_lights != 0 && scene.light_count > 0 {
+            let ls = sample_light(scene, surface, u_light);
+            let wi = onb_to_local(frame, ls.dir);
+            if ls.pdf > 0.0 && wi.z > 0.0 && ng.dot(ls.dir) > 0.0 && (ls.delta || scene.strategy != STRATEGY_BSDF) {
+                let mut weight = 1.0;
+                if !ls.delta && scene.strategy == STRATEGY_MIS {
+                    weight = power_heuristic(ls.pdf, metal_rough_pdf(s, wo, wi));
+                }
+                let t_max = if ls.dist < MISS { ls.dist * (1.0 - 1.0e-4) } else { MISS };
+                if !occluded(scene, surface, ls.dir, t_max) {
+                    direct = metal_rough_eval(s, wo, wi) * (wi.z * weight / ls.pdf) * ls.radiance;
+                }
+            }
+        }
+        let u = Vec3::new(random_float(rng), random_float(rng), random_float(rng));
+        let sample = metal_rough_sample(s, wo, u);
+        let next = onb_to_world(frame, sample.dir);
+        let pdf = if ng.dot(next) > 0.0 { sample.pdf } else { 0.0 };
+        Bounce { direct, dir: next, pdf, weight: sample.weight }
     }
 }

@@ -14,6 +14,8 @@ mod integrator_src;
 mod intersect_src;
 #[path = "lights.rs"]
 mod lights_src;
+#[path = "metal_rough.rs"]
+mod metal_rough_src;
 #[path = "rng.rs"]
 mod rng_src;
 #[path = "sampling.rs"]
@@ -32,6 +34,7 @@ pub use camera_src::camera;
 pub use integrator_src::integrator;
 pub use intersect_src::intersect;
 pub use lights_src::lights;
+pub use metal_rough_src::metal_rough;
 pub use rng_src::rng;
 pub use sampling_src::sampling;
 pub use scene_data_src::scene_data;
@@ -48,6 +51,7 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
         traverse::kernel_ir(),
         camera::kernel_ir(),
         lights::kernel_ir(),
+        metal_rough::kernel_ir(),
         integrator::kernel_ir(),
         tonemap::kernel_ir(),
     ]
@@ -55,7 +59,7 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
 
 /// Every kernel module's captured description, as the macro serialised it (what
 /// [`modules`] parses): a stable text to fingerprint the kernel with.
-pub fn ir_json() -> [&'static str; 9] {
+pub fn ir_json() -> [&'static str; 10] {
     [
         rng::KERNEL_IR_JSON,
         sampling::KERNEL_IR_JSON,
@@ -64,6 +68,7 @@ pub fn ir_json() -> [&'static str; 9] {
         traverse::KERNEL_IR_JSON,
         camera::KERNEL_IR_JSON,
         lights::KERNEL_IR_JSON,
+        metal_rough::KERNEL_IR_JSON,
         integrator::KERNEL_IR_JSON,
         tonemap::KERNEL_IR_JSON,
     ]

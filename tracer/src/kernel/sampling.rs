@@ -82,4 +82,10 @@ pub mod sampling {
         let s = u1.sqrt();
         Vec2::new(s * (1.0 - u2), s * u2)
     }
+
+    /// World coordinates to the basis' local (tangent, bitangent, normal) ones: the inverse of
+    /// [`onb_to_world`] (the basis is orthonormal).
+    pub fn onb_to_local(onb: Onb, v: Vec3) -> Vec3 {
+        Vec3::new(v.dot(onb.tangent), v.dot(onb.bitangent), v.dot(onb.normal))
+    }
 }

@@ -52,9 +52,8 @@ pub mod scene_data {
         pub node_children: Texels<UVec4>,
         pub materials: Texels<Vec4>,
         pub lights: Texels<Vec4>,
-        /// Albedo/emission texels of every texture, back to back, four per element: texel `i` is
-        /// component `i % 4` of element `i / 4`, 8-bit RGBA as in the image file (colour
-        /// sRGB-encoded, red in the low byte), decoded by `decode_srgba8`.
+        /// Texels of every texture, back to back, four per element (texel `i` is lane `i % 4` of element
+        /// `i / 4`): 8-bit RGBA as in the file, red in the low byte, colour sRGB-encoded, data linear.
         pub texture_texels: Texels<UVec4>,
         /// Per texture: `[first texel, width, height, wrap_s | wrap_t << 8]`; the first texel is
         /// a multiple of `TEXTURE_TEXELS_PER_ELEMENT`.
@@ -63,7 +62,8 @@ pub mod scene_data {
         pub sky: Texels<Vec4>,
         /// Per sky row: `[marginal CDF, 0, 0, 0]`.
         pub sky_rows: Texels<Vec4>,
-
+        /// Per material, `[metallic, roughness, metal-roughness texture or -1, specular (1) or Lambert (0)]`.
+        pub metal_rough: Texels<Vec4>,
         pub camera_position: Vec3,
         /// Right vector scaled by tan(fov/2) * aspect.
         pub camera_right: Vec3,
@@ -89,14 +89,14 @@ pub mod scene_data {
         /// this, and intersects them at once beyond (`tracer::pack` chooses it so that the stack
         /// cannot overflow: `STACK_SIZE` for any tree that fits with every leaf pushed).
         pub leaf_stack_limit: u32,
-        /// Feature flags (0 or 1). Codegen can specialise on them, removing the code and data of
-        /// features a scene does not use.
+        /// Feature flags (0 or 1): codegen specialises on them, removing unused features' code and data.
         pub has_sky: u32,
         pub has_textures: u32,
         pub has_shading: u32,
         pub has_lights: u32,
         pub has_triangle_lights: u32,
         pub has_point_lights: u32,
+        pub has_metal_rough: u32,
     }
 
     pub const STRATEGY_BSDF: u32 = 0;
@@ -206,7 +206,9 @@ pub mod scene_data {
         Vec4::new(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a)
     }
 
-    pub fn texel(scene: &Scene, info: UVec4, x: i32, y: i32) -> Vec4 {
+    /// The packed word (8-bit RGBA, red in the low byte) of texel (x, y) of the texture `info`
+    /// describes, the coordinates wrapped by its modes.
+    pub fn texel_word(scene: &Scene, info: UVec4, x: i32, y: i32) -> u32 {
         let w = info.y as i32;
         let h = info.z as i32;
         let tx = wrap_coordinate(x, w, info.w & 255);
@@ -214,7 +216,7 @@ pub mod scene_data {
         let i = info.x + (ty * w + tx) as u32;
         let four = scene.texture_texels.fetch(i / TEXTURE_TEXELS_PER_ELEMENT);
         let lane = i % TEXTURE_TEXELS_PER_ELEMENT;
-        let word = if lane == 0 {
+        if lane == 0 {
             four.x
         } else if lane == 1 {
             four.y
@@ -222,12 +224,45 @@ pub mod scene_data {
             four.z
         } else {
             four.w
-        };
-        decode_srgba8(word)
+        }
     }
 
-    /// Bilinear lookup of texture `index` at `uv` (glTF convention: v = 0 is the top row).
+    /// A packed texel of a data texture (metal-roughness: no transfer function) as RGBA in [0, 1].
+    pub fn decode_unorm8(word: u32) -> Vec4 {
+        let r = ((word << 24) >> 24) as f32 / 255.0;
+        let g = ((word << 16) >> 24) as f32 / 255.0;
+        let b = ((word << 8) >> 24) as f32 / 255.0;
+        let a = (word >> 24) as f32 / 255.0;
+        Vec4::new(r, g, b, a)
+    }
+
+    /// Texel (x, y) of a colour texture as linear RGBA.
+    pub fn texel(scene: &Scene, info: UVec4, x: i32, y: i32) -> Vec4 {
+        decode_srgba8(texel_word(scene, info, x, y))
+    }
+
+    /// Texel (x, y) decoded as colour (sRGB) or, when `data`, as linear data.
+    pub fn texel_as(scene: &Scene, info: UVec4, x: i32, y: i32, data: bool) -> Vec4 {
+        let word = texel_word(scene, info, x, y);
+        if data {
+            decode_unorm8(word)
+        } else {
+            decode_srgba8(word)
+        }
+    }
+
+    /// Bilinear lookup of colour texture `index` at `uv` (glTF convention: v = 0 is the top row).
     pub fn sample_texture(scene: &Scene, index: u32, uv: Vec2) -> Vec4 {
+        bilinear(scene, index, uv, false)
+    }
+
+    /// Bilinear lookup of data texture `index` (metal-roughness) at `uv`, its bytes taken as linear.
+    pub fn sample_data_texture(scene: &Scene, index: u32, uv: Vec2) -> Vec4 {
+        bilinear(scene, index, uv, true)
+    }
+
+    /// Bilinear lookup of texture `index` at `uv`, its texels decoded as colour or as `data`.
+    pub fn bilinear(scene: &Scene, index: u32, uv: Vec2, data: bool) -> Vec4 {
         let info = scene.texture_info.fetch(index);
         let x = uv.x * info.y as f32 - 0.5;
         let y = uv.y * info.z as f32 - 0.5;
@@ -235,8 +270,25 @@ pub mod scene_data {
         let fy = y - y.floor();
         let x0 = x.floor() as i32;
         let y0 = y.floor() as i32;
-        let top = texel(scene, info, x0, y0) * (1.0 - fx) + texel(scene, info, x0 + 1, y0) * fx;
-        let bottom = texel(scene, info, x0, y0 + 1) * (1.0 - fx) + texel(scene, info, x0 + 1, y0 + 1) * fx;
+        let top = texel_as(scene, info, x0, y0, data) * (1.0 - fx) + texel_as(scene, info, x0 + 1, y0, data) * fx;
+        let bottom =
+            texel_as(scene, info, x0, y0 + 1, data) * (1.0 - fx) + texel_as(scene, info, x0 + 1, y0 + 1, data) * fx;
         top * (1.0 - fy) + bottom * fy
+    }
+
+    /// A material's metal-roughness parameters (`Scene::metal_rough`).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct MetalRoughData {
+        pub metallic: f32,
+        pub roughness: f32,
+        /// Metal-roughness texture (B: metallic, G: roughness, multiplying the factors) or NONE.
+        pub texture: u32,
+        /// 1: the glTF model; 0: Lambert.
+        pub specular: f32,
+    }
+
+    pub fn fetch_metal_rough(scene: &Scene, index: u32) -> MetalRoughData {
+        let t = scene.metal_rough.fetch(index);
+        MetalRoughData { metallic: t.x, roughness: t.y, texture: index_of(t.z), specular: t.w }
     }
 }

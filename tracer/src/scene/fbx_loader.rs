@@ -353,6 +353,7 @@ impl Loader<'_> {
             base_color_texture,
             emission,
             emissive_texture,
+            ..Material::diffuse("", Vec3::ZERO)
         };
         self.materials.push(material);
         let index = self.materials.len() as u32 - 1;

@@ -182,6 +182,69 @@ pub fn terrain_and_spheres() -> Scene {
     }
 }
 
+/// Khronos' MetalRoughSpheres in code: a 5 x 5 grid of smooth spheres (radius 0.4 m, 1 m
+/// apart, in the plane z = 0) of one copper-coloured base colour, metallic rising from 0 to 1
+/// left to right, roughness from 0 (clamped to `kernel::metal_rough::MIN_ROUGHNESS`) at the
+/// top to 1 at the bottom; lit by a 2 x 2 m area light above and left of the camera (radiance
+/// 12) and a uniform sky (0.25). The camera at (0, 0, 7) looks at the grid's centre (40°).
+/// 24,002 triangles.
+pub fn metal_rough_spheres() -> Scene {
+    const N: usize = 5;
+    let base = Vec3::new(0.95, 0.64, 0.54);
+    let mut materials = Vec::with_capacity(N * N + 1);
+    let mut t = Vec::with_capacity(N * N * 512);
+    for row in 0..N {
+        for column in 0..N {
+            let (metallic, roughness) = (column as f32 / (N - 1) as f32, row as f32 / (N - 1) as f32);
+            let name = format!("metallic {metallic:.2} roughness {roughness:.2}");
+            materials.push(Material::metal_rough(&name, base, metallic, roughness));
+            let center = v(column as f32 - 2.0, 2.0 - row as f32, 0.0);
+            sphere(&mut t, center, 0.4, (row * N + column) as u32);
+        }
+    }
+    let light = materials.len() as u32;
+    materials.push(Material::emissive("light", Vec3::ZERO, Vec3::splat(12.0)));
+    // Facing the grid's centre from (-3, 4, 5).
+    let c = v(-3.0, 4.0, 5.0);
+    let n = (-c).normalize();
+    let u = Vec3::Y.cross(n).normalize();
+    let w = n.cross(u);
+    quad(&mut t, [c - u - w, c + u - w, c + u + w, c - u + w], light);
+    Scene {
+        triangles: t,
+        materials,
+        sky: Some(super::Sky::uniform(Vec3::splat(0.25))),
+        camera: Camera::look_at(v(0.0, 0.0, 7.0), Vec3::ZERO, Vec3::Y, 40f32.to_radians()),
+        ..Scene::default()
+    }
+}
+
+/// Appends a UV sphere (32 segments x 16 rings, outward-facing, smooth normals) to `out`.
+fn sphere(out: &mut Vec<Triangle>, center: Vec3, radius: f32, material: u32) {
+    let (segments, rings) = (32, 16);
+    let dir = |s: usize, k: usize| {
+        let phi = s as f32 / segments as f32 * std::f32::consts::TAU;
+        let theta = k as f32 / rings as f32 * std::f32::consts::PI;
+        v(theta.sin() * phi.cos(), theta.cos(), -theta.sin() * phi.sin())
+    };
+    let uv = |s: usize, k: usize| Vec2::new(s as f32 / segments as f32, k as f32 / rings as f32);
+    for s in 0..segments {
+        for k in 0..rings {
+            let corners = [(s, k), (s, k + 1), (s + 1, k + 1), (s + 1, k)];
+            for (half, [a, b, c]) in [[0, 1, 2], [0, 2, 3]].into_iter().enumerate() {
+                // The pole quads are triangles: their other half would be degenerate.
+                if (k == 0 && half == 1) || (k == rings - 1 && half == 0) {
+                    continue;
+                }
+                let normals = [corners[a], corners[b], corners[c]].map(|(s, k)| dir(s, k));
+                let positions = normals.map(|n| center + radius * n);
+                let uvs = [corners[a], corners[b], corners[c]].map(|(s, k)| uv(s, k));
+                out.push(Triangle { positions, normals, uvs, material });
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -221,5 +284,26 @@ mod tests {
         let p = diffuse_plane(Vec3::splat(0.5));
         p.validate().unwrap();
         assert!(p.triangles.iter().all(|t| t.normals[0] == Vec3::Y));
+    }
+
+    #[test]
+    fn metal_rough_spheres_face_outwards_over_the_whole_grid() {
+        let s = metal_rough_spheres();
+        s.validate().unwrap();
+        assert_eq!(s.emissive_triangle_count(), 2);
+        for t in s.triangles.iter().filter(|t| t.material < 25) {
+            let (row, column) = (t.material / 5, t.material % 5);
+            let center = v(column as f32 - 2.0, 2.0 - row as f32, 0.0);
+            let centroid = (t.positions[0] + t.positions[1] + t.positions[2]) / 3.0;
+            let face = (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]);
+            assert!(face.dot(centroid - center) > 0.0, "front faces point outwards: {t:?}");
+            assert!(t.normals.iter().all(|n| n.dot(face) > 0.0), "normals agree with the winding: {t:?}");
+        }
+        let m = &s.materials;
+        assert!(m[..25].iter().all(|m| m.uses_metal_rough() || (m.metallic == 0.0 && m.roughness == 1.0)));
+        assert_eq!((m[0].metallic, m[0].roughness, m[4].metallic, m[24].roughness), (0.0, 0.0, 1.0, 1.0));
+        // The light faces the grid.
+        let light = s.triangles.iter().find(|t| t.material == 25).unwrap();
+        assert!(light.normals[0].dot(-light.positions[0]) > 0.0);
     }
 }

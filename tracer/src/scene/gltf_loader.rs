@@ -703,12 +703,21 @@ impl Loader<'_> {
         let base_color_texture = self.texture_info(m.pbr_metallic_roughness.base_color_texture.as_ref())?;
         let emissive_texture =
             if emission.max_element() > 0.0 { self.texture_info(m.emissive_texture.as_ref())? } else { None };
+        let pbr = &m.pbr_metallic_roughness;
+        let (metallic, roughness) = (pbr.metallic_factor.0, pbr.roughness_factor.0);
+        if !metallic.is_finite() || !roughness.is_finite() {
+            return Err(malformed(format!("{what}: metallicFactor and roughnessFactor must be finite")));
+        }
+        let metallic_roughness_texture = self.texture_info(pbr.metallic_roughness_texture.as_ref())?;
         Ok(Material {
             name: m.name.clone().unwrap_or_default(),
             base_color,
             base_color_texture,
             emission,
             emissive_texture,
+            metallic: metallic.clamp(0.0, 1.0),
+            roughness: roughness.clamp(0.0, 1.0),
+            metallic_roughness_texture,
         })
     }
 

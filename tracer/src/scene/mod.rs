@@ -73,7 +73,20 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
-pub use generate::{cornell_box, diffuse_plane, terrain_and_spheres, white_furnace};
+pub use generate::{cornell_box, diffuse_plane, metal_rough_spheres, terrain_and_spheres, white_furnace};
+
+/// The scenes generated in code that the command line names: `cornell` (also `cornell-box`)
+/// and `metal-rough-spheres`.
+pub const BUILTIN_SCENES: [&str; 2] = ["cornell", "metal-rough-spheres"];
+
+/// The scene generated in code called `name` (see [`BUILTIN_SCENES`]).
+pub fn builtin(name: &str) -> Option<Scene> {
+    match name {
+        "cornell" | "cornell-box" => Some(cornell_box()),
+        "metal-rough-spheres" => Some(metal_rough_spheres()),
+        _ => None,
+    }
+}
 pub use gltf_loader::load_gltf_slice;
 pub use obj_loader::load_obj_slice;
 pub use sky::{load_sky, load_sky_slice, SkyFormat};
@@ -145,6 +158,14 @@ pub struct Material {
     pub emission: Vec3,
     /// Index into [`Scene::textures`] multiplying `emission`. Always `None` when `emission` is 0.
     pub emissive_texture: Option<u32>,
+    /// glTF `metallicFactor` in `[0, 1]` (0 for OBJ and FBX materials).
+    pub metallic: f32,
+    /// glTF `roughnessFactor` in `[0, 1]` (1 for OBJ and FBX materials). The kernel clamps it to
+    /// at least `kernel::metal_rough::MIN_ROUGHNESS`.
+    pub roughness: f32,
+    /// glTF `metallicRoughnessTexture`: its blue channel multiplies `metallic`, its green
+    /// `roughness` (texels are linear data, not sRGB).
+    pub metallic_roughness_texture: Option<u32>,
 }
 
 impl Material {
@@ -156,7 +177,24 @@ impl Material {
             base_color_texture: None,
             emission: Vec3::ZERO,
             emissive_texture: None,
+            metallic: 0.0,
+            roughness: 1.0,
+            metallic_roughness_texture: None,
         }
+    }
+
+    /// A glTF metal-roughness material.
+    pub fn metal_rough(name: &str, base_color: Vec3, metallic: f32, roughness: f32) -> Self {
+        Self { metallic, roughness, ..Self::diffuse(name, base_color) }
+    }
+
+    /// Whether the material needs the metal-roughness BRDF (`Features::metal_rough`). A
+    /// material with metallic 0, roughness 1 and no metal-roughness texture is rendered by the
+    /// Lambert kernel, exactly as before the BRDF existed: the specification's rough 4 %
+    /// dielectric specular layer is left out for it (at roughness 1 it moves reflected
+    /// energy by a few percent, most at grazing angles).
+    pub fn uses_metal_rough(&self) -> bool {
+        self.metallic != 0.0 || self.roughness != 1.0 || self.metallic_roughness_texture.is_some()
     }
 
     /// A diffuse material that also emits `emission` radiance.
@@ -170,13 +208,13 @@ impl Material {
     }
 
     /// Its texture references (indices into [`Scene::textures`]), every map it has.
-    pub fn texture_slots(&self) -> [Option<u32>; 2] {
-        [self.base_color_texture, self.emissive_texture]
+    pub fn texture_slots(&self) -> [Option<u32>; 3] {
+        [self.base_color_texture, self.emissive_texture, self.metallic_roughness_texture]
     }
 
     /// [`Material::texture_slots`], to rewrite (loaders drop textures that fail to decode).
-    pub(crate) fn texture_slots_mut(&mut self) -> [&mut Option<u32>; 2] {
-        [&mut self.base_color_texture, &mut self.emissive_texture]
+    pub(crate) fn texture_slots_mut(&mut self) -> [&mut Option<u32>; 3] {
+        [&mut self.base_color_texture, &mut self.emissive_texture, &mut self.metallic_roughness_texture]
     }
 }
 

@@ -244,7 +244,14 @@ fn convert_material(
         Some(t) if emission.max_element() > 0.0 => textures.texture(t, label, warnings)?,
         _ => None,
     };
-    Ok(Material { name: m.name.clone(), base_color, base_color_texture, emission, emissive_texture })
+    Ok(Material {
+        name: m.name.clone(),
+        base_color,
+        base_color_texture,
+        emission,
+        emissive_texture,
+        ..Material::diffuse("", Vec3::ZERO)
+    })
 }
 
 impl Textures<'_> {

@@ -1,0 +1,79 @@
+//! MetalRoughSpheres with the glTF metal-roughness BRDF and, for comparison, with every
+//! material as the Lambert kernel renders it (metallic 0, roughness 1: what Lightport showed
+//! before the BRDF existed). Writes both side by side as one PNG (PBR Neutral tone curve) and
+//! prints the CPU render time of each (alternating, medians).
+//!
+//! ```sh
+//! cargo run --release --example metal_rough_figure [-- OUT.png [SIZE [SPP]]]
+//! ```
+
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use tracer::backend::cpu::CpuRenderer;
+use tracer::backend::Image;
+use tracer::output::{write_image, Display, ToneMap};
+use tracer::pack::{build_and_pack, RenderSettings, Strategy};
+use tracer::scene::{metal_rough_spheres, Scene};
+
+fn lambert(mut scene: Scene) -> Scene {
+    for m in &mut scene.materials {
+        (m.metallic, m.roughness, m.metallic_roughness_texture) = (0.0, 1.0, None);
+    }
+    scene
+}
+
+/// Renders `spp` frames; returns the image and the seconds it took.
+fn render(scene: &Scene, size: u32, spp: u32) -> Result<(Image, f64)> {
+    let settings = RenderSettings { width: size, height: size, strategy: Strategy::Mis, max_depth: 8 };
+    let (_, packed) = build_and_pack(scene, &settings).context("packing")?;
+    let mut r = CpuRenderer::new(packed, 1);
+    let t = Instant::now();
+    for _ in 0..spp {
+        r.render_frame();
+    }
+    Ok((r.image(), t.elapsed().as_secs_f64()))
+}
+
+fn main() -> Result<()> {
+    let mut args = std::env::args().skip(1);
+    let out = args.next().unwrap_or_else(|| "metal-rough-spheres.png".into());
+    let size: u32 = args.next().map(|a| a.parse()).transpose().context("SIZE")?.unwrap_or(256);
+    let spp: u32 = args.next().map(|a| a.parse()).transpose().context("SPP")?.unwrap_or(128);
+    let scenes =
+        [("Lambert (before)", lambert(metal_rough_spheres())), ("glTF metal-roughness", metal_rough_spheres())];
+    let mut times = [Vec::new(), Vec::new()];
+    let mut images = Vec::new();
+    // Three alternating rounds; the last round's images are kept.
+    for round in 0..3 {
+        images.clear();
+        for (i, (_, scene)) in scenes.iter().enumerate() {
+            let (image, seconds) = render(scene, size, spp)?;
+            times[i].push(seconds);
+            images.push(image);
+        }
+        eprintln!("round {round}: {:.2} s, {:.2} s", times[0][round], times[1][round]);
+    }
+    let median = |t: &mut Vec<f64>| {
+        t.sort_by(f64::total_cmp);
+        t[t.len() / 2]
+    };
+    let (lambert_s, gltf_s) = (median(&mut times[0]), median(&mut times[1]));
+    println!("MetalRoughSpheres {size}x{size}, {spp} spp, MIS, CPU, medians of 3:");
+    println!("| kernel | seconds | Msamples/s | ÷ Lambert |\n|---|---|---|---|");
+    for (name, s) in [(scenes[0].0, lambert_s), (scenes[1].0, gltf_s)] {
+        let rate = (size * size * spp) as f64 / s / 1e6;
+        println!("| {name} | {s:.2} | {rate:.2} | {:.2} |", s / lambert_s);
+    }
+    // Side by side.
+    let mut pixels = Vec::with_capacity((2 * size * size) as usize);
+    for y in 0..size as usize {
+        for image in &images {
+            pixels.extend_from_slice(&image.pixels[y * size as usize..(y + 1) * size as usize]);
+        }
+    }
+    let both = Image { width: 2 * size, height: size, pixels };
+    write_image(out.as_ref(), &both, &Display { tone_map: ToneMap::Neutral, exposure: 0.0 })?;
+    println!("wrote {out}");
+    Ok(())
+}
