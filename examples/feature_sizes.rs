@@ -114,14 +114,14 @@ fn memory(packed: &Packed) -> Result<Memory> {
     let allocated: usize = arrays.iter().map(|a| a.allocated() * a.texel_bytes).sum();
     // The all-features kernel reads per-vertex normals and UVs for every hit, so it needs the
     // shading array even for flat scenes; every other array it declares but the scene lacks is
-    // one zero texel (9 arrays in all).
+    // one zero texel (11 arrays in all, `metal_rough` included).
     let mut all = allocated;
     if !packed.features.shading {
         let texels = packed.triangle_count * SHADING_TEXELS as usize;
         let (w, h) = texture_shape(texels, MAX_TEXTURE_SIZE).context("shading array too large")?;
         all += w as usize * h as usize * 16;
     }
-    all += (9 - arrays.len() - usize::from(!packed.features.shading)) * 16;
+    all += (11 - arrays.len() - usize::from(!packed.features.shading)) * 16;
     Ok(Memory { used, allocated, all_features_allocated: all })
 }
 

@@ -625,7 +625,7 @@ impl Packed {
     /// does not use are absent.
     pub fn arrays(&self, max_texture_size: u32) -> Result<Vec<ArrayStats>, PackError> {
         let s = &self.scene;
-        let list: [(&'static str, usize); 10] = [
+        let list: [(&'static str, usize); 11] = [
             ("triangles", s.triangles.len()),
             ("shading", s.shading.len()),
             ("nodes", s.nodes.len()),
@@ -636,6 +636,7 @@ impl Packed {
             ("texture_info", s.texture_info.len()),
             ("sky", s.sky.len()),
             ("sky_rows", s.sky_rows.len()),
+            ("metal_rough", s.metal_rough.len()),
         ];
         let mut out = Vec::new();
         for (name, texels) in list {
