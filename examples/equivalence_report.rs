@@ -1,6 +1,6 @@
-//! A table of CPU-vs-GL equivalence per kernel function: invocations, largest ULP and absolute
-//! differences, float words that are not bit-identical, invocations out of the stated
-//! tolerance, and the time each backend took (same run; GL includes upload and readback).
+//! A table of equivalence per kernel function, one column group per runtime (GL, wgpu) against
+//! the CPU: the largest ULP and absolute differences, invocations out of the stated tolerance,
+//! and the time each runtime took (same run; the GPU runtimes include upload and readback).
 //!
 //! `cargo run --release --example equivalence_report [RAYS]` (RAYS: LittlestTokyo traversal
 //! rays, default 100000). The pass/fail checks are in `tests/equivalence.rs`; this prints the
@@ -37,30 +37,37 @@ impl Inputs {
 
 fn row<O>(outcome: &Outcome<O>) {
     let seconds = |b| outcome.seconds.iter().find(|(x, _)| *x == b).map_or(f64::NAN, |(_, s)| *s);
-    for c in &outcome.comparisons {
-        println!(
-            "| {:<25} | {:>9} | {:>9} | {:>9.1e} | {:>9} | {:>10} | {:>7.3} | {:>7.3} | {} |",
-            outcome.function,
-            c.invocations,
-            c.max_ulps,
-            c.max_abs,
-            c.inexact_floats,
-            c.mismatched.len(),
-            seconds(Backend::Cpu),
-            seconds(Backend::Gl),
-            c.tolerance
-        );
+    let Some(first) = outcome.comparisons.first() else { return };
+    let mut line = format!("| {:<25} | {:>9} | {:>7.3} |", outcome.function, first.invocations, seconds(Backend::Cpu));
+    for backend in Backend::GPU {
+        match outcome.comparison(backend) {
+            Some(c) => line.push_str(&format!(
+                " {:>6} | {:>8.1e} | {:>6} | {:>7.3} |",
+                c.max_ulps,
+                c.max_abs,
+                c.mismatched.len(),
+                seconds(backend)
+            )),
+            None => line.push_str(" - | - | - | - |"),
+        }
     }
+    println!("{line} {} |", first.tolerance);
 }
 
 fn main() -> Result<()> {
     let rays: usize =
         std::env::args().nth(1).map(|a| a.parse()).transpose().context("RAYS must be a number")?.unwrap_or(100_000);
-    let mut eq = Equivalence::new(&[Backend::Cpu, Backend::Gl], &[]).context("creating the CPU and GL backends")?;
-    let info = eq.gl().map(|g| g.limits()).context("the GL backend")?;
+    let mut eq = Equivalence::new(&[Backend::Cpu, Backend::Gl, Backend::Wgpu], &[])
+        .context("creating the CPU, GL and wgpu runtimes")?;
+    let info = eq.gl().map(|g| g.limits()).context("the GL runtime")?;
     println!("GL limits: {info:?}");
-    println!("| function                  | invocations | max ULP | max abs | inexact | mismatches | CPU s | GL s | tolerance |");
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|---|");
+    let adapter = eq.wgpu().map(|w| w.device().info.clone()).context("the wgpu runtime")?;
+    println!("wgpu: {} ({}, {})", adapter.adapter, adapter.driver, adapter.backend);
+    println!(
+        "| function | invocations | CPU s | GL max ULP | GL max abs | GL beyond | GL s \
+         | wgpu max ULP | wgpu max abs | wgpu beyond | wgpu s | tolerance |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|");
     let mut r = Inputs(0x1234_5678_9abc_def1);
 
     let seeds: Vec<(u32,)> = (0..1u32 << 20).map(|_| (r.u32(),)).collect();
@@ -134,8 +141,11 @@ fn main() -> Result<()> {
     let closest =
         eq.run("trace_closest", &rays, |s, &(o, d, t)| (traverse::trace_closest(s, o, d, t),), triangle_tolerance)?;
     row(&closest);
-    let (cpu, gl) = (closest.output(Backend::Cpu).unwrap_or(&[]), closest.output(Backend::Gl).unwrap_or(&[]));
-    let other_triangle = cpu.iter().zip(gl).filter(|((a,), (b,))| a.triangle != b.triangle).count();
+    let cpu = closest.output(Backend::Cpu).unwrap_or(&[]);
+    let other_triangle = Backend::GPU.map(|b| {
+        let gpu = closest.output(b).unwrap_or(&[]);
+        (b, cpu.iter().zip(gpu).filter(|((a,), (b,))| a.triangle != b.triangle).count())
+    });
     row(&eq.run("occluded", &rays, |s, &(o, d, t)| (traverse::occluded(s, o, d, t),), Tolerance::EXACT)?);
 
     let duck = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/khronos/Duck/glTF-Binary/Duck.glb");
@@ -151,7 +161,9 @@ fn main() -> Result<()> {
         Tolerance::ulps(16).flushing_subnormals(),
     )?);
 
-    println!("\ntrace_closest: {other_triangle} of {} rays hit a different triangle on GL", rays.len());
+    for (backend, n) in other_triangle {
+        println!("\ntrace_closest: {n} of {} rays hit a different triangle on {backend}", rays.len());
+    }
     println!("(timings: one run on a shared machine; compare backends within this run only)");
     Ok(())
 }

@@ -23,14 +23,20 @@
 //! member it has no value for. The compute path is one dispatch of one entry point over the
 //! image; see `docs/backends.md` for how stages over ray queues would extend it.
 
-use std::borrow::Cow;
+mod resources;
+
 use std::sync::{Arc, Mutex};
 
 use glam::{Vec4, Vec4Swizzles};
 use lightport_codegen::{Generated, Target};
 use wgpu::util::DeviceExt;
 
-use super::gl::{scene_bindings, Binding, SCENE_UNIFORM_PREFIX};
+pub use resources::compile_pipeline;
+pub(crate) use resources::{
+    bind_groups, check_scene_limits, reflect, scene_uniform_bytes, storage_limit, u32_uniform_bytes, upload_scene,
+    BufferEntry, ShaderLayout, UniformLayout,
+};
+
 use super::{frame_seed, Image};
 use crate::kernel::scene_data::Scene;
 use crate::kernel::ShaderError;
@@ -156,177 +162,6 @@ impl WgpuDevice {
     pub fn compile(&self, generated: &Generated) -> Result<wgpu::ComputePipeline, WgpuError> {
         pollster::block_on(compile_pipeline(&self.device, generated, None))
     }
-}
-
-/// Where each resource of the generated shader is bound, as the shader declares it.
-#[derive(Clone, Debug, Default)]
-struct ShaderLayout {
-    /// The `scene` uniform: binding, size, and each member's (name, offset).
-    scene_uniform: Option<UniformLayout>,
-    /// (field name, group, binding) of every `scene_*` storage buffer.
-    storage: Vec<(String, u32, u32)>,
-    accumulation: Option<(u32, u32)>,
-    target: Option<UniformLayout>,
-}
-
-#[derive(Clone, Debug)]
-struct UniformLayout {
-    group: u32,
-    binding: u32,
-    size: u32,
-    members: Vec<(String, u32)>,
-}
-
-/// Reads the resource layout of the generated shader with naga (the WGSL front end wgpu uses).
-fn reflect(generated: &Generated) -> Result<ShaderLayout, WgpuError> {
-    let module = naga::front::wgsl::parse_str(&generated.source).map_err(|e| WgpuError::Compile {
-        log: annotate_messages(
-            &[Message {
-                text: e.emit_to_string(&generated.source),
-                line: e.location(&generated.source).map(|l| l.line_number),
-            }],
-            generated,
-        ),
-    })?;
-    let mut layout = ShaderLayout::default();
-    for (_, global) in module.global_variables.iter() {
-        let (Some(name), Some(binding)) = (&global.name, &global.binding) else { continue };
-        let uniform = || match &module.types[global.ty].inner {
-            naga::TypeInner::Struct { members, span } => Some(UniformLayout {
-                group: binding.group,
-                binding: binding.binding,
-                size: *span,
-                members: members.iter().map(|m| (m.name.clone().unwrap_or_default(), m.offset)).collect(),
-            }),
-            _ => None,
-        };
-        match (name.as_str(), global.space) {
-            (SCENE_UNIFORM, naga::AddressSpace::Uniform) => layout.scene_uniform = uniform(),
-            (TARGET_UNIFORM, naga::AddressSpace::Uniform) => layout.target = uniform(),
-            (ACCUMULATION_BUFFER, naga::AddressSpace::Storage { .. }) => {
-                layout.accumulation = Some((binding.group, binding.binding))
-            }
-            (n, naga::AddressSpace::Storage { access }) if n.starts_with(SCENE_UNIFORM_PREFIX) => {
-                if access.contains(naga::StorageAccess::STORE) {
-                    return Err(WgpuError::UnboundResource {
-                        name: n.to_string(),
-                        detail: " as a writable buffer (scene data is read-only)".into(),
-                    });
-                }
-                layout.storage.push((n[SCENE_UNIFORM_PREFIX.len()..].to_string(), binding.group, binding.binding));
-            }
-            (n, space) => {
-                return Err(WgpuError::UnboundResource { name: n.to_string(), detail: format!(" (in {space:?})") })
-            }
-        }
-    }
-    if layout.accumulation.is_none() || layout.target.is_none() {
-        return Err(WgpuError::UnboundResource {
-            name: format!("{ACCUMULATION_BUFFER} / {TARGET_UNIFORM}"),
-            detail: ": the generated entry point lacks them".into(),
-        });
-    }
-    Ok(layout)
-}
-
-/// The bytes of the `scene` uniform struct: each member's value at its WGSL offset.
-fn scene_uniform_bytes(layout: &UniformLayout, scene: &Scene) -> Result<Vec<u8>, WgpuError> {
-    let bindings = scene_bindings(scene);
-    let mut bytes = vec![0u8; layout.size as usize];
-    for (member, offset) in &layout.members {
-        let value = bindings.iter().find(|(n, _)| n == member).map(|(_, b)| b);
-        let words: Vec<u32> = match value {
-            Some(Binding::F32(x)) => vec![x.to_bits()],
-            Some(Binding::U32(x)) => vec![**x],
-            Some(Binding::Vec3(v)) => v.to_array().map(f32::to_bits).to_vec(),
-            Some(other) => {
-                return Err(WgpuError::UnboundResource {
-                    name: format!("{SCENE_UNIFORM}.{member}"),
-                    detail: format!(" as a uniform member (the Scene field is {})", other.dsl_type()),
-                })
-            }
-            None => {
-                return Err(WgpuError::UnboundResource {
-                    name: format!("{SCENE_UNIFORM}.{member}"),
-                    detail: String::new(),
-                })
-            }
-        };
-        let start = *offset as usize;
-        for (i, w) in words.iter().enumerate() {
-            bytes[start + 4 * i..start + 4 * i + 4].copy_from_slice(&w.to_le_bytes());
-        }
-    }
-    Ok(bytes)
-}
-
-/// One message of the shader compiler, at a generated line when it names one.
-struct Message {
-    text: String,
-    line: Option<u32>,
-}
-
-/// The messages with, under each that names a generated line, that line and the Rust location
-/// it was generated from.
-fn annotate_messages(messages: &[Message], generated: &Generated) -> String {
-    let mut out = String::new();
-    for m in messages {
-        out.push_str(m.text.trim_end());
-        out.push('\n');
-        let Some(n) = m.line else { continue };
-        if let Some(text) = generated.source.lines().nth((n as usize).saturating_sub(1)) {
-            out.push_str(&format!("    generated line {n}: {}\n", text.trim()));
-        }
-        if let Some(at) = generated.rust_location(n) {
-            out.push_str(&format!("    from {}:{}:{} (in {})\n", at.file, at.span.line, at.span.column, at.function));
-        }
-    }
-    out
-}
-
-/// Compiles the generated WGSL into a compute pipeline on `device` with `layout`. Errors carry
-/// wgpu's messages (naga's front end and validator, then the driver's pipeline creation), each
-/// with its generated line mapped back to the kernel's Rust source.
-pub async fn compile_pipeline(
-    device: &wgpu::Device,
-    generated: &Generated,
-    layout: Option<&wgpu::PipelineLayout>,
-) -> Result<wgpu::ComputePipeline, WgpuError> {
-    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("lightport path tracer"),
-        source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(&generated.source)),
-    });
-    let info = module.get_compilation_info().await;
-    let scope = scope.pop().await;
-    let errors: Vec<Message> = info
-        .messages
-        .iter()
-        .filter(|m| m.message_type == wgpu::CompilationMessageType::Error)
-        .map(|m| Message { text: m.message.clone(), line: m.location.map(|l| l.line_number) })
-        .collect();
-    if !errors.is_empty() || scope.is_some() {
-        let mut messages = errors;
-        if messages.is_empty() {
-            messages.push(Message { text: scope.map(|e| e.to_string()).unwrap_or_default(), line: None });
-        }
-        return Err(WgpuError::Compile { log: annotate_messages(&messages, generated) });
-    }
-    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some("lightport path tracer"),
-        layout,
-        module: &module,
-        entry_point: Some(ENTRY_POINT),
-        compilation_options: Default::default(),
-        cache: None,
-    });
-    if let Some(e) = scope.pop().await {
-        return Err(WgpuError::Compile {
-            log: format!("creating the compute pipeline (entry point `{ENTRY_POINT}`): {e}"),
-        });
-    }
-    Ok(pipeline)
 }
 
 /// The GPU objects a renderer draws with.
@@ -517,45 +352,10 @@ impl WgpuRenderer {
     }
 }
 
-/// The storage-buffer binding size the renderer works under.
-fn storage_limit(limits: &wgpu::Limits, options: &WgpuOptions) -> u64 {
-    let device = limits.max_storage_buffer_binding_size;
-    options.max_storage_buffer_binding_size.map_or(device, |m| m.min(device))
-}
-
-/// Checks the scene and the image against the device's limits.
-fn check_limits(
-    limits: &wgpu::Limits,
-    options: &WgpuOptions,
-    packed: &Packed,
-    layout: &ShaderLayout,
-) -> Result<[u32; 2], WgpuError> {
-    let binding_max = storage_limit(limits, options);
-    let buffer_max = limits.max_buffer_size;
-    let bindings = scene_bindings(&packed.scene);
-    for (field, _, _) in &layout.storage {
-        let texels = bindings.iter().find(|(n, _)| n == field).and_then(|(_, b)| b.texels()).unwrap_or(0);
-        let bytes = texels.max(1) as u64 * 16;
-        for (limit, max) in [("max_storage_buffer_binding_size", binding_max), ("max_buffer_size", buffer_max)] {
-            if bytes > max {
-                return Err(WgpuError::SceneTooLarge {
-                    array: format!("{SCENE_UNIFORM_PREFIX}{field}"),
-                    bytes,
-                    limit,
-                    max,
-                });
-            }
-        }
-    }
-    let storage_buffers = layout.storage.len() as u64 + 1;
-    let groups =
-        1 + layout.storage.iter().map(|s| s.1).chain([layout.accumulation.map_or(0, |a| a.0)]).max().unwrap_or(0)
-            as u64;
-    let uniform_size = layout.scene_uniform.as_ref().map_or(0, |u| u.size) as u64;
+/// Checks the renderer's workgroups and image against the device's limits; returns the
+/// dispatch size.
+fn check_image_limits(limits: &wgpu::Limits, options: &WgpuOptions, scene: &Scene) -> Result<[u32; 2], WgpuError> {
     for (limit, needed, max) in [
-        ("max_storage_buffers_per_shader_stage", storage_buffers, limits.max_storage_buffers_per_shader_stage as u64),
-        ("max_bind_groups", groups, limits.max_bind_groups as u64),
-        ("max_uniform_buffer_binding_size", uniform_size, limits.max_uniform_buffer_binding_size),
         ("max_compute_workgroup_size_x", WORKGROUP_SIZE[0] as u64, limits.max_compute_workgroup_size_x as u64),
         ("max_compute_workgroup_size_y", WORKGROUP_SIZE[1] as u64, limits.max_compute_workgroup_size_y as u64),
         (
@@ -568,9 +368,11 @@ fn check_limits(
             return Err(WgpuError::Unsupported { limit, needed, max });
         }
     }
-    let (width, height) = (packed.scene.width, packed.scene.height);
+    let (width, height) = (scene.width, scene.height);
     let pixels_bytes = width as u64 * height as u64 * 16;
-    for (limit, max) in [("max_storage_buffer_binding_size", binding_max), ("max_buffer_size", buffer_max)] {
+    let binding_max = storage_limit(limits, options);
+    for (limit, max) in [("max_storage_buffer_binding_size", binding_max), ("max_buffer_size", limits.max_buffer_size)]
+    {
         if pixels_bytes > max {
             return Err(WgpuError::ImageTooLarge {
                 width,
@@ -600,51 +402,13 @@ fn check_limits(
 /// Generates and compiles the shader, uploads the scene and creates the bind groups.
 async fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<Pipeline, WgpuError> {
     let generated = crate::kernel::path_tracer_shader(&packed.features, Target::Wgsl)?;
-    let layout = reflect(&generated)?;
-    let workgroups = check_limits(&device.limits, options, packed, &layout)?;
-    let d = &device.device;
+    let layout = reflect(&generated, &[ACCUMULATION_BUFFER, TARGET_UNIFORM])?;
     let scene = &packed.scene;
-    let bindings = scene_bindings(scene);
+    check_scene_limits(&device.limits, options, scene, &layout)?;
+    let workgroups = check_image_limits(&device.limits, options, scene)?;
+    let d = &device.device;
+    let (mut entries, scene_uniform) = upload_scene(d, &layout, scene)?;
 
-    // (group, binding, buffer, uniform?, read_only?)
-    let mut entries: Vec<(u32, u32, wgpu::Buffer, bool, bool)> = Vec::new();
-    let mut scene_uniform = None;
-    if let Some(u) = &layout.scene_uniform {
-        let buffer = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("scene uniforms"),
-            contents: &scene_uniform_bytes(u, scene)?,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        });
-        entries.push((u.group, u.binding, buffer.clone(), true, true));
-        scene_uniform = Some((buffer, u.clone()));
-    }
-    for (field, group, binding) in &layout.storage {
-        let contents: Cow<[u8]> = match bindings.iter().find(|(n, _)| n == field).map(|(_, b)| b) {
-            Some(Binding::Vec4s(t)) if !t.is_empty() => Cow::Borrowed(bytemuck::cast_slice(t.as_slice())),
-            Some(Binding::UVec4s(t)) if !t.is_empty() => Cow::Borrowed(bytemuck::cast_slice(t.as_slice())),
-            // An array the variant declares but the scene left empty: one zero texel (a
-            // binding cannot be empty).
-            Some(Binding::Vec4s(_) | Binding::UVec4s(_)) => Cow::Owned(vec![0u8; 16]),
-            Some(other) => {
-                return Err(WgpuError::UnboundResource {
-                    name: format!("{SCENE_UNIFORM_PREFIX}{field}"),
-                    detail: format!(" as a storage buffer (the Scene field is {})", other.dsl_type()),
-                })
-            }
-            None => {
-                return Err(WgpuError::UnboundResource {
-                    name: format!("{SCENE_UNIFORM_PREFIX}{field}"),
-                    detail: String::new(),
-                })
-            }
-        };
-        let buffer = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(field),
-            contents: &contents,
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        entries.push((*group, *binding, buffer, false, true));
-    }
     let (width, height) = (scene.width as u64, scene.height as u64);
     let accumulation = d.create_buffer(&wgpu::BufferDescriptor {
         label: Some(ACCUMULATION_BUFFER),
@@ -658,76 +422,20 @@ async fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> R
         usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
-    let (group, binding) = layout.accumulation.expect("checked by reflect");
-    entries.push((group, binding, accumulation.clone(), false, false));
-    let target = layout.target.as_ref().expect("checked by reflect");
-    let mut target_bytes = vec![0u8; target.size as usize];
-    for (member, offset) in &target.members {
-        let value = match member.as_str() {
-            "width" => scene.width,
-            "height" => scene.height,
-            other => {
-                return Err(WgpuError::UnboundResource {
-                    name: format!("{TARGET_UNIFORM}.{other}"),
-                    detail: String::new(),
-                })
-            }
-        };
-        target_bytes[*offset as usize..*offset as usize + 4].copy_from_slice(&value.to_le_bytes());
-    }
+    entries.push(BufferEntry::storage(layout.own(ACCUMULATION_BUFFER), accumulation.clone(), false));
+    let target = layout.own(TARGET_UNIFORM);
+    let target_bytes = u32_uniform_bytes(target, |member| match member {
+        "width" => Some(scene.width),
+        "height" => Some(scene.height),
+        _ => None,
+    })?;
     let target_buffer = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(TARGET_UNIFORM),
         contents: &target_bytes,
         usage: wgpu::BufferUsages::UNIFORM,
     });
-    entries.push((target.group, target.binding, target_buffer, true, true));
-
-    let group_count = entries.iter().map(|e| e.0).max().map_or(0, |g| g + 1);
-    let mut group_layouts = Vec::new();
-    let mut bind_groups = Vec::new();
-    for group in 0..group_count {
-        let members: Vec<&(u32, u32, wgpu::Buffer, bool, bool)> = entries.iter().filter(|e| e.0 == group).collect();
-        let layout_entries: Vec<wgpu::BindGroupLayoutEntry> = members
-            .iter()
-            .map(|(_, binding, _, uniform, read_only)| wgpu::BindGroupLayoutEntry {
-                binding: *binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: if *uniform {
-                        wgpu::BufferBindingType::Uniform
-                    } else {
-                        wgpu::BufferBindingType::Storage { read_only: *read_only }
-                    },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            })
-            .collect();
-        let group_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("lightport"),
-            entries: &layout_entries,
-        });
-        let group_entries: Vec<wgpu::BindGroupEntry> = members
-            .iter()
-            .map(|(_, binding, buffer, _, _)| wgpu::BindGroupEntry {
-                binding: *binding,
-                resource: buffer.as_entire_binding(),
-            })
-            .collect();
-        bind_groups.push(d.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("lightport"),
-            layout: &group_layout,
-            entries: &group_entries,
-        }));
-        group_layouts.push(group_layout);
-    }
-    let layout_refs: Vec<Option<&wgpu::BindGroupLayout>> = group_layouts.iter().map(Some).collect();
-    let pipeline_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some("lightport"),
-        bind_group_layouts: &layout_refs,
-        immediate_size: 0,
-    });
+    entries.push(BufferEntry::uniform(target, target_buffer));
+    let (bind_groups, pipeline_layout) = bind_groups(d, &entries);
     let pipeline = compile_pipeline(d, &generated, Some(&pipeline_layout)).await?;
     Ok(Pipeline { pipeline, bind_groups, scene_uniform, accumulation, readback, workgroups })
 }
@@ -744,12 +452,16 @@ mod tests {
         let scene = Scene::default();
         for features in [Features::all(), Features { emissive_triangles: true, ..Default::default() }] {
             let generated = crate::kernel::path_tracer_shader(&features, Target::Wgsl).expect("kernel");
-            let layout = reflect(&generated).expect("reflect");
+            let layout = reflect(&generated, &[ACCUMULATION_BUFFER, TARGET_UNIFORM]).expect("reflect");
             let uniform = layout.scene_uniform.as_ref().expect("scene uniform");
             scene_uniform_bytes(uniform, &scene).expect("every uniform member has a value");
             assert!(uniform.members.iter().any(|(n, _)| n == "frame_seed"));
         }
-        let all = reflect(&crate::kernel::path_tracer_shader(&Features::all(), Target::Wgsl).unwrap()).unwrap();
+        let all = reflect(
+            &crate::kernel::path_tracer_shader(&Features::all(), Target::Wgsl).unwrap(),
+            &[ACCUMULATION_BUFFER, TARGET_UNIFORM],
+        )
+        .unwrap();
         assert_eq!(all.storage.len(), 11, "{:?}", all.storage);
     }
 
@@ -758,7 +470,7 @@ mod tests {
     #[test]
     fn uniform_members_sit_at_wgsl_offsets() {
         let generated = crate::kernel::path_tracer_shader(&Features::all(), Target::Wgsl).unwrap();
-        let layout = reflect(&generated).unwrap();
+        let layout = reflect(&generated, &[ACCUMULATION_BUFFER, TARGET_UNIFORM]).unwrap();
         let u = layout.scene_uniform.unwrap();
         let offset = |name: &str| u.members.iter().find(|(n, _)| n == name).map(|(_, o)| *o);
         assert_eq!(offset("camera_position"), Some(0));

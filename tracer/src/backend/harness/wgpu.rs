@@ -1,0 +1,309 @@
+//! The wgpu runtime of the harness: codegen's WGSL harness is a compute shader (64 invocations
+//! per workgroup) in which invocation `i` reads its argument words from the storage buffer
+//! `lp_args` and writes its result words to `lp_results`, for `i < lp_count.n`. The scene is
+//! bound as the renderer binds it (group 0: the `scene` uniform and one read-only storage
+//! buffer per array), through the same reflection of the generated shader.
+
+use std::collections::{BTreeMap, HashMap};
+
+use lightport_codegen::{Program, Target};
+use wgpu::util::DeviceExt;
+
+use super::{generated_layout, harness_selection, Backend, HarnessError, Runtime};
+use crate::backend::gl::{scene_bindings, Binding};
+use crate::backend::wgpu::{
+    compile_pipeline, reflect, scene_uniform_bytes, u32_uniform_bytes, BufferEntry, ShaderLayout, WgpuDevice,
+    WgpuError, WgpuOptions,
+};
+use crate::kernel::scene_data::Scene;
+use crate::kernel::ShaderError;
+
+/// The storage buffer of the generated WGSL harness holding the arguments.
+pub const ARGS_BUFFER: &str = "lp_args";
+/// The storage buffer the generated WGSL harness writes its results to.
+pub const RESULTS_BUFFER: &str = "lp_results";
+/// The uniform holding the number of invocations.
+pub const COUNT_UNIFORM: &str = "lp_count";
+/// Invocations per workgroup of the generated harness (`@workgroup_size(64)`).
+pub const WORKGROUP_SIZE: u32 = 64;
+
+/// A compiled harness shader.
+struct HarnessShader {
+    pipeline: wgpu::ComputePipeline,
+    resources: ShaderLayout,
+    layout: lightport_codegen::Harness,
+}
+
+/// Kernel functions on a wgpu device through codegen's generated WGSL harness.
+pub struct WgpuHarness {
+    device: WgpuDevice,
+    program: Program,
+    specialize: BTreeMap<String, u32>,
+    /// The scene's uniforms and one storage buffer per non-empty array (uploaded once).
+    scene: Option<(Scene, HashMap<&'static str, wgpu::Buffer>)>,
+    shaders: HashMap<String, HarnessShader>,
+}
+
+impl WgpuHarness {
+    /// A harness on `device` for the functions of `program`.
+    pub fn new(device: WgpuDevice, program: Program) -> WgpuHarness {
+        WgpuHarness { device, program, specialize: BTreeMap::new(), scene: None, shaders: HashMap::new() }
+    }
+
+    /// A harness on its own native device (Vulkan, Metal or DX12).
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn headless(program: Program) -> Result<WgpuHarness, HarnessError> {
+        Ok(WgpuHarness::new(WgpuDevice::native()?, program))
+    }
+
+    /// The linked kernel program the harness shaders are generated from.
+    pub fn program(&self) -> &Program {
+        &self.program
+    }
+
+    pub fn device(&self) -> &WgpuDevice {
+        &self.device
+    }
+
+    /// Uploads `scene`'s arrays (replacing a previous scene's) for functions taking `&Scene`.
+    pub fn set_scene(&mut self, scene: &Scene) -> Result<(), HarnessError> {
+        let limits = &self.device.limits;
+        let max = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+        let mut buffers = HashMap::new();
+        for (name, binding) in scene_bindings(scene) {
+            let bytes: &[u8] = match &binding {
+                Binding::Vec4s(t) => bytemuck::cast_slice(t.as_slice()),
+                Binding::UVec4s(t) => bytemuck::cast_slice(t.as_slice()),
+                _ => continue,
+            };
+            if bytes.len() as u64 > max {
+                return Err(WgpuError::SceneTooLarge {
+                    array: format!("scene_{name}"),
+                    bytes: bytes.len() as u64,
+                    limit: "max_storage_buffer_binding_size",
+                    max,
+                }
+                .into());
+            }
+            // A binding cannot be empty: an array the scene left empty is one zero texel.
+            let contents = if bytes.is_empty() { &[0u8; 16][..] } else { bytes };
+            let buffer = self.device.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(name),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+            buffers.insert(name, buffer);
+        }
+        self.scene = Some((scene.clone(), buffers));
+        Ok(())
+    }
+
+    /// Specialises the harness shaders from now on as `Selection::specialize` does the kernel's.
+    pub fn set_specialization(&mut self, specialize: BTreeMap<String, u32>) {
+        if self.specialize != specialize {
+            self.specialize = specialize;
+            self.shaders.clear();
+        }
+    }
+
+    /// The generated harness layout of `function`, compiling its shader on first use.
+    pub fn layout(&mut self, function: &str) -> Result<lightport_codegen::Harness, HarnessError> {
+        Ok(self.shader_for(function)?.layout.clone())
+    }
+
+    fn shader_for(&mut self, function: &str) -> Result<&HarnessShader, HarnessError> {
+        if !self.shaders.contains_key(function) {
+            let compiled = self.compile(function)?;
+            self.shaders.insert(function.to_string(), compiled);
+        }
+        Ok(&self.shaders[function])
+    }
+
+    fn compile(&self, function: &str) -> Result<HarnessShader, HarnessError> {
+        let selection = harness_selection(function, &self.specialize);
+        let generated = self.program.emit(Target::Wgsl, &selection).map_err(ShaderError::from)?;
+        #[cfg(feature = "validate")]
+        lightport_codegen::validate::validate(&generated).map_err(ShaderError::from)?;
+        let layout = generated_layout(function, &generated)?;
+        let resources = reflect(&generated, &[ARGS_BUFFER, RESULTS_BUFFER, COUNT_UNIFORM])?;
+        let scene = self.scene.as_ref().map_or(&Scene::default(), |(s, _)| s).clone();
+        crate::backend::wgpu::check_scene_limits(&self.device.limits, &WgpuOptions::default(), &scene, &resources)?;
+        // The layout wgpu derives from the shader: bind groups are made from it per run.
+        let pipeline = pollster::block_on(compile_pipeline(&self.device.device, &generated, None))?;
+        Ok(HarnessShader { pipeline, resources, layout })
+    }
+
+    /// The scene's buffers a shader binds: its uniform (made for its layout) and arrays.
+    fn scene_entries(&self, function: &str, resources: &ShaderLayout) -> Result<Vec<BufferEntry>, HarnessError> {
+        let mut entries = Vec::new();
+        if resources.scene_uniform.is_none() && resources.storage.is_empty() {
+            return Ok(entries);
+        }
+        let Some((scene, buffers)) = &self.scene else {
+            let uniform = resources.storage.first().map_or("scene".to_string(), |s| format!("scene_{}", s.0));
+            return Err(HarnessError::NoScene { function: function.to_string(), uniform });
+        };
+        if let Some(u) = &resources.scene_uniform {
+            let buffer = self.device.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("scene uniforms"),
+                contents: &scene_uniform_bytes(u, scene)?,
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let ty = wgpu::BufferBindingType::Uniform;
+            entries.push(BufferEntry { group: u.group, binding: u.binding, buffer, ty });
+        }
+        for (field, group, binding) in &resources.storage {
+            let buffer = buffers.get(field.as_str()).ok_or_else(|| WgpuError::UnboundResource {
+                name: format!("scene_{field}"),
+                detail: " (not an array of the Scene)".into(),
+            })?;
+            let ty = wgpu::BufferBindingType::Storage { read_only: true };
+            entries.push(BufferEntry { group: *group, binding: *binding, buffer: buffer.clone(), ty });
+        }
+        Ok(entries)
+    }
+
+    /// Runs `function` on `invocations` argument sets given as words (`input_words` per
+    /// invocation, in the generated layout) and returns `output_words` per invocation.
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn run_words(&mut self, function: &str, invocations: usize, input: &[u32]) -> Result<Vec<u32>, HarnessError> {
+        self.shader_for(function)?;
+        let shader = &self.shaders[function];
+        let (in_words, out_words) = (shader.layout.input_words as usize, shader.layout.output_words as usize);
+        if input.len() != invocations * in_words {
+            return Err(HarnessError::Layout {
+                function: function.to_string(),
+                detail: format!("{} input words for {invocations} invocations of {in_words} words", input.len()),
+            });
+        }
+        let scene_entries = self.scene_entries(function, &shader.resources)?;
+        // Invocations per dispatch: within the workgroup count and the buffers' binding size.
+        let limits = &self.device.limits;
+        let binding_max = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+        let per_dispatch = (limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP_SIZE as u64)
+            .min(binding_max / (4 * in_words.max(1) as u64))
+            .min(binding_max / (4 * out_words.max(1) as u64))
+            .clamp(1, 1 << 20) as usize;
+        let mut output = Vec::with_capacity(invocations * out_words);
+        let mut start = 0;
+        while start < invocations {
+            let count = per_dispatch.min(invocations - start);
+            let words = &input[start * in_words..(start + count) * in_words];
+            output.extend(self.dispatch(function, shader, &scene_entries, count, words, out_words)?);
+            start += count;
+        }
+        Ok(output)
+    }
+
+    /// One dispatch of `count` invocations; returns their `out_words` result words each.
+    #[cfg(not(target_arch = "wasm32"))]
+    fn dispatch(
+        &self,
+        function: &str,
+        shader: &HarnessShader,
+        scene_entries: &[BufferEntry],
+        count: usize,
+        input: &[u32],
+        out_words: usize,
+    ) -> Result<Vec<u32>, HarnessError> {
+        let d = &self.device.device;
+        let r = &shader.resources;
+        let scope = d.push_error_scope(wgpu::ErrorFilter::Validation);
+        // A binding cannot be empty: at least one word each.
+        let args_bytes: &[u8] = if input.is_empty() { &[0u8; 4] } else { bytemuck::cast_slice(input) };
+        let args = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(ARGS_BUFFER),
+            contents: args_bytes,
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let results_size = (count * out_words.max(1) * 4) as u64;
+        let results = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(RESULTS_BUFFER),
+            size: results_size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let readback = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("harness readback"),
+            size: results_size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let count_bytes = u32_uniform_bytes(r.own(COUNT_UNIFORM), |m| (m == "n").then_some(count as u32))?;
+        let count_buffer = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(COUNT_UNIFORM),
+            contents: &count_bytes,
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let own = [
+            BufferEntry::storage(r.own(ARGS_BUFFER), args, true),
+            BufferEntry::storage(r.own(RESULTS_BUFFER), results.clone(), false),
+            BufferEntry::uniform(r.own(COUNT_UNIFORM), count_buffer),
+        ];
+        let entries: Vec<&BufferEntry> = scene_entries.iter().chain(&own).collect();
+        let groups = entries.iter().map(|e| e.group).max().map_or(0, |g| g + 1);
+        let bind_groups: Vec<wgpu::BindGroup> = (0..groups)
+            .map(|group| {
+                let members: Vec<wgpu::BindGroupEntry> = entries
+                    .iter()
+                    .filter(|e| e.group == group)
+                    .map(|e| wgpu::BindGroupEntry { binding: e.binding, resource: e.buffer.as_entire_binding() })
+                    .collect();
+                d.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("lightport harness"),
+                    layout: &shader.pipeline.get_bind_group_layout(group),
+                    entries: &members,
+                })
+            })
+            .collect();
+        let mut encoder = d.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("lightport harness"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&shader.pipeline);
+            for (i, group) in bind_groups.iter().enumerate() {
+                pass.set_bind_group(i as u32, group, &[]);
+            }
+            pass.dispatch_workgroups((count as u32).div_ceil(WORKGROUP_SIZE), 1, 1);
+        }
+        encoder.copy_buffer_to_buffer(&results, 0, &readback, 0, results_size);
+        self.device.queue.submit([encoder.finish()]);
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(WgpuError::Wgpu { what: "running the harness", detail: format!("`{function}`: {e}") }.into());
+        }
+        let slice = readback.slice(..);
+        let (sender, receiver) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |result| {
+            let _ = sender.send(result);
+        });
+        let failed = |e: String| WgpuError::Wgpu { what: "reading the harness results", detail: e };
+        d.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| failed(e.to_string()))?;
+        receiver.recv().map_err(|e| failed(e.to_string()))?.map_err(|e| failed(e.to_string()))?;
+        let words: Vec<u32> = {
+            let view = slice.get_mapped_range().map_err(|e| failed(e.to_string()))?;
+            bytemuck::pod_collect_to_vec(&view)
+        };
+        readback.unmap();
+        Ok(words[..count * out_words].to_vec())
+    }
+}
+
+impl Runtime for WgpuHarness {
+    fn backend(&self) -> Backend {
+        Backend::Wgpu
+    }
+    fn set_scene(&mut self, scene: &Scene) -> Result<(), HarnessError> {
+        WgpuHarness::set_scene(self, scene)
+    }
+    fn set_specialization(&mut self, specialize: BTreeMap<String, u32>) {
+        WgpuHarness::set_specialization(self, specialize)
+    }
+    fn layout(&mut self, function: &str) -> Result<lightport_codegen::Harness, HarnessError> {
+        WgpuHarness::layout(self, function)
+    }
+    fn run_words(&mut self, function: &str, invocations: usize, input: &[u32]) -> Result<Vec<u32>, HarnessError> {
+        WgpuHarness::run_words(self, function, invocations, input)
+    }
+}

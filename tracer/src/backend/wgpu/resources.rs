@@ -1,0 +1,390 @@
+//! What every wgpu entry point of the kernel shares: the generated shader's resource layout
+//! (read back with naga), the scene uploaded as a uniform and storage buffers, bind groups,
+//! limit checks, and compiling with errors at the kernel's Rust lines. The renderer
+//! ([`super::WgpuRenderer`]) and the equivalence harness
+//! ([`crate::backend::harness::WgpuHarness`]) are two entry points over them.
+
+use std::borrow::Cow;
+
+use lightport_codegen::Generated;
+use wgpu::util::DeviceExt;
+
+use super::{WgpuError, WgpuOptions, ENTRY_POINT, SCENE_UNIFORM};
+use crate::backend::gl::{scene_bindings, Binding, SCENE_UNIFORM_PREFIX};
+use crate::kernel::scene_data::Scene;
+
+/// Where each resource of the generated shader is bound, as the shader declares it: the
+/// scene's (shared by every kernel entry point) and the entry point's own.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct ShaderLayout {
+    /// The `scene` uniform: binding, size, and each member's (name, offset).
+    pub(crate) scene_uniform: Option<UniformLayout>,
+    /// (field name, group, binding) of every `scene_*` storage buffer.
+    pub(crate) storage: Vec<(String, u32, u32)>,
+    /// The entry point's own resources (e.g. the accumulation buffer), each named by the caller.
+    pub(crate) own: Vec<OwnResource>,
+}
+
+/// A resource of the entry point rather than of the scene.
+#[derive(Clone, Debug)]
+pub(crate) struct OwnResource {
+    pub(crate) name: String,
+    pub(crate) group: u32,
+    pub(crate) binding: u32,
+    /// The struct layout of a uniform; `None` for a storage buffer.
+    pub(crate) uniform: Option<UniformLayout>,
+}
+
+impl ShaderLayout {
+    /// The entry point's resource `name` (checked present by [`reflect`]).
+    pub(crate) fn own(&self, name: &str) -> &OwnResource {
+        self.own.iter().find(|r| r.name == name).expect("reflect checks that every own resource is declared")
+    }
+}
+
+#[derive(Clone, Debug)]
+pub(crate) struct UniformLayout {
+    pub(crate) group: u32,
+    pub(crate) binding: u32,
+    pub(crate) size: u32,
+    pub(crate) members: Vec<(String, u32)>,
+}
+
+/// Reads the resource layout of the generated shader with naga (the WGSL front end wgpu uses).
+/// `own` names the entry point's resources: each must be declared, and anything that is
+/// neither one of them nor scene data is an error.
+pub(crate) fn reflect(generated: &Generated, own: &[&str]) -> Result<ShaderLayout, WgpuError> {
+    let module = naga::front::wgsl::parse_str(&generated.source).map_err(|e| WgpuError::Compile {
+        log: annotate_messages(
+            &[Message {
+                text: e.emit_to_string(&generated.source),
+                line: e.location(&generated.source).map(|l| l.line_number),
+            }],
+            generated,
+        ),
+    })?;
+    let mut layout = ShaderLayout::default();
+    for (_, global) in module.global_variables.iter() {
+        let (Some(name), Some(binding)) = (&global.name, &global.binding) else { continue };
+        let uniform = || match &module.types[global.ty].inner {
+            naga::TypeInner::Struct { members, span } => Some(UniformLayout {
+                group: binding.group,
+                binding: binding.binding,
+                size: *span,
+                members: members.iter().map(|m| (m.name.clone().unwrap_or_default(), m.offset)).collect(),
+            }),
+            _ => None,
+        };
+        match (name.as_str(), global.space) {
+            (SCENE_UNIFORM, naga::AddressSpace::Uniform) => layout.scene_uniform = uniform(),
+            (n, space) if own.contains(&n) => layout.own.push(OwnResource {
+                name: n.to_string(),
+                group: binding.group,
+                binding: binding.binding,
+                uniform: if space == naga::AddressSpace::Uniform { uniform() } else { None },
+            }),
+            (n, naga::AddressSpace::Storage { access }) if n.starts_with(SCENE_UNIFORM_PREFIX) => {
+                if access.contains(naga::StorageAccess::STORE) {
+                    return Err(WgpuError::UnboundResource {
+                        name: n.to_string(),
+                        detail: " as a writable buffer (scene data is read-only)".into(),
+                    });
+                }
+                layout.storage.push((n[SCENE_UNIFORM_PREFIX.len()..].to_string(), binding.group, binding.binding));
+            }
+            (n, space) => {
+                return Err(WgpuError::UnboundResource { name: n.to_string(), detail: format!(" (in {space:?})") })
+            }
+        }
+    }
+    if let Some(missing) = own.iter().find(|n| !layout.own.iter().any(|r| r.name == **n)) {
+        return Err(WgpuError::UnboundResource {
+            name: missing.to_string(),
+            detail: ": the generated entry point lacks it".into(),
+        });
+    }
+    Ok(layout)
+}
+
+/// The bytes of the `scene` uniform struct: each member's value at its WGSL offset.
+pub(crate) fn scene_uniform_bytes(layout: &UniformLayout, scene: &Scene) -> Result<Vec<u8>, WgpuError> {
+    let bindings = scene_bindings(scene);
+    let mut bytes = vec![0u8; layout.size as usize];
+    for (member, offset) in &layout.members {
+        let value = bindings.iter().find(|(n, _)| n == member).map(|(_, b)| b);
+        let words: Vec<u32> = match value {
+            Some(Binding::F32(x)) => vec![x.to_bits()],
+            Some(Binding::U32(x)) => vec![**x],
+            Some(Binding::Vec3(v)) => v.to_array().map(f32::to_bits).to_vec(),
+            Some(other) => {
+                return Err(WgpuError::UnboundResource {
+                    name: format!("{SCENE_UNIFORM}.{member}"),
+                    detail: format!(" as a uniform member (the Scene field is {})", other.dsl_type()),
+                })
+            }
+            None => {
+                return Err(WgpuError::UnboundResource {
+                    name: format!("{SCENE_UNIFORM}.{member}"),
+                    detail: String::new(),
+                })
+            }
+        };
+        let start = *offset as usize;
+        for (i, w) in words.iter().enumerate() {
+            bytes[start + 4 * i..start + 4 * i + 4].copy_from_slice(&w.to_le_bytes());
+        }
+    }
+    Ok(bytes)
+}
+
+/// One message of the shader compiler, at a generated line when it names one.
+pub(crate) struct Message {
+    text: String,
+    line: Option<u32>,
+}
+
+/// The messages with, under each that names a generated line, that line and the Rust location
+/// it was generated from.
+pub(crate) fn annotate_messages(messages: &[Message], generated: &Generated) -> String {
+    let mut out = String::new();
+    for m in messages {
+        out.push_str(m.text.trim_end());
+        out.push('\n');
+        let Some(n) = m.line else { continue };
+        if let Some(text) = generated.source.lines().nth((n as usize).saturating_sub(1)) {
+            out.push_str(&format!("    generated line {n}: {}\n", text.trim()));
+        }
+        if let Some(at) = generated.rust_location(n) {
+            out.push_str(&format!("    from {}:{}:{} (in {})\n", at.file, at.span.line, at.span.column, at.function));
+        }
+    }
+    out
+}
+
+/// Compiles the generated WGSL into a compute pipeline on `device` with `layout`. Errors carry
+/// wgpu's messages (naga's front end and validator, then the driver's pipeline creation), each
+/// with its generated line mapped back to the kernel's Rust source.
+pub async fn compile_pipeline(
+    device: &wgpu::Device,
+    generated: &Generated,
+    layout: Option<&wgpu::PipelineLayout>,
+) -> Result<wgpu::ComputePipeline, WgpuError> {
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("lightport path tracer"),
+        source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(&generated.source)),
+    });
+    let info = module.get_compilation_info().await;
+    let scope = scope.pop().await;
+    let errors: Vec<Message> = info
+        .messages
+        .iter()
+        .filter(|m| m.message_type == wgpu::CompilationMessageType::Error)
+        .map(|m| Message { text: m.message.clone(), line: m.location.map(|l| l.line_number) })
+        .collect();
+    if !errors.is_empty() || scope.is_some() {
+        let mut messages = errors;
+        if messages.is_empty() {
+            messages.push(Message { text: scope.map(|e| e.to_string()).unwrap_or_default(), line: None });
+        }
+        return Err(WgpuError::Compile { log: annotate_messages(&messages, generated) });
+    }
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("lightport path tracer"),
+        layout,
+        module: &module,
+        entry_point: Some(ENTRY_POINT),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    if let Some(e) = scope.pop().await {
+        return Err(WgpuError::Compile {
+            log: format!("creating the compute pipeline (entry point `{ENTRY_POINT}`): {e}"),
+        });
+    }
+    Ok(pipeline)
+}
+
+/// The storage-buffer binding size the renderer works under.
+pub(crate) fn storage_limit(limits: &wgpu::Limits, options: &WgpuOptions) -> u64 {
+    let device = limits.max_storage_buffer_binding_size;
+    options.max_storage_buffer_binding_size.map_or(device, |m| m.min(device))
+}
+
+/// Checks the scene's arrays and the shader's resources against the device's limits.
+/// `storage_buffers` and `groups` count every storage buffer and bind group the shader uses.
+pub(crate) fn check_scene_limits(
+    limits: &wgpu::Limits,
+    options: &WgpuOptions,
+    scene: &Scene,
+    layout: &ShaderLayout,
+) -> Result<(), WgpuError> {
+    let binding_max = storage_limit(limits, options);
+    let buffer_max = limits.max_buffer_size;
+    let bindings = scene_bindings(scene);
+    for (field, _, _) in &layout.storage {
+        let texels = bindings.iter().find(|(n, _)| n == field).and_then(|(_, b)| b.texels()).unwrap_or(0);
+        let bytes = texels.max(1) as u64 * 16;
+        for (limit, max) in [("max_storage_buffer_binding_size", binding_max), ("max_buffer_size", buffer_max)] {
+            if bytes > max {
+                return Err(WgpuError::SceneTooLarge {
+                    array: format!("{SCENE_UNIFORM_PREFIX}{field}"),
+                    bytes,
+                    limit,
+                    max,
+                });
+            }
+        }
+    }
+    let own_storage = layout.own.iter().filter(|r| r.uniform.is_none()).count();
+    let storage_buffers = (layout.storage.len() + own_storage) as u64;
+    let groups =
+        1 + layout.storage.iter().map(|s| s.1).chain(layout.own.iter().map(|r| r.group)).max().unwrap_or(0) as u64;
+    let uniform_size = layout.scene_uniform.as_ref().map_or(0, |u| u.size) as u64;
+    for (limit, needed, max) in [
+        ("max_storage_buffers_per_shader_stage", storage_buffers, limits.max_storage_buffers_per_shader_stage as u64),
+        ("max_bind_groups", groups, limits.max_bind_groups as u64),
+        ("max_uniform_buffer_binding_size", uniform_size, limits.max_uniform_buffer_binding_size),
+    ] {
+        if needed > max {
+            return Err(WgpuError::Unsupported { limit, needed, max });
+        }
+    }
+    Ok(())
+}
+
+/// A buffer and where the shader binds it.
+pub(crate) struct BufferEntry {
+    pub(crate) group: u32,
+    pub(crate) binding: u32,
+    pub(crate) buffer: wgpu::Buffer,
+    pub(crate) ty: wgpu::BufferBindingType,
+}
+
+impl BufferEntry {
+    pub(crate) fn uniform(resource: &OwnResource, buffer: wgpu::Buffer) -> BufferEntry {
+        let ty = wgpu::BufferBindingType::Uniform;
+        BufferEntry { group: resource.group, binding: resource.binding, buffer, ty }
+    }
+
+    pub(crate) fn storage(resource: &OwnResource, buffer: wgpu::Buffer, read_only: bool) -> BufferEntry {
+        let ty = wgpu::BufferBindingType::Storage { read_only };
+        BufferEntry { group: resource.group, binding: resource.binding, buffer, ty }
+    }
+}
+
+/// The `scene` uniform's buffer and layout, kept for updates (the camera, the frame seed).
+pub(crate) type SceneUniform = (wgpu::Buffer, UniformLayout);
+
+/// Uploads the scene data the shader reads: the `scene` uniform (returned with its layout,
+/// for later updates) and one read-only storage buffer per array.
+pub(crate) fn upload_scene(
+    d: &wgpu::Device,
+    layout: &ShaderLayout,
+    scene: &Scene,
+) -> Result<(Vec<BufferEntry>, Option<SceneUniform>), WgpuError> {
+    let bindings = scene_bindings(scene);
+    let mut entries = Vec::new();
+    let mut scene_uniform = None;
+    if let Some(u) = &layout.scene_uniform {
+        let buffer = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("scene uniforms"),
+            contents: &scene_uniform_bytes(u, scene)?,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        });
+        let ty = wgpu::BufferBindingType::Uniform;
+        entries.push(BufferEntry { group: u.group, binding: u.binding, buffer: buffer.clone(), ty });
+        scene_uniform = Some((buffer, u.clone()));
+    }
+    for (field, group, binding) in &layout.storage {
+        let contents: Cow<[u8]> = match bindings.iter().find(|(n, _)| n == field).map(|(_, b)| b) {
+            Some(Binding::Vec4s(t)) if !t.is_empty() => Cow::Borrowed(bytemuck::cast_slice(t.as_slice())),
+            Some(Binding::UVec4s(t)) if !t.is_empty() => Cow::Borrowed(bytemuck::cast_slice(t.as_slice())),
+            // An array the variant declares but the scene left empty: one zero texel (a
+            // binding cannot be empty).
+            Some(Binding::Vec4s(_) | Binding::UVec4s(_)) => Cow::Owned(vec![0u8; 16]),
+            Some(other) => {
+                return Err(WgpuError::UnboundResource {
+                    name: format!("{SCENE_UNIFORM_PREFIX}{field}"),
+                    detail: format!(" as a storage buffer (the Scene field is {})", other.dsl_type()),
+                })
+            }
+            None => {
+                return Err(WgpuError::UnboundResource {
+                    name: format!("{SCENE_UNIFORM_PREFIX}{field}"),
+                    detail: String::new(),
+                })
+            }
+        };
+        let buffer = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(field),
+            contents: &contents,
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let ty = wgpu::BufferBindingType::Storage { read_only: true };
+        entries.push(BufferEntry { group: *group, binding: *binding, buffer, ty });
+    }
+    Ok((entries, scene_uniform))
+}
+
+/// The bind groups of `entries` (groups 0, 1, ... as the shader numbers them) and the
+/// pipeline layout they imply.
+pub(crate) fn bind_groups(d: &wgpu::Device, entries: &[BufferEntry]) -> (Vec<wgpu::BindGroup>, wgpu::PipelineLayout) {
+    let group_count = entries.iter().map(|e| e.group).max().map_or(0, |g| g + 1);
+    let mut group_layouts = Vec::new();
+    let mut groups = Vec::new();
+    for group in 0..group_count {
+        let members: Vec<&BufferEntry> = entries.iter().filter(|e| e.group == group).collect();
+        let layout_entries: Vec<wgpu::BindGroupLayoutEntry> = members
+            .iter()
+            .map(|e| wgpu::BindGroupLayoutEntry {
+                binding: e.binding,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer { ty: e.ty, has_dynamic_offset: false, min_binding_size: None },
+                count: None,
+            })
+            .collect();
+        let group_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("lightport"),
+            entries: &layout_entries,
+        });
+        let group_entries: Vec<wgpu::BindGroupEntry> = members
+            .iter()
+            .map(|e| wgpu::BindGroupEntry { binding: e.binding, resource: e.buffer.as_entire_binding() })
+            .collect();
+        groups.push(d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("lightport"),
+            layout: &group_layout,
+            entries: &group_entries,
+        }));
+        group_layouts.push(group_layout);
+    }
+    let layout_refs: Vec<Option<&wgpu::BindGroupLayout>> = group_layouts.iter().map(Some).collect();
+    let pipeline_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("lightport"),
+        bind_group_layouts: &layout_refs,
+        immediate_size: 0,
+    });
+    (groups, pipeline_layout)
+}
+
+/// The bytes of a uniform struct whose members are all `u32`, from `value` per member name.
+pub(crate) fn u32_uniform_bytes(
+    uniform: &OwnResource,
+    value: impl Fn(&str) -> Option<u32>,
+) -> Result<Vec<u8>, WgpuError> {
+    let layout = uniform.uniform.as_ref().ok_or_else(|| WgpuError::UnboundResource {
+        name: uniform.name.clone(),
+        detail: ": expected a uniform struct".into(),
+    })?;
+    let mut bytes = vec![0u8; layout.size as usize];
+    for (member, offset) in &layout.members {
+        let value = value(member).ok_or_else(|| WgpuError::UnboundResource {
+            name: format!("{}.{member}", uniform.name),
+            detail: String::new(),
+        })?;
+        bytes[*offset as usize..*offset as usize + 4].copy_from_slice(&value.to_le_bytes());
+    }
+    Ok(bytes)
+}
