@@ -1,0 +1,683 @@
+//! `lightport chart`: speed against accuracy. Each scene is rendered with each strategy (BSDF,
+//! NEE, MIS) on each backend (CPU, GL, wgpu, web) at 1, 2, 4, ... samples per pixel; each checkpoint's
+//! render time and error against a converged reference (RMSE and relMSE) go to a CSV and an SVG
+//! chart (error against time, log-log, with the −½ slope an unbiased estimator's RMSE follows).
+//!
+//! The reference is analytic where the scene has one (`furnace`, `sky-plane`); otherwise a long
+//! CPU MIS render with its own seed, cached as EXR under `--reference-dir` by a hash of
+//! everything it depends on (scene file bytes, sky file bytes and settings, image size, depth,
+//! samples, seed and the generated kernel source), with the key beside it in a `.txt` file
+//! that must match for the cache to be used.
+//!
+//! Times count rendering only (GL: up to `glFinish`; wgpu: until the queue is idle), not
+//! renderer creation, the driver's shader compile (a throwaway renderer draws one frame first),
+//! image read-back or the error computation.
+//!
+//! The web backend (`--backends web`) renders in the real web client: `lightport serve` serves
+//! the page and its wasm build, and `tests/web/run.mjs chart` drives headless Chromium (WebGL2 on
+//! SwiftShader here) through npm `playwright-core`, handing the page this chart's own bundle (the
+//! same packed data as the other backends) and reading the accumulation back at each checkpoint.
+//! The page times its frames itself (see [`web`]). Missing pieces (`web/pkg`, node, the npm
+//! driver, Chromium) skip the backend with a warning naming the command that installs them.
+
+use std::fmt::Write as _;
+use std::hash::{Hash, Hasher};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, ensure, Context, Result};
+use glam::Vec3;
+use tracer::backend::cpu::CpuRenderer;
+use tracer::backend::gl::GlRenderer;
+use tracer::backend::wgpu::WgpuRenderer;
+use tracer::backend::Image;
+use tracer::pack::{pack, Features, Packed, RenderSettings, Strategy};
+use tracer::scene::{self, Scene, Sky};
+
+/// Seed of reference renders: never the default seed of the charted renders, so that their
+/// errors are independent of the reference's.
+const REFERENCE_SEED: u32 = 0x7EF0_0001;
+/// Version of the reference cache key; bump when what a reference means changes.
+const CACHE_VERSION: u32 = 1;
+
+#[derive(clap::Args)]
+pub struct ChartArgs {
+    /// Scenes: `cornell`, `metal-rough-spheres` (built in), `furnace` (white furnace, analytic reference), `sky-plane`
+    /// (diffuse plane under a uniform sky, analytic), a stability scene (`tiny-bright-light`,
+    /// `large-light-close`, `sky-through-opening`, ...), or a .gltf/.glb/.obj/.fbx file. Default: cornell.
+    pub scenes: Vec<String>,
+    /// Equirectangular sky (.hdr or .exr) for every scene.
+    #[arg(long)]
+    pub sky: Option<PathBuf>,
+    /// Sky radiance multiplier.
+    #[arg(long, default_value_t = 1.0)]
+    pub sky_intensity: f32,
+    /// Image width and height.
+    #[arg(long, default_value_t = 64)]
+    pub size: u32,
+    /// Largest sample count per pixel; checkpoints at 1, 2, 4, ... up to it.
+    #[arg(long, default_value_t = 64)]
+    pub spp: u32,
+    /// Samples per pixel of reference renders (where no analytic one exists).
+    #[arg(long, default_value_t = 4096)]
+    pub reference_spp: u32,
+    /// Maximum path length in segments.
+    #[arg(long, default_value_t = 8)]
+    pub max_depth: u32,
+    /// Backends to chart (a backend that cannot start is skipped with a warning naming what is
+    /// missing).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ChartBackend::Cpu, ChartBackend::Gl, ChartBackend::Wgpu, ChartBackend::Web])]
+    pub backends: Vec<ChartBackend>,
+    /// Strategies to chart.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ChartStrategy::Bsdf, ChartStrategy::Nee, ChartStrategy::Mis])]
+    pub strategies: Vec<ChartStrategy>,
+    /// Where the CSV, SVG and equal-time PNG of each scene go.
+    #[arg(long, default_value = "target/lightport-chart")]
+    pub out_dir: PathBuf,
+    /// Cache of reference renders.
+    #[arg(long, default_value = "target/lightport-reference")]
+    pub reference_dir: PathBuf,
+    /// Seed of the charted renders.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u32,
+    /// Longest the web backend may take for one scene (browser start, page load and every
+    /// line), in seconds; past it the browser is closed and the web backend skipped.
+    #[arg(long, default_value_t = 1800.0)]
+    pub web_timeout: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ChartBackend {
+    Cpu,
+    /// OpenGL ES 3.0 through headless EGL (Mesa llvmpipe without a GPU).
+    Gl,
+    /// The WGSL kernel as a compute shader through wgpu (Vulkan; Mesa lavapipe without a GPU).
+    Wgpu,
+    /// WebGL2 in headless Chromium: the web client (`web/`) served by `lightport serve`.
+    Web,
+}
+
+impl ChartBackend {
+    fn name(self) -> &'static str {
+        match self {
+            ChartBackend::Cpu => "cpu",
+            ChartBackend::Gl => "gl",
+            ChartBackend::Wgpu => "wgpu",
+            ChartBackend::Web => "web",
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ChartStrategy {
+    Bsdf,
+    Nee,
+    Mis,
+}
+
+impl From<ChartStrategy> for Strategy {
+    fn from(s: ChartStrategy) -> Strategy {
+        match s {
+            ChartStrategy::Bsdf => Strategy::Bsdf,
+            ChartStrategy::Nee => Strategy::Nee,
+            ChartStrategy::Mis => Strategy::Mis,
+        }
+    }
+}
+
+/// A scene to chart, with how its reference is obtained.
+struct ChartScene {
+    /// File-name-safe name.
+    slug: String,
+    /// What identifies the scene's content in the reference cache key.
+    identity: String,
+    scene: Scene,
+    /// Exact pixel value everywhere, for scenes that have one at the given depth.
+    analytic: Option<Vec3>,
+}
+
+/// One measurement: a line (backend x strategy) at one sample count.
+#[derive(Clone, Debug)]
+struct Point {
+    backend: ChartBackend,
+    strategy: Strategy,
+    spp: u32,
+    seconds: f64,
+    rmse: f64,
+    rel_mse: f64,
+    rejected: u64,
+    image: Image,
+}
+
+/// Runs `lightport chart`.
+pub fn chart(args: &ChartArgs) -> Result<()> {
+    ensure!((1..=4096).contains(&args.size), "--size must be 1..=4096");
+    ensure!(args.spp >= 1 && args.reference_spp >= 1, "--spp and --reference-spp must be at least 1");
+    ensure!(args.max_depth >= 1, "--max-depth must be at least 1");
+    ensure!(!args.backends.is_empty() && !args.strategies.is_empty(), "nothing to chart");
+    ensure!(
+        args.web_timeout.is_finite() && args.web_timeout > 0.0 && args.web_timeout <= 86400.0,
+        "--web-timeout must be between 0 and 86400 seconds"
+    );
+    let names = if args.scenes.is_empty() { vec!["cornell".to_string()] } else { args.scenes.clone() };
+    std::fs::create_dir_all(&args.out_dir).with_context(|| format!("creating {}", args.out_dir.display()))?;
+    let kernel_hash = kernel_hash()?;
+    for name in &names {
+        let scene = chart_scene(name, args).with_context(|| format!("scene {name}"))?;
+        run_scene(&scene, args, kernel_hash).with_context(|| format!("charting {name}"))?;
+    }
+    Ok(())
+}
+
+fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
+    let depth = args.max_depth as i32;
+    let mut chart_scene = match name {
+        "cornell" => ChartScene::builtin(name, scene::cornell_box(), None),
+        "metal-rough-spheres" => ChartScene::builtin(name, scene::metal_rough_spheres(), None),
+        "furnace" => {
+            // Albedo a, emission E everywhere: a path of at most D segments collects
+            // E (1 + a + ... + a^(D-1)) whatever the strategy.
+            let (a, e) = (0.5f32, 1.0f32);
+            let exact = e * (1.0 - a.powi(depth)) / (1.0 - a);
+            ChartScene::builtin(name, scene::white_furnace(Vec3::splat(a), Vec3::splat(e)), Some(Vec3::splat(exact)))
+        }
+        "sky-plane" => {
+            let (albedo, sky) = (0.6f32, Vec3::new(1.0, 0.5, 0.25));
+            let mut s = scene::diffuse_plane(Vec3::splat(albedo));
+            s.sky = Some(Sky::uniform(sky));
+            // One bounce sees only the sky; it needs two segments.
+            let exact = (args.max_depth >= 2).then_some(albedo * sky);
+            ChartScene::builtin(name, s, exact)
+        }
+        _ => match scene::stability::stability_cases().into_iter().find(|c| c.name == name) {
+            Some(case) => ChartScene::builtin(name, case.scene, None),
+            None => {
+                let path = Path::new(name);
+                if !path.exists() {
+                    bail!(
+                        "{name} is neither a built-in scene (cornell, metal-rough-spheres, furnace, sky-plane, {}) nor an existing file",
+                        scene::stability::stability_cases().iter().map(|c| c.name).collect::<Vec<_>>().join(", ")
+                    );
+                }
+                let loaded = scene::load(path).with_context(|| format!("loading {}", path.display()))?;
+                for w in &loaded.warnings {
+                    eprintln!("warning: {w}");
+                }
+                let slug = path.file_stem().map_or("scene".into(), |s| slugify(&s.to_string_lossy()));
+                let identity = format!("file {} ({:016x})", path.display(), hash_file(path)?);
+                ChartScene { slug, identity, scene: loaded, analytic: None }
+            }
+        },
+    };
+    if let Some(sky_path) = &args.sky {
+        let sky = scene::load_sky(sky_path, args.sky_intensity, 0.0)
+            .with_context(|| format!("loading sky {}", sky_path.display()))?;
+        chart_scene.scene.sky = Some(sky);
+        chart_scene.analytic = None;
+        let stem = sky_path.file_stem().map_or("sky".into(), |s| slugify(&s.to_string_lossy()));
+        chart_scene.slug = format!("{}-{stem}", chart_scene.slug);
+        write!(
+            chart_scene.identity,
+            "; sky {} ({:016x}) x {}",
+            sky_path.display(),
+            hash_file(sky_path)?,
+            args.sky_intensity
+        )?;
+    }
+    Ok(chart_scene)
+}
+
+impl ChartScene {
+    fn builtin(name: &str, scene: Scene, analytic: Option<Vec3>) -> Self {
+        // Built-in scenes are identified by name: the kernel hash covers their generators only
+        // indirectly, so the cache version must be bumped when a generator changes.
+        ChartScene { slug: slugify(name), identity: format!("built-in {name}"), scene, analytic }
+    }
+}
+
+fn slugify(s: &str) -> String {
+    s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c.to_ascii_lowercase() } else { '-' }).collect()
+}
+
+fn hash_file(path: &Path) -> Result<u64> {
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    bytes.hash(&mut h);
+    Ok(h.finish())
+}
+
+/// Hash of the all-features kernel's generated GLSL: a change to the kernel changes it, which
+/// invalidates cached references.
+fn kernel_hash() -> Result<u64> {
+    let generated = tracer::kernel::path_tracer_shader(&Features::all(), lightport_codegen::Target::GlslEs300)
+        .context("generating the kernel")?;
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    generated.source.hash(&mut h);
+    Ok(h.finish())
+}
+
+fn packed_scene(scene: &Scene, args: &ChartArgs, strategy: Strategy) -> Result<Packed> {
+    let bvh = tracer::bvh::build(&scene.triangles).context("building the BVH")?;
+    let settings = RenderSettings { width: args.size, height: args.size, strategy, max_depth: args.max_depth };
+    pack(scene, &bvh, &settings).context("packing the scene")
+}
+
+/// The reference image and an estimate of its own mean squared error (0 when analytic).
+fn reference(scene: &ChartScene, args: &ChartArgs, kernel_hash: u64) -> Result<(Vec<Vec3>, f64, &'static str)> {
+    let pixels = (args.size * args.size) as usize;
+    if let Some(exact) = scene.analytic {
+        return Ok((vec![exact; pixels], 0.0, "analytic"));
+    }
+    let key = format!(
+        "lightport reference v{CACHE_VERSION}\nscene: {identity}\nsize: {size}x{size}\nmax_depth: {depth}\nspp: {spp}\n\
+         seed: {REFERENCE_SEED}\nstrategy: mis\nbackend: cpu\nkernel: {kernel_hash:016x}\n",
+        identity = scene.identity,
+        size = args.size,
+        depth = args.max_depth,
+        spp = args.reference_spp,
+    );
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    key.hash(&mut h);
+    let base = args.reference_dir.join(format!("{}-{:016x}", scene.slug, h.finish()));
+    let (exr, txt) = (base.with_extension("exr"), base.with_extension("txt"));
+    if let (Ok(stored), Ok(img)) = (std::fs::read_to_string(&txt), image::open(&exr)) {
+        // The key's lines, then the noise estimate.
+        if let Some(noise) = stored.strip_prefix(key.as_str()).and_then(|rest| rest.trim().strip_prefix("noise_mse: "))
+        {
+            let img = img.into_rgb32f();
+            if img.width() == args.size && img.height() == args.size {
+                let noise: f64 = noise.parse().context("reading the cached reference's noise")?;
+                let pixels = img.pixels().map(|p| Vec3::new(p[0], p[1], p[2])).collect();
+                return Ok((pixels, noise, "cached"));
+            }
+        }
+    }
+    let packed = packed_scene(&scene.scene, args, Strategy::Mis)?;
+    let mut r = CpuRenderer::new(packed, REFERENCE_SEED);
+    let bar = indicatif::ProgressBar::new(args.reference_spp as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} reference {msg} [{bar:30}] {pos}/{len} spp, eta {eta}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    bar.set_message(scene.slug.clone());
+    for _ in 0..args.reference_spp {
+        r.render_frame();
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let image = r.image();
+    ensure!(image.pixels.iter().all(|p| p.is_finite()), "the reference render is not finite");
+    // The reference's own MSE: the per-pixel variance of its mean.
+    let n = r.frames() as f64;
+    let noise = r.variance().iter().map(|v| v.as_dvec3().element_sum()).sum::<f64>() / (3.0 * pixels as f64) / n;
+    std::fs::create_dir_all(&args.reference_dir)
+        .with_context(|| format!("creating {}", args.reference_dir.display()))?;
+    tracer::output::write_image(&exr, &image, &tracer::output::Display::CLAMP)?;
+    std::fs::write(&txt, format!("{key}noise_mse: {noise:e}\n"))
+        .with_context(|| format!("writing {}", txt.display()))?;
+    Ok((image.pixels, noise, "rendered"))
+}
+
+/// Powers of two up to `max`, and `max`.
+fn checkpoints(max: u32) -> Vec<u32> {
+    let mut c: Vec<u32> = std::iter::successors(Some(1u32), |s| s.checked_mul(2)).take_while(|s| *s <= max).collect();
+    if c.last() != Some(&max) {
+        c.push(max);
+    }
+    c
+}
+
+/// The in-process backends behind one interface, for the measurement loop.
+/// Boxed: the renderers differ in size by kilobytes (the GPU ones carry their pipeline state).
+enum Renderer {
+    Cpu(Box<CpuRenderer>),
+    Gl(Box<GlRenderer>),
+    Wgpu(Box<WgpuRenderer>),
+}
+
+impl Renderer {
+    fn new(backend: ChartBackend, packed: Packed, seed: u32) -> Result<Renderer> {
+        Ok(match backend {
+            ChartBackend::Cpu => Renderer::Cpu(Box::new(CpuRenderer::new(packed, seed))),
+            ChartBackend::Gl => Renderer::Gl(Box::new(GlRenderer::headless(packed, seed)?)),
+            ChartBackend::Wgpu => Renderer::Wgpu(Box::new(WgpuRenderer::headless(packed, seed)?)),
+            ChartBackend::Web => bail!("the web backend renders in a browser (web::lines), not in this process"),
+        })
+    }
+
+    fn render_frame(&mut self) -> Result<()> {
+        match self {
+            Renderer::Cpu(r) => r.render_frame(),
+            Renderer::Gl(r) => r.render_frame()?,
+            Renderer::Wgpu(r) => r.render_frame()?,
+        }
+        Ok(())
+    }
+
+    /// Waits for queued work (GPU backends), so that a clock read after it is honest.
+    fn finish(&self) -> Result<()> {
+        match self {
+            Renderer::Cpu(_) => {}
+            Renderer::Gl(r) => r.finish()?,
+            Renderer::Wgpu(r) => r.finish()?,
+        }
+        Ok(())
+    }
+
+    fn image(&self) -> Result<(Image, u64)> {
+        Ok(match self {
+            Renderer::Cpu(r) => (r.image(), r.rejected_samples()),
+            Renderer::Gl(r) => (r.image()?, r.rejected_samples()?),
+            Renderer::Wgpu(r) => (r.image()?, r.rejected_samples()?),
+        })
+    }
+}
+
+/// Renders one line (backend x strategy) through every checkpoint.
+fn run_line(
+    packed: &Packed,
+    backend: ChartBackend,
+    strategy: Strategy,
+    args: &ChartArgs,
+    reference: &[Vec3],
+) -> Result<Vec<Point>> {
+    if backend != ChartBackend::Cpu {
+        // The driver compiles (JITs) the shader at the first draw; a throwaway renderer pays
+        // for it here, so the timed one does not.
+        let mut warm = Renderer::new(backend, packed.clone(), args.seed ^ 0xFFFF)?;
+        warm.render_frame()?;
+        warm.finish()?;
+    }
+    let mut r = Renderer::new(backend, packed.clone(), args.seed)?;
+    let mut points = Vec::new();
+    let mut elapsed = Duration::ZERO;
+    let mut frames = 0;
+    for spp in checkpoints(args.spp) {
+        let start = Instant::now();
+        while frames < spp {
+            r.render_frame()?;
+            frames += 1;
+        }
+        r.finish()?;
+        elapsed += start.elapsed();
+        let (image, rejected) = r.image()?;
+        points.push(Point {
+            backend,
+            strategy,
+            spp,
+            seconds: elapsed.as_secs_f64(),
+            rmse: tracer::stats::rmse(&image.pixels, reference)?,
+            rel_mse: tracer::stats::rel_mse(&image.pixels, reference)?,
+            rejected,
+            image,
+        });
+    }
+    Ok(points)
+}
+
+fn run_scene(scene: &ChartScene, args: &ChartArgs, kernel_hash: u64) -> Result<()> {
+    let (reference, noise_mse, source) = reference(scene, args, kernel_hash)?;
+    println!(
+        "{}: reference {source} ({}), its own RMSE ~ {:.2e}",
+        scene.slug,
+        if source == "analytic" { "exact".to_string() } else { format!("{} spp, CPU MIS", args.reference_spp) },
+        noise_mse.sqrt()
+    );
+    let mut packed = packed_scene(&scene.scene, args, Strategy::Mis)?;
+    let mut lines: Vec<Vec<Point>> = Vec::new();
+    for &backend in &args.backends {
+        if backend == ChartBackend::Web {
+            let strategies: Vec<Strategy> = args.strategies.iter().map(|&s| s.into()).collect();
+            match web::lines(&scene.slug, &packed, &strategies, args, &reference) {
+                Ok(web_lines) => lines.extend(web_lines),
+                Err(e) => eprintln!("warning: skipping the web backend: {e:#}"),
+            }
+            continue;
+        }
+        for &strategy in &args.strategies {
+            let strategy = Strategy::from(strategy);
+            packed.apply(&RenderSettings { width: args.size, height: args.size, strategy, max_depth: args.max_depth });
+            match run_line(&packed, backend, strategy, args, &reference) {
+                Ok(points) => lines.push(points),
+                Err(e) if backend != ChartBackend::Cpu => {
+                    eprintln!("warning: skipping the {} backend: {e:#}", backend.name());
+                    break;
+                }
+                Err(e) => return Err(e),
+            }
+        }
+    }
+    let csv = args.out_dir.join(format!("{}.csv", scene.slug));
+    std::fs::write(&csv, to_csv(&scene.slug, &lines, source)).with_context(|| format!("writing {}", csv.display()))?;
+    let svg = args.out_dir.join(format!("{}.svg", scene.slug));
+    let title =
+        format!("{}: {}x{}, max depth {}, reference {source}", scene.slug, args.size, args.size, args.max_depth);
+    draw_chart(&svg, &title, &lines).with_context(|| format!("drawing {}", svg.display()))?;
+    let png = args.out_dir.join(format!("{}-equal-time.png", scene.slug));
+    let labelled = args.out_dir.join(format!("{}-equal-time.svg", scene.slug));
+    let reference_label =
+        if source == "analytic" { "exact".to_string() } else { format!("{} spp · cpu mis", args.reference_spp) };
+    let crops = equal_time_strip(&png, &labelled, args.size, &reference, &reference_label, &lines)?;
+    print_summary(&lines);
+    println!(
+        "equal-time crops ({png}, labelled: {labelled}): reference, {crops}",
+        png = png.display(),
+        labelled = labelled.display()
+    );
+    println!("wrote {} and {}", csv.display(), svg.display());
+    Ok(())
+}
+
+fn to_csv(slug: &str, lines: &[Vec<Point>], reference: &str) -> String {
+    let mut out = String::from("scene,backend,strategy,spp,seconds,rmse,rel_mse,rejected_samples,reference\n");
+    for p in lines.iter().flatten() {
+        let _ = writeln!(
+            out,
+            "{slug},{},{},{},{:.6},{:.6e},{:.6e},{},{reference}",
+            p.backend.name(),
+            p.strategy.name(),
+            p.spp,
+            p.seconds,
+            p.rmse,
+            p.rel_mse,
+            p.rejected
+        );
+    }
+    out
+}
+
+/// Final checkpoint of each line: errors, fitted RMSE slope, and efficiency (1 / (MSE x time))
+/// relative to CPU MIS.
+fn print_summary(lines: &[Vec<Point>]) {
+    let last = |l: &Vec<Point>| l.last().cloned();
+    let baseline = lines
+        .iter()
+        .filter_map(last)
+        .find(|p| p.backend == ChartBackend::Cpu && p.strategy == Strategy::Mis)
+        .map(|p| p.rmse * p.rmse * p.seconds);
+    println!("| backend | strategy | spp | seconds | RMSE | relMSE | RMSE slope vs time | efficiency vs cpu mis |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for l in lines {
+        let Some(p) = last(l) else { continue };
+        let slope = tracer::stats::log_log_slope(&l.iter().map(|p| (p.seconds, p.rmse)).collect::<Vec<_>>());
+        let efficiency = baseline.map_or("-".into(), |b| format!("{:.2}", b / (p.rmse * p.rmse * p.seconds)));
+        println!(
+            "| {} | {} | {} | {:.3} | {:.3e} | {:.3e} | {} | {efficiency} |",
+            p.backend.name(),
+            p.strategy.name(),
+            p.spp,
+            p.seconds,
+            p.rmse,
+            p.rel_mse,
+            slope.map_or("-".into(), |s| format!("{s:.2}")),
+        );
+        if p.rejected > 0 {
+            println!("  ({} non-finite samples were dropped)", p.rejected);
+        }
+    }
+}
+
+mod plot;
+mod web;
+
+use plot::{draw_chart, equal_time_strip};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn checkpoints_double_and_end_at_the_maximum() {
+        assert_eq!(checkpoints(1), vec![1]);
+        assert_eq!(checkpoints(8), vec![1, 2, 4, 8]);
+        assert_eq!(checkpoints(12), vec![1, 2, 4, 8, 12]);
+    }
+
+    fn args(scenes: &[&str], out: &Path) -> ChartArgs {
+        ChartArgs {
+            scenes: scenes.iter().map(|s| s.to_string()).collect(),
+            sky: None,
+            sky_intensity: 1.0,
+            size: 8,
+            spp: 16,
+            reference_spp: 8,
+            max_depth: 4,
+            backends: vec![ChartBackend::Cpu],
+            strategies: vec![ChartStrategy::Bsdf, ChartStrategy::Nee, ChartStrategy::Mis],
+            out_dir: out.join("chart"),
+            reference_dir: out.join("reference"),
+            seed: 1,
+            web_timeout: 60.0,
+        }
+    }
+
+    #[test]
+    fn the_furnace_chart_has_every_line_and_its_error_falls() {
+        let dir = std::env::temp_dir().join(format!("lightport-chart-test-{}", std::process::id()));
+        let a = args(&["furnace"], &dir);
+        chart(&a).unwrap();
+        let csv = std::fs::read_to_string(a.out_dir.join("furnace.csv")).unwrap();
+        let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+        assert_eq!(rows.len(), 3 * 5, "3 strategies x checkpoints 1, 2, 4, 8, 16:\n{csv}");
+        for strategy in ["bsdf", "nee", "mis"] {
+            let line: Vec<&Vec<&str>> = rows.iter().filter(|r| r[2] == strategy).collect();
+            let rmse = |r: &Vec<&str>| r[5].parse::<f64>().unwrap();
+            assert!(line.iter().all(|r| r[8] == "analytic" && r[7] == "0" && rmse(r).is_finite()));
+            // 16x the samples: the RMSE of an unbiased estimate against the exact value falls
+            // 4x (to 0.25, ± ~0.03 over these 192 values). A bias (a wrong reference, a
+            // sampler that stopped converging) keeps it higher.
+            assert!(rmse(line[4]) < 0.35 * rmse(line[0]), "{strategy}: {csv}");
+        }
+        let svg = std::fs::read_to_string(a.out_dir.join("furnace.svg")).unwrap();
+        assert!(svg.starts_with("<svg") && svg.contains("mis cpu") && svg.contains("slope"));
+        assert!(a.out_dir.join("furnace-equal-time.png").exists());
+        let crops = std::fs::read_to_string(a.out_dir.join("furnace-equal-time.svg")).unwrap();
+        for label in ["reference", "exact", "bsdf · cpu", "nee · cpu", "mis · cpu", " spp · "] {
+            assert!(crops.contains(label), "the equal-time SVG labels {label:?}");
+        }
+        assert_eq!(crops.matches("data:image/png;base64,").count(), 4, "the reference and 3 crops");
+        let _ = std::fs::remove_dir_all(dir);
+    }
+
+    /// The GPU backends chart the same analytic scene: lines for GL and wgpu whose error falls
+    /// as the CPU's does (a backend that rendered another image, or did not accumulate, would
+    /// keep its error).
+    #[test]
+    fn gpu_backends_chart_the_furnace_too() {
+        let dir = std::env::temp_dir().join(format!("lightport-chart-gpu-test-{}", std::process::id()));
+        let mut a = args(&["furnace"], &dir);
+        a.backends = vec![ChartBackend::Gl, ChartBackend::Wgpu];
+        a.strategies = vec![ChartStrategy::Mis];
+        chart(&a).unwrap();
+        let csv = std::fs::read_to_string(a.out_dir.join("furnace.csv")).unwrap();
+        let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+        for backend in ["gl", "wgpu"] {
+            let line: Vec<&Vec<&str>> = rows.iter().filter(|r| r[1] == backend).collect();
+            assert_eq!(line.len(), 5, "{backend}: checkpoints 1, 2, 4, 8, 16:\n{csv}");
+            let rmse = |r: &Vec<&str>| r[5].parse::<f64>().unwrap();
+            assert!(line.iter().all(|r| r[7] == "0" && rmse(r).is_finite()), "{csv}");
+            assert!(rmse(line[4]) < 0.35 * rmse(line[0]), "{backend}: {csv}");
+        }
+        let svg = std::fs::read_to_string(a.out_dir.join("furnace.svg")).unwrap();
+        assert!(svg.contains("mis gl") && svg.contains("mis wgpu"));
+        let _ = std::fs::remove_dir_all(dir);
+    }
+
+    #[test]
+    fn references_are_cached_under_their_settings() {
+        let dir = std::env::temp_dir().join(format!("lightport-chart-cache-{}", std::process::id()));
+        let mut a = args(&["cornell"], &dir);
+        let scene = chart_scene("cornell", &a).unwrap();
+        let (first, _, source) = reference(&scene, &a, 1).unwrap();
+        assert_eq!(source, "rendered");
+        let (again, _, source) = reference(&scene, &a, 1).unwrap();
+        assert_eq!((source, &again), ("cached", &first));
+        // Another kernel or sample count is another reference.
+        assert_eq!(reference(&scene, &a, 2).unwrap().2, "rendered");
+        a.reference_spp = 4;
+        assert_eq!(reference(&scene, &a, 1).unwrap().2, "rendered");
+        let _ = std::fs::remove_dir_all(dir);
+    }
+
+    #[test]
+    fn unknown_scenes_and_bad_settings_are_errors() {
+        let dir = std::env::temp_dir();
+        let e = chart(&args(&["no-such-scene"], &dir)).unwrap_err();
+        assert!(format!("{e:#}").contains("neither a built-in scene"), "{e:#}");
+        let mut a = args(&["cornell"], &dir);
+        a.spp = 0;
+        assert!(chart(&a).is_err());
+    }
+
+    /// A driver report for one strategy at 2x2, checkpoints 1 and 2, whose accumulation is
+    /// `value` per sample.
+    fn report(value: f64) -> serde_json::Value {
+        let data = |spp: f64| (0..4).flat_map(|_| [value * spp, value * spp, value * spp, spp]).collect::<Vec<f64>>();
+        serde_json::json!({
+            "gl": { "renderer": "test", "version": "test" },
+            "warmUpMs": 1.0,
+            "lines": [{ "strategy": "mis", "points": [
+                { "spp": 1, "ms": 2.0, "width": 2, "height": 2, "data": data(1.0) },
+                { "spp": 2, "ms": 5.0, "width": 2, "height": 2, "data": data(2.0) },
+            ]}],
+        })
+    }
+
+    #[test]
+    fn web_reports_become_points_and_bad_ones_errors() {
+        let reference = vec![Vec3::splat(0.5); 4];
+        let lines = web::from_report(&report(0.5), &[Strategy::Mis], 2, &[1, 2], &reference).unwrap();
+        let line = &lines[0];
+        assert_eq!(line.iter().map(|p| (p.spp, p.seconds)).collect::<Vec<_>>(), [(1, 0.002), (2, 0.005)]);
+        assert!(line.iter().all(|p| p.rmse == 0.0 && p.rejected == 0 && p.backend == ChartBackend::Web));
+        let off = web::from_report(&report(0.75), &[Strategy::Mis], 2, &[1, 2], &reference).unwrap();
+        assert!((off[0][1].rmse - 0.25).abs() < 1e-6, "the mean of the sums is compared: {}", off[0][1].rmse);
+
+        let refused = |report: serde_json::Value, strategies: &[Strategy], size: u32, spp: &[u32]| {
+            format!(
+                "{:#}",
+                web::from_report(&report, strategies, size, spp, &reference[..(size * size) as usize]).unwrap_err()
+            )
+        };
+        let mut error = report(0.5);
+        error["error"] = "no WebGL2".into();
+        assert!(refused(error, &[Strategy::Mis], 2, &[1, 2]).contains("the page reported: no WebGL2"));
+        assert!(refused(report(0.5), &[Strategy::Nee], 2, &[1, 2]).contains("reported for nee"));
+        assert!(refused(report(0.5), &[Strategy::Mis], 2, &[1, 4]).contains("says 2 spp"));
+        assert!(refused(report(0.5), &[Strategy::Mis], 1, &[1, 2]).contains("not 1x1"));
+        assert!(refused(report(0.5), &[Strategy::Mis, Strategy::Bsdf], 2, &[1, 2]).contains("1 lines reported"));
+        let mut short = report(0.5);
+        short["lines"][0]["points"][1]["data"] = serde_json::json!([1.0, 2.0]);
+        assert!(refused(short, &[Strategy::Mis], 2, &[1, 2]).contains("2 values for 4 RGBA pixels"));
+        let mut no_time = report(0.5);
+        no_time["lines"][0]["points"][0]["ms"] = serde_json::Value::Null;
+        assert!(refused(no_time, &[Strategy::Mis], 2, &[1, 2]).contains("no render time"));
+        assert!(refused(serde_json::json!({}), &[Strategy::Mis], 2, &[1, 2]).contains("no lines"));
+    }
+
+    #[test]
+    fn slugs_are_file_name_safe() {
+        assert_eq!(slugify("Box Textured/x.y"), "box-textured-x-y");
+    }
+}
