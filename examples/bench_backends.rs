@@ -1,18 +1,26 @@
-//! GL vs CPU backend throughput (samples per second), measured in the same run on the same
-//! packed scenes, printed as a table with the ratio GL / CPU.
+//! CPU, GL and wgpu backend throughput (samples per second), measured in the same run on the same
+//! packed scenes, printed as a table of medians and ratios.
 //!
 //! ```sh
-//! cargo run --release --example bench_backends [-- FRAMES] [--size N]
+//! cargo run --release --example bench_backends [-- FRAMES] [--size N] [--rounds R]
 //! ```
 //!
-//! Each backend renders one untimed warm-up frame (the GL driver compiles its shader on the
-//! first draw), then FRAMES frames (default 8) timed with `glFinish` before and after.
-//! `--size N` renders both scenes at NxN (default: the Cornell box at 256x256, LittlestTokyo at
-//! 128x128; a GPU wants more pixels per draw to be busy).
+//! Every renderer is created once and renders one untimed warm-up frame (drivers compile their
+//! shaders on the first draw). Then R rounds (default 5) time FRAMES frames (default 8) on each
+//! renderer, waiting for the device before and after; the order of the renderers rotates from
+//! round to round, so that a noisy neighbour on a shared machine hits every column alike. The
+//! table gives each renderer's median and the ratios of medians.
 //!
-//! The last column times the GL backend again with `leaf_stack_limit` 0: the same shader, but
-//! `trace_closest` intersects every leaf as soon as its node is hit instead of pushing it (the
-//! traversal order `tracer::pack` falls back to for trees whose leaves would not fit the stack).
+//! `--size N` renders both scenes at NxN (default: the Cornell box at 256x256, LittlestTokyo at
+//! 128x128; a GPU wants more pixels per dispatch to be busy, e.g. `--size 1024`).
+//!
+//! Columns beyond the backends:
+//! - **sized / 64**: the kernel with its traversal stack sized to the scene (`Features::
+//!   traversal_stack`, a specialisation constant) against the same kernel with 64 entries, on
+//!   GL and on wgpu.
+//! - **GL, leaves at once / pushed**: `leaf_stack_limit` 0, i.e. `trace_closest` intersects every
+//!   leaf as soon as its node is hit instead of pushing it (the traversal order `tracer::pack`
+//!   falls back to for trees whose leaves would not fit the stack).
 
 use std::path::Path;
 use std::time::Instant;
@@ -20,15 +28,108 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use tracer::backend::cpu::CpuRenderer;
 use tracer::backend::gl::GlRenderer;
+use tracer::backend::wgpu::WgpuRenderer;
 use tracer::pack::{pack, Packed, RenderSettings, Strategy};
 
-struct Row {
-    scene: String,
-    size: u32,
-    triangles: usize,
-    cpu: f64,
-    gl: f64,
-    gl_leaves_at_once: f64,
+/// One renderer under test.
+enum Renderer {
+    Cpu(Box<CpuRenderer>),
+    Gl(Box<GlRenderer>),
+    Wgpu(Box<WgpuRenderer>),
+}
+
+impl Renderer {
+    /// Renders `frames` frames and returns samples per second; waits for the device first.
+    fn samples_per_second(&mut self, frames: u32) -> Result<f64> {
+        self.finish()?;
+        let t = Instant::now();
+        for _ in 0..frames {
+            match self {
+                Renderer::Cpu(r) => r.render_frame(),
+                Renderer::Gl(r) => r.render_frame()?,
+                Renderer::Wgpu(r) => r.render_frame()?,
+            }
+        }
+        self.finish()?;
+        let seconds = t.elapsed().as_secs_f64();
+        let p = self.packed();
+        Ok(frames as f64 * p.scene.width as f64 * p.scene.height as f64 / seconds)
+    }
+
+    fn finish(&self) -> Result<()> {
+        match self {
+            Renderer::Cpu(_) => {}
+            Renderer::Gl(r) => r.finish()?,
+            Renderer::Wgpu(r) => r.finish()?,
+        }
+        Ok(())
+    }
+
+    fn packed(&self) -> &Packed {
+        match self {
+            Renderer::Cpu(r) => r.packed(),
+            Renderer::Gl(r) => r.packed(),
+            Renderer::Wgpu(r) => r.packed(),
+        }
+    }
+
+    /// A GPU backend that dropped non-finite samples measured something else than the kernel.
+    fn check(&self) -> Result<()> {
+        let rejected = match self {
+            Renderer::Cpu(_) => 0,
+            Renderer::Gl(r) => r.rejected_samples()?,
+            Renderer::Wgpu(r) => r.rejected_samples()?,
+        };
+        anyhow::ensure!(rejected == 0, "a backend dropped {rejected} non-finite samples");
+        Ok(())
+    }
+}
+
+/// The columns, in the order renderers are created.
+const COLUMNS: [&str; 6] = ["CPU", "GL", "GL, 64-entry stack", "GL, leaves at once", "wgpu", "wgpu, 64-entry stack"];
+
+fn renderers(p: &Packed) -> Result<Vec<Renderer>> {
+    let mut stack_64 = p.clone();
+    stack_64.features.traversal_stack = 0; // no specialisation: the kernel's own 64 entries
+    let mut at_once = p.clone();
+    at_once.scene.leaf_stack_limit = 0;
+    Ok(vec![
+        Renderer::Cpu(Box::new(CpuRenderer::new(p.clone(), 0))),
+        Renderer::Gl(Box::new(GlRenderer::headless(p.clone(), 0)?)),
+        Renderer::Gl(Box::new(GlRenderer::headless(stack_64.clone(), 0)?)),
+        Renderer::Gl(Box::new(GlRenderer::headless(at_once, 0)?)),
+        Renderer::Wgpu(Box::new(WgpuRenderer::headless(p.clone(), 0)?)),
+        Renderer::Wgpu(Box::new(WgpuRenderer::headless(stack_64, 0)?)),
+    ])
+}
+
+/// Median samples per second of each renderer over `rounds` rotated rounds.
+fn measure(renderers: &mut [Renderer], frames: u32, rounds: usize) -> Result<Vec<f64>> {
+    for r in renderers.iter_mut() {
+        r.samples_per_second(1)?; // warm-up: shader compilation, first uploads
+    }
+    let n = renderers.len();
+    let mut samples = vec![Vec::with_capacity(rounds); n];
+    for round in 0..rounds {
+        for k in 0..n {
+            let i = (round + k) % n;
+            samples[i].push(renderers[i].samples_per_second(frames)?);
+        }
+    }
+    for r in renderers.iter() {
+        r.check()?;
+    }
+    Ok(samples.into_iter().map(median).collect())
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let m = v.len() / 2;
+    if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        (v[m - 1] + v[m]) / 2.0
+    }
 }
 
 fn packed(scene: &tracer::scene::Scene, size: u32) -> Result<Packed> {
@@ -37,80 +138,60 @@ fn packed(scene: &tracer::scene::Scene, size: u32) -> Result<Packed> {
     Ok(pack(scene, &bvh, &settings)?)
 }
 
-/// Samples per second of the CPU backend.
-fn time_cpu(p: &Packed, frames: u32) -> f64 {
-    let mut r = CpuRenderer::new(p.clone(), 0);
-    r.render_frame();
-    let t = Instant::now();
-    for _ in 0..frames {
-        r.render_frame();
+fn value_of(args: &[String], flag: &str) -> Result<Option<u32>> {
+    match args.iter().position(|a| a == flag) {
+        Some(i) => Ok(Some(
+            args.get(i + 1).with_context(|| format!("{flag} needs a value"))?.parse().context(flag.to_string())?,
+        )),
+        None => Ok(None),
     }
-    let pixels = p.scene.width as f64 * p.scene.height as f64;
-    frames as f64 * pixels / t.elapsed().as_secs_f64()
-}
-
-/// Samples per second of the GL backend.
-fn time_gl(p: &Packed, frames: u32) -> Result<(f64, String)> {
-    let mut r = GlRenderer::headless(p.clone(), 0)?;
-    r.render_frame()?;
-    r.finish()?;
-    let t = Instant::now();
-    for _ in 0..frames {
-        r.render_frame()?;
-    }
-    r.finish()?;
-    let seconds = t.elapsed().as_secs_f64();
-    anyhow::ensure!(r.rejected_samples()? == 0, "the GL backend dropped non-finite samples");
-    let pixels = p.scene.width as f64 * p.scene.height as f64;
-    Ok((frames as f64 * pixels / seconds, r.info().renderer.clone()))
 }
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let size: Option<u32> = match args.iter().position(|a| a == "--size") {
-        Some(i) => Some(args.get(i + 1).context("--size needs a value")?.parse().context("--size")?),
-        None => None,
-    };
+    let size = value_of(&args, "--size")?;
+    let rounds = value_of(&args, "--rounds")?.unwrap_or(5).max(1) as usize;
     let frames: u32 =
         args.first().filter(|a| !a.starts_with("--")).map(|a| a.parse()).transpose().context("FRAMES")?.unwrap_or(8);
     let tokyo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/threejs/LittlestTokyo.glb");
     let scenes = [
-        ("Cornell box".to_string(), tracer::scene::cornell_box(), size.unwrap_or(256)),
-        (
-            "LittlestTokyo".to_string(),
-            tracer::scene::load(&tokyo).context("loading LittlestTokyo")?,
-            size.unwrap_or(128),
-        ),
+        ("Cornell box", tracer::scene::cornell_box(), size.unwrap_or(256)),
+        ("LittlestTokyo", tracer::scene::load(&tokyo).context("loading LittlestTokyo")?, size.unwrap_or(128)),
     ];
-    let mut rows = Vec::new();
-    let mut renderer = String::new();
+    let mut table = Vec::new();
+    let mut devices = String::new();
     for (name, scene, size) in scenes {
         let p = packed(&scene, size)?;
-        let cpu = time_cpu(&p, frames);
-        let (gl, r) = time_gl(&p, frames)?;
-        renderer = r;
-        let mut at_once = p.clone();
-        at_once.scene.leaf_stack_limit = 0;
-        let (gl_leaves_at_once, _) = time_gl(&at_once, frames)?;
-        rows.push(Row { scene: name, size, triangles: p.triangle_count, cpu, gl, gl_leaves_at_once });
+        let mut rs = renderers(&p)?;
+        if let (Renderer::Gl(gl), Renderer::Wgpu(wgpu)) = (&rs[1], &rs[4]) {
+            devices = format!("GL: {}; wgpu: {} ({})", gl.info().renderer, wgpu.info().adapter, wgpu.info().backend);
+        }
+        let m = measure(&mut rs, frames, rounds)?;
+        table.push((name, size, p.triangle_count, p.features.traversal_stack, m));
     }
     println!(
-        "{frames} frames, MIS, max depth 8; CPU: {} threads; GL: {renderer}",
+        "{frames} frames x {rounds} rounds (medians), MIS, max depth 8; CPU: {} threads; {devices}",
         std::thread::available_parallelism().map_or(1, |n| n.get())
     );
-    println!("| scene | size | triangles | CPU Msamples/s | GL Msamples/s | GL / CPU | GL, leaves at once / pushed |");
-    println!("|---|---|---|---|---|---|---|");
-    for r in rows {
+    println!("columns: {}", COLUMNS.join(", "));
+    println!(
+        "| scene | size | triangles | stack | CPU Ms/s | GL Ms/s | wgpu Ms/s | GL / CPU | wgpu / CPU | wgpu / GL \
+         | GL sized / 64 | wgpu sized / 64 | GL leaves at once / pushed |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for (name, size, triangles, stack, m) in table {
+        let [cpu, gl, gl_64, gl_at_once, wgpu, wgpu_64] = m[..] else { unreachable!("one median per column") };
         println!(
-            "| {} | {}x{} | {} | {:.3} | {:.3} | {:.2} | {:.2} |",
-            r.scene,
-            r.size,
-            r.size,
-            r.triangles,
-            r.cpu / 1e6,
-            r.gl / 1e6,
-            r.gl / r.cpu,
-            r.gl_leaves_at_once / r.gl
+            "| {name} | {size}x{size} | {triangles} | {stack} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            cpu / 1e6,
+            gl / 1e6,
+            wgpu / 1e6,
+            gl / cpu,
+            wgpu / cpu,
+            wgpu / gl,
+            gl / gl_64,
+            wgpu / wgpu_64,
+            gl_at_once / gl,
         );
     }
     Ok(())
