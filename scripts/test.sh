@@ -62,10 +62,10 @@ step "tests"
 # afterwards is found (scripts/leftover-processes.sh), whether the tests passed or not.
 session="$$-$(date +%s%N)"
 status=0
-LIGHTPORT_TEST_SESSION=$session cargo test --workspace --all-targets || status=$?
-if [ "$status" -eq 0 ]; then
-    LIGHTPORT_TEST_SESSION=$session cargo test --workspace --doc || status=$?
-fi
+# One invocation: libraries, binaries, integration tests and doc tests share one build (a
+# separate `--doc` run resolved other features and rebuilt half the workspace, ~1.5 min), and
+# every failing test binary is reported, not only the first.
+LIGHTPORT_TEST_SESSION=$session cargo test --workspace --no-fail-fast || status=$?
 
 step "no process outlives the tests"
 scripts/leftover-processes.sh "$session" || status=1
