@@ -214,6 +214,7 @@ mod kernel_structs {
     use crate::kernel::intersect::TriangleHit;
     use crate::kernel::lights::LightSample;
     use crate::kernel::metal_rough::{BrdfSample, Surface};
+    use crate::kernel::normal_map::NormalMapData;
     use crate::kernel::sampling::Onb;
     use crate::kernel::scene_data::{MaterialData, MetalRoughData, TriangleData};
     use crate::kernel::traverse::{Hit, NodeHits};
@@ -231,6 +232,7 @@ mod kernel_structs {
         BrdfSample { dir, pdf, weight }
         MetalRoughData { metallic, roughness, texture, specular }
         Bounce { direct, dir, pdf, weight }
+        NormalMapData { texture, scale }
     }
 }
 
@@ -1286,6 +1288,7 @@ mod tests {
             ("BrdfSample", top_fields::<crate::kernel::metal_rough::BrdfSample>()),
             ("MetalRoughData", top_fields::<crate::kernel::scene_data::MetalRoughData>()),
             ("Bounce", top_fields::<crate::kernel::integrator::Bounce>()),
+            ("NormalMapData", top_fields::<crate::kernel::normal_map::NormalMapData>()),
         ];
         let structs: Vec<kernel_dsl::ir::StructDef> = crate::kernel::modules()
             .into_iter()
@@ -1302,7 +1305,7 @@ mod tests {
         }
         assert_eq!(
             structs.len(),
-            12,
+            13,
             "a new kernel struct needs a Words impl here: {:?}",
             structs.iter().map(|s| &s.name).collect::<Vec<_>>()
         );
