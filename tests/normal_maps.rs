@@ -461,6 +461,19 @@ fn damaged_helmet_loads_with_normal_maps_and_renders_finite() {
     let plain = pack(&scene, size, Strategy::Mis);
     assert!(!plain.features.normal_map);
     let p = samples(&plain, frames);
+    // CPU time with and without the maps, alternated (printed only; medians of 5).
+    let mut times = [Vec::new(), Vec::new()];
+    for _ in 0..5 {
+        for (i, k) in [&packed, &plain].iter().enumerate() {
+            let start = std::time::Instant::now();
+            std::hint::black_box(samples(k, 1));
+            times[i].push(start.elapsed().as_secs_f64());
+        }
+    }
+    for t in &mut times {
+        t.sort_by(f64::total_cmp);
+    }
+    println!("DamagedHelmet CPU frame, with / without normal maps: {:.3}", times[0][2] / times[1][2]);
     // Samples clamped to 1: a few specular fireflies would otherwise decide the means.
     let clamped =
         |s: &[Vec4]| mean_variance(s.iter().map(|s| s.xyz().min(Vec3::ONE).dot(Vec3::splat(1.0 / 3.0)) as f64)).0;
@@ -595,6 +608,8 @@ fn only_normal_mapped_scenes_carry_the_tangent_frame() {
         assert_eq!(k.shading.len(), triangles * (4 + extra));
         assert_eq!(k.materials.len(), materials * (2 + extra / 3));
         let wgsl = tracer::kernel::path_tracer_shader(&packed.features, Target::Wgsl).unwrap().source;
+        let glsl = tracer::kernel::path_tracer_shader(&packed.features, Target::GlslEs300).unwrap().source;
+        println!("normal_map {on}: kernel GLSL {} bytes, WGSL {} bytes", glsl.len(), wgsl.len());
         storage_buffers.push(wgsl.matches("var<storage").count());
         for target in [Target::GlslEs300, Target::Wgsl] {
             let source = tracer::kernel::path_tracer_shader(&packed.features, target).unwrap().source;
@@ -606,4 +621,36 @@ fn only_normal_mapped_scenes_carry_the_tangent_frame() {
     // WebGPU's default is 8 storage buffers per stage: normal maps add none.
     println!("WGSL storage buffers with / without normal maps: {storage_buffers:?}");
     assert_eq!(storage_buffers[0], storage_buffers[1]);
+}
+
+/// Bundles carry the feature and its layout, and refuse offsets that do not match the arrays.
+#[test]
+fn bundles_carry_normal_maps_and_refuse_a_wrong_layout() {
+    let mut scene = square_scene(
+        Material::diffuse("white", Vec3::ONE),
+        Some(rgb_texture(2, 2, |x, _| [200 - 50 * x as u8, 128, 255])),
+        Quat::IDENTITY,
+        top_camera(),
+    );
+    scene.sky = Some(Sky::uniform(Vec3::ONE));
+    let packed = pack(&scene, 8, Strategy::Mis);
+    let decoded = tracer::bundle::decode(&tracer::bundle::encode(&packed)).expect("round trip");
+    assert!(decoded.features.normal_map);
+    assert_eq!(decoded.scene.has_normal_map, 1);
+    assert_eq!(
+        (decoded.scene.tangent_first, decoded.scene.normal_map_first),
+        (packed.scene.tangent_first, packed.scene.normal_map_first)
+    );
+    assert_eq!(decoded.scene.shading, packed.scene.shading);
+    assert_eq!(samples(&decoded, 1), samples(&packed, 1), "the same image from the bundle");
+    for (what, change) in [
+        ("tangent_first", (|p: &mut Packed| p.scene.tangent_first += 3) as fn(&mut Packed)),
+        ("normal_map_first", |p: &mut Packed| p.scene.normal_map_first = 1),
+        ("has_normal_map", |p: &mut Packed| p.scene.has_normal_map = 0),
+    ] {
+        let mut bad = packed.clone();
+        change(&mut bad);
+        let err = tracer::bundle::decode(&tracer::bundle::encode(&bad)).expect_err(what);
+        assert!(err.to_string().contains("normal"), "{what}: {err}");
+    }
 }
