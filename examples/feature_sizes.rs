@@ -133,6 +133,7 @@ fn feature_list(f: &Features) -> String {
         (f.textures, "textures"),
         (f.shading, "shading"),
         (f.metal_rough, "metal-rough"),
+        (f.normal_map, "normal-map"),
     ]
     .iter()
     .filter(|(on, _)| *on)
@@ -249,6 +250,14 @@ fn median_f64(mut values: Vec<f64>) -> f64 {
     values[values.len() / 2]
 }
 
+/// `scene` without its normal maps: the same scene without `Features::normal_map`.
+fn without_normal_maps(mut scene: Scene) -> Scene {
+    for m in &mut scene.materials {
+        m.normal_texture = None;
+    }
+    scene
+}
+
 /// `scene` with every material made one the Lambert kernel renders (metallic 0, roughness 1, no
 /// metal-roughness texture): the same geometry and lights without `Features::metal_rough`.
 fn lambert(mut scene: Scene) -> Scene {
@@ -281,7 +290,11 @@ fn main() -> Result<()> {
             "BoxTextured + venice_sunset sky",
             with_sky(load("khronos/BoxTextured/glTF/BoxTextured.gltf")?, venice.clone()),
         ),
-        ("DamagedHelmet (emissive texture)", load("khronos/DamagedHelmet/glTF/DamagedHelmet.gltf")?),
+        ("DamagedHelmet (emissive texture, normal map)", load("khronos/DamagedHelmet/glTF/DamagedHelmet.gltf")?),
+        (
+            "DamagedHelmet without its normal map",
+            without_normal_maps(load("khronos/DamagedHelmet/glTF/DamagedHelmet.gltf")?),
+        ),
         ("LightsPunctualLamp (point lights)", load("khronos/LightsPunctualLamp/glTF/LightsPunctualLamp.gltf")?),
         ("LittlestTokyo", load("threejs/LittlestTokyo.glb")?),
         ("MetalRoughSpheres (built-in, metal-roughness)", scene::metal_rough_spheres()),

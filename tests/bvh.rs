@@ -40,7 +40,13 @@ fn shared_scene(rel: &str) -> Scene {
 }
 
 fn tri(a: Vec3, b: Vec3, c: Vec3) -> Triangle {
-    Triangle { positions: [a, b, c], normals: [Vec3::Z; 3], uvs: [Vec2::ZERO; 3], material: 0 }
+    Triangle {
+        positions: [a, b, c],
+        normals: [Vec3::Z; 3],
+        uvs: [Vec2::ZERO; 3],
+        tangents: Default::default(),
+        material: 0,
+    }
 }
 
 /// Random triangles of very different sizes, some axis-aligned, some degenerate, some

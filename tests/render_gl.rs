@@ -140,6 +140,17 @@ fn gl_agrees_with_cpu_on_metal_rough_spheres() {
     assert_gl_agrees_with_cpu("MetalRoughSpheres", &scene, 32, 128, 4);
 }
 
+/// Normal maps (`Features::normal_map`): DamagedHelmet (MikkTSpace tangents, metal-roughness)
+/// under a uniform sky, each strategy.
+#[test]
+fn gl_agrees_with_cpu_on_normal_maps() {
+    let mut scene =
+        scene::load(&shared("scenes/khronos/DamagedHelmet/glTF/DamagedHelmet.gltf")).expect("DamagedHelmet");
+    scene.sky = Some(Sky::uniform(Vec3::ONE));
+    assert!(packed(&scene, Strategy::Mis, 4, 2).features.normal_map);
+    assert_gl_agrees_with_cpu("DamagedHelmet", &scene, 32, 64, 4);
+}
+
 fn sky_lit_plane() -> Scene {
     let mut scene = scene::diffuse_plane(Vec3::splat(0.6));
     scene.sky = Some(scene::load_sky(&shared("scenes/hdri/venice_sunset_1k.hdr"), 1.0, 0.0).expect("sky"));

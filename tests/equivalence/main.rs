@@ -13,6 +13,7 @@ mod common;
 mod hazards;
 mod intersection;
 mod kernels;
+mod normal_map;
 
 use std::path::{Path, PathBuf};
 

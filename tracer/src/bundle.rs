@@ -38,8 +38,9 @@ pub const MAGIC: [u8; 8] = *b"LPBUNDLE";
 /// Bumped whenever the layout or the meaning of a field changes; readers accept only their own.
 /// (2: node planes as float texels, `node_children`, `leaf_stack_limit`, triangle lights with
 /// their normal and area. 3: `features.traversal_stack`, `features.metal_rough` and
-/// `scene.metal_rough`.)
-pub const VERSION: u32 = 3;
+/// `scene.metal_rough`. 4: `features.normal_map`, `scene.has_normal_map`, `scene.tangent_first`,
+/// `scene.normal_map_first`.)
+pub const VERSION: u32 = 4;
 /// The largest bundle accepted (and produced): well within wasm32's 4 GiB address space.
 pub const MAX_BUNDLE_BYTES: u64 = 1 << 30;
 /// File extension used for bundles (the server serves `/bundles/<hash>.lpb`).
@@ -216,10 +217,32 @@ fn check_consistency(p: &Packed) -> Result<(), BundleError> {
         ("triangle_lights", f.emissive_triangles, s.has_triangle_lights),
         ("point_lights", f.point_lights, s.has_point_lights),
         ("metal_rough", f.metal_rough, s.has_metal_rough),
+        ("normal_map", f.normal_map, s.has_normal_map),
     ];
     for (name, feature, flag) in flags {
         if flag != feature as u32 {
             return fail(format!("feature {name} is {feature} but the kernel flag has_{name} is {flag}"));
+        }
+    }
+    // Normal maps' texels extend `shading` (tangents) and `materials` (one per material) at the
+    // offsets the uniforms give; a reader trusting wrong offsets would fetch beyond the arrays.
+    if f.normal_map {
+        let tangents = p.triangle_count.checked_mul(crate::kernel::normal_map::TANGENT_TEXELS as usize);
+        let first = s.tangent_first as usize;
+        let maps = s.materials.len().checked_sub(s.normal_map_first as usize);
+        if tangents.and_then(|t| t.checked_add(first)) != Some(s.shading.len())
+            || Some(first) != p.triangle_count.checked_mul(crate::kernel::scene_data::SHADING_TEXELS as usize)
+            || maps
+                .is_none_or(|m| crate::kernel::scene_data::MATERIAL_TEXELS as usize * m != s.normal_map_first as usize)
+        {
+            return fail(format!(
+                "normal maps: tangents from {} in {} shading texels, maps from {} in {} material texels, {} triangles",
+                s.tangent_first,
+                s.shading.len(),
+                s.normal_map_first,
+                s.materials.len(),
+                p.triangle_count
+            ));
         }
     }
     if f.sky
@@ -641,7 +664,16 @@ macro_rules! record {
 }
 
 record!(Packed { scene, features, triangle_count, light_count });
-record!(Features { sky, textures, shading, point_lights, emissive_triangles, metal_rough, traversal_stack });
+record!(Features {
+    sky,
+    textures,
+    shading,
+    point_lights,
+    emissive_triangles,
+    metal_rough,
+    normal_map,
+    traversal_stack
+});
 record!(Scene {
     triangles,
     shading,
@@ -654,6 +686,8 @@ record!(Scene {
     sky,
     sky_rows,
     metal_rough,
+    tangent_first,
+    normal_map_first,
     camera_position,
     camera_right,
     camera_up,
@@ -679,6 +713,7 @@ record!(Scene {
     has_triangle_lights,
     has_point_lights,
     has_metal_rough,
+    has_normal_map,
 });
 
 #[cfg(test)]

@@ -10,6 +10,7 @@ use kernel_dsl::Texels;
 use rayon::prelude::*;
 
 use crate::bvh::Bvh;
+use crate::kernel::normal_map::TANGENT_TEXELS;
 use crate::kernel::scene_data::{
     self, Scene as KernelScene, LIGHT_POINT, LIGHT_SKY, LIGHT_TEXELS, LIGHT_TRIANGLE, MATERIAL_TEXELS, NODE_TEXELS,
     SHADING_TEXELS, TEXTURE_TEXELS_PER_ELEMENT, TRIANGLE_TEXELS,
@@ -28,6 +29,10 @@ pub struct Features {
     /// Some material needs the glTF metal-roughness BRDF ([`crate::scene::Material::uses_metal_rough`]):
     /// the specular code and one more texel per material (`Scene::metal_rough`).
     pub metal_rough: bool,
+    /// Some material has a normal map (glTF `normalTexture`): the tangent-frame code, per
+    /// triangle three tangent texels appended to `Scene::shading` and per material one texel
+    /// appended to `Scene::materials` (`kernel::normal_map`); nothing without.
+    pub normal_map: bool,
     /// Entries the traversal stack needs for this scene's BVH (`WideBvh::stack_needed*`, at
     /// most the kernel's `STACK_SIZE`): GPU variants size their stacks to it instead of
     /// `STACK_SIZE` (the Cornell box needs 11, not 64). 0: not fixed, the kernel's `STACK_SIZE`.
@@ -45,6 +50,7 @@ impl Features {
             ("has_triangle_lights", self.emissive_triangles),
             ("has_point_lights", self.point_lights),
             ("has_metal_rough", self.metal_rough),
+            ("has_normal_map", self.normal_map),
         ]
         .into_iter()
         .map(|(k, v)| (format!("Scene.{k}"), v as u32))
@@ -65,6 +71,7 @@ impl Features {
             point_lights: true,
             emissive_triangles: true,
             metal_rough: true,
+            normal_map: true,
             traversal_stack: 0,
         }
     }
@@ -403,6 +410,7 @@ pub fn pack_with_textures(
         point_lights: !scene.point_lights.is_empty(),
         emissive_triangles: !emissive_triangles.is_empty(),
         metal_rough: scene.materials.iter().any(|m| m.uses_metal_rough()),
+        normal_map: textures_used && scene.materials.iter().any(|m| m.normal_texture.is_some()),
         traversal_stack,
     };
 
@@ -514,7 +522,7 @@ pub fn pack_with_textures(
         ]
     });
     let shading = if features.shading {
-        Texels::par_from_groups::<{ SHADING_TEXELS as usize }>(tri_count, |i| {
+        let shading = Texels::par_from_groups::<{ SHADING_TEXELS as usize }>(tri_count, |i| {
             let t = ordered[i];
             [
                 t.normals[0].extend(t.uvs[0].x),
@@ -522,10 +530,18 @@ pub fn pack_with_textures(
                 t.normals[2].extend(t.uvs[1].x),
                 Vec4::new(t.uvs[1].y, t.uvs[2].x, t.uvs[2].y, 0.0),
             ]
-        })
+        });
+        if features.normal_map {
+            // The tangents extend the shading array (`kernel::normal_map`): no new binding.
+            let tangents = Texels::par_from_groups::<{ TANGENT_TEXELS as usize }>(tri_count, |i| ordered[i].tangents);
+            Texels::new([shading.as_slice(), tangents.as_slice()].concat())
+        } else {
+            shading
+        }
     } else {
         Texels::default()
     };
+    let tangent_first = if features.normal_map { (tri_count * SHADING_TEXELS as usize) as u32 } else { 0 };
     let nodes = Texels::par_from_groups::<{ NODE_TEXELS as usize }>(wide.nodes.len(), |i| {
         let n = &wide.nodes[i];
         [
@@ -546,6 +562,12 @@ pub fn pack_with_textures(
     for m in &scene.materials {
         materials.push(m.base_color.extend(texture_index(m.base_color_texture)));
         materials.push(m.emission.extend(texture_index(m.emissive_texture)));
+    }
+    let normal_map_first = if features.normal_map { materials.len() as u32 } else { 0 };
+    if features.normal_map {
+        for m in &scene.materials {
+            materials.push(Vec4::new(texture_index(m.normal_texture), m.normal_scale, 0.0, 0.0));
+        }
     }
     let metal_rough = if features.metal_rough {
         let texels = scene.materials.iter().map(|m| {
@@ -577,6 +599,8 @@ pub fn pack_with_textures(
         sky: Texels::new(sky_texels),
         sky_rows: Texels::new(sky_rows),
         metal_rough,
+        tangent_first,
+        normal_map_first,
         camera_position: cam.position,
         camera_right: right * tan_half * aspect,
         camera_up: up * tan_half,
@@ -602,6 +626,7 @@ pub fn pack_with_textures(
         has_triangle_lights: features.emissive_triangles as u32,
         has_point_lights: features.point_lights as u32,
         has_metal_rough: features.metal_rough as u32,
+        has_normal_map: features.normal_map as u32,
     };
     Ok(Packed { scene: kernel_scene, features, triangle_count: tri_count, light_count: light_data.len() })
 }

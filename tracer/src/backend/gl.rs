@@ -109,6 +109,8 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
         sky: Vec4s,
         sky_rows: Vec4s,
         metal_rough: Vec4s,
+        tangent_first: U32,
+        normal_map_first: U32,
         camera_position: Vec3,
         camera_right: Vec3,
         camera_up: Vec3,
@@ -134,6 +136,7 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
         has_triangle_lights: U32,
         has_point_lights: U32,
         has_metal_rough: U32,
+        has_normal_map: U32,
     )
 }
 

@@ -1,7 +1,6 @@
 #[kernel_dsl::kernel]
 pub mod integrator {
-    //! The path tracer: Lambert or glTF metal-roughness BRDF, next event estimation over every light, MIS
-    //! (power heuristic), Russian roulette. The strategy is a run-time uniform; all three estimate the same image.
+    //! The path tracer: Lambert or metal-roughness BRDF, normal maps, NEE over every light, MIS, Russian roulette.
 
     use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
 
@@ -12,6 +11,7 @@ pub mod integrator {
         triangle_emission,
     };
     use crate::kernel::metal_rough::{metal_rough_eval, metal_rough_pdf, metal_rough_sample, surface_at};
+    use crate::kernel::normal_map::normal_mapped;
     use crate::kernel::rng::{pixel_seed, random_float};
     use crate::kernel::sampling::{onb_from_normal, onb_to_local, onb_to_world, sample_cosine_around, INV_PI};
     use crate::kernel::scene_data::{
@@ -84,6 +84,9 @@ pub mod integrator {
                 if len > 0.0 && n.dot(ng) > 0.0 {
                     ns = n / len;
                 }
+            }
+            if scene.has_normal_map != 0 {
+                ns = normal_mapped(scene, hit, tri.material, ns, flip, ng, -dir);
             }
             let material = fetch_material(scene, tri.material);
 

@@ -16,6 +16,8 @@ mod intersect_src;
 mod lights_src;
 #[path = "metal_rough.rs"]
 mod metal_rough_src;
+#[path = "normal_map.rs"]
+mod normal_map_src;
 #[path = "rng.rs"]
 mod rng_src;
 #[path = "sampling.rs"]
@@ -35,6 +37,7 @@ pub use integrator_src::integrator;
 pub use intersect_src::intersect;
 pub use lights_src::lights;
 pub use metal_rough_src::metal_rough;
+pub use normal_map_src::normal_map;
 pub use rng_src::rng;
 pub use sampling_src::sampling;
 pub use scene_data_src::scene_data;
@@ -52,6 +55,7 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
         camera::kernel_ir(),
         lights::kernel_ir(),
         metal_rough::kernel_ir(),
+        normal_map::kernel_ir(),
         integrator::kernel_ir(),
         tonemap::kernel_ir(),
     ]
@@ -59,7 +63,7 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
 
 /// Every kernel module's captured description, as the macro serialised it (what
 /// [`modules`] parses): a stable text to fingerprint the kernel with.
-pub fn ir_json() -> [&'static str; 10] {
+pub fn ir_json() -> [&'static str; 11] {
     [
         rng::KERNEL_IR_JSON,
         sampling::KERNEL_IR_JSON,
@@ -69,6 +73,7 @@ pub fn ir_json() -> [&'static str; 10] {
         camera::KERNEL_IR_JSON,
         lights::KERNEL_IR_JSON,
         metal_rough::KERNEL_IR_JSON,
+        normal_map::KERNEL_IR_JSON,
         integrator::KERNEL_IR_JSON,
         tonemap::KERNEL_IR_JSON,
     ]

@@ -45,10 +45,8 @@ pub mod scene_data {
         pub triangles: Texels<Vec4>,
         pub shading: Texels<Vec4>,
         pub nodes: Texels<Vec4>,
-        /// Per node, its four children's stack entries `first << 8 | count` (count 0: a node,
-        /// `first` its index; else a leaf of triangles `first..first + count`). Integer texels
-        /// spare traversal any float-to-index conversion; the planes stay float texels, which
-        /// the slab test reads without conversion.
+        /// Per node, its four children's stack entries `first << 8 | count` (count 0: a node, `first` its
+        /// index; else a leaf of triangles `first..first + count`): integers, no float-to-index conversion.
         pub node_children: Texels<UVec4>,
         pub materials: Texels<Vec4>,
         pub lights: Texels<Vec4>,
@@ -64,6 +62,8 @@ pub mod scene_data {
         pub sky_rows: Texels<Vec4>,
         /// Per material, `[metallic, roughness, metal-roughness texture or -1, specular (1) or Lambert (0)]`.
         pub metal_rough: Texels<Vec4>,
+        pub tangent_first: u32,
+        pub normal_map_first: u32,
         pub camera_position: Vec3,
         /// Right vector scaled by tan(fov/2) * aspect.
         pub camera_right: Vec3,
@@ -85,9 +85,8 @@ pub mod scene_data {
         pub sky_rotation: f32,
         /// Largest absolute coordinate of the scene: scales self-intersection offsets.
         pub scene_scale: f32,
-        /// Closest-hit traversal pushes leaves onto its stack while it holds fewer entries than
-        /// this, and intersects them at once beyond (`tracer::pack` chooses it so that the stack
-        /// cannot overflow: `STACK_SIZE` for any tree that fits with every leaf pushed).
+        /// Closest-hit traversal pushes leaves while its stack holds fewer entries than this and
+        /// intersects them at once beyond (`tracer::pack` picks it so that the stack cannot overflow).
         pub leaf_stack_limit: u32,
         /// Feature flags (0 or 1): codegen specialises on them, removing unused features' code and data.
         pub has_sky: u32,
@@ -97,6 +96,7 @@ pub mod scene_data {
         pub has_triangle_lights: u32,
         pub has_point_lights: u32,
         pub has_metal_rough: u32,
+        pub has_normal_map: u32,
     }
 
     pub const STRATEGY_BSDF: u32 = 0;

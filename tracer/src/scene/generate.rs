@@ -11,7 +11,13 @@ pub(crate) fn quad(out: &mut Vec<Triangle>, q: [Vec3; 4], material: u32) {
     let uv = [Vec2::new(0.0, 1.0), Vec2::new(1.0, 1.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 0.0)];
     for [a, b, c] in [[0, 1, 2], [0, 2, 3]] {
         let positions = [q[a], q[b], q[c]];
-        out.push(Triangle { positions, normals: [flat_normal(&positions); 3], uvs: [uv[a], uv[b], uv[c]], material });
+        out.push(Triangle {
+            positions,
+            normals: [flat_normal(&positions); 3],
+            uvs: [uv[a], uv[b], uv[c]],
+            tangents: Default::default(),
+            material,
+        });
     }
 }
 
@@ -138,6 +144,7 @@ pub fn terrain_and_spheres() -> Scene {
         positions,
         normals: [flat_normal(&positions); 3],
         uvs: [Vec2::ZERO; 3],
+        tangents: Default::default(),
         material: 0,
     };
     for i in 0..n {
@@ -239,7 +246,7 @@ fn sphere(out: &mut Vec<Triangle>, center: Vec3, radius: f32, material: u32) {
                 let normals = [corners[a], corners[b], corners[c]].map(|(s, k)| dir(s, k));
                 let positions = normals.map(|n| center + radius * n);
                 let uvs = [corners[a], corners[b], corners[c]].map(|(s, k)| uv(s, k));
-                out.push(Triangle { positions, normals, uvs, material });
+                out.push(Triangle { positions, normals, uvs, tangents: Default::default(), material });
             }
         }
     }

@@ -8,7 +8,7 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::rc::Rc;
 
-use glam::{Mat3, Mat4, Quat, Vec2, Vec3};
+use glam::{Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
 use gltf::json::camera::Type as CameraType;
 use gltf::json::extensions::scene::khr_lights_punctual::Type as LightType;
 use gltf::json::material::AlphaMode;
@@ -279,6 +279,9 @@ struct LocalPrimitive {
     normals: Option<Vec<Vec3>>,
     uvs: Option<Vec<Vec2>>,
     triangles: Vec<[u32; 3]>,
+    /// Per corner of `triangles`: the file's `TANGENT`s, else MikkTSpace's; only for a
+    /// material with a normal map.
+    tangents: Option<Vec<[Vec4; 3]>>,
     material: u32,
 }
 
@@ -506,7 +509,7 @@ impl Loader<'_> {
         }
         self.triangles.reserve(added);
         for prim in prims.iter() {
-            for tri in &prim.triangles {
+            for (t, tri) in prim.triangles.iter().enumerate() {
                 let mut idx = *tri;
                 if flip {
                     idx.swap(1, 2);
@@ -533,7 +536,14 @@ impl Loader<'_> {
                     Some(uv) => idx.map(|i| uv.get(i as usize).copied().unwrap_or(Vec2::ZERO)),
                     None => [Vec2::ZERO; 3],
                 };
-                self.triangles.push(Triangle { positions, normals, uvs, material: prim.material });
+                let mut tangents = match &prim.tangents {
+                    Some(ts) => ts.get(t).map_or([Vec4::ZERO; 3], |c| c.map(|c| world_tangent(&linear, c, flip))),
+                    None => [Vec4::ZERO; 3],
+                };
+                if flip {
+                    tangents.swap(1, 2);
+                }
+                self.triangles.push(Triangle { positions, normals, uvs, tangents, material: prim.material });
             }
         }
         Ok(())
@@ -589,10 +599,12 @@ impl Loader<'_> {
         let mut position = None;
         let mut normal = None;
         let mut uv = None;
+        let mut tangent = None;
         for (semantic, accessor) in &prim.attributes {
             match semantic {
                 Checked::Valid(Semantic::Positions) => position = Some(accessor.value()),
                 Checked::Valid(Semantic::Normals) => normal = Some(accessor.value()),
+                Checked::Valid(Semantic::Tangents) => tangent = Some(accessor.value()),
                 Checked::Valid(Semantic::TexCoords(0)) => uv = Some(accessor.value()),
                 Checked::Valid(Semantic::Colors(0)) => self
                     .warnings
@@ -648,7 +660,32 @@ impl Loader<'_> {
         let triangles = assemble(mode, &indices)
             .ok_or_else(|| malformed(format!("{what}: {} indices do not form whole triangles", indices.len())))?;
         let material = self.material(prim.material.map(|i| i.value()))?;
-        Ok(Some(LocalPrimitive { positions, normals, uvs, triangles, material }))
+        let normal_mapped = self.materials.get(material as usize).is_some_and(|m| m.normal_texture.is_some());
+        let tangents = match (normal_mapped, tangent, &uvs) {
+            (false, _, _) => None,
+            (true, Some(a), _) => {
+                let t = self.buffers.read_f32(a, 4, &format!("{what} TANGENT"))?;
+                if t.len() != vertex_count * 4 {
+                    return Err(malformed(format!(
+                        "{what}: TANGENT has {} elements, POSITION {vertex_count}",
+                        t.len() / 4
+                    )));
+                }
+                let t: Vec<Vec4> =
+                    t.chunks_exact(4).map(|c| super::tangents::unit_tangent(Vec4::from_slice(c))).collect();
+                Some(triangles.iter().map(|tri| tri.map(|i| t[i as usize])).collect())
+            }
+            (true, None, Some(uvs)) => {
+                super::tangents::mikktspace_tangents(&positions, normals.as_deref(), uvs, &triangles)
+            }
+            (true, None, None) => {
+                self.warnings.once("normal map without TEXCOORD_0", || {
+                    format!("{what}: a normal-mapped primitive has no TEXCOORD_0, so no tangents: its normal map is ignored")
+                });
+                None
+            }
+        };
+        Ok(Some(LocalPrimitive { positions, normals, uvs, triangles, tangents, material }))
     }
 
     /// Our index of a glTF material (`None`: the glTF default material).
@@ -693,10 +730,6 @@ impl Loader<'_> {
             self.warnings
                 .once("alphaMode", || format!("alphaMode {mode:?} is not supported: surfaces are rendered opaque"));
         }
-        if m.normal_texture.is_some() {
-            self.warnings
-                .once("normalTexture", || "normal textures are not supported: shading uses the vertex normals".into());
-        }
         if let Some(ext) = &m.extensions {
             warn_extensions(&mut self.warnings, Some(&ext.others));
         }
@@ -709,6 +742,18 @@ impl Loader<'_> {
             return Err(malformed(format!("{what}: metallicFactor and roughnessFactor must be finite")));
         }
         let metallic_roughness_texture = self.texture_info(pbr.metallic_roughness_texture.as_ref())?;
+        let (normal_texture, normal_scale) = match &m.normal_texture {
+            Some(n) => {
+                if !n.scale.is_finite() {
+                    return Err(malformed(format!("{what}: normalTexture.scale is not finite")));
+                }
+                if let Some(ext) = &n.extensions {
+                    warn_extensions(&mut self.warnings, Some(&ext.others));
+                }
+                (self.texture_on_set(n.index.value(), n.tex_coord)?, n.scale)
+            }
+            None => (None, 1.0),
+        };
         Ok(Material {
             name: m.name.clone().unwrap_or_default(),
             base_color,
@@ -718,6 +763,8 @@ impl Loader<'_> {
             metallic: metallic.clamp(0.0, 1.0),
             roughness: roughness.clamp(0.0, 1.0),
             metallic_roughness_texture,
+            normal_texture,
+            normal_scale,
         })
     }
 
@@ -728,14 +775,18 @@ impl Loader<'_> {
         if let Some(ext) = &info.extensions {
             warn_extensions(&mut self.warnings, Some(&ext.others));
         }
-        if info.tex_coord != 0 {
-            let set = info.tex_coord;
+        self.texture_on_set(info.index.value(), info.tex_coord)
+    }
+
+    /// Texture `index` read on texture coordinate set `set` (only `TEXCOORD_0` is supported).
+    fn texture_on_set(&mut self, index: usize, set: u32) -> Result<Option<u32>, SceneError> {
+        if set != 0 {
             self.warnings.once("texture coordinate sets", || {
                 format!("textures on TEXCOORD_{set} are not supported (only TEXCOORD_0): those textures are dropped")
             });
             return Ok(None);
         }
-        self.texture(info.index.value())
+        self.texture(index)
     }
 
     fn texture(&mut self, index: usize) -> Result<Option<u32>, SceneError> {
@@ -924,6 +975,15 @@ fn wrap(mode: Checked<WrappingMode>) -> Wrap {
         Checked::Valid(WrappingMode::ClampToEdge) => Wrap::ClampToEdge,
         Checked::Valid(WrappingMode::MirroredRepeat) => Wrap::MirroredRepeat,
         _ => Wrap::Repeat,
+    }
+}
+
+/// A mesh-space tangent (xyz unit, w ±1) in world space under `linear`: tangents are carried
+/// like positions (not like normals), and a mirroring transform flips their handedness.
+fn world_tangent(linear: &Mat3, t: Vec4, flip: bool) -> Vec4 {
+    match (*linear * t.truncate()).try_normalize() {
+        Some(xyz) => xyz.extend(if flip { -t.w } else { t.w }),
+        None => Vec4::ZERO,
     }
 }
 

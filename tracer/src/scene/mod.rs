@@ -66,12 +66,13 @@ mod gltf_loader;
 mod obj_loader;
 mod sky;
 pub mod stability;
+mod tangents;
 pub(crate) mod texture;
 mod util;
 
 use std::path::{Path, PathBuf};
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 
 pub use generate::{cornell_box, diffuse_plane, metal_rough_spheres, terrain_and_spheres, white_furnace};
 
@@ -140,6 +141,10 @@ pub struct Triangle {
     pub normals: [Vec3; 3],
     /// Texture coordinates (glTF `TEXCOORD_0`; `(0,0)` = top-left of an image), zero when absent.
     pub uvs: [Vec2; 3],
+    /// World-space tangents for normal mapping: xyz along +u, w the handedness (±1) of the
+    /// bitangent `w * cross(normal, tangent)` (glTF `TANGENT`, else MikkTSpace). Zero when the
+    /// triangle's material has no normal map (only such materials need them).
+    pub tangents: [Vec4; 3],
     /// Index into [`Scene::materials`].
     pub material: u32,
 }
@@ -166,6 +171,11 @@ pub struct Material {
     /// glTF `metallicRoughnessTexture`: its blue channel multiplies `metallic`, its green
     /// `roughness` (texels are linear data, not sRGB).
     pub metallic_roughness_texture: Option<u32>,
+    /// glTF `normalTexture`: a tangent-space normal map (linear data, `2 * rgb - 1`), which
+    /// needs tangents on the triangles ([`Triangle::tangents`]; `Features::normal_map`).
+    pub normal_texture: Option<u32>,
+    /// glTF `normalTexture.scale`: multiplies the map's x and y before normalising.
+    pub normal_scale: f32,
 }
 
 impl Material {
@@ -180,6 +190,8 @@ impl Material {
             metallic: 0.0,
             roughness: 1.0,
             metallic_roughness_texture: None,
+            normal_texture: None,
+            normal_scale: 1.0,
         }
     }
 
@@ -208,13 +220,18 @@ impl Material {
     }
 
     /// Its texture references (indices into [`Scene::textures`]), every map it has.
-    pub fn texture_slots(&self) -> [Option<u32>; 3] {
-        [self.base_color_texture, self.emissive_texture, self.metallic_roughness_texture]
+    pub fn texture_slots(&self) -> [Option<u32>; 4] {
+        [self.base_color_texture, self.emissive_texture, self.metallic_roughness_texture, self.normal_texture]
     }
 
     /// [`Material::texture_slots`], to rewrite (loaders drop textures that fail to decode).
-    pub(crate) fn texture_slots_mut(&mut self) -> [&mut Option<u32>; 3] {
-        [&mut self.base_color_texture, &mut self.emissive_texture, &mut self.metallic_roughness_texture]
+    pub(crate) fn texture_slots_mut(&mut self) -> [&mut Option<u32>; 4] {
+        [
+            &mut self.base_color_texture,
+            &mut self.emissive_texture,
+            &mut self.metallic_roughness_texture,
+            &mut self.normal_texture,
+        ]
     }
 }
 
@@ -585,6 +602,23 @@ impl Scene {
             .sum()
     }
 
+    /// Fills in MikkTSpace tangents ([`Triangle::tangents`]) for the triangles whose material
+    /// has a normal map and that have none (all zero), as for a glTF without `TANGENT`: for
+    /// scenes made in code. Loaders do this themselves.
+    pub fn generate_tangents(&mut self) {
+        let needs = |t: &Triangle| {
+            t.tangents == [Vec4::ZERO; 3]
+                && self.materials.get(t.material as usize).is_some_and(|m| m.normal_texture.is_some())
+        };
+        let which: Vec<usize> = (0..self.triangles.len()).filter(|&i| needs(&self.triangles[i])).collect();
+        let corners: Vec<&Triangle> = which.iter().map(|&i| &self.triangles[i]).collect();
+        if let Some(tangents) = tangents::corner_tangents(&corners) {
+            for (i, t) in which.into_iter().zip(tangents) {
+                self.triangles[i].tangents = t;
+            }
+        }
+    }
+
     /// Checks the scene's invariants: indices in range, finite data, unit-ish normals,
     /// texture sizes. Loaders and generators always produce valid scenes; this is for scenes
     /// built by hand.
@@ -597,16 +631,21 @@ impl Scene {
             }
             let finite = t.positions.iter().all(|p| p.is_finite())
                 && t.normals.iter().all(|n| n.is_finite())
-                && t.uvs.iter().all(|uv| uv.is_finite());
+                && t.uvs.iter().all(|uv| uv.is_finite())
+                && t.tangents.iter().all(|t| t.is_finite());
             if !finite {
                 return bad(format!("triangle {i} has non-finite vertex data"));
             }
         }
         for (i, m) in self.materials.iter().enumerate() {
-            if !texture_ok(m.base_color_texture) || !texture_ok(m.emissive_texture) {
+            if !m.texture_slots().into_iter().all(texture_ok) {
                 return bad(format!("material {i} uses a missing texture"));
             }
-            if !m.base_color.is_finite() || !m.emission.is_finite() || m.emission.min_element() < 0.0 {
+            if !m.base_color.is_finite()
+                || !m.emission.is_finite()
+                || m.emission.min_element() < 0.0
+                || !m.normal_scale.is_finite()
+            {
                 return bad(format!("material {i} has invalid colours"));
             }
         }

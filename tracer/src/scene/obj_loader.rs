@@ -148,7 +148,7 @@ fn load_obj_from(
                 Some(t) => idx.map(|i| t.get(i).copied().unwrap_or(Vec2::ZERO)),
                 None => [Vec2::ZERO; 3],
             };
-            triangles.push(Triangle { positions: p, normals, uvs, material });
+            triangles.push(Triangle { positions: p, normals, uvs, tangents: Default::default(), material });
         }
     }
     if triangles.is_empty() {

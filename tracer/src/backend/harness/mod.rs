@@ -445,6 +445,7 @@ mod tests {
             ("BrdfSample", top_fields::<crate::kernel::metal_rough::BrdfSample>()),
             ("MetalRoughData", top_fields::<crate::kernel::scene_data::MetalRoughData>()),
             ("Bounce", top_fields::<crate::kernel::integrator::Bounce>()),
+            ("NormalMapData", top_fields::<crate::kernel::normal_map::NormalMapData>()),
         ];
         let structs: Vec<kernel_dsl::ir::StructDef> = crate::kernel::modules()
             .into_iter()
@@ -461,7 +462,7 @@ mod tests {
         }
         assert_eq!(
             structs.len(),
-            12,
+            13,
             "a new kernel struct needs a Words impl here: {:?}",
             structs.iter().map(|s| &s.name).collect::<Vec<_>>()
         );

@@ -145,6 +145,7 @@ mod kernel_structs {
     use crate::kernel::intersect::TriangleHit;
     use crate::kernel::lights::LightSample;
     use crate::kernel::metal_rough::{BrdfSample, Surface};
+    use crate::kernel::normal_map::NormalMapData;
     use crate::kernel::sampling::Onb;
     use crate::kernel::scene_data::{MaterialData, MetalRoughData, TriangleData};
     use crate::kernel::traverse::{Hit, NodeHits};
@@ -162,6 +163,7 @@ mod kernel_structs {
         BrdfSample { dir, pdf, weight }
         MetalRoughData { metallic, roughness, texture, specular }
         Bounce { direct, dir, pdf, weight }
+        NormalMapData { texture, scale }
     }
 }
 
