@@ -472,10 +472,12 @@ mod tests {
         let generated = crate::kernel::path_tracer_shader(&Features::all(), Target::Wgsl).unwrap();
         let layout = reflect(&generated, &[ACCUMULATION_BUFFER, TARGET_UNIFORM]).unwrap();
         let u = layout.scene_uniform.unwrap();
-        let offset = |name: &str| u.members.iter().find(|(n, _)| n == name).map(|(_, o)| *o);
-        assert_eq!(offset("camera_position"), Some(0));
-        assert_eq!(offset("camera_right"), Some(16));
-        assert_eq!(offset("camera_forward"), Some(48));
-        assert_eq!(offset("lens_radius"), Some(60));
+        let offset = |name: &str| u.members.iter().find(|(n, _)| n == name).map(|(_, o)| *o).expect(name);
+        // Two u32s (the normal-map fields) before the camera: the first vec3 rounds up to 16.
+        assert_eq!(offset("normal_map_first") + 4, 8);
+        assert_eq!(offset("camera_position"), 16);
+        assert_eq!(offset("camera_right"), offset("camera_position") + 16);
+        assert_eq!(offset("camera_forward"), offset("camera_position") + 48);
+        assert_eq!(offset("lens_radius"), offset("camera_forward") + 12);
     }
 }
