@@ -5,7 +5,7 @@ use std::path::Path;
 use glam::Vec3;
 use image::ImageFormat;
 
-use super::texture::decode_limited;
+use super::texture::{catch_decoder_panic, decode_limited};
 use super::util::read_file;
 use super::{SceneError, Sky, MAX_IMAGE_TEXELS, MAX_RADIANCE};
 
@@ -46,6 +46,38 @@ fn check_parameters(intensity: f32, rotation: f32) -> Result<(), SceneError> {
     Ok(())
 }
 
+/// The most texels a Radiance HDR file can describe per byte: its run-length scanlines spend 2
+/// bytes per run of at most 127 texels in each of 4 channels (127 / 8 < 16). (The 1990s
+/// "old-style" run length can do more; such files are refused when they exceed this.)
+pub const MAX_HDR_TEXELS_PER_BYTE: u64 = 16;
+/// The most texels an OpenEXR file can describe per byte: deflate (ZIP) expands at most 1032:1
+/// and a texel holds at least one 16-bit sample; RLE (64:1), PIZ and B44 compress less.
+pub const MAX_EXR_TEXELS_PER_BYTE: u64 = 516;
+
+/// Refuses a sky whose header declares more texels than its bytes can encode (the decoders
+/// allocate the declared image before they find the data missing: a 100-byte HDR could cost
+/// 1.5 GiB and seconds; found by fuzzing). Only the header is parsed here.
+fn check_backed(bytes: &[u8], format: ImageFormat, name: &str) -> Result<(), SceneError> {
+    let per_byte = if format == ImageFormat::OpenExr { MAX_EXR_TEXELS_PER_BYTE } else { MAX_HDR_TEXELS_PER_BYTE };
+    let dimensions =
+        catch_decoder_panic(|| image::ImageReader::with_format(std::io::Cursor::new(bytes), format).into_dimensions());
+    // A header that does not parse is reported by the decoder itself.
+    let Some(Ok((w, h))) = dimensions else { return Ok(()) };
+    let declared = u64::from(w) * u64::from(h);
+    let most = per_byte * bytes.len() as u64;
+    if declared > most {
+        return Err(SceneError::Image {
+            name: name.to_owned(),
+            message: format!(
+                "the header declares {w} x {h} texels, more than its {} bytes can encode ({per_byte} per byte at most \
+                 in {format:?})",
+                bytes.len()
+            ),
+        });
+    }
+    Ok(())
+}
+
 /// [`load_sky`] from bytes in memory; `name` names the image in errors.
 pub fn load_sky_slice(
     bytes: &[u8],
@@ -60,6 +92,7 @@ pub fn load_sky_slice(
         SkyFormat::Exr => ImageFormat::OpenExr,
     };
     let err = |message: String| SceneError::Image { name: name.to_owned(), message };
+    check_backed(bytes, format, name)?;
     let img = decode_limited(bytes, format, MAX_IMAGE_TEXELS, name)?;
     let (width, height) = (img.width(), img.height());
     if width == 0 || height == 0 {
