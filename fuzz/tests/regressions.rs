@@ -229,6 +229,15 @@ fn gltf_mutations_of_degenerate_json_do_not_panic() {
     }
 }
 
+/// A 727-byte tiled EXR (8 x 4 texels) declaring tiles of 16777024 x 64 texels: the decoder
+/// allocated a tile (1.9 GiB, 3.7 s; the second campaign's sky finding). Refused from the header.
+#[test]
+fn a_sky_with_tiles_larger_than_its_bytes_can_hold_is_refused() {
+    let input = regression(Target::Sky, "tiled-exr-huge-tiles.exr");
+    let err = scene::load_sky_slice(&input, scene::SkyFormat::Exr, "sky", 1.0, 0.0).unwrap_err();
+    assert!(err.to_string().contains("declares tiles of 16777024 x 64 texels"), "{err}");
+}
+
 /// `Kd 0.5 0` in an MTL made tobj panic (caught, but reported as "the OBJ parser failed
 /// unexpectedly"); now the line is named.
 #[test]
