@@ -20,7 +20,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:281)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:283)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -269,7 +269,7 @@ uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:290)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:292)
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
@@ -346,8 +346,8 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
 // scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
-    float x = uv.x * lp_u32_to_f32(info.y) - 0.5;
-    float y = uv.y * lp_u32_to_f32(info.z) - 0.5;
+    float x = clamp(uv.x * lp_u32_to_f32(info.y) - 0.5, -1000000000.0, 1000000000.0);
+    float y = clamp(uv.y * lp_u32_to_f32(info.z) - 0.5, -1000000000.0, 1000000000.0);
     float fx = x - floor(x);
     float fy = y - floor(y);
     int x0 = lp_f32_to_i32(floor(x));

@@ -67,7 +67,7 @@ struct MaterialData {
     emissive_texture: u32,
 }
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:281)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:283)
 struct MetalRoughData {
     metallic: f32,
     roughness: f32,
@@ -302,7 +302,7 @@ fn stack_entry(first: u32, count: u32) -> u32 {
     return (first << 8u) | count;
 }
 
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:131)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:135)
 fn is_leaf(entry: u32) -> bool {
     return (entry & 255u) > 0u;
 }
@@ -344,7 +344,7 @@ fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3
     }
 }
 
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:105)
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:109)
 fn intersect_leaf(entry: u32, origin: vec3<f32>, dir: vec3<f32>, hit: ptr<function, Hit>) {
     let first: u32 = entry >> 8u;
     let i_end: u32 = first + (entry & 255u);
@@ -380,11 +380,12 @@ fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u
         exit = min(min(zero_to_miss(exit_x), zero_to_miss(exit_y)), zero_to_miss(exit_z));
     }
     let exit_1: vec4<f32> = min(exit * 1.0000008, vec4<f32>(t_max));
-    let t: vec4<f32> = vec4<f32>(select(MISS, enter.x, enter.x <= exit_1.x), select(MISS, enter.y, enter.y <= exit_1.y), select(MISS, enter.z, enter.z <= exit_1.z), select(MISS, enter.w, enter.w <= exit_1.w));
-    return NodeHits(t, scene_node_children[node]);
+    let e: vec4<u32> = scene_node_children[node];
+    let t: vec4<f32> = vec4<f32>(select(MISS, enter.x, enter.x <= exit_1.x && (e.x != 0u)), select(MISS, enter.y, enter.y <= exit_1.y && (e.y != 0u)), select(MISS, enter.z, enter.z <= exit_1.z && (e.z != 0u)), select(MISS, enter.w, enter.w <= exit_1.w && (e.w != 0u)));
+    return NodeHits(t, e);
 }
 
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:148)
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:152)
 fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -639,8 +640,8 @@ fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
 // scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let info: vec4<u32> = scene_texture_info[index];
-    let x: f32 = uv.x * lp_u32_to_f32(info.y) - 0.5;
-    let y: f32 = uv.y * lp_u32_to_f32(info.z) - 0.5;
+    let x: f32 = clamp(uv.x * lp_u32_to_f32(info.y) - 0.5, -1000000000.0, 1000000000.0);
+    let y: f32 = clamp(uv.y * lp_u32_to_f32(info.z) - 0.5, -1000000000.0, 1000000000.0);
     let fx: f32 = x - floor(x);
     let fy: f32 = y - floor(y);
     let x0: i32 = lp_f32_to_i32(floor(x));
@@ -874,7 +875,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     }
 }
 
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:117)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:121)
 fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let first: u32 = entry >> 8u;
     var blocked: bool = false;
@@ -889,7 +890,7 @@ fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> b
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:270)
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:274)
 fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -976,7 +977,7 @@ fn cosine_sample_hemisphere(u1: f32, u2: f32) -> vec3<f32> {
     return vec3<f32>(r * cs.x, r * cs.y, z);
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:290)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:292)
 fn fetch_metal_rough(index: u32) -> MetalRoughData {
     let t: vec4<f32> = scene_metal_rough[index];
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);

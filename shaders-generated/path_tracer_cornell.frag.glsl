@@ -231,7 +231,7 @@ uint stack_entry(uint first, uint count) {
     return (first << 8) | count;
 }
 
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:131)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:135)
 bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
 }
@@ -273,7 +273,7 @@ TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2)
     }
 }
 
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:105)
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:109)
 void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
     uint first = entry >> 8;
     uint i_end = first + (entry & 255u);
@@ -309,11 +309,12 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
         exit = min(min(zero_to_miss(exit_x), zero_to_miss(exit_y)), zero_to_miss(exit_z));
     }
     vec4 exit_1 = min(exit * 1.0000008, vec4(t_max));
-    vec4 t = vec4(enter.x <= exit_1.x ? enter.x : MISS, enter.y <= exit_1.y ? enter.y : MISS, enter.z <= exit_1.z ? enter.z : MISS, enter.w <= exit_1.w ? enter.w : MISS);
-    return NodeHits(t, lp_fetch_uvec4(scene_node_children, node));
+    uvec4 e = lp_fetch_uvec4(scene_node_children, node);
+    vec4 t = vec4(enter.x <= exit_1.x && (e.x != 0u) ? enter.x : MISS, enter.y <= exit_1.y && (e.y != 0u) ? enter.y : MISS, enter.z <= exit_1.z && (e.z != 0u) ? enter.z : MISS, enter.w <= exit_1.w && (e.w != 0u) ? enter.w : MISS);
+    return NodeHits(t, e);
 }
 
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:148)
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:152)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -526,7 +527,7 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:117)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:121)
 bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     uint first = entry >> 8;
     bool blocked = false;
@@ -541,7 +542,7 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:270)
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:274)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);

@@ -217,7 +217,7 @@ fn stack_entry(first: u32, count: u32) -> u32 {
     return (first << 8u) | count;
 }
 
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:131)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:135)
 fn is_leaf(entry: u32) -> bool {
     return (entry & 255u) > 0u;
 }
@@ -259,7 +259,7 @@ fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3
     }
 }
 
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:105)
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:109)
 fn intersect_leaf(entry: u32, origin: vec3<f32>, dir: vec3<f32>, hit: ptr<function, Hit>) {
     let first: u32 = entry >> 8u;
     let i_end: u32 = first + (entry & 255u);
@@ -295,11 +295,12 @@ fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u
         exit = min(min(zero_to_miss(exit_x), zero_to_miss(exit_y)), zero_to_miss(exit_z));
     }
     let exit_1: vec4<f32> = min(exit * 1.0000008, vec4<f32>(t_max));
-    let t: vec4<f32> = vec4<f32>(select(MISS, enter.x, enter.x <= exit_1.x), select(MISS, enter.y, enter.y <= exit_1.y), select(MISS, enter.z, enter.z <= exit_1.z), select(MISS, enter.w, enter.w <= exit_1.w));
-    return NodeHits(t, scene_node_children[node]);
+    let e: vec4<u32> = scene_node_children[node];
+    let t: vec4<f32> = vec4<f32>(select(MISS, enter.x, enter.x <= exit_1.x && (e.x != 0u)), select(MISS, enter.y, enter.y <= exit_1.y && (e.y != 0u)), select(MISS, enter.z, enter.z <= exit_1.z && (e.z != 0u)), select(MISS, enter.w, enter.w <= exit_1.w && (e.w != 0u)));
+    return NodeHits(t, e);
 }
 
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:148)
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:152)
 fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -510,7 +511,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     }
 }
 
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:117)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:121)
 fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let first: u32 = entry >> 8u;
     var blocked: bool = false;
@@ -525,7 +526,7 @@ fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> b
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:270)
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:274)
 fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);

@@ -25,7 +25,7 @@ struct MaterialData {
     emissive_texture: u32,
 }
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:281)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:283)
 struct MetalRoughData {
     metallic: f32,
     roughness: f32,
@@ -185,8 +185,8 @@ fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
 // scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let info: vec4<u32> = scene_texture_info[index];
-    let x: f32 = uv.x * lp_u32_to_f32(info.y) - 0.5;
-    let y: f32 = uv.y * lp_u32_to_f32(info.z) - 0.5;
+    let x: f32 = clamp(uv.x * lp_u32_to_f32(info.y) - 0.5, -1000000000.0, 1000000000.0);
+    let y: f32 = clamp(uv.y * lp_u32_to_f32(info.z) - 0.5, -1000000000.0, 1000000000.0);
     let fx: f32 = x - floor(x);
     let fy: f32 = y - floor(y);
     let x0: i32 = lp_f32_to_i32(floor(x));
@@ -206,7 +206,7 @@ fn sample_data_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, true);
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:290)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:292)
 fn fetch_metal_rough(index: u32) -> MetalRoughData {
     let t: vec4<f32> = scene_metal_rough[index];
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);

@@ -21,6 +21,7 @@ fn the_server_survives_mutated_requests() {
         time_bound: Duration::from_secs(20),
         failures: std::env::temp_dir().join(format!("lightport-fuzz-http-{}", std::process::id())),
         seed: 0x5eed,
+        progress_every: 0,
     };
     let addr = server.addr;
     let mut answers = std::collections::BTreeMap::new();

@@ -1,14 +1,15 @@
 //! The mutational driver: a target's seeds, then mutations of them, each input under a time
 //! bound. A panic (also one a loader catches around a third-party decoder: the panic hook sees
-//! it) is a failure, its input saved; an input that runs past the bound is a hang: the input
-//! is saved and the process exits (a stuck thread cannot be stopped), naming the file.
+//! it) is a failure, its input saved; an input that runs past the bound (CPU time of the
+//! process, or 12 times the bound in wall time) is a hang: the input is saved and the process
+//! exits (a stuck thread cannot be stopped), naming the file.
 //!
 //! libFuzzer (`fuzz_targets/`) is the coverage-guided fuzzer; this driver is what runs without
 //! instrumentation: CI's smoke test, and long runs where the instrumented build is not wanted.
 
 use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, Once};
 use std::time::{Duration, Instant};
 
@@ -29,6 +30,8 @@ pub struct Options {
     pub failures: PathBuf,
     /// Seed of the mutations (same seed, same inputs).
     pub seed: u64,
+    /// Print a progress line to stderr every this many executions (0: never).
+    pub progress_every: u64,
 }
 
 /// What a run saw.
@@ -54,11 +57,22 @@ impl Report {
 static PANICS: AtomicU64 = AtomicU64::new(0);
 static LAST_PANIC: Mutex<String> = Mutex::new(String::new());
 
-/// Installs (once) a panic hook that counts panics on any thread and keeps the message.
+/// Whether an input is running (on any thread): panics outside one are the driver's own.
+static IN_INPUT: AtomicBool = AtomicBool::new(false);
+
+/// Installs (once) a panic hook that counts panics on any thread and keeps the message. A panic
+/// while no input runs (in the driver or a mutator) also goes to the default hook, so that it is
+/// printed: it ends the run, and a run that ends without a report must say why.
 fn install_panic_hook() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
-        std::panic::set_hook(Box::new(|info| {
+        let default = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !IN_INPUT.load(Ordering::SeqCst) {
+                eprintln!("the fuzz driver itself panicked (no input was running):");
+                default(info);
+                return;
+            }
             PANICS.fetch_add(1, Ordering::SeqCst);
             if let Ok(mut last) = LAST_PANIC.lock() {
                 *last = info.to_string();
@@ -72,14 +86,34 @@ struct Current {
     input: Mutex<Vec<u8>>,
     /// Milliseconds since `epoch` when the input started; 0 when none is running.
     started_ms: AtomicU64,
+    /// The process's CPU time (ms, all threads) when the input started.
+    started_cpu_ms: AtomicU64,
     epoch: Instant,
+}
+
+/// How many times the time bound an input may take in wall-clock time (when it is blocked, or
+/// starved of CPU) before it is a hang; the bound itself applies to the CPU time it spends.
+const WALL_FACTOR: u64 = 12;
+
+/// CPU time of this process, all threads (ms, from `/proc/self/stat`; 0 elsewhere).
+pub fn process_cpu_ms() -> u64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else { return 0 };
+    // Fields after the command name (which may hold spaces): state is the first, utime the
+    // 12th and stime the 13th, in clock ticks (100 per second on Linux).
+    let fields: Vec<&str> = stat.rsplit_once(')').map_or("", |(_, rest)| rest).split_whitespace().collect();
+    let ticks = |i: usize| fields.get(i).and_then(|f| f.parse::<u64>().ok()).unwrap_or(0);
+    (ticks(11) + ticks(12)) * 10
 }
 
 /// Runs `run` on every seed and then on `options.mutations` mutated inputs of `target`.
 pub fn run(target: Target, seeds: &[Seed], options: &Options, run: &mut dyn FnMut(&[u8])) -> Report {
     install_panic_hook();
-    let current =
-        Arc::new(Current { input: Mutex::new(Vec::new()), started_ms: AtomicU64::new(0), epoch: Instant::now() });
+    let current = Arc::new(Current {
+        input: Mutex::new(Vec::new()),
+        started_ms: AtomicU64::new(0),
+        started_cpu_ms: AtomicU64::new(0),
+        epoch: Instant::now(),
+    });
     let watchdog = spawn_watchdog(target, Arc::clone(&current), options.time_bound, options.failures.clone());
     let mut report = Report::default();
     let start = Instant::now();
@@ -88,11 +122,23 @@ pub fn run(target: Target, seeds: &[Seed], options: &Options, run: &mut dyn FnMu
         *current.input.lock().unwrap_or_else(|e| e.into_inner()) = input.to_vec();
         let before = PANICS.load(Ordering::SeqCst);
         let t0 = Instant::now();
+        current.started_cpu_ms.store(process_cpu_ms(), Ordering::SeqCst);
         current.started_ms.store(current.epoch.elapsed().as_millis() as u64 + 1, Ordering::SeqCst);
+        IN_INPUT.store(true, Ordering::SeqCst);
         let escaped = std::panic::catch_unwind(AssertUnwindSafe(|| run(input))).is_err();
+        IN_INPUT.store(false, Ordering::SeqCst);
         current.started_ms.store(0, Ordering::SeqCst);
         report.slowest = report.slowest.max(t0.elapsed());
         report.executions += 1;
+        if options.progress_every > 0 && report.executions.is_multiple_of(options.progress_every) {
+            let seconds = start.elapsed().as_secs_f64();
+            eprintln!(
+                "progress: {} executions in {seconds:.0} s ({:.0}/s), peak RSS {} MiB",
+                report.executions,
+                report.executions as f64 / seconds.max(1e-9),
+                peak_rss_kib() / 1024
+            );
+        }
         if escaped || PANICS.load(Ordering::SeqCst) != before {
             let message = LAST_PANIC.lock().map(|m| m.clone()).unwrap_or_default();
             let path = save(&options.failures, target, "panic", input);
@@ -115,6 +161,15 @@ pub fn run(target: Target, seeds: &[Seed], options: &Options, run: &mut dyn FnMu
     report.peak_rss_kib = peak_rss_kib();
     drop(watchdog);
     report
+}
+
+/// The inputs a run with mutation seed `seed` executes, in order: the seeds, then the
+/// mutations (the same as [`run`]'s: they depend on nothing but the seed list and `seed`). For
+/// finding which input a run that died (killed, aborted) was executing.
+pub fn inputs<'a>(target: Target, seeds: &'a [Seed], seed: u64) -> impl Iterator<Item = Vec<u8>> + 'a {
+    let mut rng = Rng::new(seed);
+    let mutations = std::iter::from_fn(move || (!seeds.is_empty()).then(|| mutated(target, seeds, &mut rng)));
+    seeds.iter().map(|(_, s)| s.clone()).chain(mutations)
 }
 
 /// A mutation of a random seed: structure-aware half of the time where the target has one,
@@ -160,14 +215,21 @@ fn spawn_watchdog(target: Target, current: Arc<Current>, bound: Duration, failur
         while stopped.load(Ordering::SeqCst) == 0 {
             std::thread::sleep(Duration::from_millis(50));
             let started = current.started_ms.load(Ordering::SeqCst);
-            let now = current.epoch.elapsed().as_millis() as u64 + 1;
-            if started != 0 && now.saturating_sub(started) > bound.as_millis() as u64 {
+            if started == 0 {
+                continue;
+            }
+            let wall = (current.epoch.elapsed().as_millis() as u64 + 1).saturating_sub(started);
+            let cpu = process_cpu_ms().saturating_sub(current.started_cpu_ms.load(Ordering::SeqCst));
+            let bound_ms = bound.as_millis() as u64;
+            // CPU time, so that a run starved by other work (nice 19 on a shared machine) does
+            // not report slow inputs as hangs; wall time too, for an input that blocks.
+            if cpu > bound_ms || wall > bound_ms * WALL_FACTOR {
                 let input = current.input.lock().map(|i| i.clone()).unwrap_or_default();
                 let path = save(&failures, target, "hang", &input);
                 eprintln!(
-                    "HANG: a {} input ran for more than {:?}; it is saved at {}",
+                    "HANG: a {} input ran for more than {bound:?} of CPU time ({cpu} ms CPU, {wall} ms wall); it is \
+                     saved at {}",
                     target.name(),
-                    bound,
                     path.display()
                 );
                 std::process::exit(3);

@@ -11,6 +11,8 @@
 //! * [`mutate`]: byte-level and structure-aware mutations (glTF JSON fields, GLB chunks, bundle
 //!   entries, HTTP request lines and headers), used by libFuzzer's custom mutator hook and by
 //!   the [`driver`].
+//! * [`regressions`]: the regression inputs made in code (bundles, which a format or kernel
+//!   change makes stale), rewritten by `lightport-fuzz regressions`.
 //! * [`driver`]: runs a target over its seeds and N mutations, each input under a time bound,
 //!   every panic (also one a loader catches) a failure with the input saved. It is what CI's
 //!   smoke test runs; the coverage-guided runs use libFuzzer (`fuzz_targets/`, `scripts/fuzz.sh`).
@@ -21,6 +23,7 @@ pub mod driver;
 pub mod glb;
 pub mod http;
 pub mod mutate;
+pub mod regressions;
 pub mod rng;
 pub mod seeds;
 pub mod targets;

@@ -6,6 +6,14 @@
 //! lightport-fuzz run TARGET [MUTATIONS] [SECONDS]
 //!                                          the mutational driver (no instrumentation needed);
 //!                                          prints executions, execs/s, panics, slowest, peak RSS
+//! lightport-fuzz replay TARGET FROM TO     runs inputs FROM..TO of `run`'s sequence, naming each
+//!                                          on stderr before it runs (which one killed a run?)
+//! lightport-fuzz input TARGET K FILE       writes input K of `run`'s sequence to FILE
+//! lightport-fuzz exec TARGET FILE...       runs a file target on each FILE (a saved finding),
+//!                                          printing how long each took
+//! lightport-fuzz regressions               rewrites the generated regression inputs (the bundles
+//!                                          in fuzz/regressions/bundle/, after a format or kernel
+//!                                          change; see lightport_fuzz::regressions)
 //! ```
 //! Targets: gltf obj texture sky bundle http. `scripts/fuzz.sh` runs the coverage-guided
 //! libFuzzer binaries; see docs/fuzzing.md.
@@ -15,7 +23,10 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use lightport_fuzz::driver::{self, Options};
-use lightport_fuzz::{http, seeds, Target};
+use lightport_fuzz::{http, regressions, seeds, Target};
+
+/// The mutation seed of `run` (and so of `replay` and `input`).
+const RUN_SEED: u64 = 1;
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -31,10 +42,80 @@ fn main() -> ExitCode {
             let seconds = args.get(3).and_then(|n| n.parse().ok()).unwrap_or(3600.0);
             run(target, mutations, Duration::from_secs_f64(seconds))
         }
-        _ => {
-            eprintln!("usage: lightport-fuzz seeds TARGET DIR | run TARGET [MUTATIONS] [SECONDS]");
-            eprintln!("targets: {}", Target::ALL.map(Target::name).join(" "));
-            ExitCode::from(2)
+        (Some("replay"), Some(target)) if target != Target::Http && args.len() == 4 => {
+            match (args[2].parse::<usize>(), args[3].parse::<usize>()) {
+                (Ok(from), Ok(to)) => replay(target, from, to),
+                _ => usage(),
+            }
+        }
+        (Some("input"), Some(target)) if args.len() == 4 => match args[2].parse::<usize>() {
+            Ok(k) => write_input(target, k, &PathBuf::from(&args[3])),
+            Err(_) => usage(),
+        },
+        (Some("exec"), Some(target)) if target != Target::Http && args.len() >= 3 => exec(target, &args[2..]),
+        (Some("regressions"), _) => match regressions::write_generated() {
+            Ok(paths) => {
+                for p in paths {
+                    println!("wrote {}", p.display());
+                }
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("cannot write the regression inputs: {e}");
+                ExitCode::FAILURE
+            }
+        },
+        _ => usage(),
+    }
+}
+
+fn usage() -> ExitCode {
+    eprintln!(
+        "usage: lightport-fuzz seeds TARGET DIR | max-len TARGET | run TARGET [MUTATIONS] [SECONDS] \
+         | replay TARGET FROM TO | input TARGET K FILE | exec TARGET FILE... | regressions"
+    );
+    eprintln!("targets: {}", Target::ALL.map(Target::name).join(" "));
+    ExitCode::from(2)
+}
+
+/// Runs inputs `from..to` of the driver's sequence, each named (and flushed) before it runs.
+fn replay(target: Target, from: usize, to: usize) -> ExitCode {
+    use std::io::Write;
+    let seeds = seeds::seeds(target);
+    for (k, input) in driver::inputs(target, &seeds, RUN_SEED).enumerate().take(to).skip(from) {
+        let _ = writeln!(std::io::stderr(), "input {k}: {} bytes", input.len());
+        target.run(&input);
+    }
+    eprintln!("inputs {from}..{to} ran");
+    ExitCode::SUCCESS
+}
+
+fn exec(target: Target, files: &[String]) -> ExitCode {
+    for file in files {
+        let Ok(input) = std::fs::read(file) else {
+            eprintln!("cannot read {file}");
+            return ExitCode::FAILURE;
+        };
+        let t0 = std::time::Instant::now();
+        target.run(&input);
+        println!(
+            "{file}: {} bytes, {:.1} ms, peak RSS {} MiB",
+            input.len(),
+            t0.elapsed().as_secs_f64() * 1e3,
+            driver::peak_rss_kib() / 1024
+        );
+    }
+    ExitCode::SUCCESS
+}
+
+fn write_input(target: Target, k: usize, file: &PathBuf) -> ExitCode {
+    let seeds = seeds::seeds(target);
+    let Some(input) = driver::inputs(target, &seeds, RUN_SEED).nth(k) else { return usage() };
+    match std::fs::write(file, &input) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("cannot write {}: {e}", file.display());
+            ExitCode::FAILURE
         }
     }
 }
@@ -61,7 +142,8 @@ fn run(target: Target, mutations: u64, max_time: Duration) -> ExitCode {
         max_time,
         time_bound: Duration::from_secs(10),
         failures: PathBuf::from("fuzz-failures"),
-        seed: 1,
+        seed: RUN_SEED,
+        progress_every: 100_000,
     };
     let seeds = seeds::seeds(target);
     let report = if target == Target::Http {

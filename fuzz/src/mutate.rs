@@ -252,11 +252,13 @@ fn mutate_value(root: &mut Value, rng: &mut Rng) {
                 .iter()
                 .filter(|p| root.pointer(p).is_some_and(|v| v.as_array().is_some_and(|a| !a.is_empty())))
                 .collect();
-            let p = rng.pick(&arrays).map(|p| p.to_string()).unwrap_or_default();
+            // (No non-empty array: nothing to do. Defaulting to the root, as the other cases
+            // may, indexed an empty root array and panicked: found by the gltf run's silent end.)
+            let Some(p) = rng.pick(&arrays).map(|p| p.to_string()) else { return };
             if let Some(Value::Array(a)) = root.pointer_mut(&p) {
-                let i = rng.below(a.len());
-                let copy = a[i].clone();
-                a.push(copy);
+                if let Some(copy) = a.get(rng.below(a.len())).cloned() {
+                    a.push(copy);
+                }
             }
         }
         7 => {

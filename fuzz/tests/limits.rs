@@ -1,5 +1,5 @@
 //! Memory is bounded by what a file backs: inputs that declare huge sizes (a 4 GiB buffer, a
-//! 2^32-element accessor, an 8192 x 8192 image in a few bytes, a bundle array of 2^40 elements)
+//! 2^32-element accessor, an 8192 x 8192 image or sky in a few bytes, a bundle array of 2^40 elements)
 //! are refused before anything that size is allocated. A counting allocator records the
 //! largest single allocation and the peak of live bytes while each input loads.
 //!
@@ -145,6 +145,34 @@ fn bundle_with_count(count: u64) -> Vec<u8> {
 /// One refusal check: loads a crafted input, `Err` says what went wrong.
 type LoadCase = dyn Fn() -> Result<(), String>;
 
+fn sky(bytes: &[u8], format: scene::SkyFormat) -> Result<(), String> {
+    scene::load_sky_slice(bytes, format, "sky", 1.0, 0.0).map(drop).map_err(|e| e.to_string())
+}
+
+/// A Radiance HDR header declaring `width` x `height` texels, then one run-length scanline
+/// start: a valid header whose pixels are not there.
+fn hdr_header_only(width: u32, height: u32) -> Vec<u8> {
+    let mut hdr = format!("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y {height} +X {width}\n").into_bytes();
+    hdr.extend_from_slice(&[2, 2, (width >> 8) as u8, width as u8, 0x81, 0x80, 0x81, 0x80]);
+    hdr
+}
+
+/// A 4 x 4 RGB OpenEXR whose data and display windows are rewritten to `size` x `size`.
+fn exr_header_only(size: i32) -> Vec<u8> {
+    let image = image::Rgb32FImage::from_pixel(4, 4, image::Rgb([1.0, 0.5, 0.25]));
+    let mut out = std::io::Cursor::new(Vec::new());
+    image::DynamicImage::ImageRgb32F(image).write_to(&mut out, image::ImageFormat::OpenExr).expect("encode an EXR");
+    let mut exr = out.into_inner();
+    for attribute in [&b"dataWindow\0box2i\0"[..], &b"displayWindow\0box2i\0"[..]] {
+        let at =
+            exr.windows(attribute.len()).position(|w| w == attribute).expect("the window attribute") + attribute.len();
+        // size (4 bytes), then xMin, yMin, xMax, yMax.
+        exr[at + 12..at + 16].copy_from_slice(&(size - 1).to_le_bytes());
+        exr[at + 16..at + 20].copy_from_slice(&(size - 1).to_le_bytes());
+    }
+    exr
+}
+
 #[test]
 fn inputs_declaring_huge_sizes_are_refused_before_allocating_them() {
     let four_gib = 4u64 << 30;
@@ -180,6 +208,14 @@ fn inputs_declaring_huge_sizes_are_refused_before_allocating_them() {
         (
             "a bundle declaring 4 GiB",
             Box::new(move || tracer::bundle::decode(&huge_bundle_total).map(drop).map_err(|e| e.to_string())),
+        ),
+        (
+            "an 8192 x 8192 HDR sky header without pixels",
+            Box::new(|| sky(&hdr_header_only(8192, 8192), scene::SkyFormat::Hdr)),
+        ),
+        (
+            "an 8192 x 8192 EXR sky header without pixels",
+            Box::new(|| sky(&exr_header_only(8192), scene::SkyFormat::Exr)),
         ),
         (
             "an OBJ face with vertex index 2^32 - 1",

@@ -39,6 +39,7 @@ fn every_file_target_survives_its_seeds_and_mutations() {
             time_bound: Duration::from_secs(30),
             failures: failures.clone(),
             seed: 0x5eed,
+            progress_every: 0,
         };
         let report = driver::run(target, &seeds, &options, &mut |input| target.run(input));
         eprintln!(

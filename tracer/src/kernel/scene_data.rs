@@ -264,8 +264,10 @@ pub mod scene_data {
     /// Bilinear lookup of texture `index` at `uv`, its texels decoded as colour or as `data`.
     pub fn bilinear(scene: &Scene, index: u32, uv: Vec2, data: bool) -> Vec4 {
         let info = scene.texture_info.fetch(index);
-        let x = uv.x * info.y as f32 - 0.5;
-        let y = uv.y * info.z as f32 - 0.5;
+        // Clamped so that the texel coordinates (and the next ones, + 1) fit an i32 for any uv;
+        // beyond 2^30 an f32 cannot tell texels apart anyway.
+        let x = (uv.x * info.y as f32 - 0.5).clamp(-1.0e9, 1.0e9);
+        let y = (uv.y * info.z as f32 - 0.5).clamp(-1.0e9, 1.0e9);
         let fx = x - x.floor();
         let fy = y - y.floor();
         let x0 = x.floor() as i32;

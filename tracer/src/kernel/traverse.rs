@@ -91,13 +91,17 @@ pub mod traverse {
         }
         // Widened by 1 + 2 * gamma(3) as in `intersect_aabb`.
         let exit = (exit * 1.000_000_8).min(Vec4::splat(t_max));
+        // An unused slot's entry is 0, the root, which is nobody's child: it is never followed,
+        // whatever its box (a NaN ray can pass an empty box, a bundle can pair entry 0 with a
+        // real box; following it restarted traversal at the root for ever: found by fuzzing).
+        let e = scene.node_children.fetch(node);
         let t = Vec4::new(
-            if enter.x <= exit.x { enter.x } else { MISS },
-            if enter.y <= exit.y { enter.y } else { MISS },
-            if enter.z <= exit.z { enter.z } else { MISS },
-            if enter.w <= exit.w { enter.w } else { MISS },
+            if enter.x <= exit.x && e.x != 0 { enter.x } else { MISS },
+            if enter.y <= exit.y && e.y != 0 { enter.y } else { MISS },
+            if enter.z <= exit.z && e.z != 0 { enter.z } else { MISS },
+            if enter.w <= exit.w && e.w != 0 { enter.w } else { MISS },
         );
-        NodeHits { t, entries: scene.node_children.fetch(node) }
+        NodeHits { t, entries: e }
     }
 
     /// Intersects the triangles of the leaf `entry` (a stack entry with count > 0), keeping

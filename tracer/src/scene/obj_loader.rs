@@ -57,6 +57,7 @@ fn load_obj_from(
     let mtl_failure: RefCell<Option<SceneError>> = RefCell::new(None);
     let parse_options =
         tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
+    check_face_indices(bytes).map_err(obj_error)?;
     let parsed = catch_decoder_panic(|| {
         tobj::load_obj_buf(&mut Cursor::new(bytes), &parse_options, |mtl| {
             let result = read(mtl).and_then(|b| {
@@ -184,6 +185,48 @@ fn check_mtl_colours(mtl: &[u8]) -> Result<(), String> {
             if values < 3 {
                 return Err(format!("line {}: {key} needs three values (r g b), found {values}", n + 1));
             }
+        }
+    }
+    Ok(())
+}
+
+/// The largest positive face index accepted (no OBJ within the loader's limits has more vertices).
+const MAX_FACE_INDEX: i64 = 1 << 32;
+
+/// Refuses face (and line) indices that tobj 4 would overflow on: a relative index reaching
+/// before the first vertex, texture coordinate or normal wraps to a huge `usize`, which tobj
+/// then multiplies by 2 or 3 (`lib.rs:852/860`: a panic in debug builds, a wrapped bounds check
+/// in release ones); found by fuzzing. The counts are tobj's own at that line (one per `v`,
+/// `vt` or `vn` statement). Indices that are not integers are tobj's to refuse.
+fn check_face_indices(obj: &[u8]) -> Result<(), String> {
+    const KINDS: [(&str, &str); 3] = [("vertex", "v"), ("texture coordinate", "vt"), ("normal", "vn")];
+    let mut counts = [0u64; 3];
+    for (n, line) in obj.split(|&b| b == b'\n').enumerate() {
+        let Ok(line) = std::str::from_utf8(line) else { continue };
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => counts[0] += 1,
+            Some("vt") => counts[1] += 1,
+            Some("vn") => counts[2] += 1,
+            Some("f" | "l") => {
+                for corner in words {
+                    for (k, index) in corner.split('/').enumerate().take(3) {
+                        let Ok(i) = index.parse::<i64>() else { continue };
+                        let (kind, keyword) = KINDS[k];
+                        if i > MAX_FACE_INDEX {
+                            return Err(format!("line {}: {kind} index {i} is above {MAX_FACE_INDEX}", n + 1));
+                        }
+                        if i < 0 && i.unsigned_abs() > counts[k] {
+                            return Err(format!(
+                                "line {}: relative {kind} index {i} reaches before the first `{keyword}` ({} so far)",
+                                n + 1,
+                                counts[k]
+                            ));
+                        }
+                    }
+                }
+            }
+            _ => {}
         }
     }
     Ok(())

@@ -5,7 +5,7 @@ use std::path::Path;
 use glam::Vec3;
 use image::ImageFormat;
 
-use super::texture::decode_limited;
+use super::texture::{catch_decoder_panic, decode_limited};
 use super::util::read_file;
 use super::{SceneError, Sky, MAX_IMAGE_TEXELS, MAX_RADIANCE};
 
@@ -46,6 +46,62 @@ fn check_parameters(intensity: f32, rotation: f32) -> Result<(), SceneError> {
     Ok(())
 }
 
+/// The most texels a Radiance HDR file can describe per byte: its run-length scanlines spend 2
+/// bytes per run of at most 127 texels in each of 4 channels (127 / 8 < 16). (The 1990s
+/// "old-style" run length can do more; such files are refused when they exceed this.)
+pub const MAX_HDR_TEXELS_PER_BYTE: u64 = 16;
+/// The most texels an OpenEXR file can describe per byte: deflate (ZIP) expands at most 1032:1
+/// and a texel holds at least one 16-bit sample; RLE (64:1), PIZ and B44 compress less.
+pub const MAX_EXR_TEXELS_PER_BYTE: u64 = 516;
+
+/// Refuses a sky whose header declares more texels than its bytes can encode (the decoders
+/// allocate the declared image before they find the data missing: a 100-byte HDR could cost
+/// 1.5 GiB and seconds; found by fuzzing). Only the header is parsed here.
+fn check_backed(bytes: &[u8], format: ImageFormat, name: &str) -> Result<(), SceneError> {
+    let per_byte = if format == ImageFormat::OpenExr { MAX_EXR_TEXELS_PER_BYTE } else { MAX_HDR_TEXELS_PER_BYTE };
+    let dimensions =
+        catch_decoder_panic(|| image::ImageReader::with_format(std::io::Cursor::new(bytes), format).into_dimensions());
+    let most = per_byte * bytes.len() as u64;
+    // A tiled EXR's decoder allocates whole tiles: a tile's size is bounded the same way (a
+    // 727-byte 8 x 4 EXR declared 16776000 x 64 tiles, 1.9 GiB; found by fuzzing).
+    if format == ImageFormat::OpenExr {
+        if let Some((tw, th)) = exr_tile_sizes(bytes).find(|&(tw, th)| tw * th > most) {
+            return Err(SceneError::Image {
+                name: name.to_owned(),
+                message: format!(
+                    "the header declares tiles of {tw} x {th} texels, more than its {} bytes can encode",
+                    bytes.len()
+                ),
+            });
+        }
+    }
+    // A header that does not parse is reported by the decoder itself.
+    let Some(Ok((w, h))) = dimensions else { return Ok(()) };
+    let declared = u64::from(w) * u64::from(h);
+    if declared > most {
+        return Err(SceneError::Image {
+            name: name.to_owned(),
+            message: format!(
+                "the header declares {w} x {h} texels, more than its {} bytes can encode ({per_byte} per byte at most \
+                 in {format:?})",
+                bytes.len()
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// The tile sizes of every `tiles` attribute (`tiledesc`: size 9, x size, y size, mode) in an
+/// EXR's headers, found by their name and type.
+fn exr_tile_sizes(bytes: &[u8]) -> impl Iterator<Item = (u64, u64)> + '_ {
+    const ATTRIBUTE: &[u8] = b"tiles\0tiledesc\0";
+    bytes.windows(ATTRIBUTE.len()).enumerate().filter(|(_, w)| *w == ATTRIBUTE).filter_map(|(at, _)| {
+        let u32_at = |i: usize| bytes.get(i..i + 4).map(|b| u64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])));
+        let data = at + ATTRIBUTE.len() + 4;
+        Some((u32_at(data)?, u32_at(data + 4)?))
+    })
+}
+
 /// [`load_sky`] from bytes in memory; `name` names the image in errors.
 pub fn load_sky_slice(
     bytes: &[u8],
@@ -60,6 +116,7 @@ pub fn load_sky_slice(
         SkyFormat::Exr => ImageFormat::OpenExr,
     };
     let err = |message: String| SceneError::Image { name: name.to_owned(), message };
+    check_backed(bytes, format, name)?;
     let img = decode_limited(bytes, format, MAX_IMAGE_TEXELS, name)?;
     let (width, height) = (img.width(), img.height());
     if width == 0 || height == 0 {

@@ -30,6 +30,8 @@
 use glam::{UVec4, Vec3, Vec4};
 use kernel_dsl::Texels;
 
+mod bounds;
+
 use crate::kernel::scene_data::{Scene, LIGHT_TEXELS, TRIANGLE_TEXELS};
 use crate::pack::{Features, Packed};
 
@@ -256,7 +258,7 @@ fn check_consistency(p: &Packed) -> Result<(), BundleError> {
             s.sky_rows.len()
         ));
     }
-    Ok(())
+    bounds::check_indices(p)
 }
 
 /// Element types of an entry's data.

@@ -1,0 +1,171 @@
+//! Decode-time bounds of every index the kernel follows, so that no decoded bundle can make it
+//! read out of range, overflow an index computation (a panic in debug builds of the CPU
+//! backend, a wrapped read on a GPU) or loop. Found by fuzzing: a texture whose first texel
+//! was near 2^32 overflowed `texel_word`'s index, and node children pointing back at the root
+//! made traversal endless.
+//!
+//! The kernel's own arithmetic stays unchecked (it runs per ray); what it relies on is checked
+//! here once: child nodes come after their parent and each has one parent (traversal visits
+//! every node at most once per ray), leaves are disjoint, leaves, materials, lights and textures lie within their
+//! arrays, float-stored indices are exact (-1 or an integer in range), texture sizes keep the
+//! texel arithmetic within `i32`/`u32`.
+
+use super::BundleError;
+use crate::kernel::scene_data::{
+    Scene, LIGHT_SKY, LIGHT_TEXELS, LIGHT_TRIANGLE, MATERIAL_TEXELS, NODE_TEXELS, SHADING_TEXELS,
+    TEXTURE_TEXELS_PER_ELEMENT, TRIANGLE_TEXELS, WRAP_MIRROR,
+};
+use crate::pack::Packed;
+
+fn fail<T>(what: String) -> Result<T, BundleError> {
+    Err(BundleError::Inconsistent(what))
+}
+
+/// A float-stored index as the kernel reads it (`index_of`): `Some(None)` for -1 (none),
+/// `Some(Some(i))` for an integer below `count`, `None` for anything else (a fraction, NaN,
+/// another negative, out of range).
+fn float_index(x: f32, count: usize) -> Option<Option<usize>> {
+    if x == -1.0 {
+        Some(None)
+    } else if x >= 0.0 && x.fract() == 0.0 && (x as usize) < count {
+        Some(Some(x as usize))
+    } else {
+        None
+    }
+}
+
+/// Every index check; the array lengths of `Packed`'s counts are checked before (see
+/// `check_consistency`).
+pub(super) fn check_indices(p: &Packed) -> Result<(), BundleError> {
+    let s = &p.scene;
+    check_nodes(s, p.triangle_count)?;
+    let textures = check_textures(s)?;
+    let materials = check_materials(s, textures)?;
+    check_triangles(s, p.triangle_count, materials, p.light_count)?;
+    check_lights(s, p.triangle_count, p.light_count)?;
+    if s.has_sky != 0 && (s.sky_width == 0 || s.sky_height == 0) {
+        return fail(format!("sky {}x{} has no texels", s.sky_width, s.sky_height));
+    }
+    Ok(())
+}
+
+/// The BVH is a tree in the order the kernel walks it: node 0 the root, every other node the
+/// child of exactly one node before it (so traversal visits each at most once per ray); a child
+/// entry 0 is an unused slot (the root is nobody's child; traversal skips it); leaves name
+/// triangles that exist, each triangle in one leaf at most.
+fn check_nodes(s: &Scene, triangle_count: usize) -> Result<(), BundleError> {
+    let count = s.node_children.len();
+    if count == 0 || Some(s.nodes.len()) != count.checked_mul(NODE_TEXELS as usize) {
+        return fail(format!("{} node plane texels for {count} nodes (at least the root)", s.nodes.len()));
+    }
+    let mut has_parent = vec![false; count];
+    let mut leaves = Vec::new();
+    for (i, children) in s.node_children.as_slice().iter().enumerate() {
+        for (slot, entry) in children.to_array().into_iter().enumerate() {
+            let (first, leaf) = ((entry >> 8) as usize, (entry & 255) as usize);
+            if leaf > 0 {
+                if first + leaf > triangle_count {
+                    return fail(format!(
+                        "node {i} slot {slot}: a leaf of triangles {first}..{} of {triangle_count}",
+                        first + leaf
+                    ));
+                }
+                leaves.push((first, first + leaf));
+            } else if first != 0 {
+                if first <= i || first >= count {
+                    return fail(format!(
+                        "node {i} slot {slot}: child node {first} (children come after their parent, of {count} nodes)"
+                    ));
+                }
+                if std::mem::replace(&mut has_parent[first], true) {
+                    return fail(format!("node {first} is the child of two nodes"));
+                }
+            }
+        }
+    }
+    // Leaves do not share triangles (a ray then tests each triangle at most once).
+    leaves.sort_unstable();
+    if let Some(w) = leaves.windows(2).find(|w| w[1].0 < w[0].1) {
+        return fail(format!("leaves of triangles {}..{} and {}..{} overlap", w[0].0, w[0].1, w[1].0, w[1].1));
+    }
+    Ok(())
+}
+
+/// Each texture lies within `texture_texels`, at least 1 x 1, with known wrap modes. Returns
+/// the texture count.
+fn check_textures(s: &Scene) -> Result<usize, BundleError> {
+    let texels = s.texture_texels.len() as u64 * TEXTURE_TEXELS_PER_ELEMENT as u64;
+    for (i, info) in s.texture_info.as_slice().iter().enumerate() {
+        let (first, w, h, wrap) = (info.x as u64, info.y as u64, info.z as u64, info.w);
+        if w == 0 || h == 0 || first + w * h > texels {
+            return fail(format!("texture {i}: {w} x {h} texels from texel {first}, of {texels}"));
+        }
+        if wrap & 255 > WRAP_MIRROR || wrap >> 8 > WRAP_MIRROR {
+            return fail(format!("texture {i}: wrap modes {wrap:#x}"));
+        }
+    }
+    Ok(s.texture_info.len())
+}
+
+/// Materials are whole and name textures that exist (metal-roughness too, when used). Returns
+/// the material count.
+fn check_materials(s: &Scene, textures: usize) -> Result<usize, BundleError> {
+    let per = MATERIAL_TEXELS as usize;
+    if !s.materials.len().is_multiple_of(per) {
+        return fail(format!("{} material texels (not a multiple of {per})", s.materials.len()));
+    }
+    let count = s.materials.len() / per;
+    for (i, m) in s.materials.as_slice().chunks_exact(per).enumerate() {
+        if float_index(m[0].w, textures).is_none() || float_index(m[1].w, textures).is_none() {
+            return fail(format!("material {i}: texture {} / {} of {textures}", m[0].w, m[1].w));
+        }
+    }
+    if s.has_metal_rough != 0 {
+        if s.metal_rough.len() != count {
+            return fail(format!("{} metal-roughness texels for {count} materials", s.metal_rough.len()));
+        }
+        if let Some(i) = s.metal_rough.as_slice().iter().position(|t| float_index(t.z, textures).is_none()) {
+            return fail(format!(
+                "material {i}: metal-roughness texture {} of {textures}",
+                s.metal_rough.as_slice()[i].z
+            ));
+        }
+    }
+    Ok(count)
+}
+
+/// Triangles use a material that exists and name a light that exists (or none); their shading
+/// texels are all there when the kernel reads them.
+fn check_triangles(s: &Scene, triangle_count: usize, materials: usize, lights: usize) -> Result<(), BundleError> {
+    for (i, t) in s.triangles.as_slice().chunks_exact(TRIANGLE_TEXELS as usize).enumerate() {
+        if !matches!(float_index(t[0].w, materials), Some(Some(_))) {
+            return fail(format!("triangle {i}: material {} of {materials}", t[0].w));
+        }
+        if float_index(t[1].w, lights).is_none() {
+            return fail(format!("triangle {i}: light {} of {lights}", t[1].w));
+        }
+    }
+    if s.has_shading != 0 && Some(s.shading.len()) != triangle_count.checked_mul(SHADING_TEXELS as usize) {
+        return fail(format!("{} shading texels for {triangle_count} triangles", s.shading.len()));
+    }
+    Ok(())
+}
+
+/// Lights: alias entries within the table, known kinds, triangle lights on triangles that
+/// exist; with a sky, the sky is the last light (the kernel's MIS weight looks it up there).
+fn check_lights(s: &Scene, triangle_count: usize, lights: usize) -> Result<(), BundleError> {
+    for (i, l) in s.lights.as_slice().chunks_exact(LIGHT_TEXELS as usize).enumerate() {
+        let (alias, kind) = (float_index(l[0].y, lights), float_index(l[0].w, LIGHT_SKY as usize + 1));
+        let (Some(Some(_)), Some(Some(kind))) = (alias, kind) else {
+            return fail(format!("light {i}: alias {} of {lights}, kind {}", l[0].y, l[0].w));
+        };
+        if kind == LIGHT_TRIANGLE as usize && !matches!(float_index(l[1].x, triangle_count), Some(Some(_))) {
+            return fail(format!("light {i}: triangle {} of {triangle_count}", l[1].x));
+        }
+    }
+    let last_kind = s.lights.as_slice().chunks_exact(LIGHT_TEXELS as usize).last().map(|l| l[0].w);
+    if s.has_sky != 0 && last_kind != Some(LIGHT_SKY as f32) {
+        return fail(format!("a sky, but the last of the {lights} lights is not the sky"));
+    }
+    Ok(())
+}
