@@ -225,8 +225,8 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
 // scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
-    float x = uv.x * lp_u32_to_f32(info.y) - 0.5;
-    float y = uv.y * lp_u32_to_f32(info.z) - 0.5;
+    float x = clamp(uv.x * lp_u32_to_f32(info.y) - 0.5, -1000000000.0, 1000000000.0);
+    float y = clamp(uv.y * lp_u32_to_f32(info.z) - 0.5, -1000000000.0, 1000000000.0);
     float fx = x - floor(x);
     float fy = y - floor(y);
     int x0 = lp_f32_to_i32(floor(x));

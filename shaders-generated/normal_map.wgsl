@@ -198,8 +198,8 @@ fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
 // scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let info: vec4<u32> = scene_texture_info[index];
-    let x: f32 = uv.x * lp_u32_to_f32(info.y) - 0.5;
-    let y: f32 = uv.y * lp_u32_to_f32(info.z) - 0.5;
+    let x: f32 = clamp(uv.x * lp_u32_to_f32(info.y) - 0.5, -1000000000.0, 1000000000.0);
+    let y: f32 = clamp(uv.y * lp_u32_to_f32(info.z) - 0.5, -1000000000.0, 1000000000.0);
     let fx: f32 = x - floor(x);
     let fy: f32 = y - floor(y);
     let x0: i32 = lp_f32_to_i32(floor(x));

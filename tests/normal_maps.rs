@@ -647,6 +647,14 @@ fn bundles_carry_normal_maps_and_refuse_a_wrong_layout() {
         ("tangent_first", (|p: &mut Packed| p.scene.tangent_first += 3) as fn(&mut Packed)),
         ("normal_map_first", |p: &mut Packed| p.scene.normal_map_first = 1),
         ("has_normal_map", |p: &mut Packed| p.scene.has_normal_map = 0),
+        // A normal-map texture beyond the textures (the kernel would fetch its info past the
+        // end: a panic on the CPU, a clamped or zero read on GPUs).
+        ("normal-map texture", |p: &mut Packed| {
+            let first = p.scene.normal_map_first as usize;
+            let mut texels = p.scene.materials.as_slice().to_vec();
+            texels[first].x = 99.0;
+            p.scene.materials = texels.into();
+        }),
     ] {
         let mut bad = packed.clone();
         change(&mut bad);

@@ -107,15 +107,28 @@ fn check_textures(s: &Scene) -> Result<usize, BundleError> {
     Ok(s.texture_info.len())
 }
 
-/// Materials are whole and name textures that exist (metal-roughness too, when used). Returns
-/// the material count.
+/// Materials are whole and name textures that exist (metal-roughness and normal maps too, when
+/// used). Returns the material count.
 fn check_materials(s: &Scene, textures: usize) -> Result<usize, BundleError> {
     let per = MATERIAL_TEXELS as usize;
-    if !s.materials.len().is_multiple_of(per) {
-        return fail(format!("{} material texels (not a multiple of {per})", s.materials.len()));
+    // With normal maps, one texel per material follows the materials (from `normal_map_first`,
+    // whose consistency with the array length `check_consistency` has checked).
+    let (materials, normal_maps) = if s.has_normal_map != 0 {
+        s.materials.as_slice().split_at((s.normal_map_first as usize).min(s.materials.len()))
+    } else {
+        (s.materials.as_slice(), &[][..])
+    };
+    if !materials.len().is_multiple_of(per) {
+        return fail(format!("{} material texels (not a multiple of {per})", materials.len()));
     }
-    let count = s.materials.len() / per;
-    for (i, m) in s.materials.as_slice().chunks_exact(per).enumerate() {
+    let count = materials.len() / per;
+    if s.has_normal_map != 0 && normal_maps.len() != count {
+        return fail(format!("{} normal-map texels for {count} materials", normal_maps.len()));
+    }
+    if let Some(i) = normal_maps.iter().position(|t| float_index(t.x, textures).is_none()) {
+        return fail(format!("material {i}: normal-map texture {} of {textures}", normal_maps[i].x));
+    }
+    for (i, m) in materials.chunks_exact(per).enumerate() {
         if float_index(m[0].w, textures).is_none() || float_index(m[1].w, textures).is_none() {
             return fail(format!("material {i}: texture {} / {} of {textures}", m[0].w, m[1].w));
         }
@@ -145,7 +158,10 @@ fn check_triangles(s: &Scene, triangle_count: usize, materials: usize, lights: u
             return fail(format!("triangle {i}: light {} of {lights}", t[1].w));
         }
     }
-    if s.has_shading != 0 && Some(s.shading.len()) != triangle_count.checked_mul(SHADING_TEXELS as usize) {
+    // With normal maps, tangents follow the shading texels from `tangent_first` (checked with
+    // the array length by `check_consistency`).
+    let shading = if s.has_normal_map != 0 { s.tangent_first as usize } else { s.shading.len() };
+    if s.has_shading != 0 && Some(shading) != triangle_count.checked_mul(SHADING_TEXELS as usize) {
         return fail(format!("{} shading texels for {triangle_count} triangles", s.shading.len()));
     }
     Ok(())

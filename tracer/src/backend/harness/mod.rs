@@ -181,6 +181,8 @@ impl Equivalence {
         let mut modules = crate::kernel::modules();
         modules.extend_from_slice(extra);
         let program = Program::link(&modules).map_err(ShaderError::from)?;
+        // Only the GPU runtimes built in (features `gl`, `wgpu`) assign to it.
+        #[cfg_attr(not(any(feature = "gl", feature = "wgpu")), allow(unused_mut))]
         let mut e = Equivalence::cpu_only(program);
         for backend in backends {
             match backend {
@@ -352,8 +354,8 @@ impl Equivalence {
 mod tests {
     use super::words::split_top;
     use super::*;
-    use glam::{Vec2, Vec3, Vec4};
     use crate::kernel::traverse::Hit;
+    use glam::{Vec2, Vec3, Vec4};
 
     #[test]
     fn ulp_distance_counts_representable_values() {
