@@ -309,3 +309,159 @@ fn set_uniforms_renders_like_a_fresh_renderer() {
     assert!(err.to_string().contains("fixed"), "{err}");
     assert_eq!(reused.packed().scene.width, SIZE, "a refused change leaves the size as it was");
 }
+
+/// The page's frame budget: no single GPU submission (a band of a frame) should take longer.
+const BAND_BUDGET_MS: f64 = tracer::backend::frame_split::DEFAULT_BUDGET_MS;
+
+/// Input-to-restart times (ms) of the `slow` scenario. `at_once`: each input reset the sample
+/// counter before the driver's input call returned (unsplit, a pointer move waits for the
+/// frame in flight before it is handled at all).
+fn restart_latencies(report: &Value, at_once: bool) -> Vec<f64> {
+    let restarts = report["restarts"].as_array().expect("restarts");
+    restarts
+        .iter()
+        .map(|r| {
+            let t = |k: &str| r[k].as_f64().unwrap_or_else(|| panic!("{k} in {r}"));
+            if at_once {
+                assert_eq!(r["sppAfterInput"], 0, "the input reset the sample counter at once: {r}");
+            }
+            assert!(t("inputAt") <= t("handledAt") && t("handledAt") <= t("submittedAt"), "{r}");
+            assert!(t("submittedAt") <= t("doneAt"), "{r}");
+            t("doneAt") - t("inputAt")
+        })
+        .collect()
+}
+
+fn median(values: &[f64]) -> f64 {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// A slow device (SwiftShader: seconds per 640x480 frame of the Cornell box) stays responsive:
+/// the page splits each frame into bands of at most the budget, one on the GPU at a time, so a
+/// camera drag during a frame restarts the accumulation within a small multiple of the budget
+/// (from the event to the restarted accumulation's first band done on the GPU), not after the
+/// frame in flight. Unsplit (`bandBudget=0`), the same input waits for the whole frame.
+#[test]
+fn camera_input_during_a_slow_frame_restarts_within_the_budget() {
+    let server = Server::start(&[]);
+    let budget = BAND_BUDGET_MS.to_string();
+    let split = browse(
+        &server.url,
+        "slow",
+        &[("scene", "cornell-box"), ("size", "640x480"), ("bandBudget", &budget), ("inputs", "7")],
+    );
+    no_page_error(&split);
+    let info = &split["info"];
+    let frame_ms = split["frameMs"].as_f64().expect("frameMs");
+    let bands = info["bands"].as_u64().expect("bands");
+    let band_ms = info["bandMs"].as_f64().expect("a measured band time");
+    let latencies = restart_latencies(&split, true);
+    eprintln!(
+        "split: {} on {}: whole frame {frame_ms:.0} ms; {bands} bands of {} rows, ~{band_ms:.0} ms; input to restarted \
+         band done (ms): {latencies:.0?}; read-out {:?}",
+        info["name"], info["glRenderer"], info["bandRows"], split["readout"]
+    );
+    assert!(frame_ms > 4.0 * BAND_BUDGET_MS, "a slow device: a whole frame takes {frame_ms} ms");
+    assert!(bands > 1, "the frame is split: {info}");
+    // A band's share of a whole frame's GPU time fits the budget (one band's own measured time
+    // is an upper bound that includes the fence's round trip, noisy on a loaded machine).
+    let band_rows = info["bandRows"].as_f64().expect("bandRows");
+    let share = band_rows * frame_ms / info["height"].as_f64().expect("height");
+    assert!(share <= BAND_BUDGET_MS, "bands fit the budget: {band_rows} rows of a {frame_ms:.0} ms frame: {info}");
+    let readout = split["readout"].as_str().unwrap_or("");
+    // Read a moment before `info`: the band count may have moved since.
+    let shown = readout
+        .strip_prefix("frame split into ")
+        .and_then(|r| r.split_once(&format!(" bands of ≤{budget} ms")))
+        .and_then(|(n, _)| n.parse::<u32>().ok());
+    assert!(shown.is_some_and(|n| n > 1), "the read-out says so: {readout:?}");
+    let m = median(&latencies);
+    assert!(
+        m <= 4.0 * BAND_BUDGET_MS,
+        "median input-to-restart {m:.0} ms must be within 4 budgets of {BAND_BUDGET_MS} ms (whole frame {frame_ms:.0} ms): \
+         {latencies:.0?}"
+    );
+
+    let unsplit = browse(
+        &server.url,
+        "slow",
+        &[("scene", "cornell-box"), ("size", "640x480"), ("bandBudget", "0"), ("inputs", "2"), ("settle", "2")],
+    );
+    no_page_error(&unsplit);
+    let unsplit_latencies = restart_latencies(&unsplit, false);
+    assert_eq!(unsplit["info"]["bands"], 1);
+    assert!(unsplit["readout"].as_str().unwrap_or("").contains("not split"), "{}", unsplit["readout"]);
+    eprintln!(
+        "unsplit: whole frame {:.0} ms; input to restarted frame done (ms): {unsplit_latencies:.0?}; split/unsplit median \
+         {:.3}",
+        unsplit["frameMs"].as_f64().unwrap_or(f64::NAN),
+        m / median(&unsplit_latencies)
+    );
+    assert!(m * 4.0 < median(&unsplit_latencies), "splitting shortens the restart: {m} vs {unsplit_latencies:?}");
+}
+
+/// A frame drawn in bands of rows (scissor rectangles of the same pass, as the page's frame
+/// loop submits them) is the frame drawn whole, exactly: the per-pixel random sequence depends
+/// on the pixel and the frame, not on the submission. Bands of uneven heights that change
+/// within and across frames, through `GlRenderer::render_band` and through the fenced
+/// `Pacer`; and a restart in the middle of a split frame leaves nothing of it behind. Native GL.
+#[test]
+fn a_frame_split_into_bands_is_the_unsplit_frame() {
+    use tracer::backend::frame_split::{Pacer, Step};
+    use tracer::backend::gl::GlRenderer;
+    let scene = scene::cornell_box();
+    let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
+    let settings = RenderSettings { width: 40, height: 36, strategy: Strategy::Mis, max_depth: SERVED_MAX_DEPTH };
+    let base = pack(&scene, &bvh, &settings).expect("pack");
+    let mut whole = GlRenderer::headless(base.clone(), 3).expect("GL");
+    let mut banded = GlRenderer::headless(base.clone(), 3).expect("GL");
+    let same = |a: &GlRenderer, b: &GlRenderer, what: &str| {
+        let (x, y) = (a.accumulation().expect("readback"), b.accumulation().expect("readback"));
+        let differing = x.iter().zip(&y).filter(|(p, q)| p != q).count();
+        assert_eq!(differing, 0, "{what}: {differing} of {} pixels differ", x.len());
+        assert!(x.iter().map(|p| p.x as f64).sum::<f64>() > 0.0, "{what}: black");
+    };
+    let mut heights = [5u32, 7, 1, 13, 36, 3, 11].into_iter().cycle();
+    let mut bands = 0;
+    for frame in 0..4 {
+        whole.render_frame().expect("frame");
+        bands += 1;
+        while !banded.render_band(heights.next().unwrap()).expect("band") {
+            assert_eq!(banded.frames(), frame, "the sample count advances with the frame's last band only");
+            bands += 1;
+        }
+        assert_eq!(banded.frames(), frame + 1);
+        same(&whole, &banded, &format!("frame {frame}"));
+    }
+    assert!(bands >= 12, "frames 0, 1 and 3 were split: {bands} bands");
+    banded.render_band(10).expect("band");
+    assert_eq!(banded.rows_left(), 26);
+    banded.restart().expect("restart");
+    whole.restart().expect("restart");
+    assert_eq!(banded.rows_left(), 36, "a restart abandons the split frame");
+    for _ in 0..2 {
+        whole.render_frame().expect("frame");
+        while !banded.render_band(20).expect("band") {}
+    }
+    same(&whole, &banded, "after a restart in the middle of a frame");
+
+    // The page's loop: fenced bands, one in flight, heights from the measured (here: a
+    // simulated 30 ms per step) times.
+    let mut paced = GlRenderer::headless(base.clone(), 3).expect("GL");
+    let mut pacer = Pacer::new(36, Some(BAND_BUDGET_MS));
+    let (mut now, mut submitted) = (0.0, 0);
+    while paced.frames() < 2 {
+        now += 30.0;
+        if let Step::Submitted { .. } = pacer.step(&mut paced, now, |_, _| {}).expect("step") {
+            submitted += 1;
+        }
+    }
+    pacer.forget(paced.gl());
+    let mut two = GlRenderer::headless(base, 3).expect("GL");
+    two.render_frame().expect("frame");
+    two.render_frame().expect("frame");
+    assert!(submitted > 2, "the pacer split the frames: {submitted} bands");
+    same(&two, &paced, "paced bands");
+}

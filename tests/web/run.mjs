@@ -4,7 +4,7 @@
 //
 //   node run.mjs SCENARIO --url http://127.0.0.1:PORT/ --out result.json [options]
 //
-// Scenarios: accumulate, cache, camera, drop, limits, context, bench, chart, compile (see each
+// Scenarios: accumulate, cache, camera, slow, drop, limits, context, bench, chart, compile (see each
 // function). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
 // long, so that a hung page never hangs the caller. `--exit-on-stdin-eof` (no value): exit 4,
 // closing the browser, when stdin reaches its end: the caller holds the pipe's other end, which
@@ -180,6 +180,57 @@ async function camera(o) {
       steps.afterStrategy = await spp();
       const errorAfter = await page.evaluate(() => window.lightport.error);
       return { steps, before, after, error: errorAfter };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
+// A slow frame (`--size`, e.g. 640x480 on SwiftShader: seconds per frame) with the frame loop
+// running, frames split into bands of `--bandBudget` ms (0: not split): waits until `--settle`
+// bands were submitted, then drags the mouse on the canvas `--inputs` times, each at a random
+// point of a band, and reports, per input, the page's record of the restart it caused (event
+// time, first band of the restarted accumulation submitted and done on the GPU) and whether
+// the sample counter was reset. Also the time of one whole frame in one submission
+// (renderFrames, paused), the page's split read-out and sceneInfo.
+async function slow(o) {
+  const profile = freshProfile();
+  const inputs = Number(o.inputs || '5');
+  try {
+    return await withBrowser(profile, async (context) => {
+      const { page, error } = await open(context, o.url, { scene: o.scene, size: o.size, bandBudget: o.bandBudget });
+      if (error) return { error };
+      const settle = Number(o.settle || '20');
+      await page.waitForFunction((n) => window.lightport.bands >= n, settle, { timeout: 300000 });
+      // Not locator.boundingBox(): it waits for rendering, which an unsplit slow frame holds up.
+      const box = await page.evaluate(() => {
+        const r = document.querySelector('#view').getBoundingClientRect();
+        return { x: r.x, y: r.y, width: r.width, height: r.height };
+      });
+      const cx = box.x + box.width / 2;
+      const cy = box.y + box.height / 2;
+      const restarts = [];
+      for (let i = 0; i < inputs; i++) {
+        const before = await page.evaluate(() => window.lightport.restarts.length);
+        // Somewhere inside a band (or, unsplit, a frame) in flight.
+        await page.waitForTimeout(50 + Math.random() * 200);
+        await page.mouse.move(cx, cy);
+        await page.mouse.down();
+        await page.mouse.move(cx + 12 * (i % 2 ? -1 : 1), cy + 3);
+        const sppAfterInput = await page.evaluate(() => window.lightport.spp());
+        await page.mouse.up();
+        await page.waitForFunction((n) => window.lightport.restarts.length > n, before, { timeout: 300000 });
+        restarts.push({ ...(await page.evaluate(() => window.lightport.restarts.at(-1))), sppAfterInput });
+      }
+      const info = await page.evaluate(() => window.lightport.info());
+      const readout = await page.textContent('#frame-split');
+      // One whole frame in one submission, waited for (after a warm-up frame).
+      const frameMs = await page.evaluate(() => {
+        window.lightport.pause();
+        window.lightport.renderFrames(1);
+        return window.lightport.renderFrames(1);
+      });
+      return { restarts, info, readout, frameMs, error: await page.evaluate(() => window.lightport.error) };
     });
   } finally {
     rmSync(profile, { recursive: true, force: true });
@@ -418,7 +469,7 @@ async function compile(o) {
   }
 }
 
-const SCENARIOS = { accumulate, cache, camera, drop, limits, context: contextLoss, bench, chart, compile };
+const SCENARIOS = { accumulate, cache, camera, slow, drop, limits, context: contextLoss, bench, chart, compile };
 
 const options = parseArgs(process.argv.slice(2));
 const run = SCENARIOS[options.scenario];

@@ -4,12 +4,17 @@
 //! shader, the data textures and the accumulation are the native code.
 //!
 //! Each frame adds one sample per pixel to the RGBA32F accumulation, then a small display pass
-//! draws its mean to the canvas, clamped and sRGB-encoded (the CLI's PNG tone map).
+//! draws its mean to the canvas, clamped and sRGB-encoded (the CLI's PNG tone map). The frame
+//! loop calls [`Viewer::step`], which submits a frame in bands of rows of at most a time budget
+//! (50 ms by default; `tracer::backend::frame_split`), one band at a time, so that input is
+//! handled, and a camera move restarts the accumulation, between bands, also on a GPU that
+//! needs seconds per frame.
 
 use std::fmt::Display;
 
 use glow::HasContext;
 use js_sys::{Float32Array, Object, Reflect};
+use tracer::backend::frame_split::{Pacer, Step, DEFAULT_BUDGET_MS};
 use tracer::backend::gl::{GlOptions, GlRenderer};
 use tracer::pack::{Packed, RenderSettings, Strategy};
 use wasm_bindgen::prelude::*;
@@ -108,7 +113,9 @@ impl DisplayPass {
             gl.viewport(0, 0, width, height);
             gl.use_program(Some(self.program));
             gl.active_texture(glow::TEXTURE0);
-            gl.bind_texture(glow::TEXTURE_2D, Some(renderer.accumulation_texture()));
+            // The first frame after a restart, band by band; then the running mean.
+            let texture = renderer.first_frame_in_progress().unwrap_or(renderer.accumulation_texture());
+            gl.bind_texture(glow::TEXTURE_2D, Some(texture));
             gl.uniform_1_i32(self.accumulation.as_ref(), 0);
             gl.uniform_1_f32(self.inverse_frames.as_ref(), 1.0 / renderer.frames().max(1) as f32);
             gl.bind_vertex_array(Some(self.vertex_array));
@@ -133,10 +140,21 @@ struct Running {
     renderer: GlRenderer,
     /// Always `Some` until dropped (taken to delete it before the renderer's context goes).
     display: Option<DisplayPass>,
+    /// Bands of the frame loop (`step`), one on the GPU at a time.
+    pacer: Pacer,
+}
+
+impl Running {
+    fn draw(&self, width: i32, height: i32) {
+        if let Some(display) = &self.display {
+            display.draw(&self.renderer, width, height);
+        }
+    }
 }
 
 impl Drop for Running {
     fn drop(&mut self) {
+        self.pacer.forget(self.renderer.gl());
         if let Some(display) = self.display.take() {
             display.delete(self.renderer.gl());
         }
@@ -166,6 +184,9 @@ pub struct Viewer {
     dropped: Vec<DroppedFile>,
     /// Selects the random sequence, as the native backends' `seed` does (`setSeed`).
     seed: u32,
+    /// The longest one band of a frame should take on the GPU (`setBandBudget`); `None`:
+    /// frames are not split.
+    band_budget_ms: Option<f64>,
 }
 
 #[wasm_bindgen]
@@ -203,6 +224,7 @@ impl Viewer {
             context_lost: false,
             dropped: Vec::new(),
             seed: 1,
+            band_budget_ms: Some(DEFAULT_BUDGET_MS),
         })
     }
 
@@ -263,20 +285,65 @@ impl Viewer {
         let gl = glow::Context::from_webgl2_context(self.context.clone());
         let renderer = GlRenderer::with_options(gl, packed.clone(), self.seed, &self.options).map_err(js_error)?;
         let display = DisplayPass::new(renderer.gl()).map_err(|e| JsError::new(&e))?;
-        Ok(Running { renderer, display: Some(display) })
+        let pacer = Pacer::new(packed.scene.height, self.band_budget_ms);
+        Ok(Running { renderer, display: Some(display), pacer })
     }
 
-    /// Adds one sample per pixel and draws the converging image. Does nothing without a scene
-    /// or while the context is lost.
+    /// Adds one sample per pixel (the rest of the frame, if `step` began it) in one submission
+    /// and draws the converging image (the test hook's `renderFrames`). Does nothing without a
+    /// scene or while the context is lost.
     pub fn frame(&mut self) -> Result<(), JsError> {
         if self.context_lost || self.context.is_context_lost() {
             return Ok(());
         }
         let Some(running) = &mut self.running else { return Ok(()) };
+        // The band in flight would be timed with this whole frame.
+        running.pacer.forget(running.renderer.gl());
         running.renderer.render_frame().map_err(js_error)?;
+        running.draw(self.canvas.width() as i32, self.canvas.height() as i32);
+        Ok(())
+    }
+
+    /// The frame loop's step (call it once per animation frame with `performance.now()`):
+    /// unless the previous band is still on the GPU (its fence polled without blocking),
+    /// submits the next band of the frame, and when that completes the frame, draws the image
+    /// (during the first frame after a restart: after every band, the new view band by band).
+    /// Returns 0: waited (nothing submitted), 1: a band was submitted, 2: the band completed a
+    /// frame (one more sample per pixel).
+    pub fn step(&mut self, now_ms: f64) -> Result<u32, JsError> {
+        if self.context_lost || self.context.is_context_lost() {
+            return Ok(0);
+        }
+        let Some(running) = &mut self.running else { return Ok(0) };
         let (w, h) = (self.canvas.width() as i32, self.canvas.height() as i32);
-        if let Some(display) = &running.display {
-            display.draw(&running.renderer, w, h);
+        let display = running.display.as_ref();
+        let step = running
+            .pacer
+            .step(&mut running.renderer, now_ms, |renderer, frame_done| {
+                // Each band of the first frame after a restart shows; later, each whole frame.
+                if let (true, Some(display)) = (frame_done || renderer.frames() == 0, display) {
+                    display.draw(renderer, w, h);
+                }
+            })
+            .map_err(js_error)?;
+        Ok(match step {
+            Step::Waiting => 0,
+            Step::Submitted { frame_done: false } => 1,
+            Step::Submitted { frame_done: true } => 2,
+        })
+    }
+
+    /// The longest one band of a frame should take on the GPU, in milliseconds (default 50);
+    /// 0: do not split frames (one submission per frame). Restarts the band-height adaptation.
+    #[wasm_bindgen(js_name = setBandBudget)]
+    pub fn set_band_budget(&mut self, ms: f64) -> Result<(), JsError> {
+        if !(ms.is_finite() && ms >= 0.0) {
+            return Err(JsError::new(&format!("invalid band budget {ms} ms (a number >= 0; 0: no splitting)")));
+        }
+        self.band_budget_ms = (ms > 0.0).then_some(ms);
+        if let Some(running) = &mut self.running {
+            running.pacer.forget(running.renderer.gl());
+            running.pacer = Pacer::new(running.renderer.packed().scene.height, self.band_budget_ms);
         }
         Ok(())
     }
@@ -327,7 +394,14 @@ impl Viewer {
             }
             set(&info, "features", features);
         }
+        let budget = self.band_budget_ms.unwrap_or(0.0);
+        set(&info, "bandBudgetMs", budget);
         if let Some(running) = &self.running {
+            let policy = running.pacer.policy();
+            set(&info, "bands", policy.bands());
+            set(&info, "bandRows", policy.rows());
+            set(&info, "bandMs", policy.band_ms().map_or(JsValue::NULL, JsValue::from));
+            set(&info, "gpuBusy", running.pacer.busy());
             let gl = running.renderer.info();
             set(&info, "glRenderer", gl.renderer.as_str());
             set(&info, "glVersion", gl.version.as_str());

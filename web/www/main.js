@@ -7,7 +7,9 @@
 //   size=WxH          a fixed render size instead of the canvas size x resolution scale
 //   strategy=mis|nee|bsdf, seed=N (the random sequence; default 1),
 //   paused=1          no frame loop: frames only through the test hook,
-//   budget=BYTES      the cache budget.
+//   budget=BYTES      the cache budget,
+//   bandBudget=MS     the longest one GPU submission (a band of a frame) should take, default
+//                     50; 0: frames are not split (one submission per frame).
 
 import init, { Viewer } from './pkg/lightport_web.js';
 import { BundleCache, DEFAULT_BUDGET_BYTES } from './cache.js';
@@ -33,6 +35,11 @@ const hook = {
   frames: 0, // frames rendered by this page, all scenes together
   error: null, // the last error shown to the user
   firstFrameMs: null, // performance.now() at the first frame drawn (from navigation start)
+  bands: 0, // bands submitted by the frame loop
+  // Per camera input that restarted the accumulation, once the restarted accumulation's first
+  // band is done on the GPU: { inputAt (the event's timeStamp), handledAt, submittedAt (its
+  // first band), doneAt (that band's fence seen signalled) }, performance.now() times.
+  restarts: [],
   bundleSources: [], // per loaded bundle: { name, fromCache, bytes }
   get bytesFetched() { return cache.bytesFetched; },
   spp: () => (viewer ? viewer.spp() : 0),
@@ -110,9 +117,19 @@ function formatRate(n) {
 
 // ---- frame loop -------------------------------------------------------------------------
 
-let frameMs = null; // moving average of the time between rendered frames
+let frameMs = null; // moving average of the time between completed frames
 let lastFrameAt = null;
+let pendingRestart = null; // the last restart whose first band is not done yet
 
+function frameDone() {
+  hook.frames++;
+  if (hook.firstFrameMs === null) {
+    viewer.sync(); // the first frame counts once it is on screen, not when it is queued
+    hook.firstFrameMs = performance.now();
+  }
+}
+
+// One whole frame in one submission (the test hook's renderFrames).
 function frame() {
   if (!viewer || lost) return;
   try {
@@ -122,22 +139,43 @@ function frame() {
     paused = true;
     return;
   }
-  hook.frames++;
-  if (hook.firstFrameMs === null) {
-    viewer.sync(); // the first frame counts once it is on screen, not when it is queued
-    hook.firstFrameMs = performance.now();
-  }
+  frameDone();
 }
 
+// The frame loop: at most one band of a frame on the GPU at a time (Viewer.step polls the
+// previous band's fence without blocking), so input runs between bands and a restart waits for
+// one band, not a whole frame.
 function tick(now) {
   if (!paused && !busy && viewer && !lost && hasScene) {
     applyHeldKeys(now);
-    frame();
-    if (lastFrameAt !== null) {
-      const dt = now - lastFrameAt;
-      frameMs = frameMs === null ? dt : 0.9 * frameMs + 0.1 * dt;
+    let status = 0;
+    try {
+      status = viewer.step(performance.now());
+    } catch (e) {
+      showMessage(String(e.message || e));
+      paused = true;
     }
-    lastFrameAt = now;
+    if (status > 0) {
+      const at = performance.now();
+      hook.bands++;
+      if (pendingRestart && pendingRestart.submittedAt !== null) {
+        // The restarted accumulation's first band is done: a new band could only be submitted
+        // after its fence was seen signalled.
+        pendingRestart.doneAt = at;
+        hook.restarts.push(pendingRestart);
+        pendingRestart = null;
+      } else if (pendingRestart) {
+        pendingRestart.submittedAt = at;
+      }
+    }
+    if (status === 2) {
+      frameDone();
+      if (lastFrameAt !== null) {
+        const dt = now - lastFrameAt;
+        frameMs = frameMs === null ? dt : 0.9 * frameMs + 0.1 * dt;
+      }
+      lastFrameAt = now;
+    }
   } else {
     lastFrameAt = null;
   }
@@ -157,6 +195,12 @@ function updateReadouts() {
     $('samples-rate').textContent = formatRate(samples);
     $('ray-rate').textContent = formatRate(samples * info.maxDepth * segmentRays);
   }
+  $('frame-split').textContent = !info.bandBudgetMs
+    ? 'not split (one submission per frame)'
+    : info.bands > 1
+      ? `frame split into ${info.bands} bands of ≤${info.bandBudgetMs} ms` +
+        ` (${info.bandRows} rows each)`
+      : `1 band per frame (under ${info.bandBudgetMs} ms)`;
   $('bytes-fetched').textContent = formatBytes(cache.bytesFetched);
 }
 
@@ -322,9 +366,12 @@ const pointers = new Map(); // pointerId -> {x, y}
 const heldKeys = new Set();
 let lastKeysAt = null;
 
-function cameraAction(action) {
+// `at`: the input's time (an event's timeStamp), for the restart latency the hook records.
+function cameraAction(action, at = performance.now()) {
   guarded(action);
   frameMs = null;
+  lastFrameAt = null;
+  pendingRestart = { inputAt: at, handledAt: performance.now(), submittedAt: null, doneAt: null };
 }
 
 canvas.addEventListener('pointerdown', (e) => {
@@ -349,7 +396,7 @@ canvas.addEventListener('pointermove', (e) => {
     cameraAction(() => {
       if (before > 0 && after > 0) viewer.dolly(before / after);
       viewer.pan(-dx / height, dy / height);
-    });
+    }, e.timeStamp);
     return;
   }
   const dx = e.clientX - p.x;
@@ -360,11 +407,11 @@ canvas.addEventListener('pointermove', (e) => {
   const radians = Math.PI / height;
   const fly = $('mode').value === 'fly';
   if (p.button === 2 || p.button === 1 || p.shift) {
-    cameraAction(() => viewer.pan(-dx / height, dy / height));
+    cameraAction(() => viewer.pan(-dx / height, dy / height), e.timeStamp);
   } else if (fly) {
-    cameraAction(() => viewer.look(dx * radians * 0.5, -dy * radians * 0.5));
+    cameraAction(() => viewer.look(dx * radians * 0.5, -dy * radians * 0.5), e.timeStamp);
   } else {
-    cameraAction(() => viewer.orbit(dx * radians, -dy * radians));
+    cameraAction(() => viewer.orbit(dx * radians, -dy * radians), e.timeStamp);
   }
 });
 
@@ -375,7 +422,7 @@ canvas.addEventListener('contextmenu', (e) => e.preventDefault());
 
 canvas.addEventListener('wheel', (e) => {
   e.preventDefault();
-  if (viewer) cameraAction(() => viewer.dolly(Math.exp(Math.max(-100, Math.min(100, e.deltaY)) * 0.002)));
+  if (viewer) cameraAction(() => viewer.dolly(Math.exp(Math.max(-100, Math.min(100, e.deltaY)) * 0.002)), e.timeStamp);
 }, { passive: false });
 
 const FLY_KEYS = { w: [1, 0, 0], s: [-1, 0, 0], a: [0, -1, 0], d: [0, 1, 0], e: [0, 0, 1], q: [0, 0, -1] };
@@ -399,7 +446,7 @@ function applyHeldKeys(now) {
   lastKeysAt = now;
   const step = [0, 0, 0];
   for (const key of heldKeys) FLY_KEYS[key].forEach((v, i) => { step[i] += v * dt * 0.25; });
-  cameraAction(() => viewer.fly(step[0], step[1], step[2]));
+  cameraAction(() => viewer.fly(step[0], step[1], step[2]), now);
 }
 
 // ---- drop zone ----------------------------------------------------------------------------
@@ -490,6 +537,7 @@ async function main() {
   const [w, h] = renderSize();
   guarded(() => viewer.setSize(w, h));
   if (params.get('maxTextureSize')) viewer.setMaxTextureSize(Number(params.get('maxTextureSize')));
+  if (params.has('bandBudget')) guarded(() => viewer.setBandBudget(Number(params.get('bandBudget'))));
   if (params.get('strategy')) hook.setStrategy(params.get('strategy'));
   if (params.get('seed')) {
     const seed = Number(params.get('seed'));

@@ -245,6 +245,8 @@ pub struct GlRenderer {
     pipeline: Pipeline,
     /// Which accumulation texture holds the running sum.
     current: usize,
+    /// Rows of the frame in progress already drawn ([`render_band`](Self::render_band)).
+    band_row: u32,
     /// The EGL context this renderer created ([`headless`](Self::headless)); dropped last.
     #[cfg(feature = "gl")]
     headless: Option<HeadlessContext>,
@@ -269,6 +271,7 @@ impl GlRenderer {
                 objects,
                 pipeline,
                 current: 0,
+                band_row: 0,
                 #[cfg(feature = "gl")]
                 headless: None,
                 _not_send: PhantomData,
@@ -323,11 +326,28 @@ impl GlRenderer {
     }
 
     /// Adds one sample per pixel (queued on the GL context; [`finish`](Self::finish) waits).
+    /// In the middle of a split frame, draws the rows left of it.
     pub fn render_frame(&mut self) -> Result<(), GlError> {
+        self.render_band(self.rows_left()).map(|_| ())
+    }
+
+    /// Rows of the current frame not drawn yet (the image height between frames).
+    pub fn rows_left(&self) -> u32 {
+        self.packed.scene.height - self.band_row
+    }
+
+    /// Draws the next `rows` rows (kernel rows from the top, clamped to those left) of the
+    /// current frame: the same fragment pass as a whole frame, over a scissor rectangle, so the
+    /// pixels and their random sequence are the unsplit frame's. The sample count advances, and
+    /// [`accumulation`](Self::accumulation) and [`image`](Self::image) show the new sample,
+    /// when the last row is drawn: returns whether this band completed the frame. See
+    /// [`frame_split`](super::frame_split).
+    pub fn render_band(&mut self, rows: u32) -> Result<bool, GlError> {
         self.activate()?;
         let gl = &self.gl;
         let p = &self.pipeline;
         let (width, height) = (self.packed.scene.width as i32, self.packed.scene.height as i32);
+        let rows = rows.clamp(1, self.rows_left()) as i32;
         // SAFETY: every object belongs to this context, which is current; the draw reads the
         // textures bound here and writes the other accumulation texture (no feedback loop).
         unsafe {
@@ -343,15 +363,23 @@ impl GlRenderer {
             gl.viewport(0, 0, width, height);
             gl.disable(glow::BLEND);
             gl.disable(glow::DEPTH_TEST);
-            gl.disable(glow::SCISSOR_TEST);
+            // Framebuffer row y is kernel row y (gl_FragCoord is unchanged by the scissor).
+            gl.enable(glow::SCISSOR_TEST);
+            gl.scissor(0, self.band_row as i32, width, rows);
             gl.bind_vertex_array(Some(p.vertex_array));
             gl.draw_arrays(glow::TRIANGLES, 0, 3);
             gl.bind_vertex_array(None);
+            gl.disable(glow::SCISSOR_TEST);
             gl.bind_framebuffer(glow::FRAMEBUFFER, None);
         }
+        self.band_row += rows as u32;
+        if self.band_row < height as u32 {
+            return Ok(false);
+        }
+        self.band_row = 0;
         self.current = 1 - self.current;
         self.frames += 1;
-        Ok(())
+        Ok(true)
     }
 
     /// Waits until every queued frame has been rendered (`glFinish`), e.g. around timings.
@@ -416,6 +444,13 @@ impl GlRenderer {
         self.pipeline.accumulation[self.current]
     }
 
+    /// During the first frame after a (re)start, split into bands: the texture its bands are
+    /// drawn into (the rows drawn hold one sample, the others zero), for a display pass that
+    /// shows the new view band by band instead of the old one for a whole slow frame.
+    pub fn first_frame_in_progress(&self) -> Option<glow::Texture> {
+        (self.frames == 0 && self.band_row > 0).then_some(self.pipeline.accumulation[1 - self.current])
+    }
+
     /// Changes the scene's uniforms (camera, strategy, depth...) and restarts the accumulation,
     /// without recompiling the shader or re-uploading the data textures: an interactive camera
     /// costs nothing. Texel arrays changed by `update` are not re-uploaded; the image size
@@ -451,16 +486,20 @@ impl GlRenderer {
         self.restart()
     }
 
-    /// Drops every accumulated sample: the next frame is sample 1 again.
+    /// Drops every accumulated sample: the next frame is sample 1 again (a split frame in
+    /// progress is abandoned: the next band is its first row).
     pub fn restart(&mut self) -> Result<(), GlError> {
         self.activate()?;
         let gl = &self.gl;
-        // SAFETY: clears this context's RGBA32F accumulation attachment (the one the next
-        // frame reads) with a float clear, valid for float colour buffers.
+        // SAFETY: clears this context's RGBA32F accumulation attachments with a float clear,
+        // valid for float colour buffers: the one the next frame reads, and the one it writes
+        // (rows a split first frame has not reached yet show zero, not an old sum).
         let error = unsafe {
-            gl.bind_framebuffer(glow::FRAMEBUFFER, Some(self.pipeline.framebuffers[self.current]));
             gl.disable(glow::SCISSOR_TEST);
-            gl.clear_buffer_f32_slice(glow::COLOR, 0, &[0.0; 4]);
+            for framebuffer in self.pipeline.framebuffers {
+                gl.bind_framebuffer(glow::FRAMEBUFFER, Some(framebuffer));
+                gl.clear_buffer_f32_slice(glow::COLOR, 0, &[0.0; 4]);
+            }
             gl.bind_framebuffer(glow::FRAMEBUFFER, None);
             gl.get_error()
         };
@@ -468,6 +507,7 @@ impl GlRenderer {
             return Err(GlError::Gl { what: "clearing the accumulation", detail: format!("error {error:#06x}") });
         }
         self.frames = 0;
+        self.band_row = 0;
         Ok(())
     }
 }

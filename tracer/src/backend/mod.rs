@@ -5,6 +5,7 @@
 pub mod cpu;
 #[cfg(feature = "gl")]
 pub mod egl;
+pub mod frame_split;
 pub mod gl;
 pub mod harness;
 #[cfg(feature = "wgpu")]
