@@ -108,6 +108,11 @@ fn lp_f32_to_i32(x: f32) -> i32 {
     return 0i;
 }
 
+// From the bits: drivers may fold NaN checks away under fast-math.
+fn lp_is_nan(x: f32) -> bool {
+    return (bitcast<u32>(x) & 0x7fffffffu) > 0x7f800000u;
+}
+
 fn lp_is_finite(x: f32) -> bool {
     return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
 }
@@ -145,6 +150,11 @@ fn fetch_material(index: u32) -> MaterialData {
     let a: vec4<f32> = scene_materials[index * MATERIAL_TEXELS];
     let b: vec4<f32> = scene_materials[index * MATERIAL_TEXELS + 1u];
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
+}
+
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:300)
+fn bounded_coordinate(v: f32) -> f32 {
+    return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
 }
 
 // scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:173)
@@ -208,8 +218,8 @@ fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
 // scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let info: vec4<u32> = scene_texture_info[index];
-    let x: f32 = clamp(uv.x * lp_u32_to_f32(info.y) - 0.5, -1000000000.0, 1000000000.0);
-    let y: f32 = clamp(uv.y * lp_u32_to_f32(info.z) - 0.5, -1000000000.0, 1000000000.0);
+    let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
+    let y: f32 = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
     let fx: f32 = x - floor(x);
     let fy: f32 = y - floor(y);
     let x0: i32 = lp_f32_to_i32(floor(x));

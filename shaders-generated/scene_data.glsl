@@ -97,6 +97,11 @@ int lp_rem_i32(int a, int b) {
     return a - lp_div_i32(a, b) * b;
 }
 
+// From the bits: drivers may fold isnan() away under fast-math.
+bool lp_is_nan(float x) {
+    return (floatBitsToUint(x) & 0x7fffffffu) > 0x7f800000u;
+}
+
 // Texel `i` of a row-major RGBA32F data texture.
 vec4 lp_fetch_vec4(highp sampler2D t, uint i) {
     uint w = uint(textureSize(t, 0).x);
@@ -212,11 +217,16 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:300)
+float bounded_coordinate(float v) {
+    return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
+}
+
 // scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
-    float x = clamp(uv.x * lp_u32_to_f32(info.y) - 0.5, -1000000000.0, 1000000000.0);
-    float y = clamp(uv.y * lp_u32_to_f32(info.z) - 0.5, -1000000000.0, 1000000000.0);
+    float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
+    float y = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
     float fx = x - floor(x);
     float fy = y - floor(y);
     int x0 = lp_f32_to_i32(floor(x));

@@ -264,10 +264,10 @@ pub mod scene_data {
     /// Bilinear lookup of texture `index` at `uv`, its texels decoded as colour or as `data`.
     pub fn bilinear(scene: &Scene, index: u32, uv: Vec2, data: bool) -> Vec4 {
         let info = scene.texture_info.fetch(index);
-        // Clamped so that the texel coordinates (and the next ones, + 1) fit an i32 for any uv;
-        // beyond 2^30 an f32 cannot tell texels apart anyway.
-        let x = (uv.x * info.y as f32 - 0.5).clamp(-1.0e9, 1.0e9);
-        let y = (uv.y * info.z as f32 - 0.5).clamp(-1.0e9, 1.0e9);
+        // Bounded so that the texel coordinates (and the next ones, + 1) fit an i32 for any uv;
+        // beyond 2^30 an f32 cannot tell texels apart anyway. NaN stays NaN on every target.
+        let x = bounded_coordinate(uv.x * info.y as f32 - 0.5);
+        let y = bounded_coordinate(uv.y * info.z as f32 - 0.5);
         let fx = x - x.floor();
         let fy = y - y.floor();
         let x0 = x.floor() as i32;
@@ -292,5 +292,20 @@ pub mod scene_data {
     pub fn fetch_metal_rough(scene: &Scene, index: u32) -> MetalRoughData {
         let t = scene.metal_rough.fetch(index);
         MetalRoughData { metallic: t.x, roughness: t.y, texture: index_of(t.z), specular: t.w }
+    }
+
+    /// `v` within ±1e9, NaN kept as Rust's `clamp` keeps it. Not `clamp` itself, whose NaN
+    /// result is the target's (docs/dsl.md), and NaN tested first, from its bits: llvmpipe turns
+    /// the two comparisons into a clamp too, which returns a bound for NaN.
+    pub fn bounded_coordinate(v: f32) -> f32 {
+        if v.is_nan() {
+            v
+        } else if v > 1.0e9 {
+            1.0e9
+        } else if v < -1.0e9 {
+            -1.0e9
+        } else {
+            v
+        }
     }
 }
