@@ -627,7 +627,7 @@ vec4 interpolated_tangent(uint triangle, float u, float v) {
     return t0 * (1.0 - u - v) + t1 * u + t2 * v;
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:300)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }

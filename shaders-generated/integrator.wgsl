@@ -598,7 +598,7 @@ fn interpolated_tangent(triangle: u32, u: f32, v: f32) -> vec4<f32> {
     return t0 * (1.0 - u - v) + t1 * u + t2 * v;
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:300)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
 fn bounded_coordinate(v: f32) -> f32 {
     return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
 }

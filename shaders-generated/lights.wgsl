@@ -152,7 +152,7 @@ fn fetch_material(index: u32) -> MaterialData {
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:300)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
 fn bounded_coordinate(v: f32) -> f32 {
     return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
 }

@@ -297,6 +297,7 @@ pub mod scene_data {
     /// `v` within ±1e9, NaN kept as Rust's `clamp` keeps it. Not `clamp` itself, whose NaN
     /// result is the target's (docs/dsl.md), and NaN tested first, from its bits: llvmpipe turns
     /// the two comparisons into a clamp too, which returns a bound for NaN.
+    #[allow(clippy::manual_clamp)] // on purpose: see above
     pub fn bounded_coordinate(v: f32) -> f32 {
         if v.is_nan() {
             v
