@@ -126,8 +126,10 @@ impl WgpuHarness {
         lightport_codegen::validate::validate(&generated).map_err(ShaderError::from)?;
         let layout = generated_layout(function, &generated)?;
         let resources = reflect(&generated, &[ARGS_BUFFER, RESULTS_BUFFER, COUNT_UNIFORM])?;
-        let scene = self.scene.as_ref().map_or(&Scene::default(), |(s, _)| s).clone();
-        crate::backend::wgpu::check_scene_limits(&self.device.limits, &WgpuOptions::default(), &scene, &resources)?;
+        // Borrowed, not cloned: a scene's arrays can be hundreds of megabytes.
+        let no_scene = Scene::default();
+        let scene = self.scene.as_ref().map_or(&no_scene, |(s, _)| s);
+        crate::backend::wgpu::check_scene_limits(&self.device.limits, &WgpuOptions::default(), scene, &resources)?;
         // The layout wgpu derives from the shader: bind groups are made from it per run.
         let pipeline = pollster::block_on(compile_pipeline(&self.device.device, &generated, None))?;
         Ok(HarnessShader { pipeline, resources, layout })
