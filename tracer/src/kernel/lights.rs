@@ -5,6 +5,7 @@ pub mod lights {
 
     use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
 
+    use crate::kernel::alpha_mask::is_hole;
     use crate::kernel::intersect::MISS;
     use crate::kernel::sampling::{uniform_sample_triangle, INV_PI, PI};
     use crate::kernel::scene_data::{
@@ -175,6 +176,10 @@ pub mod lights {
             let area = scene.lights.fetch(index * LIGHT_TEXELS + 2).x;
             let pdf = area_pdf_to_solid_angle(pmf, area, dist, -normal.dot(dir));
             if !(pdf > 0.0) {
+                return none;
+            }
+            if scene.has_alpha_mask != 0 && is_hole(scene, tri_index, tri.material, b.x, b.y) {
+                // A hole of an alpha-masked emitter emits nothing (BSDF rays pass through it).
                 return none;
             }
             let radiance = triangle_emission(scene, tri_index, tri.material, b.x, b.y);

@@ -10,7 +10,8 @@ pub mod scene_data {
     use glam::{UVec4, Vec2, Vec3, Vec4, Vec4Swizzles};
     use kernel_dsl::Texels;
 
-    /// Texels per triangle in `triangles`: `[v0, material]`, `[v1, light index or -1]`, `[v2, 0]`.
+    /// Texels per triangle in `triangles`: `[v0, material]`, `[v1, light index or -1]`, `[v2, masked]`
+    /// (masked: 1 when the material is alpha-masked, `kernel::alpha_mask`, else 0).
     pub const TRIANGLE_TEXELS: u32 = 3;
     /// Texels per triangle in `shading`: `[n0, u0]`, `[n1, v0]`, `[n2, u1]`, `[v1, u2, v2, 0]`.
     pub const SHADING_TEXELS: u32 = 4;
@@ -64,6 +65,8 @@ pub mod scene_data {
         pub metal_rough: Texels<Vec4>,
         pub tangent_first: u32,
         pub normal_map_first: u32,
+        /// First of the per-material alpha-mask texels in `materials` (`kernel::alpha_mask`); 0 without.
+        pub alpha_mask_first: u32,
         pub camera_position: Vec3,
         /// Right vector scaled by tan(fov/2) * aspect.
         pub camera_right: Vec3,
@@ -97,6 +100,7 @@ pub mod scene_data {
         pub has_point_lights: u32,
         pub has_metal_rough: u32,
         pub has_normal_map: u32,
+        pub has_alpha_mask: u32,
     }
 
     pub const STRATEGY_BSDF: u32 = 0;

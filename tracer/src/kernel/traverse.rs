@@ -7,6 +7,7 @@ pub mod traverse {
 
     use glam::{UVec3, UVec4, Vec3, Vec4};
 
+    use crate::kernel::alpha_mask::is_hole;
     use crate::kernel::intersect::{intersect_triangle, safe_inverse, MISS};
     use crate::kernel::scene_data::{fetch_triangle, Scene, NODE_TEXELS, NONE};
 
@@ -111,7 +112,13 @@ pub mod traverse {
         for i in first..first + (entry & 255) {
             let tri = fetch_triangle(scene, i);
             let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-            if h.t < hit.t {
+            if scene.has_alpha_mask != 0 {
+                // A hit in a hole of an alpha-masked material (`Features::alpha_mask`) is no
+                // hit: the search goes on behind it.
+                if h.t < hit.t && !is_hole(scene, i, tri.material, h.u, h.v) {
+                    *hit = Hit { triangle: i, t: h.t, u: h.u, v: h.v };
+                }
+            } else if h.t < hit.t {
                 *hit = Hit { triangle: i, t: h.t, u: h.u, v: h.v };
             }
         }
@@ -123,7 +130,14 @@ pub mod traverse {
         let mut blocked = false;
         for i in first..first + (entry & 255) {
             let tri = fetch_triangle(scene, i);
-            if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
+            if scene.has_alpha_mask != 0 {
+                // Holes of alpha-masked materials let the shadow ray through.
+                let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+                if h.t < t_max && !is_hole(scene, i, tri.material, h.u, h.v) {
+                    blocked = true;
+                    break;
+                }
+            } else if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
                 blocked = true;
                 break;
             }

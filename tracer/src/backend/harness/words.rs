@@ -140,6 +140,7 @@ macro_rules! harness_struct_words {
 pub use lightport_codegen::HarnessWord;
 
 mod kernel_structs {
+    use crate::kernel::alpha_mask::AlphaMaskData;
     use crate::kernel::camera::Ray;
     use crate::kernel::integrator::Bounce;
     use crate::kernel::intersect::TriangleHit;
@@ -164,6 +165,7 @@ mod kernel_structs {
         MetalRoughData { metallic, roughness, texture, specular }
         Bounce { direct, dir, pdf, weight }
         NormalMapData { texture, scale }
+        AlphaMaskData { texture, alpha, cutoff }
     }
 }
 
