@@ -5,14 +5,14 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:45)
+// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:44)
 uniform highp sampler2D scene_shading;
 uniform highp usampler2D scene_texture_texels;
 uniform highp usampler2D scene_texture_info;
 uniform highp sampler2D scene_metal_rough;
 uniform uint scene_has_textures;
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:122)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:118)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -20,7 +20,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:287)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:283)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -47,15 +47,15 @@ struct BrdfSample {
 const float PI = 3.1415927;
 // sampling::INV_PI (lightport-tracer/src/kernel/sampling.rs:9)
 const float INV_PI = 0.31830987;
-// scene_data::SHADING_TEXELS (lightport-tracer/src/kernel/scene_data.rs:17)
+// scene_data::SHADING_TEXELS (lightport-tracer/src/kernel/scene_data.rs:16)
 const uint SHADING_TEXELS = 4u;
-// scene_data::TEXTURE_TEXELS_PER_ELEMENT (lightport-tracer/src/kernel/scene_data.rs:34)
+// scene_data::TEXTURE_TEXELS_PER_ELEMENT (lightport-tracer/src/kernel/scene_data.rs:33)
 const uint TEXTURE_TEXELS_PER_ELEMENT = 4u;
-// scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:36)
+// scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:35)
 const uint NONE = 0xffffffffu;
-// scene_data::WRAP_CLAMP (lightport-tracer/src/kernel/scene_data.rs:38)
+// scene_data::WRAP_CLAMP (lightport-tracer/src/kernel/scene_data.rs:37)
 const uint WRAP_CLAMP = 1u;
-// scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:39)
+// scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:38)
 const uint WRAP_MIRROR = 2u;
 // metal_rough::MIN_ROUGHNESS (lightport-tracer/src/kernel/metal_rough.rs:31)
 const float MIN_ROUGHNESS = 0.045;
@@ -182,7 +182,7 @@ vec3 metal_rough_eval(Surface s, vec3 wo, vec3 wi) {
     return (vec3(1.0) - f) * s.diffuse * INV_PI + specular;
 }
 
-// lights::luminance (lightport-tracer/src/kernel/lights.rs:31)
+// lights::luminance (lightport-tracer/src/kernel/lights.rs:30)
 float luminance(vec3 c) {
     return dot(c, vec3(0.2126, 0.7152, 0.0722));
 }
@@ -269,18 +269,18 @@ BrdfSample metal_rough_sample(Surface s, vec3 wo, vec3 u) {
     return BrdfSample(wi, pdf, weight);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:130)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:126)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:296)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:292)
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:167)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -290,12 +290,12 @@ vec2 texcoord(uint index, float u, float v) {
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:305)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
 
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:177)
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:173)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -308,7 +308,7 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:215)
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
 uint texel_word(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -320,7 +320,7 @@ uint texel_word(uvec4 info, int x, int y) {
     return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
 }
 
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:235)
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
 vec4 decode_unorm8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -329,12 +329,12 @@ vec4 decode_unorm8(uint word) {
     return vec4(r, g, b, a);
 }
 
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:194)
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:203)
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:199)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -343,7 +343,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:249)
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
 vec4 texel_as(uvec4 info, int x, int y, bool data) {
     uint word = texel_word(info, x, y);
     if (data) {
@@ -353,7 +353,7 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:269)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -367,12 +367,12 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:259)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:255)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }
 
-// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:264)
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:260)
 vec4 sample_data_texture(uint index, vec2 uv) {
     return bilinear(index, uv, true);
 }

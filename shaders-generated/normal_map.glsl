@@ -5,7 +5,7 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:45)
+// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:44)
 uniform highp sampler2D scene_shading;
 uniform highp sampler2D scene_materials;
 uniform highp usampler2D scene_texture_texels;
@@ -13,7 +13,7 @@ uniform highp usampler2D scene_texture_info;
 uniform uint scene_tangent_first;
 uniform uint scene_normal_map_first;
 
-// traverse::Hit (lightport-tracer/src/kernel/traverse.rs:22)
+// traverse::Hit (lightport-tracer/src/kernel/traverse.rs:21)
 struct Hit {
     uint triangle;
     float t;
@@ -27,15 +27,15 @@ struct NormalMapData {
     float scale;
 };
 
-// scene_data::SHADING_TEXELS (lightport-tracer/src/kernel/scene_data.rs:17)
+// scene_data::SHADING_TEXELS (lightport-tracer/src/kernel/scene_data.rs:16)
 const uint SHADING_TEXELS = 4u;
-// scene_data::TEXTURE_TEXELS_PER_ELEMENT (lightport-tracer/src/kernel/scene_data.rs:34)
+// scene_data::TEXTURE_TEXELS_PER_ELEMENT (lightport-tracer/src/kernel/scene_data.rs:33)
 const uint TEXTURE_TEXELS_PER_ELEMENT = 4u;
-// scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:36)
+// scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:35)
 const uint NONE = 0xffffffffu;
-// scene_data::WRAP_CLAMP (lightport-tracer/src/kernel/scene_data.rs:38)
+// scene_data::WRAP_CLAMP (lightport-tracer/src/kernel/scene_data.rs:37)
 const uint WRAP_CLAMP = 1u;
-// scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:39)
+// scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:38)
 const uint WRAP_MIRROR = 2u;
 // normal_map::TANGENT_TEXELS (lightport-tracer/src/kernel/normal_map.rs:29)
 const uint TANGENT_TEXELS = 3u;
@@ -103,7 +103,7 @@ uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:130)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:126)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
@@ -169,12 +169,12 @@ vec3 bend_normal(vec3 n, vec3 ng, vec3 wo) {
     return out_;
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:305)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
 
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:177)
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:173)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -187,7 +187,7 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:215)
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
 uint texel_word(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -199,7 +199,7 @@ uint texel_word(uvec4 info, int x, int y) {
     return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
 }
 
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:235)
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
 vec4 decode_unorm8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -208,12 +208,12 @@ vec4 decode_unorm8(uint word) {
     return vec4(r, g, b, a);
 }
 
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:194)
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:203)
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:199)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -222,7 +222,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:249)
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
 vec4 texel_as(uvec4 info, int x, int y, bool data) {
     uint word = texel_word(info, x, y);
     if (data) {
@@ -232,7 +232,7 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:269)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -246,12 +246,12 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:264)
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:260)
 vec4 sample_data_texture(uint index, vec2 uv) {
     return bilinear(index, uv, true);
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:167)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);

@@ -5,7 +5,7 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:45)
+// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:44)
 uniform highp sampler2D scene_triangles;
 uniform highp sampler2D scene_nodes;
 uniform highp usampler2D scene_node_children;
@@ -40,7 +40,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:112)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:108)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -49,7 +49,7 @@ struct TriangleData {
     uint light;
 };
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:122)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:118)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -57,7 +57,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// traverse::Hit (lightport-tracer/src/kernel/traverse.rs:22)
+// traverse::Hit (lightport-tracer/src/kernel/traverse.rs:21)
 struct Hit {
     uint triangle;
     float t;
@@ -65,7 +65,7 @@ struct Hit {
     float v;
 };
 
-// traverse::NodeHits (lightport-tracer/src/kernel/traverse.rs:32)
+// traverse::NodeHits (lightport-tracer/src/kernel/traverse.rs:31)
 struct NodeHits {
     vec4 t;
     uvec4 entries;
@@ -77,7 +77,7 @@ struct Ray {
     vec3 dir;
 };
 
-// lights::LightSample (lightport-tracer/src/kernel/lights.rs:18)
+// lights::LightSample (lightport-tracer/src/kernel/lights.rs:17)
 struct LightSample {
     vec3 dir;
     float dist;
@@ -92,25 +92,25 @@ const float PI = 3.1415927;
 const float INV_PI = 0.31830987;
 // intersect::MISS (lightport-tracer/src/kernel/intersect.rs:9)
 const float MISS = 3.4028235e38;
-// scene_data::TRIANGLE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:15)
+// scene_data::TRIANGLE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:14)
 const uint TRIANGLE_TEXELS = 3u;
-// scene_data::NODE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:22)
+// scene_data::NODE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:21)
 const uint NODE_TEXELS = 6u;
-// scene_data::MATERIAL_TEXELS (lightport-tracer/src/kernel/scene_data.rs:24)
+// scene_data::MATERIAL_TEXELS (lightport-tracer/src/kernel/scene_data.rs:23)
 const uint MATERIAL_TEXELS = 2u;
-// scene_data::LIGHT_TEXELS (lightport-tracer/src/kernel/scene_data.rs:29)
+// scene_data::LIGHT_TEXELS (lightport-tracer/src/kernel/scene_data.rs:28)
 const uint LIGHT_TEXELS = 3u;
-// scene_data::LIGHT_TRIANGLE (lightport-tracer/src/kernel/scene_data.rs:30)
+// scene_data::LIGHT_TRIANGLE (lightport-tracer/src/kernel/scene_data.rs:29)
 const uint LIGHT_TRIANGLE = 0u;
-// scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:36)
+// scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:35)
 const uint NONE = 0xffffffffu;
-// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:106)
+// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:102)
 const uint STRATEGY_BSDF = 0u;
-// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:107)
+// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:103)
 const uint STRATEGY_NEE = 1u;
-// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:108)
+// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:104)
 const uint STRATEGY_MIS = 2u;
-// traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:18)
+// traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:17)
 const uint STACK_SIZE = 11u;
 // integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:24)
 const uint RR_START_DEPTH = 3u;
@@ -221,27 +221,27 @@ vec3 safe_inverse(vec3 dir) {
     return vec3(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// traverse::near_planes (lightport-tracer/src/kernel/traverse.rs:50)
+// traverse::near_planes (lightport-tracer/src/kernel/traverse.rs:49)
 uvec3 near_planes(vec3 inv_dir) {
     return uvec3(inv_dir.x < 0.0 ? 1u : 0u, inv_dir.y < 0.0 ? 1u : 0u, inv_dir.z < 0.0 ? 1u : 0u);
 }
 
-// traverse::stack_entry (lightport-tracer/src/kernel/traverse.rs:43)
+// traverse::stack_entry (lightport-tracer/src/kernel/traverse.rs:42)
 uint stack_entry(uint first, uint count) {
     return (first << 8) | count;
 }
 
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:149)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:135)
 bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:130)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:126)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:138)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:134)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -273,7 +273,7 @@ TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2)
     }
 }
 
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:110)
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:109)
 void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
     uint first = entry >> 8;
     uint i_end = first + (entry & 255u);
@@ -286,12 +286,12 @@ void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
     }
 }
 
-// traverse::zero_to_miss (lightport-tracer/src/kernel/traverse.rs:59)
+// traverse::zero_to_miss (lightport-tracer/src/kernel/traverse.rs:58)
 vec4 zero_to_miss(vec4 v) {
     return vec4(v.x == 0.0 ? MISS : v.x, v.y == 0.0 ? MISS : v.y, v.z == 0.0 ? MISS : v.z, v.w == 0.0 ? MISS : v.w);
 }
 
-// traverse::intersect_node (lightport-tracer/src/kernel/traverse.rs:74)
+// traverse::intersect_node (lightport-tracer/src/kernel/traverse.rs:73)
 NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float t_max) {
     uint base = node * NODE_TEXELS;
     vec4 ox = vec4(origin.x);
@@ -314,7 +314,7 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
     return NodeHits(t, e);
 }
 
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:166)
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:152)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -427,12 +427,12 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     return hit;
 }
 
-// lights::light_pmf (lightport-tracer/src/kernel/lights.rs:49)
+// lights::light_pmf (lightport-tracer/src/kernel/lights.rs:48)
 float light_pmf(uint index) {
     return lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS).z;
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:220)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:215)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
@@ -450,19 +450,19 @@ float hit_emission_weight(float bsdf_pdf, float light_pdf) {
     }
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:146)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:142)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// lights::area_pdf_to_solid_angle (lightport-tracer/src/kernel/lights.rs:68)
+// lights::area_pdf_to_solid_angle (lightport-tracer/src/kernel/lights.rs:67)
 float area_pdf_to_solid_angle(float pmf, float area, float dist, float cos_light) {
     return !(cos_light > 0.0) || !(area > 0.0) ? 0.0 : pmf * dist * dist / (area * cos_light);
 }
 
-// lights::triangle_emission (lightport-tracer/src/kernel/lights.rs:56)
+// lights::triangle_emission (lightport-tracer/src/kernel/lights.rs:55)
 vec3 triangle_emission(uint triangle, uint material, float u, float v) {
     MaterialData m = fetch_material(material);
     vec3 e = m.emission;
@@ -475,7 +475,7 @@ vec3 offset_origin(vec3 p, vec3 n) {
     return p + n * eps;
 }
 
-// lights::choose_light (lightport-tracer/src/kernel/lights.rs:36)
+// lights::choose_light (lightport-tracer/src/kernel/lights.rs:35)
 uint choose_light(float u) {
     uint n = scene_light_count;
     float scaled = u * lp_u32_to_f32(n);
@@ -494,7 +494,7 @@ vec2 uniform_sample_triangle(float u1, float u2) {
     return vec2(s * (1.0 - u2), s * u2);
 }
 
-// lights::sample_light (lightport-tracer/src/kernel/lights.rs:156)
+// lights::sample_light (lightport-tracer/src/kernel/lights.rs:155)
 LightSample sample_light(vec3 p, vec3 u) {
     LightSample none = LightSample(vec3(0.0, 1.0, 0.0), 0.0, vec3(0.0), 0.0, false);
     uint index = choose_light(u.x);
@@ -527,7 +527,7 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:128)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:121)
 bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     uint first = entry >> 8;
     bool blocked = false;
@@ -542,7 +542,7 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:288)
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:274)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -635,7 +635,7 @@ vec3 sample_cosine_around(vec3 n, float u1, float u2) {
     return onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2));
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:232)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:227)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

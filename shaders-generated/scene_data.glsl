@@ -5,15 +5,18 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:45)
+// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:44)
 uniform highp sampler2D scene_triangles;
 uniform highp sampler2D scene_shading;
 uniform highp sampler2D scene_materials;
 uniform highp usampler2D scene_texture_texels;
 uniform highp usampler2D scene_texture_info;
 uniform highp sampler2D scene_metal_rough;
+uniform uint scene_alpha_mask_first;
+uniform uint scene_has_textures;
+uniform uint scene_has_shading;
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:112)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:108)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -22,7 +25,7 @@ struct TriangleData {
     uint light;
 };
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:122)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:118)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -30,7 +33,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:287)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:283)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -38,19 +41,26 @@ struct MetalRoughData {
     float specular;
 };
 
-// scene_data::TRIANGLE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:15)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:333)
+struct AlphaMaskData {
+    uint texture_;
+    float alpha;
+    float cutoff;
+};
+
+// scene_data::TRIANGLE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:14)
 const uint TRIANGLE_TEXELS = 3u;
-// scene_data::SHADING_TEXELS (lightport-tracer/src/kernel/scene_data.rs:17)
+// scene_data::SHADING_TEXELS (lightport-tracer/src/kernel/scene_data.rs:16)
 const uint SHADING_TEXELS = 4u;
-// scene_data::MATERIAL_TEXELS (lightport-tracer/src/kernel/scene_data.rs:24)
+// scene_data::MATERIAL_TEXELS (lightport-tracer/src/kernel/scene_data.rs:23)
 const uint MATERIAL_TEXELS = 2u;
-// scene_data::TEXTURE_TEXELS_PER_ELEMENT (lightport-tracer/src/kernel/scene_data.rs:34)
+// scene_data::TEXTURE_TEXELS_PER_ELEMENT (lightport-tracer/src/kernel/scene_data.rs:33)
 const uint TEXTURE_TEXELS_PER_ELEMENT = 4u;
-// scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:36)
+// scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:35)
 const uint NONE = 0xffffffffu;
-// scene_data::WRAP_CLAMP (lightport-tracer/src/kernel/scene_data.rs:38)
+// scene_data::WRAP_CLAMP (lightport-tracer/src/kernel/scene_data.rs:37)
 const uint WRAP_CLAMP = 1u;
-// scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:39)
+// scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:38)
 const uint WRAP_MIRROR = 2u;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -114,12 +124,12 @@ uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:130)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:126)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:138)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:134)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -128,14 +138,14 @@ TriangleData fetch_triangle(uint index) {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:146)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:142)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:158)
+// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:154)
 vec3 shading_normal(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec3 n0 = lp_fetch_vec4(scene_shading, base).xyz;
@@ -144,7 +154,7 @@ vec3 shading_normal(uint index, float u, float v) {
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:167)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -154,7 +164,7 @@ vec2 texcoord(uint index, float u, float v) {
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
 
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:177)
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:173)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -167,12 +177,12 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:194)
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:203)
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:199)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -181,7 +191,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:215)
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
 uint texel_word(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -193,7 +203,7 @@ uint texel_word(uvec4 info, int x, int y) {
     return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
 }
 
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:235)
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
 vec4 decode_unorm8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -202,12 +212,12 @@ vec4 decode_unorm8(uint word) {
     return vec4(r, g, b, a);
 }
 
-// scene_data::texel (lightport-tracer/src/kernel/scene_data.rs:244)
+// scene_data::texel (lightport-tracer/src/kernel/scene_data.rs:240)
 vec4 texel(uvec4 info, int x, int y) {
     return decode_srgba8(texel_word(info, x, y));
 }
 
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:249)
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
 vec4 texel_as(uvec4 info, int x, int y, bool data) {
     uint word = texel_word(info, x, y);
     if (data) {
@@ -217,12 +227,12 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:305)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:269)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -236,18 +246,52 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:259)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:255)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }
 
-// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:264)
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:260)
 vec4 sample_data_texture(uint index, vec2 uv) {
     return bilinear(index, uv, true);
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:296)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:292)
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
+}
+
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:342)
+AlphaMaskData fetch_alpha_mask(uint material) {
+    vec4 t = lp_fetch_vec4(scene_materials, scene_alpha_mask_first + material);
+    return AlphaMaskData(index_of(t.x), t.y, t.z);
+}
+
+// scene_data::triangle_masked (lightport-tracer/src/kernel/scene_data.rs:348)
+bool triangle_masked(uint triangle) {
+    return lp_fetch_vec4(scene_triangles, triangle * TRIANGLE_TEXELS + 2u).w > 0.0;
+}
+
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:353)
+float coverage(AlphaMaskData mask, vec2 uv) {
+    float a = mask.alpha;
+    if ((scene_has_textures != 0u) && (mask.texture_ != NONE)) {
+        a *= sample_texture(mask.texture_, uv).w;
+    }
+    return a;
+}
+
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:364)
+bool is_hole(uint triangle, uint material, float u, float v) {
+    bool hole = false;
+    if (triangle_masked(triangle)) {
+        AlphaMaskData mask = fetch_alpha_mask(material);
+        vec2 uv = vec2(0.0);
+        if (scene_has_shading != 0u) {
+            uv = texcoord(triangle, u, v);
+        }
+        hole = coverage(mask, uv) < mask.cutoff;
+    }
+    return hole;
 }

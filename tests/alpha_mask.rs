@@ -1,4 +1,4 @@
-//! Alpha cut-outs (glTF `alphaMode` MASK, `Features::alpha_mask`, `tracer::kernel::alpha_mask`)
+//! Alpha cut-outs (glTF `alphaMode` MASK, `Features::alpha_mask`, `tracer::kernel::scene_data::is_hole`)
 //! on the CPU: camera rays see through holes pixel by pixel, shadows fall only under opaque
 //! texels, bounces pass through holes, emitters emit only where they are opaque, the kernel
 //! and data are unchanged for scenes without masks, bundles carry the layout, and loading
@@ -511,7 +511,7 @@ fn alpha_modes_and_cutoffs_load() {
         let mut holes = [false; 2];
         for (j, target_u) in [0.25f32, 0.75].into_iter().enumerate() {
             let (u, v) = find_barycentrics(k, i, target_u);
-            holes[j] = tracer::kernel::alpha_mask::is_hole(k, i, tri.material, u, v);
+            holes[j] = tracer::kernel::scene_data::is_hole(k, i, tri.material, u, v);
         }
         let masked = scene.materials[tri.material as usize].alpha_cutoff.is_some();
         assert_eq!(holes, [false, masked], "triangle {i} of material {}", scene.materials[tri.material as usize].name);

@@ -1,9 +1,8 @@
-//! Alpha masks (`kernel::alpha_mask`): its functions and the traversal and light sampling that
-//! call them, on the generated alpha-masked scene (`scene::alpha_masked_screen`), every input
-//! stated once and run on every runtime.
+//! Alpha masks (`scene_data::is_hole` and the functions it uses, `traverse::passes_through`),
+//! and the traversal and light sampling that call them, on the generated alpha-masked scene
+//! (`scene::alpha_masked_screen`): every input stated once and run on every runtime.
 
 use super::*;
-use tracer::kernel::alpha_mask;
 use tracer::kernel::lights;
 
 /// Coverage is a bilinear texture lookup times a factor: `sample_texture`'s tolerance.
@@ -12,13 +11,13 @@ const COVERAGE: Tolerance = Tolerance::ulps(16).with_absolute(1e-6).flushing_sub
 /// How far the coverage at (u, v) of `triangle` is from its cutoff (infinite for unmasked
 /// triangles): GPU rounding may decide points closer than a margin the other way.
 fn cutoff_distance(k: &Scene, triangle: u32, u: f32, v: f32) -> f32 {
-    if !alpha_mask::triangle_masked(k, triangle) {
+    if !scene_data::triangle_masked(k, triangle) {
         return f32::INFINITY;
     }
     let tri = scene_data::fetch_triangle(k, triangle);
-    let mask = alpha_mask::fetch_alpha_mask(k, tri.material);
+    let mask = scene_data::fetch_alpha_mask(k, tri.material);
     let uv = scene_data::texcoord(k, triangle, u, v);
-    (alpha_mask::coverage(k, mask, uv) - mask.cutoff).abs()
+    (scene_data::coverage(k, mask, uv) - mask.cutoff).abs()
 }
 
 /// Whether the segment `o + t d`, t in (0, t_max), crosses a masked triangle near a hole's edge.
@@ -49,7 +48,7 @@ fn alpha_mask_functions_agree() {
         &mut eq,
         "fetch_alpha_mask",
         &indices,
-        |s, &(i,)| (alpha_mask::fetch_alpha_mask(s, i),),
+        |s, &(i,)| (scene_data::fetch_alpha_mask(s, i),),
         Tolerance::EXACT,
     );
     let tris: Vec<(u32,)> = (0..triangles).map(|i| (i,)).collect();
@@ -57,20 +56,20 @@ fn alpha_mask_functions_agree() {
         &mut eq,
         "triangle_masked",
         &tris,
-        |s, &(i,)| (alpha_mask::triangle_masked(s, i),),
+        |s, &(i,)| (scene_data::triangle_masked(s, i),),
         Tolerance::EXACT,
     );
     let masked_count = masked.output(Backend::Cpu).unwrap().iter().filter(|(m,)| *m).count();
     assert_eq!(masked_count, 4, "the screen's and the light's two triangles each");
 
     // Coverage of every material's mask over uv in and beyond [0, 1] (clamped textures).
-    let lookups: Vec<(alpha_mask::AlphaMaskData, Vec2)> = (0..1 << 14)
+    let lookups: Vec<(scene_data::AlphaMaskData, Vec2)> = (0..1 << 14)
         .map(|i| {
-            let mask = alpha_mask::fetch_alpha_mask(&k, i % materials);
+            let mask = scene_data::fetch_alpha_mask(&k, i % materials);
             (mask, Vec2::new(r.range(-0.5, 1.5), r.range(-0.5, 1.5)))
         })
         .collect();
-    assert_equivalent(&mut eq, "coverage", &lookups, |s, &(m, uv)| (alpha_mask::coverage(s, m, uv),), COVERAGE);
+    assert_equivalent(&mut eq, "coverage", &lookups, |s, &(m, uv)| (scene_data::coverage(s, m, uv),), COVERAGE);
 
     // Holes at random points of every triangle, away from the cutoff (where rounding decides).
     let points: Vec<(u32, u32, f32, f32)> = (0..1 << 15)
@@ -86,7 +85,7 @@ fn alpha_mask_functions_agree() {
         &mut eq,
         "is_hole",
         &points,
-        |s, &(i, m, u, v)| (alpha_mask::is_hole(s, i, m, u, v),),
+        |s, &(i, m, u, v)| (scene_data::is_hole(s, i, m, u, v),),
         Tolerance::EXACT,
     );
     let hole_count = holes.output(Backend::Cpu).unwrap().iter().filter(|(h,)| *h).count();
@@ -122,7 +121,7 @@ fn alpha_mask_functions_agree() {
         .filter(|(&(o, d, _), (h,))| {
             (0..triangles).any(|i| {
                 let tri = scene_data::fetch_triangle(&k, i);
-                alpha_mask::triangle_masked(&k, i)
+                scene_data::triangle_masked(&k, i)
                     && intersect::intersect_triangle(o, d, tri.v0, tri.v1, tri.v2).t < h.t
             })
         })
@@ -145,6 +144,24 @@ fn alpha_mask_functions_agree() {
         |s, &(o, d, t)| (traverse::occluded(s, o, d, t),),
         Tolerance::EXACT,
     );
+
+    let segments: Vec<(u32, scene_data::TriangleData, Vec3, Vec3, f32)> = shadow
+        .iter()
+        .enumerate()
+        .map(|(j, &(o, d, t))| {
+            let i = j as u32 % triangles;
+            (i, scene_data::fetch_triangle(&k, i), o, d, t)
+        })
+        .collect();
+    let passes = assert_equivalent(
+        &mut eq,
+        "passes_through",
+        &segments,
+        |s, &(i, tri, o, d, t)| (traverse::passes_through(s, i, tri, o, d, t),),
+        Tolerance::EXACT,
+    );
+    let blocked = passes.output(Backend::Cpu).unwrap().iter().filter(|(p,)| !*p).count();
+    assert!(blocked > 0 && blocked < segments.len(), "{blocked} of {} segments blocked", segments.len());
 
     // Light sampling on the masked emitter: samples in its holes are invalid (pdf 0).
     let light_cases: Vec<(Vec3, Vec3)> = (0..1 << 14)

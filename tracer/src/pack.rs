@@ -35,7 +35,7 @@ pub struct Features {
     pub normal_map: bool,
     /// Some material is alpha-masked (glTF `alphaMode` MASK, [`crate::scene::Material::alpha_cutoff`]):
     /// the alpha test in traversal and light sampling, a flag in each triangle's third texel and
-    /// per material one texel appended to `Scene::materials` (`kernel::alpha_mask`); nothing without.
+    /// per material one texel appended to `Scene::materials` (`kernel::scene_data::is_hole`); nothing without.
     pub alpha_mask: bool,
     /// Entries the traversal stack needs for this scene's BVH (`WideBvh::stack_needed*`, at
     /// most the kernel's `STACK_SIZE`): GPU variants size their stacks to it instead of

@@ -6,8 +6,6 @@
 // every target. `RangeInclusive::contains` is not part of the DSL.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::manual_range_contains)]
 
-#[path = "alpha_mask.rs"]
-mod alpha_mask_src;
 #[path = "camera.rs"]
 mod camera_src;
 #[path = "integrator.rs"]
@@ -34,7 +32,6 @@ mod tonemap_src;
 #[path = "traverse.rs"]
 mod traverse_src;
 
-pub use alpha_mask_src::alpha_mask;
 pub use camera_src::camera;
 pub use integrator_src::integrator;
 pub use intersect_src::intersect;
@@ -54,7 +51,6 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
         sampling::kernel_ir(),
         intersect::kernel_ir(),
         scene_data::kernel_ir(),
-        alpha_mask::kernel_ir(),
         traverse::kernel_ir(),
         camera::kernel_ir(),
         lights::kernel_ir(),
@@ -67,13 +63,12 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
 
 /// Every kernel module's captured description, as the macro serialised it (what
 /// [`modules`] parses): a stable text to fingerprint the kernel with.
-pub fn ir_json() -> [&'static str; 12] {
+pub fn ir_json() -> [&'static str; 11] {
     [
         rng::KERNEL_IR_JSON,
         sampling::KERNEL_IR_JSON,
         intersect::KERNEL_IR_JSON,
         scene_data::KERNEL_IR_JSON,
-        alpha_mask::KERNEL_IR_JSON,
         traverse::KERNEL_IR_JSON,
         camera::KERNEL_IR_JSON,
         lights::KERNEL_IR_JSON,
