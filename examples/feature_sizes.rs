@@ -134,6 +134,7 @@ fn feature_list(f: &Features) -> String {
         (f.shading, "shading"),
         (f.metal_rough, "metal-rough"),
         (f.normal_map, "normal-map"),
+        (f.alpha_mask, "alpha-mask"),
     ]
     .iter()
     .filter(|(on, _)| *on)
@@ -258,6 +259,14 @@ fn without_normal_maps(mut scene: Scene) -> Scene {
     scene
 }
 
+/// `scene` with every material opaque (glTF `alphaMode` OPAQUE): without `Features::alpha_mask`.
+fn opaque(mut scene: Scene) -> Scene {
+    for m in &mut scene.materials {
+        m.alpha_cutoff = None;
+    }
+    scene
+}
+
 /// `scene` with every material made one the Lambert kernel renders (metallic 0, roughness 1, no
 /// metal-roughness texture): the same geometry and lights without `Features::metal_rough`.
 fn lambert(mut scene: Scene) -> Scene {
@@ -299,6 +308,8 @@ fn main() -> Result<()> {
         ("LittlestTokyo", load("threejs/LittlestTokyo.glb")?),
         ("MetalRoughSpheres (built-in, metal-roughness)", scene::metal_rough_spheres()),
         ("MetalRoughSpheres, every material Lambert", lambert(scene::metal_rough_spheres())),
+        ("alpha-masked screen (built-in, alpha mask)", scene::alpha_masked_screen()),
+        ("alpha-masked screen, every material opaque", opaque(scene::alpha_masked_screen())),
     ];
 
     let context = HeadlessContext::new()?;

@@ -19,6 +19,7 @@ uniform highp sampler2D scene_sky_rows;
 uniform highp sampler2D scene_metal_rough;
 uniform uint scene_tangent_first;
 uniform uint scene_normal_map_first;
+uniform uint scene_alpha_mask_first;
 uniform vec3 scene_camera_position;
 uniform vec3 scene_camera_right;
 uniform vec3 scene_camera_up;
@@ -45,6 +46,7 @@ uniform uint scene_has_triangle_lights;
 uniform uint scene_has_point_lights;
 uniform uint scene_has_metal_rough;
 uniform uint scene_has_normal_map;
+uniform uint scene_has_alpha_mask;
 
 // sampling::Onb (lightport-tracer/src/kernel/sampling.rs:13)
 struct Onb {
@@ -83,6 +85,13 @@ struct MetalRoughData {
     float roughness;
     uint texture_;
     float specular;
+};
+
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:333)
+struct AlphaMaskData {
+    uint texture_;
+    float alpha;
+    float cutoff;
 };
 
 // traverse::Hit (lightport-tracer/src/kernel/traverse.rs:21)
@@ -408,6 +417,132 @@ TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2)
     }
 }
 
+// scene_data::triangle_masked (lightport-tracer/src/kernel/scene_data.rs:348)
+bool triangle_masked(uint triangle) {
+    return lp_fetch_vec4(scene_triangles, triangle * TRIANGLE_TEXELS + 2u).w > 0.0;
+}
+
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:342)
+AlphaMaskData fetch_alpha_mask(uint material) {
+    vec4 t = lp_fetch_vec4(scene_materials, scene_alpha_mask_first + material);
+    return AlphaMaskData(index_of(t.x), t.y, t.z);
+}
+
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
+vec2 texcoord(uint index, float u, float v) {
+    uint base = index * SHADING_TEXELS;
+    vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
+    vec4 rest = lp_fetch_vec4(scene_shading, base + 3u);
+    vec2 uv1 = vec2(lp_fetch_vec4(scene_shading, base + 2u).w, rest.x);
+    vec2 uv2 = vec2(rest.y, rest.z);
+    return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
+}
+
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
+float bounded_coordinate(float v) {
+    return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
+}
+
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:173)
+int wrap_coordinate(int i, int size, uint mode) {
+    if (mode == WRAP_CLAMP) {
+        return clamp(i, 0, size - 1);
+    } else if (mode == WRAP_MIRROR) {
+        int period = 2 * size;
+        int m = lp_rem_i32(lp_rem_i32(i, period) + period, period);
+        return m < size ? m : period - 1 - m;
+    } else {
+        return lp_rem_i32(lp_rem_i32(i, size) + size, size);
+    }
+}
+
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
+uint texel_word(uvec4 info, int x, int y) {
+    int w = int(info.y);
+    int h = int(info.z);
+    int tx = wrap_coordinate(x, w, info.w & 255u);
+    int ty = wrap_coordinate(y, h, info.w >> 8);
+    uint i = info.x + uint(ty * w + tx);
+    uvec4 four = lp_fetch_uvec4(scene_texture_texels, i / TEXTURE_TEXELS_PER_ELEMENT);
+    uint lane = i % TEXTURE_TEXELS_PER_ELEMENT;
+    return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
+}
+
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
+vec4 decode_unorm8(uint word) {
+    float r = float((word << 24) >> 24) / 255.0;
+    float g = float((word << 16) >> 24) / 255.0;
+    float b = float((word << 8) >> 24) / 255.0;
+    float a = float(word >> 24) / 255.0;
+    return vec4(r, g, b, a);
+}
+
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
+float srgb_to_linear(float c) {
+    return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
+}
+
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:199)
+vec4 decode_srgba8(uint word) {
+    float r = float((word << 24) >> 24) / 255.0;
+    float g = float((word << 16) >> 24) / 255.0;
+    float b = float((word << 8) >> 24) / 255.0;
+    float a = float(word >> 24) / 255.0;
+    return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
+}
+
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
+vec4 texel_as(uvec4 info, int x, int y, bool data) {
+    uint word = texel_word(info, x, y);
+    if (data) {
+        return decode_unorm8(word);
+    } else {
+        return decode_srgba8(word);
+    }
+}
+
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
+vec4 bilinear(uint index, vec2 uv, bool data) {
+    uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
+    float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
+    float y = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
+    float fx = x - floor(x);
+    float fy = y - floor(y);
+    int x0 = lp_f32_to_i32(floor(x));
+    int y0 = lp_f32_to_i32(floor(y));
+    vec4 top = texel_as(info, x0, y0, data) * (1.0 - fx) + texel_as(info, x0 + 1, y0, data) * fx;
+    vec4 bottom = texel_as(info, x0, y0 + 1, data) * (1.0 - fx) + texel_as(info, x0 + 1, y0 + 1, data) * fx;
+    return top * (1.0 - fy) + bottom * fy;
+}
+
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:255)
+vec4 sample_texture(uint index, vec2 uv) {
+    return bilinear(index, uv, false);
+}
+
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:353)
+float coverage(AlphaMaskData mask, vec2 uv) {
+    float a = mask.alpha;
+    if ((scene_has_textures != 0u) && (mask.texture_ != NONE)) {
+        a *= sample_texture(mask.texture_, uv).w;
+    }
+    return a;
+}
+
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:364)
+bool is_hole(uint triangle, uint material, float u, float v) {
+    bool hole = false;
+    if (triangle_masked(triangle)) {
+        AlphaMaskData mask = fetch_alpha_mask(material);
+        vec2 uv = vec2(0.0);
+        if (scene_has_shading != 0u) {
+            uv = texcoord(triangle, u, v);
+        }
+        hole = coverage(mask, uv) < mask.cutoff;
+    }
+    return hole;
+}
+
 // traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:109)
 void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
     uint first = entry >> 8;
@@ -415,7 +550,8 @@ void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
     for (uint i = first; i < i_end; ++i) {
         TriangleData tri = fetch_triangle(i);
         TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if (h.t < hit.t) {
+        if ((scene_has_alpha_mask != 0u) && h.t < hit.t && is_hole(i, tri.material, h.u, h.v)) {
+        } else if (h.t < hit.t) {
             hit = Hit(i, h.t, h.u, h.v);
         }
     }
@@ -627,96 +763,9 @@ vec4 interpolated_tangent(uint triangle, float u, float v) {
     return t0 * (1.0 - u - v) + t1 * u + t2 * v;
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
-float bounded_coordinate(float v) {
-    return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
-}
-
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:173)
-int wrap_coordinate(int i, int size, uint mode) {
-    if (mode == WRAP_CLAMP) {
-        return clamp(i, 0, size - 1);
-    } else if (mode == WRAP_MIRROR) {
-        int period = 2 * size;
-        int m = lp_rem_i32(lp_rem_i32(i, period) + period, period);
-        return m < size ? m : period - 1 - m;
-    } else {
-        return lp_rem_i32(lp_rem_i32(i, size) + size, size);
-    }
-}
-
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
-uint texel_word(uvec4 info, int x, int y) {
-    int w = int(info.y);
-    int h = int(info.z);
-    int tx = wrap_coordinate(x, w, info.w & 255u);
-    int ty = wrap_coordinate(y, h, info.w >> 8);
-    uint i = info.x + uint(ty * w + tx);
-    uvec4 four = lp_fetch_uvec4(scene_texture_texels, i / TEXTURE_TEXELS_PER_ELEMENT);
-    uint lane = i % TEXTURE_TEXELS_PER_ELEMENT;
-    return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
-}
-
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
-vec4 decode_unorm8(uint word) {
-    float r = float((word << 24) >> 24) / 255.0;
-    float g = float((word << 16) >> 24) / 255.0;
-    float b = float((word << 8) >> 24) / 255.0;
-    float a = float(word >> 24) / 255.0;
-    return vec4(r, g, b, a);
-}
-
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
-float srgb_to_linear(float c) {
-    return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
-}
-
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:199)
-vec4 decode_srgba8(uint word) {
-    float r = float((word << 24) >> 24) / 255.0;
-    float g = float((word << 16) >> 24) / 255.0;
-    float b = float((word << 8) >> 24) / 255.0;
-    float a = float(word >> 24) / 255.0;
-    return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
-}
-
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
-vec4 texel_as(uvec4 info, int x, int y, bool data) {
-    uint word = texel_word(info, x, y);
-    if (data) {
-        return decode_unorm8(word);
-    } else {
-        return decode_srgba8(word);
-    }
-}
-
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
-vec4 bilinear(uint index, vec2 uv, bool data) {
-    uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
-    float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
-    float y = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
-    float fx = x - floor(x);
-    float fy = y - floor(y);
-    int x0 = lp_f32_to_i32(floor(x));
-    int y0 = lp_f32_to_i32(floor(y));
-    vec4 top = texel_as(info, x0, y0, data) * (1.0 - fx) + texel_as(info, x0 + 1, y0, data) * fx;
-    vec4 bottom = texel_as(info, x0, y0 + 1, data) * (1.0 - fx) + texel_as(info, x0 + 1, y0 + 1, data) * fx;
-    return top * (1.0 - fy) + bottom * fy;
-}
-
 // scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:260)
 vec4 sample_data_texture(uint index, vec2 uv) {
     return bilinear(index, uv, true);
-}
-
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
-vec2 texcoord(uint index, float u, float v) {
-    uint base = index * SHADING_TEXELS;
-    vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
-    vec4 rest = lp_fetch_vec4(scene_shading, base + 3u);
-    vec2 uv1 = vec2(lp_fetch_vec4(scene_shading, base + 2u).w, rest.x);
-    vec2 uv2 = vec2(rest.y, rest.z);
-    return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
 
 // normal_map::perturb_normal (lightport-tracer/src/kernel/normal_map.rs:66)
@@ -788,11 +837,6 @@ MaterialData fetch_material(uint index) {
 // lights::area_pdf_to_solid_angle (lightport-tracer/src/kernel/lights.rs:67)
 float area_pdf_to_solid_angle(float pmf, float area, float dist, float cos_light) {
     return !(cos_light > 0.0) || !(area > 0.0) ? 0.0 : pmf * dist * dist / (area * cos_light);
-}
-
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:255)
-vec4 sample_texture(uint index, vec2 uv) {
-    return bilinear(index, uv, false);
 }
 
 // lights::triangle_emission (lightport-tracer/src/kernel/lights.rs:55)
@@ -886,7 +930,9 @@ LightSample sample_light(vec3 p, vec3 u) {
         vec3 normal = vec3(data.y, data.z, data.w);
         float area = lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS + 2u).x;
         float pdf = area_pdf_to_solid_angle(pmf, area, dist, -dot(normal, dir));
-        if (!(pdf > 0.0)) {
+        if ((scene_has_alpha_mask != 0u) && is_hole(tri_index, tri.material, b.x, b.y)) {
+            return none;
+        } else if (!(pdf > 0.0)) {
             return none;
         }
         vec3 radiance = triangle_emission(tri_index, tri.material, b.x, b.y);
@@ -922,6 +968,12 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
+// traverse::passes_through (lightport-tracer/src/kernel/traverse.rs:327)
+bool passes_through(uint triangle, TriangleData tri, vec3 origin, vec3 dir, float t_max) {
+    TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+    return !(h.t < t_max) || is_hole(triangle, tri.material, h.u, h.v);
+}
+
 // traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:121)
 bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     uint first = entry >> 8;
@@ -929,7 +981,8 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     uint i_end = first + (entry & 255u);
     for (uint i = first; i < i_end; ++i) {
         TriangleData tri = fetch_triangle(i);
-        if (intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max) {
+        if ((scene_has_alpha_mask != 0u) && passes_through(i, tri, origin, dir, t_max)) {
+        } else if (intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max) {
             blocked = true;
             break;
         }

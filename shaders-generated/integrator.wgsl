@@ -4,6 +4,7 @@
 struct SceneUniforms {
     tangent_first: u32,
     normal_map_first: u32,
+    alpha_mask_first: u32,
     camera_position: vec3<f32>,
     camera_right: vec3<f32>,
     camera_up: vec3<f32>,
@@ -30,6 +31,7 @@ struct SceneUniforms {
     has_point_lights: u32,
     has_metal_rough: u32,
     has_normal_map: u32,
+    has_alpha_mask: u32,
 }
 @group(0) @binding(0) var<uniform> scene: SceneUniforms;
 @group(0) @binding(1) var<storage, read> scene_triangles: array<vec4<f32>>;
@@ -81,6 +83,13 @@ struct MetalRoughData {
     roughness: f32,
     texture_: u32,
     specular: f32,
+}
+
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:333)
+struct AlphaMaskData {
+    texture_: u32,
+    alpha: f32,
+    cutoff: f32,
 }
 
 // traverse::Hit (lightport-tracer/src/kernel/traverse.rs:21)
@@ -381,6 +390,132 @@ fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3
     }
 }
 
+// scene_data::triangle_masked (lightport-tracer/src/kernel/scene_data.rs:348)
+fn triangle_masked(triangle: u32) -> bool {
+    return scene_triangles[triangle * TRIANGLE_TEXELS + 2u].w > 0.0;
+}
+
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:342)
+fn fetch_alpha_mask(material: u32) -> AlphaMaskData {
+    let t: vec4<f32> = scene_materials[scene.alpha_mask_first + material];
+    return AlphaMaskData(index_of(t.x), t.y, t.z);
+}
+
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
+fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
+    let base: u32 = index * SHADING_TEXELS;
+    let uv0: vec2<f32> = vec2<f32>(scene_shading[base].w, scene_shading[base + 1u].w);
+    let rest: vec4<f32> = scene_shading[base + 3u];
+    let uv1: vec2<f32> = vec2<f32>(scene_shading[base + 2u].w, rest.x);
+    let uv2: vec2<f32> = vec2<f32>(rest.y, rest.z);
+    return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
+}
+
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
+fn bounded_coordinate(v: f32) -> f32 {
+    return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
+}
+
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:173)
+fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
+    if mode == WRAP_CLAMP {
+        return clamp(i, 0i, size - 1i);
+    } else if mode == WRAP_MIRROR {
+        let period: i32 = 2i * size;
+        let m: i32 = (i % period + period) % period;
+        return select(period - 1i - m, m, m < size);
+    } else {
+        return (i % size + size) % size;
+    }
+}
+
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
+fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
+    let w: i32 = bitcast<i32>(info.y);
+    let h: i32 = bitcast<i32>(info.z);
+    let tx: i32 = wrap_coordinate(x, w, info.w & 255u);
+    let ty: i32 = wrap_coordinate(y, h, info.w >> 8u);
+    let i: u32 = info.x + bitcast<u32>(ty * w + tx);
+    let four: vec4<u32> = scene_texture_texels[i / TEXTURE_TEXELS_PER_ELEMENT];
+    let lane: u32 = i % TEXTURE_TEXELS_PER_ELEMENT;
+    return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
+}
+
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
+fn decode_unorm8(word: u32) -> vec4<f32> {
+    let r: f32 = f32((word << 24u) >> 24u) / 255.0;
+    let g: f32 = f32((word << 16u) >> 24u) / 255.0;
+    let b: f32 = f32((word << 8u) >> 24u) / 255.0;
+    let a: f32 = f32(word >> 24u) / 255.0;
+    return vec4<f32>(r, g, b, a);
+}
+
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
+fn srgb_to_linear(c: f32) -> f32 {
+    return select(pow((c + 0.055) / 1.055, 2.4), c / 12.92, c <= 0.04045);
+}
+
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:199)
+fn decode_srgba8(word: u32) -> vec4<f32> {
+    let r: f32 = f32((word << 24u) >> 24u) / 255.0;
+    let g: f32 = f32((word << 16u) >> 24u) / 255.0;
+    let b: f32 = f32((word << 8u) >> 24u) / 255.0;
+    let a: f32 = f32(word >> 24u) / 255.0;
+    return vec4<f32>(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
+}
+
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
+fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
+    let word: u32 = texel_word(info, x, y);
+    if data {
+        return decode_unorm8(word);
+    } else {
+        return decode_srgba8(word);
+    }
+}
+
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
+fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
+    let info: vec4<u32> = scene_texture_info[index];
+    let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
+    let y: f32 = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
+    let fx: f32 = x - floor(x);
+    let fy: f32 = y - floor(y);
+    let x0: i32 = lp_f32_to_i32(floor(x));
+    let y0: i32 = lp_f32_to_i32(floor(y));
+    let top: vec4<f32> = texel_as(info, x0, y0, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0, data) * fx;
+    let bottom: vec4<f32> = texel_as(info, x0, y0 + 1i, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0 + 1i, data) * fx;
+    return top * (1.0 - fy) + bottom * fy;
+}
+
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:255)
+fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
+    return bilinear(index, uv, false);
+}
+
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:353)
+fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
+    var a: f32 = mask.alpha;
+    if (scene.has_textures != 0u) && (mask.texture_ != NONE) {
+        a *= sample_texture(mask.texture_, uv).w;
+    }
+    return a;
+}
+
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:364)
+fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
+    var hole: bool = false;
+    if triangle_masked(triangle) {
+        let mask: AlphaMaskData = fetch_alpha_mask(material);
+        var uv: vec2<f32> = vec2<f32>(0.0);
+        if scene.has_shading != 0u {
+            uv = texcoord(triangle, u, v);
+        }
+        hole = coverage(mask, uv) < mask.cutoff;
+    }
+    return hole;
+}
+
 // traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:109)
 fn intersect_leaf(entry: u32, origin: vec3<f32>, dir: vec3<f32>, hit: ptr<function, Hit>) {
     let first: u32 = entry >> 8u;
@@ -388,7 +523,8 @@ fn intersect_leaf(entry: u32, origin: vec3<f32>, dir: vec3<f32>, hit: ptr<functi
     for (var i: u32 = first; i < i_end; i++) {
         let tri: TriangleData = fetch_triangle(i);
         let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if h.t < (*hit).t {
+        if (scene.has_alpha_mask != 0u) && h.t < (*hit).t && is_hole(i, tri.material, h.u, h.v) {
+        } else if h.t < (*hit).t {
             *hit = Hit(i, h.t, h.u, h.v);
         }
     }
@@ -598,96 +734,9 @@ fn interpolated_tangent(triangle: u32, u: f32, v: f32) -> vec4<f32> {
     return t0 * (1.0 - u - v) + t1 * u + t2 * v;
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
-fn bounded_coordinate(v: f32) -> f32 {
-    return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
-}
-
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:173)
-fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
-    if mode == WRAP_CLAMP {
-        return clamp(i, 0i, size - 1i);
-    } else if mode == WRAP_MIRROR {
-        let period: i32 = 2i * size;
-        let m: i32 = (i % period + period) % period;
-        return select(period - 1i - m, m, m < size);
-    } else {
-        return (i % size + size) % size;
-    }
-}
-
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
-fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
-    let w: i32 = bitcast<i32>(info.y);
-    let h: i32 = bitcast<i32>(info.z);
-    let tx: i32 = wrap_coordinate(x, w, info.w & 255u);
-    let ty: i32 = wrap_coordinate(y, h, info.w >> 8u);
-    let i: u32 = info.x + bitcast<u32>(ty * w + tx);
-    let four: vec4<u32> = scene_texture_texels[i / TEXTURE_TEXELS_PER_ELEMENT];
-    let lane: u32 = i % TEXTURE_TEXELS_PER_ELEMENT;
-    return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
-}
-
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
-fn decode_unorm8(word: u32) -> vec4<f32> {
-    let r: f32 = f32((word << 24u) >> 24u) / 255.0;
-    let g: f32 = f32((word << 16u) >> 24u) / 255.0;
-    let b: f32 = f32((word << 8u) >> 24u) / 255.0;
-    let a: f32 = f32(word >> 24u) / 255.0;
-    return vec4<f32>(r, g, b, a);
-}
-
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
-fn srgb_to_linear(c: f32) -> f32 {
-    return select(pow((c + 0.055) / 1.055, 2.4), c / 12.92, c <= 0.04045);
-}
-
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:199)
-fn decode_srgba8(word: u32) -> vec4<f32> {
-    let r: f32 = f32((word << 24u) >> 24u) / 255.0;
-    let g: f32 = f32((word << 16u) >> 24u) / 255.0;
-    let b: f32 = f32((word << 8u) >> 24u) / 255.0;
-    let a: f32 = f32(word >> 24u) / 255.0;
-    return vec4<f32>(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
-}
-
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
-fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
-    let word: u32 = texel_word(info, x, y);
-    if data {
-        return decode_unorm8(word);
-    } else {
-        return decode_srgba8(word);
-    }
-}
-
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
-fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
-    let info: vec4<u32> = scene_texture_info[index];
-    let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
-    let y: f32 = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
-    let fx: f32 = x - floor(x);
-    let fy: f32 = y - floor(y);
-    let x0: i32 = lp_f32_to_i32(floor(x));
-    let y0: i32 = lp_f32_to_i32(floor(y));
-    let top: vec4<f32> = texel_as(info, x0, y0, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0, data) * fx;
-    let bottom: vec4<f32> = texel_as(info, x0, y0 + 1i, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0 + 1i, data) * fx;
-    return top * (1.0 - fy) + bottom * fy;
-}
-
 // scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:260)
 fn sample_data_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, true);
-}
-
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
-fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
-    let base: u32 = index * SHADING_TEXELS;
-    let uv0: vec2<f32> = vec2<f32>(scene_shading[base].w, scene_shading[base + 1u].w);
-    let rest: vec4<f32> = scene_shading[base + 3u];
-    let uv1: vec2<f32> = vec2<f32>(scene_shading[base + 2u].w, rest.x);
-    let uv2: vec2<f32> = vec2<f32>(rest.y, rest.z);
-    return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
 
 // normal_map::perturb_normal (lightport-tracer/src/kernel/normal_map.rs:66)
@@ -759,11 +808,6 @@ fn fetch_material(index: u32) -> MaterialData {
 // lights::area_pdf_to_solid_angle (lightport-tracer/src/kernel/lights.rs:67)
 fn area_pdf_to_solid_angle(pmf: f32, area: f32, dist: f32, cos_light: f32) -> f32 {
     return select(pmf * dist * dist / (area * cos_light), 0.0, !(cos_light > 0.0) || !(area > 0.0));
-}
-
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:255)
-fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
-    return bilinear(index, uv, false);
 }
 
 // lights::triangle_emission (lightport-tracer/src/kernel/lights.rs:55)
@@ -857,7 +901,9 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         let normal: vec3<f32> = vec3<f32>(data.y, data.z, data.w);
         let area: f32 = scene_lights[index * LIGHT_TEXELS + 2u].x;
         let pdf: f32 = area_pdf_to_solid_angle(pmf, area, dist, -dot(normal, dir));
-        if !(pdf > 0.0) {
+        if (scene.has_alpha_mask != 0u) && is_hole(tri_index, tri.material, b.x, b.y) {
+            return none;
+        } else if !(pdf > 0.0) {
             return none;
         }
         let radiance: vec3<f32> = triangle_emission(tri_index, tri.material, b.x, b.y);
@@ -893,6 +939,12 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     }
 }
 
+// traverse::passes_through (lightport-tracer/src/kernel/traverse.rs:327)
+fn passes_through(triangle: u32, tri: TriangleData, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+    let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+    return !(h.t < t_max) || is_hole(triangle, tri.material, h.u, h.v);
+}
+
 // traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:121)
 fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let first: u32 = entry >> 8u;
@@ -900,7 +952,8 @@ fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> b
     let i_end: u32 = first + (entry & 255u);
     for (var i: u32 = first; i < i_end; i++) {
         let tri: TriangleData = fetch_triangle(i);
-        if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
+        if (scene.has_alpha_mask != 0u) && passes_through(i, tri, origin, dir, t_max) {
+        } else if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
             blocked = true;
             break;
         }

@@ -14,6 +14,7 @@ uniform highp usampler2D scene_texture_texels;
 uniform highp usampler2D scene_texture_info;
 uniform highp sampler2D scene_sky;
 uniform highp sampler2D scene_sky_rows;
+uniform uint scene_alpha_mask_first;
 uniform uint scene_light_count;
 uniform uint scene_sky_width;
 uniform uint scene_sky_height;
@@ -21,8 +22,10 @@ uniform float scene_sky_intensity;
 uniform float scene_sky_rotation;
 uniform uint scene_has_sky;
 uniform uint scene_has_textures;
+uniform uint scene_has_shading;
 uniform uint scene_has_triangle_lights;
 uniform uint scene_has_point_lights;
+uniform uint scene_has_alpha_mask;
 
 // scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:108)
 struct TriangleData {
@@ -39,6 +42,13 @@ struct MaterialData {
     uint base_texture;
     vec3 emission;
     uint emissive_texture;
+};
+
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:333)
+struct AlphaMaskData {
+    uint texture_;
+    float alpha;
+    float cutoff;
 };
 
 // lights::LightSample (lightport-tracer/src/kernel/lights.rs:17)
@@ -376,6 +386,40 @@ vec2 uniform_sample_triangle(float u1, float u2) {
     return vec2(s * (1.0 - u2), s * u2);
 }
 
+// scene_data::triangle_masked (lightport-tracer/src/kernel/scene_data.rs:348)
+bool triangle_masked(uint triangle) {
+    return lp_fetch_vec4(scene_triangles, triangle * TRIANGLE_TEXELS + 2u).w > 0.0;
+}
+
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:342)
+AlphaMaskData fetch_alpha_mask(uint material) {
+    vec4 t = lp_fetch_vec4(scene_materials, scene_alpha_mask_first + material);
+    return AlphaMaskData(index_of(t.x), t.y, t.z);
+}
+
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:353)
+float coverage(AlphaMaskData mask, vec2 uv) {
+    float a = mask.alpha;
+    if ((scene_has_textures != 0u) && (mask.texture_ != NONE)) {
+        a *= sample_texture(mask.texture_, uv).w;
+    }
+    return a;
+}
+
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:364)
+bool is_hole(uint triangle, uint material, float u, float v) {
+    bool hole = false;
+    if (triangle_masked(triangle)) {
+        AlphaMaskData mask = fetch_alpha_mask(material);
+        vec2 uv = vec2(0.0);
+        if (scene_has_shading != 0u) {
+            uv = texcoord(triangle, u, v);
+        }
+        hole = coverage(mask, uv) < mask.cutoff;
+    }
+    return hole;
+}
+
 // lights::sample_light (lightport-tracer/src/kernel/lights.rs:155)
 LightSample sample_light(vec3 p, vec3 u) {
     LightSample none = LightSample(vec3(0.0, 1.0, 0.0), 0.0, vec3(0.0), 0.0, false);
@@ -399,7 +443,9 @@ LightSample sample_light(vec3 p, vec3 u) {
         vec3 normal = vec3(data.y, data.z, data.w);
         float area = lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS + 2u).x;
         float pdf = area_pdf_to_solid_angle(pmf, area, dist, -dot(normal, dir));
-        if (!(pdf > 0.0)) {
+        if ((scene_has_alpha_mask != 0u) && is_hole(tri_index, tri.material, b.x, b.y)) {
+            return none;
+        } else if (!(pdf > 0.0)) {
             return none;
         }
         vec3 radiance = triangle_emission(tri_index, tri.material, b.x, b.y);

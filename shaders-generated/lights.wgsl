@@ -2,6 +2,7 @@
 
 // resources: Scene (lightport-tracer/src/kernel/scene_data.rs:44)
 struct SceneUniforms {
+    alpha_mask_first: u32,
     light_count: u32,
     sky_width: u32,
     sky_height: u32,
@@ -9,8 +10,10 @@ struct SceneUniforms {
     sky_rotation: f32,
     has_sky: u32,
     has_textures: u32,
+    has_shading: u32,
     has_triangle_lights: u32,
     has_point_lights: u32,
+    has_alpha_mask: u32,
 }
 @group(0) @binding(0) var<uniform> scene: SceneUniforms;
 @group(0) @binding(1) var<storage, read> scene_triangles: array<vec4<f32>>;
@@ -37,6 +40,13 @@ struct MaterialData {
     base_texture: u32,
     emission: vec3<f32>,
     emissive_texture: u32,
+}
+
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:333)
+struct AlphaMaskData {
+    texture_: u32,
+    alpha: f32,
+    cutoff: f32,
 }
 
 // lights::LightSample (lightport-tracer/src/kernel/lights.rs:17)
@@ -349,6 +359,40 @@ fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
     return vec2<f32>(s * (1.0 - u2), s * u2);
 }
 
+// scene_data::triangle_masked (lightport-tracer/src/kernel/scene_data.rs:348)
+fn triangle_masked(triangle: u32) -> bool {
+    return scene_triangles[triangle * TRIANGLE_TEXELS + 2u].w > 0.0;
+}
+
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:342)
+fn fetch_alpha_mask(material: u32) -> AlphaMaskData {
+    let t: vec4<f32> = scene_materials[scene.alpha_mask_first + material];
+    return AlphaMaskData(index_of(t.x), t.y, t.z);
+}
+
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:353)
+fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
+    var a: f32 = mask.alpha;
+    if (scene.has_textures != 0u) && (mask.texture_ != NONE) {
+        a *= sample_texture(mask.texture_, uv).w;
+    }
+    return a;
+}
+
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:364)
+fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
+    var hole: bool = false;
+    if triangle_masked(triangle) {
+        let mask: AlphaMaskData = fetch_alpha_mask(material);
+        var uv: vec2<f32> = vec2<f32>(0.0);
+        if scene.has_shading != 0u {
+            uv = texcoord(triangle, u, v);
+        }
+        hole = coverage(mask, uv) < mask.cutoff;
+    }
+    return hole;
+}
+
 // lights::sample_light (lightport-tracer/src/kernel/lights.rs:155)
 fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     let none: LightSample = LightSample(vec3<f32>(0.0, 1.0, 0.0), 0.0, vec3<f32>(0.0), 0.0, false);
@@ -372,7 +416,9 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         let normal: vec3<f32> = vec3<f32>(data.y, data.z, data.w);
         let area: f32 = scene_lights[index * LIGHT_TEXELS + 2u].x;
         let pdf: f32 = area_pdf_to_solid_angle(pmf, area, dist, -dot(normal, dir));
-        if !(pdf > 0.0) {
+        if (scene.has_alpha_mask != 0u) && is_hole(tri_index, tri.material, b.x, b.y) {
+            return none;
+        } else if !(pdf > 0.0) {
             return none;
         }
         let radiance: vec3<f32> = triangle_emission(tri_index, tri.material, b.x, b.y);

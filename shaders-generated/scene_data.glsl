@@ -12,6 +12,9 @@ uniform highp sampler2D scene_materials;
 uniform highp usampler2D scene_texture_texels;
 uniform highp usampler2D scene_texture_info;
 uniform highp sampler2D scene_metal_rough;
+uniform uint scene_alpha_mask_first;
+uniform uint scene_has_textures;
+uniform uint scene_has_shading;
 
 // scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:108)
 struct TriangleData {
@@ -36,6 +39,13 @@ struct MetalRoughData {
     float roughness;
     uint texture_;
     float specular;
+};
+
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:333)
+struct AlphaMaskData {
+    uint texture_;
+    float alpha;
+    float cutoff;
 };
 
 // scene_data::TRIANGLE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:14)
@@ -250,4 +260,38 @@ vec4 sample_data_texture(uint index, vec2 uv) {
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
+}
+
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:342)
+AlphaMaskData fetch_alpha_mask(uint material) {
+    vec4 t = lp_fetch_vec4(scene_materials, scene_alpha_mask_first + material);
+    return AlphaMaskData(index_of(t.x), t.y, t.z);
+}
+
+// scene_data::triangle_masked (lightport-tracer/src/kernel/scene_data.rs:348)
+bool triangle_masked(uint triangle) {
+    return lp_fetch_vec4(scene_triangles, triangle * TRIANGLE_TEXELS + 2u).w > 0.0;
+}
+
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:353)
+float coverage(AlphaMaskData mask, vec2 uv) {
+    float a = mask.alpha;
+    if ((scene_has_textures != 0u) && (mask.texture_ != NONE)) {
+        a *= sample_texture(mask.texture_, uv).w;
+    }
+    return a;
+}
+
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:364)
+bool is_hole(uint triangle, uint material, float u, float v) {
+    bool hole = false;
+    if (triangle_masked(triangle)) {
+        AlphaMaskData mask = fetch_alpha_mask(material);
+        vec2 uv = vec2(0.0);
+        if (scene_has_shading != 0u) {
+            uv = texcoord(triangle, u, v);
+        }
+        hole = coverage(mask, uv) < mask.cutoff;
+    }
+    return hole;
 }

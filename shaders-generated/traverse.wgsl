@@ -2,12 +2,20 @@
 
 // resources: Scene (lightport-tracer/src/kernel/scene_data.rs:44)
 struct SceneUniforms {
+    alpha_mask_first: u32,
     leaf_stack_limit: u32,
+    has_textures: u32,
+    has_shading: u32,
+    has_alpha_mask: u32,
 }
 @group(0) @binding(0) var<uniform> scene: SceneUniforms;
 @group(0) @binding(1) var<storage, read> scene_triangles: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> scene_nodes: array<vec4<f32>>;
-@group(0) @binding(3) var<storage, read> scene_node_children: array<vec4<u32>>;
+@group(0) @binding(2) var<storage, read> scene_shading: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> scene_nodes: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> scene_node_children: array<vec4<u32>>;
+@group(0) @binding(5) var<storage, read> scene_materials: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read> scene_texture_texels: array<vec4<u32>>;
+@group(0) @binding(7) var<storage, read> scene_texture_info: array<vec4<u32>>;
 
 // intersect::TriangleHit (lightport-tracer/src/kernel/intersect.rs:13)
 struct TriangleHit {
@@ -23,6 +31,13 @@ struct TriangleData {
     v2: vec3<f32>,
     material: u32,
     light: u32,
+}
+
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:333)
+struct AlphaMaskData {
+    texture_: u32,
+    alpha: f32,
+    cutoff: f32,
 }
 
 // traverse::Hit (lightport-tracer/src/kernel/traverse.rs:21)
@@ -43,14 +58,27 @@ struct NodeHits {
 const MISS: f32 = 3.4028235e38;
 // scene_data::TRIANGLE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:14)
 const TRIANGLE_TEXELS: u32 = 3u;
+// scene_data::SHADING_TEXELS (lightport-tracer/src/kernel/scene_data.rs:16)
+const SHADING_TEXELS: u32 = 4u;
 // scene_data::NODE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:21)
 const NODE_TEXELS: u32 = 6u;
+// scene_data::TEXTURE_TEXELS_PER_ELEMENT (lightport-tracer/src/kernel/scene_data.rs:33)
+const TEXTURE_TEXELS_PER_ELEMENT: u32 = 4u;
 // scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:35)
 const NONE: u32 = 0xffffffffu;
+// scene_data::WRAP_CLAMP (lightport-tracer/src/kernel/scene_data.rs:37)
+const WRAP_CLAMP: u32 = 1u;
+// scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:38)
+const WRAP_MIRROR: u32 = 2u;
 // traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:17)
 const STACK_SIZE: u32 = 64u;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
+// u32 as f32, rounded to nearest even like Rust: both halves convert exactly, the sum rounds once.
+fn lp_u32_to_f32(x: u32) -> f32 {
+    return f32(x >> 16u) * 65536.0 + f32(x & 65535u);
+}
+
 // f32 as u32 saturates like Rust: NaN and negatives give 0, too large gives u32::MAX.
 fn lp_f32_to_u32(x: f32) -> u32 {
     if x >= 4294967296.0 {
@@ -60,6 +88,25 @@ fn lp_f32_to_u32(x: f32) -> u32 {
         return u32(x);
     }
     return 0u;
+}
+
+// f32 as i32 saturates like Rust: NaN gives 0, out of range gives i32::MIN/MAX.
+fn lp_f32_to_i32(x: f32) -> i32 {
+    if x >= 2147483648.0 {
+        return 2147483647i;
+    }
+    if x >= -2147483648.0 {
+        return i32(x);
+    }
+    if x < 0.0 {
+        return -2147483647i - 1i;
+    }
+    return 0i;
+}
+
+// From the bits: drivers may fold NaN checks away under fast-math.
+fn lp_is_nan(x: f32) -> bool {
+    return (bitcast<u32>(x) & 0x7fffffffu) > 0x7f800000u;
 }
 
 // traverse::stack_entry (lightport-tracer/src/kernel/traverse.rs:42)
@@ -137,6 +184,132 @@ fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3
     }
 }
 
+// scene_data::triangle_masked (lightport-tracer/src/kernel/scene_data.rs:348)
+fn triangle_masked(triangle: u32) -> bool {
+    return scene_triangles[triangle * TRIANGLE_TEXELS + 2u].w > 0.0;
+}
+
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:342)
+fn fetch_alpha_mask(material: u32) -> AlphaMaskData {
+    let t: vec4<f32> = scene_materials[scene.alpha_mask_first + material];
+    return AlphaMaskData(index_of(t.x), t.y, t.z);
+}
+
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
+fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
+    let base: u32 = index * SHADING_TEXELS;
+    let uv0: vec2<f32> = vec2<f32>(scene_shading[base].w, scene_shading[base + 1u].w);
+    let rest: vec4<f32> = scene_shading[base + 3u];
+    let uv1: vec2<f32> = vec2<f32>(scene_shading[base + 2u].w, rest.x);
+    let uv2: vec2<f32> = vec2<f32>(rest.y, rest.z);
+    return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
+}
+
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
+fn bounded_coordinate(v: f32) -> f32 {
+    return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
+}
+
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:173)
+fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
+    if mode == WRAP_CLAMP {
+        return clamp(i, 0i, size - 1i);
+    } else if mode == WRAP_MIRROR {
+        let period: i32 = 2i * size;
+        let m: i32 = (i % period + period) % period;
+        return select(period - 1i - m, m, m < size);
+    } else {
+        return (i % size + size) % size;
+    }
+}
+
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
+fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
+    let w: i32 = bitcast<i32>(info.y);
+    let h: i32 = bitcast<i32>(info.z);
+    let tx: i32 = wrap_coordinate(x, w, info.w & 255u);
+    let ty: i32 = wrap_coordinate(y, h, info.w >> 8u);
+    let i: u32 = info.x + bitcast<u32>(ty * w + tx);
+    let four: vec4<u32> = scene_texture_texels[i / TEXTURE_TEXELS_PER_ELEMENT];
+    let lane: u32 = i % TEXTURE_TEXELS_PER_ELEMENT;
+    return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
+}
+
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
+fn decode_unorm8(word: u32) -> vec4<f32> {
+    let r: f32 = f32((word << 24u) >> 24u) / 255.0;
+    let g: f32 = f32((word << 16u) >> 24u) / 255.0;
+    let b: f32 = f32((word << 8u) >> 24u) / 255.0;
+    let a: f32 = f32(word >> 24u) / 255.0;
+    return vec4<f32>(r, g, b, a);
+}
+
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
+fn srgb_to_linear(c: f32) -> f32 {
+    return select(pow((c + 0.055) / 1.055, 2.4), c / 12.92, c <= 0.04045);
+}
+
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:199)
+fn decode_srgba8(word: u32) -> vec4<f32> {
+    let r: f32 = f32((word << 24u) >> 24u) / 255.0;
+    let g: f32 = f32((word << 16u) >> 24u) / 255.0;
+    let b: f32 = f32((word << 8u) >> 24u) / 255.0;
+    let a: f32 = f32(word >> 24u) / 255.0;
+    return vec4<f32>(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
+}
+
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
+fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
+    let word: u32 = texel_word(info, x, y);
+    if data {
+        return decode_unorm8(word);
+    } else {
+        return decode_srgba8(word);
+    }
+}
+
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
+fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
+    let info: vec4<u32> = scene_texture_info[index];
+    let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
+    let y: f32 = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
+    let fx: f32 = x - floor(x);
+    let fy: f32 = y - floor(y);
+    let x0: i32 = lp_f32_to_i32(floor(x));
+    let y0: i32 = lp_f32_to_i32(floor(y));
+    let top: vec4<f32> = texel_as(info, x0, y0, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0, data) * fx;
+    let bottom: vec4<f32> = texel_as(info, x0, y0 + 1i, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0 + 1i, data) * fx;
+    return top * (1.0 - fy) + bottom * fy;
+}
+
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:255)
+fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
+    return bilinear(index, uv, false);
+}
+
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:353)
+fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
+    var a: f32 = mask.alpha;
+    if (scene.has_textures != 0u) && (mask.texture_ != NONE) {
+        a *= sample_texture(mask.texture_, uv).w;
+    }
+    return a;
+}
+
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:364)
+fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
+    var hole: bool = false;
+    if triangle_masked(triangle) {
+        let mask: AlphaMaskData = fetch_alpha_mask(material);
+        var uv: vec2<f32> = vec2<f32>(0.0);
+        if scene.has_shading != 0u {
+            uv = texcoord(triangle, u, v);
+        }
+        hole = coverage(mask, uv) < mask.cutoff;
+    }
+    return hole;
+}
+
 // traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:109)
 fn intersect_leaf(entry: u32, origin: vec3<f32>, dir: vec3<f32>, hit: ptr<function, Hit>) {
     let first: u32 = entry >> 8u;
@@ -144,10 +317,17 @@ fn intersect_leaf(entry: u32, origin: vec3<f32>, dir: vec3<f32>, hit: ptr<functi
     for (var i: u32 = first; i < i_end; i++) {
         let tri: TriangleData = fetch_triangle(i);
         let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if h.t < (*hit).t {
+        if (scene.has_alpha_mask != 0u) && h.t < (*hit).t && is_hole(i, tri.material, h.u, h.v) {
+        } else if h.t < (*hit).t {
             *hit = Hit(i, h.t, h.u, h.v);
         }
     }
+}
+
+// traverse::passes_through (lightport-tracer/src/kernel/traverse.rs:327)
+fn passes_through(triangle: u32, tri: TriangleData, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+    let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+    return !(h.t < t_max) || is_hole(triangle, tri.material, h.u, h.v);
 }
 
 // traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:121)
@@ -157,7 +337,8 @@ fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> b
     let i_end: u32 = first + (entry & 255u);
     for (var i: u32 = first; i < i_end; i++) {
         let tri: TriangleData = fetch_triangle(i);
-        if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
+        if (scene.has_alpha_mask != 0u) && passes_through(i, tri, origin, dir, t_max) {
+        } else if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
             blocked = true;
             break;
         }

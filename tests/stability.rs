@@ -455,3 +455,17 @@ fn the_brightest_accepted_emitters_and_skies_render_finite() {
     assert_finite("MAX_RADIANCE sky", &runs);
     assert!(runs.mean[2] > 0.0);
 }
+
+#[test]
+fn alpha_masked_surfaces_agree_across_strategies() {
+    // Every kind of ray meets a hole here (`scene::alpha_masked_screen`): camera rays and bounces
+    // through the screen's checker, shadow rays through it, and light samples on the emitter's
+    // own holes (which must emit nothing, as BSDF rays pass through them).
+    let case = StabilityCase {
+        name: "alpha-masked-screen",
+        scene: scene::alpha_masked_screen(),
+        breaks: "alpha masks (holes for every ray)",
+        black: false,
+    };
+    check_case(&case, ALL);
+}

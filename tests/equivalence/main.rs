@@ -8,6 +8,7 @@
 //! the reason.
 //! Run with `--nocapture` to see each function's comparison (invocations, max ULP, mismatches).
 
+mod alpha_mask;
 #[path = "../common/mod.rs"]
 mod common;
 mod hazards;

@@ -33,6 +33,10 @@ pub struct Features {
     /// triangle three tangent texels appended to `Scene::shading` and per material one texel
     /// appended to `Scene::materials` (`kernel::normal_map`); nothing without.
     pub normal_map: bool,
+    /// Some material is alpha-masked (glTF `alphaMode` MASK, [`crate::scene::Material::alpha_cutoff`]):
+    /// the alpha test in traversal and light sampling, a flag in each triangle's third texel and
+    /// per material one texel appended to `Scene::materials` (`kernel::scene_data::is_hole`); nothing without.
+    pub alpha_mask: bool,
     /// Entries the traversal stack needs for this scene's BVH (`WideBvh::stack_needed*`, at
     /// most the kernel's `STACK_SIZE`): GPU variants size their stacks to it instead of
     /// `STACK_SIZE` (the Cornell box needs 11, not 64). 0: not fixed, the kernel's `STACK_SIZE`.
@@ -51,6 +55,7 @@ impl Features {
             ("has_point_lights", self.point_lights),
             ("has_metal_rough", self.metal_rough),
             ("has_normal_map", self.normal_map),
+            ("has_alpha_mask", self.alpha_mask),
         ]
         .into_iter()
         .map(|(k, v)| (format!("Scene.{k}"), v as u32))
@@ -72,6 +77,7 @@ impl Features {
             emissive_triangles: true,
             metal_rough: true,
             normal_map: true,
+            alpha_mask: true,
             traversal_stack: 0,
         }
     }
@@ -403,6 +409,8 @@ pub fn pack_with_textures(
     } else {
         Vec::new()
     };
+    // Which materials the kernel alpha-tests ([`crate::scene::Material::is_masked`]).
+    let masked_material: Vec<bool> = scene.materials.iter().map(|m| m.is_masked(textures_used)).collect();
     let features = Features {
         sky: scene.sky.is_some(),
         textures: textures_used,
@@ -411,6 +419,7 @@ pub fn pack_with_textures(
         emissive_triangles: !emissive_triangles.is_empty(),
         metal_rough: scene.materials.iter().any(|m| m.uses_metal_rough()),
         normal_map: textures_used && scene.materials.iter().any(|m| m.normal_texture.is_some()),
+        alpha_mask: masked_material.contains(&true),
         traversal_stack,
     };
 
@@ -513,12 +522,13 @@ pub fn pack_with_textures(
             None
         }
     };
+    let masked = |t: &crate::scene::Triangle| masked_material.get(t.material as usize).copied().unwrap_or(false);
     let triangles = Texels::par_from_groups::<{ TRIANGLE_TEXELS as usize }>(tri_count, |i| {
         let t = ordered[i];
         [
             t.positions[0].extend(t.material as f32),
             t.positions[1].extend(index_value(triangle_light(i, t))),
-            t.positions[2].extend(0.0),
+            t.positions[2].extend(if features.alpha_mask && masked(t) { 1.0 } else { 0.0 }),
         ]
     });
     let shading = if features.shading {
@@ -569,6 +579,13 @@ pub fn pack_with_textures(
             materials.push(Vec4::new(texture_index(m.normal_texture), m.normal_scale, 0.0, 0.0));
         }
     }
+    let alpha_mask_first = if features.alpha_mask { materials.len() as u32 } else { 0 };
+    if features.alpha_mask {
+        for m in &scene.materials {
+            let cutoff = m.alpha_cutoff.unwrap_or(0.0);
+            materials.push(Vec4::new(texture_index(m.base_color_texture), m.alpha, cutoff, 0.0));
+        }
+    }
     let metal_rough = if features.metal_rough {
         let texels = scene.materials.iter().map(|m| {
             let specular = if m.uses_metal_rough() { 1.0 } else { 0.0 };
@@ -601,6 +618,7 @@ pub fn pack_with_textures(
         metal_rough,
         tangent_first,
         normal_map_first,
+        alpha_mask_first,
         camera_position: cam.position,
         camera_right: right * tan_half * aspect,
         camera_up: up * tan_half,
@@ -627,6 +645,7 @@ pub fn pack_with_textures(
         has_point_lights: features.point_lights as u32,
         has_metal_rough: features.metal_rough as u32,
         has_normal_map: features.normal_map as u32,
+        has_alpha_mask: features.alpha_mask as u32,
     };
     Ok(Packed { scene: kernel_scene, features, triangle_count: tri_count, light_count: light_data.len() })
 }

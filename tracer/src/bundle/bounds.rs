@@ -107,26 +107,30 @@ fn check_textures(s: &Scene) -> Result<usize, BundleError> {
     Ok(s.texture_info.len())
 }
 
-/// Materials are whole and name textures that exist (metal-roughness and normal maps too, when
-/// used). Returns the material count.
+/// Materials are whole and name textures that exist (metal-roughness, normal maps and alpha
+/// masks too, when used). Returns the material count.
 fn check_materials(s: &Scene, textures: usize) -> Result<usize, BundleError> {
     let per = MATERIAL_TEXELS as usize;
-    // With normal maps, one texel per material follows the materials (from `normal_map_first`,
-    // whose consistency with the array length `check_consistency` has checked).
-    let (materials, normal_maps) = if s.has_normal_map != 0 {
-        s.materials.as_slice().split_at((s.normal_map_first as usize).min(s.materials.len()))
-    } else {
-        (s.materials.as_slice(), &[][..])
+    // Normal maps and alpha masks, one texel per material each, follow the materials (from
+    // `normal_map_first` and `alpha_mask_first`, which `check_material_sections` has checked
+    // against the array length: each section holds exactly one texel per material).
+    let extra = (s.has_normal_map != 0) as usize + (s.has_alpha_mask != 0) as usize;
+    let count = s.materials.len() / (per + extra);
+    let all = s.materials.as_slice();
+    let section =
+        |on: u32, first: u32| if on != 0 { all.get(first as usize..first as usize + count) } else { Some(&[][..]) };
+    let (Some(materials), Some(normal_maps), Some(masks)) = (
+        all.get(..per * count),
+        section(s.has_normal_map, s.normal_map_first),
+        section(s.has_alpha_mask, s.alpha_mask_first),
+    ) else {
+        return fail(format!("{} material texels for {count} materials", all.len()));
     };
-    if !materials.len().is_multiple_of(per) {
-        return fail(format!("{} material texels (not a multiple of {per})", materials.len()));
-    }
-    let count = materials.len() / per;
-    if s.has_normal_map != 0 && normal_maps.len() != count {
-        return fail(format!("{} normal-map texels for {count} materials", normal_maps.len()));
-    }
     if let Some(i) = normal_maps.iter().position(|t| float_index(t.x, textures).is_none()) {
         return fail(format!("material {i}: normal-map texture {} of {textures}", normal_maps[i].x));
+    }
+    if let Some(i) = masks.iter().position(|t| float_index(t.x, textures).is_none()) {
+        return fail(format!("material {i}: alpha-mask texture {} of {textures}", masks[i].x));
     }
     for (i, m) in materials.chunks_exact(per).enumerate() {
         if float_index(m[0].w, textures).is_none() || float_index(m[1].w, textures).is_none() {
@@ -156,6 +160,10 @@ fn check_triangles(s: &Scene, triangle_count: usize, materials: usize, lights: u
         }
         if float_index(t[1].w, lights).is_none() {
             return fail(format!("triangle {i}: light {} of {lights}", t[1].w));
+        }
+        // The alpha-mask flag: 0, or 1 where the kernel alpha-tests (only with the feature).
+        if !(t[2].w == 0.0 || (t[2].w == 1.0 && s.has_alpha_mask != 0)) {
+            return fail(format!("triangle {i}: alpha-mask flag {}", t[2].w));
         }
     }
     // With normal maps, tangents follow the shading texels from `tangent_first` (checked with

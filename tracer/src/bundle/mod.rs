@@ -41,8 +41,9 @@ pub const MAGIC: [u8; 8] = *b"LPBUNDLE";
 /// (2: node planes as float texels, `node_children`, `leaf_stack_limit`, triangle lights with
 /// their normal and area. 3: `features.traversal_stack`, `features.metal_rough` and
 /// `scene.metal_rough`. 4: `features.normal_map`, `scene.has_normal_map`, `scene.tangent_first`,
-/// `scene.normal_map_first`.)
-pub const VERSION: u32 = 4;
+/// `scene.normal_map_first`. 5: `features.alpha_mask`, `scene.has_alpha_mask`,
+/// `scene.alpha_mask_first`, the alpha-mask flag in each triangle's third texel.)
+pub const VERSION: u32 = 5;
 /// The largest bundle accepted (and produced): well within wasm32's 4 GiB address space.
 pub const MAX_BUNDLE_BYTES: u64 = 1 << 30;
 /// File extension used for bundles (the server serves `/bundles/<hash>.lpb`).
@@ -220,33 +221,30 @@ fn check_consistency(p: &Packed) -> Result<(), BundleError> {
         ("point_lights", f.point_lights, s.has_point_lights),
         ("metal_rough", f.metal_rough, s.has_metal_rough),
         ("normal_map", f.normal_map, s.has_normal_map),
+        ("alpha_mask", f.alpha_mask, s.has_alpha_mask),
     ];
     for (name, feature, flag) in flags {
         if flag != feature as u32 {
             return fail(format!("feature {name} is {feature} but the kernel flag has_{name} is {flag}"));
         }
     }
-    // Normal maps' texels extend `shading` (tangents) and `materials` (one per material) at the
-    // offsets the uniforms give; a reader trusting wrong offsets would fetch beyond the arrays.
+    // Normal maps' tangents extend `shading` at the offset the uniform gives; a reader trusting
+    // a wrong offset would fetch beyond the array.
     if f.normal_map {
         let tangents = p.triangle_count.checked_mul(crate::kernel::normal_map::TANGENT_TEXELS as usize);
         let first = s.tangent_first as usize;
-        let maps = s.materials.len().checked_sub(s.normal_map_first as usize);
         if tangents.and_then(|t| t.checked_add(first)) != Some(s.shading.len())
             || Some(first) != p.triangle_count.checked_mul(crate::kernel::scene_data::SHADING_TEXELS as usize)
-            || maps
-                .is_none_or(|m| crate::kernel::scene_data::MATERIAL_TEXELS as usize * m != s.normal_map_first as usize)
         {
             return fail(format!(
-                "normal maps: tangents from {} in {} shading texels, maps from {} in {} material texels, {} triangles",
+                "normal maps: tangents from {} in {} shading texels, {} triangles",
                 s.tangent_first,
                 s.shading.len(),
-                s.normal_map_first,
-                s.materials.len(),
                 p.triangle_count
             ));
         }
     }
+    check_material_sections(s, f)?;
     if f.sky
         && (s.sky.len() as u64 != s.sky_width as u64 * s.sky_height as u64 || s.sky_rows.len() != s.sky_height as usize)
     {
@@ -674,6 +672,7 @@ record!(Features {
     emissive_triangles,
     metal_rough,
     normal_map,
+    alpha_mask,
     traversal_stack
 });
 record!(Scene {
@@ -690,6 +689,7 @@ record!(Scene {
     metal_rough,
     tangent_first,
     normal_map_first,
+    alpha_mask_first,
     camera_position,
     camera_right,
     camera_up,
@@ -716,7 +716,33 @@ record!(Scene {
     has_point_lights,
     has_metal_rough,
     has_normal_map,
+    has_alpha_mask,
 });
+
+/// `materials` holds the base texels of `n` materials (`MATERIAL_TEXELS` each), then with
+/// normal maps one texel each from `normal_map_first`, then with alpha masks one texel each
+/// from `alpha_mask_first`, and nothing else: the offsets the uniforms give must be those.
+fn check_material_sections(s: &Scene, f: &Features) -> Result<(), BundleError> {
+    use crate::kernel::scene_data::MATERIAL_TEXELS;
+    let per = MATERIAL_TEXELS as usize + f.normal_map as usize + f.alpha_mask as usize;
+    let n = s.materials.len() / per;
+    let maps = if f.normal_map { MATERIAL_TEXELS as usize * n } else { 0 };
+    let masks = if f.alpha_mask { (MATERIAL_TEXELS as usize + f.normal_map as usize) * n } else { 0 };
+    if !s.materials.len().is_multiple_of(per)
+        || s.normal_map_first as usize != maps
+        || s.alpha_mask_first as usize != masks
+    {
+        return Err(BundleError::Inconsistent(format!(
+            "{} material texels (normal maps {}, alpha masks {}) with normal maps from {} and alpha masks from {}",
+            s.materials.len(),
+            f.normal_map,
+            f.alpha_mask,
+            s.normal_map_first,
+            s.alpha_mask_first
+        )));
+    }
+    Ok(())
+}
 
 #[cfg(test)]
 mod tests {

@@ -8,7 +8,7 @@ pub mod lights {
     use crate::kernel::intersect::MISS;
     use crate::kernel::sampling::{uniform_sample_triangle, INV_PI, PI};
     use crate::kernel::scene_data::{
-        fetch_material, fetch_triangle, index_of, sample_texture, texcoord, Scene, LIGHT_POINT, LIGHT_SKY,
+        fetch_material, fetch_triangle, index_of, is_hole, sample_texture, texcoord, Scene, LIGHT_POINT, LIGHT_SKY,
         LIGHT_TEXELS, LIGHT_TRIANGLE, NONE,
     };
 
@@ -174,7 +174,9 @@ pub mod lights {
             let normal = Vec3::new(data.y, data.z, data.w);
             let area = scene.lights.fetch(index * LIGHT_TEXELS + 2).x;
             let pdf = area_pdf_to_solid_angle(pmf, area, dist, -normal.dot(dir));
-            if !(pdf > 0.0) {
+            if scene.has_alpha_mask != 0 && is_hole(scene, tri_index, tri.material, b.x, b.y) {
+                return none; // a hole of an alpha-masked emitter emits nothing (BSDF rays pass through)
+            } else if !(pdf > 0.0) {
                 return none;
             }
             let radiance = triangle_emission(scene, tri_index, tri.material, b.x, b.y);
@@ -191,8 +193,7 @@ pub mod lights {
         } else if kind == LIGHT_SKY && scene.has_sky != 0 {
             let row = search_sky_row(scene, u.y);
             let col = search_sky_column(scene, row, u.z);
-            // Uniform position inside the chosen texel, from what is left of u.y and u.z.
-            let base = row * scene.sky_width;
+            let base = row * scene.sky_width; // uniform within the chosen texel, from what is left of u.y, u.z
             let lo = if col > 0 { scene.sky.fetch(base + col - 1).w } else { 0.0 };
             let hi = scene.sky.fetch(base + col).w;
             let fu = if hi > lo { ((u.z - lo) / (hi - lo)).clamp(0.0, 0.999999) } else { 0.5 };
@@ -210,7 +211,6 @@ pub mod lights {
             none
         }
     }
-
     /// The power heuristic (β = 2) weight of a strategy with pdf `a` against one with pdf `b`.
     pub fn power_heuristic(a: f32, b: f32) -> f32 {
         let a2 = a * a;

@@ -10,7 +10,7 @@ pub mod scene_data {
     use glam::{UVec4, Vec2, Vec3, Vec4, Vec4Swizzles};
     use kernel_dsl::Texels;
 
-    /// Texels per triangle in `triangles`: `[v0, material]`, `[v1, light index or -1]`, `[v2, 0]`.
+    /// Texels per triangle in `triangles`: `[v0, material]`, `[v1, light index or -1]`, `[v2, alpha-masked 1 or 0]`.
     pub const TRIANGLE_TEXELS: u32 = 3;
     /// Texels per triangle in `shading`: `[n0, u0]`, `[n1, v0]`, `[n2, u1]`, `[v1, u2, v2, 0]`.
     pub const SHADING_TEXELS: u32 = 4;
@@ -53,8 +53,7 @@ pub mod scene_data {
         /// Texels of every texture, back to back, four per element (texel `i` is lane `i % 4` of element
         /// `i / 4`): 8-bit RGBA as in the file, red in the low byte, colour sRGB-encoded, data linear.
         pub texture_texels: Texels<UVec4>,
-        /// Per texture: `[first texel, width, height, wrap_s | wrap_t << 8]`; the first texel is
-        /// a multiple of `TEXTURE_TEXELS_PER_ELEMENT`.
+        /// Per texture: `[first texel, width, height, wrap_s | wrap_t << 8]`, the first a multiple of 4.
         pub texture_info: Texels<UVec4>,
         /// Equirectangular sky: `[radiance, conditional CDF within the row]`.
         pub sky: Texels<Vec4>,
@@ -64,6 +63,7 @@ pub mod scene_data {
         pub metal_rough: Texels<Vec4>,
         pub tangent_first: u32,
         pub normal_map_first: u32,
+        pub alpha_mask_first: u32,
         pub camera_position: Vec3,
         /// Right vector scaled by tan(fov/2) * aspect.
         pub camera_right: Vec3,
@@ -85,8 +85,7 @@ pub mod scene_data {
         pub sky_rotation: f32,
         /// Largest absolute coordinate of the scene: scales self-intersection offsets.
         pub scene_scale: f32,
-        /// Closest-hit traversal pushes leaves while its stack holds fewer entries than this and
-        /// intersects them at once beyond (`tracer::pack` picks it so that the stack cannot overflow).
+        /// Closest-hit traversal pushes leaves below this stack depth, intersects them beyond (`tracer::pack`).
         pub leaf_stack_limit: u32,
         /// Feature flags (0 or 1): codegen specialises on them, removing unused features' code and data.
         pub has_sky: u32,
@@ -97,6 +96,7 @@ pub mod scene_data {
         pub has_point_lights: u32,
         pub has_metal_rough: u32,
         pub has_normal_map: u32,
+        pub has_alpha_mask: u32,
     }
 
     pub const STRATEGY_BSDF: u32 = 0;
@@ -308,5 +308,69 @@ pub mod scene_data {
         } else {
             v
         }
+    }
+
+    // ---------------------------------------------------------------------------------------
+    // Alpha masks.
+    //
+    // glTF `alphaMode` MASK (`Features::alpha_mask`): texels whose coverage (base colour
+    // alpha, `baseColorFactor.a` times the base colour texture's alpha at the hit) is below
+    // the material's `alphaCutoff` are holes for every ray. The test runs inside traversal
+    // (`traverse::intersect_leaf`, `traverse::leaf_occludes`), so a rejected hit lets the ray
+    // go on to the next candidate, and in light sampling (a point sampled in a hole of an
+    // emitter emits nothing).
+    //
+    // Layout (only packed for scenes with masked materials; `Scene::alpha_mask_first` is 0
+    // without): per triangle, the w of its third texel in `triangles` is 1 when its material is
+    // masked (else 0, as without the feature), so unmasked triangles cost one comparison of a
+    // texel traversal has already fetched; per material one texel
+    // `[base colour texture or -1, baseColorFactor.a, alphaCutoff, 0]` at
+    // `scene.alpha_mask_first + material` in `materials` (after the base texels and the normal
+    // maps: an extension of that array, not a new binding).
+
+    /// A masked material's coverage inputs (`Scene::materials` beyond the base texels).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct AlphaMaskData {
+        /// Base colour texture (its alpha multiplies `alpha`) or NONE.
+        pub texture: u32,
+        /// `baseColorFactor.a`.
+        pub alpha: f32,
+        /// Coverage below this is a hole.
+        pub cutoff: f32,
+    }
+
+    pub fn fetch_alpha_mask(scene: &Scene, material: u32) -> AlphaMaskData {
+        let t = scene.materials.fetch(scene.alpha_mask_first + material);
+        AlphaMaskData { texture: index_of(t.x), alpha: t.y, cutoff: t.z }
+    }
+
+    /// Whether triangle `triangle`'s material is masked (the flag in its third texel's w).
+    pub fn triangle_masked(scene: &Scene, triangle: u32) -> bool {
+        scene.triangles.fetch(triangle * TRIANGLE_TEXELS + 2).w > 0.0
+    }
+
+    /// Coverage of `mask` at texture coordinates `uv`: the factor times the texture's alpha.
+    pub fn coverage(scene: &Scene, mask: AlphaMaskData, uv: Vec2) -> f32 {
+        let mut a = mask.alpha;
+        if scene.has_textures != 0 && mask.texture != NONE {
+            a *= sample_texture(scene, mask.texture, uv).w;
+        }
+        a
+    }
+
+    /// Whether the point at barycentrics (u, v) of triangle `triangle` (material `material`)
+    /// is a hole: the triangle is masked and its coverage there is below the cutoff (a NaN
+    /// coverage is opaque).
+    pub fn is_hole(scene: &Scene, triangle: u32, material: u32, u: f32, v: f32) -> bool {
+        let mut hole = false;
+        if triangle_masked(scene, triangle) {
+            let mask = fetch_alpha_mask(scene, material);
+            let mut uv = Vec2::ZERO;
+            if scene.has_shading != 0 {
+                uv = texcoord(scene, triangle, u, v);
+            }
+            hole = coverage(scene, mask, uv) < mask.cutoff;
+        }
+        hole
     }
 }

@@ -8,7 +8,7 @@ pub mod traverse {
     use glam::{UVec3, UVec4, Vec3, Vec4};
 
     use crate::kernel::intersect::{intersect_triangle, safe_inverse, MISS};
-    use crate::kernel::scene_data::{fetch_triangle, Scene, NODE_TEXELS, NONE};
+    use crate::kernel::scene_data::{fetch_triangle, is_hole, Scene, TriangleData, NODE_TEXELS, NONE};
 
     /// Traversal stack depth: `tracer::pack` refuses a tree whose child nodes alone could need
     /// more (`tracer::bvh::WideBvh::stack_needed`) and limits the leaves pushed on top of them
@@ -111,26 +111,26 @@ pub mod traverse {
         for i in first..first + (entry & 255) {
             let tri = fetch_triangle(scene, i);
             let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-            if h.t < hit.t {
+            if scene.has_alpha_mask != 0 && h.t < hit.t && is_hole(scene, i, tri.material, h.u, h.v) {
+            } else if h.t < hit.t {
                 *hit = Hit { triangle: i, t: h.t, u: h.u, v: h.v };
             }
         }
     }
-
     /// Whether any triangle of the leaf `entry` is hit for t in (0, t_max).
     pub fn leaf_occludes(scene: &Scene, entry: u32, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
         let first = entry >> 8;
         let mut blocked = false;
         for i in first..first + (entry & 255) {
             let tri = fetch_triangle(scene, i);
-            if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
+            if scene.has_alpha_mask != 0 && passes_through(scene, i, tri, origin, dir, t_max) {
+            } else if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
                 blocked = true;
                 break;
             }
         }
         blocked
     }
-
     /// Whether a stack entry is a leaf.
     pub fn is_leaf(entry: u32) -> bool {
         (entry & 255) > 0
@@ -315,5 +315,24 @@ pub mod traverse {
             }
         }
         blocked
+    }
+
+    // Alpha masks (`Features::alpha_mask`, `scene_data::is_hole`): with the feature, a hit in a hole
+    // is skipped by `intersect_leaf` (the empty branch: the closest-hit search goes on behind it)
+    // and `leaf_occludes` (through `passes_through`). Written as a first branch that
+    // specialisation removes, so that scenes without masks get exactly the code they had.
+
+    /// Whether the segment `origin + t * dir`, t in (0, t_max), misses triangle `triangle`
+    /// (vertices `tri`) or meets it in a hole of its alpha mask: a shadow ray passes it.
+    pub fn passes_through(
+        scene: &Scene,
+        triangle: u32,
+        tri: TriangleData,
+        origin: Vec3,
+        dir: Vec3,
+        t_max: f32,
+    ) -> bool {
+        let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+        !(h.t < t_max) || is_hole(scene, triangle, tri.material, h.u, h.v)
     }
 }

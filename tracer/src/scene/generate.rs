@@ -3,7 +3,7 @@
 
 use glam::{Vec2, Vec3};
 
-use super::{flat_normal, Camera, Material, Scene, Triangle};
+use super::{flat_normal, Camera, Material, Scene, Texture, Triangle, Wrap};
 
 /// Appends the two triangles of quad `q` (counter-clockwise seen from its front) with flat
 /// normals and unit-square texture coordinates.
@@ -222,6 +222,44 @@ pub fn metal_rough_spheres() -> Scene {
         materials,
         sky: Some(super::Sky::uniform(Vec3::splat(0.25))),
         camera: Camera::look_at(v(0.0, 0.0, 7.0), Vec3::ZERO, Vec3::Y, 40f32.to_radians()),
+        ..Scene::default()
+    }
+}
+
+/// A white texture of `n x n` texels whose alpha is a checker: 255 where `x + y` is even
+/// (opaque under any cutoff in (0, 1]), 0 where it is odd (a hole under any cutoff above 0).
+pub fn alpha_checker(n: u32) -> Texture {
+    let texels: Vec<u32> =
+        (0..n * n).map(|i| if (i % n + i / n).is_multiple_of(2) { 0xffff_ffff } else { 0x00ff_ffff }).collect();
+    Texture { width: n, height: n, texels: texels.into(), wrap_s: Wrap::ClampToEdge, wrap_t: Wrap::ClampToEdge }
+}
+
+/// Alpha cut-outs (glTF `alphaMode` MASK) in code: a 2 x 2 m white floor, above it (y = 0.8) a
+/// 1 x 1 m green screen whose base colour texture is an 8 x 8 alpha checker (cutoff 0.5, half
+/// of it holes), above that (y = 1.6) a 0.8 x 0.8 m light facing down (radiance 8) cut by a
+/// 2 x 2 alpha checker, so half of it emits, and a grey back wall. The camera at (0, 1.2, 2.2)
+/// looks at (0, 0.4, 0) (45°), seeing the screen from above, the floor through its holes
+/// and the light from below. 8 triangles; every kind of ray meets a hole: camera rays, bounces,
+/// shadow rays, and light samples on the emitter.
+pub fn alpha_masked_screen() -> Scene {
+    let masked =
+        |m: Material, texture: u32| Material { base_color_texture: Some(texture), alpha_cutoff: Some(0.5), ..m };
+    let materials = vec![
+        Material::diffuse("floor", Vec3::splat(0.8)),
+        masked(Material::diffuse("screen", Vec3::new(0.2, 0.7, 0.3)), 0),
+        masked(Material::emissive("light", Vec3::ZERO, Vec3::splat(8.0)), 1),
+        Material::diffuse("wall", Vec3::splat(0.5)),
+    ];
+    let mut t = Vec::with_capacity(8);
+    quad(&mut t, [v(-1.0, 0.0, 1.0), v(1.0, 0.0, 1.0), v(1.0, 0.0, -1.0), v(-1.0, 0.0, -1.0)], 0);
+    quad(&mut t, [v(-0.5, 0.8, 0.5), v(0.5, 0.8, 0.5), v(0.5, 0.8, -0.5), v(-0.5, 0.8, -0.5)], 1);
+    quad(&mut t, [v(-0.4, 1.6, -0.4), v(0.4, 1.6, -0.4), v(0.4, 1.6, 0.4), v(-0.4, 1.6, 0.4)], 2);
+    quad(&mut t, [v(-1.0, 0.0, -1.0), v(1.0, 0.0, -1.0), v(1.0, 2.0, -1.0), v(-1.0, 2.0, -1.0)], 3);
+    Scene {
+        triangles: t,
+        materials,
+        textures: vec![alpha_checker(8), alpha_checker(2)],
+        camera: Camera::look_at(v(0.0, 1.2, 2.2), v(0.0, 0.4, 0.0), Vec3::Y, 45f32.to_radians()),
         ..Scene::default()
     }
 }

@@ -11,7 +11,6 @@ use std::rc::Rc;
 use glam::{Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
 use gltf::json::camera::Type as CameraType;
 use gltf::json::extensions::scene::khr_lights_punctual::Type as LightType;
-use gltf::json::material::AlphaMode;
 use gltf::json::mesh::{Mode, Semantic};
 use gltf::json::texture::WrappingMode;
 use gltf::json::validation::Checked;
@@ -726,10 +725,7 @@ impl Loader<'_> {
                 super::MAX_RADIANCE
             )));
         }
-        if let Checked::Valid(mode @ (AlphaMode::Mask | AlphaMode::Blend)) = m.alpha_mode {
-            self.warnings
-                .once("alphaMode", || format!("alphaMode {mode:?} is not supported: surfaces are rendered opaque"));
-        }
+        let (alpha, alpha_cutoff) = super::material_alpha::material_alpha(m, &what, &mut self.warnings)?;
         if let Some(ext) = &m.extensions {
             warn_extensions(&mut self.warnings, Some(&ext.others));
         }
@@ -765,6 +761,8 @@ impl Loader<'_> {
             metallic_roughness_texture,
             normal_texture,
             normal_scale,
+            alpha,
+            alpha_cutoff,
         })
     }
 

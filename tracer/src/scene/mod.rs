@@ -24,7 +24,8 @@
 //!   matrices and TRS, meshes in TRIANGLES / TRIANGLE_STRIP / TRIANGLE_FAN mode (indexed or not,
 //!   sparse accessors, `KHR_mesh_quantization`), POSITION, NORMAL (transformed by the inverse
 //!   transpose; flat normals when absent), TEXCOORD_0, materials (`baseColorFactor`,
-//!   `baseColorTexture`, `emissiveFactor`, `emissiveTexture`, `KHR_materials_emissive_strength`),
+//!   `baseColorTexture`, `emissiveFactor`, `emissiveTexture`, `KHR_materials_emissive_strength`,
+//!   `alphaMode` and `alphaCutoff`: see `material_alpha`),
 //!   PNG/JPEG images with sampler wrap modes, `KHR_lights_punctual`, and the first perspective
 //!   camera in depth-first node order. Primitives without a material get glTF's default
 //!   material (white, albedo 1).
@@ -43,7 +44,7 @@
 //! `EXT_meshopt_compression`, `KHR_texture_basisu`. Required extensions that only change the
 //! look (`KHR_materials_*`, `KHR_texture_transform`) are accepted with a warning. Everything
 //! else unsupported (listed extensions, skins, morph targets, animations, point/line
-//! primitives, textures on other UV sets, vertex colours, alpha modes, normal maps, orthographic
+//! primitives, textures on other UV sets, vertex colours, orthographic
 //! cameras...) is reported once in [`Scene::warnings`], naming the feature.
 //!
 //! # Robustness
@@ -63,6 +64,7 @@ mod accessor;
 mod fbx_loader;
 mod generate;
 mod gltf_loader;
+mod material_alpha;
 mod obj_loader;
 mod sky;
 pub mod stability;
@@ -74,7 +76,10 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3, Vec4};
 
-pub use generate::{cornell_box, diffuse_plane, metal_rough_spheres, terrain_and_spheres, white_furnace};
+pub use generate::{
+    alpha_checker, alpha_masked_screen, cornell_box, diffuse_plane, metal_rough_spheres, terrain_and_spheres,
+    white_furnace,
+};
 
 /// The scenes generated in code that the command line names: `cornell` (also `cornell-box`)
 /// and `metal-rough-spheres`.
@@ -176,6 +181,13 @@ pub struct Material {
     pub normal_texture: Option<u32>,
     /// glTF `normalTexture.scale`: multiplies the map's x and y before normalising.
     pub normal_scale: f32,
+    /// glTF `baseColorFactor.a` in `[0, 1]`: with the base colour texture's alpha, the coverage
+    /// that [`Material::alpha_cutoff`] tests (ignored for opaque materials).
+    pub alpha: f32,
+    /// glTF `alphaMode` MASK's `alphaCutoff` (`BLEND` is loaded as MASK at 0.5): where the
+    /// coverage (`alpha` x the base colour texture's alpha) is below it the surface is a hole
+    /// for every ray. `None`: opaque (`alphaMode` OPAQUE), alpha ignored.
+    pub alpha_cutoff: Option<f32>,
 }
 
 impl Material {
@@ -192,7 +204,17 @@ impl Material {
             metallic_roughness_texture: None,
             normal_texture: None,
             normal_scale: 1.0,
+            alpha: 1.0,
+            alpha_cutoff: None,
         }
+    }
+
+    /// Whether the kernel must alpha-test the material (`Features::alpha_mask`): it is masked
+    /// and some point can be a hole, through its base colour texture (when `textures` are
+    /// packed) or a factor below the cutoff. A masked material whose factor passes and that
+    /// has no texture is opaque everywhere and needs no test.
+    pub fn is_masked(&self, textures: bool) -> bool {
+        self.alpha_cutoff.is_some_and(|c| (textures && self.base_color_texture.is_some()) || self.alpha < c)
     }
 
     /// A glTF metal-roughness material.
@@ -647,6 +669,11 @@ impl Scene {
                 || !m.normal_scale.is_finite()
             {
                 return bad(format!("material {i} has invalid colours"));
+            }
+            if !(0.0..=1.0).contains(&m.alpha) || m.alpha_cutoff.is_some_and(|c| !c.is_finite() || c < 0.0) {
+                return bad(format!(
+                    "material {i} has an alpha outside [0, 1] or an alpha cutoff that is not finite and >= 0"
+                ));
             }
         }
         for (i, t) in self.textures.iter().enumerate() {

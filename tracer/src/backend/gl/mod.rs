@@ -116,6 +116,7 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
         metal_rough: Vec4s,
         tangent_first: U32,
         normal_map_first: U32,
+        alpha_mask_first: U32,
         camera_position: Vec3,
         camera_right: Vec3,
         camera_up: Vec3,
@@ -142,6 +143,7 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
         has_point_lights: U32,
         has_metal_rough: U32,
         has_normal_map: U32,
+        has_alpha_mask: U32,
     )
 }
 

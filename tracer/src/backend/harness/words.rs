@@ -147,7 +147,7 @@ mod kernel_structs {
     use crate::kernel::metal_rough::{BrdfSample, Surface};
     use crate::kernel::normal_map::NormalMapData;
     use crate::kernel::sampling::Onb;
-    use crate::kernel::scene_data::{MaterialData, MetalRoughData, TriangleData};
+    use crate::kernel::scene_data::{AlphaMaskData, MaterialData, MetalRoughData, TriangleData};
     use crate::kernel::traverse::{Hit, NodeHits};
 
     harness_struct_words! {
@@ -164,6 +164,7 @@ mod kernel_structs {
         MetalRoughData { metallic, roughness, texture, specular }
         Bounce { direct, dir, pdf, weight }
         NormalMapData { texture, scale }
+        AlphaMaskData { texture, alpha, cutoff }
     }
 }
 

@@ -1,0 +1,189 @@
+//! Alpha masks (`scene_data::is_hole` and the functions it uses, `traverse::passes_through`),
+//! and the traversal and light sampling that call them, on the generated alpha-masked scene
+//! (`scene::alpha_masked_screen`): every input stated once and run on every runtime.
+
+use super::*;
+use tracer::kernel::lights;
+
+/// Coverage is a bilinear texture lookup times a factor: `sample_texture`'s tolerance.
+const COVERAGE: Tolerance = Tolerance::ulps(16).with_absolute(1e-6).flushing_subnormals();
+
+/// How far the coverage at (u, v) of `triangle` is from its cutoff (infinite for unmasked
+/// triangles): GPU rounding may decide points closer than a margin the other way.
+fn cutoff_distance(k: &Scene, triangle: u32, u: f32, v: f32) -> f32 {
+    if !scene_data::triangle_masked(k, triangle) {
+        return f32::INFINITY;
+    }
+    let tri = scene_data::fetch_triangle(k, triangle);
+    let mask = scene_data::fetch_alpha_mask(k, tri.material);
+    let uv = scene_data::texcoord(k, triangle, u, v);
+    (scene_data::coverage(k, mask, uv) - mask.cutoff).abs()
+}
+
+/// Whether the segment `o + t d`, t in (0, t_max), crosses a masked triangle near a hole's edge.
+fn near_an_edge(k: &Scene, triangles: u32, o: Vec3, d: Vec3, t_max: f32) -> bool {
+    (0..triangles).any(|i| {
+        let tri = scene_data::fetch_triangle(k, i);
+        let h = intersect::intersect_triangle(o, d, tri.v0, tri.v1, tri.v2);
+        h.t < t_max && cutoff_distance(k, i, h.u, h.v) < 1e-3
+    })
+}
+
+#[test]
+fn alpha_mask_functions_agree() {
+    let scene = tracer::scene::alpha_masked_screen();
+    let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
+    let packed = pack(&scene, &bvh, &RenderSettings::default()).expect("pack");
+    assert!(packed.features.alpha_mask && packed.features.textures, "{:?}", packed.features);
+    let mut eq = equivalence();
+    eq.set_scene(&packed.scene).expect("scene uploads");
+    eq.set_specialization(packed.features.specialization());
+    let k = eq.scene().clone();
+    let triangles = packed.triangle_count as u32;
+    let materials = scene.materials.len() as u32;
+    let mut r = TestRng::new(57);
+
+    let indices: Vec<(u32,)> = (0..materials).map(|i| (i,)).collect();
+    assert_equivalent(
+        &mut eq,
+        "fetch_alpha_mask",
+        &indices,
+        |s, &(i,)| (scene_data::fetch_alpha_mask(s, i),),
+        Tolerance::EXACT,
+    );
+    let tris: Vec<(u32,)> = (0..triangles).map(|i| (i,)).collect();
+    let masked = assert_equivalent(
+        &mut eq,
+        "triangle_masked",
+        &tris,
+        |s, &(i,)| (scene_data::triangle_masked(s, i),),
+        Tolerance::EXACT,
+    );
+    let masked_count = masked.output(Backend::Cpu).unwrap().iter().filter(|(m,)| *m).count();
+    assert_eq!(masked_count, 4, "the screen's and the light's two triangles each");
+
+    // Coverage of every material's mask over uv in and beyond [0, 1] (clamped textures).
+    let lookups: Vec<(scene_data::AlphaMaskData, Vec2)> = (0..1 << 14)
+        .map(|i| {
+            let mask = scene_data::fetch_alpha_mask(&k, i % materials);
+            (mask, Vec2::new(r.range(-0.5, 1.5), r.range(-0.5, 1.5)))
+        })
+        .collect();
+    assert_equivalent(&mut eq, "coverage", &lookups, |s, &(m, uv)| (scene_data::coverage(s, m, uv),), COVERAGE);
+
+    // Holes at random points of every triangle, away from the cutoff (where rounding decides).
+    let points: Vec<(u32, u32, f32, f32)> = (0..1 << 15)
+        .map(|_| {
+            let (u, v) = (r.f32(), r.f32());
+            let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+            let i = r.next_u32() % triangles;
+            (i, scene_data::fetch_triangle(&k, i).material, u, v)
+        })
+        .filter(|&(i, _, u, v)| cutoff_distance(&k, i, u, v) > 1e-3)
+        .collect();
+    let holes = assert_equivalent(
+        &mut eq,
+        "is_hole",
+        &points,
+        |s, &(i, m, u, v)| (scene_data::is_hole(s, i, m, u, v),),
+        Tolerance::EXACT,
+    );
+    let hole_count = holes.output(Backend::Cpu).unwrap().iter().filter(|(h,)| *h).count();
+    println!("is_hole: {hole_count} holes of {} points", points.len());
+    assert!(hole_count > points.len() / 8 && hole_count < points.len() / 2, "{hole_count} holes");
+
+    // Traversal: rays from around the scene through the screen and the light, away from the
+    // holes' edges. Closest hits continue behind holes; shadow rays ignore them.
+    let (lo, hi) = (Vec3::new(-1.5, -0.5, -1.5), Vec3::new(1.5, 2.5, 1.5));
+    let point = |r: &mut TestRng, lo: Vec3, hi: Vec3| lo + (hi - lo) * Vec3::new(r.f32(), r.f32(), r.f32());
+    let rays: Vec<(Vec3, Vec3, f32)> = (0..50_000)
+        .map(|_| {
+            let o = point(&mut r, lo, hi);
+            let target = point(&mut r, Vec3::new(-0.6, 0.7, -0.6), Vec3::new(0.6, 1.7, 0.6));
+            (o, (target - o).normalize(), MISS)
+        })
+        .filter(|&(o, d, t)| !near_an_edge(&k, triangles, o, d, t))
+        .collect();
+    let closest = assert_equivalent(
+        &mut eq,
+        "trace_closest",
+        &rays,
+        |s, &(o, d, t)| (traverse::trace_closest(s, o, d, t),),
+        // Barycentrics near 0 are differences of nearly equal products (Möller–Trumbore): GL
+        // rounds them a few 1e-7 apart (2.4e-7 measured on llvmpipe); the triangle is the same.
+        Tolerance::ulps(16).with_absolute(1e-6).flushing_subnormals(),
+    );
+    let cpu = closest.output(Backend::Cpu).unwrap();
+    // The rays do meet holes: some pass through a masked triangle to something behind it.
+    let through = rays
+        .iter()
+        .zip(cpu)
+        .filter(|(&(o, d, _), (h,))| {
+            (0..triangles).any(|i| {
+                let tri = scene_data::fetch_triangle(&k, i);
+                scene_data::triangle_masked(&k, i)
+                    && intersect::intersect_triangle(o, d, tri.v0, tri.v1, tri.v2).t < h.t
+            })
+        })
+        .count();
+    println!("trace_closest: {through} of {} rays passed through a hole", rays.len());
+    assert!(through > rays.len() / 20, "{through} rays through holes");
+    let shadow: Vec<(Vec3, Vec3, f32)> = rays
+        .iter()
+        .zip(cpu)
+        .flat_map(|(&(o, d, _), (h,))| {
+            let t = if h.triangle == NONE { 1.0 } else { h.t };
+            [(o, d, MISS), (o, d, t * 0.999), (o, d, t * 1.001)]
+        })
+        .filter(|&(o, d, t)| !near_an_edge(&k, triangles, o, d, t))
+        .collect();
+    assert_equivalent(
+        &mut eq,
+        "occluded",
+        &shadow,
+        |s, &(o, d, t)| (traverse::occluded(s, o, d, t),),
+        Tolerance::EXACT,
+    );
+
+    let segments: Vec<(u32, scene_data::TriangleData, Vec3, Vec3, f32)> = shadow
+        .iter()
+        .enumerate()
+        .map(|(j, &(o, d, t))| {
+            let i = j as u32 % triangles;
+            (i, scene_data::fetch_triangle(&k, i), o, d, t)
+        })
+        .collect();
+    let passes = assert_equivalent(
+        &mut eq,
+        "passes_through",
+        &segments,
+        |s, &(i, tri, o, d, t)| (traverse::passes_through(s, i, tri, o, d, t),),
+        Tolerance::EXACT,
+    );
+    let blocked = passes.output(Backend::Cpu).unwrap().iter().filter(|(p,)| !*p).count();
+    assert!(blocked > 0 && blocked < segments.len(), "{blocked} of {} segments blocked", segments.len());
+
+    // Light sampling on the masked emitter: samples in its holes are invalid (pdf 0).
+    let light_cases: Vec<(Vec3, Vec3)> = (0..1 << 14)
+        .map(|_| {
+            (point(&mut r, Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 1.5, 1.0)), Vec3::new(r.f32(), r.f32(), r.f32()))
+        })
+        .filter(|&(p, u)| {
+            // Away from the light's holes' edges.
+            let b = tracer::kernel::sampling::uniform_sample_triangle(u.y, u.z);
+            let light = lights::choose_light(&k, u.x);
+            let tri = k.lights.as_slice()[(light * scene_data::LIGHT_TEXELS + 1) as usize].x as u32;
+            p.is_finite() && cutoff_distance(&k, tri, b.x, b.y) > 1e-3
+        })
+        .collect();
+    let samples = assert_equivalent(
+        &mut eq,
+        "sample_light",
+        &light_cases,
+        |s, &(p, u)| (lights::sample_light(s, p, u),),
+        Tolerance::ulps(64).with_absolute(1e-6).flushing_subnormals(),
+    );
+    let invalid = samples.output(Backend::Cpu).unwrap().iter().filter(|(l,)| l.pdf == 0.0).count();
+    println!("sample_light: {invalid} of {} samples in the emitter's holes or behind it", light_cases.len());
+    assert!(invalid > light_cases.len() / 4, "{invalid}: half of the light is holes");
+}
