@@ -111,6 +111,8 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
         metal_rough: Vec4s,
         tangent_first: U32,
         normal_map_first: U32,
+        texture_ref_first: U32,
+        texcoord1_first: U32,
         camera_position: Vec3,
         camera_right: Vec3,
         camera_up: Vec3,
@@ -137,6 +139,8 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
         has_point_lights: U32,
         has_metal_rough: U32,
         has_normal_map: U32,
+        has_texture_transform: U32,
+        has_texcoord1: U32,
     )
 }
 

@@ -41,8 +41,10 @@ pub const MAGIC: [u8; 8] = *b"LPBUNDLE";
 /// (2: node planes as float texels, `node_children`, `leaf_stack_limit`, triangle lights with
 /// their normal and area. 3: `features.traversal_stack`, `features.metal_rough` and
 /// `scene.metal_rough`. 4: `features.normal_map`, `scene.has_normal_map`, `scene.tangent_first`,
-/// `scene.normal_map_first`.)
-pub const VERSION: u32 = 4;
+/// `scene.normal_map_first`. 5: `features.texture_transform`, `features.texcoord1`,
+/// `scene.has_texture_transform`, `scene.has_texcoord1`, `scene.texture_ref_first`,
+/// `scene.texcoord1_first`.)
+pub const VERSION: u32 = 5;
 /// The largest bundle accepted (and produced): well within wasm32's 4 GiB address space.
 pub const MAX_BUNDLE_BYTES: u64 = 1 << 30;
 /// File extension used for bundles (the server serves `/bundles/<hash>.lpb`).
@@ -220,6 +222,8 @@ fn check_consistency(p: &Packed) -> Result<(), BundleError> {
         ("point_lights", f.point_lights, s.has_point_lights),
         ("metal_rough", f.metal_rough, s.has_metal_rough),
         ("normal_map", f.normal_map, s.has_normal_map),
+        ("texture_transform", f.texture_transform, s.has_texture_transform),
+        ("texcoord1", f.texcoord1, s.has_texcoord1),
     ];
     for (name, feature, flag) in flags {
         if flag != feature as u32 {
@@ -229,11 +233,9 @@ fn check_consistency(p: &Packed) -> Result<(), BundleError> {
     // Normal maps' texels extend `shading` (tangents) and `materials` (one per material) at the
     // offsets the uniforms give; a reader trusting wrong offsets would fetch beyond the arrays.
     if f.normal_map {
-        let tangents = p.triangle_count.checked_mul(crate::kernel::normal_map::TANGENT_TEXELS as usize);
         let first = s.tangent_first as usize;
         let maps = s.materials.len().checked_sub(s.normal_map_first as usize);
-        if tangents.and_then(|t| t.checked_add(first)) != Some(s.shading.len())
-            || Some(first) != p.triangle_count.checked_mul(crate::kernel::scene_data::SHADING_TEXELS as usize)
+        if Some(first) != p.triangle_count.checked_mul(crate::kernel::scene_data::SHADING_TEXELS as usize)
             || maps
                 .is_none_or(|m| crate::kernel::scene_data::MATERIAL_TEXELS as usize * m != s.normal_map_first as usize)
         {
@@ -674,6 +676,8 @@ record!(Features {
     emissive_triangles,
     metal_rough,
     normal_map,
+    texture_transform,
+    texcoord1,
     traversal_stack
 });
 record!(Scene {
@@ -690,6 +694,8 @@ record!(Scene {
     metal_rough,
     tangent_first,
     normal_map_first,
+    texture_ref_first,
+    texcoord1_first,
     camera_position,
     camera_right,
     camera_up,
@@ -716,6 +722,8 @@ record!(Scene {
     has_point_lights,
     has_metal_rough,
     has_normal_map,
+    has_texture_transform,
+    has_texcoord1,
 });
 
 #[cfg(test)]

@@ -45,16 +45,13 @@ pub mod scene_data {
         pub triangles: Texels<Vec4>,
         pub shading: Texels<Vec4>,
         pub nodes: Texels<Vec4>,
-        /// Per node, its four children's stack entries `first << 8 | count` (count 0: a node, `first` its
-        /// index; else a leaf of triangles `first..first + count`): integers, no float-to-index conversion.
+        /// Per node, its four children's stack entries (`traverse::stack_entry`): integers, not floats.
         pub node_children: Texels<UVec4>,
         pub materials: Texels<Vec4>,
         pub lights: Texels<Vec4>,
-        /// Texels of every texture, back to back, four per element (texel `i` is lane `i % 4` of element
-        /// `i / 4`): 8-bit RGBA as in the file, red in the low byte, colour sRGB-encoded, data linear.
+        /// Texels of every texture (8-bit RGBA as in the file, red low), 4 per element, each from a new element.
         pub texture_texels: Texels<UVec4>,
-        /// Per texture: `[first texel, width, height, wrap_s | wrap_t << 8]`; the first texel is
-        /// a multiple of `TEXTURE_TEXELS_PER_ELEMENT`.
+        /// Per texture (or reference: `kernel::texture_ref`): `[first texel, width, height, wrap_s | wrap_t << 8]`.
         pub texture_info: Texels<UVec4>,
         /// Equirectangular sky: `[radiance, conditional CDF within the row]`.
         pub sky: Texels<Vec4>,
@@ -64,6 +61,8 @@ pub mod scene_data {
         pub metal_rough: Texels<Vec4>,
         pub tangent_first: u32,
         pub normal_map_first: u32,
+        pub texture_ref_first: u32,
+        pub texcoord1_first: u32,
         pub camera_position: Vec3,
         /// Right vector scaled by tan(fov/2) * aspect.
         pub camera_right: Vec3,
@@ -85,8 +84,7 @@ pub mod scene_data {
         pub sky_rotation: f32,
         /// Largest absolute coordinate of the scene: scales self-intersection offsets.
         pub scene_scale: f32,
-        /// Closest-hit traversal pushes leaves while its stack holds fewer entries than this and
-        /// intersects them at once beyond (`tracer::pack` picks it so that the stack cannot overflow).
+        /// Closest-hit traversal pushes leaves while its stack holds fewer entries, else intersects them (`pack`).
         pub leaf_stack_limit: u32,
         /// Feature flags (0 or 1): codegen specialises on them, removing unused features' code and data.
         pub has_sky: u32,
@@ -97,6 +95,8 @@ pub mod scene_data {
         pub has_point_lights: u32,
         pub has_metal_rough: u32,
         pub has_normal_map: u32,
+        pub has_texture_transform: u32,
+        pub has_texcoord1: u32,
     }
 
     pub const STRATEGY_BSDF: u32 = 0;

@@ -473,7 +473,7 @@ mod tests {
         let layout = reflect(&generated, &[ACCUMULATION_BUFFER, TARGET_UNIFORM]).unwrap();
         let u = layout.scene_uniform.unwrap();
         let offset = |name: &str| u.members.iter().find(|(n, _)| n == name).map(|(_, o)| *o).expect(name);
-        // Two u32s (the normal-map fields) before the camera: the first vec3 rounds up to 16.
+        // Four u32s (the normal-map and texture-reference offsets) before the camera: the first vec3 rounds up to 16.
         assert_eq!(offset("normal_map_first") + 4, 8);
         assert_eq!(offset("camera_position"), 16);
         assert_eq!(offset("camera_right"), offset("camera_position") + 16);
