@@ -314,3 +314,45 @@ fn gltf_transforms_that_are_not_finite_are_refused() {
         assert!(err.contains("baseColorTexture"), "names the texture: {err}");
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// The transform itself, against the extension's own example.
+
+#[test]
+fn the_extension_example_reads_the_lower_left_quadrant_rotated_clockwise() {
+    use tracer::scene::texture_ref::parse_gltf;
+    // "This example utilizes only the lower left quadrant of the source image, rotated
+    // clockwise 90°" (KHR_texture_transform README): u' = 0.5 v, v' = 1 - 0.5 u.
+    let ext = serde_json::json!({ "offset": [0, 1], "rotation": std::f32::consts::FRAC_PI_2, "scale": [0.5, 0.5] });
+    let t = parse_gltf(0, Some(&ext), "m").unwrap();
+    for (uv, want) in
+        [((0.0, 0.0), (0.0, 1.0)), ((1.0, 0.0), (0.0, 0.5)), ((0.0, 1.0), (0.5, 1.0)), ((1.0, 1.0), (0.5, 0.5))]
+    {
+        let got = t.apply(Vec2::from(uv));
+        assert!((got - Vec2::from(want)).length() < 1e-6, "{uv:?} -> {got} (want {want:?})");
+    }
+    // The hand-written quarter turn of the render tests is the same convention.
+    let q = quarter_turn();
+    for uv in [Vec2::new(0.1, 0.7), Vec2::new(-2.0, 3.5)] {
+        assert!((q.apply(uv) - quarter_turn_by_hand(uv)).length() < 1e-5);
+    }
+}
+
+#[test]
+fn transform_parsing_refuses_bad_shapes_and_reads_the_override() {
+    use serde_json::json;
+    use tracer::scene::texture_ref::parse_gltf;
+    for bad in [
+        json!({ "offset": [0, 1e39] }),
+        json!({ "scale": [1] }),
+        json!({ "rotation": "1" }),
+        json!({ "texCoord": -1 }),
+        json!(3),
+    ] {
+        let e = parse_gltf(0, Some(&bad), "material 0 baseColorTexture").unwrap_err();
+        assert!(e.starts_with("material 0 baseColorTexture: KHR_texture_transform"), "{e}");
+    }
+    let t = parse_gltf(0, Some(&json!({ "scale": [2, 3], "texCoord": 1 })), "m").unwrap();
+    assert_eq!((t.scale, t.texcoord), (Vec2::new(2.0, 3.0), 1));
+    assert_eq!(parse_gltf(1, None, "m").unwrap(), UvTransform { texcoord: 1, ..Default::default() });
+}
