@@ -135,6 +135,8 @@ fn feature_list(f: &Features) -> String {
         (f.metal_rough, "metal-rough"),
         (f.normal_map, "normal-map"),
         (f.alpha_mask, "alpha-mask"),
+        (f.texture_transform, "texture-transform"),
+        (f.texcoord1, "texcoord1"),
     ]
     .iter()
     .filter(|(on, _)| *on)
@@ -276,6 +278,26 @@ fn lambert(mut scene: Scene) -> Scene {
     scene
 }
 
+/// `scene` with every texture read through a `KHR_texture_transform` (`Features::texture_transform`).
+fn transformed(mut scene: Scene) -> Scene {
+    let t = tracer::scene::UvTransform { offset: glam::Vec2::new(0.25, 0.5), rotation: 0.3, ..Default::default() };
+    for m in &mut scene.materials {
+        m.texture_uvs = [t; 4];
+    }
+    scene
+}
+
+/// `scene` with every texture read on `TEXCOORD_1`, a copy of set 0 (`Features::texcoord1`).
+fn on_texcoord1(mut scene: Scene) -> Scene {
+    for t in &mut scene.triangles {
+        t.uvs1 = t.uvs;
+    }
+    for m in &mut scene.materials {
+        m.texture_uvs = [tracer::scene::UvTransform { texcoord: 1, ..Default::default() }; 4];
+    }
+    scene
+}
+
 fn main() -> Result<()> {
     // Every compile must be a real one, not a hit in Mesa's on-disk cache. Set before the first
     // EGL call, while the process has one thread.
@@ -304,6 +326,8 @@ fn main() -> Result<()> {
             "DamagedHelmet without its normal map",
             without_normal_maps(load("khronos/DamagedHelmet/glTF/DamagedHelmet.gltf")?),
         ),
+        ("BoxTextured, texture transformed", transformed(load("khronos/BoxTextured/glTF/BoxTextured.gltf")?)),
+        ("BoxTextured, texture on TEXCOORD_1", on_texcoord1(load("khronos/BoxTextured/glTF/BoxTextured.gltf")?)),
         ("LightsPunctualLamp (point lights)", load("khronos/LightsPunctualLamp/glTF/LightsPunctualLamp.gltf")?),
         ("LittlestTokyo", load("threejs/LittlestTokyo.glb")?),
         ("MetalRoughSpheres (built-in, metal-roughness)", scene::metal_rough_spheres()),

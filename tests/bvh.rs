@@ -44,6 +44,7 @@ fn tri(a: Vec3, b: Vec3, c: Vec3) -> Triangle {
         positions: [a, b, c],
         normals: [Vec3::Z; 3],
         uvs: [Vec2::ZERO; 3],
+        uvs1: Default::default(),
         tangents: Default::default(),
         material: 0,
     }

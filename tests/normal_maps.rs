@@ -34,7 +34,14 @@ fn quad(q: [Vec3; 4], material: u32) -> Vec<Triangle> {
         .map(|&[a, b, c]| {
             let positions = [q[a], q[b], q[c]];
             let n = (positions[1] - positions[0]).cross(positions[2] - positions[0]).normalize();
-            Triangle { positions, normals: [n; 3], uvs: [uv[a], uv[b], uv[c]], tangents: Default::default(), material }
+            Triangle {
+                positions,
+                normals: [n; 3],
+                uvs: [uv[a], uv[b], uv[c]],
+                uvs1: Default::default(),
+                tangents: Default::default(),
+                material,
+            }
         })
         .collect()
 }
@@ -156,6 +163,7 @@ fn uv_sphere(rings: u32, segments: u32) -> Vec<Triangle> {
                     positions: tri.map(|c| c.0),
                     normals: tri.map(|c| c.0.normalize()),
                     uvs: tri.map(|c| c.1),
+                    uvs1: Default::default(),
                     tangents: Default::default(),
                     material: 0,
                 });

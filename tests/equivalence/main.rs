@@ -15,6 +15,7 @@ mod hazards;
 mod intersection;
 mod kernels;
 mod normal_map;
+mod texture_ref;
 
 use std::path::{Path, PathBuf};
 

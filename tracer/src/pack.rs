@@ -15,7 +15,11 @@ use crate::kernel::scene_data::{
     self, Scene as KernelScene, LIGHT_POINT, LIGHT_SKY, LIGHT_TEXELS, LIGHT_TRIANGLE, MATERIAL_TEXELS, NODE_TEXELS,
     SHADING_TEXELS, TEXTURE_TEXELS_PER_ELEMENT, TRIANGLE_TEXELS,
 };
+use crate::kernel::texture_ref::TEXCOORD1_TEXELS;
 use crate::scene::{Scene, Wrap};
+
+mod texture_refs;
+pub use texture_refs::TextureRefs;
 
 /// What a scene uses; decides what is packed and, on GPUs, which kernel variant is generated.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -37,6 +41,12 @@ pub struct Features {
     /// the alpha test in traversal and light sampling, a flag in each triangle's third texel and
     /// per material one texel appended to `Scene::materials` (`kernel::scene_data::is_hole`); nothing without.
     pub alpha_mask: bool,
+    /// Some texture is read through a `KHR_texture_transform`: materials name texture
+    /// references, each with two more `texture_info` texels (`kernel::texture_ref`).
+    pub texture_transform: bool,
+    /// Some texture is read on `TEXCOORD_1`: texture references as above, and per triangle two
+    /// texels of the second UV set appended to `Scene::shading`.
+    pub texcoord1: bool,
     /// Entries the traversal stack needs for this scene's BVH (`WideBvh::stack_needed*`, at
     /// most the kernel's `STACK_SIZE`): GPU variants size their stacks to it instead of
     /// `STACK_SIZE` (the Cornell box needs 11, not 64). 0: not fixed, the kernel's `STACK_SIZE`.
@@ -56,6 +66,8 @@ impl Features {
             ("has_metal_rough", self.metal_rough),
             ("has_normal_map", self.normal_map),
             ("has_alpha_mask", self.alpha_mask),
+            ("has_texture_transform", self.texture_transform),
+            ("has_texcoord1", self.texcoord1),
         ]
         .into_iter()
         .map(|(k, v)| (format!("Scene.{k}"), v as u32))
@@ -78,6 +90,8 @@ impl Features {
             metal_rough: true,
             normal_map: true,
             alpha_mask: true,
+            texture_transform: true,
+            texcoord1: true,
             traversal_stack: 0,
         }
     }
@@ -243,8 +257,11 @@ pub struct PackedTextures {
     /// The kernel's `texture_texels`: every texture's packed sRGBA8 texels, four per element,
     /// each texture starting on an element boundary.
     pub texels: Texels<UVec4>,
-    /// The kernel's `texture_info`: `[first texel, width, height, wrap_s | wrap_t << 8]`.
+    /// The kernel's `texture_info`: `[first texel, width, height, wrap_s | wrap_t << 8]` per
+    /// texture, or with [`PackedTextures::refs`] per reference and then their transforms.
     pub info: Texels<UVec4>,
+    /// The texture references, when some texture is transformed or read on `TEXCOORD_1`.
+    pub refs: Option<TextureRefs>,
     /// Mean linear luminance of each texture some material emits through (`None` for the
     /// others): the emitting triangles' power estimate for light selection.
     pub emissive_mean_luminance: Vec<Option<f32>>,
@@ -309,7 +326,12 @@ pub fn pack_textures(scene: &Scene) -> PackedTextures {
             }
         })
     };
-    PackedTextures { used, texels, info: Texels::new(info), emissive_mean_luminance }
+    let refs = texture_refs::texture_refs(scene);
+    let info = match &refs {
+        Some(r) => r.texture_info(&info),
+        None => info,
+    };
+    PackedTextures { used, texels, info: Texels::new(info), refs, emissive_mean_luminance }
 }
 
 /// Builds the BVH and packs `scene` for `settings`, packing the textures in parallel with the
@@ -345,12 +367,7 @@ pub fn pack_with_textures(
     settings: &RenderSettings,
 ) -> Result<Packed, PackError> {
     let matches = textures.emissive_mean_luminance.len() == scene.textures.len()
-        && if textures.used {
-            textures.info.len() == scene.textures.len()
-                && scene.textures.iter().zip(textures.info.as_slice()).all(|(t, i)| (t.width, t.height) == (i.y, i.z))
-        } else {
-            textures.info.is_empty()
-        };
+        && if textures.used { texture_refs::matches(scene, textures) } else { textures.info.is_empty() };
     if !matches {
         return Err(PackError::TexturesMismatch);
     }
@@ -420,6 +437,8 @@ pub fn pack_with_textures(
         metal_rough: scene.materials.iter().any(|m| m.uses_metal_rough()),
         normal_map: textures_used && scene.materials.iter().any(|m| m.normal_texture.is_some()),
         alpha_mask: masked_material.contains(&true),
+        texture_transform: textures_used && textures.refs.as_ref().is_some_and(|r| r.transform),
+        texcoord1: textures_used && textures.refs.as_ref().is_some_and(|r| r.texcoord1),
         traversal_stack,
     };
 
@@ -541,17 +560,31 @@ pub fn pack_with_textures(
                 Vec4::new(t.uvs[1].y, t.uvs[2].x, t.uvs[2].y, 0.0),
             ]
         });
-        if features.normal_map {
-            // The tangents extend the shading array (`kernel::normal_map`): no new binding.
-            let tangents = Texels::par_from_groups::<{ TANGENT_TEXELS as usize }>(tri_count, |i| ordered[i].tangents);
-            Texels::new([shading.as_slice(), tangents.as_slice()].concat())
-        } else {
+        // Tangents and the second UV set extend the shading array (`kernel::normal_map`,
+        // `kernel::texture_ref`): no new binding.
+        let tangents = features
+            .normal_map
+            .then(|| Texels::par_from_groups::<{ TANGENT_TEXELS as usize }>(tri_count, |i| ordered[i].tangents));
+        let uvs1 = features.texcoord1.then(|| {
+            Texels::par_from_groups::<{ TEXCOORD1_TEXELS as usize }>(tri_count, |i| {
+                texture_refs::texcoord1_texels(&ordered[i].uvs1)
+            })
+        });
+        if tangents.is_none() && uvs1.is_none() {
             shading
+        } else {
+            let parts = [Some(&shading), tangents.as_ref(), uvs1.as_ref()];
+            Texels::new(parts.into_iter().flatten().flat_map(|t| t.as_slice().iter().copied()).collect())
         }
     } else {
         Texels::default()
     };
     let tangent_first = if features.normal_map { (tri_count * SHADING_TEXELS as usize) as u32 } else { 0 };
+    let texcoord1_first = if features.texcoord1 {
+        (tri_count * (SHADING_TEXELS + if features.normal_map { TANGENT_TEXELS } else { 0 }) as usize) as u32
+    } else {
+        0
+    };
     let nodes = Texels::par_from_groups::<{ NODE_TEXELS as usize }>(wide.nodes.len(), |i| {
         let n = &wide.nodes[i];
         [
@@ -568,28 +601,34 @@ pub fn pack_with_textures(
         [UVec4::from_array(std::array::from_fn(|c| crate::kernel::traverse::stack_entry(n.first[c], n.count[c])))]
     });
     let mut materials = Vec::with_capacity(scene.materials.len() * MATERIAL_TEXELS as usize);
-    let texture_index = |i: Option<u32>| if features.textures { index_value(i) } else { -1.0 };
-    for m in &scene.materials {
-        materials.push(m.base_color.extend(texture_index(m.base_color_texture)));
-        materials.push(m.emission.extend(texture_index(m.emissive_texture)));
+    // A material slot's texture, or with texture references its reference.
+    let texture_index = |material: usize, slot: usize, i: Option<u32>| match (&textures.refs, features.textures) {
+        (_, false) => -1.0,
+        (Some(refs), true) => index_value(refs.slots.get(material).and_then(|s| s[slot])),
+        (None, true) => index_value(i),
+    };
+    for (i, m) in scene.materials.iter().enumerate() {
+        materials.push(m.base_color.extend(texture_index(i, 0, m.base_color_texture)));
+        materials.push(m.emission.extend(texture_index(i, 1, m.emissive_texture)));
     }
     let normal_map_first = if features.normal_map { materials.len() as u32 } else { 0 };
     if features.normal_map {
-        for m in &scene.materials {
-            materials.push(Vec4::new(texture_index(m.normal_texture), m.normal_scale, 0.0, 0.0));
+        for (i, m) in scene.materials.iter().enumerate() {
+            materials.push(Vec4::new(texture_index(i, 3, m.normal_texture), m.normal_scale, 0.0, 0.0));
         }
     }
     let alpha_mask_first = if features.alpha_mask { materials.len() as u32 } else { 0 };
     if features.alpha_mask {
-        for m in &scene.materials {
+        for (i, m) in scene.materials.iter().enumerate() {
             let cutoff = m.alpha_cutoff.unwrap_or(0.0);
-            materials.push(Vec4::new(texture_index(m.base_color_texture), m.alpha, cutoff, 0.0));
+            // The base colour slot's texture (or reference: its UV set and transform).
+            materials.push(Vec4::new(texture_index(i, 0, m.base_color_texture), m.alpha, cutoff, 0.0));
         }
     }
     let metal_rough = if features.metal_rough {
-        let texels = scene.materials.iter().map(|m| {
+        let texels = scene.materials.iter().enumerate().map(|(i, m)| {
             let specular = if m.uses_metal_rough() { 1.0 } else { 0.0 };
-            Vec4::new(m.metallic, m.roughness, texture_index(m.metallic_roughness_texture), specular)
+            Vec4::new(m.metallic, m.roughness, texture_index(i, 2, m.metallic_roughness_texture), specular)
         });
         Texels::new(texels.collect())
     } else {
@@ -619,6 +658,8 @@ pub fn pack_with_textures(
         tangent_first,
         normal_map_first,
         alpha_mask_first,
+        texture_ref_first: textures.refs.as_ref().filter(|_| features.textures).map_or(0, |r| r.refs.len() as u32),
+        texcoord1_first,
         camera_position: cam.position,
         camera_right: right * tan_half * aspect,
         camera_up: up * tan_half,
@@ -646,6 +687,8 @@ pub fn pack_with_textures(
         has_metal_rough: features.metal_rough as u32,
         has_normal_map: features.normal_map as u32,
         has_alpha_mask: features.alpha_mask as u32,
+        has_texture_transform: features.texture_transform as u32,
+        has_texcoord1: features.texcoord1 as u32,
     };
     Ok(Packed { scene: kernel_scene, features, triangle_count: tri_count, light_count: light_data.len() })
 }

@@ -95,7 +95,13 @@ fn check_nodes(s: &Scene, triangle_count: usize) -> Result<(), BundleError> {
 /// the texture count.
 fn check_textures(s: &Scene) -> Result<usize, BundleError> {
     let texels = s.texture_texels.len() as u64 * TEXTURE_TEXELS_PER_ELEMENT as u64;
-    for (i, info) in s.texture_info.as_slice().iter().enumerate() {
+    // With texture references, their transform texels follow the textures (`check_texture_refs`).
+    let count = if has_texture_refs(s) {
+        (s.texture_ref_first as usize).min(s.texture_info.len())
+    } else {
+        s.texture_info.len()
+    };
+    for (i, info) in s.texture_info.as_slice().iter().take(count).enumerate() {
         let (first, w, h, wrap) = (info.x as u64, info.y as u64, info.z as u64, info.w);
         if w == 0 || h == 0 || first + w * h > texels {
             return fail(format!("texture {i}: {w} x {h} texels from texel {first}, of {texels}"));
@@ -104,7 +110,46 @@ fn check_textures(s: &Scene) -> Result<usize, BundleError> {
             return fail(format!("texture {i}: wrap modes {wrap:#x}"));
         }
     }
-    Ok(s.texture_info.len())
+    Ok(count)
+}
+
+fn has_texture_refs(s: &Scene) -> bool {
+    s.has_texture_transform != 0 || s.has_texcoord1 != 0
+}
+
+/// The layout `kernel::texture_ref` reads, at the offsets the uniforms give: with texture
+/// transforms or a second UV set, `TEXTURE_REF_TEXELS` per texture after the textures in
+/// `texture_info`; `shading` is the per-triangle texels, then the tangents (normal maps), then
+/// the second UV set, each where `tangent_first` / `texcoord1_first` say. (Any bits are a
+/// usable matrix: a NaN UV samples as the kernel's bilinear lookup bounds it.)
+pub(super) fn check_texture_refs(s: &Scene, triangle_count: usize) -> Result<(), String> {
+    use crate::kernel::normal_map::TANGENT_TEXELS;
+    use crate::kernel::texture_ref::{TEXCOORD1_TEXELS, TEXTURE_REF_TEXELS};
+    if has_texture_refs(s) {
+        let first = s.texture_ref_first as usize;
+        if first.checked_mul(1 + TEXTURE_REF_TEXELS as usize) != Some(s.texture_info.len()) {
+            return Err(format!("texture references from {first} in {} texture_info texels", s.texture_info.len()));
+        }
+    }
+    if s.has_shading == 0 {
+        return Ok(());
+    }
+    let per_triangle = |texels: u32, on: bool| if on { triangle_count.checked_mul(texels as usize) } else { Some(0) };
+    let base = per_triangle(SHADING_TEXELS, true);
+    let tangents = per_triangle(TANGENT_TEXELS, s.has_normal_map != 0);
+    let uv1 = per_triangle(TEXCOORD1_TEXELS, s.has_texcoord1 != 0);
+    let uv1_first = base.zip(tangents).and_then(|(b, t)| b.checked_add(t));
+    let total = uv1_first.zip(uv1).and_then(|(f, u)| f.checked_add(u));
+    let uv1_ok = s.has_texcoord1 == 0 || uv1_first == Some(s.texcoord1_first as usize);
+    if total != Some(s.shading.len()) || !uv1_ok {
+        return Err(format!(
+            "{} shading texels for {triangle_count} triangles (tangents from {}, second UV set from {})",
+            s.shading.len(),
+            s.tangent_first,
+            s.texcoord1_first
+        ));
+    }
+    Ok(())
 }
 
 /// Materials are whole and name textures that exist (metal-roughness, normal maps and alpha
@@ -168,10 +213,8 @@ fn check_triangles(s: &Scene, triangle_count: usize, materials: usize, lights: u
     }
     // With normal maps, tangents follow the shading texels from `tangent_first` (checked with
     // the array length by `check_consistency`).
-    let shading = if s.has_normal_map != 0 { s.tangent_first as usize } else { s.shading.len() };
-    if s.has_shading != 0 && Some(shading) != triangle_count.checked_mul(SHADING_TEXELS as usize) {
-        return fail(format!("{} shading texels for {triangle_count} triangles", s.shading.len()));
-    }
+    // The shading texels, tangents and second UV set lie where the uniforms say.
+    check_texture_refs(s, triangle_count).map_err(BundleError::Inconsistent)?;
     Ok(())
 }
 

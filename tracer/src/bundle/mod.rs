@@ -42,8 +42,10 @@ pub const MAGIC: [u8; 8] = *b"LPBUNDLE";
 /// their normal and area. 3: `features.traversal_stack`, `features.metal_rough` and
 /// `scene.metal_rough`. 4: `features.normal_map`, `scene.has_normal_map`, `scene.tangent_first`,
 /// `scene.normal_map_first`. 5: `features.alpha_mask`, `scene.has_alpha_mask`,
-/// `scene.alpha_mask_first`, the alpha-mask flag in each triangle's third texel.)
-pub const VERSION: u32 = 5;
+/// `scene.alpha_mask_first`, the alpha-mask flag in each triangle's third texel. 6:
+/// `features.texture_transform`, `features.texcoord1`, `scene.has_texture_transform`,
+/// `scene.has_texcoord1`, `scene.texture_ref_first`, `scene.texcoord1_first`.)
+pub const VERSION: u32 = 6;
 /// The largest bundle accepted (and produced): well within wasm32's 4 GiB address space.
 pub const MAX_BUNDLE_BYTES: u64 = 1 << 30;
 /// File extension used for bundles (the server serves `/bundles/<hash>.lpb`).
@@ -222,6 +224,8 @@ fn check_consistency(p: &Packed) -> Result<(), BundleError> {
         ("metal_rough", f.metal_rough, s.has_metal_rough),
         ("normal_map", f.normal_map, s.has_normal_map),
         ("alpha_mask", f.alpha_mask, s.has_alpha_mask),
+        ("texture_transform", f.texture_transform, s.has_texture_transform),
+        ("texcoord1", f.texcoord1, s.has_texcoord1),
     ];
     for (name, feature, flag) in flags {
         if flag != feature as u32 {
@@ -231,11 +235,9 @@ fn check_consistency(p: &Packed) -> Result<(), BundleError> {
     // Normal maps' tangents extend `shading` at the offset the uniform gives; a reader trusting
     // a wrong offset would fetch beyond the array.
     if f.normal_map {
-        let tangents = p.triangle_count.checked_mul(crate::kernel::normal_map::TANGENT_TEXELS as usize);
         let first = s.tangent_first as usize;
-        if tangents.and_then(|t| t.checked_add(first)) != Some(s.shading.len())
-            || Some(first) != p.triangle_count.checked_mul(crate::kernel::scene_data::SHADING_TEXELS as usize)
-        {
+        // Where the tangents end (the second UV set, or the array's end) is `check_texture_refs`'s.
+        if Some(first) != p.triangle_count.checked_mul(crate::kernel::scene_data::SHADING_TEXELS as usize) {
             return fail(format!(
                 "normal maps: tangents from {} in {} shading texels, {} triangles",
                 s.tangent_first,
@@ -673,6 +675,8 @@ record!(Features {
     metal_rough,
     normal_map,
     alpha_mask,
+    texture_transform,
+    texcoord1,
     traversal_stack
 });
 record!(Scene {
@@ -690,6 +694,8 @@ record!(Scene {
     tangent_first,
     normal_map_first,
     alpha_mask_first,
+    texture_ref_first,
+    texcoord1_first,
     camera_position,
     camera_right,
     camera_up,
@@ -717,6 +723,8 @@ record!(Scene {
     has_metal_rough,
     has_normal_map,
     has_alpha_mask,
+    has_texture_transform,
+    has_texcoord1,
 });
 
 /// `materials` holds the base texels of `n` materials (`MATERIAL_TEXELS` each), then with

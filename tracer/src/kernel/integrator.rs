@@ -1,7 +1,6 @@
 #[kernel_dsl::kernel]
 pub mod integrator {
     //! The path tracer: Lambert or metal-roughness BRDF, normal maps, NEE over every light, MIS, Russian roulette.
-
     use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
 
     use crate::kernel::camera::camera_ray;
@@ -15,9 +14,10 @@ pub mod integrator {
     use crate::kernel::rng::{pixel_seed, random_float};
     use crate::kernel::sampling::{onb_from_normal, onb_to_local, onb_to_world, sample_cosine_around, INV_PI};
     use crate::kernel::scene_data::{
-        fetch_material, fetch_triangle, sample_texture, shading_normal, texcoord, MaterialData, Scene, NONE,
-        STRATEGY_BSDF, STRATEGY_MIS, STRATEGY_NEE,
+        fetch_material, fetch_triangle, sample_texture, shading_normal, MaterialData, Scene, NONE, STRATEGY_BSDF,
+        STRATEGY_MIS, STRATEGY_NEE,
     };
+    use crate::kernel::texture_ref::texture_uv;
     use crate::kernel::traverse::{occluded, trace_closest, Hit};
 
     /// Russian roulette starts after this many path segments.
@@ -107,8 +107,8 @@ pub mod integrator {
             if scene.has_metal_rough == 0 {
                 let mut albedo = material.base_color;
                 if scene.has_textures != 0 && material.base_texture != NONE {
-                    albedo *=
-                        sample_texture(scene, material.base_texture, texcoord(scene, hit.triangle, hit.u, hit.v)).xyz();
+                    let uv = texture_uv(scene, material.base_texture, hit.triangle, hit.u, hit.v);
+                    albedo *= sample_texture(scene, material.base_texture, uv).xyz();
                 }
                 let surface = offset_origin(scene, p, ng);
 

@@ -1,16 +1,16 @@
 #[kernel_dsl::kernel]
 pub mod lights {
-    //! Light sampling for next event estimation: one alias table over every emitter (emissive
-    //! triangles, point lights, the sky) chosen by power, and the matching pdfs for MIS.
+    //! Light sampling for next event estimation: one alias table over every emitter, chosen by power.
 
     use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
 
     use crate::kernel::intersect::MISS;
     use crate::kernel::sampling::{uniform_sample_triangle, INV_PI, PI};
     use crate::kernel::scene_data::{
-        fetch_material, fetch_triangle, index_of, is_hole, sample_texture, texcoord, Scene, LIGHT_POINT, LIGHT_SKY,
+        fetch_material, fetch_triangle, index_of, is_hole, sample_texture, Scene, LIGHT_POINT, LIGHT_SKY,
         LIGHT_TEXELS, LIGHT_TRIANGLE, NONE,
     };
+    use crate::kernel::texture_ref::texture_uv;
 
     /// A sampled light direction as seen from a shading point.
     #[derive(Clone, Copy, Debug, PartialEq)]
@@ -56,7 +56,7 @@ pub mod lights {
         let m = fetch_material(scene, material);
         let mut e = m.emission;
         if scene.has_textures != 0 && m.emissive_texture != NONE {
-            e *= sample_texture(scene, m.emissive_texture, texcoord(scene, triangle, u, v)).xyz();
+            e *= sample_texture(scene, m.emissive_texture, texture_uv(scene, m.emissive_texture, triangle, u, v)).xyz();
         }
         e
     }

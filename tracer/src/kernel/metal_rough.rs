@@ -22,8 +22,9 @@ pub mod metal_rough {
     use crate::kernel::lights::luminance;
     use crate::kernel::sampling::{cos_sin_turns, cosine_sample_hemisphere, INV_PI, PI};
     use crate::kernel::scene_data::{
-        fetch_metal_rough, sample_data_texture, sample_texture, texcoord, MaterialData, Scene, NONE,
+        fetch_metal_rough, sample_data_texture, sample_texture, MaterialData, Scene, NONE,
     };
+    use crate::kernel::texture_ref::texture_uv;
 
     /// Roughness is clamped to at least this (α ≥ 0.002025, Filament's limit for f32): below
     /// it the GGX peak (1 / (π α²)) and its pdf outgrow what f32 paths and sample weights
@@ -199,12 +200,12 @@ pub mod metal_rough {
         let mut metallic = params.metallic;
         let mut roughness = params.roughness;
         if scene.has_textures != 0 && (material.base_texture != NONE || params.texture != NONE) {
-            let uv = texcoord(scene, triangle, u, v);
             if material.base_texture != NONE {
+                let uv = texture_uv(scene, material.base_texture, triangle, u, v);
                 base *= sample_texture(scene, material.base_texture, uv).xyz();
             }
             if params.texture != NONE {
-                let mr = sample_data_texture(scene, params.texture, uv);
+                let mr = sample_data_texture(scene, params.texture, texture_uv(scene, params.texture, triangle, u, v));
                 roughness *= mr.y;
                 metallic *= mr.z;
             }

@@ -24,6 +24,8 @@ mod rng_src;
 mod sampling_src;
 #[path = "scene_data.rs"]
 mod scene_data_src;
+#[path = "texture_ref.rs"]
+mod texture_ref_src;
 #[path = "tonemap.rs"]
 // The tone curves' coefficients are written as their sources print them (AgX, ACES fit),
 // digits beyond f32 included, so they can be checked against those sources by eye.
@@ -41,6 +43,7 @@ pub use normal_map_src::normal_map;
 pub use rng_src::rng;
 pub use sampling_src::sampling;
 pub use scene_data_src::scene_data;
+pub use texture_ref_src::texture_ref;
 pub use tonemap_src::tonemap;
 pub use traverse_src::traverse;
 
@@ -51,6 +54,7 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
         sampling::kernel_ir(),
         intersect::kernel_ir(),
         scene_data::kernel_ir(),
+        texture_ref::kernel_ir(),
         traverse::kernel_ir(),
         camera::kernel_ir(),
         lights::kernel_ir(),
@@ -63,12 +67,13 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
 
 /// Every kernel module's captured description, as the macro serialised it (what
 /// [`modules`] parses): a stable text to fingerprint the kernel with.
-pub fn ir_json() -> [&'static str; 11] {
+pub fn ir_json() -> [&'static str; 12] {
     [
         rng::KERNEL_IR_JSON,
         sampling::KERNEL_IR_JSON,
         intersect::KERNEL_IR_JSON,
         scene_data::KERNEL_IR_JSON,
+        texture_ref::KERNEL_IR_JSON,
         traverse::KERNEL_IR_JSON,
         camera::KERNEL_IR_JSON,
         lights::KERNEL_IR_JSON,

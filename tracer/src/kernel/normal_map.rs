@@ -22,7 +22,8 @@ pub mod normal_map {
 
     use glam::{Vec3, Vec4, Vec4Swizzles};
 
-    use crate::kernel::scene_data::{index_of, sample_data_texture, texcoord, Scene, NONE};
+    use crate::kernel::scene_data::{index_of, sample_data_texture, Scene, NONE};
+    use crate::kernel::texture_ref::texture_uv;
     use crate::kernel::traverse::Hit;
 
     /// Texels per triangle of tangents in `shading`.
@@ -114,7 +115,8 @@ pub mod normal_map {
         let mut n = ns;
         if map.texture != NONE {
             let tangent = interpolated_tangent(scene, hit.triangle, hit.u, hit.v);
-            let rgb = sample_data_texture(scene, map.texture, texcoord(scene, hit.triangle, hit.u, hit.v)).xyz();
+            let uv = texture_uv(scene, map.texture, hit.triangle, hit.u, hit.v);
+            let rgb = sample_data_texture(scene, map.texture, uv).xyz();
             // The map is in the front face's frame; the facing normal flips with it.
             let front = perturb_normal(ns * flip, tangent, tangent_space_normal(rgb, map.scale));
             n = bend_normal(front * flip, ng, wo);

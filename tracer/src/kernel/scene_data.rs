@@ -2,13 +2,13 @@
 pub mod scene_data {
     //! The packed scene as the kernel reads it: one `#[resources]` struct (data textures and
     //! uniforms) and the functions that decode its texels. `tracer::pack` writes exactly this
-    //! layout, using the constants below.
-    //!
-    //! Integers stored in float texels are exact float values (< 2^24), never raw bits:
-    //! bit patterns of small integers are denormals, which GPUs may flush.
+    //! layout, using the constants below. Integers stored in float texels are exact float values
+    //! (< 2^24), never raw bits: bit patterns of small integers are denormals, which GPUs may flush.
 
     use glam::{UVec4, Vec2, Vec3, Vec4, Vec4Swizzles};
     use kernel_dsl::Texels;
+
+    use crate::kernel::texture_ref::texture_uv;
 
     /// Texels per triangle in `triangles`: `[v0, material]`, `[v1, light index or -1]`, `[v2, alpha-masked 1 or 0]`.
     pub const TRIANGLE_TEXELS: u32 = 3;
@@ -45,29 +45,27 @@ pub mod scene_data {
         pub triangles: Texels<Vec4>,
         pub shading: Texels<Vec4>,
         pub nodes: Texels<Vec4>,
-        /// Per node, its four children's stack entries `first << 8 | count` (count 0: a node, `first` its
-        /// index; else a leaf of triangles `first..first + count`): integers, no float-to-index conversion.
+        /// Per node, its four children's stack entries (`traverse::stack_entry`): integers, not floats.
         pub node_children: Texels<UVec4>,
         pub materials: Texels<Vec4>,
         pub lights: Texels<Vec4>,
-        /// Texels of every texture, back to back, four per element (texel `i` is lane `i % 4` of element
-        /// `i / 4`): 8-bit RGBA as in the file, red in the low byte, colour sRGB-encoded, data linear.
+        /// Texels of every texture (8-bit RGBA as in the file, red low), 4 per element, each from a new element.
         pub texture_texels: Texels<UVec4>,
-        /// Per texture: `[first texel, width, height, wrap_s | wrap_t << 8]`, the first a multiple of 4.
+        /// Per texture (or reference: `kernel::texture_ref`): `[first texel, width, height, wrap_s | wrap_t << 8]`.
         pub texture_info: Texels<UVec4>,
-        /// Equirectangular sky: `[radiance, conditional CDF within the row]`.
+        /// Equirectangular sky: `[radiance, conditional CDF within the row]`; `sky_rows`: `[marginal CDF, 0, 0, 0]`.
         pub sky: Texels<Vec4>,
-        /// Per sky row: `[marginal CDF, 0, 0, 0]`.
         pub sky_rows: Texels<Vec4>,
         /// Per material, `[metallic, roughness, metal-roughness texture or -1, specular (1) or Lambert (0)]`.
         pub metal_rough: Texels<Vec4>,
         pub tangent_first: u32,
         pub normal_map_first: u32,
         pub alpha_mask_first: u32,
+        pub texture_ref_first: u32,
+        pub texcoord1_first: u32,
+        /// The camera: `camera_right` scaled by tan(fov/2) * aspect, `camera_up` by tan(fov/2).
         pub camera_position: Vec3,
-        /// Right vector scaled by tan(fov/2) * aspect.
         pub camera_right: Vec3,
-        /// Up vector scaled by tan(fov/2).
         pub camera_up: Vec3,
         pub camera_forward: Vec3,
         pub lens_radius: f32,
@@ -97,6 +95,8 @@ pub mod scene_data {
         pub has_metal_rough: u32,
         pub has_normal_map: u32,
         pub has_alpha_mask: u32,
+        pub has_texture_transform: u32,
+        pub has_texcoord1: u32,
     }
 
     pub const STRATEGY_BSDF: u32 = 0;
@@ -366,8 +366,9 @@ pub mod scene_data {
         if triangle_masked(scene, triangle) {
             let mask = fetch_alpha_mask(scene, material);
             let mut uv = Vec2::ZERO;
-            if scene.has_shading != 0 {
-                uv = texcoord(scene, triangle, u, v);
+            if scene.has_shading != 0 && mask.texture != NONE {
+                // The base colour texture's UV: its UV set and transform, as shading reads it.
+                uv = texture_uv(scene, mask.texture, triangle, u, v);
             }
             hole = coverage(scene, mask, uv) < mask.cutoff;
         }

@@ -616,7 +616,7 @@ impl WorldMesh<'_> {
         if !uvs.iter().all(|t| t.is_finite()) {
             return Err(malformed(format!("{}: a texture coordinate is not finite", self.what)));
         }
-        Ok(Triangle { positions, normals, uvs, tangents: Default::default(), material })
+        Ok(Triangle { positions, normals, uvs, uvs1: Default::default(), tangents: Default::default(), material })
     }
 }
 

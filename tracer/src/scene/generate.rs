@@ -15,6 +15,7 @@ pub(crate) fn quad(out: &mut Vec<Triangle>, q: [Vec3; 4], material: u32) {
             positions,
             normals: [flat_normal(&positions); 3],
             uvs: [uv[a], uv[b], uv[c]],
+            uvs1: Default::default(),
             tangents: Default::default(),
             material,
         });
@@ -144,6 +145,7 @@ pub fn terrain_and_spheres() -> Scene {
         positions,
         normals: [flat_normal(&positions); 3],
         uvs: [Vec2::ZERO; 3],
+        uvs1: Default::default(),
         tangents: Default::default(),
         material: 0,
     };
@@ -284,7 +286,14 @@ fn sphere(out: &mut Vec<Triangle>, center: Vec3, radius: f32, material: u32) {
                 let normals = [corners[a], corners[b], corners[c]].map(|(s, k)| dir(s, k));
                 let positions = normals.map(|n| center + radius * n);
                 let uvs = [corners[a], corners[b], corners[c]].map(|(s, k)| uv(s, k));
-                out.push(Triangle { positions, normals, uvs, tangents: Default::default(), material });
+                out.push(Triangle {
+                    positions,
+                    normals,
+                    uvs,
+                    uvs1: Default::default(),
+                    tangents: Default::default(),
+                    material,
+                });
             }
         }
     }

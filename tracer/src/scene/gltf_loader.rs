@@ -22,6 +22,7 @@ use super::texture::{
     decode_textures_forgiving, is_texture_problem, material_label, probe_srgb, ImageHeader, ImageProblems,
     PendingTexture, Probed,
 };
+use super::texture_ref::{self, UvTransform};
 use super::util::{read_file, read_uri};
 use super::{
     flat_normal, Camera, FoundCamera, LoadOptions, Material, PointLight, Scene, SceneError, Triangle, Warnings, Wrap,
@@ -29,16 +30,18 @@ use super::{
 };
 
 /// Extensions Lightport implements.
-const SUPPORTED_EXTENSIONS: &[&str] =
-    &["KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_mesh_quantization", "EXT_texture_webp"];
+const SUPPORTED_EXTENSIONS: &[&str] = &[
+    "KHR_lights_punctual",
+    "KHR_materials_emissive_strength",
+    "KHR_mesh_quantization",
+    "EXT_texture_webp",
+    "KHR_texture_transform",
+];
 
 /// Extensions whose absence only changes the look, so a file requiring them is still rendered
 /// (with a warning): material models, texture transforms, variants, animation.
 fn is_approximable(ext: &str) -> bool {
-    ext.starts_with("KHR_materials_")
-        || ext == "KHR_texture_transform"
-        || ext == "KHR_animation_pointer"
-        || ext == "KHR_xmp_json_ld"
+    ext.starts_with("KHR_materials_") || ext == "KHR_animation_pointer" || ext == "KHR_xmp_json_ld"
 }
 
 /// What Lightport does about an extension it does not implement, for the warning text.
@@ -47,7 +50,6 @@ fn extension_note(ext: &str) -> &'static str {
         "KHR_materials_transmission" | "KHR_materials_volume" | "KHR_materials_diffuse_transmission" => {
             "transmissive surfaces are rendered as opaque diffuse"
         }
-        "KHR_texture_transform" => "textures are sampled without their transform",
         "KHR_draco_mesh_compression" | "EXT_meshopt_compression" | "KHR_meshopt_compression" => {
             "compressed primitives are read from their uncompressed fallback, or skipped"
         }
@@ -108,6 +110,7 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>, options: &LoadOpti
         strict: options.strict,
         problems: ImageProblems::default(),
         texture_problems: HashMap::new(),
+        without_texcoord1: HashMap::new(),
         image_problems: HashMap::new(),
         material_label: String::new(),
         mesh_instances: 0,
@@ -277,6 +280,8 @@ struct LocalPrimitive {
     positions: Vec<Vec3>,
     normals: Option<Vec<Vec3>>,
     uvs: Option<Vec<Vec2>>,
+    /// `TEXCOORD_1`, read only when the primitive's material samples a texture on it.
+    uvs1: Option<Vec<Vec2>>,
     triangles: Vec<[u32; 3]>,
     /// Per corner of `triangles`: the file's `TANGENT`s, else MikkTSpace's; only for a
     /// material with a normal map.
@@ -309,6 +314,8 @@ struct Loader<'a> {
     problems: ImageProblems,
     /// glTF texture / image -> its entry in `problems`.
     texture_problems: HashMap<usize, usize>,
+    /// Material -> its copy without the textures read on `TEXCOORD_1`.
+    without_texcoord1: HashMap<u32, u32>,
     image_problems: HashMap<usize, usize>,
     /// The material being converted, as warnings name it.
     material_label: String,
@@ -332,6 +339,7 @@ impl Loader<'_> {
             };
             return Err(SceneError::NoTriangles(why));
         }
+        self.drop_unused_texcoord1_textures();
         let textures = self.decode_textures()?;
         std::mem::take(&mut self.problems).warn(&mut self.warnings);
         let mut scene = Scene {
@@ -531,10 +539,11 @@ impl Loader<'_> {
                     }),
                     None => [flat; 3],
                 };
-                let uvs = match &prim.uvs {
+                let corner_uvs = |set: &Option<Vec<Vec2>>| match set {
                     Some(uv) => idx.map(|i| uv.get(i as usize).copied().unwrap_or(Vec2::ZERO)),
                     None => [Vec2::ZERO; 3],
                 };
+                let (uvs, uvs1) = (corner_uvs(&prim.uvs), corner_uvs(&prim.uvs1));
                 let mut tangents = match &prim.tangents {
                     Some(ts) => ts.get(t).map_or([Vec4::ZERO; 3], |c| c.map(|c| world_tangent(&linear, c, flip))),
                     None => [Vec4::ZERO; 3],
@@ -542,7 +551,7 @@ impl Loader<'_> {
                 if flip {
                     tangents.swap(1, 2);
                 }
-                self.triangles.push(Triangle { positions, normals, uvs, tangents, material: prim.material });
+                self.triangles.push(Triangle { positions, normals, uvs, uvs1, tangents, material: prim.material });
             }
         }
         Ok(())
@@ -598,6 +607,7 @@ impl Loader<'_> {
         let mut position = None;
         let mut normal = None;
         let mut uv = None;
+        let mut uv1 = None;
         let mut tangent = None;
         for (semantic, accessor) in &prim.attributes {
             match semantic {
@@ -605,6 +615,7 @@ impl Loader<'_> {
                 Checked::Valid(Semantic::Normals) => normal = Some(accessor.value()),
                 Checked::Valid(Semantic::Tangents) => tangent = Some(accessor.value()),
                 Checked::Valid(Semantic::TexCoords(0)) => uv = Some(accessor.value()),
+                Checked::Valid(Semantic::TexCoords(1)) => uv1 = Some(accessor.value()),
                 Checked::Valid(Semantic::Colors(0)) => self
                     .warnings
                     .once("COLOR_0", || "vertex colours (COLOR_0) are not supported: they are ignored".into()),
@@ -633,19 +644,7 @@ impl Loader<'_> {
             }
             None => None,
         };
-        let uvs = match uv {
-            Some(a) => {
-                let t = to_vec2(self.buffers.read_f32(a, 2, &format!("{what} TEXCOORD_0"))?);
-                if t.len() != vertex_count {
-                    return Err(malformed(format!(
-                        "{what}: TEXCOORD_0 has {} elements, POSITION {vertex_count}",
-                        t.len()
-                    )));
-                }
-                Some(t)
-            }
-            None => None,
-        };
+        let uvs = self.texcoords(uv, 0, vertex_count, &what)?;
         let indices = match prim.indices {
             Some(a) => {
                 let indices = self.buffers.read_indices(a.value(), &format!("{what} indices"))?;
@@ -658,9 +657,21 @@ impl Loader<'_> {
         };
         let triangles = assemble(mode, &indices)
             .ok_or_else(|| malformed(format!("{what}: {} indices do not form whole triangles", indices.len())))?;
-        let material = self.material(prim.material.map(|i| i.value()))?;
+        let mut material = self.material(prim.material.map(|i| i.value()))?;
+        let uses_set1 = self.materials.get(material as usize).is_some_and(texture_ref::uses_texcoord1);
+        let uvs1 = match (uses_set1, uv1) {
+            (true, Some(a)) => self.texcoords(Some(a), 1, vertex_count, &what)?,
+            (true, None) => {
+                material = self.material_without_texcoord1(material, &what);
+                None
+            }
+            (false, _) => None,
+        };
         let normal_mapped = self.materials.get(material as usize).is_some_and(|m| m.normal_texture.is_some());
-        let tangents = match (normal_mapped, tangent, &uvs) {
+        // MikkTSpace follows the UV set the normal map is read on.
+        let normal_set = self.materials.get(material as usize).map_or(0, |m| m.texture_uvs[3].texcoord);
+        let map_uvs = if normal_set == 1 { &uvs1 } else { &uvs };
+        let tangents = match (normal_mapped, tangent, map_uvs) {
             (false, _, _) => None,
             (true, Some(a), _) => {
                 let t = self.buffers.read_f32(a, 4, &format!("{what} TANGENT"))?;
@@ -684,7 +695,7 @@ impl Loader<'_> {
                 None
             }
         };
-        Ok(Some(LocalPrimitive { positions, normals, uvs, triangles, tangents, material }))
+        Ok(Some(LocalPrimitive { positions, normals, uvs, uvs1, triangles, tangents, material }))
     }
 
     /// Our index of a glTF material (`None`: the glTF default material).
@@ -729,26 +740,31 @@ impl Loader<'_> {
         if let Some(ext) = &m.extensions {
             warn_extensions(&mut self.warnings, Some(&ext.others));
         }
-        let base_color_texture = self.texture_info(m.pbr_metallic_roughness.base_color_texture.as_ref())?;
-        let emissive_texture =
-            if emission.max_element() > 0.0 { self.texture_info(m.emissive_texture.as_ref())? } else { None };
+        let label = |slot: &str| format!("{what} {slot}");
+        let (base_color_texture, base_uv) =
+            self.texture_info(m.pbr_metallic_roughness.base_color_texture.as_ref(), &label("baseColorTexture"))?;
+        let (emissive_texture, emissive_uv) = if emission.max_element() > 0.0 {
+            self.texture_info(m.emissive_texture.as_ref(), &label("emissiveTexture"))?
+        } else {
+            (None, UvTransform::default())
+        };
         let pbr = &m.pbr_metallic_roughness;
         let (metallic, roughness) = (pbr.metallic_factor.0, pbr.roughness_factor.0);
         if !metallic.is_finite() || !roughness.is_finite() {
             return Err(malformed(format!("{what}: metallicFactor and roughnessFactor must be finite")));
         }
-        let metallic_roughness_texture = self.texture_info(pbr.metallic_roughness_texture.as_ref())?;
-        let (normal_texture, normal_scale) = match &m.normal_texture {
+        let (metallic_roughness_texture, metal_rough_uv) =
+            self.texture_info(pbr.metallic_roughness_texture.as_ref(), &label("metallicRoughnessTexture"))?;
+        let (normal_texture, normal_scale, normal_uv) = match &m.normal_texture {
             Some(n) => {
                 if !n.scale.is_finite() {
                     return Err(malformed(format!("{what}: normalTexture.scale is not finite")));
                 }
-                if let Some(ext) = &n.extensions {
-                    warn_extensions(&mut self.warnings, Some(&ext.others));
-                }
-                (self.texture_on_set(n.index.value(), n.tex_coord)?, n.scale)
+                let others = n.extensions.as_ref().map(|e| &e.others);
+                let (texture, uv) = self.texture_ref(n.index.value(), n.tex_coord, others, &label("normalTexture"))?;
+                (texture, n.scale, uv)
             }
-            None => (None, 1.0),
+            None => (None, 1.0, UvTransform::default()),
         };
         Ok(Material {
             name: m.name.clone().unwrap_or_default(),
@@ -763,28 +779,96 @@ impl Loader<'_> {
             normal_scale,
             alpha,
             alpha_cutoff,
+            texture_uvs: [base_uv, emissive_uv, metal_rough_uv, normal_uv],
         })
     }
 
-    fn texture_info(&mut self, info: Option<&gltf::json::texture::Info>) -> Result<Option<u32>, SceneError> {
+    fn texture_info(
+        &mut self,
+        info: Option<&gltf::json::texture::Info>,
+        what: &str,
+    ) -> Result<(Option<u32>, UvTransform), SceneError> {
         let Some(info) = info else {
-            return Ok(None);
+            return Ok((None, UvTransform::default()));
         };
-        if let Some(ext) = &info.extensions {
-            warn_extensions(&mut self.warnings, Some(&ext.others));
-        }
-        self.texture_on_set(info.index.value(), info.tex_coord)
+        let others = info.extensions.as_ref().map(|e| &e.others);
+        self.texture_ref(info.index.value(), info.tex_coord, others, what)
     }
 
-    /// Texture `index` read on texture coordinate set `set` (only `TEXCOORD_0` is supported).
-    fn texture_on_set(&mut self, index: usize, set: u32) -> Result<Option<u32>, SceneError> {
-        if set != 0 {
+    /// Texture `index` as a textureInfo `what` reads it: on coordinate set `set` unless its
+    /// `KHR_texture_transform` overrides it, transformed by it. Sets beyond `TEXCOORD_1` drop
+    /// the texture (warned); a transform that is not finite refuses the file.
+    fn texture_ref(
+        &mut self,
+        index: usize,
+        set: u32,
+        extensions: Option<&Map<String, Value>>,
+        what: &str,
+    ) -> Result<(Option<u32>, UvTransform), SceneError> {
+        warn_extensions(&mut self.warnings, extensions);
+        let uv = texture_ref::parse_gltf(set, extensions.and_then(|e| e.get("KHR_texture_transform")), what)
+            .map_err(malformed)?;
+        if uv.texcoord >= texture_ref::TEXCOORD_SETS {
+            let set = uv.texcoord;
             self.warnings.once("texture coordinate sets", || {
-                format!("textures on TEXCOORD_{set} are not supported (only TEXCOORD_0): those textures are dropped")
+                format!("textures on TEXCOORD_{set} are not supported (only TEXCOORD_0 and TEXCOORD_1): those textures are dropped ({what})")
             });
-            return Ok(None);
+            return Ok((None, UvTransform::default()));
         }
-        self.texture(index)
+        Ok((self.texture(index)?, uv))
+    }
+
+    /// A primitive's `TEXCOORD_<set>` accessor read and checked against its vertex count.
+    fn texcoords(
+        &mut self,
+        accessor: Option<usize>,
+        set: u32,
+        vertex_count: usize,
+        what: &str,
+    ) -> Result<Option<Vec<Vec2>>, SceneError> {
+        let Some(a) = accessor else { return Ok(None) };
+        let t = to_vec2(self.buffers.read_f32(a, 2, &format!("{what} TEXCOORD_{set}"))?);
+        if t.len() != vertex_count {
+            return Err(malformed(format!("{what}: TEXCOORD_{set} has {} elements, POSITION {vertex_count}", t.len())));
+        }
+        Ok(Some(t))
+    }
+
+    /// A material that was copied without its `TEXCOORD_1` textures and that no triangle uses
+    /// any more loses them too, so that it does not ask for the second UV set for nothing.
+    fn drop_unused_texcoord1_textures(&mut self) {
+        if self.without_texcoord1.is_empty() {
+            return;
+        }
+        let mut used = vec![false; self.materials.len()];
+        for t in &self.triangles {
+            if let Some(u) = used.get_mut(t.material as usize) {
+                *u = true;
+            }
+        }
+        for &m in self.without_texcoord1.keys() {
+            if let Some(material) = self.materials.get_mut(m as usize).filter(|_| !used[m as usize]) {
+                texture_ref::drop_texcoord1_textures(material);
+            }
+        }
+    }
+
+    /// `material` without the textures it reads on `TEXCOORD_1`, for a primitive `what` that
+    /// has no such set (warned; one copy per material).
+    fn material_without_texcoord1(&mut self, material: u32, what: &str) -> u32 {
+        let name = self.materials.get(material as usize).map_or(String::new(), |m| m.name.clone());
+        self.warnings.once(&format!("no TEXCOORD_1 {material}"), || {
+            format!("{what} has no TEXCOORD_1, which material {material} ({name:?}) reads textures on: there they are ignored")
+        });
+        if let Some(&m) = self.without_texcoord1.get(&material) {
+            return m;
+        }
+        let Some(mut copy) = self.materials.get(material as usize).cloned() else { return material };
+        texture_ref::drop_texcoord1_textures(&mut copy);
+        self.materials.push(copy);
+        let id = self.materials.len() as u32 - 1;
+        self.without_texcoord1.insert(material, id);
+        id
     }
 
     fn texture(&mut self, index: usize) -> Result<Option<u32>, SceneError> {

@@ -70,6 +70,7 @@ mod sky;
 pub mod stability;
 mod tangents;
 pub(crate) mod texture;
+pub mod texture_ref;
 mod util;
 
 use std::path::{Path, PathBuf};
@@ -97,6 +98,7 @@ pub use gltf_loader::load_gltf_slice;
 pub use obj_loader::load_obj_slice;
 pub use sky::{load_sky, load_sky_slice, SkyFormat};
 pub use texture::{srgb_to_linear, srgba8_to_linear, TextureTexels};
+pub use texture_ref::UvTransform;
 
 /// Most triangles a loaded scene may have after instancing (each [`Triangle`] is 100 bytes,
 /// so this caps a scene's triangle list at about 1.7 GB).
@@ -146,6 +148,9 @@ pub struct Triangle {
     pub normals: [Vec3; 3],
     /// Texture coordinates (glTF `TEXCOORD_0`; `(0,0)` = top-left of an image), zero when absent.
     pub uvs: [Vec2; 3],
+    /// The second texture coordinate set (glTF `TEXCOORD_1`), zero when absent; only packed
+    /// when some texture reads it ([`UvTransform::texcoord`], `Features::texcoord1`).
+    pub uvs1: [Vec2; 3],
     /// World-space tangents for normal mapping: xyz along +u, w the handedness (±1) of the
     /// bitangent `w * cross(normal, tangent)` (glTF `TANGENT`, else MikkTSpace). Zero when the
     /// triangle's material has no normal map (only such materials need them).
@@ -188,6 +193,9 @@ pub struct Material {
     /// coverage (`alpha` x the base colour texture's alpha) is below it the surface is a hole
     /// for every ray. `None`: opaque (`alphaMode` OPAQUE), alpha ignored.
     pub alpha_cutoff: Option<f32>,
+    /// How each of [`Material::texture_slots`] is read (same order): its texture coordinate
+    /// set and `KHR_texture_transform`. The default reads `TEXCOORD_0` untransformed.
+    pub texture_uvs: [UvTransform; 4],
 }
 
 impl Material {
@@ -206,6 +214,7 @@ impl Material {
             normal_scale: 1.0,
             alpha: 1.0,
             alpha_cutoff: None,
+            texture_uvs: [UvTransform::default(); 4],
         }
     }
 
@@ -654,6 +663,7 @@ impl Scene {
             let finite = t.positions.iter().all(|p| p.is_finite())
                 && t.normals.iter().all(|n| n.is_finite())
                 && t.uvs.iter().all(|uv| uv.is_finite())
+                && t.uvs1.iter().all(|uv| uv.is_finite())
                 && t.tangents.iter().all(|t| t.is_finite());
             if !finite {
                 return bad(format!("triangle {i} has non-finite vertex data"));
@@ -674,6 +684,10 @@ impl Scene {
                 return bad(format!(
                     "material {i} has an alpha outside [0, 1] or an alpha cutoff that is not finite and >= 0"
                 ));
+            }
+            let read = m.texture_slots().into_iter().zip(m.texture_uvs).filter(|(t, _)| t.is_some()).map(|(_, uv)| uv);
+            if let Some(t) = read.into_iter().find(|t| !t.is_finite() || t.texcoord >= texture_ref::TEXCOORD_SETS) {
+                return bad(format!("material {i} reads a texture with {t:?} (not finite, or no such TEXCOORD set)"));
             }
         }
         for (i, t) in self.textures.iter().enumerate() {

@@ -149,7 +149,14 @@ fn load_obj_from(
                 Some(t) => idx.map(|i| t.get(i).copied().unwrap_or(Vec2::ZERO)),
                 None => [Vec2::ZERO; 3],
             };
-            triangles.push(Triangle { positions: p, normals, uvs, tangents: Default::default(), material });
+            triangles.push(Triangle {
+                positions: p,
+                normals,
+                uvs,
+                uvs1: Default::default(),
+                tangents: Default::default(),
+                material,
+            });
         }
     }
     if triangles.is_empty() {

@@ -141,6 +141,7 @@ pub fn degenerate_triangles() -> Scene {
         positions,
         normals: [super::flat_normal(&positions); 3],
         uvs: Default::default(),
+        uvs1: Default::default(),
         tangents: Default::default(),
         material,
     };

@@ -117,6 +117,8 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
         tangent_first: U32,
         normal_map_first: U32,
         alpha_mask_first: U32,
+        texture_ref_first: U32,
+        texcoord1_first: U32,
         camera_position: Vec3,
         camera_right: Vec3,
         camera_up: Vec3,
@@ -144,6 +146,8 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
         has_metal_rough: U32,
         has_normal_map: U32,
         has_alpha_mask: U32,
+        has_texture_transform: U32,
+        has_texcoord1: U32,
     )
 }
 

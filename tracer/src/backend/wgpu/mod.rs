@@ -473,10 +473,10 @@ mod tests {
         let layout = reflect(&generated, &[ACCUMULATION_BUFFER, TARGET_UNIFORM]).unwrap();
         let u = layout.scene_uniform.unwrap();
         let offset = |name: &str| u.members.iter().find(|(n, _)| n == name).map(|(_, o)| *o).expect(name);
-        // Three u32s (the normal-map and alpha-mask offsets) before the camera: the first vec3
-        // rounds up to 16.
+        // Five u32s (the normal-map, alpha-mask and texture-reference offsets) before the camera:
+        // the first vec3 rounds up to 32.
         assert_eq!(offset("normal_map_first") + 4, 8);
-        assert_eq!(offset("camera_position"), 16);
+        assert_eq!(offset("camera_position"), 32);
         assert_eq!(offset("camera_right"), offset("camera_position") + 16);
         assert_eq!(offset("camera_forward"), offset("camera_position") + 48);
         assert_eq!(offset("lens_radius"), offset("camera_forward") + 12);
