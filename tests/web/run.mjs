@@ -4,7 +4,7 @@
 //
 //   node run.mjs SCENARIO --url http://127.0.0.1:PORT/ --out result.json [options]
 //
-// Scenarios: accumulate, cache, camera, slow, drop, limits, context, bench, chart, compile (see each
+// Scenarios: accumulate, cache, camera, slow, drop, limits, context, display, bench, chart, compile (see each
 // function). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
 // long, so that a hung page never hangs the caller. `--exit-on-stdin-eof` (no value): exit 4,
 // closing the browser, when stdin reaches its end: the caller holds the pipe's other end, which
@@ -333,6 +333,43 @@ async function contextLoss(o) {
   }
 }
 
+// The display pass: for each tone curve and exposure (the first given in the URL, the others
+// chosen through the page's controls), the canvas's pixels (top row first, RGBA) and the
+// accumulation they show, for tests/web.rs to compare with the CLI's PNG conversion.
+async function display(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const query = { scene: o.scene, size: o.size, paused: '1', tonemap: 'aces', exposure: '1.5' };
+      const { page, error, consoleErrors } = await open(context, o.url, query);
+      if (error) return { error, consoleErrors };
+      const shots = [];
+      for (const [tonemap, exposure] of [[null, null], ['agx', '-1'], ['none', '0'], ['neutral', '0']]) {
+        if (tonemap) {
+          await page.selectOption('#tonemap', tonemap);
+          await page.$eval('#exposure', (e, v) => { e.value = v; e.dispatchEvent(new Event('input')); }, exposure);
+        }
+        // Drawn and copied in one task: the WebGL drawing buffer is intact until it is composited.
+        shots.push(await page.evaluate(() => {
+          window.lightport.renderFrames(2);
+          const view = document.querySelector('#view');
+          const copy = document.createElement('canvas');
+          copy.width = view.width;
+          copy.height = view.height;
+          const context2d = copy.getContext('2d');
+          context2d.drawImage(view, 0, 0);
+          const pixels = Array.from(context2d.getImageData(0, 0, view.width, view.height).data);
+          const info = window.lightport.info();
+          return { toneMap: info.toneMap, exposure: info.exposure, pixels, accumulation: window.lightport.readAccumulation() };
+        }));
+      }
+      return { shots, consoleErrors, error: await page.evaluate(() => window.lightport.error) };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
 // Frame time at a fixed size, and navigation-to-first-frame with a cold and a warm cache.
 async function bench(o) {
   const results = [];
@@ -469,7 +506,7 @@ async function compile(o) {
   }
 }
 
-const SCENARIOS = { accumulate, cache, camera, slow, drop, limits, context: contextLoss, bench, chart, compile };
+const SCENARIOS = { accumulate, cache, camera, slow, drop, limits, context: contextLoss, display, bench, chart, compile };
 
 const options = parseArgs(process.argv.slice(2));
 const run = SCENARIOS[options.scenario];

@@ -4,18 +4,20 @@
 //! shader, the data textures and the accumulation are the native code.
 //!
 //! Each frame adds one sample per pixel to the RGBA32F accumulation, then a small display pass
-//! draws its mean to the canvas, clamped and sRGB-encoded (the CLI's PNG tone map). The frame
+//! draws its mean to the canvas through the kernel's display transform (tone curve, exposure,
+//! sRGB: [`GlDisplay`], what the CLI's PNG output stores with the same settings). The frame
 //! loop calls [`Viewer::step`], which submits a frame in bands of rows of at most a time budget
 //! (50 ms by default; `tracer::backend::frame_split`), one band at a time, so that input is
 //! handled, and a camera move restarts the accumulation, between bands, also on a GPU that
 //! needs seconds per frame.
 
-use std::fmt::Display;
+use std::fmt;
 
 use glow::HasContext;
 use js_sys::{Float32Array, Object, Reflect};
 use tracer::backend::frame_split::{Pacer, Step, DEFAULT_BUDGET_MS};
-use tracer::backend::gl::{GlOptions, GlRenderer};
+use tracer::backend::gl::{GlDisplay, GlOptions, GlRenderer};
+use tracer::output::{Display, ToneMap};
 use tracer::pack::{Packed, RenderSettings, Strategy};
 use wasm_bindgen::prelude::*;
 use wasm_bindgen::JsCast;
@@ -24,27 +26,7 @@ use web_sys::{HtmlCanvasElement, WebGl2RenderingContext, WebGlContextAttributes}
 use crate::camera::OrbitCamera;
 use crate::files::{self, DroppedFile};
 
-/// The display pass: the accumulation's mean, clamped to [0, 1] and sRGB-encoded, as
-/// `tracer::output::to_srgb8` does for PNG (non-finite values show black). Accumulation row y is
-/// image row y from the top; the canvas's gl_FragCoord.y counts from the bottom.
-const DISPLAY_FRAGMENT_SHADER: &str = r#"#version 300 es
-precision highp float;
-precision highp int;
-uniform highp sampler2D lp_display_accumulation;
-uniform float lp_display_inverse_frames;
-out vec4 lp_display_color;
-void main() {
-    ivec2 size = textureSize(lp_display_accumulation, 0);
-    ivec2 p = ivec2(gl_FragCoord.xy);
-    vec3 c = texelFetch(lp_display_accumulation, ivec2(p.x, size.y - 1 - p.y), 0).rgb * lp_display_inverse_frames;
-    bvec3 finite = lessThanEqual(abs(c), vec3(3.0e38));
-    c = clamp(mix(vec3(0.0), c, vec3(finite)), 0.0, 1.0);
-    vec3 srgb = mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, vec3(greaterThan(c, vec3(0.0031308))));
-    lp_display_color = vec4(srgb, 1.0);
-}
-"#;
-
-fn js_error(e: impl Display) -> JsError {
+fn js_error(e: impl fmt::Display) -> JsError {
     JsError::new(&e.to_string())
 }
 
@@ -53,101 +35,19 @@ fn set(object: &Object, key: &str, value: impl Into<JsValue>) {
     let _ = Reflect::set(object, &JsValue::from_str(key), &value.into());
 }
 
-/// The display program and its uniforms, on the renderer's context.
-struct DisplayPass {
-    program: glow::Program,
-    vertex_array: glow::VertexArray,
-    accumulation: Option<glow::UniformLocation>,
-    inverse_frames: Option<glow::UniformLocation>,
-}
-
-impl DisplayPass {
-    fn new(gl: &glow::Context) -> Result<Self, String> {
-        // SAFETY: shader and program creation on the current WebGL2 context; shaders are
-        // deleted after linking, the program on failure.
-        unsafe {
-            let program = gl.create_program()?;
-            let mut shaders = Vec::new();
-            for (stage, source) in [
-                (glow::VERTEX_SHADER, lightport_codegen::fullscreen_vertex_shader()),
-                (glow::FRAGMENT_SHADER, DISPLAY_FRAGMENT_SHADER),
-            ] {
-                let shader = gl.create_shader(stage)?;
-                gl.shader_source(shader, source);
-                gl.compile_shader(shader);
-                if !gl.get_shader_compile_status(shader) {
-                    let log = gl.get_shader_info_log(shader);
-                    gl.delete_shader(shader);
-                    gl.delete_program(program);
-                    return Err(format!("the display shader does not compile: {log}"));
-                }
-                gl.attach_shader(program, shader);
-                shaders.push(shader);
-            }
-            gl.link_program(program);
-            for shader in shaders {
-                gl.detach_shader(program, shader);
-                gl.delete_shader(shader);
-            }
-            if !gl.get_program_link_status(program) {
-                let log = gl.get_program_info_log(program);
-                gl.delete_program(program);
-                return Err(format!("the display program does not link: {log}"));
-            }
-            let vertex_array = gl.create_vertex_array()?;
-            Ok(DisplayPass {
-                accumulation: gl.get_uniform_location(program, "lp_display_accumulation"),
-                inverse_frames: gl.get_uniform_location(program, "lp_display_inverse_frames"),
-                program,
-                vertex_array,
-            })
-        }
-    }
-
-    fn draw(&self, renderer: &GlRenderer, width: i32, height: i32) {
-        let gl = renderer.gl();
-        // SAFETY: draws with objects of this context into the default framebuffer (the canvas);
-        // the accumulation texture is only read.
-        unsafe {
-            gl.bind_framebuffer(glow::FRAMEBUFFER, None);
-            gl.viewport(0, 0, width, height);
-            gl.use_program(Some(self.program));
-            gl.active_texture(glow::TEXTURE0);
-            // The first frame after a restart, band by band; then the running mean.
-            let texture = renderer.first_frame_in_progress().unwrap_or(renderer.accumulation_texture());
-            gl.bind_texture(glow::TEXTURE_2D, Some(texture));
-            gl.uniform_1_i32(self.accumulation.as_ref(), 0);
-            gl.uniform_1_f32(self.inverse_frames.as_ref(), 1.0 / renderer.frames().max(1) as f32);
-            gl.bind_vertex_array(Some(self.vertex_array));
-            gl.draw_arrays(glow::TRIANGLES, 0, 3);
-            gl.bind_vertex_array(None);
-            gl.bind_texture(glow::TEXTURE_2D, None);
-            gl.use_program(None);
-        }
-    }
-
-    fn delete(self, gl: &glow::Context) {
-        // SAFETY: both objects were created on `gl` and are deleted once (self is consumed).
-        unsafe {
-            gl.delete_program(self.program);
-            gl.delete_vertex_array(self.vertex_array);
-        }
-    }
-}
-
 /// The renderer and its display pass, on one context.
 struct Running {
     renderer: GlRenderer,
     /// Always `Some` until dropped (taken to delete it before the renderer's context goes).
-    display: Option<DisplayPass>,
+    display: Option<GlDisplay>,
     /// Bands of the frame loop (`step`), one on the GPU at a time.
     pacer: Pacer,
 }
 
 impl Running {
-    fn draw(&self, width: i32, height: i32) {
+    fn draw(&self, width: i32, height: i32, settings: &Display) {
         if let Some(display) = &self.display {
-            display.draw(&self.renderer, width, height);
+            display.draw(&self.renderer, None, [width, height], settings);
         }
     }
 }
@@ -187,6 +87,9 @@ pub struct Viewer {
     /// The longest one band of a frame should take on the GPU (`setBandBudget`); `None`:
     /// frames are not split.
     band_budget_ms: Option<f64>,
+    /// How the accumulation is shown and screenshot: tone curve and exposure (`setToneMap`,
+    /// `setExposure`), the CLI's `--tonemap` and `--exposure`.
+    display: Display,
 }
 
 #[wasm_bindgen]
@@ -225,6 +128,7 @@ impl Viewer {
             dropped: Vec::new(),
             seed: 1,
             band_budget_ms: Some(DEFAULT_BUDGET_MS),
+            display: Display::default(),
         })
     }
 
@@ -284,7 +188,7 @@ impl Viewer {
         self.canvas.set_height(packed.scene.height);
         let gl = glow::Context::from_webgl2_context(self.context.clone());
         let renderer = GlRenderer::with_options(gl, packed.clone(), self.seed, &self.options).map_err(js_error)?;
-        let display = DisplayPass::new(renderer.gl()).map_err(|e| JsError::new(&e))?;
+        let display = GlDisplay::new(renderer.gl()).map_err(js_error)?;
         let pacer = Pacer::new(packed.scene.height, self.band_budget_ms);
         Ok(Running { renderer, display: Some(display), pacer })
     }
@@ -300,7 +204,7 @@ impl Viewer {
         // The band in flight would be timed with this whole frame.
         running.pacer.forget(running.renderer.gl());
         running.renderer.render_frame().map_err(js_error)?;
-        running.draw(self.canvas.width() as i32, self.canvas.height() as i32);
+        running.draw(self.canvas.width() as i32, self.canvas.height() as i32, &self.display);
         Ok(())
     }
 
@@ -317,12 +221,13 @@ impl Viewer {
         let Some(running) = &mut self.running else { return Ok(0) };
         let (w, h) = (self.canvas.width() as i32, self.canvas.height() as i32);
         let display = running.display.as_ref();
+        let settings = &self.display;
         let step = running
             .pacer
             .step(&mut running.renderer, now_ms, |renderer, frame_done| {
                 // Each band of the first frame after a restart shows; later, each whole frame.
                 if let (true, Some(display)) = (frame_done || renderer.frames() == 0, display) {
-                    display.draw(renderer, w, h);
+                    display.draw(renderer, None, [w, h], settings);
                 }
             })
             .map_err(js_error)?;
@@ -376,6 +281,8 @@ impl Viewer {
         set(&info, "maxDepth", self.settings.max_depth);
         set(&info, "spp", self.spp());
         set(&info, "contextLost", self.context_lost);
+        set(&info, "toneMap", self.display.tone_map.name());
+        set(&info, "exposure", self.display.exposure);
         if let Some(loaded) = &self.loaded {
             let f = &loaded.packed.features;
             set(&info, "name", loaded.name.as_str());
@@ -389,6 +296,7 @@ impl Viewer {
                 ("pointLights", f.point_lights),
                 ("emissiveTriangles", f.emissive_triangles),
                 ("metalRough", f.metal_rough),
+                ("normalMap", f.normal_map),
             ] {
                 set(&features, name, on);
             }
@@ -559,12 +467,46 @@ impl Viewer {
         Ok(Float32Array::from(floats.as_slice()))
     }
 
-    /// The current image as PNG bytes, tone-mapped like the CLI's PNG output.
+    /// The tone curve of the display and of screenshots by name (`neutral`, the default, `aces`,
+    /// `agx` or `none`, as the CLI's `--tonemap`): the image is redrawn, the accumulation goes on.
+    #[wasm_bindgen(js_name = setToneMap)]
+    pub fn set_tone_map(&mut self, name: &str) -> Result<(), JsError> {
+        let names: Vec<&str> = ToneMap::ALL.iter().map(|t| t.name()).collect();
+        self.display.tone_map = ToneMap::from_name(name)
+            .ok_or_else(|| JsError::new(&format!("unknown tone map {name:?}: one of {}", names.join(", "))))?;
+        self.redraw();
+        Ok(())
+    }
+
+    /// The display's exposure in stops (radiance scaled by 2^EV before the tone curve, as the
+    /// CLI's `--exposure`), within ±20 EV.
+    #[wasm_bindgen(js_name = setExposure)]
+    pub fn set_exposure(&mut self, stops: f32) -> Result<(), JsError> {
+        if !(stops.is_finite() && stops.abs() <= 20.0) {
+            return Err(JsError::new(&format!("exposure {stops} EV is out of range: give -20 to 20 stops")));
+        }
+        self.display.exposure = stops;
+        self.redraw();
+        Ok(())
+    }
+
+    /// Draws the image again (a display setting changed; no sample is added).
+    fn redraw(&self) {
+        if self.context_lost || self.context.is_context_lost() {
+            return;
+        }
+        if let Some(running) = &self.running {
+            running.draw(self.canvas.width() as i32, self.canvas.height() as i32, &self.display);
+        }
+    }
+
+    /// The current image as PNG bytes, through the display's tone curve and exposure (as the
+    /// CLI's PNG output with the same `--tonemap` and `--exposure`).
     #[wasm_bindgen(js_name = screenshotPng)]
     pub fn screenshot_png(&self) -> Result<Vec<u8>, JsError> {
         let running = self.running.as_ref().ok_or_else(|| JsError::new("no scene is loaded"))?;
         let image = running.renderer.image().map_err(js_error)?;
-        let pixels = tracer::output::to_srgb8(&image);
+        let pixels = tracer::output::to_display_srgb8(&image, &self.display);
         let mut png = Vec::new();
         let encoder = image::codecs::png::PngEncoder::new(&mut png);
         image::ImageEncoder::write_image(encoder, &pixels, image.width, image.height, image::ExtendedColorType::Rgb8)
