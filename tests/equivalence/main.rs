@@ -9,9 +9,9 @@
 //! `tests/web/node_modules` or the wasm build `web/pkg/` fails every test here with the reason.
 //! Run with `--nocapture` to see each function's comparison (invocations, max ULP, mismatches).
 
+mod browser;
 #[path = "../common/mod.rs"]
 mod common;
-mod browser;
 mod hazards;
 mod intersection;
 mod kernels;
@@ -65,9 +65,12 @@ where
 
 fn report<O>(outcome: &Outcome<O>) {
     for c in &outcome.comparisons {
+        let seconds = outcome.seconds.iter().find(|(b, _)| *b == c.backend).map_or(f64::NAN, |(_, s)| *s);
         println!(
-            "{:<28} {:>9} invocations  max {:>6} ULP  max abs {:>8.1e}  {:>7} inexact floats  {} mismatches ({})",
+            "{:<28} {:<6} {:>7.3} s {:>9} invocations  max {:>6} ULP  max abs {:>8.1e}  {:>7} inexact floats  {} mismatches ({})",
             outcome.function,
+            c.backend,
+            seconds,
             c.invocations,
             c.max_ulps,
             c.max_abs,

@@ -92,7 +92,9 @@ impl HarnessRuntime {
         let info = {
             use glow::HasContext;
             // SAFETY: plain string queries on the context just created.
-            unsafe { format!("{} ({})", gl.get_parameter_string(glow::RENDERER), gl.get_parameter_string(glow::VERSION)) }
+            unsafe {
+                format!("{} ({})", gl.get_parameter_string(glow::RENDERER), gl.get_parameter_string(glow::VERSION))
+            }
         };
         let harness = GlHarness::new(gl, link(modules_json)?, GlHarnessOptions::default()).map_err(js_error)?;
         Ok(HarnessRuntime { harness: Rc::new(RefCell::new(Some(Harness::Gl(harness)))), info })

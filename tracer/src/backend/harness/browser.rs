@@ -126,7 +126,10 @@ impl BrowserSession {
     pub fn start(options: &BrowserOptions) -> Result<BrowserSession, String> {
         let web_tests = options.root.join("tests/web");
         let missing = [
-            (web_tests.join("node_modules/playwright-core"), "tests/web/node_modules is missing: run `npm ci` in tests/web"),
+            (
+                web_tests.join("node_modules/playwright-core"),
+                "tests/web/node_modules is missing: run `npm ci` in tests/web",
+            ),
             (options.root.join("web/pkg/lightport_web_bg.wasm"), "web/pkg/ is missing: run scripts/build-web.sh"),
             (options.chromium.clone(), "Chromium is missing: apt-get install chromium"),
         ];

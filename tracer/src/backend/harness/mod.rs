@@ -37,10 +37,10 @@ use std::time::Instant;
 use lightport_codegen::{Program, Selection, Target};
 use rayon::prelude::*;
 
-pub use compare::{compare_words, ulp_distance, Comparison, Mismatch, Tolerance};
-pub use gl::{GlHarness, GlHarnessOptions, GlLimits, ARGS_UNIFORM};
 #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
 pub use browser::{BrowserOptions, BrowserRuntime, BrowserSession, Corruption};
+pub use compare::{compare_words, ulp_distance, Comparison, Mismatch, Tolerance};
+pub use gl::{GlHarness, GlHarnessOptions, GlLimits, ARGS_UNIFORM};
 pub use scene_words::{decode_scene, encode_scene};
 #[cfg(feature = "wgpu")]
 pub use wgpu::WgpuHarness;
@@ -300,8 +300,10 @@ impl Equivalence {
     fn runtimes(&mut self) -> impl Iterator<Item = &mut dyn Runtime> {
         let gl = self.gl.as_mut().map(|r| r as &mut dyn Runtime);
         #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
-        let (wgpu, browsers) =
-            (self.wgpu.as_mut().map(|r| r as &mut dyn Runtime), self.browsers.iter_mut().map(|r| r as &mut dyn Runtime));
+        let (wgpu, browsers) = (
+            self.wgpu.as_mut().map(|r| r as &mut dyn Runtime),
+            self.browsers.iter_mut().map(|r| r as &mut dyn Runtime),
+        );
         #[cfg(not(all(feature = "wgpu", not(target_arch = "wasm32"))))]
         let (wgpu, browsers) = (None, std::iter::empty());
         gl.into_iter().chain(wgpu).chain(browsers)

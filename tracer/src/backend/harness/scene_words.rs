@@ -75,7 +75,9 @@ impl SceneField for Texels<Vec4> {
     }
     fn get(words: &mut Reader<'_>, field: &str) -> Result<Self, String> {
         let w = words.take_texels(field)?;
-        Ok(Texels::new(w.chunks_exact(4).map(|c| Vec4::from_array([0, 1, 2, 3].map(|k| f32::from_bits(c[k])))).collect()))
+        Ok(Texels::new(
+            w.chunks_exact(4).map(|c| Vec4::from_array([0, 1, 2, 3].map(|k| f32::from_bits(c[k])))).collect(),
+        ))
     }
 }
 
