@@ -18,8 +18,8 @@ use wasm_bindgen::JsCast;
 use web_sys::{HtmlCanvasElement, WebGl2RenderingContext};
 
 enum Harness {
-    Gl(GlHarness),
-    Wgpu(WgpuHarness),
+    Gl(Box<GlHarness>),
+    Wgpu(Box<WgpuHarness>),
 }
 
 thread_local! {
@@ -97,7 +97,7 @@ impl HarnessRuntime {
             }
         };
         let harness = GlHarness::new(gl, link(modules_json)?, GlHarnessOptions::default()).map_err(js_error)?;
-        Ok(HarnessRuntime { harness: Rc::new(RefCell::new(Some(Harness::Gl(harness)))), info })
+        Ok(HarnessRuntime { harness: Rc::new(RefCell::new(Some(Harness::Gl(Box::new(harness))))), info })
     }
 
     /// The wgpu harness on the page's WebGPU device.
@@ -112,7 +112,7 @@ impl HarnessRuntime {
             limits: device.limits.clone(),
         };
         let harness = WgpuHarness::new(shared, program);
-        Ok(HarnessRuntime { harness: Rc::new(RefCell::new(Some(Harness::Wgpu(harness)))), info })
+        Ok(HarnessRuntime { harness: Rc::new(RefCell::new(Some(Harness::Wgpu(Box::new(harness))))), info })
     }
 
     /// The renderer (WebGL2) or adapter (WebGPU) it runs on.
