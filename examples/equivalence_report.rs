@@ -1,5 +1,5 @@
-//! A table of equivalence per kernel function, one column group per runtime (GL, wgpu) against
-//! the CPU: the largest ULP and absolute differences, invocations out of the stated tolerance,
+//! A table of equivalence per kernel function, one column group per runtime (GL, wgpu, and in
+//! headless Chromium WebGL2 and WebGPU) against the CPU: the largest ULP and absolute differences, invocations out of the stated tolerance,
 //! and the time each runtime took (same run; the GPU runtimes include upload and readback).
 //!
 //! `cargo run --release --example equivalence_report [RAYS]` (RAYS: LittlestTokyo traversal
@@ -57,17 +57,24 @@ fn row<O>(outcome: &Outcome<O>) {
 fn main() -> Result<()> {
     let rays: usize =
         std::env::args().nth(1).map(|a| a.parse()).transpose().context("RAYS must be a number")?.unwrap_or(100_000);
-    let mut eq = Equivalence::new(&[Backend::Cpu, Backend::Gl, Backend::Wgpu], &[])
-        .context("creating the CPU, GL and wgpu runtimes")?;
+    let backends = [Backend::Cpu, Backend::Gl, Backend::Wgpu, Backend::WebGl2, Backend::WebGpu];
+    let mut eq = Equivalence::new(&backends, &[]).context(
+        "creating the CPU, GL, wgpu, WebGL2 and WebGPU runtimes (the browser ones need Chromium, \
+         `npm ci` in tests/web and scripts/build-web.sh)",
+    )?;
     let info = eq.gl().map(|g| g.limits()).context("the GL runtime")?;
     println!("GL limits: {info:?}");
     let adapter = eq.wgpu().map(|w| w.device().info.clone()).context("the wgpu runtime")?;
     println!("wgpu: {} ({}, {})", adapter.adapter, adapter.driver, adapter.backend);
-    println!(
-        "| function | invocations | CPU s | GL max ULP | GL max abs | GL beyond | GL s \
-         | wgpu max ULP | wgpu max abs | wgpu beyond | wgpu s | tolerance |"
-    );
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|");
+    for backend in [Backend::WebGl2, Backend::WebGpu] {
+        println!("{backend}: {}", eq.browser(backend).map(|b| b.info().to_string()).context("a browser runtime")?);
+    }
+    let mut header = "| function | invocations | CPU s |".to_string();
+    for backend in Backend::GPU {
+        header.push_str(&format!(" {backend} max ULP | {backend} max abs | {backend} beyond | {backend} s |"));
+    }
+    println!("{header} tolerance |");
+    println!("|---|---:|---:|{}---|", "---:|".repeat(4 * Backend::GPU.len()));
     let mut r = Inputs(0x1234_5678_9abc_def1);
 
     let seeds: Vec<(u32,)> = (0..1u32 << 20).map(|_| (r.u32(),)).collect();

@@ -60,6 +60,8 @@ pub(crate) enum Helper {
     },
     FetchVec4,
     FetchUVec4,
+    /// WGSL: `bitcast<f32>` of a constant behind a function call (see `float_from_bits`).
+    FloatFromBits,
 }
 
 /// Helpers a language asks for while writing an expression.
@@ -224,6 +226,10 @@ pub(crate) trait Language {
     /// The amount of a shift by a literal (`rhs_ty` its type in Rust).
     fn shift_amount(&self, amount: Text, rhs_ty: &Ty) -> Text;
     fn bitcast(&self, b: Bitcast) -> &'static str;
+    /// NaN or an infinity from its bits, as an expression (no language has a literal for them).
+    fn float_from_bits(&self, bits: u32, _helpers: &mut Helpers) -> String {
+        format!("{}({bits:#010x}u)", self.bitcast(Bitcast::U32ToF32))
+    }
     /// `*p` of a `&mut` parameter.
     fn deref(&self, pointer: Text) -> Text;
     /// `&mut place` passed to a `&mut` parameter.

@@ -1,14 +1,16 @@
 //! Function-level equivalence: kernel functions run on the CPU (the kernel compiled as Rust),
-//! on GL (the generated GLSL ES 3.00 through codegen's harness; Mesa llvmpipe in CI) and on
-//! wgpu (the generated WGSL as a compute shader; Mesa lavapipe in CI) on the same inputs,
-//! compared word by word under the tolerance each test states. Every check of a GPU answer
-//! runs for each GPU runtime (`Backend::GPU`).
+//! on GL (the generated GLSL ES 3.00 through codegen's harness; Mesa llvmpipe in CI), on
+//! wgpu (the generated WGSL as a compute shader; Mesa lavapipe in CI), and in headless
+//! Chromium on WebGL2 and WebGPU (the same two harnesses compiled to wasm, on SwiftShader; one
+//! browser for the whole binary) on the same inputs, compared word by word under the tolerance
+//! each test states. Every check of a GPU answer runs for each GPU runtime (`Backend::GPU`).
 //!
-//! Never skipped: a machine without a usable GL or Vulkan driver fails every test here with
-//! the reason.
+//! Never skipped: a machine without a usable GL or Vulkan driver, Chromium, node's
+//! `tests/web/node_modules` or the wasm build `web/pkg/` fails every test here with the reason.
 //! Run with `--nocapture` to see each function's comparison (invocations, max ULP, mismatches).
 
 mod alpha_mask;
+mod browser;
 #[path = "../common/mod.rs"]
 mod common;
 mod hazards;
@@ -32,13 +34,15 @@ fn shared(path: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared").join(path)
 }
 
-/// CPU, GL and wgpu, with the hazards module linked in. Fails (never skips) without a usable
-/// GL or Vulkan driver.
+/// CPU, GL, wgpu, WebGL2 and WebGPU, with the hazards module linked in. Fails (never skips)
+/// without a usable GL or Vulkan driver or browser.
 fn equivalence() -> Equivalence {
-    Equivalence::new(&[Backend::Cpu, Backend::Gl, Backend::Wgpu], &[hazards::kernel::kernel_ir()]).unwrap_or_else(|e| {
+    let backends = [Backend::Cpu, Backend::Gl, Backend::Wgpu, Backend::WebGl2, Backend::WebGpu];
+    Equivalence::new(&backends, &[hazards::kernel::kernel_ir()]).unwrap_or_else(|e| {
         panic!(
-            "the GL and wgpu runtimes must run here (install Mesa's EGL/GLES drivers and Vulkan: \
-             libegl1 libegl-mesa0 libgles2 libgl1-mesa-dri mesa-vulkan-drivers libvulkan1): {e}"
+            "every runtime must run here (install Mesa's EGL/GLES drivers and Vulkan: \
+             libegl1 libegl-mesa0 libgles2 libgl1-mesa-dri mesa-vulkan-drivers libvulkan1; \
+             the browser: apt-get install chromium nodejs npm, `npm ci` in tests/web, scripts/build-web.sh): {e}"
         )
     })
 }
@@ -63,9 +67,12 @@ where
 
 fn report<O>(outcome: &Outcome<O>) {
     for c in &outcome.comparisons {
+        let seconds = outcome.seconds.iter().find(|(b, _)| *b == c.backend).map_or(f64::NAN, |(_, s)| *s);
         println!(
-            "{:<28} {:>9} invocations  max {:>6} ULP  max abs {:>8.1e}  {:>7} inexact floats  {} mismatches ({})",
+            "{:<28} {:<6} {:>7.3} s {:>9} invocations  max {:>6} ULP  max abs {:>8.1e}  {:>7} inexact floats  {} mismatches ({})",
             outcome.function,
+            c.backend,
+            seconds,
             c.invocations,
             c.max_ulps,
             c.max_abs,

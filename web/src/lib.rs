@@ -9,4 +9,6 @@
 pub mod camera;
 pub mod files;
 #[cfg(target_arch = "wasm32")]
+pub mod harness;
+#[cfg(target_arch = "wasm32")]
 pub mod viewer;

@@ -26,6 +26,8 @@ pub(super) fn text(h: &Helper) -> String {
             format!("{scalar} lp_{name}_{suffix}({ty} v) {{\n    return {expr};\n}}\n")
         }
         Helper::FetchVec4 => "// Texel `i` of a row-major RGBA32F data texture.\nvec4 lp_fetch_vec4(highp sampler2D t, uint i) {\n    uint w = uint(textureSize(t, 0).x);\n    return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);\n}\n".into(),
+        // GLSL builds NaN and infinities with uintBitsToFloat in place.
+        Helper::FloatFromBits => unreachable!("GLSL never asks for {h:?}"),
         Helper::FetchUVec4 => "// Texel `i` of a row-major RGBA32UI data texture.\nuvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {\n    uint w = uint(textureSize(t, 0).x);\n    return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);\n}\n".into(),
     }
 }

@@ -246,9 +246,9 @@ impl<'a> Lowerer<'a> {
     }
 
     /// NaN and infinities have no literal in some languages, and others reject them in
-    /// constant expressions: build them from bits.
-    fn bits_to_float(&self, bits: u32) -> String {
-        format!("{}({bits:#010x}u)", self.lang.bitcast(Bitcast::U32ToF32))
+    /// constant expressions: build them from bits (see [`Language::float_from_bits`]).
+    fn bits_to_float(&mut self, bits: u32) -> String {
+        self.lang.float_from_bits(bits, &mut self.helpers)
     }
 
     fn path(&mut self, e: &Expr, path: &[String]) -> R<Text> {

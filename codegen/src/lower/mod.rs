@@ -189,9 +189,16 @@ fn strip_parens(e: &Expr) -> &Expr {
     }
 }
 
-/// A float literal that reads back as the same f32 (always with a `.` or an exponent).
+/// A float literal that reads back as the same f32 (always with a `.` or an exponent). The
+/// shortest decimal of `f32::MAX` (`3.4028235e38`) is above `f32::MAX` as a real number, which
+/// WGSL rejects (an abstract float outside f32's finite range: Chromium's Tint refuses it, naga
+/// accepts it): such values are written as their exact value (`3.4028234663852886e38`).
 pub(crate) fn float_lit(v: f32) -> String {
-    let s = format!("{v:?}");
+    let shortest = format!("{v:?}");
+    let s = match shortest.parse::<f64>() {
+        Ok(x) if x.is_finite() && x.abs() > f64::from(f32::MAX) => format!("{:e}", f64::from(v)),
+        _ => shortest,
+    };
     if s.contains('.') || s.contains('e') || s.contains("inf") || s.contains("NaN") {
         s
     } else {

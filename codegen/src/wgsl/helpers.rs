@@ -15,6 +15,7 @@ pub(super) fn text(h: &Helper) -> String {
         Helper::DivI32 | Helper::RemI32 | Helper::FmodF32 | Helper::FetchVec4 | Helper::FetchUVec4 => {
             unreachable!("WGSL never asks for {h:?}")
         }
+        Helper::FloatFromBits => "// NaN and infinities at run time: a WGSL constant expression may not produce them.\nfn lp_f32_from_bits(bits: u32) -> f32 {\n    return bitcast<f32>(bits);\n}\n".into(),
         Helper::IsNan => "// From the bits: drivers may fold NaN checks away under fast-math.\nfn lp_is_nan(x: f32) -> bool {\n    return (bitcast<u32>(x) & 0x7fffffffu) > 0x7f800000u;\n}\n".into(),
         Helper::IsInfinite => "fn lp_is_infinite(x: f32) -> bool {\n    return (bitcast<u32>(x) & 0x7fffffffu) == 0x7f800000u;\n}\n".into(),
         Helper::IsFinite => "fn lp_is_finite(x: f32) -> bool {\n    return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;\n}\n".into(),

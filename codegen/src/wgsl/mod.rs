@@ -137,6 +137,14 @@ impl Language for Wgsl {
         }
     }
 
+    /// Through a function: a WGSL const-expression may not produce NaN or an infinity
+    /// (Chromium's Tint rejects `bitcast<f32>(0x7fc00000u)`; naga accepts it), a call of a
+    /// user function is never one.
+    fn float_from_bits(&self, bits: u32, helpers: &mut Helpers) -> String {
+        helpers.insert(Helper::FloatFromBits);
+        format!("lp_f32_from_bits({bits:#010x}u)")
+    }
+
     fn deref(&self, pointer: Text) -> Text {
         (format!("*{}", prec::wrap(pointer, prec::ATOM)), prec::UNARY)
     }

@@ -4,7 +4,7 @@ pub mod camera {
 
     use glam::{Vec2, Vec3};
 
-    use crate::kernel::sampling::PI;
+    use crate::kernel::sampling::cos_sin_turns;
     use crate::kernel::scene_data::Scene;
 
     #[derive(Clone, Copy, Debug, PartialEq)]
@@ -15,9 +15,11 @@ pub mod camera {
 
     /// A uniform point on the unit disk (polar mapping).
     pub fn sample_disk(u1: f32, u2: f32) -> Vec2 {
+        // cos_sin_turns, not the trig builtins: SwiftShader's sin/cos are 1.9e-4 off (found by
+        // the browser runtimes of the equivalence harness; docs/dsl.md).
         let r = u1.sqrt();
-        let phi = 2.0 * PI * u2;
-        Vec2::new(r * phi.cos(), r * phi.sin())
+        let cs = cos_sin_turns(u2);
+        Vec2::new(r * cs.x, r * cs.y)
     }
 
     /// The ray through film position `film` (pixel units, origin at the top-left corner) with

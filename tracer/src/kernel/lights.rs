@@ -7,8 +7,8 @@ pub mod lights {
     use crate::kernel::intersect::MISS;
     use crate::kernel::sampling::{uniform_sample_triangle, INV_PI, PI};
     use crate::kernel::scene_data::{
-        fetch_material, fetch_triangle, index_of, is_hole, sample_texture, Scene, LIGHT_POINT, LIGHT_SKY,
-        LIGHT_TEXELS, LIGHT_TRIANGLE, NONE,
+        fetch_material, fetch_triangle, index_of, is_hole, sample_texture, Scene, LIGHT_POINT, LIGHT_SKY, LIGHT_TEXELS,
+        LIGHT_TRIANGLE, NONE,
     };
     use crate::kernel::texture_ref::texture_uv;
 

@@ -1,5 +1,5 @@
 //! The function-level equivalence harness: any kernel function run on the CPU and on every GPU
-//! runtime (GL, wgpu) on the same inputs, outputs compared word by word under a stated
+//! runtime (GL, wgpu, and in headless Chromium WebGL2 and WebGPU) on the same inputs, outputs compared word by word under a stated
 //! [`Tolerance`].
 //!
 //! A test states its inputs once ([`Equivalence::run`]): a slice of argument tuples and the
@@ -17,12 +17,16 @@
 //!
 //! The runtimes stand side by side with one shape ([`Runtime`]): `set_scene`,
 //! `set_specialization`, `layout`, `run_words`. [`GlHarness`] only needs a [`glow::Context`]
-//! and [`WgpuHarness`] a device and queue, so WebGL2 and WebGPU can reuse them (only context
-//! or device creation differs).
+//! and [`WgpuHarness`] a device and queue, so WebGL2 and WebGPU reuse them: the browser
+//! runtimes ([`browser`], native only) are the same two harnesses compiled to wasm and run in a
+//! page of headless Chromium (`web/src/harness.rs`), driven over a pipe.
 
+#[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
+pub mod browser;
 mod compare;
 pub mod gl;
-#[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
+mod scene_words;
+#[cfg(feature = "wgpu")]
 pub mod wgpu;
 mod words;
 
@@ -33,9 +37,12 @@ use std::time::Instant;
 use lightport_codegen::{Program, Selection, Target};
 use rayon::prelude::*;
 
+#[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
+pub use browser::{BrowserOptions, BrowserRuntime, BrowserSession, Corruption};
 pub use compare::{compare_words, ulp_distance, Comparison, Mismatch, Tolerance};
 pub use gl::{GlHarness, GlHarnessOptions, GlLimits, ARGS_UNIFORM};
-#[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
+pub use scene_words::{decode_scene, encode_scene};
+#[cfg(feature = "wgpu")]
 pub use wgpu::WgpuHarness;
 pub use words::{check_layout, field_layout, join, HarnessWord, Values, Words};
 
@@ -52,11 +59,20 @@ pub enum Backend {
     Gl,
     /// The generated WGSL as a compute shader on a wgpu device (Vulkan natively).
     Wgpu,
+    /// The GL harness compiled to wasm, on WebGL2 in headless Chromium (ANGLE on SwiftShader).
+    WebGl2,
+    /// The wgpu harness compiled to wasm, on WebGPU in headless Chromium (SwiftShader).
+    WebGpu,
 }
 
 impl Backend {
     /// Every GPU runtime, in the order [`Equivalence`] runs them.
-    pub const GPU: [Backend; 2] = [Backend::Gl, Backend::Wgpu];
+    pub const GPU: [Backend; 4] = [Backend::Gl, Backend::Wgpu, Backend::WebGl2, Backend::WebGpu];
+
+    /// Whether this runtime runs in the browser ([`browser`]).
+    pub fn is_browser(self) -> bool {
+        matches!(self, Backend::WebGl2 | Backend::WebGpu)
+    }
 }
 
 impl fmt::Display for Backend {
@@ -65,6 +81,8 @@ impl fmt::Display for Backend {
             Backend::Cpu => "CPU",
             Backend::Gl => "GL",
             Backend::Wgpu => "wgpu",
+            Backend::WebGl2 => "WebGL2",
+            Backend::WebGpu => "WebGPU",
         })
     }
 }
@@ -87,6 +105,8 @@ pub enum HarnessError {
     NoScene { function: String, uniform: String },
     #[error("the {backend} runtime is not built in: {detail}")]
     NotBuilt { backend: Backend, detail: &'static str },
+    #[error("the {backend} runtime (headless Chromium): {detail}")]
+    Browser { backend: Backend, detail: String },
 }
 
 /// A GPU runtime of the harness: what [`Equivalence`] asks of GL and of wgpu alike.
@@ -169,20 +189,24 @@ pub struct Equivalence {
     gl: Option<GlHarness>,
     #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
     wgpu: Option<WgpuHarness>,
+    /// WebGL2 and WebGPU, in that order.
+    #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
+    browsers: Vec<BrowserRuntime>,
     /// Harness layouts by function, for the CPU-only case.
     layouts: HashMap<String, lightport_codegen::Harness>,
 }
 
 impl Equivalence {
     /// The tracer's kernel modules plus `extra` (e.g. a test's own `#[kernel]` module), on the
-    /// CPU and each of `backends` (GL: a headless EGL context; wgpu: a native device; or the
+    /// CPU and each of `backends` (GL: a headless EGL context; wgpu: a native device; WebGL2
+    /// and WebGPU: the page of the shared headless Chromium, [`BrowserSession::shared`]; or the
     /// error that it could not be created).
     pub fn new(backends: &[Backend], extra: &[kernel_dsl::ir::Module]) -> Result<Equivalence, HarnessError> {
         let mut modules = crate::kernel::modules();
         modules.extend_from_slice(extra);
         let program = Program::link(&modules).map_err(ShaderError::from)?;
         // Only the GPU runtimes built in (features `gl`, `wgpu`) assign to it.
-        #[cfg_attr(not(any(feature = "gl", feature = "wgpu")), allow(unused_mut))]
+        #[cfg_attr(not(any(feature = "gl", all(feature = "wgpu", not(target_arch = "wasm32")))), allow(unused_mut))]
         let mut e = Equivalence::cpu_only(program);
         for backend in backends {
             match backend {
@@ -205,6 +229,19 @@ impl Equivalence {
                         detail: "built without the `wgpu` feature (or on wasm, where the device comes from the page)",
                     })
                 }
+                #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
+                Backend::WebGl2 | Backend::WebGpu => {
+                    let session = BrowserSession::shared()?;
+                    e.browsers.push(BrowserRuntime::new(session, *backend, e.program.clone(), &modules)?);
+                    e.browsers.sort_by_key(|b| b.backend() == Backend::WebGpu);
+                }
+                #[cfg(not(all(feature = "wgpu", not(target_arch = "wasm32"))))]
+                Backend::WebGl2 | Backend::WebGpu => {
+                    return Err(HarnessError::NotBuilt {
+                        backend: *backend,
+                        detail: "the browser runtimes are driven from a native build with the `wgpu` feature",
+                    })
+                }
             }
         }
         Ok(e)
@@ -217,6 +254,8 @@ impl Equivalence {
             gl: None,
             #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
             wgpu: None,
+            #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
+            browsers: Vec::new(),
             layouts: HashMap::new(),
         }
     }
@@ -251,23 +290,33 @@ impl Equivalence {
         self.wgpu.as_mut()
     }
 
+    /// A browser runtime (WebGL2 or WebGPU) this was created with.
+    #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
+    pub fn browser(&mut self, backend: Backend) -> Option<&mut BrowserRuntime> {
+        self.browsers.iter_mut().find(|b| b.backend() == backend)
+    }
+
     /// Every GPU runtime this was created with, in [`Backend::GPU`] order.
     fn runtimes(&mut self) -> impl Iterator<Item = &mut dyn Runtime> {
         let gl = self.gl.as_mut().map(|r| r as &mut dyn Runtime);
         #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
-        let wgpu = self.wgpu.as_mut().map(|r| r as &mut dyn Runtime);
+        let (wgpu, browsers) = (
+            self.wgpu.as_mut().map(|r| r as &mut dyn Runtime),
+            self.browsers.iter_mut().map(|r| r as &mut dyn Runtime),
+        );
         #[cfg(not(all(feature = "wgpu", not(target_arch = "wasm32"))))]
-        let wgpu = None;
-        gl.into_iter().chain(wgpu)
+        let (wgpu, browsers) = (None, std::iter::empty());
+        gl.into_iter().chain(wgpu).chain(browsers)
     }
 
     fn runtimes_ref(&self) -> impl Iterator<Item = &dyn Runtime> {
         let gl = self.gl.as_ref().map(|r| r as &dyn Runtime);
         #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
-        let wgpu = self.wgpu.as_ref().map(|r| r as &dyn Runtime);
+        let (wgpu, browsers) =
+            (self.wgpu.as_ref().map(|r| r as &dyn Runtime), self.browsers.iter().map(|r| r as &dyn Runtime));
         #[cfg(not(all(feature = "wgpu", not(target_arch = "wasm32"))))]
-        let wgpu = None;
-        gl.into_iter().chain(wgpu)
+        let (wgpu, browsers) = (None, std::iter::empty());
+        gl.into_iter().chain(wgpu).chain(browsers)
     }
 
     /// The scene that functions taking `&Scene` read, on every backend.

@@ -3,13 +3,23 @@
 //! `lp_args` and writes its result words to `lp_results`, for `i < lp_count.n`. The scene is
 //! bound as the renderer binds it (group 0: the `scene` uniform and one read-only storage
 //! buffer per array), through the same reflection of the generated shader.
+//!
+//! Compiling and running are futures ([`WgpuHarness::layout_async`],
+//! [`WgpuHarness::run_words_async`]) so that the browser's WebGPU (the `lightport-web` crate's
+//! harness page) runs this same code; natively [`Runtime`] waits on them.
 
 use std::collections::{BTreeMap, HashMap};
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::{Arc, Mutex};
+use std::task::{Context, Poll, Waker};
 
 use lightport_codegen::{Program, Target};
 use wgpu::util::DeviceExt;
 
-use super::{generated_layout, harness_selection, Backend, HarnessError, Runtime};
+use super::{generated_layout, harness_selection, HarnessError};
+#[cfg(not(target_arch = "wasm32"))]
+use super::{Backend, Runtime};
 use crate::backend::gl::{scene_bindings, Binding};
 use crate::backend::wgpu::{
     compile_pipeline, reflect, scene_uniform_bytes, u32_uniform_bytes, BufferEntry, ShaderLayout, WgpuDevice,
@@ -54,6 +64,12 @@ impl WgpuHarness {
     #[cfg(not(target_arch = "wasm32"))]
     pub fn headless(program: Program) -> Result<WgpuHarness, HarnessError> {
         Ok(WgpuHarness::new(WgpuDevice::native()?, program))
+    }
+
+    /// The browser's WebGPU device, as the harness page (`web/src/harness.rs`) creates it.
+    #[cfg(target_arch = "wasm32")]
+    pub async fn browser_device() -> Result<WgpuDevice, HarnessError> {
+        Ok(WgpuDevice::request(wgpu::Backends::BROWSER_WEBGPU).await?)
     }
 
     /// The linked kernel program the harness shaders are generated from.
@@ -106,20 +122,28 @@ impl WgpuHarness {
         }
     }
 
-    /// The generated harness layout of `function`, compiling its shader on first use.
+    /// The generated harness layout of `function`, compiling its shader on first use (waiting
+    /// for the device natively; see [`layout_async`](Self::layout_async) on wasm).
+    #[cfg(not(target_arch = "wasm32"))]
     pub fn layout(&mut self, function: &str) -> Result<lightport_codegen::Harness, HarnessError> {
-        Ok(self.shader_for(function)?.layout.clone())
+        pollster::block_on(self.layout_async(function))
     }
 
-    fn shader_for(&mut self, function: &str) -> Result<&HarnessShader, HarnessError> {
+    /// [`layout`](Self::layout) as a future: how the browser's WebGPU runs it, since the page's
+    /// thread cannot block on the device.
+    pub async fn layout_async(&mut self, function: &str) -> Result<lightport_codegen::Harness, HarnessError> {
+        Ok(self.shader_for(function).await?.layout.clone())
+    }
+
+    async fn shader_for(&mut self, function: &str) -> Result<&HarnessShader, HarnessError> {
         if !self.shaders.contains_key(function) {
-            let compiled = self.compile(function)?;
+            let compiled = self.compile(function).await?;
             self.shaders.insert(function.to_string(), compiled);
         }
         Ok(&self.shaders[function])
     }
 
-    fn compile(&self, function: &str) -> Result<HarnessShader, HarnessError> {
+    async fn compile(&self, function: &str) -> Result<HarnessShader, HarnessError> {
         let selection = harness_selection(function, &self.specialize);
         let generated = self.program.emit(Target::Wgsl, &selection).map_err(ShaderError::from)?;
         #[cfg(feature = "validate")]
@@ -131,7 +155,7 @@ impl WgpuHarness {
         let scene = self.scene.as_ref().map_or(&no_scene, |(s, _)| s);
         crate::backend::wgpu::check_scene_limits(&self.device.limits, &WgpuOptions::default(), scene, &resources)?;
         // The layout wgpu derives from the shader: bind groups are made from it per run.
-        let pipeline = pollster::block_on(compile_pipeline(&self.device.device, &generated, None))?;
+        let pipeline = compile_pipeline(&self.device.device, &generated, None).await?;
         Ok(HarnessShader { pipeline, resources, layout })
     }
 
@@ -166,10 +190,23 @@ impl WgpuHarness {
     }
 
     /// Runs `function` on `invocations` argument sets given as words (`input_words` per
-    /// invocation, in the generated layout) and returns `output_words` per invocation.
+    /// invocation, in the generated layout) and returns `output_words` per invocation, waiting
+    /// for the device (natively; see [`run_words_async`](Self::run_words_async) on wasm).
     #[cfg(not(target_arch = "wasm32"))]
     pub fn run_words(&mut self, function: &str, invocations: usize, input: &[u32]) -> Result<Vec<u32>, HarnessError> {
-        self.shader_for(function)?;
+        pollster::block_on(self.run_words_async(function, invocations, input))
+    }
+
+    /// [`run_words`](Self::run_words) as a future. One code path for native and the browser:
+    /// the readback's `map_async` is awaited; natively `device.poll` completes it first, in the
+    /// browser the page's event loop does (its `poll` returns at once).
+    pub async fn run_words_async(
+        &mut self,
+        function: &str,
+        invocations: usize,
+        input: &[u32],
+    ) -> Result<Vec<u32>, HarnessError> {
+        self.shader_for(function).await?;
         let shader = &self.shaders[function];
         let (in_words, out_words) = (shader.layout.input_words as usize, shader.layout.output_words as usize);
         if input.len() != invocations * in_words {
@@ -191,15 +228,14 @@ impl WgpuHarness {
         while start < invocations {
             let count = per_dispatch.min(invocations - start);
             let words = &input[start * in_words..(start + count) * in_words];
-            output.extend(self.dispatch(function, shader, &scene_entries, count, words, out_words)?);
+            output.extend(self.dispatch(function, shader, &scene_entries, count, words, out_words).await?);
             start += count;
         }
         Ok(output)
     }
 
     /// One dispatch of `count` invocations; returns their `out_words` result words each.
-    #[cfg(not(target_arch = "wasm32"))]
-    fn dispatch(
+    async fn dispatch(
         &self,
         function: &str,
         shader: &HarnessShader,
@@ -272,17 +308,16 @@ impl WgpuHarness {
         }
         encoder.copy_buffer_to_buffer(&results, 0, &readback, 0, results_size);
         self.device.queue.submit([encoder.finish()]);
-        if let Some(e) = pollster::block_on(scope.pop()) {
+        if let Some(e) = scope.pop().await {
             return Err(WgpuError::Wgpu { what: "running the harness", detail: format!("`{function}`: {e}") }.into());
         }
         let slice = readback.slice(..);
-        let (sender, receiver) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |result| {
-            let _ = sender.send(result);
-        });
+        let mapped = Mapped::default();
+        let sender = mapped.clone();
+        slice.map_async(wgpu::MapMode::Read, move |result| sender.complete(result));
         let failed = |e: String| WgpuError::Wgpu { what: "reading the harness results", detail: e };
         d.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| failed(e.to_string()))?;
-        receiver.recv().map_err(|e| failed(e.to_string()))?.map_err(|e| failed(e.to_string()))?;
+        mapped.await.map_err(|e| failed(e.to_string()))?;
         let words: Vec<u32> = {
             let view = slice.get_mapped_range().map_err(|e| failed(e.to_string()))?;
             bytemuck::pod_collect_to_vec(&view)
@@ -292,6 +327,42 @@ impl WgpuHarness {
     }
 }
 
+/// The outcome of a `map_async`, as a future: resolved by the callback (natively during
+/// `device.poll`, in the browser from the event loop).
+#[derive(Clone, Default)]
+struct Mapped(Arc<Mutex<MapState>>);
+
+#[derive(Default)]
+struct MapState {
+    result: Option<Result<(), wgpu::BufferAsyncError>>,
+    waker: Option<Waker>,
+}
+
+impl Mapped {
+    fn complete(&self, result: Result<(), wgpu::BufferAsyncError>) {
+        let mut state = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        state.result = Some(result);
+        if let Some(waker) = state.waker.take() {
+            waker.wake();
+        }
+    }
+}
+
+impl Future for Mapped {
+    type Output = Result<(), wgpu::BufferAsyncError>;
+    fn poll(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Self::Output> {
+        let mut state = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        match state.result.take() {
+            Some(result) => Poll::Ready(result),
+            None => {
+                state.waker = Some(cx.waker().clone());
+                Poll::Pending
+            }
+        }
+    }
+}
+
+#[cfg(not(target_arch = "wasm32"))]
 impl Runtime for WgpuHarness {
     fn backend(&self) -> Backend {
         Backend::Wgpu
