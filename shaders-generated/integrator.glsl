@@ -148,7 +148,7 @@ const float PI = 3.1415927;
 // sampling::INV_PI (lightport-tracer/src/kernel/sampling.rs:9)
 const float INV_PI = 0.31830987;
 // intersect::MISS (lightport-tracer/src/kernel/intersect.rs:9)
-const float MISS = 3.4028235e38;
+const float MISS = 3.4028234e38;
 // scene_data::TRIANGLE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:14)
 const uint TRIANGLE_TEXELS = 3u;
 // scene_data::SHADING_TEXELS (lightport-tracer/src/kernel/scene_data.rs:16)

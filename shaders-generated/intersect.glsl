@@ -13,7 +13,7 @@ struct TriangleHit {
 };
 
 // intersect::MISS (lightport-tracer/src/kernel/intersect.rs:9)
-const float MISS = 3.4028235e38;
+const float MISS = 3.4028234e38;
 
 // intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
 TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2) {

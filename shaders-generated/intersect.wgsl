@@ -8,7 +8,7 @@ struct TriangleHit {
 }
 
 // intersect::MISS (lightport-tracer/src/kernel/intersect.rs:9)
-const MISS: f32 = 3.4028235e38;
+const MISS: f32 = 3.4028234e38;
 
 // intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
 fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> TriangleHit {

@@ -138,7 +138,7 @@ const PI: f32 = 3.1415927;
 // sampling::INV_PI (lightport-tracer/src/kernel/sampling.rs:9)
 const INV_PI: f32 = 0.31830987;
 // intersect::MISS (lightport-tracer/src/kernel/intersect.rs:9)
-const MISS: f32 = 3.4028235e38;
+const MISS: f32 = 3.4028234e38;
 // scene_data::TRIANGLE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:14)
 const TRIANGLE_TEXELS: u32 = 3u;
 // scene_data::SHADING_TEXELS (lightport-tracer/src/kernel/scene_data.rs:16)

@@ -40,7 +40,7 @@ struct NodeHits {
 }
 
 // intersect::MISS (lightport-tracer/src/kernel/intersect.rs:9)
-const MISS: f32 = 3.4028235e38;
+const MISS: f32 = 3.4028234e38;
 // scene_data::TRIANGLE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:14)
 const TRIANGLE_TEXELS: u32 = 3u;
 // scene_data::NODE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:21)

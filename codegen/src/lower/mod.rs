@@ -191,6 +191,12 @@ fn strip_parens(e: &Expr) -> &Expr {
 
 /// A float literal that reads back as the same f32 (always with a `.` or an exponent).
 pub(crate) fn float_lit(v: f32) -> String {
+    // The shortest decimal that reads back as f32::MAX, 3.4028235e38, lies above f32::MAX (it
+    // rounds down to it): naga and GLSL compilers accept it, Tint (Chrome's WebGPU) refuses it as
+    // "cannot be represented as 'f32'". 3.4028234e38 lies below f32::MAX and rounds to it too.
+    if v.abs() == f32::MAX {
+        return if v < 0.0 { "-3.4028234e38".into() } else { "3.4028234e38".into() };
+    }
     let s = format!("{v:?}");
     if s.contains('.') || s.contains('e') || s.contains("inf") || s.contains("NaN") {
         s
@@ -317,4 +323,20 @@ pub(crate) fn reduce_parts(op: &str, n: u8) -> (&'static str, String) {
         expr = if op.len() > 1 { format!("{op}({expr}, {c})") } else { format!("{expr} {op} {c}") };
     }
     (name, expr)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::float_lit;
+
+    /// Every literal reads back as its value, and as a decimal lies within f32's range (Tint
+    /// refuses a literal above f32::MAX even when it would round down to it).
+    #[test]
+    fn float_literals_read_back_within_range() {
+        for v in [f32::MAX, -f32::MAX, f32::MIN_POSITIVE, 1.0e-45, 0.1, 3.0e38, -2.5, 1.0] {
+            let s = float_lit(v);
+            assert_eq!(s.parse::<f32>().unwrap(), v, "{s}");
+            assert!(s.parse::<f64>().unwrap().abs() <= f32::MAX as f64, "{s} exceeds f32::MAX as a decimal");
+        }
+    }
 }
