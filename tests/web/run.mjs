@@ -4,8 +4,8 @@
 //
 //   node run.mjs SCENARIO --url http://127.0.0.1:PORT/ --out result.json [options]
 //
-// Scenarios: accumulate, cache, camera, slow, drop, limits, context, bench, chart, compile (see each
-// function). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
+// Scenarios: accumulate, cache, camera, slow, drop, limits, context, api, deviceloss, bench, chart,
+// compile (see each function); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
 // long, so that a hung page never hangs the caller. `--exit-on-stdin-eof` (no value): exit 4,
 // closing the browser, when stdin reaches its end: the caller holds the pipe's other end, which
 // the kernel closes when the caller ends however it ends (src/serve_child.rs), so neither this
@@ -17,12 +17,16 @@ import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 
 const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
-// The flags DESIGN.md lists for WebGL2 on SwiftShader (the user data dir is given separately).
+// The flags DESIGN.md lists for WebGL2 on SwiftShader, and WebGPU (on SwiftShader too: adapter
+// "google / swiftshader"; the user data dir is given separately).
 const ARGS = [
   '--headless=new', '--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--disable-gpu',
   '--disable-background-networking', '--disable-component-update', '--disable-sync', '--no-first-run',
-  '--disable-quic',
+  '--disable-quic', '--enable-unsafe-webgpu',
 ];
+// `--api auto|webgpu|webgl2` (any scenario): the page's `api=`; default webgl2, which every
+// scenario was written against (WebGPU frames are not split into bands).
+let pageApi = 'webgl2';
 
 function parseArgs(argv) {
   const [scenario, ...rest] = argv;
@@ -70,7 +74,9 @@ async function open(context, baseUrl, query, timeoutMs = 240000) {
   page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
   page.on('pageerror', (e) => consoleErrors.push(String(e)));
   const url = new URL(baseUrl);
-  for (const [k, v] of Object.entries(query)) url.searchParams.set(k, v);
+  for (const [k, v] of Object.entries({ api: pageApi, ...query })) {
+    if (v !== undefined) url.searchParams.set(k, v);
+  }
   const navigationStart = Date.now();
   await page.goto(url.toString());
   await page.waitForFunction(() => window.lightport && window.lightport.ready, null, { timeout: timeoutMs });
@@ -114,8 +120,8 @@ async function cache(o) {
     return {
       error,
       // What the frames rendered: the sum of the accumulated radiance (0 for a black image).
-      sum: await page.evaluate(() => {
-        const a = window.lightport.readAccumulation();
+      sum: await page.evaluate(async () => {
+        const a = await window.lightport.readAccumulation();
         let sum = 0;
         for (let i = 0; i < a.data.length; i += 4) sum += a.data[i] + a.data[i + 1] + a.data[i + 2];
         return sum;
@@ -154,7 +160,7 @@ async function camera(o) {
       if (error) return { error };
       const spp = () => page.evaluate(() => window.lightport.spp());
       const render = (n) => page.evaluate((k) => window.lightport.renderFrames(k), n);
-      const image = () => page.evaluate(() => window.lightport.readAccumulation().data);
+      const image = () => page.evaluate(async () => (await window.lightport.readAccumulation()).data);
       const box = await page.locator('#view').boundingBox();
       const cx = box.x + box.width / 2;
       const cy = box.y + box.height / 2;
@@ -225,9 +231,9 @@ async function slow(o) {
       const info = await page.evaluate(() => window.lightport.info());
       const readout = await page.textContent('#frame-split');
       // One whole frame in one submission, waited for (after a warm-up frame).
-      const frameMs = await page.evaluate(() => {
+      const frameMs = await page.evaluate(async () => {
         window.lightport.pause();
-        window.lightport.renderFrames(1);
+        await window.lightport.renderFrames(1);
         return window.lightport.renderFrames(1);
       });
       return { restarts, info, readout, frameMs, error: await page.evaluate(() => window.lightport.error) };
@@ -256,9 +262,9 @@ async function drop(o) {
       const badError = await page.evaluate(() => window.lightport.error);
       const messageVisible = await page.isVisible('#message');
       const messageText = await page.textContent('#message');
-      const afterBad = await page.evaluate(() => {
+      const afterBad = await page.evaluate(async () => {
         const before = window.lightport.spp();
-        window.lightport.renderFrames(2);
+        await window.lightport.renderFrames(2);
         return { before, after: window.lightport.spp(), name: window.lightport.info().name };
       });
       const files = (o.files || '').split(',').filter(Boolean).map((path) => ({
@@ -275,8 +281,8 @@ async function drop(o) {
           files[0].name,
           { timeout: 120000 },
         );
-        const rendered = await page.evaluate(() => {
-          window.lightport.renderFrames(2);
+        const rendered = await page.evaluate(async () => {
+          await window.lightport.renderFrames(2);
           return { spp: window.lightport.spp(), info: window.lightport.info(), error: window.lightport.error };
         });
         good = { ...rendered, readout: await page.textContent('#scene-info') };
@@ -322,11 +328,75 @@ async function contextLoss(o) {
       }));
       await page.evaluate(() => window.__loseContext.restoreContext());
       await page.waitForFunction(() => !window.lightport.info().contextLost, null, { timeout: 30000 });
-      const restored = await page.evaluate(() => {
-        window.lightport.renderFrames(3);
-        return { spp: window.lightport.spp(), error: window.lightport.error, sum: window.lightport.readAccumulation().data.reduce((a, b) => a + b, 0) };
+      const restored = await page.evaluate(async () => {
+        await window.lightport.renderFrames(3);
+        const data = (await window.lightport.readAccumulation()).data;
+        return { spp: window.lightport.spp(), error: window.lightport.error, sum: data.reduce((a, b) => a + b, 0) };
       });
       return { whileLost, restored };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
+// Which API runs (`--api`, optionally `--maxStorageBuffers N`): the page's info, its API
+// read-out and message after two frames, and what the page reported.
+async function apiChoice(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const { page, error, consoleErrors } = await open(context, o.url, {
+        scene: o.scene, size: o.size, paused: '1', maxStorageBuffers: o.maxStorageBuffers,
+      });
+      const rendered = error ? null : await page.evaluate(async () => {
+        await window.lightport.renderFrames(2);
+        const a = await window.lightport.readAccumulation();
+        return { spp: a.spp, sum: a.data.reduce((x, y) => x + y, 0) };
+      });
+      return {
+        error: await page.evaluate(() => window.lightport.error),
+        firstError: error,
+        notice: await page.evaluate(() => window.lightport.notice || null),
+        info: await page.evaluate(() => window.lightport.info()),
+        readout: await page.textContent('#api-info'),
+        messageText: await page.textContent('#message'),
+        rendered,
+        consoleErrors,
+      };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
+// WebGPU device loss (`GPUDevice.destroy()` through the hook): the page requests a new device
+// and recreates the renderer from the scene in memory, then keeps rendering.
+async function deviceLoss(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const { page, error, info } = await open(context, o.url, { scene: o.scene, size: o.size, paused: '1' });
+      if (error) return { error };
+      await page.evaluate(() => window.lightport.renderFrames(4));
+      const before = await page.evaluate(() => window.lightport.spp());
+      await page.evaluate(() => window.lightport.loseWebGpu());
+      await page.waitForFunction(() => window.lightport.deviceRecoveries > 0 || window.lightport.error, null,
+        { timeout: 60000 });
+      const restored = await page.evaluate(async () => {
+        const sppAfterLoss = window.lightport.spp();
+        await window.lightport.renderFrames(3);
+        const data = (await window.lightport.readAccumulation()).data;
+        return {
+          sppAfterLoss,
+          spp: window.lightport.spp(),
+          error: window.lightport.error,
+          recoveries: window.lightport.deviceRecoveries,
+          sum: data.reduce((a, b) => a + b, 0),
+          info: window.lightport.info(),
+        };
+      });
+      return { info, before, restored, error: restored.error };
     });
   } finally {
     rmSync(profile, { recursive: true, force: true });
@@ -469,9 +539,13 @@ async function compile(o) {
   }
 }
 
-const SCENARIOS = { accumulate, cache, camera, slow, drop, limits, context: contextLoss, bench, chart, compile };
+const SCENARIOS = {
+  accumulate, cache, camera, slow, drop, limits, context: contextLoss, api: apiChoice, deviceloss: deviceLoss, bench, chart,
+  compile,
+};
 
 const options = parseArgs(process.argv.slice(2));
+if (options.api) pageApi = options.api;
 const run = SCENARIOS[options.scenario];
 if (!run) {
   console.error(`unknown scenario ${options.scenario}: ${Object.keys(SCENARIOS).join(', ')}`);

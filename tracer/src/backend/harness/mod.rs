@@ -182,7 +182,10 @@ impl Equivalence {
         modules.extend_from_slice(extra);
         let program = Program::link(&modules).map_err(ShaderError::from)?;
         // Only the GPU runtimes built in (features `gl`, `wgpu`) assign to it.
-        #[cfg_attr(not(any(feature = "gl", feature = "wgpu")), allow(unused_mut))]
+        #[cfg_attr(
+            any(not(any(feature = "gl", feature = "wgpu")), all(not(feature = "gl"), target_arch = "wasm32")),
+            allow(unused_mut)
+        )]
         let mut e = Equivalence::cpu_only(program);
         for backend in backends {
             match backend {
