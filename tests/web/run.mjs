@@ -19,11 +19,19 @@ import { join } from 'node:path';
 const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
 // The flags DESIGN.md lists for WebGL2 on SwiftShader, and WebGPU (on SwiftShader too: adapter
 // "google / swiftshader"; the user data dir is given separately).
-const ARGS = [
-  '--headless=new', '--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--disable-gpu',
+const BASE_ARGS = [
+  '--headless=new', '--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
   '--disable-background-networking', '--disable-component-update', '--disable-sync', '--no-first-run',
   '--disable-quic', '--enable-unsafe-webgpu',
 ];
+// WebGL2 pages: the GPU process disabled (DESIGN.md). A WebGPU canvas needs a compositor that
+// can take WebGPU's swap-chain images: with `--disable-gpu` (GL compositing over SwiftShader)
+// Chromium finds no shared-image backing for them ("Could not find SharedImageBackingFactory
+// ... WebgpuSwapChainTexture") and the GPU process dies at the first getCurrentTexture (every
+// later promise rejects: "A valid external Instance reference no longer exists"); with Vulkan
+// compositing on SwiftShader it works.
+const WEBGL2_ARGS = [...BASE_ARGS, '--disable-gpu'];
+const WEBGPU_ARGS = [...BASE_ARGS, '--use-vulkan=swiftshader', '--enable-features=Vulkan'];
 // `--api auto|webgpu|webgl2` (any scenario): the page's `api=`; default webgl2, which every
 // scenario was written against (WebGPU frames are not split into bands).
 let pageApi = 'webgl2';
@@ -50,7 +58,7 @@ async function withBrowser(profile, action, extraArgs = []) {
   const context = await chromium.launchPersistentContext(profile, {
     executablePath: CHROMIUM,
     headless: true,
-    args: [...ARGS, ...extraArgs],
+    args: [...(pageApi === 'webgl2' ? WEBGL2_ARGS : WEBGPU_ARGS), ...extraArgs],
     viewport: { width: 900, height: 700 },
   });
   try {
