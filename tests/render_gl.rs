@@ -254,3 +254,73 @@ fn the_context_is_opengl_es_3_with_float_render_targets() {
     assert!(info.version.contains("OpenGL ES 3"), "{info:?}");
     assert!(info.max_texture_size >= 2048, "{info:?}");
 }
+
+/// The display pass (the page's, `GlDisplay`) draws what the CLI's PNG output stores with the
+/// same tone curve and exposure: every pixel within one 8-bit step (GPU and CPU round the same
+/// float differently at most by that), for every curve, and the curves do differ on this image.
+#[test]
+fn the_display_pass_shows_what_the_png_stores() {
+    use glow::HasContext;
+    use tracer::backend::gl::GlDisplay;
+    use tracer::output::{to_display_srgb8, Display, ToneMap};
+
+    const SIZE: i32 = 24;
+    let mut renderer = gl_renderer(packed(&scene::cornell_box(), Strategy::Mis, SIZE as u32, 4), 3);
+    for _ in 0..4 {
+        renderer.render_frame().expect("frame");
+    }
+    let image = renderer.image().expect("image");
+    let display = GlDisplay::new(renderer.gl()).expect("the display pass compiles");
+    let gl = renderer.gl();
+    // SAFETY: objects of the renderer's current context, deleted at the end of the test.
+    let (texture, framebuffer) = unsafe {
+        let texture = gl.create_texture().expect("texture");
+        gl.bind_texture(glow::TEXTURE_2D, Some(texture));
+        gl.tex_storage_2d(glow::TEXTURE_2D, 1, glow::RGBA8, SIZE, SIZE);
+        let framebuffer = gl.create_framebuffer().expect("framebuffer");
+        gl.bind_framebuffer(glow::FRAMEBUFFER, Some(framebuffer));
+        gl.framebuffer_texture_2d(glow::FRAMEBUFFER, glow::COLOR_ATTACHMENT0, glow::TEXTURE_2D, Some(texture), 0);
+        (texture, framebuffer)
+    };
+    let mut shown = Vec::new();
+    for (tone_map, exposure) in
+        [(ToneMap::Neutral, 0.0), (ToneMap::Aces, 1.5), (ToneMap::Agx, -1.0), (ToneMap::None, 0.0)]
+    {
+        let settings = Display { tone_map, exposure };
+        display.draw(&renderer, Some(framebuffer), [SIZE, SIZE], &settings);
+        let mut rgba = vec![0u8; (SIZE * SIZE * 4) as usize];
+        // SAFETY: reads the framebuffer just drawn into a buffer of its exact size.
+        unsafe {
+            gl.bind_framebuffer(glow::FRAMEBUFFER, Some(framebuffer));
+            let pixels = glow::PixelPackData::Slice(Some(&mut rgba));
+            gl.read_pixels(0, 0, SIZE, SIZE, glow::RGBA, glow::UNSIGNED_BYTE, pixels);
+        }
+        let png = to_display_srgb8(&image, &settings);
+        let mut worst = 0;
+        for y in 0..SIZE as usize {
+            // Framebuffer row 0 is the bottom; image row 0 the top.
+            let row = SIZE as usize - 1 - y;
+            for x in 0..SIZE as usize {
+                for c in 0..3 {
+                    let gpu = rgba[(row * SIZE as usize + x) * 4 + c];
+                    let cpu = png[(y * SIZE as usize + x) * 3 + c];
+                    worst = worst.max(gpu.abs_diff(cpu));
+                }
+            }
+        }
+        assert!(worst <= 1, "{}: the display pass is {worst} 8-bit steps from the PNG", tone_map.name());
+        shown.push(png);
+    }
+    for (i, a) in shown.iter().enumerate() {
+        for b in &shown[i + 1..] {
+            assert_ne!(a, b, "two display settings gave the same image: the test cannot tell them apart");
+        }
+    }
+    // SAFETY: created above on this context.
+    unsafe {
+        gl.bind_framebuffer(glow::FRAMEBUFFER, None);
+        gl.delete_framebuffer(framebuffer);
+        gl.delete_texture(texture);
+    }
+    display.delete(renderer.gl());
+}

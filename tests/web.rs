@@ -229,7 +229,9 @@ fn a_scene_beyond_a_webgpu_limit_falls_back_to_webgl2() {
     assert_eq!(auto["info"]["api"], "WebGL2", "auto falls back: {}", auto["info"]);
     let notice = auto["notice"].as_str().unwrap_or("");
     assert!(
-        notice.contains("max_storage_buffers_per_shader_stage") && notice.contains("allows 2") && notice.contains("WebGL2"),
+        notice.contains("max_storage_buffers_per_shader_stage")
+            && notice.contains("allows 2")
+            && notice.contains("WebGL2"),
         "the notice names the limit and the sizes: {notice:?}"
     );
     assert!(auto["messageText"].as_str().unwrap_or("").contains("max_storage_buffers_per_shader_stage"), "{auto}");
@@ -357,6 +359,49 @@ fn the_page_survives_webgl_context_loss() {
     assert!(restored["error"].is_null(), "{restored}");
     assert_eq!(restored["spp"], 3, "rendering continues after the restore: {restored}");
     assert!(restored["sum"].as_f64().unwrap_or(0.0) > 0.0, "the restored renderer draws the scene");
+}
+
+/// The page shows what the CLI's PNG output stores with the same `--tonemap` and `--exposure`:
+/// for a setting given in the URL and three chosen through the page's controls, the canvas's
+/// pixels are within 2 8-bit steps of `to_display_srgb8` of the accumulation they show
+/// (SwiftShader's pow and the CPU's differ in the last bits), and the settings differ.
+#[test]
+fn the_page_shows_the_tone_mapped_image_the_cli_writes() {
+    use tracer::backend::Image;
+    use tracer::output::{to_display_srgb8, Display, ToneMap};
+
+    let server = Server::start(&[]);
+    let report = browse(&server.url, "display", &[("scene", "cornell-box"), ("size", "16x16")]);
+    no_page_error(&report);
+    let expected = [("aces", 1.5), ("agx", -1.0), ("none", 0.0), ("neutral", 0.0)];
+    let shots = report["shots"].as_array().expect("the display scenario's shots");
+    assert_eq!(shots.len(), expected.len(), "{report}");
+    let mut shown: Vec<Vec<u8>> = Vec::new();
+    for (shot, (name, exposure)) in shots.iter().zip(expected) {
+        assert_eq!(shot["toneMap"], name, "the page reports the tone map it was given");
+        assert_eq!(shot["exposure"].as_f64(), Some(exposure), "the page reports the exposure it was given");
+        let accumulation = &shot["accumulation"];
+        let number = |v: &Value| v.as_f64().expect("a number");
+        let (width, height) = (number(&accumulation["width"]) as u32, number(&accumulation["height"]) as u32);
+        let spp = number(&accumulation["spp"]) as f32;
+        let data: Vec<f32> = accumulation["data"].as_array().expect("data").iter().map(|v| number(v) as f32).collect();
+        let pixels = data.chunks(4).map(|t| Vec3::new(t[0], t[1], t[2]) / spp).collect();
+        let image = Image { width, height, pixels };
+        let tone_map = ToneMap::from_name(name).expect("a tone map");
+        let png = to_display_srgb8(&image, &Display { tone_map, exposure: exposure as f32 });
+        let canvas: Vec<u8> = shot["pixels"].as_array().expect("pixels").iter().map(|v| number(v) as u8).collect();
+        assert_eq!(canvas.len(), (width * height * 4) as usize, "one RGBA pixel per image pixel");
+        let worst = (0..(width * height) as usize)
+            .flat_map(|p| (0..3).map(move |c| (p, c)))
+            .map(|(p, c)| canvas[p * 4 + c].abs_diff(png[p * 3 + c]))
+            .max()
+            .unwrap_or(0);
+        assert!(worst <= 2, "{name} at {exposure} EV: the canvas is {worst} 8-bit steps from the PNG");
+        shown.push(png);
+    }
+    for (i, a) in shown.iter().enumerate() {
+        assert!(shown[i + 1..].iter().all(|b| a != b), "two display settings gave the same image: nothing is tested");
+    }
 }
 
 /// The viewer's camera changes go through `GlRenderer::set_uniforms`, which must restart the

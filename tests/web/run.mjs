@@ -4,8 +4,8 @@
 //
 //   node run.mjs SCENARIO --url http://127.0.0.1:PORT/ --out result.json [options]
 //
-// Scenarios: accumulate, cache, camera, slow, drop, limits, context, api, deviceloss, bench, chart,
-// compile (see each function); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
+// Scenarios: accumulate, cache, camera, slow, drop, limits, context, display, api, deviceloss, bench,
+// chart, compile (see each function); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
 // long, so that a hung page never hangs the caller. `--exit-on-stdin-eof` (no value): exit 4,
 // closing the browser, when stdin reaches its end: the caller holds the pipe's other end, which
 // the kernel closes when the caller ends however it ends (src/serve_child.rs), so neither this
@@ -348,6 +348,45 @@ async function contextLoss(o) {
   }
 }
 
+// The display pass: for each tone curve and exposure (the first given in the URL, the others
+// chosen through the page's controls), the canvas's pixels (top row first, RGBA) and the
+// accumulation they show, for tests/web.rs to compare with the CLI's PNG conversion.
+async function display(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const query = { scene: o.scene, size: o.size, paused: '1', tonemap: 'aces', exposure: '1.5' };
+      const { page, error, consoleErrors } = await open(context, o.url, query);
+      if (error) return { error, consoleErrors };
+      const shots = [];
+      for (const [tonemap, exposure] of [[null, null], ['agx', '-1'], ['none', '0'], ['neutral', '0']]) {
+        if (tonemap) {
+          await page.selectOption('#tonemap', tonemap);
+          await page.$eval('#exposure', (e, v) => { e.value = v; e.dispatchEvent(new Event('input')); }, exposure);
+        }
+        // Drawn and copied in one task: the WebGL drawing buffer is intact until it is composited.
+        shots.push(await page.evaluate(async () => {
+          // The frames are drawn at once; only the wait for the GPU is a promise.
+          window.lightport.renderFrames(2);
+          const view = document.querySelector('#view');
+          const copy = document.createElement('canvas');
+          copy.width = view.width;
+          copy.height = view.height;
+          const context2d = copy.getContext('2d');
+          context2d.drawImage(view, 0, 0);
+          const pixels = Array.from(context2d.getImageData(0, 0, view.width, view.height).data);
+          const info = window.lightport.info();
+          const accumulation = await window.lightport.readAccumulation();
+          return { toneMap: info.toneMap, exposure: info.exposure, pixels, accumulation };
+        }));
+      }
+      return { shots, consoleErrors, error: await page.evaluate(() => window.lightport.error) };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
 // Which API runs (`--api`, optionally `--maxStorageBuffers N`): the page's info, its API
 // read-out and message after two frames, and what the page reported.
 async function apiChoice(o) {
@@ -548,8 +587,8 @@ async function compile(o) {
 }
 
 const SCENARIOS = {
-  accumulate, cache, camera, slow, drop, limits, context: contextLoss, api: apiChoice, deviceloss: deviceLoss, bench, chart,
-  compile,
+  accumulate, cache, camera, slow, drop, limits, context: contextLoss, display, api: apiChoice, deviceloss: deviceLoss,
+  bench, chart, compile,
 };
 
 const options = parseArgs(process.argv.slice(2));

@@ -30,6 +30,24 @@ pub enum ToneMap {
 }
 
 impl ToneMap {
+    /// Every tone curve, in the order the page's control lists them.
+    pub const ALL: [ToneMap; 4] = [ToneMap::Neutral, ToneMap::Aces, ToneMap::Agx, ToneMap::None];
+
+    /// The curve's name on the command line (`--tonemap`) and in the page (`tonemap=`).
+    pub fn name(self) -> &'static str {
+        match self {
+            ToneMap::None => "none",
+            ToneMap::Neutral => "neutral",
+            ToneMap::Aces => "aces",
+            ToneMap::Agx => "agx",
+        }
+    }
+
+    /// The curve called `name` (as [`name`](Self::name) spells it, any case).
+    pub fn from_name(name: &str) -> Option<ToneMap> {
+        ToneMap::ALL.into_iter().find(|t| t.name().eq_ignore_ascii_case(name))
+    }
+
     /// The operator's id in the kernel (`tonemap::TONEMAP_*`).
     pub fn kernel_id(self) -> u32 {
         match self {
@@ -51,7 +69,7 @@ pub struct Display {
 
 impl Display {
     /// Radiance clamped to [0, 1] at exposure 0 (no curve): what Lightport wrote before tone
-    /// mapping, and what the page's display pass still shows.
+    /// mapping.
     pub const CLAMP: Display = Display { tone_map: ToneMap::None, exposure: 0.0 };
 
     /// sRGB-encoded display values in [0, 1] of linear radiance `c`.

@@ -10,19 +10,21 @@
 //! switching kinds replaces the canvas element (same id and attributes) in the page.
 //!
 //! Each frame adds one sample per pixel to the accumulation, then a small display pass draws
-//! its mean to the canvas, clamped and sRGB-encoded (the CLI's PNG tone map). On WebGL2 the frame
+//! its mean to the canvas through the kernel's display transform (tone curve, exposure, sRGB:
+//! what the CLI's PNG output stores with the same settings), on either API. On WebGL2 the frame
 //! loop submits a frame in bands of rows of at most a time budget (50 ms by default;
 //! `tracer::backend::frame_split`), one band at a time, so that input is handled, and a camera
 //! move restarts the accumulation, between bands, also on a GPU that needs seconds per frame;
 //! on WebGPU one whole frame at a time.
 
-use std::fmt::Display;
+use std::fmt;
 
 use js_sys::{Float32Array, Object, Reflect, Uint8Array};
 use tracer::backend::frame_split::{Step, DEFAULT_BUDGET_MS};
 use tracer::backend::gl::GlOptions;
 use tracer::backend::wgpu::WgpuOptions;
 use tracer::backend::Image;
+use tracer::output::{Display, ToneMap};
 use tracer::pack::{Packed, RenderSettings, Strategy};
 use wasm_bindgen::prelude::*;
 use wasm_bindgen::JsCast;
@@ -33,7 +35,7 @@ use crate::camera::OrbitCamera;
 use crate::files::{self, DroppedFile};
 use crate::runtime::{webgl2, Api, GlRuntime, GpuDevice, GpuRuntime, Runtime};
 
-fn js_error(e: impl Display) -> JsError {
+fn js_error(e: impl fmt::Display) -> JsError {
     JsError::new(&e.to_string())
 }
 
@@ -80,6 +82,9 @@ pub struct Viewer {
     band_budget_ms: Option<f64>,
     /// WebGPU renderers recreated after an uncaptured device error since the last scene load.
     gpu_recoveries: u32,
+    /// How the accumulation is shown and screenshot: tone curve and exposure (`setToneMap`,
+    /// `setExposure`), the CLI's `--tonemap` and `--exposure`.
+    display: Display,
 }
 
 /// Renderers recreated after uncaptured WebGPU errors before the error is shown instead.
@@ -111,6 +116,7 @@ impl Viewer {
             seed: 1,
             band_budget_ms: Some(DEFAULT_BUDGET_MS),
             gpu_recoveries: 0,
+            display: Display::default(),
         }
     }
 
@@ -332,7 +338,7 @@ impl Viewer {
             return Ok(());
         }
         let Some(running) = &mut self.running else { return Ok(()) };
-        match running.frame() {
+        match running.frame(&self.display) {
             Ok(()) => Ok(()),
             Err(e) => self.recover(e),
         }
@@ -349,7 +355,7 @@ impl Viewer {
             return Ok(0);
         }
         let Some(running) = &mut self.running else { return Ok(0) };
-        let step = match running.step(now_ms) {
+        let step = match running.step(now_ms, &self.display) {
             Ok(step) => step,
             Err(e) => {
                 self.recover(e)?;
@@ -405,6 +411,8 @@ impl Viewer {
         set(&info, "maxDepth", self.settings.max_depth);
         set(&info, "spp", self.spp());
         set(&info, "contextLost", self.context_lost);
+        set(&info, "toneMap", self.display.tone_map.name());
+        set(&info, "exposure", self.display.exposure);
         if let Some(loaded) = &self.loaded {
             let f = &loaded.packed.features;
             set(&info, "name", loaded.name.as_str());
@@ -418,6 +426,7 @@ impl Viewer {
                 ("pointLights", f.point_lights),
                 ("emissiveTriangles", f.emissive_triangles),
                 ("metalRough", f.metal_rough),
+                ("normalMap", f.normal_map),
             ] {
                 set(&features, name, on);
             }
@@ -588,18 +597,53 @@ impl Viewer {
         }))
     }
 
-    /// Resolves to the current image as PNG bytes, tone-mapped like the CLI's PNG output.
+    /// The tone curve of the display and of screenshots by name (`neutral`, the default, `aces`,
+    /// `agx` or `none`, as the CLI's `--tonemap`): the image is redrawn, the accumulation goes on.
+    #[wasm_bindgen(js_name = setToneMap)]
+    pub fn set_tone_map(&mut self, name: &str) -> Result<(), JsError> {
+        let names: Vec<&str> = ToneMap::ALL.iter().map(|t| t.name()).collect();
+        self.display.tone_map = ToneMap::from_name(name)
+            .ok_or_else(|| JsError::new(&format!("unknown tone map {name:?}: one of {}", names.join(", "))))?;
+        self.redraw();
+        Ok(())
+    }
+
+    /// The display's exposure in stops (radiance scaled by 2^EV before the tone curve, as the
+    /// CLI's `--exposure`), within ±20 EV.
+    #[wasm_bindgen(js_name = setExposure)]
+    pub fn set_exposure(&mut self, stops: f32) -> Result<(), JsError> {
+        if !(stops.is_finite() && stops.abs() <= 20.0) {
+            return Err(JsError::new(&format!("exposure {stops} EV is out of range: give -20 to 20 stops")));
+        }
+        self.display.exposure = stops;
+        self.redraw();
+        Ok(())
+    }
+
+    /// Draws the image again (a display setting changed; no sample is added).
+    fn redraw(&self) {
+        if self.halted() {
+            return;
+        }
+        if let Some(running) = &self.running {
+            running.draw(&self.display);
+        }
+    }
+
+    /// Resolves to the current image as PNG bytes, through the display's tone curve and
+    /// exposure (as the CLI's PNG output with the same `--tonemap` and `--exposure`).
     #[wasm_bindgen(js_name = screenshotPng)]
     pub fn screenshot_png(&self) -> Result<js_sys::Promise, JsError> {
         let running = self.running.as_ref().ok_or_else(|| JsError::new("no scene is loaded"))?;
         let (width, height) = (running.packed().scene.width, running.packed().scene.height);
         let n = running.frames().max(1) as f32;
         let read = running.read_accumulation();
+        let display = self.display;
         Ok(future_to_promise(async move {
             let fail = |e: String| JsValue::from(JsError::new(&e));
             let texels = read.await.map_err(fail)?;
             let image = Image { width, height, pixels: texels.iter().map(|t| t.truncate() / n).collect() };
-            let pixels = tracer::output::to_srgb8(&image);
+            let pixels = tracer::output::to_display_srgb8(&image, &display);
             let mut png = Vec::new();
             let encoder = image::codecs::png::PngEncoder::new(&mut png);
             image::ImageEncoder::write_image(encoder, &pixels, width, height, image::ExtendedColorType::Rgb8)

@@ -6,6 +6,8 @@
 //                     `lightport chart` renders; its driver hands the page the chart's own bundle)
 //   size=WxH          a fixed render size instead of the canvas size x resolution scale
 //   strategy=mis|nee|bsdf, seed=N (the random sequence; default 1),
+//   tonemap=neutral|aces|agx|none, exposure=EV (the display, as the CLI's --tonemap and
+//                     --exposure; default neutral at 0 EV),
 //   paused=1          no frame loop: frames only through the test hook,
 //   budget=BYTES      the cache budget,
 //   bandBudget=MS     the longest one GPU submission (a band of a frame) should take, default
@@ -83,6 +85,12 @@ const hook = {
   // examples/feature_sizes.rs (through tests/web/run.mjs compile).
   compileProgram: (vertex, fragment) => compileProgram(vertex, fragment),
   setStrategy: (name) => guarded(() => { viewer.setStrategy(name); $('strategy').value = name; }),
+  setToneMap: (name) => guarded(() => { viewer.setToneMap(name); $('tonemap').value = name; }),
+  setExposure: (stops) => guarded(() => {
+    viewer.setExposure(stops);
+    $('exposure').value = stops;
+    $('exposure-value').textContent = `${stops} EV`;
+  }),
   orbit: (yaw, pitch) => guarded(() => viewer.orbit(yaw, pitch)),
   clearCache: () => clearCache(),
   get viewer() { return viewer; },
@@ -511,6 +519,8 @@ $('file-input').addEventListener('change', (e) => {
 
 $('scene').addEventListener('change', (e) => { if (e.target.value) loadServedScene(e.target.value); });
 $('strategy').addEventListener('change', (e) => cameraAction(() => viewer.setStrategy(e.target.value)));
+$('tonemap').addEventListener('change', (e) => hook.setToneMap(e.target.value));
+$('exposure').addEventListener('input', (e) => hook.setExposure(Number(e.target.value)));
 $('scale').addEventListener('change', applySize);
 $('reset-camera').addEventListener('click', () => cameraAction(() => viewer.resetCamera()));
 $('clear-cache').addEventListener('click', clearCache);
@@ -617,6 +627,8 @@ async function main() {
   if (params.get('maxTextureSize')) viewer.setMaxTextureSize(Number(params.get('maxTextureSize')));
   if (params.has('bandBudget')) guarded(() => viewer.setBandBudget(Number(params.get('bandBudget'))));
   if (params.get('strategy')) hook.setStrategy(params.get('strategy'));
+  if (params.get('tonemap')) hook.setToneMap(params.get('tonemap'));
+  if (params.has('exposure')) hook.setExposure(Number(params.get('exposure')));
   if (params.get('seed')) {
     const seed = Number(params.get('seed'));
     if (Number.isInteger(seed) && seed >= 0 && seed <= 0xffffffff) guarded(() => viewer.setSeed(seed));

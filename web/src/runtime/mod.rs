@@ -12,6 +12,7 @@ use glam::Vec4;
 use js_sys::{Object, Reflect};
 use tracer::backend::frame_split::Step;
 use tracer::kernel::scene_data::Scene;
+use tracer::output::Display;
 use tracer::pack::Packed;
 use wasm_bindgen::JsValue;
 
@@ -91,19 +92,27 @@ impl Runtime {
         }
     }
 
-    /// One whole frame in one submission, then the display pass.
-    pub fn frame(&mut self) -> Result<(), String> {
+    /// One whole frame in one submission, then the display pass through `display`.
+    pub fn frame(&mut self, display: &Display) -> Result<(), String> {
         match self {
-            Runtime::WebGl2(r) => r.frame(),
-            Runtime::WebGpu(r) => r.frame(),
+            Runtime::WebGl2(r) => r.frame(display),
+            Runtime::WebGpu(r) => r.frame(display),
+        }
+    }
+
+    /// The display pass alone (a display setting changed).
+    pub fn draw(&self, display: &Display) {
+        match self {
+            Runtime::WebGl2(r) => r.draw(display),
+            Runtime::WebGpu(r) => r.draw(display),
         }
     }
 
     /// The frame loop's step: a band (WebGL2) or a frame (WebGPU), unless one is on the GPU.
-    pub fn step(&mut self, now_ms: f64) -> Result<Step, String> {
+    pub fn step(&mut self, now_ms: f64, display: &Display) -> Result<Step, String> {
         match self {
-            Runtime::WebGl2(r) => r.step(now_ms),
-            Runtime::WebGpu(r) => r.step(now_ms),
+            Runtime::WebGl2(r) => r.step(now_ms, display),
+            Runtime::WebGpu(r) => r.step(now_ms, display),
         }
     }
 
@@ -166,7 +175,11 @@ impl Runtime {
                 set(info, "adapter", w.adapter.as_str());
                 set(info, "gpuDriver", w.driver.as_str());
                 set(info, "maxStorageBufferBindingSize", w.max_storage_buffer_binding_size as f64);
-                set(info, "maxStorageBuffersPerShaderStage", r.renderer().device().limits.max_storage_buffers_per_shader_stage);
+                set(
+                    info,
+                    "maxStorageBuffersPerShaderStage",
+                    r.renderer().device().limits.max_storage_buffers_per_shader_stage,
+                );
             }
         }
     }

@@ -14,7 +14,8 @@ use std::sync::{Arc, Mutex};
 
 use glam::Vec4;
 use tracer::backend::frame_split::Step;
-use tracer::backend::wgpu::{DisplayPass, DisplaySettings, PipelineCheck, WgpuDevice, WgpuOptions, WgpuRenderer};
+use tracer::backend::wgpu::{DisplayPass, PipelineCheck, WgpuDevice, WgpuOptions, WgpuRenderer};
+use tracer::output::Display;
 use tracer::pack::Packed;
 use wasm_bindgen::prelude::*;
 use wasm_bindgen::JsCast;
@@ -103,7 +104,6 @@ pub struct GpuRuntime {
     frame_ms: Option<f64>,
     /// The shader compiler's verdict, once it arrived with an error.
     compile_error: Rc<RefCell<Option<String>>>,
-    pub settings: DisplaySettings,
 }
 
 /// A renderer created on the device (limits checked, scene uploaded), not yet on a canvas:
@@ -154,15 +154,7 @@ impl GpuRuntime {
                 *slot.borrow_mut() = Some(e.to_string());
             }
         });
-        Ok(GpuRuntime {
-            renderer,
-            surface,
-            display,
-            in_flight: None,
-            frame_ms: None,
-            compile_error,
-            settings: DisplaySettings::default(),
-        })
+        Ok(GpuRuntime { renderer, surface, display, in_flight: None, frame_ms: None, compile_error })
     }
 
     pub fn renderer(&self) -> &WgpuRenderer {
@@ -189,29 +181,30 @@ impl GpuRuntime {
         self.renderer.check_uncaptured().map_err(|e| e.to_string())
     }
 
-    /// Draws the current mean to the canvas (skipped when the surface has no texture now).
-    fn draw(&self) {
+    /// Draws the current mean to the canvas through `settings` (skipped when the surface has no
+    /// texture now).
+    pub fn draw(&self, settings: &Display) {
         let texture = match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
             _ => return,
         };
         let view = texture.texture.create_view(&Default::default());
-        self.display.draw(&self.renderer, &view, &self.settings);
+        self.display.draw(&self.renderer, &view, settings);
         self.renderer.device().queue.present(texture);
     }
 
     /// One whole frame, then the display pass.
-    pub fn frame(&mut self) -> Result<(), String> {
+    pub fn frame(&mut self, settings: &Display) -> Result<(), String> {
         self.check()?;
         self.renderer.render_frame().map_err(|e| e.to_string())?;
-        self.draw();
+        self.draw(settings);
         Ok(())
     }
 
     /// The frame loop's step: unless the previous frame is still on the GPU, submits the next
     /// (a whole frame: the compute kernel has no row offset yet, so WebGPU frames are not split
     /// into bands) and draws it.
-    pub fn step(&mut self, now_ms: f64) -> Result<Step, String> {
+    pub fn step(&mut self, now_ms: f64, settings: &Display) -> Result<Step, String> {
         self.check()?;
         if let Some((done, submitted)) = &self.in_flight {
             if !done.load(Ordering::Acquire) {
@@ -220,7 +213,7 @@ impl GpuRuntime {
             self.frame_ms = Some(now_ms - submitted);
             self.in_flight = None;
         }
-        self.frame()?;
+        self.frame(settings)?;
         let done = Arc::new(AtomicBool::new(false));
         let flag = done.clone();
         let finished = self.renderer.done();

@@ -1,17 +1,17 @@
 //! The display pass on wgpu: the accumulation's mean drawn to a colour target (in the browser,
-//! the canvas's WebGPU surface) through the kernel's own tone map (`kernel::tonemap`, generated
-//! as WGSL by codegen, the same functions the CPU's PNG output runs), as the WebGL2 page's
-//! display pass does with the GLSL of the same module. A full-screen triangle; each fragment
+//! the canvas's WebGPU surface) through the kernel's display transform
+//! (`tonemap::display_srgb`, generated as WGSL by codegen, the same functions the CPU's PNG
+//! output runs), as [`GlDisplay`](crate::backend::gl::GlDisplay) does with its GLSL. A full-screen triangle; each fragment
 //! reads its pixel from the accumulation storage buffer (row 0 at the top, as WebGPU's
 //! framebuffer coordinates count).
 
 use std::borrow::Cow;
 
-use lightport_codegen::{Program, Selection, Target};
+use lightport_codegen::Target;
 use wgpu::util::DeviceExt;
 
 use super::{WgpuError, WgpuRenderer};
-use crate::kernel::tonemap;
+use crate::output::Display;
 
 /// The entry points and resources the pass adds to the generated tone-map module.
 const DISPLAY_ENTRY: &str = r#"
@@ -41,32 +41,11 @@ fn lp_display_fragment(@builtin(position) position: vec4<f32>) -> @location(0) v
 }
 "#;
 
-/// The display shader's WGSL: codegen's `tonemap` module and the pass's entry points.
+/// The display shader's WGSL: the kernel's display transform (`tonemap::display_srgb`, as
+/// the GL display pass takes it in GLSL) and the pass's entry points.
 pub fn display_shader() -> Result<String, WgpuError> {
-    let program = Program::link(&crate::kernel::modules()).map_err(|e| WgpuError::Wgpu {
-        what: "linking the kernel for the display pass",
-        detail: e.to_string(),
-    })?;
-    let generated = program.emit(Target::Wgsl, &Selection::module(&program, "tonemap")).map_err(|e| {
-        WgpuError::Wgpu { what: "generating the display pass's tone map", detail: e.to_string() }
-    })?;
+    let generated = crate::backend::gl::display_transform(Target::Wgsl)?;
     Ok(format!("{}\n{DISPLAY_ENTRY}", generated.source))
-}
-
-/// How the display pass maps radiance to the screen.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DisplaySettings {
-    /// One of `kernel::tonemap::TONEMAP_*`.
-    pub tone_map: u32,
-    /// Exposure in stops (radiance scaled by `2^exposure` first).
-    pub exposure: f32,
-}
-
-impl Default for DisplaySettings {
-    /// Clamped at exposure 0: what the WebGL2 page and `tracer::output::to_srgb8` show.
-    fn default() -> Self {
-        DisplaySettings { tone_map: tonemap::TONEMAP_NONE, exposure: 0.0 }
-    }
 }
 
 /// The display pipeline for one colour-target format.
@@ -119,11 +98,7 @@ impl DisplayPass {
                 module: &module,
                 entry_point: Some("lp_display_fragment"),
                 compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
+                targets: &[Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL })],
             }),
             multiview_mask: None,
             cache: None,
@@ -136,15 +111,16 @@ impl DisplayPass {
         Ok(DisplayPass { pipeline, layout, uniform })
     }
 
-    /// Draws `renderer`'s current mean into `target` (the renderer's image size).
-    pub fn draw(&self, renderer: &WgpuRenderer, target: &wgpu::TextureView, settings: &DisplaySettings) {
+    /// Draws `renderer`'s current mean through `settings` into `target` (the renderer's image
+    /// size).
+    pub fn draw(&self, renderer: &WgpuRenderer, target: &wgpu::TextureView, settings: &Display) {
         let device = &renderer.device().device;
         let queue = &renderer.device().queue;
         let scene = &renderer.packed().scene;
         let words: [u32; 4] = [
             scene.width,
             (1.0 / renderer.frames().max(1) as f32).to_bits(),
-            settings.tone_map,
+            settings.tone_map.kernel_id(),
             settings.exposure.exp2().to_bits(),
         ];
         queue.write_buffer(&self.uniform, 0, bytemuck::cast_slice(&words));
@@ -164,7 +140,10 @@ impl DisplayPass {
                     view: target,
                     depth_slice: None,
                     resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Store,
+                    },
                 })],
                 depth_stencil_attachment: None,
                 timestamp_writes: None,

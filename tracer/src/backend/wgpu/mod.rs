@@ -38,14 +38,14 @@ use wgpu::util::DeviceExt;
 mod display;
 mod oneshot;
 
-pub use display::{display_shader, DisplayPass, DisplaySettings};
-pub use resources::{compile_pipeline, start_pipeline, PipelineCheck};
+pub use display::{display_shader, DisplayPass};
+#[cfg(not(target_arch = "wasm32"))]
+pub(crate) use resources::ShaderLayout;
 pub(crate) use resources::{
     bind_groups, check_scene_limits, reflect, scene_uniform_bytes, storage_limit, u32_uniform_bytes, upload_scene,
     BufferEntry, UniformLayout,
 };
-#[cfg(not(target_arch = "wasm32"))]
-pub(crate) use resources::ShaderLayout;
+pub use resources::{compile_pipeline, start_pipeline, PipelineCheck};
 
 use super::frame_seed;
 #[cfg(not(target_arch = "wasm32"))]
@@ -356,7 +356,10 @@ impl WgpuRenderer {
         let uncaptured = self.check_uncaptured();
         async move {
             uncaptured?;
-            receiver.await.ok_or_else(|| failed("the device dropped the request".into()))?.map_err(|e| failed(e.to_string()))?;
+            receiver
+                .await
+                .ok_or_else(|| failed("the device dropped the request".into()))?
+                .map_err(|e| failed(e.to_string()))?;
             let texels: Vec<Vec4> = {
                 let view = readback
                     .slice(..)

@@ -268,11 +268,7 @@ pub(crate) fn check_scene_limits(
         1 + layout.storage.iter().map(|s| s.1).chain(layout.own.iter().map(|r| r.group)).max().unwrap_or(0) as u64;
     let uniform_size = layout.scene_uniform.as_ref().map_or(0, |u| u.size) as u64;
     for (limit, needed, max) in [
-        (
-            "max_storage_buffers_per_shader_stage",
-            storage_buffers,
-            storage_buffers_limit(limits, options) as u64,
-        ),
+        ("max_storage_buffers_per_shader_stage", storage_buffers, storage_buffers_limit(limits, options) as u64),
         ("max_bind_groups", groups, limits.max_bind_groups as u64),
         ("max_uniform_buffer_binding_size", uniform_size, limits.max_uniform_buffer_binding_size),
     ] {

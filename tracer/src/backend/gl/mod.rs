@@ -20,6 +20,9 @@
 //! are skipped. [`scene_bindings`] is the one list of `Scene` fields: it destructures the struct
 //! without `..`, so a new field does not compile until it is bound here.
 
+mod display;
+pub use display::{display_fragment_shader, display_transform, GlDisplay};
+
 use std::marker::PhantomData;
 
 use glam::{UVec4, Vec3, Vec4, Vec4Swizzles};
