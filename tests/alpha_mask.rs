@@ -22,7 +22,14 @@ fn quad(q: [Vec3; 4], material: u32) -> Vec<Triangle> {
         .map(|&[a, b, c]| {
             let positions = [q[a], q[b], q[c]];
             let n = (positions[1] - positions[0]).cross(positions[2] - positions[0]).normalize();
-            Triangle { positions, normals: [n; 3], uvs: [uv[a], uv[b], uv[c]], tangents: Default::default(), material }
+            Triangle {
+                positions,
+                normals: [n; 3],
+                uvs: [uv[a], uv[b], uv[c]],
+                uvs1: Default::default(),
+                tangents: Default::default(),
+                material,
+            }
         })
         .collect()
 }

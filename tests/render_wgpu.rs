@@ -61,7 +61,7 @@ fn the_random_sequence_matches_the_cpu() {
 #[test]
 fn a_scene_beyond_the_storage_buffer_limit_is_a_clear_error() {
     let p = packed(&scene::cornell_box(), Strategy::Mis, 16, 4);
-    let small = WgpuOptions { max_storage_buffer_binding_size: Some(256) };
+    let small = WgpuOptions { max_storage_buffer_binding_size: Some(256), ..Default::default() };
     let err = match WgpuRenderer::headless_with_options(p.clone(), 0, &small) {
         Err(e) => e,
         Ok(_) => panic!("a 256-byte binding limit cannot hold the Cornell box"),
@@ -76,7 +76,7 @@ fn a_scene_beyond_the_storage_buffer_limit_is_a_clear_error() {
     // The scene fits 64 KiB; a 128x128 image's accumulation (256 KiB) does not.
     let mut big = p;
     big.apply(&RenderSettings { width: 128, height: 128, strategy: Strategy::Mis, max_depth: 4 });
-    let limit = WgpuOptions { max_storage_buffer_binding_size: Some(64 << 10) };
+    let limit = WgpuOptions { max_storage_buffer_binding_size: Some(64 << 10), ..Default::default() };
     let err = match WgpuRenderer::headless_with_options(big, 0, &limit) {
         Err(e) => e,
         Ok(_) => panic!("a 128x128 accumulation cannot fit a 64 KiB binding"),

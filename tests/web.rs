@@ -83,9 +83,9 @@ fn packed(scene: &Scene, strategy: Strategy) -> Packed {
     pack(scene, &bvh, &settings).expect("pack")
 }
 
-/// Renders `scene_name` in the browser and `scene` on the CPU in `batches` x `frames` frames
-/// and asserts that every region agrees within the bound.
-fn assert_browser_agrees_with_cpu(server: &Server, scene_name: &str, scene: &Scene, strategy: Strategy) {
+/// Renders `scene_name` in the browser (on `api`: "webgl2" or "webgpu") and `scene` on the CPU
+/// in `batches` x `frames` frames and asserts that every region agrees within the bound.
+fn assert_browser_agrees_with_cpu(server: &Server, scene_name: &str, scene: &Scene, strategy: Strategy, api: &str) {
     let (batches, frames) = (16usize, 16u32);
     let size = format!("{SIZE}x{SIZE}");
     let (batch_text, frame_text) = (batches.to_string(), frames.to_string());
@@ -98,12 +98,15 @@ fn assert_browser_agrees_with_cpu(server: &Server, scene_name: &str, scene: &Sce
             ("strategy", strategy.name()),
             ("batches", &batch_text),
             ("frames", &frame_text),
+            ("api", api),
         ],
     );
     no_page_error(&report);
     let info = &report["info"];
-    eprintln!("{scene_name}: {} on {} ({})", info["name"], info["glRenderer"], info["glVersion"]);
+    eprintln!("{scene_name}: {} on {} ({})", info["name"], info["api"], info["adapter"]);
     assert_eq!(info["strategy"], strategy.name());
+    let shown = if api == "webgpu" { "WebGPU" } else { "WebGL2" };
+    assert_eq!(info["api"], shown, "the page runs the API asked for: {info}");
     let mut browser_sums = Vec::new();
     for (b, batch) in report["batches"].as_array().expect("batches").iter().enumerate() {
         let spp = batch["spp"].as_u64().expect("spp");
@@ -161,7 +164,15 @@ fn assert_browser_agrees_with_cpu(server: &Server, scene_name: &str, scene: &Sce
 #[test]
 fn the_browser_agrees_with_the_cpu_on_the_cornell_box() {
     let server = Server::start(&[]);
-    assert_browser_agrees_with_cpu(&server, "cornell-box", &scene::cornell_box(), Strategy::Mis);
+    assert_browser_agrees_with_cpu(&server, "cornell-box", &scene::cornell_box(), Strategy::Mis, "webgl2");
+}
+
+/// The same statistics on the page's WebGPU runtime (the wgpu backend's WGSL compute kernel on
+/// Chromium's WebGPU, SwiftShader).
+#[test]
+fn the_browser_agrees_with_the_cpu_on_the_cornell_box_on_webgpu() {
+    let server = Server::start(&[]);
+    assert_browser_agrees_with_cpu(&server, "cornell-box", &scene::cornell_box(), Strategy::Mis, "webgpu");
 }
 
 #[test]
@@ -171,7 +182,83 @@ fn the_browser_agrees_with_the_cpu_on_a_textured_scene() {
     let server = Server::start(&[gltf.to_str().unwrap(), "--sky", sky.to_str().unwrap()]);
     let mut scene = scene::load(&gltf).expect("BoxTextured");
     scene.sky = Some(scene::load_sky(&sky, 1.0, 0.0).expect("sky"));
-    assert_browser_agrees_with_cpu(&server, "BoxTextured", &scene, Strategy::Mis);
+    assert_browser_agrees_with_cpu(&server, "BoxTextured", &scene, Strategy::Mis, "webgl2");
+}
+
+/// Runs the `api` scenario: which API the page chose, its read-out and message.
+fn api_report(server: &Server, api: &str, extra: &[(&str, &str)]) -> Value {
+    let mut options = vec![("scene", "cornell-box"), ("size", "16x16"), ("api", api)];
+    options.extend_from_slice(extra);
+    browse(&server.url, "api", &options)
+}
+
+/// The page runs WebGPU when asked, and by default (auto) where the browser offers it, WebGL2
+/// when asked; the read-out names the API and the adapter, and both render the scene.
+#[test]
+fn the_page_runs_and_shows_the_api_asked_for() {
+    let server = Server::start(&[]);
+    for (api, shown) in [("webgpu", "WebGPU"), ("auto", "WebGPU"), ("webgl2", "WebGL2")] {
+        let report = api_report(&server, api, &[]);
+        no_page_error(&report);
+        let info = &report["info"];
+        assert_eq!(info["api"], shown, "api={api}: {info}");
+        assert_eq!(info["apiRequested"], api, "{info}");
+        assert!(info["notice"].is_null(), "api={api}: nothing to explain: {info}");
+        let adapter = info["adapter"].as_str().unwrap_or("");
+        assert!(!adapter.is_empty(), "api={api}: the adapter is named: {info}");
+        if shown == "WebGPU" {
+            assert!(adapter.to_lowercase().contains("swiftshader"), "Chromium's WebGPU adapter here: {adapter:?}");
+        }
+        let readout = report["readout"].as_str().unwrap_or("");
+        assert_eq!(readout, format!("{shown} ({adapter})"), "api={api}: the read-out");
+        let rendered = &report["rendered"];
+        assert_eq!(rendered["spp"], 2, "{report}");
+        assert!(rendered["sum"].as_f64().unwrap_or(0.0) > 0.0, "api={api}: it draws the scene: {rendered}");
+    }
+}
+
+/// A scene that needs more storage buffers than the WebGPU device allows (a test override of
+/// the device's limit): auto falls back to WebGL2 and says why, naming the limit and the
+/// numbers; an explicit `api=webgpu` shows that error instead.
+#[test]
+fn a_scene_beyond_a_webgpu_limit_falls_back_to_webgl2() {
+    let server = Server::start(&[]);
+    let limit = [("maxStorageBuffers", "2")];
+    let auto = api_report(&server, "auto", &limit);
+    no_page_error(&auto);
+    assert_eq!(auto["info"]["api"], "WebGL2", "auto falls back: {}", auto["info"]);
+    let notice = auto["notice"].as_str().unwrap_or("");
+    assert!(
+        notice.contains("max_storage_buffers_per_shader_stage")
+            && notice.contains("allows 2")
+            && notice.contains("WebGL2"),
+        "the notice names the limit and the sizes: {notice:?}"
+    );
+    assert!(auto["messageText"].as_str().unwrap_or("").contains("max_storage_buffers_per_shader_stage"), "{auto}");
+    assert_eq!(auto["rendered"]["spp"], 2, "WebGL2 renders it: {auto}");
+
+    let explicit = api_report(&server, "webgpu", &limit);
+    let error = explicit["error"].as_str().unwrap_or("");
+    assert!(error.contains("max_storage_buffers_per_shader_stage") && error.contains("allows 2"), "{explicit}");
+    assert!(explicit["rendered"].is_null(), "nothing renders: {explicit}");
+}
+
+/// WebGPU device loss (the hook destroys the device): the page requests a new device,
+/// recreates the renderer from the scene in memory and keeps rendering.
+#[test]
+fn the_page_survives_webgpu_device_loss() {
+    let server = Server::start(&[]);
+    let report = browse(&server.url, "deviceloss", &[("scene", "cornell-box"), ("size", "16x16"), ("api", "webgpu")]);
+    no_page_error(&report);
+    assert_eq!(report["info"]["api"], "WebGPU", "{report}");
+    assert_eq!(report["before"], 4);
+    let restored = &report["restored"];
+    assert_eq!(restored["recoveries"], 1, "one new device: {restored}");
+    assert_eq!(restored["sppAfterLoss"], 0, "the renderer was recreated: {restored}");
+    assert_eq!(restored["spp"], 3, "rendering continues on the new device: {restored}");
+    assert_eq!(restored["info"]["api"], "WebGPU", "{restored}");
+    assert!(restored["info"]["webGpuLost"].is_null(), "{restored}");
+    assert!(restored["sum"].as_f64().unwrap_or(0.0) > 0.0, "the new renderer draws the scene: {restored}");
 }
 
 #[test]

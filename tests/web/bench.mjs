@@ -4,6 +4,10 @@
 // the same run (the machine is shared: compare ratios, not absolute times, across runs).
 //
 //   node tests/web/bench.mjs --lightport target/release/lightport [--frames 5] [--size 640x480]
+//        [--apis webgl2,webgpu] [--rounds 1]
+//
+// Each API (the page's `api=`) runs every scene; the table puts them side by side with the
+// WebGPU / WebGL2 frame-time ratio.
 //
 // Needs web/pkg (scripts/build-web.sh) and `npm ci` in tests/web.
 
@@ -43,24 +47,53 @@ const url = await new Promise((resolve, reject) => {
   server.on('exit', (code) => reject(new Error(`lightport serve exited (${code}) before printing its URL`)));
 });
 
+// Each API in its own pass over the scenes (same browser build, same server), alternated
+// `--rounds` times; the table shows per scene and API the median over the rounds.
+const apis = (args.apis || 'webgl2,webgpu').split(',');
+const rounds = Number(args.rounds || '1');
+const median = (v) => [...v].sort((x, y) => x - y)[Math.floor(v.length / 2)];
+
 try {
   const scenes = (await (await fetch(new URL('scenes.json', url))).json()).scenes;
-  const out = join(tmpdir(), `lightport-bench-${process.pid}.json`);
-  execFileSync('node', [join(here, 'run.mjs'), 'bench', '--url', url, '--out', out, '--size', size, '--frames', frames,
-    '--scenes', scenes.map((s) => s.name).join(',')], { stdio: 'inherit' });
-  const { results } = JSON.parse(readFileSync(out, 'utf8'));
-  rmSync(out, { force: true });
-  const baseline = results[0];
-  const info = results[0].info;
-  console.log(`\nWeb path tracer, headless Chromium: ${info.glRenderer} (${info.glVersion}); ${size}, 1 spp/frame, MIS, depth ${info.maxDepth}, venice_sunset sky; mean of ${frames} frames after 3 warm-up frames.`);
+  const runs = {}; // api -> scene -> [row]
+  const infos = {};
+  for (let round = 0; round < rounds; round++) {
+    for (const api of round % 2 ? [...apis].reverse() : apis) {
+      const out = join(tmpdir(), `lightport-bench-${process.pid}.json`);
+      execFileSync('node', [join(here, 'run.mjs'), 'bench', '--url', url, '--out', out, '--size', size, '--frames', frames,
+        '--api', api, '--scenes', scenes.map((s) => s.name).join(',')], { stdio: 'inherit' });
+      const { results } = JSON.parse(readFileSync(out, 'utf8'));
+      rmSync(out, { force: true });
+      for (const r of results) {
+        if (r.info.api.toLowerCase() !== api) throw new Error(`${r.scene}: asked for ${api}, ran ${r.info.api}`);
+        ((runs[api] ||= {})[r.scene] ||= []).push(r);
+        infos[api] = r.info;
+      }
+    }
+  }
+  const info = infos[apis[0]];
+  console.log(`\nWeb path tracer, headless Chromium: ${apis.map((a) => `${infos[a].api} on ${infos[a].adapter}`).join('; ')}; ${size}, 1 spp/frame, MIS, depth ${info.maxDepth}, venice_sunset sky; mean of ${frames} frames after 3 warm-up frames; medians of ${rounds} alternated round(s).`);
   console.log('Shared, noisy 2-core machine: compare the ratios (same run), not absolute times.\n');
-  console.log('| scene | triangles | bundle (raw) | bundle (gzip) | frame (ms) | frames/s | frame vs Cornell | first frame, cold cache (ms) | first frame, warm cache (ms) | warm / cold |');
-  console.log('|---|---|---|---|---|---|---|---|---|---|');
-  for (const r of results) {
-    const s = scenes.find((x) => x.name === r.scene);
+  const head = ['scene', 'triangles', 'bundle (raw)', 'bundle (gzip)'];
+  for (const api of apis) head.push(`${api} frame (ms)`, `${api} first frame cold (ms)`, `${api} first frame warm (ms)`);
+  if (apis.length === 2) head.push(`frame ${apis[1]} / ${apis[0]}`);
+  console.log(`| ${head.join(' | ')} |`);
+  console.log(`|${head.map(() => '---').join('|')}|`);
+  for (const s of scenes) {
     const mb = (n) => `${(n / 1e6).toFixed(2)} MB`;
-    console.log(`| ${r.scene} | ${s.triangles.toLocaleString('en')} | ${mb(s.bytes.raw)} | ${mb(s.bytes.gzip)} | ${r.frameMs.toFixed(0)} | ${(1000 / r.frameMs).toFixed(2)} | ${(r.frameMs / baseline.frameMs).toFixed(2)}x | ${r.coldFirstFrameMs.toFixed(0)} | ${r.warmFirstFrameMs.toFixed(0)} | ${(r.warmFirstFrameMs / r.coldFirstFrameMs).toFixed(2)} |`);
-    if (r.coldFromCache || !r.warmFromCache) console.log(`  (unexpected: cold visit from cache ${r.coldFromCache}, warm visit from cache ${r.warmFromCache})`);
+    const cells = [s.name, s.triangles.toLocaleString('en'), mb(s.bytes.raw), mb(s.bytes.gzip)];
+    const frame = {};
+    for (const api of apis) {
+      const rows = runs[api][s.name];
+      frame[api] = median(rows.map((r) => r.frameMs));
+      cells.push(frame[api].toFixed(0), median(rows.map((r) => r.coldFirstFrameMs)).toFixed(0),
+        median(rows.map((r) => r.warmFirstFrameMs)).toFixed(0));
+      for (const r of rows) {
+        if (r.coldFromCache || !r.warmFromCache) console.log(`  (unexpected: ${api} ${s.name}: cold visit from cache ${r.coldFromCache}, warm visit from cache ${r.warmFromCache})`);
+      }
+    }
+    if (apis.length === 2) cells.push(`${(frame[apis[1]] / frame[apis[0]]).toFixed(2)}x`);
+    console.log(`| ${cells.join(' | ')} |`);
   }
 } finally {
   server.kill();

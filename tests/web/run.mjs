@@ -4,8 +4,8 @@
 //
 //   node run.mjs SCENARIO --url http://127.0.0.1:PORT/ --out result.json [options]
 //
-// Scenarios: accumulate, cache, camera, slow, drop, limits, context, display, bench, chart, compile (see each
-// function). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
+// Scenarios: accumulate, cache, camera, slow, drop, limits, context, display, api, deviceloss, bench,
+// chart, compile (see each function); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
 // long, so that a hung page never hangs the caller. `--exit-on-stdin-eof` (no value): exit 4,
 // closing the browser, when stdin reaches its end: the caller holds the pipe's other end, which
 // the kernel closes when the caller ends however it ends (src/serve_child.rs), so neither this
@@ -17,12 +17,24 @@ import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 
 const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
-// The flags DESIGN.md lists for WebGL2 on SwiftShader (the user data dir is given separately).
-const ARGS = [
-  '--headless=new', '--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--disable-gpu',
+// The flags DESIGN.md lists for WebGL2 on SwiftShader, and WebGPU (on SwiftShader too: adapter
+// "google / swiftshader"; the user data dir is given separately).
+const BASE_ARGS = [
+  '--headless=new', '--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
   '--disable-background-networking', '--disable-component-update', '--disable-sync', '--no-first-run',
-  '--disable-quic',
+  '--disable-quic', '--enable-unsafe-webgpu',
 ];
+// WebGL2 pages: the GPU process disabled (DESIGN.md). A WebGPU canvas needs a compositor that
+// can take WebGPU's swap-chain images: with `--disable-gpu` (GL compositing over SwiftShader)
+// Chromium finds no shared-image backing for them ("Could not find SharedImageBackingFactory
+// ... WebgpuSwapChainTexture") and the GPU process dies at the first getCurrentTexture (every
+// later promise rejects: "A valid external Instance reference no longer exists"); with Vulkan
+// compositing on SwiftShader it works.
+const WEBGL2_ARGS = [...BASE_ARGS, '--disable-gpu'];
+const WEBGPU_ARGS = [...BASE_ARGS, '--use-vulkan=swiftshader', '--enable-features=Vulkan'];
+// `--api auto|webgpu|webgl2` (any scenario): the page's `api=`; default webgl2, which every
+// scenario was written against (WebGPU frames are not split into bands).
+let pageApi = 'webgl2';
 
 function parseArgs(argv) {
   const [scenario, ...rest] = argv;
@@ -46,7 +58,7 @@ async function withBrowser(profile, action, extraArgs = []) {
   const context = await chromium.launchPersistentContext(profile, {
     executablePath: CHROMIUM,
     headless: true,
-    args: [...ARGS, ...extraArgs],
+    args: [...(pageApi === 'webgl2' ? WEBGL2_ARGS : WEBGPU_ARGS), ...extraArgs],
     viewport: { width: 900, height: 700 },
   });
   try {
@@ -70,7 +82,9 @@ async function open(context, baseUrl, query, timeoutMs = 240000) {
   page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
   page.on('pageerror', (e) => consoleErrors.push(String(e)));
   const url = new URL(baseUrl);
-  for (const [k, v] of Object.entries(query)) url.searchParams.set(k, v);
+  for (const [k, v] of Object.entries({ api: pageApi, ...query })) {
+    if (v !== undefined) url.searchParams.set(k, v);
+  }
   const navigationStart = Date.now();
   await page.goto(url.toString());
   await page.waitForFunction(() => window.lightport && window.lightport.ready, null, { timeout: timeoutMs });
@@ -114,8 +128,8 @@ async function cache(o) {
     return {
       error,
       // What the frames rendered: the sum of the accumulated radiance (0 for a black image).
-      sum: await page.evaluate(() => {
-        const a = window.lightport.readAccumulation();
+      sum: await page.evaluate(async () => {
+        const a = await window.lightport.readAccumulation();
         let sum = 0;
         for (let i = 0; i < a.data.length; i += 4) sum += a.data[i] + a.data[i + 1] + a.data[i + 2];
         return sum;
@@ -154,7 +168,7 @@ async function camera(o) {
       if (error) return { error };
       const spp = () => page.evaluate(() => window.lightport.spp());
       const render = (n) => page.evaluate((k) => window.lightport.renderFrames(k), n);
-      const image = () => page.evaluate(() => window.lightport.readAccumulation().data);
+      const image = () => page.evaluate(async () => (await window.lightport.readAccumulation()).data);
       const box = await page.locator('#view').boundingBox();
       const cx = box.x + box.width / 2;
       const cy = box.y + box.height / 2;
@@ -225,9 +239,9 @@ async function slow(o) {
       const info = await page.evaluate(() => window.lightport.info());
       const readout = await page.textContent('#frame-split');
       // One whole frame in one submission, waited for (after a warm-up frame).
-      const frameMs = await page.evaluate(() => {
+      const frameMs = await page.evaluate(async () => {
         window.lightport.pause();
-        window.lightport.renderFrames(1);
+        await window.lightport.renderFrames(1);
         return window.lightport.renderFrames(1);
       });
       return { restarts, info, readout, frameMs, error: await page.evaluate(() => window.lightport.error) };
@@ -256,9 +270,9 @@ async function drop(o) {
       const badError = await page.evaluate(() => window.lightport.error);
       const messageVisible = await page.isVisible('#message');
       const messageText = await page.textContent('#message');
-      const afterBad = await page.evaluate(() => {
+      const afterBad = await page.evaluate(async () => {
         const before = window.lightport.spp();
-        window.lightport.renderFrames(2);
+        await window.lightport.renderFrames(2);
         return { before, after: window.lightport.spp(), name: window.lightport.info().name };
       });
       const files = (o.files || '').split(',').filter(Boolean).map((path) => ({
@@ -275,8 +289,8 @@ async function drop(o) {
           files[0].name,
           { timeout: 120000 },
         );
-        const rendered = await page.evaluate(() => {
-          window.lightport.renderFrames(2);
+        const rendered = await page.evaluate(async () => {
+          await window.lightport.renderFrames(2);
           return { spp: window.lightport.spp(), info: window.lightport.info(), error: window.lightport.error };
         });
         good = { ...rendered, readout: await page.textContent('#scene-info') };
@@ -322,9 +336,10 @@ async function contextLoss(o) {
       }));
       await page.evaluate(() => window.__loseContext.restoreContext());
       await page.waitForFunction(() => !window.lightport.info().contextLost, null, { timeout: 30000 });
-      const restored = await page.evaluate(() => {
-        window.lightport.renderFrames(3);
-        return { spp: window.lightport.spp(), error: window.lightport.error, sum: window.lightport.readAccumulation().data.reduce((a, b) => a + b, 0) };
+      const restored = await page.evaluate(async () => {
+        await window.lightport.renderFrames(3);
+        const data = (await window.lightport.readAccumulation()).data;
+        return { spp: window.lightport.spp(), error: window.lightport.error, sum: data.reduce((a, b) => a + b, 0) };
       });
       return { whileLost, restored };
     });
@@ -350,7 +365,8 @@ async function display(o) {
           await page.$eval('#exposure', (e, v) => { e.value = v; e.dispatchEvent(new Event('input')); }, exposure);
         }
         // Drawn and copied in one task: the WebGL drawing buffer is intact until it is composited.
-        shots.push(await page.evaluate(() => {
+        shots.push(await page.evaluate(async () => {
+          // The frames are drawn at once; only the wait for the GPU is a promise.
           window.lightport.renderFrames(2);
           const view = document.querySelector('#view');
           const copy = document.createElement('canvas');
@@ -360,10 +376,74 @@ async function display(o) {
           context2d.drawImage(view, 0, 0);
           const pixels = Array.from(context2d.getImageData(0, 0, view.width, view.height).data);
           const info = window.lightport.info();
-          return { toneMap: info.toneMap, exposure: info.exposure, pixels, accumulation: window.lightport.readAccumulation() };
+          const accumulation = await window.lightport.readAccumulation();
+          return { toneMap: info.toneMap, exposure: info.exposure, pixels, accumulation };
         }));
       }
       return { shots, consoleErrors, error: await page.evaluate(() => window.lightport.error) };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
+// Which API runs (`--api`, optionally `--maxStorageBuffers N`): the page's info, its API
+// read-out and message after two frames, and what the page reported.
+async function apiChoice(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const { page, error, consoleErrors } = await open(context, o.url, {
+        scene: o.scene, size: o.size, paused: '1', maxStorageBuffers: o.maxStorageBuffers,
+      });
+      const rendered = error ? null : await page.evaluate(async () => {
+        await window.lightport.renderFrames(2);
+        const a = await window.lightport.readAccumulation();
+        return { spp: a.spp, sum: a.data.reduce((x, y) => x + y, 0) };
+      });
+      return {
+        error: await page.evaluate(() => window.lightport.error),
+        firstError: error,
+        notice: await page.evaluate(() => window.lightport.notice || null),
+        info: await page.evaluate(() => window.lightport.info()),
+        readout: await page.textContent('#api-info'),
+        messageText: await page.textContent('#message'),
+        rendered,
+        consoleErrors,
+      };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
+// WebGPU device loss (`GPUDevice.destroy()` through the hook): the page requests a new device
+// and recreates the renderer from the scene in memory, then keeps rendering.
+async function deviceLoss(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const { page, error, info } = await open(context, o.url, { scene: o.scene, size: o.size, paused: '1' });
+      if (error) return { error };
+      await page.evaluate(() => window.lightport.renderFrames(4));
+      const before = await page.evaluate(() => window.lightport.spp());
+      await page.evaluate(() => window.lightport.loseWebGpu());
+      await page.waitForFunction(() => window.lightport.deviceRecoveries > 0 || window.lightport.error, null,
+        { timeout: 60000 });
+      const restored = await page.evaluate(async () => {
+        const sppAfterLoss = window.lightport.spp();
+        await window.lightport.renderFrames(3);
+        const data = (await window.lightport.readAccumulation()).data;
+        return {
+          sppAfterLoss,
+          spp: window.lightport.spp(),
+          error: window.lightport.error,
+          recoveries: window.lightport.deviceRecoveries,
+          sum: data.reduce((a, b) => a + b, 0),
+          info: window.lightport.info(),
+        };
+      });
+      return { info, before, restored, error: restored.error };
     });
   } finally {
     rmSync(profile, { recursive: true, force: true });
@@ -506,9 +586,13 @@ async function compile(o) {
   }
 }
 
-const SCENARIOS = { accumulate, cache, camera, slow, drop, limits, context: contextLoss, display, bench, chart, compile };
+const SCENARIOS = {
+  accumulate, cache, camera, slow, drop, limits, context: contextLoss, display, api: apiChoice, deviceloss: deviceLoss,
+  bench, chart, compile,
+};
 
 const options = parseArgs(process.argv.slice(2));
+if (options.api) pageApi = options.api;
 const run = SCENARIOS[options.scenario];
 if (!run) {
   console.error(`unknown scenario ${options.scenario}: ${Object.keys(SCENARIOS).join(', ')}`);

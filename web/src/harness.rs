@@ -110,6 +110,8 @@ impl HarnessRuntime {
             queue: device.queue.clone(),
             info: device.info.clone(),
             limits: device.limits.clone(),
+            instance: device.instance.clone(),
+            adapter: device.adapter.clone(),
         };
         let harness = WgpuHarness::new(shared, program);
         Ok(HarnessRuntime { harness: Rc::new(RefCell::new(Some(Harness::Wgpu(Box::new(harness))))), info })

@@ -1,30 +1,39 @@
-//! The browser viewer: a WebGL2 context from a canvas, wrapped in `glow`, and the native GL
-//! backend's [`GlRenderer`] on it. Only the context and the frame loop (JavaScript's
-//! `requestAnimationFrame`, calling [`Viewer::frame`]) are specific to the web; the kernel, its
-//! shader, the data textures and the accumulation are the native code.
+//! The browser viewer: the native backends' renderers on a canvas, through one of two runtimes
+//! ([`crate::runtime`]): the GL backend's `GlRenderer` on WebGL2 (wrapped in `glow`), or the
+//! wgpu backend's `WgpuRenderer` on the browser's WebGPU. Only the contexts and the frame loop
+//! (JavaScript's `requestAnimationFrame`, calling [`Viewer::step`]) are specific to the web; the
+//! kernel, its shaders, the scene data and the accumulation are the native code.
 //!
-//! Each frame adds one sample per pixel to the RGBA32F accumulation, then a small display pass
-//! draws its mean to the canvas through the kernel's display transform (tone curve, exposure,
-//! sRGB: [`GlDisplay`], what the CLI's PNG output stores with the same settings). The frame
-//! loop calls [`Viewer::step`], which submits a frame in bands of rows of at most a time budget
-//! (50 ms by default; `tracer::backend::frame_split`), one band at a time, so that input is
-//! handled, and a camera move restarts the accumulation, between bands, also on a GPU that
-//! needs seconds per frame.
+//! Which runs: [`Viewer::set_api`] (`auto`, the default: WebGPU when `requestWebGpu()` gave a
+//! device and the scene fits its limits, else WebGL2 with a notice saying why; `webgpu` or
+//! `webgl2`: that one, or its error). A canvas keeps the first kind of context it gave out, so
+//! switching kinds replaces the canvas element (same id and attributes) in the page.
+//!
+//! Each frame adds one sample per pixel to the accumulation, then a small display pass draws
+//! its mean to the canvas through the kernel's display transform (tone curve, exposure, sRGB:
+//! what the CLI's PNG output stores with the same settings), on either API. On WebGL2 the frame
+//! loop submits a frame in bands of rows of at most a time budget (50 ms by default;
+//! `tracer::backend::frame_split`), one band at a time, so that input is handled, and a camera
+//! move restarts the accumulation, between bands, also on a GPU that needs seconds per frame;
+//! on WebGPU one whole frame at a time.
 
 use std::fmt;
 
-use glow::HasContext;
-use js_sys::{Float32Array, Object, Reflect};
-use tracer::backend::frame_split::{Pacer, Step, DEFAULT_BUDGET_MS};
-use tracer::backend::gl::{GlDisplay, GlOptions, GlRenderer};
+use js_sys::{Float32Array, Object, Reflect, Uint8Array};
+use tracer::backend::frame_split::{Step, DEFAULT_BUDGET_MS};
+use tracer::backend::gl::GlOptions;
+use tracer::backend::wgpu::WgpuOptions;
+use tracer::backend::Image;
 use tracer::output::{Display, ToneMap};
 use tracer::pack::{Packed, RenderSettings, Strategy};
 use wasm_bindgen::prelude::*;
 use wasm_bindgen::JsCast;
-use web_sys::{HtmlCanvasElement, WebGl2RenderingContext, WebGlContextAttributes};
+use wasm_bindgen_futures::future_to_promise;
+use web_sys::{HtmlCanvasElement, WebGl2RenderingContext};
 
 use crate::camera::OrbitCamera;
 use crate::files::{self, DroppedFile};
+use crate::runtime::{webgl2, Api, GlRuntime, GpuDevice, GpuRuntime, Runtime};
 
 fn js_error(e: impl fmt::Display) -> JsError {
     JsError::new(&e.to_string())
@@ -33,32 +42,6 @@ fn js_error(e: impl fmt::Display) -> JsError {
 fn set(object: &Object, key: &str, value: impl Into<JsValue>) {
     // Setting a plain property on a fresh object cannot fail.
     let _ = Reflect::set(object, &JsValue::from_str(key), &value.into());
-}
-
-/// The renderer and its display pass, on one context.
-struct Running {
-    renderer: GlRenderer,
-    /// Always `Some` until dropped (taken to delete it before the renderer's context goes).
-    display: Option<GlDisplay>,
-    /// Bands of the frame loop (`step`), one on the GPU at a time.
-    pacer: Pacer,
-}
-
-impl Running {
-    fn draw(&self, width: i32, height: i32, settings: &Display) {
-        if let Some(display) = &self.display {
-            display.draw(&self.renderer, None, [width, height], settings);
-        }
-    }
-}
-
-impl Drop for Running {
-    fn drop(&mut self) {
-        self.pacer.forget(self.renderer.gl());
-        if let Some(display) = self.display.take() {
-            display.delete(self.renderer.gl());
-        }
-    }
 }
 
 /// The loaded scene: the master copy of its packed data (uniforms kept current) and the view.
@@ -70,16 +53,26 @@ struct Loaded {
     home: OrbitCamera,
 }
 
-/// The path tracer on a canvas. Create it with `new Viewer(canvas)`, load a bundle or dropped
-/// files, then call `frame()` from `requestAnimationFrame`.
+/// The path tracer on a canvas. Create it with `new Viewer(canvas)`, optionally give it a
+/// WebGPU device (`useWebGpu(await requestWebGpu())`), load a bundle or dropped files, then call
+/// `step()` from `requestAnimationFrame`.
 #[wasm_bindgen]
 pub struct Viewer {
     canvas: HtmlCanvasElement,
-    context: WebGl2RenderingContext,
+    /// The kind of context the canvas gave out (it keeps its first).
+    canvas_api: Option<Api>,
+    gl_context: Option<WebGl2RenderingContext>,
+    api: Api,
+    gpu: Option<GpuDevice>,
+    /// Why there is no WebGPU device (`webGpuUnavailable`), for auto's notice.
+    gpu_unavailable: Option<String>,
+    /// Why the scene runs on WebGL2 under auto (WebGPU missing, or a limit the scene exceeds).
+    notice: Option<String>,
     loaded: Option<Loaded>,
-    running: Option<Running>,
+    running: Option<Runtime>,
     settings: RenderSettings,
     options: GlOptions,
+    wgpu_options: WgpuOptions,
     context_lost: bool,
     dropped: Vec<DroppedFile>,
     /// Selects the random sequence, as the native backends' `seed` does (`setSeed`).
@@ -87,49 +80,104 @@ pub struct Viewer {
     /// The longest one band of a frame should take on the GPU (`setBandBudget`); `None`:
     /// frames are not split.
     band_budget_ms: Option<f64>,
+    /// WebGPU renderers recreated after an uncaptured device error since the last scene load.
+    gpu_recoveries: u32,
     /// How the accumulation is shown and screenshot: tone curve and exposure (`setToneMap`,
     /// `setExposure`), the CLI's `--tonemap` and `--exposure`.
     display: Display,
 }
 
+/// Renderers recreated after uncaptured WebGPU errors before the error is shown instead.
+const MAX_GPU_RECOVERIES: u32 = 3;
+
 #[wasm_bindgen]
 impl Viewer {
-    /// A viewer drawing into `canvas`. Fails with a clear message when the browser has no WebGL2.
+    /// A viewer drawing into `canvas`. No context is created until a scene is loaded.
     #[wasm_bindgen(constructor)]
-    pub fn new(canvas: HtmlCanvasElement) -> Result<Viewer, JsError> {
+    pub fn new(canvas: HtmlCanvasElement) -> Viewer {
         console_error_panic_hook::set_once();
-        let attributes = WebGlContextAttributes::new();
-        attributes.set_antialias(false);
-        attributes.set_depth(false);
-        attributes.set_stencil(false);
-        attributes.set_alpha(false);
-        attributes.set_power_preference(web_sys::WebGlPowerPreference::HighPerformance);
-        let context = canvas
-            .get_context_with_context_options("webgl2", &attributes)
-            .map_err(|e| JsError::new(&format!("creating a WebGL2 context failed: {e:?}")))?
-            .ok_or_else(|| {
-                JsError::new(
-                    "this browser or device has no WebGL2: the path tracer needs WebGL2 (enable hardware \
-                     acceleration, or try a current Chrome, Firefox or Safari)",
-                )
-            })?
-            .dyn_into::<WebGl2RenderingContext>()
-            .map_err(|_| JsError::new("the canvas returned a context that is not WebGL2"))?;
         let settings =
             RenderSettings { width: canvas.width().max(1), height: canvas.height().max(1), ..Default::default() };
-        Ok(Viewer {
+        Viewer {
             canvas,
-            context,
+            canvas_api: None,
+            gl_context: None,
+            api: Api::Auto,
+            gpu: None,
+            gpu_unavailable: None,
+            notice: None,
             loaded: None,
             running: None,
             settings,
             options: GlOptions::default(),
+            wgpu_options: WgpuOptions::default(),
             context_lost: false,
             dropped: Vec::new(),
             seed: 1,
             band_budget_ms: Some(DEFAULT_BUDGET_MS),
+            gpu_recoveries: 0,
             display: Display::default(),
-        })
+        }
+    }
+
+    /// The canvas drawn into (a new element after a switch between WebGL2 and WebGPU).
+    #[wasm_bindgen(getter)]
+    pub fn canvas(&self) -> HtmlCanvasElement {
+        self.canvas.clone()
+    }
+
+    /// Chooses the graphics API: "auto" (default), "webgpu" or "webgl2". Applies to the next
+    /// scene loaded (or the current one, recreated).
+    #[wasm_bindgen(js_name = setApi)]
+    pub fn set_api(&mut self, name: &str) -> Result<(), JsError> {
+        let api = Api::parse(name).map_err(|e| JsError::new(&e))?;
+        if api != self.api {
+            self.api = api;
+            if self.running.is_some() {
+                self.rebuild()?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Gives the viewer a WebGPU device (from `requestWebGpu()`); after a device loss, the
+    /// new one: the renderer is recreated on it from the scene kept in memory.
+    #[wasm_bindgen(js_name = useWebGpu)]
+    pub fn use_web_gpu(&mut self, device: &GpuDevice) -> Result<(), JsError> {
+        self.gpu = Some(device.clone());
+        self.gpu_unavailable = None;
+        if self.loaded.is_some() && self.api != Api::WebGl2 {
+            self.rebuild()?;
+        }
+        Ok(())
+    }
+
+    /// Records why `requestWebGpu()` failed: auto says so when it runs WebGL2.
+    #[wasm_bindgen(js_name = webGpuUnavailable)]
+    pub fn web_gpu_unavailable(&mut self, why: String) {
+        self.gpu_unavailable = Some(why);
+    }
+
+    /// Why the WebGPU device the scene runs on was lost, once it was (the page then requests
+    /// a new one and calls `useWebGpu`); `undefined` otherwise.
+    #[wasm_bindgen(js_name = webGpuLost)]
+    pub fn web_gpu_lost(&self) -> Option<String> {
+        let gpu = self.gpu.as_ref()?;
+        let relevant = matches!(self.running, Some(Runtime::WebGpu(_))) || self.api == Api::WebGpu;
+        if relevant {
+            gpu.lost()
+        } else {
+            None
+        }
+    }
+
+    /// Test hook: destroys the WebGPU device (`GPUDevice.destroy()`), as a GPU reset would
+    /// lose it.
+    #[wasm_bindgen(js_name = loseWebGpu)]
+    pub fn lose_web_gpu(&self) {
+        if let Some(gpu) = &self.gpu {
+            gpu.device.device.destroy();
+        }
     }
 
     /// Loads a scene bundle (as served at `/bundles/<hash>.lpb`): no loading or BVH build, the
@@ -173,64 +221,147 @@ impl Viewer {
         packed.apply(&RenderSettings { max_depth: bundle_depth, ..self.settings });
         let camera = OrbitCamera::from_uniforms(&packed.scene);
         let running = self.start(&packed)?;
+        self.gpu_recoveries = 0;
         self.settings.max_depth = bundle_depth;
         self.running = Some(running);
         self.loaded = Some(Loaded { name, packed, camera, home: camera });
         Ok(self.scene_info())
     }
 
-    /// A renderer and display pass for `packed` on the canvas's context.
-    fn start(&self, packed: &Packed) -> Result<Running, JsError> {
+    /// A renderer and display pass for `packed`, on the API chosen ([`set_api`](Self::set_api)).
+    fn start(&mut self, packed: &Packed) -> Result<Runtime, JsError> {
+        self.notice = None;
+        let gpu_ready = self.gpu.as_ref().is_some_and(|g| g.lost().is_none());
+        match self.api {
+            Api::WebGl2 => {}
+            Api::WebGpu => return self.start_webgpu(packed).map_err(|e| JsError::new(&e)),
+            Api::Auto if gpu_ready => match self.start_webgpu(packed) {
+                Ok(runtime) => return Ok(runtime),
+                Err(e) => self.notice = Some(format!("WebGPU cannot run this scene, so WebGL2 does: {e}")),
+            },
+            Api::Auto => {
+                let why = self.gpu_unavailable.as_deref().unwrap_or("no WebGPU device was requested");
+                self.notice = Some(format!("WebGPU is not available, so WebGL2 runs: {why}"));
+            }
+        }
+        self.start_webgl2(packed)
+    }
+
+    fn start_webgpu(&mut self, packed: &Packed) -> Result<Runtime, String> {
+        let gpu = self.gpu.clone().ok_or_else(|| {
+            let why = self.gpu_unavailable.as_deref().unwrap_or("requestWebGpu() was not called");
+            format!("WebGPU is not available: {why}")
+        })?;
+        // Limits are checked and the scene uploaded before the canvas gets a WebGPU context.
+        let prepared = GpuRuntime::prepare(&gpu, packed, self.seed, &self.wgpu_options)?;
+        let canvas = self.canvas_for(Api::WebGpu)?;
+        canvas.set_width(packed.scene.width);
+        canvas.set_height(packed.scene.height);
+        Ok(Runtime::WebGpu(GpuRuntime::attach(prepared, &canvas)?))
+    }
+
+    fn start_webgl2(&mut self, packed: &Packed) -> Result<Runtime, JsError> {
         if self.context_lost {
             return Err(JsError::new("the WebGL context is lost; waiting for the browser to restore it"));
         }
-        self.canvas.set_width(packed.scene.width);
-        self.canvas.set_height(packed.scene.height);
-        let gl = glow::Context::from_webgl2_context(self.context.clone());
-        let renderer = GlRenderer::with_options(gl, packed.clone(), self.seed, &self.options).map_err(js_error)?;
-        let display = GlDisplay::new(renderer.gl()).map_err(js_error)?;
-        let pacer = Pacer::new(packed.scene.height, self.band_budget_ms);
-        Ok(Running { renderer, display: Some(display), pacer })
+        let canvas = self.canvas_for(Api::WebGl2).map_err(|e| JsError::new(&e))?;
+        canvas.set_width(packed.scene.width);
+        canvas.set_height(packed.scene.height);
+        let context = match &self.gl_context {
+            Some(c) => c.clone(),
+            None => {
+                let c = webgl2::context(&canvas).map_err(|e| JsError::new(&e))?;
+                self.gl_context = Some(c.clone());
+                c
+            }
+        };
+        let runtime = GlRuntime::new(&context, packed, self.seed, &self.options, self.band_budget_ms)
+            .map_err(|e| JsError::new(&e))?;
+        Ok(Runtime::WebGl2(runtime))
+    }
+
+    /// The canvas for a context of `api`: the current one, unless it already gave out the
+    /// other kind; then a new canvas element with the same attributes takes its place.
+    fn canvas_for(&mut self, api: Api) -> Result<HtmlCanvasElement, String> {
+        if self.canvas_api.is_none_or(|a| a == api) {
+            self.canvas_api = Some(api);
+            return Ok(self.canvas.clone());
+        }
+        let failed = |e: JsValue| format!("replacing the canvas failed: {e:?}");
+        let document = self.canvas.owner_document().ok_or("the canvas is not in a document")?;
+        let fresh: HtmlCanvasElement =
+            document.create_element("canvas").map_err(failed)?.dyn_into().map_err(|_| "not a canvas".to_string())?;
+        for name in self.canvas.get_attribute_names().iter().filter_map(|n| n.as_string()) {
+            if let Some(value) = self.canvas.get_attribute(&name) {
+                fresh.set_attribute(&name, &value).map_err(failed)?;
+            }
+        }
+        if self.canvas.is_connected() {
+            self.canvas.replace_with_with_node_1(&fresh).map_err(failed)?;
+        }
+        // The old canvas's renderer (drawing into the detached element) goes now.
+        self.running = None;
+        self.canvas = fresh;
+        self.canvas_api = Some(api);
+        self.gl_context = None;
+        self.context_lost = false;
+        Ok(self.canvas.clone())
+    }
+
+    /// Whether nothing may be drawn now (a lost WebGL context or WebGPU device).
+    fn halted(&self) -> bool {
+        match &self.running {
+            None => true,
+            Some(Runtime::WebGl2(r)) => self.context_lost || r.context_lost(),
+            Some(Runtime::WebGpu(_)) => self.gpu.as_ref().is_none_or(|g| g.lost().is_some()),
+        }
+    }
+
+    /// An error of the running renderer: on WebGPU (an uncaptured device error), the renderer
+    /// is recreated from the scene in memory, a few times, with a notice; else the error.
+    fn recover(&mut self, error: String) -> Result<(), JsError> {
+        let on_gpu = matches!(self.running, Some(Runtime::WebGpu(_)));
+        if on_gpu && self.gpu_recoveries < MAX_GPU_RECOVERIES {
+            self.gpu_recoveries += 1;
+            self.rebuild()?;
+            self.notice = Some(format!("WebGPU reported an error; the renderer was recreated: {error}"));
+            return Ok(());
+        }
+        Err(JsError::new(&error))
     }
 
     /// Adds one sample per pixel (the rest of the frame, if `step` began it) in one submission
     /// and draws the converging image (the test hook's `renderFrames`). Does nothing without a
-    /// scene or while the context is lost.
+    /// scene or while the context or device is lost.
     pub fn frame(&mut self) -> Result<(), JsError> {
-        if self.context_lost || self.context.is_context_lost() {
+        if self.halted() {
             return Ok(());
         }
         let Some(running) = &mut self.running else { return Ok(()) };
-        // The band in flight would be timed with this whole frame.
-        running.pacer.forget(running.renderer.gl());
-        running.renderer.render_frame().map_err(js_error)?;
-        running.draw(self.canvas.width() as i32, self.canvas.height() as i32, &self.display);
-        Ok(())
+        match running.frame(&self.display) {
+            Ok(()) => Ok(()),
+            Err(e) => self.recover(e),
+        }
     }
 
     /// The frame loop's step (call it once per animation frame with `performance.now()`):
-    /// unless the previous band is still on the GPU (its fence polled without blocking),
-    /// submits the next band of the frame, and when that completes the frame, draws the image
-    /// (during the first frame after a restart: after every band, the new view band by band).
-    /// Returns 0: waited (nothing submitted), 1: a band was submitted, 2: the band completed a
-    /// frame (one more sample per pixel).
+    /// unless the previous band (WebGL2) or frame (WebGPU) is still on the GPU (polled without
+    /// blocking), submits the next, and when that completes the frame, draws the image (on
+    /// WebGL2, during the first frame after a restart: after every band, the new view band by
+    /// band). Returns 0: waited (nothing submitted), 1: a band was submitted, 2: the band
+    /// completed a frame (one more sample per pixel).
     pub fn step(&mut self, now_ms: f64) -> Result<u32, JsError> {
-        if self.context_lost || self.context.is_context_lost() {
+        if self.halted() {
             return Ok(0);
         }
         let Some(running) = &mut self.running else { return Ok(0) };
-        let (w, h) = (self.canvas.width() as i32, self.canvas.height() as i32);
-        let display = running.display.as_ref();
-        let settings = &self.display;
-        let step = running
-            .pacer
-            .step(&mut running.renderer, now_ms, |renderer, frame_done| {
-                // Each band of the first frame after a restart shows; later, each whole frame.
-                if let (true, Some(display)) = (frame_done || renderer.frames() == 0, display) {
-                    display.draw(renderer, None, [w, h], settings);
-                }
-            })
-            .map_err(js_error)?;
+        let step = match running.step(now_ms, &self.display) {
+            Ok(step) => step,
+            Err(e) => {
+                self.recover(e)?;
+                return Ok(0);
+            }
+        };
         Ok(match step {
             Step::Waiting => 0,
             Step::Submitted { frame_done: false } => 1,
@@ -240,6 +371,7 @@ impl Viewer {
 
     /// The longest one band of a frame should take on the GPU, in milliseconds (default 50);
     /// 0: do not split frames (one submission per frame). Restarts the band-height adaptation.
+    /// WebGL2 only: WebGPU frames are whole.
     #[wasm_bindgen(js_name = setBandBudget)]
     pub fn set_band_budget(&mut self, ms: f64) -> Result<(), JsError> {
         if !(ms.is_finite() && ms >= 0.0) {
@@ -247,28 +379,26 @@ impl Viewer {
         }
         self.band_budget_ms = (ms > 0.0).then_some(ms);
         if let Some(running) = &mut self.running {
-            running.pacer.forget(running.renderer.gl());
-            running.pacer = Pacer::new(running.renderer.packed().scene.height, self.band_budget_ms);
+            running.set_band_budget(self.band_budget_ms);
         }
         Ok(())
     }
 
-    /// Waits until the queued frames are rendered (reads one pixel back), e.g. around timings.
-    pub fn sync(&self) -> Result<(), JsError> {
-        let Some(running) = &self.running else { return Ok(()) };
-        let gl = running.renderer.gl();
-        let mut pixel = [0u8; 4];
-        // SAFETY: reads one RGBA8 pixel of the default framebuffer into a 4-byte buffer.
-        unsafe {
-            gl.bind_framebuffer(glow::FRAMEBUFFER, None);
-            gl.read_pixels(0, 0, 1, 1, glow::RGBA, glow::UNSIGNED_BYTE, glow::PixelPackData::Slice(Some(&mut pixel)));
-        }
-        Ok(())
+    /// Resolves once the queued frames are rendered (WebGL2: after a 1-pixel read-back, done
+    /// before this returns; WebGPU: the queue's `onSubmittedWorkDone`), e.g. around timings.
+    pub fn sync(&self) -> js_sys::Promise {
+        let wait = self.running.as_ref().filter(|_| !self.halted()).map(Runtime::sync);
+        future_to_promise(async move {
+            if let Some(wait) = wait {
+                wait.await;
+            }
+            Ok(JsValue::UNDEFINED)
+        })
     }
 
     /// Samples per pixel accumulated since the last restart.
     pub fn spp(&self) -> u32 {
-        self.running.as_ref().map_or(0, |r| r.renderer.frames())
+        self.running.as_ref().map_or(0, Runtime::frames)
     }
 
     /// The render size, scene and renderer (an object; see the fields set here).
@@ -304,16 +434,11 @@ impl Viewer {
         }
         let budget = self.band_budget_ms.unwrap_or(0.0);
         set(&info, "bandBudgetMs", budget);
+        set(&info, "apiRequested", self.api.name());
+        set(&info, "notice", self.notice.as_deref().map_or(JsValue::NULL, JsValue::from));
+        set(&info, "webGpuLost", self.web_gpu_lost().map_or(JsValue::NULL, JsValue::from));
         if let Some(running) = &self.running {
-            let policy = running.pacer.policy();
-            set(&info, "bands", policy.bands());
-            set(&info, "bandRows", policy.rows());
-            set(&info, "bandMs", policy.band_ms().map_or(JsValue::NULL, JsValue::from));
-            set(&info, "gpuBusy", running.pacer.busy());
-            let gl = running.renderer.info();
-            set(&info, "glRenderer", gl.renderer.as_str());
-            set(&info, "glVersion", gl.version.as_str());
-            set(&info, "maxTextureSize", gl.max_texture_size);
+            running.describe(&info);
         }
         info.into()
     }
@@ -340,8 +465,8 @@ impl Viewer {
         Ok(())
     }
 
-    /// Recreates the renderer for the current settings and camera (after a resize or a lost
-    /// context).
+    /// Recreates the renderer for the current settings and camera (after a resize, a lost
+    /// context or device, a new seed or API).
     fn rebuild(&mut self) -> Result<(), JsError> {
         self.running = None;
         let Some(loaded) = &mut self.loaded else {
@@ -352,7 +477,8 @@ impl Viewer {
         loaded.packed.apply(&self.settings);
         loaded.camera.apply(&mut loaded.packed.scene);
         let packed = loaded.packed.clone();
-        self.running = Some(self.start(&packed)?);
+        let running = self.start(&packed)?;
+        self.running = Some(running);
         Ok(())
     }
 
@@ -449,22 +575,26 @@ impl Viewer {
             scene.max_depth = settings.max_depth;
         };
         update(&mut loaded.packed.scene);
+        let halted = self.halted();
         if let Some(running) = &mut self.running {
-            if !self.context_lost {
-                running.renderer.set_uniforms(update).map_err(js_error)?;
+            if !halted {
+                running.set_uniforms(update).map_err(|e| JsError::new(&e))?;
             }
         }
         Ok(())
     }
 
-    /// The accumulation: per pixel (rows from the top) the sum of samples in rgb and the
-    /// number of finite samples in a; `spp()` frames so far.
+    /// Resolves to the accumulation: per pixel (rows from the top) the sum of samples in rgb
+    /// and the number of finite samples in a; `spp()` frames so far.
     #[wasm_bindgen(js_name = readAccumulation)]
-    pub fn read_accumulation(&self) -> Result<Float32Array, JsError> {
+    pub fn read_accumulation(&self) -> Result<js_sys::Promise, JsError> {
         let running = self.running.as_ref().ok_or_else(|| JsError::new("no scene is loaded"))?;
-        let texels = running.renderer.accumulation().map_err(js_error)?;
-        let floats: Vec<f32> = texels.iter().flat_map(|t| t.to_array()).collect();
-        Ok(Float32Array::from(floats.as_slice()))
+        let read = running.read_accumulation();
+        Ok(future_to_promise(async move {
+            let texels = read.await.map_err(|e| JsValue::from(JsError::new(&e)))?;
+            let floats: Vec<f32> = texels.iter().flat_map(|t| t.to_array()).collect();
+            Ok(Float32Array::from(floats.as_slice()).into())
+        }))
     }
 
     /// The tone curve of the display and of screenshots by name (`neutral`, the default, `aces`,
@@ -492,32 +622,50 @@ impl Viewer {
 
     /// Draws the image again (a display setting changed; no sample is added).
     fn redraw(&self) {
-        if self.context_lost || self.context.is_context_lost() {
+        if self.halted() {
             return;
         }
         if let Some(running) = &self.running {
-            running.draw(self.canvas.width() as i32, self.canvas.height() as i32, &self.display);
+            running.draw(&self.display);
         }
     }
 
-    /// The current image as PNG bytes, through the display's tone curve and exposure (as the
-    /// CLI's PNG output with the same `--tonemap` and `--exposure`).
+    /// Resolves to the current image as PNG bytes, through the display's tone curve and
+    /// exposure (as the CLI's PNG output with the same `--tonemap` and `--exposure`).
     #[wasm_bindgen(js_name = screenshotPng)]
-    pub fn screenshot_png(&self) -> Result<Vec<u8>, JsError> {
+    pub fn screenshot_png(&self) -> Result<js_sys::Promise, JsError> {
         let running = self.running.as_ref().ok_or_else(|| JsError::new("no scene is loaded"))?;
-        let image = running.renderer.image().map_err(js_error)?;
-        let pixels = tracer::output::to_display_srgb8(&image, &self.display);
-        let mut png = Vec::new();
-        let encoder = image::codecs::png::PngEncoder::new(&mut png);
-        image::ImageEncoder::write_image(encoder, &pixels, image.width, image.height, image::ExtendedColorType::Rgb8)
-            .map_err(js_error)?;
-        Ok(png)
+        let (width, height) = (running.packed().scene.width, running.packed().scene.height);
+        let n = running.frames().max(1) as f32;
+        let read = running.read_accumulation();
+        let display = self.display;
+        Ok(future_to_promise(async move {
+            let fail = |e: String| JsValue::from(JsError::new(&e));
+            let texels = read.await.map_err(fail)?;
+            let image = Image { width, height, pixels: texels.iter().map(|t| t.truncate() / n).collect() };
+            let pixels = tracer::output::to_display_srgb8(&image, &display);
+            let mut png = Vec::new();
+            let encoder = image::codecs::png::PngEncoder::new(&mut png);
+            image::ImageEncoder::write_image(encoder, &pixels, width, height, image::ExtendedColorType::Rgb8)
+                .map_err(|e| fail(e.to_string()))?;
+            Ok(Uint8Array::from(png.as_slice()).into())
+        }))
+    }
+
+    /// Test override: at most this many storage buffers per shader stage on WebGPU (0: the
+    /// device's), as a device with fewer would allow; applies to the next renderer created.
+    #[wasm_bindgen(js_name = setMaxStorageBuffers)]
+    pub fn set_max_storage_buffers(&mut self, count: u32) {
+        self.wgpu_options.max_storage_buffers_per_shader_stage = (count > 0).then_some(count);
     }
 
     /// The browser lost the WebGL context (`webglcontextlost`): stop drawing. GL objects died
     /// with the context; the scene stays in memory for `contextRestored`.
     #[wasm_bindgen(js_name = contextLost)]
     pub fn context_lost(&mut self) {
+        if !matches!(self.running, Some(Runtime::WebGl2(_))) {
+            return;
+        }
         self.context_lost = true;
         // Deleting objects of a lost context is a no-op in WebGL.
         self.running = None;
@@ -527,6 +675,9 @@ impl Viewer {
     /// same scene, camera and settings (the accumulation restarts).
     #[wasm_bindgen(js_name = contextRestored)]
     pub fn context_restored(&mut self) -> Result<(), JsError> {
+        if !self.context_lost {
+            return Ok(());
+        }
         self.context_lost = false;
         self.rebuild()
     }

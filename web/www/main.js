@@ -11,15 +11,22 @@
 //   paused=1          no frame loop: frames only through the test hook,
 //   budget=BYTES      the cache budget,
 //   bandBudget=MS     the longest one GPU submission (a band of a frame) should take, default
-//                     50; 0: frames are not split (one submission per frame).
+//                     50; 0: frames are not split (one submission per frame; WebGL2 only),
+//   api=auto|webgpu|webgl2  the graphics API (default auto: WebGPU if the browser gives a device
+//                     and the scene fits its limits, else WebGL2; the "API" control reloads with it),
+//   maxTextureSize=N, maxStorageBuffers=N  pretend the device allows at most N (WebGL2's texture
+//                     size; WebGPU's storage buffers per shader stage).
 
-import init, { Viewer } from './pkg/lightport_web.js';
+import init, { Viewer, requestWebGpu } from './pkg/lightport_web.js';
 import { BundleCache, DEFAULT_BUDGET_BYTES } from './cache.js';
 
 const params = new URLSearchParams(location.search);
 const $ = (id) => document.getElementById(id);
-const canvas = $('view');
+// The canvas: the viewer's (it replaces the element when it switches between WebGL2 and WebGPU,
+// which a canvas cannot do: it keeps its first kind of context). Input listeners sit on the stage.
+const view = () => (viewer ? viewer.canvas : $('view'));
 const stage = $('stage');
+const api = (params.get('api') || 'auto').toLowerCase();
 
 const cache = new BundleCache(Number(params.get('budget')) || DEFAULT_BUDGET_BYTES);
 let viewer = null;
@@ -43,23 +50,29 @@ const hook = {
   // first band), doneAt (that band's fence seen signalled) }, performance.now() times.
   restarts: [],
   bundleSources: [], // per loaded bundle: { name, fromCache, bytes }
+  deviceRecoveries: 0, // WebGPU devices recreated after a loss
+  // Destroys the WebGPU device (GPUDevice.destroy()), as a GPU reset loses it.
+  loseWebGpu: () => viewer.loseWebGpu(),
   get bytesFetched() { return cache.bytesFetched; },
   spp: () => (viewer ? viewer.spp() : 0),
   info: () => (viewer ? viewer.sceneInfo() : null),
   cacheUsage: () => cache.usage(),
   pause() { paused = true; },
   resume() { paused = false; },
-  // Renders `n` frames now and waits for the GPU; returns milliseconds per frame.
-  renderFrames(n) {
+  // Renders `n` frames now and waits for the GPU; resolves to milliseconds per frame.
+  async renderFrames(n) {
     const start = performance.now();
     for (let i = 0; i < n; i++) frame();
-    viewer.sync();
+    await viewer.sync();
     return (performance.now() - start) / Math.max(n, 1);
   },
-  // { width, height, spp, data: number[] (rgba per pixel, rows from the top; rgb sum, a count) }
-  readAccumulation() {
+  // Resolves to { width, height, spp, data: number[] (rgba per pixel, rows from the top; rgb
+  // sum, a count) }.
+  async readAccumulation() {
     const info = viewer.sceneInfo();
-    return { width: info.width, height: info.height, spp: viewer.spp(), data: Array.from(viewer.readAccumulation()) };
+    const spp = viewer.spp();
+    const data = Array.from(await viewer.readAccumulation());
+    return { width: info.width, height: info.height, spp, data };
   },
   loadScene: (name) => loadServedScene(name),
   loadBundleUrl: (url) => loadBundleUrl(url),
@@ -99,6 +112,17 @@ function hideMessage() {
   $('message').hidden = true;
 }
 
+// Why the scene runs on WebGL2 although WebGPU was possible (auto), or nothing.
+function showNotice() {
+  const info = viewer.sceneInfo();
+  if (info.notice) {
+    hook.notice = info.notice;
+    showMessage(info.notice, 'info');
+  } else {
+    hideMessage();
+  }
+}
+
 function guarded(action) {
   try {
     return action();
@@ -129,11 +153,13 @@ let frameMs = null; // moving average of the time between completed frames
 let lastFrameAt = null;
 let pendingRestart = null; // the last restart whose first band is not done yet
 
+let firstFrameWaited = false;
 function frameDone() {
   hook.frames++;
-  if (hook.firstFrameMs === null) {
-    viewer.sync(); // the first frame counts once it is on screen, not when it is queued
-    hook.firstFrameMs = performance.now();
+  if (!firstFrameWaited) {
+    // The first frame counts once it is on screen, not when it is queued.
+    firstFrameWaited = true;
+    viewer.sync().then(() => { hook.firstFrameMs = performance.now(); });
   }
 }
 
@@ -154,7 +180,8 @@ function frame() {
 // previous band's fence without blocking), so input runs between bands and a restart waits for
 // one band, not a whole frame.
 function tick(now) {
-  if (!paused && !busy && viewer && !lost && hasScene) {
+  if (viewer && !recovering && viewer.webGpuLost()) recoverWebGpu(viewer.webGpuLost());
+  if (!paused && !busy && viewer && !lost && !recovering && hasScene) {
     applyHeldKeys(now);
     let status = 0;
     try {
@@ -194,6 +221,7 @@ function tick(now) {
 function updateReadouts() {
   if (!viewer) return;
   const info = viewer.sceneInfo();
+  $('api-info').textContent = info.api ? `${info.api} (${info.adapter})` : '–';
   $('spp').textContent = info.spp;
   $('size').textContent = `${info.width}×${info.height}`;
   if (frameMs !== null) {
@@ -258,7 +286,7 @@ async function loadServedScene(name) {
     $('scene').value = scene.name;
     $('screenshot').disabled = false;
     $('scene-info').textContent = `${scene.name}: ${scene.triangles.toLocaleString()} triangles${fromCache ? ' (cached)' : ''}`;
-    hideMessage();
+    showNotice();
   } catch (e) {
     showMessage(`${scene.name}: ${e.message || e}`);
   } finally {
@@ -282,7 +310,7 @@ async function loadBundleUrl(url) {
     $('scene').value = '';
     $('screenshot').disabled = false;
     $('scene-info').textContent = `${currentName}: ${info.triangles.toLocaleString()} triangles`;
-    hideMessage();
+    showNotice();
   } catch (e) {
     showMessage(`${url}: ${e.message || e}`);
   } finally {
@@ -354,7 +382,7 @@ async function loadFiles(fileList) {
       `${info.name}: ${info.triangles.toLocaleString()} triangles, loaded in ${info.loadMs.toFixed(0)} ms, ` +
       `BVH + pack ${info.buildAndPackMs.toFixed(0)} ms`;
     if (info.warnings) showMessage(`${info.name}: ${info.warnings}`, 'info');
-    else hideMessage();
+    else showNotice();
   } catch (e) {
     showMessage(`could not open the dropped files: ${e.message || e}`);
   } finally {
@@ -370,6 +398,12 @@ async function clearCache() {
 
 // ---- camera input -------------------------------------------------------------------------
 
+// Listeners for events on the canvas, on the stage (the canvas element may be replaced);
+// capturing, so that events that do not bubble (WebGL context loss) arrive too.
+function onView(type, handler, options = {}) {
+  stage.addEventListener(type, (e) => { if (e.target === view()) handler(e); }, { capture: true, ...options });
+}
+
 const pointers = new Map(); // pointerId -> {x, y}
 const heldKeys = new Set();
 let lastKeysAt = null;
@@ -382,16 +416,16 @@ function cameraAction(action, at = performance.now()) {
   pendingRestart = { inputAt: at, handledAt: performance.now(), submittedAt: null, doneAt: null };
 }
 
-canvas.addEventListener('pointerdown', (e) => {
-  canvas.setPointerCapture(e.pointerId);
-  canvas.focus();
+onView('pointerdown', (e) => {
+  view().setPointerCapture(e.pointerId);
+  view().focus();
   pointers.set(e.pointerId, { x: e.clientX, y: e.clientY, button: e.button, shift: e.shiftKey });
 });
 
-canvas.addEventListener('pointermove', (e) => {
+onView('pointermove', (e) => {
   const p = pointers.get(e.pointerId);
   if (!p || !viewer) return;
-  const height = canvas.clientHeight || 1;
+  const height = view().clientHeight || 1;
   if (pointers.size === 2) {
     // Two fingers: pinch to dolly, move together to pan.
     const [a, b] = [...pointers.values()];
@@ -424,25 +458,25 @@ canvas.addEventListener('pointermove', (e) => {
 });
 
 for (const type of ['pointerup', 'pointercancel']) {
-  canvas.addEventListener(type, (e) => pointers.delete(e.pointerId));
+  onView(type, (e) => pointers.delete(e.pointerId));
 }
-canvas.addEventListener('contextmenu', (e) => e.preventDefault());
+onView('contextmenu', (e) => e.preventDefault());
 
-canvas.addEventListener('wheel', (e) => {
+onView('wheel', (e) => {
   e.preventDefault();
   if (viewer) cameraAction(() => viewer.dolly(Math.exp(Math.max(-100, Math.min(100, e.deltaY)) * 0.002)), e.timeStamp);
 }, { passive: false });
 
 const FLY_KEYS = { w: [1, 0, 0], s: [-1, 0, 0], a: [0, -1, 0], d: [0, 1, 0], e: [0, 0, 1], q: [0, 0, -1] };
-canvas.addEventListener('keydown', (e) => {
+onView('keydown', (e) => {
   const key = e.key.toLowerCase();
   if (key in FLY_KEYS) {
     heldKeys.add(key);
     e.preventDefault();
   }
 });
-canvas.addEventListener('keyup', (e) => heldKeys.delete(e.key.toLowerCase()));
-canvas.addEventListener('blur', () => heldKeys.clear());
+onView('keyup', (e) => heldKeys.delete(e.key.toLowerCase()));
+onView('focusout', () => heldKeys.clear());
 
 // Fly keys move at a quarter of the scene's size per second while held.
 function applyHeldKeys(now) {
@@ -490,14 +524,18 @@ $('exposure').addEventListener('input', (e) => hook.setExposure(Number(e.target.
 $('scale').addEventListener('change', applySize);
 $('reset-camera').addEventListener('click', () => cameraAction(() => viewer.resetCamera()));
 $('clear-cache').addEventListener('click', clearCache);
-$('screenshot').addEventListener('click', () => guarded(() => {
-  const png = viewer.screenshotPng();
-  const link = document.createElement('a');
-  link.href = URL.createObjectURL(new Blob([png], { type: 'image/png' }));
-  link.download = `${currentName.replace(/\.[^.]*$/, '') || 'lightport'}-${viewer.spp()}spp.png`;
-  link.click();
-  setTimeout(() => URL.revokeObjectURL(link.href), 10000);
-}));
+$('screenshot').addEventListener('click', async () => {
+  try {
+    const png = await viewer.screenshotPng();
+    const link = document.createElement('a');
+    link.href = URL.createObjectURL(new Blob([png], { type: 'image/png' }));
+    link.download = `${currentName.replace(/\.[^.]*$/, '') || 'lightport'}-${viewer.spp()}spp.png`;
+    link.click();
+    setTimeout(() => URL.revokeObjectURL(link.href), 10000);
+  } catch (e) {
+    showMessage(String(e.message || e));
+  }
+});
 
 if (!fixedSize) {
   stage.classList.add('fill');
@@ -510,13 +548,13 @@ if (!fixedSize) {
 
 // ---- context loss -------------------------------------------------------------------------
 
-canvas.addEventListener('webglcontextlost', (e) => {
+onView('webglcontextlost', (e) => {
   e.preventDefault(); // tells the browser the page will handle restoration
   lost = true;
   if (viewer) viewer.contextLost();
   showMessage('The WebGL context was lost (GPU reset or too many contexts); waiting for the browser to restore it…', 'info');
 });
-canvas.addEventListener('webglcontextrestored', () => {
+onView('webglcontextrestored', () => {
   lost = false;
   if (!viewer) return;
   try {
@@ -525,6 +563,35 @@ canvas.addEventListener('webglcontextrestored', () => {
   } catch (e) {
     showMessage(`restoring the WebGL context failed: ${e.message || e}`);
   }
+});
+
+// ---- WebGPU device loss ---------------------------------------------------------------------
+
+let recovering = false;
+
+// The device was lost (GPU reset, driver update, `device.destroy()`): request a new one and
+// recreate the renderer on it from the scene kept in memory, as after a WebGL context restore.
+async function recoverWebGpu(reason) {
+  recovering = true;
+  showMessage(`The WebGPU device was lost (${reason}); requesting a new one…`, 'info');
+  try {
+    viewer.useWebGpu(await requestWebGpu());
+    hook.deviceRecoveries++;
+    showNotice();
+  } catch (e) {
+    showMessage(`recreating the WebGPU device failed: ${e.message || e}`);
+    paused = true;
+  } finally {
+    recovering = false;
+  }
+}
+
+// The API control: reloads the page with `api=` (the scene comes back from the cache).
+$('api').value = ['auto', 'webgpu', 'webgl2'].includes(api) ? api : 'auto';
+$('api').addEventListener('change', (e) => {
+  const url = new URL(location.href);
+  url.searchParams.set('api', e.target.value);
+  location.href = url.toString();
 });
 
 // ---- start --------------------------------------------------------------------------------
@@ -538,11 +605,22 @@ async function main() {
     return;
   }
   try {
-    viewer = new Viewer(canvas);
+    viewer = new Viewer($('view'));
+    viewer.setApi(api);
   } catch (e) {
     showMessage(String(e.message || e));
     hook.ready = true;
     return;
+  }
+  if (params.get('maxStorageBuffers')) viewer.setMaxStorageBuffers(Number(params.get('maxStorageBuffers')));
+  if (api !== 'webgl2') {
+    try {
+      viewer.useWebGpu(await requestWebGpu());
+    } catch (e) {
+      const why = String(e.message || e);
+      viewer.webGpuUnavailable(why);
+      if (api === 'webgpu') showMessage(`WebGPU was asked for (api=webgpu) but is not available: ${why}`);
+    }
   }
   const [w, h] = renderSize();
   guarded(() => viewer.setSize(w, h));

@@ -325,3 +325,19 @@ pub(crate) fn reduce_parts(op: &str, n: u8) -> (&'static str, String) {
     }
     (name, expr)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::float_lit;
+
+    /// Every literal reads back as its value, and as a decimal lies within f32's range (Tint
+    /// refuses a literal above f32::MAX even when it would round down to it).
+    #[test]
+    fn float_literals_read_back_within_range() {
+        for v in [f32::MAX, -f32::MAX, f32::MIN_POSITIVE, 1.0e-45, 0.1, 3.0e38, -2.5, 1.0] {
+            let s = float_lit(v);
+            assert_eq!(s.parse::<f32>().unwrap(), v, "{s}");
+            assert!(s.parse::<f64>().unwrap().abs() <= f32::MAX as f64, "{s} exceeds f32::MAX as a decimal");
+        }
+    }
+}

@@ -9,9 +9,6 @@ pub mod frame_split;
 pub mod gl;
 pub mod harness;
 #[cfg(feature = "wgpu")]
-// On wasm the renderer's readback is native-only until its WebGPU page lands (branch
-// webgpu-page): the harness page builds this module for WgpuHarness. Drop after that merge.
-#[cfg_attr(target_arch = "wasm32", allow(unused_imports, dead_code))]
 pub mod wgpu;
 
 use glam::Vec3;

@@ -27,17 +27,27 @@ mod resources;
 
 use std::sync::{Arc, Mutex};
 
-use glam::{Vec4, Vec4Swizzles};
-use lightport_codegen::{Generated, Target};
+use glam::Vec4;
+#[cfg(not(target_arch = "wasm32"))]
+use glam::Vec4Swizzles;
+#[cfg(not(target_arch = "wasm32"))]
+use lightport_codegen::Generated;
+use lightport_codegen::Target;
 use wgpu::util::DeviceExt;
 
-pub use resources::compile_pipeline;
+mod display;
+mod oneshot;
+
+pub use display::{display_shader, DisplayPass};
 pub(crate) use resources::{
     bind_groups, check_scene_limits, reflect, scene_uniform_bytes, storage_limit, u32_uniform_bytes, upload_scene,
     BufferEntry, ShaderLayout, UniformLayout,
 };
+pub use resources::{compile_pipeline, start_pipeline, PipelineCheck};
 
-use super::{frame_seed, Image};
+use super::frame_seed;
+#[cfg(not(target_arch = "wasm32"))]
+use super::Image;
 use crate::kernel::scene_data::Scene;
 use crate::kernel::ShaderError;
 use crate::pack::Packed;
@@ -90,6 +100,9 @@ pub struct WgpuOptions {
     /// Use at most this storage-buffer binding size even where the device allows more (e.g. to
     /// check that a scene fits WebGPU's default 128 MiB, or to test the limit errors).
     pub max_storage_buffer_binding_size: Option<u64>,
+    /// Use at most this many storage buffers per shader stage (the all-features kernel binds
+    /// 12; WebGPU's default is 8): to test the limit errors and the browser's fallback.
+    pub max_storage_buffers_per_shader_stage: Option<u32>,
 }
 
 /// What the adapter reports about itself, and the limits the renderer works under.
@@ -106,12 +119,17 @@ pub struct WgpuInfo {
     pub max_buffer_size: u64,
 }
 
-/// A device and queue with the adapter's limits, as [`WgpuRenderer::new`] takes them.
+/// A device and queue with the adapter's limits, as [`WgpuRenderer::new`] takes them, and the
+/// instance and adapter they came from (a canvas's surface is created on the instance and
+/// configured from the adapter's capabilities). Clones share the device.
+#[derive(Clone)]
 pub struct WgpuDevice {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: WgpuInfo,
     pub limits: wgpu::Limits,
+    pub instance: wgpu::Instance,
+    pub adapter: wgpu::Adapter,
 }
 
 impl WgpuDevice {
@@ -148,7 +166,7 @@ impl WgpuDevice {
             max_storage_buffer_binding_size: limits.max_storage_buffer_binding_size,
             max_buffer_size: limits.max_buffer_size,
         };
-        Ok(WgpuDevice { device, queue, info, limits })
+        Ok(WgpuDevice { device, queue, info, limits, instance, adapter })
     }
 
     /// The native default: Vulkan, Metal or DX12 (whichever the platform has).
@@ -191,16 +209,31 @@ impl WgpuRenderer {
     /// A renderer on `device` for `packed`; `seed` selects the random sequence, as for the CPU
     /// backend.
     pub async fn new(device: WgpuDevice, packed: Packed, seed: u32, options: &WgpuOptions) -> Result<Self, WgpuError> {
+        let (renderer, check) = Self::create(device, packed, seed, options)?;
+        check.await?;
+        Ok(renderer)
+    }
+
+    /// [`new`](Self::new) without waiting for the shader compiler's verdict: the renderer at
+    /// once (its frames queue behind the compilation) and the check that reports whether the
+    /// pipeline compiled. Limits are checked before anything is created. For callers that
+    /// cannot await here (the browser's viewer).
+    pub fn create(
+        device: WgpuDevice,
+        packed: Packed,
+        seed: u32,
+        options: &WgpuOptions,
+    ) -> Result<(Self, PipelineCheck), WgpuError> {
         let uncaptured = Arc::new(Mutex::new(None));
         let sink = uncaptured.clone();
         device.device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
             let mut slot = sink.lock().unwrap_or_else(|p| p.into_inner());
             slot.get_or_insert_with(|| e.to_string());
         }));
-        let pipeline = build(&device, &packed, options).await?;
+        let (pipeline, check) = build(&device, &packed, options)?;
         let mut device = device;
         device.info.max_storage_buffer_binding_size = storage_limit(&device.limits, options);
-        Ok(WgpuRenderer { device, packed, seed, frames: 0, pipeline, uncaptured })
+        Ok((WgpuRenderer { device, packed, seed, frames: 0, pipeline, uncaptured }, check))
     }
 
     /// A renderer on its own native device (Vulkan, Metal or DX12).
@@ -231,7 +264,8 @@ impl WgpuRenderer {
         &self.packed
     }
 
-    fn check_uncaptured(&self) -> Result<(), WgpuError> {
+    /// The first error wgpu reported outside an error scope since the renderer was created.
+    pub fn check_uncaptured(&self) -> Result<(), WgpuError> {
         let slot = self.uncaptured.lock().unwrap_or_else(|p| p.into_inner());
         match &*slot {
             Some(detail) => Err(WgpuError::Wgpu { what: "the device", detail: detail.clone() }),
@@ -302,6 +336,54 @@ impl WgpuRenderer {
         };
         p.readback.unmap();
         Ok(texels)
+    }
+
+    /// [`accumulation`](Self::accumulation) without blocking: the copy is queued now and the
+    /// future resolves once the device has mapped it (in the browser, a promise; natively,
+    /// someone must poll the device). One read at a time: a second before the first resolved
+    /// is an error.
+    pub fn read_accumulation(&self) -> impl std::future::Future<Output = Result<Vec<Vec4>, WgpuError>> + 'static {
+        let p = &self.pipeline;
+        let mut encoder = self.device.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&p.accumulation, 0, &p.readback, 0, p.accumulation.size());
+        self.device.queue.submit([encoder.finish()]);
+        let readback = p.readback.clone();
+        let (sender, receiver) = oneshot::channel();
+        readback.slice(..).map_async(wgpu::MapMode::Read, move |result| sender.send(result));
+        let failed = |detail: String| WgpuError::Wgpu { what: "mapping the readback buffer", detail };
+        let uncaptured = self.check_uncaptured();
+        async move {
+            uncaptured?;
+            receiver
+                .await
+                .ok_or_else(|| failed("the device dropped the request".into()))?
+                .map_err(|e| failed(e.to_string()))?;
+            let texels: Vec<Vec4> = {
+                let view = readback
+                    .slice(..)
+                    .get_mapped_range()
+                    .map_err(|e| WgpuError::Wgpu { what: "reading the readback buffer", detail: e.to_string() })?;
+                bytemuck::pod_collect_to_vec(&view)
+            };
+            readback.unmap();
+            Ok(texels)
+        }
+    }
+
+    /// Resolves when everything submitted so far has run on the device (never blocks; in the
+    /// browser, `onSubmittedWorkDone`).
+    pub fn done(&self) -> impl std::future::Future<Output = ()> + 'static {
+        let (sender, receiver) = oneshot::channel();
+        self.device.queue.on_submitted_work_done(move || sender.send(()));
+        async move {
+            let _ = receiver.await;
+        }
+    }
+
+    /// The running-sum buffer (rgb: sum of samples, w: finite samples; row-major, row 0 at
+    /// the top), e.g. for a display pass.
+    pub fn accumulation_buffer(&self) -> &wgpu::Buffer {
+        &self.pipeline.accumulation
     }
 
     /// The mean of the accumulated samples (linear RGB), as the CPU backend computes it.
@@ -400,7 +482,7 @@ fn check_image_limits(limits: &wgpu::Limits, options: &WgpuOptions, scene: &Scen
 }
 
 /// Generates and compiles the shader, uploads the scene and creates the bind groups.
-async fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<Pipeline, WgpuError> {
+fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<(Pipeline, PipelineCheck), WgpuError> {
     let generated = crate::kernel::path_tracer_shader(&packed.features, Target::Wgsl)?;
     let layout = reflect(&generated, &[ACCUMULATION_BUFFER, TARGET_UNIFORM])?;
     let scene = &packed.scene;
@@ -436,8 +518,8 @@ async fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> R
     });
     entries.push(BufferEntry::uniform(target, target_buffer));
     let (bind_groups, pipeline_layout) = bind_groups(d, &entries);
-    let pipeline = compile_pipeline(d, &generated, Some(&pipeline_layout)).await?;
-    Ok(Pipeline { pipeline, bind_groups, scene_uniform, accumulation, readback, workgroups })
+    let (pipeline, check) = start_pipeline(d, &generated, Some(&pipeline_layout));
+    Ok((Pipeline { pipeline, bind_groups, scene_uniform, accumulation, readback, workgroups }, check))
 }
 
 #[cfg(test)]

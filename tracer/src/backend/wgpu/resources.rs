@@ -161,6 +161,10 @@ pub(crate) fn annotate_messages(messages: &[Message], generated: &Generated) -> 
     out
 }
 
+/// The outcome of compiling a pipeline, known only once the device answers: WebGPU reports
+/// shader errors asynchronously (a promise in the browser).
+pub type PipelineCheck = std::pin::Pin<Box<dyn std::future::Future<Output = Result<(), WgpuError>>>>;
+
 /// Compiles the generated WGSL into a compute pipeline on `device` with `layout`. Errors carry
 /// wgpu's messages (naga's front end and validator, then the driver's pipeline creation), each
 /// with its generated line mapped back to the kernel's Rust source.
@@ -169,27 +173,25 @@ pub async fn compile_pipeline(
     generated: &Generated,
     layout: Option<&wgpu::PipelineLayout>,
 ) -> Result<wgpu::ComputePipeline, WgpuError> {
+    let (pipeline, check) = start_pipeline(device, generated, layout);
+    check.await?;
+    Ok(pipeline)
+}
+
+/// [`compile_pipeline`] without waiting: the pipeline at once (usable as soon as the device has
+/// compiled it: commands are queued behind that), and the check that reports whether it
+/// compiled. The browser's viewer creates renderers from synchronous calls and awaits the check
+/// separately.
+pub fn start_pipeline(
+    device: &wgpu::Device,
+    generated: &Generated,
+    layout: Option<&wgpu::PipelineLayout>,
+) -> (wgpu::ComputePipeline, PipelineCheck) {
     let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("lightport path tracer"),
         source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(&generated.source)),
     });
-    let info = module.get_compilation_info().await;
-    let scope = scope.pop().await;
-    let errors: Vec<Message> = info
-        .messages
-        .iter()
-        .filter(|m| m.message_type == wgpu::CompilationMessageType::Error)
-        .map(|m| Message { text: m.message.clone(), line: m.location.map(|l| l.line_number) })
-        .collect();
-    if !errors.is_empty() || scope.is_some() {
-        let mut messages = errors;
-        if messages.is_empty() {
-            messages.push(Message { text: scope.map(|e| e.to_string()).unwrap_or_default(), line: None });
-        }
-        return Err(WgpuError::Compile { log: annotate_messages(&messages, generated) });
-    }
-    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
     let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some("lightport path tracer"),
         layout,
@@ -198,18 +200,41 @@ pub async fn compile_pipeline(
         compilation_options: Default::default(),
         cache: None,
     });
-    if let Some(e) = scope.pop().await {
-        return Err(WgpuError::Compile {
-            log: format!("creating the compute pipeline (entry point `{ENTRY_POINT}`): {e}"),
-        });
-    }
-    Ok(pipeline)
+    let scope = scope.pop();
+    let info = module.get_compilation_info();
+    let generated = generated.clone();
+    let check = async move {
+        let info = info.await;
+        let scope = scope.await;
+        let errors: Vec<Message> = info
+            .messages
+            .iter()
+            .filter(|m| m.message_type == wgpu::CompilationMessageType::Error)
+            .map(|m| Message { text: m.message.clone(), line: m.location.map(|l| l.line_number) })
+            .collect();
+        if !errors.is_empty() {
+            return Err(WgpuError::Compile { log: annotate_messages(&errors, &generated) });
+        }
+        if let Some(e) = scope {
+            return Err(WgpuError::Compile {
+                log: format!("creating the compute pipeline (entry point `{ENTRY_POINT}`): {e}"),
+            });
+        }
+        Ok(())
+    };
+    (pipeline, Box::pin(check))
 }
 
 /// The storage-buffer binding size the renderer works under.
 pub(crate) fn storage_limit(limits: &wgpu::Limits, options: &WgpuOptions) -> u64 {
     let device = limits.max_storage_buffer_binding_size;
     options.max_storage_buffer_binding_size.map_or(device, |m| m.min(device))
+}
+
+/// The storage buffers per shader stage the renderer works under.
+pub(crate) fn storage_buffers_limit(limits: &wgpu::Limits, options: &WgpuOptions) -> u32 {
+    let device = limits.max_storage_buffers_per_shader_stage;
+    options.max_storage_buffers_per_shader_stage.map_or(device, |m| m.min(device))
 }
 
 /// Checks the scene's arrays and the shader's resources against the device's limits.
@@ -243,7 +268,7 @@ pub(crate) fn check_scene_limits(
         1 + layout.storage.iter().map(|s| s.1).chain(layout.own.iter().map(|r| r.group)).max().unwrap_or(0) as u64;
     let uniform_size = layout.scene_uniform.as_ref().map_or(0, |u| u.size) as u64;
     for (limit, needed, max) in [
-        ("max_storage_buffers_per_shader_stage", storage_buffers, limits.max_storage_buffers_per_shader_stage as u64),
+        ("max_storage_buffers_per_shader_stage", storage_buffers, storage_buffers_limit(limits, options) as u64),
         ("max_bind_groups", groups, limits.max_bind_groups as u64),
         ("max_uniform_buffer_binding_size", uniform_size, limits.max_uniform_buffer_binding_size),
     ] {

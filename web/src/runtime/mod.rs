@@ -1,0 +1,186 @@
+//! The two runtimes the viewer drives, behind one small interface: WebGL2 (the GL backend) and
+//! WebGPU (the wgpu backend). Everything the page does (frames, the frame loop's steps, camera
+//! and setting changes, read-backs, screenshots, the read-outs) goes through [`Runtime`].
+
+pub mod webgl2;
+pub mod webgpu;
+
+use std::future::Future;
+use std::pin::Pin;
+
+use glam::Vec4;
+use js_sys::{Object, Reflect};
+use tracer::backend::frame_split::Step;
+use tracer::kernel::scene_data::Scene;
+use tracer::output::Display;
+use tracer::pack::Packed;
+use wasm_bindgen::JsValue;
+
+pub use webgl2::GlRuntime;
+pub use webgpu::{GpuDevice, GpuRuntime};
+
+/// Which graphics API the page asks for (`?api=`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Api {
+    /// WebGPU where the browser offers it and the scene fits its limits, else WebGL2.
+    Auto,
+    WebGpu,
+    WebGl2,
+}
+
+impl Api {
+    pub fn parse(name: &str) -> Result<Api, String> {
+        match name.to_ascii_lowercase().as_str() {
+            "" | "auto" => Ok(Api::Auto),
+            "webgpu" => Ok(Api::WebGpu),
+            "webgl2" => Ok(Api::WebGl2),
+            other => Err(format!("unknown graphics API {other:?}: use auto, webgpu or webgl2")),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Api::Auto => "auto",
+            Api::WebGpu => "webgpu",
+            Api::WebGl2 => "webgl2",
+        }
+    }
+}
+
+/// A future of a read-back's result.
+pub type Pending<T> = Pin<Box<dyn Future<Output = Result<T, String>>>>;
+
+/// The renderer that runs, with its display pass and frame pacing.
+pub enum Runtime {
+    WebGl2(GlRuntime),
+    WebGpu(GpuRuntime),
+}
+
+fn set(object: &Object, key: &str, value: impl Into<JsValue>) {
+    // Setting a plain property on a fresh object cannot fail.
+    let _ = Reflect::set(object, &JsValue::from_str(key), &value.into());
+}
+
+impl Runtime {
+    /// "WebGL2" or "WebGPU", as the read-out shows it.
+    pub fn api(&self) -> &'static str {
+        match self {
+            Runtime::WebGl2(_) => "WebGL2",
+            Runtime::WebGpu(_) => "WebGPU",
+        }
+    }
+
+    pub fn frames(&self) -> u32 {
+        match self {
+            Runtime::WebGl2(r) => r.renderer().frames(),
+            Runtime::WebGpu(r) => r.renderer().frames(),
+        }
+    }
+
+    pub fn packed(&self) -> &Packed {
+        match self {
+            Runtime::WebGl2(r) => r.renderer().packed(),
+            Runtime::WebGpu(r) => r.renderer().packed(),
+        }
+    }
+
+    /// Whether the runtime's context or device is gone (nothing may be drawn).
+    pub fn lost(&self) -> bool {
+        match self {
+            Runtime::WebGl2(r) => r.context_lost(),
+            Runtime::WebGpu(_) => false,
+        }
+    }
+
+    /// One whole frame in one submission, then the display pass through `display`.
+    pub fn frame(&mut self, display: &Display) -> Result<(), String> {
+        match self {
+            Runtime::WebGl2(r) => r.frame(display),
+            Runtime::WebGpu(r) => r.frame(display),
+        }
+    }
+
+    /// The display pass alone (a display setting changed).
+    pub fn draw(&self, display: &Display) {
+        match self {
+            Runtime::WebGl2(r) => r.draw(display),
+            Runtime::WebGpu(r) => r.draw(display),
+        }
+    }
+
+    /// The frame loop's step: a band (WebGL2) or a frame (WebGPU), unless one is on the GPU.
+    pub fn step(&mut self, now_ms: f64, display: &Display) -> Result<Step, String> {
+        match self {
+            Runtime::WebGl2(r) => r.step(now_ms, display),
+            Runtime::WebGpu(r) => r.step(now_ms, display),
+        }
+    }
+
+    pub fn set_band_budget(&mut self, budget_ms: Option<f64>) {
+        if let Runtime::WebGl2(r) = self {
+            r.set_band_budget(budget_ms);
+        }
+    }
+
+    /// Sets uniforms through `update` and restarts the accumulation.
+    pub fn set_uniforms(&mut self, update: impl FnOnce(&mut Scene)) -> Result<(), String> {
+        match self {
+            Runtime::WebGl2(r) => r.renderer_mut().set_uniforms(update).map_err(|e| e.to_string()),
+            Runtime::WebGpu(r) => r.renderer_mut().set_uniforms(update).map_err(|e| e.to_string()),
+        }
+    }
+
+    /// Resolves once the GPU has done the work queued so far (WebGL2: already, by a 1-pixel
+    /// read-back; WebGPU: `onSubmittedWorkDone`).
+    pub fn sync(&self) -> Pin<Box<dyn Future<Output = ()>>> {
+        match self {
+            Runtime::WebGl2(r) => {
+                r.sync();
+                Box::pin(std::future::ready(()))
+            }
+            Runtime::WebGpu(r) => Box::pin(r.sync()),
+        }
+    }
+
+    /// The running sum per pixel (rows from the top; rgb: sum, w: finite samples).
+    pub fn read_accumulation(&self) -> Pending<Vec<Vec4>> {
+        match self {
+            Runtime::WebGl2(r) => Box::pin(std::future::ready(r.renderer().accumulation().map_err(|e| e.to_string()))),
+            Runtime::WebGpu(r) => Box::pin(r.read_accumulation()),
+        }
+    }
+
+    /// The read-outs of `sceneInfo`: the API and adapter, and how frames are submitted.
+    pub fn describe(&self, info: &Object) {
+        set(info, "api", self.api());
+        match self {
+            Runtime::WebGl2(r) => {
+                let policy = r.pacer().policy();
+                set(info, "bands", policy.bands());
+                set(info, "bandRows", policy.rows());
+                set(info, "bandMs", policy.band_ms().map_or(JsValue::NULL, JsValue::from));
+                set(info, "gpuBusy", r.pacer().busy());
+                let gl = r.renderer().info();
+                set(info, "adapter", gl.renderer.as_str());
+                set(info, "glRenderer", gl.renderer.as_str());
+                set(info, "glVersion", gl.version.as_str());
+                set(info, "maxTextureSize", gl.max_texture_size);
+            }
+            Runtime::WebGpu(r) => {
+                set(info, "bands", 1);
+                set(info, "bandRows", r.renderer().packed().scene.height);
+                set(info, "bandMs", r.frame_ms().map_or(JsValue::NULL, JsValue::from));
+                set(info, "gpuBusy", r.busy());
+                let w = r.renderer().info();
+                set(info, "adapter", w.adapter.as_str());
+                set(info, "gpuDriver", w.driver.as_str());
+                set(info, "maxStorageBufferBindingSize", w.max_storage_buffer_binding_size as f64);
+                set(
+                    info,
+                    "maxStorageBuffersPerShaderStage",
+                    r.renderer().device().limits.max_storage_buffers_per_shader_stage,
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,134 @@
+//! The WebGL2 runtime: the native GL backend's [`GlRenderer`] on the canvas's WebGL2 context,
+//! its display pass ([`GlDisplay`]) drawing the accumulation's mean to the canvas, and the fenced band pacer
+//! (`tracer::backend::frame_split`) that submits each frame in bands within the time budget.
+
+use glow::HasContext;
+use tracer::backend::frame_split::{Pacer, Step};
+use tracer::backend::gl::{GlDisplay, GlOptions, GlRenderer};
+use tracer::output::Display;
+use tracer::pack::Packed;
+use wasm_bindgen::JsCast;
+use web_sys::{HtmlCanvasElement, WebGl2RenderingContext, WebGlContextAttributes};
+
+/// The WebGL2 context of `canvas` (which must not hold another kind of context).
+pub fn context(canvas: &HtmlCanvasElement) -> Result<WebGl2RenderingContext, String> {
+    let attributes = WebGlContextAttributes::new();
+    attributes.set_antialias(false);
+    attributes.set_depth(false);
+    attributes.set_stencil(false);
+    attributes.set_alpha(false);
+    attributes.set_power_preference(web_sys::WebGlPowerPreference::HighPerformance);
+    canvas
+        .get_context_with_context_options("webgl2", &attributes)
+        .map_err(|e| format!("creating a WebGL2 context failed: {e:?}"))?
+        .ok_or_else(|| {
+            "this browser or device has no WebGL2: the path tracer needs WebGL2 or WebGPU (enable hardware \
+             acceleration, or try a current Chrome, Firefox or Safari)"
+                .to_string()
+        })?
+        .dyn_into::<WebGl2RenderingContext>()
+        .map_err(|_| "the canvas returned a context that is not WebGL2".to_string())
+}
+
+/// The renderer and its display pass, on one context.
+pub struct GlRuntime {
+    context: WebGl2RenderingContext,
+    renderer: GlRenderer,
+    /// Always `Some` until dropped (taken to delete it before the renderer's context goes).
+    display: Option<GlDisplay>,
+    /// Bands of the frame loop (`step`), one on the GPU at a time.
+    pacer: Pacer,
+}
+
+impl GlRuntime {
+    pub fn new(
+        context: &WebGl2RenderingContext,
+        packed: &Packed,
+        seed: u32,
+        options: &GlOptions,
+        band_budget_ms: Option<f64>,
+    ) -> Result<Self, String> {
+        let gl = glow::Context::from_webgl2_context(context.clone());
+        let renderer = GlRenderer::with_options(gl, packed.clone(), seed, options).map_err(|e| e.to_string())?;
+        let display = GlDisplay::new(renderer.gl()).map_err(|e| e.to_string())?;
+        let pacer = Pacer::new(packed.scene.height, band_budget_ms);
+        Ok(GlRuntime { context: context.clone(), renderer, display: Some(display), pacer })
+    }
+
+    pub fn renderer(&self) -> &GlRenderer {
+        &self.renderer
+    }
+
+    pub fn renderer_mut(&mut self) -> &mut GlRenderer {
+        &mut self.renderer
+    }
+
+    pub fn pacer(&self) -> &Pacer {
+        &self.pacer
+    }
+
+    pub fn context_lost(&self) -> bool {
+        self.context.is_context_lost()
+    }
+
+    fn size(&self) -> (i32, i32) {
+        let s = &self.renderer.packed().scene;
+        (s.width as i32, s.height as i32)
+    }
+
+    /// Draws the current image through `settings`.
+    pub fn draw(&self, settings: &Display) {
+        let (w, h) = self.size();
+        if let Some(display) = &self.display {
+            display.draw(&self.renderer, None, [w, h], settings);
+        }
+    }
+
+    /// One whole frame in one submission, then the display pass.
+    pub fn frame(&mut self, settings: &Display) -> Result<(), String> {
+        // The band in flight would be timed with this whole frame.
+        self.pacer.forget(self.renderer.gl());
+        self.renderer.render_frame().map_err(|e| e.to_string())?;
+        self.draw(settings);
+        Ok(())
+    }
+
+    /// The frame loop's step (see `Viewer::step`).
+    pub fn step(&mut self, now_ms: f64, settings: &Display) -> Result<Step, String> {
+        let (w, h) = self.size();
+        let display = self.display.as_ref();
+        self.pacer
+            .step(&mut self.renderer, now_ms, |renderer, frame_done| {
+                // Each band of the first frame after a restart shows; later, each whole frame.
+                if let (true, Some(display)) = (frame_done || renderer.frames() == 0, display) {
+                    display.draw(renderer, None, [w, h], settings);
+                }
+            })
+            .map_err(|e| e.to_string())
+    }
+
+    pub fn set_band_budget(&mut self, budget_ms: Option<f64>) {
+        self.pacer.forget(self.renderer.gl());
+        self.pacer = Pacer::new(self.renderer.packed().scene.height, budget_ms);
+    }
+
+    /// Waits for the GPU: reads one pixel of the canvas back.
+    pub fn sync(&self) {
+        let gl = self.renderer.gl();
+        let mut pixel = [0u8; 4];
+        // SAFETY: reads one RGBA8 pixel of the default framebuffer into a 4-byte buffer.
+        unsafe {
+            gl.bind_framebuffer(glow::FRAMEBUFFER, None);
+            gl.read_pixels(0, 0, 1, 1, glow::RGBA, glow::UNSIGNED_BYTE, glow::PixelPackData::Slice(Some(&mut pixel)));
+        }
+    }
+}
+
+impl Drop for GlRuntime {
+    fn drop(&mut self) {
+        self.pacer.forget(self.renderer.gl());
+        if let Some(display) = self.display.take() {
+            display.delete(self.renderer.gl());
+        }
+    }
+}

@@ -1,0 +1,238 @@
+//! The WebGPU runtime: the wgpu backend's [`WgpuRenderer`] (the generated WGSL kernel as a
+//! compute shader over storage buffers) on a device of the browser's WebGPU, and its display
+//! pass ([`tracer::backend::wgpu::DisplayPass`]) drawing to the canvas's WebGPU surface.
+//!
+//! Nothing here blocks: the shader compiler's verdict, read-backs and the queue's completion
+//! are promises. The frame loop keeps one frame on the GPU at a time: a frame is submitted
+//! only once the previous one's `onSubmittedWorkDone` has resolved, and its time (submission
+//! to completion, seen at the next animation frame) is recorded for the read-outs.
+
+use std::cell::RefCell;
+use std::rc::Rc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+
+use glam::Vec4;
+use tracer::backend::frame_split::Step;
+use tracer::backend::wgpu::{DisplayPass, PipelineCheck, WgpuDevice, WgpuOptions, WgpuRenderer};
+use tracer::output::Display;
+use tracer::pack::Packed;
+use wasm_bindgen::prelude::*;
+use wasm_bindgen::JsCast;
+use web_sys::HtmlCanvasElement;
+
+/// A WebGPU device for the viewer (what `requestWebGpu()` resolves to), and whether it was lost.
+#[wasm_bindgen]
+#[derive(Clone)]
+pub struct GpuDevice {
+    pub(crate) device: WgpuDevice,
+    /// Why the device was lost (`device.lost`), once it was.
+    pub(crate) lost: Arc<Mutex<Option<String>>>,
+}
+
+#[wasm_bindgen]
+impl GpuDevice {
+    /// The adapter's name, e.g. "google / swiftshader".
+    #[wasm_bindgen(getter)]
+    pub fn adapter(&self) -> String {
+        self.device.info.adapter.clone()
+    }
+}
+
+impl GpuDevice {
+    pub fn lost(&self) -> Option<String> {
+        self.lost.lock().unwrap_or_else(|p| p.into_inner()).clone()
+    }
+}
+
+/// Requests the browser's WebGPU adapter and a device with the adapter's limits (WebGPU's
+/// defaults, e.g. 8 storage buffers per stage and 128 MiB bindings, are below what scenes
+/// need). Rejects with a clear message where the browser has no WebGPU (`navigator.gpu` is
+/// missing, or only exists in a secure context) or no adapter.
+#[wasm_bindgen(js_name = requestWebGpu)]
+pub async fn request_web_gpu() -> Result<GpuDevice, JsError> {
+    let window = web_sys::window().ok_or_else(|| JsError::new("no window"))?;
+    let gpu = js_sys::Reflect::get(&window.navigator(), &JsValue::from_str("gpu")).unwrap_or(JsValue::UNDEFINED);
+    if gpu.is_undefined() || gpu.is_null() {
+        return Err(JsError::new(
+            "this browser has no WebGPU (navigator.gpu is missing: it needs a current Chrome, Edge or Safari, and a \
+             secure context: https or http://127.0.0.1)",
+        ));
+    }
+    let label = adapter_label(&gpu).await;
+    let mut device =
+        WgpuDevice::request(wgpu::Backends::BROWSER_WEBGPU).await.map_err(|e| JsError::new(&e.to_string()))?;
+    if device.info.adapter.is_empty() {
+        // wgpu names a browser adapter by its `description`, which Chromium leaves empty.
+        device.info.adapter = label.unwrap_or_else(|| "unnamed WebGPU adapter".into());
+    }
+    let lost = Arc::new(Mutex::new(None));
+    let sink = lost.clone();
+    device.device.set_device_lost_callback(move |reason, message| {
+        let mut slot = sink.lock().unwrap_or_else(|p| p.into_inner());
+        slot.get_or_insert_with(|| format!("{reason:?}: {message}"));
+    });
+    Ok(GpuDevice { device, lost })
+}
+
+/// "vendor / architecture" (and the description, if any) of the adapter the browser gives for
+/// the same request, from `GPUAdapter.info`; `None` where it tells nothing.
+async fn adapter_label(gpu: &JsValue) -> Option<String> {
+    let get = |o: &JsValue, k: &str| js_sys::Reflect::get(o, &JsValue::from_str(k)).ok();
+    let request: js_sys::Function = get(gpu, "requestAdapter")?.dyn_into().ok()?;
+    let options = js_sys::Object::new();
+    js_sys::Reflect::set(&options, &"powerPreference".into(), &"high-performance".into()).ok()?;
+    let promise: js_sys::Promise = request.call1(gpu, &options).ok()?.dyn_into().ok()?;
+    let adapter = wasm_bindgen_futures::JsFuture::from(promise).await.ok()?;
+    let info = get(&adapter, "info")?;
+    let field = |k: &str| get(&info, k).and_then(|v| v.as_string()).filter(|s| !s.is_empty());
+    let mut label = [field("vendor"), field("architecture")].into_iter().flatten().collect::<Vec<_>>().join(" / ");
+    if let Some(description) = field("description") {
+        label = if label.is_empty() { description } else { format!("{label} ({description})") };
+    }
+    (!label.is_empty()).then_some(label)
+}
+
+/// The renderer, the canvas's surface and the display pass.
+pub struct GpuRuntime {
+    renderer: WgpuRenderer,
+    surface: wgpu::Surface<'static>,
+    display: DisplayPass,
+    /// Set by the queue when the frame in flight is done.
+    in_flight: Option<(Arc<AtomicBool>, f64)>,
+    /// The last frame's time, submission to the animation frame that saw it done (ms).
+    frame_ms: Option<f64>,
+    /// The shader compiler's verdict, once it arrived with an error.
+    compile_error: Rc<RefCell<Option<String>>>,
+}
+
+/// A renderer created on the device (limits checked, scene uploaded), not yet on a canvas:
+/// a scene that does not fit is refused before the canvas is given a WebGPU context.
+pub struct Prepared {
+    renderer: WgpuRenderer,
+    check: PipelineCheck,
+}
+
+impl GpuRuntime {
+    pub fn prepare(gpu: &GpuDevice, packed: &Packed, seed: u32, options: &WgpuOptions) -> Result<Prepared, String> {
+        if let Some(why) = gpu.lost() {
+            return Err(format!("the WebGPU device was lost ({why})"));
+        }
+        let (renderer, check) =
+            WgpuRenderer::create(gpu.device.clone(), packed.clone(), seed, options).map_err(|e| e.to_string())?;
+        Ok(Prepared { renderer, check })
+    }
+
+    /// The prepared renderer drawing to `canvas` (sized to the image already).
+    pub fn attach(prepared: Prepared, canvas: &HtmlCanvasElement) -> Result<Self, String> {
+        let Prepared { renderer, check } = prepared;
+        let device = renderer.device();
+        let surface = device
+            .instance
+            .create_surface(wgpu::SurfaceTarget::Canvas(canvas.clone()))
+            .map_err(|e| format!("the canvas has no WebGPU context: {e}"))?;
+        let (width, height) = (renderer.packed().scene.width, renderer.packed().scene.height);
+        let mut config = surface
+            .get_default_config(&device.adapter, width, height)
+            .ok_or("the WebGPU adapter cannot present to this canvas")?;
+        // The display pass encodes sRGB itself (as the WebGL2 pass does): a linear format.
+        let caps = surface.get_capabilities(&device.adapter);
+        config.format = caps
+            .formats
+            .iter()
+            .copied()
+            .find(|f| !f.is_srgb())
+            .ok_or_else(|| format!("the canvas offers only sRGB formats ({:?})", caps.formats))?;
+        config.alpha_mode = wgpu::CompositeAlphaMode::Opaque;
+        surface.configure(&device.device, &config);
+        let display = DisplayPass::new(&device.device, config.format).map_err(|e| e.to_string())?;
+        let compile_error = Rc::new(RefCell::new(None));
+        let slot = compile_error.clone();
+        wasm_bindgen_futures::spawn_local(async move {
+            if let Err(e) = check.await {
+                web_sys::console::error_1(&format!("the WebGPU kernel: {e}").into());
+                *slot.borrow_mut() = Some(e.to_string());
+            }
+        });
+        Ok(GpuRuntime { renderer, surface, display, in_flight: None, frame_ms: None, compile_error })
+    }
+
+    pub fn renderer(&self) -> &WgpuRenderer {
+        &self.renderer
+    }
+
+    pub fn renderer_mut(&mut self) -> &mut WgpuRenderer {
+        &mut self.renderer
+    }
+
+    pub fn busy(&self) -> bool {
+        self.in_flight.is_some()
+    }
+
+    pub fn frame_ms(&self) -> Option<f64> {
+        self.frame_ms
+    }
+
+    /// An error the device reported since (the shader compiler's, or an uncaptured one).
+    fn check(&self) -> Result<(), String> {
+        if let Some(e) = self.compile_error.borrow().as_ref() {
+            return Err(e.clone());
+        }
+        self.renderer.check_uncaptured().map_err(|e| e.to_string())
+    }
+
+    /// Draws the current mean to the canvas through `settings` (skipped when the surface has no
+    /// texture now).
+    pub fn draw(&self, settings: &Display) {
+        let texture = match self.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            _ => return,
+        };
+        let view = texture.texture.create_view(&Default::default());
+        self.display.draw(&self.renderer, &view, settings);
+        self.renderer.device().queue.present(texture);
+    }
+
+    /// One whole frame, then the display pass.
+    pub fn frame(&mut self, settings: &Display) -> Result<(), String> {
+        self.check()?;
+        self.renderer.render_frame().map_err(|e| e.to_string())?;
+        self.draw(settings);
+        Ok(())
+    }
+
+    /// The frame loop's step: unless the previous frame is still on the GPU, submits the next
+    /// (a whole frame: the compute kernel has no row offset yet, so WebGPU frames are not split
+    /// into bands) and draws it.
+    pub fn step(&mut self, now_ms: f64, settings: &Display) -> Result<Step, String> {
+        self.check()?;
+        if let Some((done, submitted)) = &self.in_flight {
+            if !done.load(Ordering::Acquire) {
+                return Ok(Step::Waiting);
+            }
+            self.frame_ms = Some(now_ms - submitted);
+            self.in_flight = None;
+        }
+        self.frame(settings)?;
+        let done = Arc::new(AtomicBool::new(false));
+        let flag = done.clone();
+        let finished = self.renderer.done();
+        wasm_bindgen_futures::spawn_local(async move {
+            finished.await;
+            flag.store(true, Ordering::Release);
+        });
+        self.in_flight = Some((done, now_ms));
+        Ok(Step::Submitted { frame_done: true })
+    }
+
+    /// Resolves once the queued work is done.
+    pub fn sync(&self) -> impl std::future::Future<Output = ()> + 'static {
+        self.renderer.done()
+    }
+
+    /// Resolves to the accumulation (rows from the top).
+    pub fn read_accumulation(&self) -> impl std::future::Future<Output = Result<Vec<Vec4>, String>> + 'static {
+        let read = self.renderer.read_accumulation();
+        async move { read.await.map_err(|e| e.to_string()) }
+    }
+}
