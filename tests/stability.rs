@@ -469,3 +469,65 @@ fn alpha_masked_surfaces_agree_across_strategies() {
     };
     check_case(&case, ALL);
 }
+
+/// A tangent-space normal map of `n x n` texels tilting the normal by ~25° in four directions
+/// in turn (a bumpy floor), bytes as a glTF normal texture stores them.
+fn bumps(n: u32) -> scene::Texture {
+    let tilts =
+        [Vec3::new(0.45, 0.0, 1.0), Vec3::new(0.0, 0.45, 1.0), Vec3::new(-0.45, 0.0, 1.0), Vec3::new(0.0, -0.45, 1.0)];
+    let texels: Vec<u32> = (0..n * n)
+        .map(|i| {
+            let m = tilts[((i % n + i / n) % 4) as usize].normalize();
+            let [r, g, b] = (m * 0.5 + 0.5).to_array().map(|c| (c * 255.0).round() as u32);
+            r | g << 8 | b << 16 | 255 << 24
+        })
+        .collect();
+    scene::Texture {
+        width: n,
+        height: n,
+        texels: texels.into(),
+        wrap_s: scene::Wrap::Repeat,
+        wrap_t: scene::Wrap::Repeat,
+    }
+}
+
+/// `alpha_masked_screen` with its masked screen a rough metal, its back wall a metal of
+/// `wall_roughness`, and its floor a glossy dielectric under a bumpy normal map: every new code
+/// path of issue 15 at once (both lobes with their sampling and MIS weights, the tangent frame
+/// and its bend, holes for every ray).
+fn metals_normal_maps_and_alpha_masks(name: &'static str, wall_roughness: f32) -> StabilityCase {
+    use tracer::scene::Material;
+    let mut scene = scene::alpha_masked_screen();
+    let map = scene.textures.len() as u32;
+    scene.textures.push(bumps(16));
+    scene.materials[0] =
+        Material { normal_texture: Some(map), ..Material::metal_rough("floor", Vec3::splat(0.8), 0.0, 0.4) };
+    scene.materials[1] = Material { metallic: 1.0, roughness: 0.35, ..scene.materials[1].clone() };
+    scene.materials[3] = Material::metal_rough("wall", Vec3::splat(0.9), 1.0, wall_roughness);
+    scene.generate_tangents();
+    scene.validate().expect("a valid scene");
+    let settings = RenderSettings { width: SIZE, height: SIZE, strategy: Strategy::Mis, max_depth: MAX_DEPTH };
+    let packed = pack(&scene, &tracer::bvh::build(&scene.triangles).expect("BVH"), &settings).expect("pack");
+    let f = packed.features;
+    assert!(f.metal_rough && f.normal_map && f.alpha_mask, "every feature under test is on: {f:?}");
+    StabilityCase {
+        name,
+        scene,
+        breaks: "the metal-roughness lobes, normal maps and alpha masks together",
+        black: false,
+    }
+}
+
+#[test]
+fn metals_normal_maps_and_alpha_masks_together_agree_across_strategies() {
+    check_case(&metals_normal_maps_and_alpha_masks("metals-normal-maps-alpha-masks", 0.5), ALL);
+}
+
+#[test]
+fn a_near_mirror_with_normal_maps_and_alpha_masks_light_sampling_fails_mis_holds() {
+    // The wall a near-mirror (roughness 0.08, alpha 0.0064): the light seen in it is a tiny
+    // lobe that light sampling rarely lands in, so NEE alone converges slowly from below (its
+    // region 1 mean was 0.062 against 0.096 and 0.093 for BSDF and MIS at 384 frames, z 6-7);
+    // BSDF sampling finds it, and MIS must agree with BSDF sampling.
+    check_case(&metals_normal_maps_and_alpha_masks("near-mirror-normal-maps-alpha-masks", 0.08), &[0, 2]);
+}
