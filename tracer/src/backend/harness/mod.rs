@@ -497,6 +497,7 @@ mod tests {
             ("MetalRoughData", top_fields::<crate::kernel::scene_data::MetalRoughData>()),
             ("Bounce", top_fields::<crate::kernel::integrator::Bounce>()),
             ("NormalMapData", top_fields::<crate::kernel::normal_map::NormalMapData>()),
+            ("AlphaMaskData", top_fields::<crate::kernel::scene_data::AlphaMaskData>()),
         ];
         let structs: Vec<kernel_dsl::ir::StructDef> = crate::kernel::modules()
             .into_iter()
@@ -513,7 +514,7 @@ mod tests {
         }
         assert_eq!(
             structs.len(),
-            13,
+            14,
             "a new kernel struct needs a Words impl here: {:?}",
             structs.iter().map(|s| &s.name).collect::<Vec<_>>()
         );
