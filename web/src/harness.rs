@@ -105,15 +105,8 @@ impl HarnessRuntime {
         let program = link(&modules_json)?;
         let device = webgpu_device().await?;
         let info = format!("{} ({}, {})", device.info.adapter, device.info.driver, device.info.backend);
-        let shared = WgpuDevice {
-            device: device.device.clone(),
-            queue: device.queue.clone(),
-            info: device.info.clone(),
-            limits: device.limits.clone(),
-            instance: device.instance.clone(),
-            adapter: device.adapter.clone(),
-        };
-        let harness = WgpuHarness::new(shared, program);
+        // A clone shares the page's one device.
+        let harness = WgpuHarness::new(WgpuDevice::clone(&device), program);
         Ok(HarnessRuntime { harness: Rc::new(RefCell::new(Some(Harness::Wgpu(Box::new(harness))))), info })
     }
 

@@ -111,6 +111,16 @@ fn path_tracer_shader_for(
     Ok(generated)
 }
 
+/// The display transform (`tonemap::display_srgb` and what it calls) in `target`'s language:
+/// what each runtime's display pass wraps its own entry point around, so that the screen shows
+/// what the CLI's PNG output stores.
+pub fn display_transform(target: lightport_codegen::Target) -> Result<lightport_codegen::Generated, ShaderError> {
+    use lightport_codegen::{Program, Selection};
+    let program = Program::link(&modules())?;
+    let selection = Selection { roots: vec!["display_srgb".into()], ..Selection::default() };
+    Ok(program.emit(target, &selection)?)
+}
+
 /// One generated shader file.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct GeneratedFile {

@@ -4,7 +4,7 @@
 //! written by the CLI with the same [`Display`] stores.
 
 use glow::HasContext;
-use lightport_codegen::{Generated, Program, Selection, Target};
+use lightport_codegen::{Generated, Target};
 
 use super::{compile_program, gl_failed, GlError, GlRenderer};
 use crate::kernel::{self, ShaderError};
@@ -26,17 +26,9 @@ void main() {
 }
 "#;
 
-/// The display transform of the kernel (`tonemap::display_srgb` and what it calls) in
-/// `target`'s language, for a display pass to wrap its own entry point around.
-pub fn display_transform(target: Target) -> Result<Generated, ShaderError> {
-    let program = Program::link(&kernel::modules())?;
-    let selection = Selection { roots: vec!["display_srgb".into()], ..Selection::default() };
-    Ok(program.emit(target, &selection)?)
-}
-
 /// The display pass's GLSL ES 3.00 fragment shader (line map kept for driver logs).
 pub fn display_fragment_shader() -> Result<Generated, ShaderError> {
-    let mut generated = display_transform(Target::GlslEs300)?;
+    let mut generated = kernel::display_transform(Target::GlslEs300)?;
     generated.source.push_str(DISPLAY_MAIN);
     Ok(generated)
 }

@@ -23,7 +23,7 @@
 mod compile;
 mod display;
 pub use compile::{annotate_log, compile_program, log_line_number};
-pub use display::{display_fragment_shader, display_transform, GlDisplay};
+pub use display::{display_fragment_shader, GlDisplay};
 
 use std::marker::PhantomData;
 

@@ -44,7 +44,7 @@ fn lp_display_fragment(@builtin(position) position: vec4<f32>) -> @location(0) v
 /// The display shader's WGSL: the kernel's display transform (`tonemap::display_srgb`, as
 /// the GL display pass takes it in GLSL) and the pass's entry points.
 pub fn display_shader() -> Result<String, WgpuError> {
-    let generated = crate::backend::gl::display_transform(Target::Wgsl)?;
+    let generated = crate::kernel::display_transform(Target::Wgsl)?;
     Ok(format!("{}\n{DISPLAY_ENTRY}", generated.source))
 }
 
