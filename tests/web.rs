@@ -161,6 +161,8 @@ fn assert_browser_agrees_with_cpu(server: &Server, scene_name: &str, scene: &Sce
     );
 }
 
+const STRATEGIES: [Strategy; 3] = [Strategy::Bsdf, Strategy::Nee, Strategy::Mis];
+
 #[test]
 fn the_browser_agrees_with_the_cpu_on_the_cornell_box() {
     let server = Server::start(&[]);
@@ -168,21 +170,61 @@ fn the_browser_agrees_with_the_cpu_on_the_cornell_box() {
 }
 
 /// The same statistics on the page's WebGPU runtime (the wgpu backend's WGSL compute kernel on
-/// Chromium's WebGPU, SwiftShader).
+/// Chromium's WebGPU, SwiftShader), for each strategy.
 #[test]
 fn the_browser_agrees_with_the_cpu_on_the_cornell_box_on_webgpu() {
     let server = Server::start(&[]);
-    assert_browser_agrees_with_cpu(&server, "cornell-box", &scene::cornell_box(), Strategy::Mis, "webgpu");
+    for strategy in STRATEGIES {
+        assert_browser_agrees_with_cpu(&server, "cornell-box", &scene::cornell_box(), strategy, "webgpu");
+    }
 }
 
-#[test]
-fn the_browser_agrees_with_the_cpu_on_a_textured_scene() {
+/// BoxTextured under venice_sunset, served as the page gets it, and loaded here for the CPU.
+fn textured_scene() -> (Server, Scene) {
     let gltf = shared("scenes/khronos/BoxTextured/glTF/BoxTextured.gltf");
     let sky = shared("scenes/hdri/venice_sunset_1k.hdr");
     let server = Server::start(&[gltf.to_str().unwrap(), "--sky", sky.to_str().unwrap()]);
     let mut scene = scene::load(&gltf).expect("BoxTextured");
     scene.sky = Some(scene::load_sky(&sky, 1.0, 0.0).expect("sky"));
+    (server, scene)
+}
+
+#[test]
+fn the_browser_agrees_with_the_cpu_on_a_textured_scene() {
+    let (server, scene) = textured_scene();
     assert_browser_agrees_with_cpu(&server, "BoxTextured", &scene, Strategy::Mis, "webgl2");
+}
+
+#[test]
+fn the_browser_agrees_with_the_cpu_on_a_textured_scene_on_webgpu() {
+    let (server, scene) = textured_scene();
+    for strategy in STRATEGIES {
+        assert_browser_agrees_with_cpu(&server, "BoxTextured", &scene, strategy, "webgpu");
+    }
+}
+
+/// A grey plane (an OBJ written here: the page loads files) under venice_sunset: only the sky
+/// lights it, so NEE and MIS sample the sky's importance table.
+fn sky_lit_plane() -> (Server, Scene) {
+    let dir = std::env::temp_dir().join(format!("lightport-web-plane-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    std::fs::write(dir.join("plane.mtl"), "newmtl grey\nKd 0.6 0.6 0.6\n").expect("mtl");
+    let obj = "mtllib plane.mtl\nv -10 0 10\nv 10 0 10\nv 10 0 -10\nv -10 0 -10\nusemtl grey\nf 1 2 3\nf 1 3 4\n";
+    let path = dir.join("plane.obj");
+    std::fs::write(&path, obj).expect("obj");
+    let sky = shared("scenes/hdri/venice_sunset_1k.hdr");
+    let server = Server::start(&[path.to_str().unwrap(), "--sky", sky.to_str().unwrap()]);
+    let mut scene = scene::load(&path).expect("plane");
+    scene.sky = Some(scene::load_sky(&sky, 1.0, 0.0).expect("sky"));
+    (server, scene)
+}
+
+#[test]
+fn the_browser_agrees_with_the_cpu_under_an_hdr_sky() {
+    let (server, scene) = sky_lit_plane();
+    for (strategy, api) in [(Strategy::Mis, "webgl2")].into_iter().chain(STRATEGIES.map(|s| (s, "webgpu"))) {
+        assert_browser_agrees_with_cpu(&server, "plane", &scene, strategy, api);
+    }
 }
 
 /// Runs the `api` scenario: which API the page chose, its read-out and message.
@@ -475,23 +517,36 @@ fn median(values: &[f64]) -> f64 {
 /// frame in flight. Unsplit (`bandBudget=0`), the same input waits for the whole frame.
 #[test]
 fn camera_input_during_a_slow_frame_restarts_within_the_budget() {
+    assert_input_restarts_within_the_budget("webgl2");
+}
+
+/// The same on WebGPU: bands are dispatches over fewer rows, each timed by the queue's
+/// `onSubmittedWorkDone`.
+#[test]
+fn camera_input_during_a_slow_frame_restarts_within_the_budget_on_webgpu() {
+    assert_input_restarts_within_the_budget("webgpu");
+}
+
+fn assert_input_restarts_within_the_budget(api: &str) {
     let server = Server::start(&[]);
     let budget = BAND_BUDGET_MS.to_string();
     let split = browse(
         &server.url,
         "slow",
-        &[("scene", "cornell-box"), ("size", "640x480"), ("bandBudget", &budget), ("inputs", "7")],
+        &[("scene", "cornell-box"), ("size", "640x480"), ("bandBudget", &budget), ("inputs", "7"), ("api", api)],
     );
     no_page_error(&split);
     let info = &split["info"];
+    let shown = if api == "webgpu" { "WebGPU" } else { "WebGL2" };
+    assert_eq!(info["api"], shown, "the page runs the API asked for: {info}");
     let frame_ms = split["frameMs"].as_f64().expect("frameMs");
     let bands = info["bands"].as_u64().expect("bands");
     let band_ms = info["bandMs"].as_f64().expect("a measured band time");
     let latencies = restart_latencies(&split, true);
     eprintln!(
-        "split: {} on {}: whole frame {frame_ms:.0} ms; {bands} bands of {} rows, ~{band_ms:.0} ms; input to restarted \
-         band done (ms): {latencies:.0?}; read-out {:?}",
-        info["name"], info["glRenderer"], info["bandRows"], split["readout"]
+        "split ({api}): {} on {}: whole frame {frame_ms:.0} ms; {bands} bands of {} rows, ~{band_ms:.0} ms; input to \
+         restarted band done (ms): {latencies:.0?}; read-out {:?}",
+        info["name"], info["adapter"], info["bandRows"], split["readout"]
     );
     assert!(frame_ms > 4.0 * BAND_BUDGET_MS, "a slow device: a whole frame takes {frame_ms} ms");
     assert!(bands > 1, "the frame is split: {info}");
@@ -517,7 +572,7 @@ fn camera_input_during_a_slow_frame_restarts_within_the_budget() {
     let unsplit = browse(
         &server.url,
         "slow",
-        &[("scene", "cornell-box"), ("size", "640x480"), ("bandBudget", "0"), ("inputs", "2"), ("settle", "2")],
+        &[("scene", "cornell-box"), ("size", "640x480"), ("bandBudget", "0"), ("inputs", "2"), ("settle", "2"), ("api", api)],
     );
     no_page_error(&unsplit);
     let unsplit_latencies = restart_latencies(&unsplit, false);

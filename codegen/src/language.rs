@@ -255,10 +255,10 @@ pub(crate) trait Language {
     fn builtin(&self, name: &'static str) -> &'static str {
         name
     }
-    /// Field `field` of resource struct global `global`.
-    fn resource_field(&self, global: &str, field: &str, texels: bool) -> String;
-    /// Texel `index` of the texel array `texels`.
-    fn fetch(&self, texels: &str, index: &str, unsigned: bool, helpers: &mut Helpers) -> String;
+    /// The scalar or vector field `field` of resource struct global `global`.
+    fn resource_field(&self, global: &str, field: &str) -> String;
+    /// Texel `index` of the texel array `field` of resource struct global `global`.
+    fn fetch(&self, global: &str, field: &str, index: Text, unsigned: bool, helpers: &mut Helpers) -> String;
 
     // ------------------------------------------------------------ the file around the functions
 

@@ -32,8 +32,11 @@ const BASE_ARGS = [
 // compositing on SwiftShader it works.
 const WEBGL2_ARGS = [...BASE_ARGS, '--disable-gpu'];
 const WEBGPU_ARGS = [...BASE_ARGS, '--use-vulkan=swiftshader', '--enable-features=Vulkan'];
+// Extra Chromium flags for experiments (space-separated), e.g. LIGHTPORT_CHROMIUM_ARGS=
+// --enable-dawn-features=disable_robustness to see what WebGPU's bounds checks cost.
+const EXTRA_ARGS = (process.env.LIGHTPORT_CHROMIUM_ARGS || '').split(' ').filter(Boolean);
 // `--api auto|webgpu|webgl2` (any scenario): the page's `api=`; default webgl2, which every
-// scenario was written against (WebGPU frames are not split into bands).
+// scenario was written against.
 let pageApi = 'webgl2';
 
 function parseArgs(argv) {
@@ -58,7 +61,7 @@ async function withBrowser(profile, action, extraArgs = []) {
   const context = await chromium.launchPersistentContext(profile, {
     executablePath: CHROMIUM,
     headless: true,
-    args: [...(pageApi === 'webgl2' ? WEBGL2_ARGS : WEBGPU_ARGS), ...extraArgs],
+    args: [...(pageApi === 'webgl2' ? WEBGL2_ARGS : WEBGPU_ARGS), ...EXTRA_ARGS, ...extraArgs],
     viewport: { width: 900, height: 700 },
   });
   try {

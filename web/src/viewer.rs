@@ -257,7 +257,7 @@ impl Viewer {
         let canvas = self.canvas_for(Api::WebGpu)?;
         canvas.set_width(packed.scene.width);
         canvas.set_height(packed.scene.height);
-        Ok(Runtime::WebGpu(GpuRuntime::attach(prepared, &canvas)?))
+        Ok(Runtime::WebGpu(GpuRuntime::attach(prepared, &canvas, self.band_budget_ms)?))
     }
 
     fn start_webgl2(&mut self, packed: &Packed) -> Result<Runtime, JsError> {

@@ -11,7 +11,7 @@
 //   paused=1          no frame loop: frames only through the test hook,
 //   budget=BYTES      the cache budget,
 //   bandBudget=MS     the longest one GPU submission (a band of a frame) should take, default
-//                     50; 0: frames are not split (one submission per frame; WebGL2 only),
+//                     50; 0: frames are not split (one submission per frame),
 //   api=auto|webgpu|webgl2  the graphics API (default auto: WebGPU if the browser gives a device
 //                     and the scene fits its limits, else WebGL2; the "API" control reloads with it),
 //   maxTextureSize=N, maxStorageBuffers=N  pretend the device allows at most N (WebGL2's texture
@@ -177,7 +177,7 @@ function frame() {
 }
 
 // The frame loop: at most one band of a frame on the GPU at a time (Viewer.step polls the
-// previous band's fence without blocking), so input runs between bands and a restart waits for
+// previous band's fence, on WebGPU its onSubmittedWorkDone, without blocking), so input runs between bands and a restart waits for
 // one band, not a whole frame.
 function tick(now) {
   if (viewer && !recovering && viewer.webGpuLost()) recoverWebGpu(viewer.webGpuLost());
@@ -195,7 +195,7 @@ function tick(now) {
       hook.bands++;
       if (pendingRestart && pendingRestart.submittedAt !== null) {
         // The restarted accumulation's first band is done: a new band could only be submitted
-        // after its fence was seen signalled.
+        // after the previous one was seen done.
         pendingRestart.doneAt = at;
         hook.restarts.push(pendingRestart);
         pendingRestart = null;

@@ -211,15 +211,16 @@ impl Language for Glsl {
     }
 
     /// Every resource field is its own uniform: `{global}_{field}`.
-    fn resource_field(&self, global: &str, field: &str, _texels: bool) -> String {
+    fn resource_field(&self, global: &str, field: &str) -> String {
         format!("{global}_{field}")
     }
 
-    fn fetch(&self, texels: &str, index: &str, unsigned: bool, helpers: &mut Helpers) -> String {
+    /// Every texel array is its own data texture, `{global}_{field}`.
+    fn fetch(&self, global: &str, field: &str, index: Text, unsigned: bool, helpers: &mut Helpers) -> String {
         let (h, name) =
             if unsigned { (Helper::FetchUVec4, "lp_fetch_uvec4") } else { (Helper::FetchVec4, "lp_fetch_vec4") };
         helpers.insert(h);
-        format!("{name}({texels}, {index})")
+        format!("{name}({global}_{field}, {})", index.0)
     }
 
     fn preamble(&self, header: &str) -> String {

@@ -46,7 +46,7 @@ impl<'a> Lowerer<'a> {
             K::Field { base, field } => {
                 let bt = self.types.ty(base).clone();
                 if let Ty::Resource(res) = bt.strip_ref() {
-                    return Ok(self.resource_field(res, field));
+                    return self.resource_field(res, field, span);
                 }
                 let b = self.expr(base)?;
                 let b = self.auto_deref(b, &bt);
@@ -186,17 +186,22 @@ impl<'a> Lowerer<'a> {
         }
     }
 
-    fn resource_field(&mut self, res: &str, field: &str) -> Text {
+    /// A scalar or vector field of a resource struct (a texel array is only read through
+    /// [`fetch`](Self::fetch)).
+    fn resource_field(&mut self, res: &str, field: &str, span: ir::Span) -> R<Text> {
         if let Some(v) = self.specialized(res, field) {
-            return (format!("{v}u"), prec::ATOM);
+            return Ok((format!("{v}u"), prec::ATOM));
         }
-        self.resources_used.insert((res.to_string(), field.to_string()));
         let def = &self.program.structs[res].item;
         let is_texels = def
             .fields
             .iter()
             .any(|f| f.name == field && matches!(&f.ty, ir::Type::Named { name, .. } if name == "Texels"));
-        (self.lang.resource_field(&super::snake(res), field, is_texels), prec::ATOM)
+        if is_texels {
+            return Err(self.error(span, "read texels as `resources.field.fetch(index)`"));
+        }
+        self.resources_used.insert((res.to_string(), field.to_string()));
+        Ok((self.lang.resource_field(&super::snake(res), field), prec::ATOM))
     }
 
     pub(super) fn literal(&mut self, l: &ir::Lit, ty: Ty) -> String {
@@ -507,10 +512,10 @@ impl<'a> Lowerer<'a> {
         let Ty::Resource(res) = self.types.ty(base).strip_ref().clone() else {
             return Err(self.error(e.span, "read texels as `resources.field.fetch(index)`"));
         };
-        let tex = self.resource_field(&res, field).0;
-        let i = self.expr(index)?.0;
+        self.resources_used.insert((res.clone(), field.clone()));
+        let i = self.expr(index)?;
         let unsigned = matches!(rt, Ty::Texels(el) if matches!(**el, Ty::Vector(Scalar::U32, _)));
-        Ok((self.lang.fetch(&tex, &i, unsigned, &mut self.helpers), prec::ATOM))
+        Ok((self.lang.fetch(&super::snake(&res), field, i, unsigned, &mut self.helpers), prec::ATOM))
     }
 }
 

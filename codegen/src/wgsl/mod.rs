@@ -185,18 +185,16 @@ impl Language for Wgsl {
         })
     }
 
-    /// Texel arrays are storage buffers of their own (`{global}_{field}`); scalars and vectors
-    /// are fields of the struct's uniform block (`{global}.{field}`).
-    fn resource_field(&self, global: &str, field: &str, texels: bool) -> String {
-        if texels {
-            format!("{global}_{field}")
-        } else {
-            format!("{global}.{}", crate::names::safe(field))
-        }
+    /// Scalars and vectors are fields of the struct's uniform block (`{global}.{field}`).
+    fn resource_field(&self, global: &str, field: &str) -> String {
+        format!("{global}.{}", crate::names::safe(field))
     }
 
-    fn fetch(&self, texels: &str, index: &str, _unsigned: bool, _helpers: &mut Helpers) -> String {
-        format!("{texels}[{index}]")
+    /// Texel arrays share one storage buffer per element type ([`shaders::texel_buffer`]); each
+    /// starts at `{global}.lp_start_{field}`.
+    fn fetch(&self, global: &str, field: &str, index: Text, unsigned: bool, _helpers: &mut Helpers) -> String {
+        let buffer = shaders::texel_buffer(global, unsigned);
+        format!("{buffer}[{global}.{} + {}]", shaders::start_member(field), prec::wrap(index, prec::MUL))
     }
 
     fn preamble(&self, header: &str) -> String {

@@ -6,37 +6,58 @@ use std::fmt::Write as _;
 use crate::language::{HarnessShader, ResourceBlock, ResourceKind};
 use crate::names;
 
+/// The storage buffer holding every texel array of resource struct global `global` whose
+/// element is `vec4<u32>` (`unsigned`) or `vec4<f32>`, one array after another.
+pub(super) fn texel_buffer(global: &str, unsigned: bool) -> String {
+    format!("lp_{global}_{}", if unsigned { "vec4u" } else { "vec4f" })
+}
+
+/// The uniform member holding where texel array `field` starts in its buffer (in texels).
+pub(super) fn start_member(field: &str) -> String {
+    format!("lp_start_{field}")
+}
+
 /// Resources live in bind group 0: each struct's scalars and vectors in one uniform block
-/// (`{Struct}Uniforms`, bound first), then one read-only storage buffer per texel array,
-/// numbered on across structs.
+/// (`{Struct}Uniforms`, bound first), followed by where each texel array starts; then the
+/// texel arrays, concatenated into one read-only storage buffer per element type, numbered on
+/// across structs. Two storage buffers however many arrays the kernel reads: WebGPU guarantees
+/// 8 per shader stage, and the all-features kernel reads 11 arrays.
 pub(super) fn resources(blocks: &[ResourceBlock]) -> String {
     let mut out = String::new();
     let mut binding = 0;
     for block in blocks {
         let _ = writeln!(out, "// resources: {}", block.origin);
         let (res, base) = (&block.name, &block.global);
-        let scalars: Vec<(&str, &str)> = block
-            .fields
-            .iter()
-            .filter_map(|f| match &f.kind {
-                ResourceKind::Uniform { type_name } => Some((f.name.as_str(), type_name.as_str())),
-                ResourceKind::Texels { .. } => None,
-            })
-            .collect();
-        if !scalars.is_empty() {
-            let _ = writeln!(out, "struct {res}Uniforms {{");
-            for (name, tn) in &scalars {
-                let _ = writeln!(out, "    {}: {tn},", names::safe(name));
-            }
-            out.push_str("}\n");
-            let _ = writeln!(out, "@group(0) @binding({binding}) var<uniform> {base}: {res}Uniforms;");
-            binding += 1;
-        }
+        let mut members = Vec::new();
+        let mut starts = Vec::new();
+        let mut elements = [false; 2];
         for f in &block.fields {
-            if let ResourceKind::Texels { unsigned } = f.kind {
-                let e = if unsigned { "vec4<u32>" } else { "vec4<f32>" };
-                let _ =
-                    writeln!(out, "@group(0) @binding({binding}) var<storage, read> {base}_{}: array<{e}>;", f.name);
+            match &f.kind {
+                ResourceKind::Uniform { type_name } => members.push(format!("{}: {type_name}", names::safe(&f.name))),
+                ResourceKind::Texels { unsigned } => {
+                    starts.push(format!("{}: u32", start_member(&f.name)));
+                    elements[*unsigned as usize] = true;
+                }
+            }
+        }
+        let _ = writeln!(out, "struct {res}Uniforms {{");
+        for m in &members {
+            let _ = writeln!(out, "    {m},");
+        }
+        if !starts.is_empty() {
+            let names: Vec<String> = [false, true].iter().filter(|u| elements[**u as usize]).map(|u| texel_buffer(base, *u)).collect();
+            let _ = writeln!(out, "    // Where each texel array starts in {} (in texels).", names.join(" / "));
+        }
+        for m in &starts {
+            let _ = writeln!(out, "    {m},");
+        }
+        out.push_str("}\n");
+        let _ = writeln!(out, "@group(0) @binding({binding}) var<uniform> {base}: {res}Uniforms;");
+        binding += 1;
+        for (unsigned, e) in [(false, "vec4<f32>"), (true, "vec4<u32>")] {
+            if elements[unsigned as usize] {
+                let name = texel_buffer(base, unsigned);
+                let _ = writeln!(out, "@group(0) @binding({binding}) var<storage, read> {name}: array<{e}>;");
                 binding += 1;
             }
         }
@@ -45,11 +66,31 @@ pub(super) fn resources(blocks: &[ResourceBlock]) -> String {
     out
 }
 
-/// A compute shader (8 x 8 workgroups) adding one sample per pixel to the storage buffer
-/// `lp_accumulation` (row-major, `lp_target.width` wide).
+/// A compute shader (8 x 8 workgroups) adding one sample per pixel of a band of rows,
+/// `lp_target.first_row` up to (not including) `lp_target.end_row`, to the storage buffer
+/// `lp_accumulation` (row-major, `lp_target.width` wide): a whole frame is one band, a slow
+/// device's frame several (`tracer::backend::frame_split`).
 pub(super) fn pixel_entry(function: &str) -> String {
     format!(
-        "// Entry point: one sample per pixel added to the running sum in lp_accumulation.\nstruct LpTarget {{\n    width: u32,\n    height: u32,\n}}\n@group(1) @binding(0) var<storage, read_write> lp_accumulation: array<vec4<f32>>;\n@group(1) @binding(1) var<uniform> lp_target: LpTarget;\n\n@compute @workgroup_size(8, 8)\nfn main(@builtin(global_invocation_id) id: vec3<u32>) {{\n    if id.x >= lp_target.width || id.y >= lp_target.height {{\n        return;\n    }}\n    let i = id.y * lp_target.width + id.x;\n    lp_accumulation[i] = lp_accumulation[i] + {function}(id.x, id.y);\n}}\n"
+        "// Entry point: one sample per pixel of the band of rows [first_row, end_row) added to the running sum in lp_accumulation.
+struct LpTarget {{
+    width: u32,
+    first_row: u32,
+    end_row: u32,
+}}
+@group(1) @binding(0) var<storage, read_write> lp_accumulation: array<vec4<f32>>;
+@group(1) @binding(1) var<uniform> lp_target: LpTarget;
+
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {{
+    let y = lp_target.first_row + id.y;
+    if id.x >= lp_target.width || y >= lp_target.end_row {{
+        return;
+    }}
+    let i = y * lp_target.width + id.x;
+    lp_accumulation[i] = lp_accumulation[i] + {function}(id.x, y);
+}}
+"
     )
 }
 

@@ -108,7 +108,7 @@ impl Runtime {
         }
     }
 
-    /// The frame loop's step: a band (WebGL2) or a frame (WebGPU), unless one is on the GPU.
+    /// The frame loop's step: a band, unless one is on the GPU.
     pub fn step(&mut self, now_ms: f64, display: &Display) -> Result<Step, String> {
         match self {
             Runtime::WebGl2(r) => r.step(now_ms, display),
@@ -117,8 +117,9 @@ impl Runtime {
     }
 
     pub fn set_band_budget(&mut self, budget_ms: Option<f64>) {
-        if let Runtime::WebGl2(r) = self {
-            r.set_band_budget(budget_ms);
+        match self {
+            Runtime::WebGl2(r) => r.set_band_budget(budget_ms),
+            Runtime::WebGpu(r) => r.set_band_budget(budget_ms),
         }
     }
 
@@ -153,13 +154,16 @@ impl Runtime {
     /// The read-outs of `sceneInfo`: the API and adapter, and how frames are submitted.
     pub fn describe(&self, info: &Object) {
         set(info, "api", self.api());
+        let (policy, busy) = match self {
+            Runtime::WebGl2(r) => (r.pacer().policy(), r.pacer().busy()),
+            Runtime::WebGpu(r) => (r.policy(), r.busy()),
+        };
+        set(info, "bands", policy.bands());
+        set(info, "bandRows", policy.rows());
+        set(info, "bandMs", policy.band_ms().map_or(JsValue::NULL, JsValue::from));
+        set(info, "gpuBusy", busy);
         match self {
             Runtime::WebGl2(r) => {
-                let policy = r.pacer().policy();
-                set(info, "bands", policy.bands());
-                set(info, "bandRows", policy.rows());
-                set(info, "bandMs", policy.band_ms().map_or(JsValue::NULL, JsValue::from));
-                set(info, "gpuBusy", r.pacer().busy());
                 let gl = r.renderer().info();
                 set(info, "adapter", gl.renderer.as_str());
                 set(info, "glRenderer", gl.renderer.as_str());
@@ -167,10 +171,6 @@ impl Runtime {
                 set(info, "maxTextureSize", gl.max_texture_size);
             }
             Runtime::WebGpu(r) => {
-                set(info, "bands", 1);
-                set(info, "bandRows", r.renderer().packed().scene.height);
-                set(info, "bandMs", r.frame_ms().map_or(JsValue::NULL, JsValue::from));
-                set(info, "gpuBusy", r.busy());
                 let w = r.renderer().info();
                 set(info, "adapter", w.adapter.as_str());
                 set(info, "gpuDriver", w.driver.as_str());

@@ -3,9 +3,11 @@
 //! pass ([`tracer::backend::wgpu::DisplayPass`]) drawing to the canvas's WebGPU surface.
 //!
 //! Nothing here blocks: the shader compiler's verdict, read-backs and the queue's completion
-//! are promises. The frame loop keeps one frame on the GPU at a time: a frame is submitted
-//! only once the previous one's `onSubmittedWorkDone` has resolved, and its time (submission
-//! to completion, seen at the next animation frame) is recorded for the read-outs.
+//! are promises. The frame loop submits each frame in bands of rows within the time budget, as
+//! the WebGL2 runtime does (`tracer::backend::frame_split`'s [`BandPolicy`]), one band on the
+//! GPU at a time: a band is submitted only once the previous one's `onSubmittedWorkDone` has
+//! resolved, and its time (submission to the animation frame that sees it done) chooses the
+//! next band's height.
 
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -13,7 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 use glam::Vec4;
-use tracer::backend::frame_split::Step;
+use tracer::backend::frame_split::{BandPolicy, Step};
 use tracer::backend::wgpu::{DisplayPass, PipelineCheck, WgpuDevice, WgpuOptions, WgpuRenderer};
 use tracer::output::Display;
 use tracer::pack::Packed;
@@ -98,12 +100,22 @@ pub struct GpuRuntime {
     renderer: WgpuRenderer,
     surface: wgpu::Surface<'static>,
     display: DisplayPass,
-    /// Set by the queue when the frame in flight is done.
-    in_flight: Option<(Arc<AtomicBool>, f64)>,
-    /// The last frame's time, submission to the animation frame that saw it done (ms).
-    frame_ms: Option<f64>,
+    /// How many rows each band covers, from the measured band times.
+    policy: BandPolicy,
+    /// The band on the GPU.
+    in_flight: Option<InFlight>,
     /// The shader compiler's verdict, once it arrived with an error.
     compile_error: Rc<RefCell<Option<String>>>,
+}
+
+/// A band submitted to the queue and not yet seen done.
+struct InFlight {
+    /// Set by the queue when the band is done.
+    done: Arc<AtomicBool>,
+    submitted_ms: f64,
+    /// The last step that found it not done.
+    pending_at_ms: Option<f64>,
+    rows: u32,
 }
 
 /// A renderer created on the device (limits checked, scene uploaded), not yet on a canvas:
@@ -124,7 +136,7 @@ impl GpuRuntime {
     }
 
     /// The prepared renderer drawing to `canvas` (sized to the image already).
-    pub fn attach(prepared: Prepared, canvas: &HtmlCanvasElement) -> Result<Self, String> {
+    pub fn attach(prepared: Prepared, canvas: &HtmlCanvasElement, band_budget_ms: Option<f64>) -> Result<Self, String> {
         let Prepared { renderer, check } = prepared;
         let device = renderer.device();
         let surface = device
@@ -154,7 +166,8 @@ impl GpuRuntime {
                 *slot.borrow_mut() = Some(e.to_string());
             }
         });
-        Ok(GpuRuntime { renderer, surface, display, in_flight: None, frame_ms: None, compile_error })
+        let policy = BandPolicy::new(height, band_budget_ms);
+        Ok(GpuRuntime { renderer, surface, display, policy, in_flight: None, compile_error })
     }
 
     pub fn renderer(&self) -> &WgpuRenderer {
@@ -169,8 +182,14 @@ impl GpuRuntime {
         self.in_flight.is_some()
     }
 
-    pub fn frame_ms(&self) -> Option<f64> {
-        self.frame_ms
+    pub fn policy(&self) -> &BandPolicy {
+        &self.policy
+    }
+
+    pub fn set_band_budget(&mut self, budget_ms: Option<f64>) {
+        self.policy = BandPolicy::new(self.renderer.packed().scene.height, budget_ms);
+        // The band in flight was sized by the old policy: not measured.
+        self.in_flight = None;
     }
 
     /// An error the device reported since (the shader compiler's, or an uncaptured one).
@@ -193,27 +212,37 @@ impl GpuRuntime {
         self.renderer.device().queue.present(texture);
     }
 
-    /// One whole frame, then the display pass.
+    /// The rest of the frame in one submission, then the display pass.
     pub fn frame(&mut self, settings: &Display) -> Result<(), String> {
         self.check()?;
+        // The band in flight would be timed with this whole frame.
+        self.in_flight = None;
         self.renderer.render_frame().map_err(|e| e.to_string())?;
         self.draw(settings);
         Ok(())
     }
 
-    /// The frame loop's step: unless the previous frame is still on the GPU, submits the next
-    /// (a whole frame: the compute kernel has no row offset yet, so WebGPU frames are not split
-    /// into bands) and draws it.
+    /// The frame loop's step: unless the previous band is still on the GPU, records its time,
+    /// submits the next band (of the policy's height) and draws it: each band of the first frame
+    /// after a restart, later each whole frame.
     pub fn step(&mut self, now_ms: f64, settings: &Display) -> Result<Step, String> {
         self.check()?;
-        if let Some((done, submitted)) = &self.in_flight {
-            if !done.load(Ordering::Acquire) {
+        if let Some(band) = &mut self.in_flight {
+            if !band.done.load(Ordering::Acquire) {
+                band.pending_at_ms = Some(now_ms);
                 return Ok(Step::Waiting);
             }
-            self.frame_ms = Some(now_ms - submitted);
+            // Never seen pending: the step came late, so the time to it is what the band took.
+            let at_most = now_ms - band.submitted_ms;
+            let at_least = band.pending_at_ms.map_or(at_most, |t| t - band.submitted_ms);
+            self.policy.record_between(band.rows, at_least, at_most);
             self.in_flight = None;
         }
-        self.frame(settings)?;
+        let rows = self.policy.rows().min(self.renderer.rows_left());
+        let frame_done = self.renderer.render_band(rows).map_err(|e| e.to_string())?;
+        if frame_done || self.renderer.frames() == 0 {
+            self.draw(settings);
+        }
         let done = Arc::new(AtomicBool::new(false));
         let flag = done.clone();
         let finished = self.renderer.done();
@@ -221,8 +250,8 @@ impl GpuRuntime {
             finished.await;
             flag.store(true, Ordering::Release);
         });
-        self.in_flight = Some((done, now_ms));
-        Ok(Step::Submitted { frame_done: true })
+        self.in_flight = Some(InFlight { done, submitted_ms: now_ms, pending_at_ms: None, rows });
+        Ok(Step::Submitted { frame_done })
     }
 
     /// Resolves once the queued work is done.

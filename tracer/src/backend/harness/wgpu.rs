@@ -2,7 +2,7 @@
 //! per workgroup) in which invocation `i` reads its argument words from the storage buffer
 //! `lp_args` and writes its result words to `lp_results`, for `i < lp_count.n`. The scene is
 //! bound as the renderer binds it (group 0: the `scene` uniform and one read-only storage
-//! buffer per array), through the same reflection of the generated shader.
+//! buffer per texel element type), through the same reflection of the generated shader.
 //!
 //! Compiling and running are futures ([`WgpuHarness::layout_async`],
 //! [`WgpuHarness::run_words_async`]) so that the browser's WebGPU (the `lightport-web` crate's
@@ -20,10 +20,9 @@ use wgpu::util::DeviceExt;
 use super::{generated_layout, harness_selection, HarnessError};
 #[cfg(not(target_arch = "wasm32"))]
 use super::{Backend, Runtime};
-use crate::backend::gl::{scene_bindings, Binding};
 use crate::backend::wgpu::{
-    compile_pipeline, reflect, scene_uniform_bytes, u32_uniform_bytes, BufferEntry, ShaderLayout, WgpuDevice,
-    WgpuError, WgpuOptions,
+    check_scene_limits, compile_pipeline, reflect, u32_uniform_bytes, upload_scene, BufferEntry, ShaderLayout,
+    WgpuDevice, WgpuError, WgpuOptions, SCENE_UNIFORM,
 };
 use crate::kernel::scene_data::Scene;
 use crate::kernel::ShaderError;
@@ -49,8 +48,8 @@ pub struct WgpuHarness {
     device: WgpuDevice,
     program: Program,
     specialize: BTreeMap<String, u32>,
-    /// The scene's uniforms and one storage buffer per non-empty array (uploaded once).
-    scene: Option<(Scene, HashMap<&'static str, wgpu::Buffer>)>,
+    /// The scene functions taking `&Scene` read.
+    scene: Option<Scene>,
     shaders: HashMap<String, HarnessShader>,
 }
 
@@ -81,36 +80,10 @@ impl WgpuHarness {
         &self.device
     }
 
-    /// Uploads `scene`'s arrays (replacing a previous scene's) for functions taking `&Scene`.
+    /// Sets the scene (replacing a previous one) for functions taking `&Scene`: each run binds
+    /// the arrays its shader reads, as the renderer does (limits checked per shader).
     pub fn set_scene(&mut self, scene: &Scene) -> Result<(), HarnessError> {
-        let limits = &self.device.limits;
-        let max = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
-        let mut buffers = HashMap::new();
-        for (name, binding) in scene_bindings(scene) {
-            let bytes: &[u8] = match &binding {
-                Binding::Vec4s(t) => bytemuck::cast_slice(t.as_slice()),
-                Binding::UVec4s(t) => bytemuck::cast_slice(t.as_slice()),
-                _ => continue,
-            };
-            if bytes.len() as u64 > max {
-                return Err(WgpuError::SceneTooLarge {
-                    array: format!("scene_{name}"),
-                    bytes: bytes.len() as u64,
-                    limit: "max_storage_buffer_binding_size",
-                    max,
-                }
-                .into());
-            }
-            // A binding cannot be empty: an array the scene left empty is one zero texel.
-            let contents = if bytes.is_empty() { &[0u8; 16][..] } else { bytes };
-            let buffer = self.device.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(name),
-                contents,
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-            buffers.insert(name, buffer);
-        }
-        self.scene = Some((scene.clone(), buffers));
+        self.scene = Some(scene.clone());
         Ok(())
     }
 
@@ -152,41 +125,23 @@ impl WgpuHarness {
         let resources = reflect(&generated, &[ARGS_BUFFER, RESULTS_BUFFER, COUNT_UNIFORM])?;
         // Borrowed, not cloned: a scene's arrays can be hundreds of megabytes.
         let no_scene = Scene::default();
-        let scene = self.scene.as_ref().map_or(&no_scene, |(s, _)| s);
-        crate::backend::wgpu::check_scene_limits(&self.device.limits, &WgpuOptions::default(), scene, &resources)?;
+        let scene = self.scene.as_ref().unwrap_or(&no_scene);
+        check_scene_limits(&self.device.limits, &WgpuOptions::default(), scene, &resources)?;
         // The layout wgpu derives from the shader: bind groups are made from it per run.
         let pipeline = compile_pipeline(&self.device.device, &generated, None).await?;
         Ok(HarnessShader { pipeline, resources, layout })
     }
 
-    /// The scene's buffers a shader binds: its uniform (made for its layout) and arrays.
+    /// The scene's buffers a shader binds: its uniform (made for its layout) and texel buffers.
     fn scene_entries(&self, function: &str, resources: &ShaderLayout) -> Result<Vec<BufferEntry>, HarnessError> {
-        let mut entries = Vec::new();
-        if resources.scene_uniform.is_none() && resources.storage.is_empty() {
-            return Ok(entries);
+        if resources.scene_uniform.is_none() && resources.texel_buffers.is_empty() {
+            return Ok(Vec::new());
         }
-        let Some((scene, buffers)) = &self.scene else {
-            let uniform = resources.storage.first().map_or("scene".to_string(), |s| format!("scene_{}", s.0));
-            return Err(HarnessError::NoScene { function: function.to_string(), uniform });
+        let Some(scene) = &self.scene else {
+            return Err(HarnessError::NoScene { function: function.to_string(), uniform: SCENE_UNIFORM.into() });
         };
-        if let Some(u) = &resources.scene_uniform {
-            let buffer = self.device.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("scene uniforms"),
-                contents: &scene_uniform_bytes(u, scene)?,
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
-            let ty = wgpu::BufferBindingType::Uniform;
-            entries.push(BufferEntry { group: u.group, binding: u.binding, buffer, ty });
-        }
-        for (field, group, binding) in &resources.storage {
-            let buffer = buffers.get(field.as_str()).ok_or_else(|| WgpuError::UnboundResource {
-                name: format!("scene_{field}"),
-                detail: " (not an array of the Scene)".into(),
-            })?;
-            let ty = wgpu::BufferBindingType::Storage { read_only: true };
-            entries.push(BufferEntry { group: *group, binding: *binding, buffer: buffer.clone(), ty });
-        }
-        Ok(entries)
+        check_scene_limits(&self.device.limits, &WgpuOptions::default(), scene, resources)?;
+        Ok(upload_scene(&self.device.device, resources, scene)?.0)
     }
 
     /// Runs `function` on `invocations` argument sets given as words (`input_words` per

@@ -10,11 +10,14 @@
 //! Layout, as the generated shader expects it (see `shaders-generated/*.wgsl`), read back from
 //! the shader itself (naga's reflection) rather than assumed, because specialisation removes
 //! arrays and renumbers the bindings:
-//! - every `Texels<Vec4>` / `Texels<UVec4>` field `f` of the kernel's `Scene` that the variant
-//!   keeps is the read-only storage buffer `scene_f`: the packed array exactly as packed (no 2D
-//!   shape: a storage buffer is indexed directly);
+//! - the `Texels<Vec4>` fields of the kernel's `Scene` that the variant keeps are concatenated
+//!   into one read-only storage buffer, `lp_scene_vec4f`, and the `Texels<UVec4>` fields into
+//!   `lp_scene_vec4u`: each packed array exactly as packed (no 2D shape: a storage buffer is
+//!   indexed directly), starting where the uniform member `lp_start_{field}` says. Two storage
+//!   buffers whatever the scene (the all-features kernel reads 11 arrays; WebGPU guarantees 8
+//!   storage buffers per stage, SwiftShader offers 10);
 //! - the scalar and vector fields are the members of the uniform struct `scene`, at the offsets
-//!   WGSL's layout rules give them;
+//!   WGSL's layout rules give them, followed by the arrays' starts;
 //! - `lp_accumulation` is the running sum (rgb: sum of samples, w: number of finite samples),
 //!   one read-write storage buffer updated in place (a compute invocation owns its pixel, so no
 //!   ping-pong is needed), and `lp_target` the image size.
@@ -41,7 +44,7 @@ mod oneshot;
 pub use display::{display_shader, DisplayPass};
 pub(crate) use resources::{
     bind_groups, check_scene_limits, reflect, scene_uniform_bytes, storage_limit, u32_uniform_bytes, upload_scene,
-    BufferEntry, ShaderLayout, UniformLayout,
+    BufferEntry, OwnResource, ShaderLayout, UniformLayout,
 };
 pub use resources::{compile_pipeline, start_pipeline, PipelineCheck};
 
@@ -100,8 +103,9 @@ pub struct WgpuOptions {
     /// Use at most this storage-buffer binding size even where the device allows more (e.g. to
     /// check that a scene fits WebGPU's default 128 MiB, or to test the limit errors).
     pub max_storage_buffer_binding_size: Option<u64>,
-    /// Use at most this many storage buffers per shader stage (the all-features kernel binds
-    /// 12; WebGPU's default is 8): to test the limit errors and the browser's fallback.
+    /// Use at most this many storage buffers per shader stage (every kernel binds 3: two texel
+    /// buffers and the accumulation; WebGPU's default is 8): to test the limit errors and the
+    /// browser's fallback.
     pub max_storage_buffers_per_shader_stage: Option<u32>,
 }
 
@@ -189,7 +193,10 @@ struct Pipeline {
     scene_uniform: Option<(wgpu::Buffer, UniformLayout)>,
     accumulation: wgpu::Buffer,
     readback: wgpu::Buffer,
-    workgroups: [u32; 2],
+    /// `lp_target` (the image width and the band of rows a dispatch covers) and its layout.
+    target: (wgpu::Buffer, OwnResource),
+    /// Workgroups across the image.
+    workgroups_x: u32,
 }
 
 /// The kernel on a wgpu device. Create it from a [`Packed`] scene;
@@ -200,6 +207,8 @@ pub struct WgpuRenderer {
     packed: Packed,
     seed: u32,
     frames: u32,
+    /// The first row of the current frame not rendered yet (0 between frames).
+    band_row: u32,
     pipeline: Pipeline,
     /// The first error wgpu reported outside an error scope (e.g. a lost device).
     uncaptured: Arc<Mutex<Option<String>>>,
@@ -233,7 +242,7 @@ impl WgpuRenderer {
         let (pipeline, check) = build(&device, &packed, options)?;
         let mut device = device;
         device.info.max_storage_buffer_binding_size = storage_limit(&device.limits, options);
-        Ok((WgpuRenderer { device, packed, seed, frames: 0, pipeline, uncaptured }, check))
+        Ok((WgpuRenderer { device, packed, seed, frames: 0, band_row: 0, pipeline, uncaptured }, check))
     }
 
     /// A renderer on its own native device (Vulkan, Metal or DX12).
@@ -273,16 +282,36 @@ impl WgpuRenderer {
         }
     }
 
-    /// Adds one sample per pixel (queued on the device; [`finish`](Self::finish) waits).
+    /// Adds one sample per pixel (queued on the device; [`finish`](Self::finish) waits): the
+    /// rest of the current frame, when it was begun in bands.
     pub fn render_frame(&mut self) -> Result<(), WgpuError> {
+        self.render_band(self.rows_left()).map(|_| ())
+    }
+
+    /// Rows of the current frame not rendered yet (the image height between frames).
+    pub fn rows_left(&self) -> u32 {
+        self.packed.scene.height - self.band_row
+    }
+
+    /// Renders the next `rows` rows (kernel rows from the top, clamped to those left) of the
+    /// current frame: the same dispatch as a whole frame over fewer rows, so the pixels and
+    /// their random sequence are the unsplit frame's. The sample count advances when the last
+    /// row is rendered: returns whether this band completed the frame. As
+    /// [`GlRenderer::render_band`](crate::backend::gl::GlRenderer::render_band); see
+    /// [`frame_split`](super::frame_split).
+    pub fn render_band(&mut self, rows: u32) -> Result<bool, WgpuError> {
         self.check_uncaptured()?;
         let p = &self.pipeline;
         let queue = &self.device.queue;
+        let rows = rows.clamp(1, self.rows_left());
+        let (first_row, end_row) = (self.band_row, self.band_row + rows);
         if let Some((buffer, layout)) = &p.scene_uniform {
             if let Some((_, offset)) = layout.members.iter().find(|(n, _)| n == "frame_seed") {
                 queue.write_buffer(buffer, *offset as u64, &frame_seed(self.frames, self.seed).to_le_bytes());
             }
         }
+        let (target, target_layout) = &p.target;
+        queue.write_buffer(target, 0, &target_bytes(target_layout, self.packed.scene.width, first_row, end_row)?);
         let mut encoder = self.device.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -293,11 +322,16 @@ impl WgpuRenderer {
             for (i, group) in p.bind_groups.iter().enumerate() {
                 pass.set_bind_group(i as u32, group, &[]);
             }
-            pass.dispatch_workgroups(p.workgroups[0], p.workgroups[1], 1);
+            pass.dispatch_workgroups(p.workgroups_x, rows.div_ceil(WORKGROUP_SIZE[1]), 1);
         }
         queue.submit([encoder.finish()]);
-        self.frames += 1;
-        Ok(())
+        self.band_row = end_row;
+        let frame_done = self.band_row == self.packed.scene.height;
+        if frame_done {
+            self.band_row = 0;
+            self.frames += 1;
+        }
+        Ok(frame_done)
     }
 
     /// Waits until every queued frame has been rendered, e.g. around timings.
@@ -430,12 +464,23 @@ impl WgpuRenderer {
         encoder.clear_buffer(&self.pipeline.accumulation, 0, None);
         self.device.queue.submit([encoder.finish()]);
         self.frames = 0;
+        self.band_row = 0;
         Ok(())
     }
 }
 
+/// The bytes of `lp_target`: the image's width and the band of rows `[first_row, end_row)`.
+fn target_bytes(target: &OwnResource, width: u32, first_row: u32, end_row: u32) -> Result<Vec<u8>, WgpuError> {
+    u32_uniform_bytes(target, |member| match member {
+        "width" => Some(width),
+        "first_row" => Some(first_row),
+        "end_row" => Some(end_row),
+        _ => None,
+    })
+}
+
 /// Checks the renderer's workgroups and image against the device's limits; returns the
-/// dispatch size.
+/// dispatch size of a whole frame.
 fn check_image_limits(limits: &wgpu::Limits, options: &WgpuOptions, scene: &Scene) -> Result<[u32; 2], WgpuError> {
     for (limit, needed, max) in [
         ("max_compute_workgroup_size_x", WORKGROUP_SIZE[0] as u64, limits.max_compute_workgroup_size_x as u64),
@@ -505,21 +550,18 @@ fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<
         mapped_at_creation: false,
     });
     entries.push(BufferEntry::storage(layout.own(ACCUMULATION_BUFFER), accumulation.clone(), false));
-    let target = layout.own(TARGET_UNIFORM);
-    let target_bytes = u32_uniform_bytes(target, |member| match member {
-        "width" => Some(scene.width),
-        "height" => Some(scene.height),
-        _ => None,
-    })?;
+    let target = layout.own(TARGET_UNIFORM).clone();
     let target_buffer = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(TARGET_UNIFORM),
-        contents: &target_bytes,
-        usage: wgpu::BufferUsages::UNIFORM,
+        contents: &target_bytes(&target, scene.width, 0, scene.height)?,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
     });
-    entries.push(BufferEntry::uniform(target, target_buffer));
+    entries.push(BufferEntry::uniform(&target, target_buffer.clone()));
     let (bind_groups, pipeline_layout) = bind_groups(d, &entries);
     let (pipeline, check) = start_pipeline(d, &generated, Some(&pipeline_layout));
-    Ok((Pipeline { pipeline, bind_groups, scene_uniform, accumulation, readback, workgroups }, check))
+    let target = (target_buffer, target);
+    let workgroups_x = workgroups[0];
+    Ok((Pipeline { pipeline, bind_groups, scene_uniform, accumulation, readback, target, workgroups_x }, check))
 }
 
 #[cfg(test)]
@@ -544,7 +586,9 @@ mod tests {
             &[ACCUMULATION_BUFFER, TARGET_UNIFORM],
         )
         .unwrap();
-        assert_eq!(all.storage.len(), 11, "{:?}", all.storage);
+        assert_eq!(all.texel_buffers.len(), 2, "{:?}", all.texel_buffers);
+        let starts = all.scene_uniform.unwrap().members.iter().filter(|(n, _)| n.starts_with("lp_start_")).count();
+        assert_eq!(starts, 11, "every array of the all-features kernel has its start");
     }
 
     /// The uniform offsets follow WGSL's rules: a vec3 is 16-byte aligned and a scalar may

@@ -10,7 +10,7 @@ use lightport_codegen::Generated;
 use wgpu::util::DeviceExt;
 
 use super::{WgpuError, WgpuOptions, ENTRY_POINT, SCENE_UNIFORM};
-use crate::backend::gl::{scene_bindings, Binding, SCENE_UNIFORM_PREFIX};
+use crate::backend::gl::{scene_bindings, Binding};
 use crate::kernel::scene_data::Scene;
 
 /// Where each resource of the generated shader is bound, as the shader declares it: the
@@ -19,10 +19,82 @@ use crate::kernel::scene_data::Scene;
 pub(crate) struct ShaderLayout {
     /// The `scene` uniform: binding, size, and each member's (name, offset).
     pub(crate) scene_uniform: Option<UniformLayout>,
-    /// (field name, group, binding) of every `scene_*` storage buffer.
-    pub(crate) storage: Vec<(String, u32, u32)>,
+    /// The storage buffers holding the scene's texel arrays (one per element type).
+    pub(crate) texel_buffers: Vec<TexelBuffer>,
     /// The entry point's own resources (e.g. the accumulation buffer), each named by the caller.
     pub(crate) own: Vec<OwnResource>,
+}
+
+/// The storage buffer of the scene's texel arrays of one element type, as codegen declares it:
+/// every array the shader reads whose texels are `vec4<u32>` (`unsigned`) or `vec4<f32>`, one
+/// after another, each starting where the `scene` uniform's `lp_start_{field}` says.
+#[derive(Clone, Debug)]
+pub(crate) struct TexelBuffer {
+    pub(crate) unsigned: bool,
+    pub(crate) group: u32,
+    pub(crate) binding: u32,
+}
+
+/// The names codegen gives the texel buffers (`codegen/src/wgsl/shaders.rs`), and whether
+/// each holds `vec4<u32>`.
+pub(crate) const TEXEL_BUFFERS: [(&str, bool); 2] = [("lp_scene_vec4f", false), ("lp_scene_vec4u", true)];
+/// The prefix of the `scene` uniform's members that hold where each texel array starts.
+pub(crate) const START_PREFIX: &str = "lp_start_";
+
+fn texel_buffer_name(unsigned: bool) -> &'static str {
+    TEXEL_BUFFERS[unsigned as usize].0
+}
+
+/// One texel array the shader reads, placed in its element type's buffer.
+pub(crate) struct PlacedArray<'a> {
+    pub(crate) field: &'static str,
+    pub(crate) unsigned: bool,
+    /// Where it starts in its buffer, in texels.
+    pub(crate) start: u64,
+    pub(crate) bytes: &'a [u8],
+}
+
+/// The texel arrays the shader reads (the `scene` uniform's `lp_start_*` members, in their
+/// order), each placed after the previous array of its element type.
+pub(crate) fn place_arrays<'a>(
+    uniform: Option<&UniformLayout>,
+    scene: &'a Scene,
+) -> Result<Vec<PlacedArray<'a>>, WgpuError> {
+    let bindings = scene_bindings(scene);
+    let mut ends = [0u64; 2];
+    let mut placed = Vec::new();
+    for (member, _) in uniform.map_or(&[][..], |u| &u.members) {
+        let Some(field) = member.strip_prefix(START_PREFIX) else { continue };
+        let (name, bytes, unsigned): (&'static str, &[u8], bool) =
+            match bindings.iter().find(|(n, _)| *n == field) {
+                Some((n, Binding::Vec4s(t))) => (n, bytemuck::cast_slice(t.as_slice()), false),
+                Some((n, Binding::UVec4s(t))) => (n, bytemuck::cast_slice(t.as_slice()), true),
+                other => {
+                    return Err(WgpuError::UnboundResource {
+                        name: format!("{SCENE_UNIFORM}.{member}"),
+                        detail: other.map_or(String::new(), |(_, b)| {
+                            format!(" as a texel array's start (the Scene field is {})", b.dsl_type())
+                        }),
+                    })
+                }
+            };
+        let end = &mut ends[unsigned as usize];
+        placed.push(PlacedArray { field: name, unsigned, start: *end, bytes });
+        *end += bytes.len() as u64 / 16;
+    }
+    Ok(placed)
+}
+
+/// The bytes of the texel buffer of one element type: its arrays one after another (one zero
+/// texel when there are none: a binding cannot be empty).
+fn texel_buffer_bytes(placed: &[PlacedArray], unsigned: bool) -> u64 {
+    placed.iter().filter(|a| a.unsigned == unsigned).map(|a| a.bytes.len() as u64).sum::<u64>().max(16)
+}
+
+/// "lp_scene_vec4f (triangles + shading + ...)": a texel buffer and the arrays in it.
+fn describe_texel_buffer(placed: &[PlacedArray], unsigned: bool) -> String {
+    let fields: Vec<&str> = placed.iter().filter(|a| a.unsigned == unsigned).map(|a| a.field).collect();
+    format!("{} ({})", texel_buffer_name(unsigned), fields.join(" + "))
 }
 
 /// A resource of the entry point rather than of the scene.
@@ -83,14 +155,15 @@ pub(crate) fn reflect(generated: &Generated, own: &[&str]) -> Result<ShaderLayou
                 binding: binding.binding,
                 uniform: if space == naga::AddressSpace::Uniform { uniform() } else { None },
             }),
-            (n, naga::AddressSpace::Storage { access }) if n.starts_with(SCENE_UNIFORM_PREFIX) => {
+            (n, naga::AddressSpace::Storage { access }) if TEXEL_BUFFERS.iter().any(|(b, _)| *b == n) => {
                 if access.contains(naga::StorageAccess::STORE) {
                     return Err(WgpuError::UnboundResource {
                         name: n.to_string(),
                         detail: " as a writable buffer (scene data is read-only)".into(),
                     });
                 }
-                layout.storage.push((n[SCENE_UNIFORM_PREFIX.len()..].to_string(), binding.group, binding.binding));
+                let unsigned = TEXEL_BUFFERS.iter().any(|(b, u)| *b == n && *u);
+                layout.texel_buffers.push(TexelBuffer { unsigned, group: binding.group, binding: binding.binding });
             }
             (n, space) => {
                 return Err(WgpuError::UnboundResource { name: n.to_string(), detail: format!(" (in {space:?})") })
@@ -109,10 +182,23 @@ pub(crate) fn reflect(generated: &Generated, own: &[&str]) -> Result<ShaderLayou
 /// The bytes of the `scene` uniform struct: each member's value at its WGSL offset.
 pub(crate) fn scene_uniform_bytes(layout: &UniformLayout, scene: &Scene) -> Result<Vec<u8>, WgpuError> {
     let bindings = scene_bindings(scene);
+    let placed = place_arrays(Some(layout), scene)?;
     let mut bytes = vec![0u8; layout.size as usize];
     for (member, offset) in &layout.members {
         let value = bindings.iter().find(|(n, _)| n == member).map(|(_, b)| b);
+        let start = member.strip_prefix(START_PREFIX).and_then(|f| placed.iter().find(|a| a.field == f));
         let words: Vec<u32> = match value {
+            _ if start.is_some() => {
+                let a = start.expect("checked");
+                // Indices are u32 in the shader: a start beyond them cannot be reached.
+                let start = u32::try_from(a.start).map_err(|_| WgpuError::SceneTooLarge {
+                    array: describe_texel_buffer(&placed, a.unsigned),
+                    bytes: texel_buffer_bytes(&placed, a.unsigned),
+                    limit: "u32 texel indices",
+                    max: (u32::MAX as u64 + 1) * 16,
+                })?;
+                vec![start]
+            }
             Some(Binding::F32(x)) => vec![x.to_bits()],
             Some(Binding::U32(x)) => vec![**x],
             Some(Binding::Vec3(v)) => v.to_array().map(f32::to_bits).to_vec(),
@@ -247,14 +333,13 @@ pub(crate) fn check_scene_limits(
 ) -> Result<(), WgpuError> {
     let binding_max = storage_limit(limits, options);
     let buffer_max = limits.max_buffer_size;
-    let bindings = scene_bindings(scene);
-    for (field, _, _) in &layout.storage {
-        let texels = bindings.iter().find(|(n, _)| n == field).and_then(|(_, b)| b.texels()).unwrap_or(0);
-        let bytes = texels.max(1) as u64 * 16;
+    let placed = place_arrays(layout.scene_uniform.as_ref(), scene)?;
+    for buffer in &layout.texel_buffers {
+        let bytes = texel_buffer_bytes(&placed, buffer.unsigned);
         for (limit, max) in [("max_storage_buffer_binding_size", binding_max), ("max_buffer_size", buffer_max)] {
             if bytes > max {
                 return Err(WgpuError::SceneTooLarge {
-                    array: format!("{SCENE_UNIFORM_PREFIX}{field}"),
+                    array: describe_texel_buffer(&placed, buffer.unsigned),
                     bytes,
                     limit,
                     max,
@@ -263,9 +348,9 @@ pub(crate) fn check_scene_limits(
         }
     }
     let own_storage = layout.own.iter().filter(|r| r.uniform.is_none()).count();
-    let storage_buffers = (layout.storage.len() + own_storage) as u64;
-    let groups =
-        1 + layout.storage.iter().map(|s| s.1).chain(layout.own.iter().map(|r| r.group)).max().unwrap_or(0) as u64;
+    let storage_buffers = (layout.texel_buffers.len() + own_storage) as u64;
+    let groups = 1 + layout.texel_buffers.iter().map(|b| b.group).chain(layout.own.iter().map(|r| r.group)).max().unwrap_or(0)
+        as u64;
     let uniform_size = layout.scene_uniform.as_ref().map_or(0, |u| u.size) as u64;
     for (limit, needed, max) in [
         ("max_storage_buffers_per_shader_stage", storage_buffers, storage_buffers_limit(limits, options) as u64),
@@ -303,13 +388,12 @@ impl BufferEntry {
 pub(crate) type SceneUniform = (wgpu::Buffer, UniformLayout);
 
 /// Uploads the scene data the shader reads: the `scene` uniform (returned with its layout,
-/// for later updates) and one read-only storage buffer per array.
+/// for later updates) and the texel buffers, each array copied straight into its place.
 pub(crate) fn upload_scene(
     d: &wgpu::Device,
     layout: &ShaderLayout,
     scene: &Scene,
 ) -> Result<(Vec<BufferEntry>, Option<SceneUniform>), WgpuError> {
-    let bindings = scene_bindings(scene);
     let mut entries = Vec::new();
     let mut scene_uniform = None;
     if let Some(u) = &layout.scene_uniform {
@@ -322,33 +406,27 @@ pub(crate) fn upload_scene(
         entries.push(BufferEntry { group: u.group, binding: u.binding, buffer: buffer.clone(), ty });
         scene_uniform = Some((buffer, u.clone()));
     }
-    for (field, group, binding) in &layout.storage {
-        let contents: Cow<[u8]> = match bindings.iter().find(|(n, _)| n == field).map(|(_, b)| b) {
-            Some(Binding::Vec4s(t)) if !t.is_empty() => Cow::Borrowed(bytemuck::cast_slice(t.as_slice())),
-            Some(Binding::UVec4s(t)) if !t.is_empty() => Cow::Borrowed(bytemuck::cast_slice(t.as_slice())),
-            // An array the variant declares but the scene left empty: one zero texel (a
-            // binding cannot be empty).
-            Some(Binding::Vec4s(_) | Binding::UVec4s(_)) => Cow::Owned(vec![0u8; 16]),
-            Some(other) => {
-                return Err(WgpuError::UnboundResource {
-                    name: format!("{SCENE_UNIFORM_PREFIX}{field}"),
-                    detail: format!(" as a storage buffer (the Scene field is {})", other.dsl_type()),
-                })
-            }
-            None => {
-                return Err(WgpuError::UnboundResource {
-                    name: format!("{SCENE_UNIFORM_PREFIX}{field}"),
-                    detail: String::new(),
-                })
-            }
-        };
-        let buffer = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(field),
-            contents: &contents,
+    let placed = place_arrays(layout.scene_uniform.as_ref(), scene)?;
+    for texels in &layout.texel_buffers {
+        let buffer = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(texel_buffer_name(texels.unsigned)),
+            size: texel_buffer_bytes(&placed, texels.unsigned),
             usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: true,
         });
+        {
+            let mut view = buffer
+                .slice(..)
+                .get_mapped_range_mut()
+                .map_err(|e| WgpuError::Wgpu { what: "writing the scene's texel buffer", detail: e.to_string() })?;
+            for a in placed.iter().filter(|a| a.unsigned == texels.unsigned) {
+                let start = a.start as usize * 16;
+                view.slice(start..start + a.bytes.len()).copy_from_slice(a.bytes);
+            }
+        }
+        buffer.unmap();
         let ty = wgpu::BufferBindingType::Storage { read_only: true };
-        entries.push(BufferEntry { group: *group, binding: *binding, buffer, ty });
+        entries.push(BufferEntry { group: texels.group, binding: texels.binding, buffer, ty });
     }
     Ok((entries, scene_uniform))
 }
