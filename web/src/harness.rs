@@ -17,6 +17,8 @@ use wasm_bindgen::prelude::*;
 use wasm_bindgen::JsCast;
 use web_sys::{HtmlCanvasElement, WebGl2RenderingContext};
 
+use crate::js::js_error;
+
 enum Harness {
     Gl(Box<GlHarness>),
     Wgpu(Box<WgpuHarness>),
@@ -25,10 +27,6 @@ enum Harness {
 thread_local! {
     static WEBGL2: RefCell<Option<WebGl2RenderingContext>> = const { RefCell::new(None) };
     static WEBGPU: RefCell<Option<Rc<WgpuDevice>>> = const { RefCell::new(None) };
-}
-
-fn js_error(e: impl std::fmt::Display) -> JsError {
-    JsError::new(&e.to_string())
 }
 
 fn link(modules_json: &str) -> Result<Program, JsError> {

@@ -11,15 +11,12 @@
 //!
 //! Each frame adds one sample per pixel to the accumulation, then a small display pass draws
 //! its mean to the canvas through the kernel's display transform (tone curve, exposure, sRGB:
-//! what the CLI's PNG output stores with the same settings), on either API. On WebGL2 the frame
-//! loop submits a frame in bands of rows of at most a time budget (50 ms by default;
+//! what the CLI's PNG output stores with the same settings), on either API. The frame loop
+//! submits a frame in bands of rows of at most a time budget (50 ms by default;
 //! `tracer::backend::frame_split`), one band at a time, so that input is handled, and a camera
-//! move restarts the accumulation, between bands, also on a GPU that needs seconds per frame;
-//! on WebGPU one whole frame at a time.
+//! move restarts the accumulation, between bands, also on a GPU that needs seconds per frame.
 
-use std::fmt;
-
-use js_sys::{Float32Array, Object, Reflect, Uint8Array};
+use js_sys::{Float32Array, Object, Uint8Array};
 use tracer::backend::frame_split::{Step, DEFAULT_BUDGET_MS};
 use tracer::backend::gl::GlOptions;
 use tracer::backend::wgpu::WgpuOptions;
@@ -33,16 +30,8 @@ use web_sys::{HtmlCanvasElement, WebGl2RenderingContext};
 
 use crate::camera::OrbitCamera;
 use crate::files::{self, DroppedFile};
+use crate::js::{js_error, set};
 use crate::runtime::{webgl2, Api, GlRuntime, GpuDevice, GpuRuntime, Runtime};
-
-fn js_error(e: impl fmt::Display) -> JsError {
-    JsError::new(&e.to_string())
-}
-
-fn set(object: &Object, key: &str, value: impl Into<JsValue>) {
-    // Setting a plain property on a fresh object cannot fail.
-    let _ = Reflect::set(object, &JsValue::from_str(key), &value.into());
-}
 
 /// The loaded scene: the master copy of its packed data (uniforms kept current) and the view.
 struct Loaded {

@@ -9,12 +9,14 @@ use std::future::Future;
 use std::pin::Pin;
 
 use glam::Vec4;
-use js_sys::{Object, Reflect};
+use js_sys::Object;
 use tracer::backend::frame_split::Step;
 use tracer::kernel::scene_data::Scene;
 use tracer::output::Display;
 use tracer::pack::Packed;
 use wasm_bindgen::JsValue;
+
+use crate::js::set;
 
 pub use webgl2::GlRuntime;
 pub use webgpu::{GpuDevice, GpuRuntime};
@@ -54,11 +56,6 @@ pub type Pending<T> = Pin<Box<dyn Future<Output = Result<T, String>>>>;
 pub enum Runtime {
     WebGl2(GlRuntime),
     WebGpu(GpuRuntime),
-}
-
-fn set(object: &Object, key: &str, value: impl Into<JsValue>) {
-    // Setting a plain property on a fresh object cannot fail.
-    let _ = Reflect::set(object, &JsValue::from_str(key), &value.into());
 }
 
 impl Runtime {

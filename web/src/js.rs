@@ -1,0 +1,15 @@
+//! What every part of the wasm module needs to hand values to JavaScript.
+
+use js_sys::{Object, Reflect};
+use wasm_bindgen::prelude::*;
+
+/// A Rust error as a JavaScript `Error` with its message.
+pub(crate) fn js_error(e: impl std::fmt::Display) -> JsError {
+    JsError::new(&e.to_string())
+}
+
+/// Sets `object[key] = value`.
+pub(crate) fn set(object: &Object, key: &str, value: impl Into<JsValue>) {
+    // Setting a plain property on a fresh object cannot fail.
+    let _ = Reflect::set(object, &JsValue::from_str(key), &value.into());
+}
