@@ -25,19 +25,22 @@ struct SceneUniforms {
     sky_rotation: f32,
     scene_scale: f32,
     leaf_stack_limit: u32,
+    // Where each texel array starts in lp_scene_vec4f / lp_scene_vec4u (in texels).
+    lp_start_triangles: u32,
+    lp_start_shading: u32,
+    lp_start_nodes: u32,
+    lp_start_node_children: u32,
+    lp_start_materials: u32,
+    lp_start_lights: u32,
+    lp_start_texture_texels: u32,
+    lp_start_texture_info: u32,
+    lp_start_sky: u32,
+    lp_start_sky_rows: u32,
+    lp_start_metal_rough: u32,
 }
 @group(0) @binding(0) var<uniform> scene: SceneUniforms;
-@group(0) @binding(1) var<storage, read> scene_triangles: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> scene_shading: array<vec4<f32>>;
-@group(0) @binding(3) var<storage, read> scene_nodes: array<vec4<f32>>;
-@group(0) @binding(4) var<storage, read> scene_node_children: array<vec4<u32>>;
-@group(0) @binding(5) var<storage, read> scene_materials: array<vec4<f32>>;
-@group(0) @binding(6) var<storage, read> scene_lights: array<vec4<f32>>;
-@group(0) @binding(7) var<storage, read> scene_texture_texels: array<vec4<u32>>;
-@group(0) @binding(8) var<storage, read> scene_texture_info: array<vec4<u32>>;
-@group(0) @binding(9) var<storage, read> scene_sky: array<vec4<f32>>;
-@group(0) @binding(10) var<storage, read> scene_sky_rows: array<vec4<f32>>;
-@group(0) @binding(11) var<storage, read> scene_metal_rough: array<vec4<f32>>;
+@group(0) @binding(1) var<storage, read> lp_scene_vec4f: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> lp_scene_vec4u: array<vec4<u32>>;
 
 // sampling::Onb (lightport-tracer/src/kernel/sampling.rs:13)
 struct Onb {
@@ -353,9 +356,9 @@ fn index_of(x: f32) -> u32 {
 // scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:134)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
-    let a: vec4<f32> = scene_triangles[base];
-    let b: vec4<f32> = scene_triangles[base + 1u];
-    let c: vec4<f32> = scene_triangles[base + 2u];
+    let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];
+    let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + (base + 1u)];
+    let c: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + (base + 2u)];
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
 }
 
@@ -384,29 +387,29 @@ fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3
 
 // scene_data::triangle_masked (lightport-tracer/src/kernel/scene_data.rs:348)
 fn triangle_masked(triangle: u32) -> bool {
-    return scene_triangles[triangle * TRIANGLE_TEXELS + 2u].w > 0.0;
+    return lp_scene_vec4f[scene.lp_start_triangles + (triangle * TRIANGLE_TEXELS + 2u)].w > 0.0;
 }
 
 // scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:342)
 fn fetch_alpha_mask(material: u32) -> AlphaMaskData {
-    let t: vec4<f32> = scene_materials[scene.alpha_mask_first + material];
+    let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.alpha_mask_first + material)];
     return AlphaMaskData(index_of(t.x), t.y, t.z);
 }
 
 // texture_ref::texcoord1 (lightport-tracer/src/kernel/texture_ref.rs:27)
 fn texcoord1(triangle: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = scene.texcoord1_first + triangle * TEXCOORD1_TEXELS;
-    let a: vec4<f32> = scene_shading[base];
-    let b: vec4<f32> = scene_shading[base + 1u];
+    let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_shading + base];
+    let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_shading + (base + 1u)];
     return vec2<f32>(a.x, a.y) * (1.0 - u - v) + vec2<f32>(a.z, a.w) * u + vec2<f32>(b.x, b.y) * v;
 }
 
 // scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
-    let uv0: vec2<f32> = vec2<f32>(scene_shading[base].w, scene_shading[base + 1u].w);
-    let rest: vec4<f32> = scene_shading[base + 3u];
-    let uv1: vec2<f32> = vec2<f32>(scene_shading[base + 2u].w, rest.x);
+    let uv0: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + base].w, lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].w);
+    let rest: vec4<f32> = lp_scene_vec4f[scene.lp_start_shading + (base + 3u)];
+    let uv1: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + (base + 2u)].w, rest.x);
     let uv2: vec2<f32> = vec2<f32>(rest.y, rest.z);
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
@@ -421,14 +424,14 @@ fn transform_uv(row0: vec4<u32>, row1: vec4<u32>, uv: vec2<f32>) -> vec2<f32> {
 // texture_ref::referenced_uv (lightport-tracer/src/kernel/texture_ref.rs:52)
 fn referenced_uv(texture_: u32, triangle: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = scene.texture_ref_first + texture_ * TEXTURE_REF_TEXELS;
-    let row0: vec4<u32> = scene_texture_info[base];
+    let row0: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + base];
     var uv: vec2<f32>;
     if (1u != 0u) && (row0.w == 1u) {
         uv = texcoord1(triangle, u, v);
     } else {
         uv = texcoord(triangle, u, v);
     }
-    uv = transform_uv(row0, scene_texture_info[base + 1u], uv);
+    uv = transform_uv(row0, lp_scene_vec4u[scene.lp_start_texture_info + (base + 1u)], uv);
     return uv;
 }
 
@@ -462,7 +465,7 @@ fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     let tx: i32 = wrap_coordinate(x, w, info.w & 255u);
     let ty: i32 = wrap_coordinate(y, h, info.w >> 8u);
     let i: u32 = info.x + bitcast<u32>(ty * w + tx);
-    let four: vec4<u32> = scene_texture_texels[i / TEXTURE_TEXELS_PER_ELEMENT];
+    let four: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_texels + i / TEXTURE_TEXELS_PER_ELEMENT];
     let lane: u32 = i % TEXTURE_TEXELS_PER_ELEMENT;
     return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
 }
@@ -502,7 +505,7 @@ fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
 
 // scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
-    let info: vec4<u32> = scene_texture_info[index];
+    let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
     let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
     let y: f32 = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
     let fx: f32 = x - floor(x);
@@ -567,19 +570,19 @@ fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u
     let ox: vec4<f32> = vec4<f32>(origin.x);
     let oy: vec4<f32> = vec4<f32>(origin.y);
     let oz: vec4<f32> = vec4<f32>(origin.z);
-    let enter_x: vec4<f32> = (scene_nodes[base + near.x] - ox) * inv_dir.x;
-    let exit_x: vec4<f32> = (scene_nodes[base + 1u - near.x] - ox) * inv_dir.x;
-    let enter_y: vec4<f32> = (scene_nodes[base + 2u + near.y] - oy) * inv_dir.y;
-    let exit_y: vec4<f32> = (scene_nodes[base + 3u - near.y] - oy) * inv_dir.y;
-    let enter_z: vec4<f32> = (scene_nodes[base + 4u + near.z] - oz) * inv_dir.z;
-    let exit_z: vec4<f32> = (scene_nodes[base + 5u - near.z] - oz) * inv_dir.z;
+    let enter_x: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + near.x)] - ox) * inv_dir.x;
+    let exit_x: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 1u - near.x)] - ox) * inv_dir.x;
+    let enter_y: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 2u + near.y)] - oy) * inv_dir.y;
+    let exit_y: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 3u - near.y)] - oy) * inv_dir.y;
+    let enter_z: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 4u + near.z)] - oz) * inv_dir.z;
+    let exit_z: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 5u - near.z)] - oz) * inv_dir.z;
     let enter: vec4<f32> = max(max(max(enter_x, enter_y), enter_z), vec4<f32>(0.0));
     var exit: vec4<f32> = min(min(exit_x, exit_y), exit_z);
     if (exit.x == 0.0) || (exit.y == 0.0) || (exit.z == 0.0) || (exit.w == 0.0) {
         exit = min(min(zero_to_miss(exit_x), zero_to_miss(exit_y)), zero_to_miss(exit_z));
     }
     let exit_1: vec4<f32> = min(exit * 1.0000008, vec4<f32>(t_max));
-    let e: vec4<u32> = scene_node_children[node];
+    let e: vec4<u32> = lp_scene_vec4u[scene.lp_start_node_children + node];
     let t: vec4<f32> = vec4<f32>(select(MISS, enter.x, enter.x <= exit_1.x && (e.x != 0u)), select(MISS, enter.y, enter.y <= exit_1.y && (e.y != 0u)), select(MISS, enter.z, enter.z <= exit_1.z && (e.z != 0u)), select(MISS, enter.w, enter.w <= exit_1.w && (e.w != 0u)));
     return NodeHits(t, e);
 }
@@ -708,11 +711,11 @@ fn sky_texel_coords(dir: vec3<f32>) -> vec2<f32> {
 
 // lights::sky_texel_pmf (lightport-tracer/src/kernel/lights.rs:101)
 fn sky_texel_pmf(col: u32, row: u32) -> f32 {
-    let row_hi: f32 = scene_sky_rows[row].x;
-    let row_lo: f32 = select(0.0, scene_sky_rows[row - 1u].x, row > 0u);
+    let row_hi: f32 = lp_scene_vec4f[scene.lp_start_sky_rows + row].x;
+    let row_lo: f32 = select(0.0, lp_scene_vec4f[scene.lp_start_sky_rows + (row - 1u)].x, row > 0u);
     let base: u32 = row * scene.sky_width;
-    let col_hi: f32 = scene_sky[base + col].w;
-    let col_lo: f32 = select(0.0, scene_sky[base + col - 1u].w, col > 0u);
+    let col_hi: f32 = lp_scene_vec4f[scene.lp_start_sky + (base + col)].w;
+    let col_lo: f32 = select(0.0, lp_scene_vec4f[scene.lp_start_sky + (base + col - 1u)].w, col > 0u);
     return (row_hi - row_lo) * (col_hi - col_lo);
 }
 
@@ -726,14 +729,14 @@ fn sky_pdf(dir: vec3<f32>) -> f32 {
 
 // lights::light_pmf (lightport-tracer/src/kernel/lights.rs:48)
 fn light_pmf(index: u32) -> f32 {
-    return scene_lights[index * LIGHT_TEXELS].z;
+    return lp_scene_vec4f[scene.lp_start_lights + index * LIGHT_TEXELS].z;
 }
 
 // lights::sky_radiance (lightport-tracer/src/kernel/lights.rs:94)
 fn sky_radiance(dir: vec3<f32>) -> vec3<f32> {
     let c: vec2<f32> = sky_texel_coords(dir);
     let i: u32 = lp_f32_to_u32(c.y) * scene.sky_width + lp_f32_to_u32(c.x);
-    return scene_sky[i].xyz * scene.sky_intensity;
+    return lp_scene_vec4f[scene.lp_start_sky + i].xyz * scene.sky_intensity;
 }
 
 // lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:215)
@@ -757,24 +760,24 @@ fn hit_emission_weight(bsdf_pdf: f32, light_pdf: f32) -> f32 {
 // scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:154)
 fn shading_normal(index: u32, u: f32, v: f32) -> vec3<f32> {
     let base: u32 = index * SHADING_TEXELS;
-    let n0: vec3<f32> = scene_shading[base].xyz;
-    let n1: vec3<f32> = scene_shading[base + 1u].xyz;
-    let n2: vec3<f32> = scene_shading[base + 2u].xyz;
+    let n0: vec3<f32> = lp_scene_vec4f[scene.lp_start_shading + base].xyz;
+    let n1: vec3<f32> = lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].xyz;
+    let n2: vec3<f32> = lp_scene_vec4f[scene.lp_start_shading + (base + 2u)].xyz;
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
 // normal_map::fetch_normal_map (lightport-tracer/src/kernel/normal_map.rs:43)
 fn fetch_normal_map(material: u32) -> NormalMapData {
-    let t: vec4<f32> = scene_materials[scene.normal_map_first + material];
+    let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.normal_map_first + material)];
     return NormalMapData(index_of(t.x), t.y);
 }
 
 // normal_map::interpolated_tangent (lightport-tracer/src/kernel/normal_map.rs:49)
 fn interpolated_tangent(triangle: u32, u: f32, v: f32) -> vec4<f32> {
     let base: u32 = scene.tangent_first + triangle * TANGENT_TEXELS;
-    let t0: vec4<f32> = scene_shading[base];
-    let t1: vec4<f32> = scene_shading[base + 1u];
-    let t2: vec4<f32> = scene_shading[base + 2u];
+    let t0: vec4<f32> = lp_scene_vec4f[scene.lp_start_shading + base];
+    let t1: vec4<f32> = lp_scene_vec4f[scene.lp_start_shading + (base + 1u)];
+    let t2: vec4<f32> = lp_scene_vec4f[scene.lp_start_shading + (base + 2u)];
     return t0 * (1.0 - u - v) + t1 * u + t2 * v;
 }
 
@@ -845,8 +848,8 @@ fn normal_mapped(hit: Hit, material: u32, ns: vec3<f32>, flip: f32, ng: vec3<f32
 
 // scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:142)
 fn fetch_material(index: u32) -> MaterialData {
-    let a: vec4<f32> = scene_materials[index * MATERIAL_TEXELS];
-    let b: vec4<f32> = scene_materials[index * MATERIAL_TEXELS + 1u];
+    let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + index * MATERIAL_TEXELS];
+    let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (index * MATERIAL_TEXELS + 1u)];
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
@@ -876,7 +879,7 @@ fn choose_light(u: f32) -> u32 {
     let n: u32 = scene.light_count;
     let scaled: f32 = u * lp_u32_to_f32(n);
     let i: u32 = min(lp_f32_to_u32(scaled), n - 1u);
-    let entry: vec4<f32> = scene_lights[i * LIGHT_TEXELS];
+    let entry: vec4<f32> = lp_scene_vec4f[scene.lp_start_lights + i * LIGHT_TEXELS];
     if scaled - lp_u32_to_f32(i) < entry.x {
         return i;
     } else {
@@ -896,7 +899,7 @@ fn search_sky_row(u: f32) -> u32 {
     var hi: u32 = scene.sky_height - 1u;
     while lo < hi {
         let mid: u32 = (lo + hi) / 2u;
-        if scene_sky_rows[mid].x > u {
+        if lp_scene_vec4f[scene.lp_start_sky_rows + mid].x > u {
             hi = mid;
         } else {
             lo = mid + 1u;
@@ -912,7 +915,7 @@ fn search_sky_column(row: u32, u: f32) -> u32 {
     var hi: u32 = scene.sky_width - 1u;
     while lo < hi {
         let mid: u32 = (lo + hi) / 2u;
-        if scene_sky[base + mid].w > u {
+        if lp_scene_vec4f[scene.lp_start_sky + (base + mid)].w > u {
             hi = mid;
         } else {
             lo = mid + 1u;
@@ -933,8 +936,8 @@ fn sky_direction(uv: vec2<f32>) -> vec3<f32> {
 fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     let none: LightSample = LightSample(vec3<f32>(0.0, 1.0, 0.0), 0.0, vec3<f32>(0.0), 0.0, false);
     let index: u32 = choose_light(u.x);
-    let head: vec4<f32> = scene_lights[index * LIGHT_TEXELS];
-    let data: vec4<f32> = scene_lights[index * LIGHT_TEXELS + 1u];
+    let head: vec4<f32> = lp_scene_vec4f[scene.lp_start_lights + index * LIGHT_TEXELS];
+    let data: vec4<f32> = lp_scene_vec4f[scene.lp_start_lights + (index * LIGHT_TEXELS + 1u)];
     let kind: u32 = index_of(head.w);
     let pmf: f32 = head.z;
     if (kind == LIGHT_TRIANGLE) && (1u != 0u) {
@@ -950,7 +953,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         let dist: f32 = sqrt(dist2);
         let dir: vec3<f32> = to_light / dist;
         let normal: vec3<f32> = vec3<f32>(data.y, data.z, data.w);
-        let area: f32 = scene_lights[index * LIGHT_TEXELS + 2u].x;
+        let area: f32 = lp_scene_vec4f[scene.lp_start_lights + (index * LIGHT_TEXELS + 2u)].x;
         let pdf: f32 = area_pdf_to_solid_angle(pmf, area, dist, -dot(normal, dir));
         if (1u != 0u) && is_hole(tri_index, tri.material, b.x, b.y) {
             return none;
@@ -960,7 +963,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         let radiance: vec3<f32> = triangle_emission(tri_index, tri.material, b.x, b.y);
         return LightSample(dir, dist, radiance, pdf, false);
     } else if (kind == LIGHT_POINT) && (1u != 0u) {
-        let intensity: vec3<f32> = scene_lights[index * LIGHT_TEXELS + 2u].xyz;
+        let intensity: vec3<f32> = lp_scene_vec4f[scene.lp_start_lights + (index * LIGHT_TEXELS + 2u)].xyz;
         let to_light_1: vec3<f32> = data.xyz - p;
         let dist2_1: f32 = dot(to_light_1, to_light_1);
         if !(dist2_1 > 0.0) {
@@ -972,11 +975,11 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         let row: u32 = search_sky_row(u.y);
         let col: u32 = search_sky_column(row, u.z);
         let base: u32 = row * scene.sky_width;
-        let lo: f32 = select(0.0, scene_sky[base + col - 1u].w, col > 0u);
-        let hi: f32 = scene_sky[base + col].w;
+        let lo: f32 = select(0.0, lp_scene_vec4f[scene.lp_start_sky + (base + col - 1u)].w, col > 0u);
+        let hi: f32 = lp_scene_vec4f[scene.lp_start_sky + (base + col)].w;
         let fu: f32 = select(0.5, clamp((u.z - lo) / (hi - lo), 0.0, 0.999999), hi > lo);
-        let row_lo: f32 = select(0.0, scene_sky_rows[row - 1u].x, row > 0u);
-        let row_hi: f32 = scene_sky_rows[row].x;
+        let row_lo: f32 = select(0.0, lp_scene_vec4f[scene.lp_start_sky_rows + (row - 1u)].x, row > 0u);
+        let row_hi: f32 = lp_scene_vec4f[scene.lp_start_sky_rows + row].x;
         let fv: f32 = select(0.5, clamp((u.y - row_lo) / (row_hi - row_lo), 0.0, 0.999999), row_hi > row_lo);
         let uv: vec2<f32> = vec2<f32>((lp_u32_to_f32(col) + fu) / lp_u32_to_f32(scene.sky_width), (lp_u32_to_f32(row) + fv) / lp_u32_to_f32(scene.sky_height));
         let dir_1: vec3<f32> = sky_direction(uv);
@@ -1082,7 +1085,7 @@ fn cosine_sample_hemisphere(u1: f32, u2: f32) -> vec3<f32> {
 
 // scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:292)
 fn fetch_metal_rough(index: u32) -> MetalRoughData {
-    let t: vec4<f32> = scene_metal_rough[index];
+    let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_metal_rough + index];
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
 }
 
@@ -1328,19 +1331,21 @@ fn render_sample(x: u32, y: u32) -> vec4<f32> {
     return finite_or_zero(radiance);
 }
 
-// Entry point: one sample per pixel added to the running sum in lp_accumulation.
+// Entry point: one sample per pixel of the band of rows [first_row, end_row) added to the running sum in lp_accumulation.
 struct LpTarget {
     width: u32,
-    height: u32,
+    first_row: u32,
+    end_row: u32,
 }
 @group(1) @binding(0) var<storage, read_write> lp_accumulation: array<vec4<f32>>;
 @group(1) @binding(1) var<uniform> lp_target: LpTarget;
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x >= lp_target.width || id.y >= lp_target.height {
+    let y = lp_target.first_row + id.y;
+    if id.x >= lp_target.width || y >= lp_target.end_row {
         return;
     }
-    let i = id.y * lp_target.width + id.x;
-    lp_accumulation[i] = lp_accumulation[i] + render_sample(id.x, id.y);
+    let i = y * lp_target.width + id.x;
+    lp_accumulation[i] = lp_accumulation[i] + render_sample(id.x, y);
 }

@@ -16,13 +16,16 @@ struct SceneUniforms {
     light_count: u32,
     scene_scale: f32,
     leaf_stack_limit: u32,
+    // Where each texel array starts in lp_scene_vec4f / lp_scene_vec4u (in texels).
+    lp_start_triangles: u32,
+    lp_start_nodes: u32,
+    lp_start_node_children: u32,
+    lp_start_materials: u32,
+    lp_start_lights: u32,
 }
 @group(0) @binding(0) var<uniform> scene: SceneUniforms;
-@group(0) @binding(1) var<storage, read> scene_triangles: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> scene_nodes: array<vec4<f32>>;
-@group(0) @binding(3) var<storage, read> scene_node_children: array<vec4<u32>>;
-@group(0) @binding(4) var<storage, read> scene_materials: array<vec4<f32>>;
-@group(0) @binding(5) var<storage, read> scene_lights: array<vec4<f32>>;
+@group(0) @binding(1) var<storage, read> lp_scene_vec4f: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> lp_scene_vec4u: array<vec4<u32>>;
 
 // sampling::Onb (lightport-tracer/src/kernel/sampling.rs:13)
 struct Onb {
@@ -249,9 +252,9 @@ fn index_of(x: f32) -> u32 {
 // scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:134)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
-    let a: vec4<f32> = scene_triangles[base];
-    let b: vec4<f32> = scene_triangles[base + 1u];
-    let c: vec4<f32> = scene_triangles[base + 2u];
+    let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];
+    let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + (base + 1u)];
+    let c: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + (base + 2u)];
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
 }
 
@@ -302,19 +305,19 @@ fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u
     let ox: vec4<f32> = vec4<f32>(origin.x);
     let oy: vec4<f32> = vec4<f32>(origin.y);
     let oz: vec4<f32> = vec4<f32>(origin.z);
-    let enter_x: vec4<f32> = (scene_nodes[base + near.x] - ox) * inv_dir.x;
-    let exit_x: vec4<f32> = (scene_nodes[base + 1u - near.x] - ox) * inv_dir.x;
-    let enter_y: vec4<f32> = (scene_nodes[base + 2u + near.y] - oy) * inv_dir.y;
-    let exit_y: vec4<f32> = (scene_nodes[base + 3u - near.y] - oy) * inv_dir.y;
-    let enter_z: vec4<f32> = (scene_nodes[base + 4u + near.z] - oz) * inv_dir.z;
-    let exit_z: vec4<f32> = (scene_nodes[base + 5u - near.z] - oz) * inv_dir.z;
+    let enter_x: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + near.x)] - ox) * inv_dir.x;
+    let exit_x: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 1u - near.x)] - ox) * inv_dir.x;
+    let enter_y: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 2u + near.y)] - oy) * inv_dir.y;
+    let exit_y: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 3u - near.y)] - oy) * inv_dir.y;
+    let enter_z: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 4u + near.z)] - oz) * inv_dir.z;
+    let exit_z: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 5u - near.z)] - oz) * inv_dir.z;
     let enter: vec4<f32> = max(max(max(enter_x, enter_y), enter_z), vec4<f32>(0.0));
     var exit: vec4<f32> = min(min(exit_x, exit_y), exit_z);
     if (exit.x == 0.0) || (exit.y == 0.0) || (exit.z == 0.0) || (exit.w == 0.0) {
         exit = min(min(zero_to_miss(exit_x), zero_to_miss(exit_y)), zero_to_miss(exit_z));
     }
     let exit_1: vec4<f32> = min(exit * 1.0000008, vec4<f32>(t_max));
-    let e: vec4<u32> = scene_node_children[node];
+    let e: vec4<u32> = lp_scene_vec4u[scene.lp_start_node_children + node];
     let t: vec4<f32> = vec4<f32>(select(MISS, enter.x, enter.x <= exit_1.x && (e.x != 0u)), select(MISS, enter.y, enter.y <= exit_1.y && (e.y != 0u)), select(MISS, enter.z, enter.z <= exit_1.z && (e.z != 0u)), select(MISS, enter.w, enter.w <= exit_1.w && (e.w != 0u)));
     return NodeHits(t, e);
 }
@@ -432,7 +435,7 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
 
 // lights::light_pmf (lightport-tracer/src/kernel/lights.rs:48)
 fn light_pmf(index: u32) -> f32 {
-    return scene_lights[index * LIGHT_TEXELS].z;
+    return lp_scene_vec4f[scene.lp_start_lights + index * LIGHT_TEXELS].z;
 }
 
 // lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:215)
@@ -455,8 +458,8 @@ fn hit_emission_weight(bsdf_pdf: f32, light_pdf: f32) -> f32 {
 
 // scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:142)
 fn fetch_material(index: u32) -> MaterialData {
-    let a: vec4<f32> = scene_materials[index * MATERIAL_TEXELS];
-    let b: vec4<f32> = scene_materials[index * MATERIAL_TEXELS + 1u];
+    let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + index * MATERIAL_TEXELS];
+    let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (index * MATERIAL_TEXELS + 1u)];
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
@@ -483,7 +486,7 @@ fn choose_light(u: f32) -> u32 {
     let n: u32 = scene.light_count;
     let scaled: f32 = u * lp_u32_to_f32(n);
     let i: u32 = min(lp_f32_to_u32(scaled), n - 1u);
-    let entry: vec4<f32> = scene_lights[i * LIGHT_TEXELS];
+    let entry: vec4<f32> = lp_scene_vec4f[scene.lp_start_lights + i * LIGHT_TEXELS];
     if scaled - lp_u32_to_f32(i) < entry.x {
         return i;
     } else {
@@ -501,8 +504,8 @@ fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
 fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     let none: LightSample = LightSample(vec3<f32>(0.0, 1.0, 0.0), 0.0, vec3<f32>(0.0), 0.0, false);
     let index: u32 = choose_light(u.x);
-    let head: vec4<f32> = scene_lights[index * LIGHT_TEXELS];
-    let data: vec4<f32> = scene_lights[index * LIGHT_TEXELS + 1u];
+    let head: vec4<f32> = lp_scene_vec4f[scene.lp_start_lights + index * LIGHT_TEXELS];
+    let data: vec4<f32> = lp_scene_vec4f[scene.lp_start_lights + (index * LIGHT_TEXELS + 1u)];
     let kind: u32 = index_of(head.w);
     let pmf: f32 = head.z;
     if (kind == LIGHT_TRIANGLE) && (1u != 0u) {
@@ -518,7 +521,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         let dist: f32 = sqrt(dist2);
         let dir: vec3<f32> = to_light / dist;
         let normal: vec3<f32> = vec3<f32>(data.y, data.z, data.w);
-        let area: f32 = scene_lights[index * LIGHT_TEXELS + 2u].x;
+        let area: f32 = lp_scene_vec4f[scene.lp_start_lights + (index * LIGHT_TEXELS + 2u)].x;
         let pdf: f32 = area_pdf_to_solid_angle(pmf, area, dist, -dot(normal, dir));
         if !(pdf > 0.0) {
             return none;
@@ -701,19 +704,21 @@ fn render_sample(x: u32, y: u32) -> vec4<f32> {
     return finite_or_zero(radiance);
 }
 
-// Entry point: one sample per pixel added to the running sum in lp_accumulation.
+// Entry point: one sample per pixel of the band of rows [first_row, end_row) added to the running sum in lp_accumulation.
 struct LpTarget {
     width: u32,
-    height: u32,
+    first_row: u32,
+    end_row: u32,
 }
 @group(1) @binding(0) var<storage, read_write> lp_accumulation: array<vec4<f32>>;
 @group(1) @binding(1) var<uniform> lp_target: LpTarget;
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x >= lp_target.width || id.y >= lp_target.height {
+    let y = lp_target.first_row + id.y;
+    if id.x >= lp_target.width || y >= lp_target.end_row {
         return;
     }
-    let i = id.y * lp_target.width + id.x;
-    lp_accumulation[i] = lp_accumulation[i] + render_sample(id.x, id.y);
+    let i = y * lp_target.width + id.x;
+    lp_accumulation[i] = lp_accumulation[i] + render_sample(id.x, y);
 }

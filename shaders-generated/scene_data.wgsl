@@ -9,14 +9,17 @@ struct SceneUniforms {
     has_shading: u32,
     has_texture_transform: u32,
     has_texcoord1: u32,
+    // Where each texel array starts in lp_scene_vec4f / lp_scene_vec4u (in texels).
+    lp_start_triangles: u32,
+    lp_start_shading: u32,
+    lp_start_materials: u32,
+    lp_start_texture_texels: u32,
+    lp_start_texture_info: u32,
+    lp_start_metal_rough: u32,
 }
 @group(0) @binding(0) var<uniform> scene: SceneUniforms;
-@group(0) @binding(1) var<storage, read> scene_triangles: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> scene_shading: array<vec4<f32>>;
-@group(0) @binding(3) var<storage, read> scene_materials: array<vec4<f32>>;
-@group(0) @binding(4) var<storage, read> scene_texture_texels: array<vec4<u32>>;
-@group(0) @binding(5) var<storage, read> scene_texture_info: array<vec4<u32>>;
-@group(0) @binding(6) var<storage, read> scene_metal_rough: array<vec4<f32>>;
+@group(0) @binding(1) var<storage, read> lp_scene_vec4f: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> lp_scene_vec4u: array<vec4<u32>>;
 
 // scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:108)
 struct TriangleData {
@@ -113,34 +116,34 @@ fn index_of(x: f32) -> u32 {
 // scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:134)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
-    let a: vec4<f32> = scene_triangles[base];
-    let b: vec4<f32> = scene_triangles[base + 1u];
-    let c: vec4<f32> = scene_triangles[base + 2u];
+    let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];
+    let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + (base + 1u)];
+    let c: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + (base + 2u)];
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
 }
 
 // scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:142)
 fn fetch_material(index: u32) -> MaterialData {
-    let a: vec4<f32> = scene_materials[index * MATERIAL_TEXELS];
-    let b: vec4<f32> = scene_materials[index * MATERIAL_TEXELS + 1u];
+    let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + index * MATERIAL_TEXELS];
+    let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (index * MATERIAL_TEXELS + 1u)];
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
 // scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:154)
 fn shading_normal(index: u32, u: f32, v: f32) -> vec3<f32> {
     let base: u32 = index * SHADING_TEXELS;
-    let n0: vec3<f32> = scene_shading[base].xyz;
-    let n1: vec3<f32> = scene_shading[base + 1u].xyz;
-    let n2: vec3<f32> = scene_shading[base + 2u].xyz;
+    let n0: vec3<f32> = lp_scene_vec4f[scene.lp_start_shading + base].xyz;
+    let n1: vec3<f32> = lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].xyz;
+    let n2: vec3<f32> = lp_scene_vec4f[scene.lp_start_shading + (base + 2u)].xyz;
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
 // scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
-    let uv0: vec2<f32> = vec2<f32>(scene_shading[base].w, scene_shading[base + 1u].w);
-    let rest: vec4<f32> = scene_shading[base + 3u];
-    let uv1: vec2<f32> = vec2<f32>(scene_shading[base + 2u].w, rest.x);
+    let uv0: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + base].w, lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].w);
+    let rest: vec4<f32> = lp_scene_vec4f[scene.lp_start_shading + (base + 3u)];
+    let uv1: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + (base + 2u)].w, rest.x);
     let uv2: vec2<f32> = vec2<f32>(rest.y, rest.z);
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
@@ -179,7 +182,7 @@ fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     let tx: i32 = wrap_coordinate(x, w, info.w & 255u);
     let ty: i32 = wrap_coordinate(y, h, info.w >> 8u);
     let i: u32 = info.x + bitcast<u32>(ty * w + tx);
-    let four: vec4<u32> = scene_texture_texels[i / TEXTURE_TEXELS_PER_ELEMENT];
+    let four: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_texels + i / TEXTURE_TEXELS_PER_ELEMENT];
     let lane: u32 = i % TEXTURE_TEXELS_PER_ELEMENT;
     return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
 }
@@ -215,7 +218,7 @@ fn bounded_coordinate(v: f32) -> f32 {
 
 // scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
-    let info: vec4<u32> = scene_texture_info[index];
+    let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
     let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
     let y: f32 = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
     let fx: f32 = x - floor(x);
@@ -239,19 +242,19 @@ fn sample_data_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
 
 // scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:292)
 fn fetch_metal_rough(index: u32) -> MetalRoughData {
-    let t: vec4<f32> = scene_metal_rough[index];
+    let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_metal_rough + index];
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
 }
 
 // scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:342)
 fn fetch_alpha_mask(material: u32) -> AlphaMaskData {
-    let t: vec4<f32> = scene_materials[scene.alpha_mask_first + material];
+    let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.alpha_mask_first + material)];
     return AlphaMaskData(index_of(t.x), t.y, t.z);
 }
 
 // scene_data::triangle_masked (lightport-tracer/src/kernel/scene_data.rs:348)
 fn triangle_masked(triangle: u32) -> bool {
-    return scene_triangles[triangle * TRIANGLE_TEXELS + 2u].w > 0.0;
+    return lp_scene_vec4f[scene.lp_start_triangles + (triangle * TRIANGLE_TEXELS + 2u)].w > 0.0;
 }
 
 // scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:353)
@@ -266,8 +269,8 @@ fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
 // texture_ref::texcoord1 (lightport-tracer/src/kernel/texture_ref.rs:27)
 fn texcoord1(triangle: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = scene.texcoord1_first + triangle * TEXCOORD1_TEXELS;
-    let a: vec4<f32> = scene_shading[base];
-    let b: vec4<f32> = scene_shading[base + 1u];
+    let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_shading + base];
+    let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_shading + (base + 1u)];
     return vec2<f32>(a.x, a.y) * (1.0 - u - v) + vec2<f32>(a.z, a.w) * u + vec2<f32>(b.x, b.y) * v;
 }
 
@@ -281,7 +284,7 @@ fn transform_uv(row0: vec4<u32>, row1: vec4<u32>, uv: vec2<f32>) -> vec2<f32> {
 // texture_ref::referenced_uv (lightport-tracer/src/kernel/texture_ref.rs:52)
 fn referenced_uv(texture_: u32, triangle: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = scene.texture_ref_first + texture_ * TEXTURE_REF_TEXELS;
-    let row0: vec4<u32> = scene_texture_info[base];
+    let row0: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + base];
     var uv: vec2<f32>;
     if (scene.has_texcoord1 != 0u) && (row0.w == 1u) {
         uv = texcoord1(triangle, u, v);
@@ -289,7 +292,7 @@ fn referenced_uv(texture_: u32, triangle: u32, u: f32, v: f32) -> vec2<f32> {
         uv = texcoord(triangle, u, v);
     }
     if scene.has_texture_transform != 0u {
-        uv = transform_uv(row0, scene_texture_info[base + 1u], uv);
+        uv = transform_uv(row0, lp_scene_vec4u[scene.lp_start_texture_info + (base + 1u)], uv);
     }
     return uv;
 }

@@ -6,10 +6,13 @@ struct SceneUniforms {
     texcoord1_first: u32,
     has_texture_transform: u32,
     has_texcoord1: u32,
+    // Where each texel array starts in lp_scene_vec4f / lp_scene_vec4u (in texels).
+    lp_start_shading: u32,
+    lp_start_texture_info: u32,
 }
 @group(0) @binding(0) var<uniform> scene: SceneUniforms;
-@group(0) @binding(1) var<storage, read> scene_shading: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> scene_texture_info: array<vec4<u32>>;
+@group(0) @binding(1) var<storage, read> lp_scene_vec4f: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> lp_scene_vec4u: array<vec4<u32>>;
 
 // scene_data::SHADING_TEXELS (lightport-tracer/src/kernel/scene_data.rs:16)
 const SHADING_TEXELS: u32 = 4u;
@@ -21,8 +24,8 @@ const TEXCOORD1_TEXELS: u32 = 2u;
 // texture_ref::texcoord1 (lightport-tracer/src/kernel/texture_ref.rs:27)
 fn texcoord1(triangle: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = scene.texcoord1_first + triangle * TEXCOORD1_TEXELS;
-    let a: vec4<f32> = scene_shading[base];
-    let b: vec4<f32> = scene_shading[base + 1u];
+    let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_shading + base];
+    let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_shading + (base + 1u)];
     return vec2<f32>(a.x, a.y) * (1.0 - u - v) + vec2<f32>(a.z, a.w) * u + vec2<f32>(b.x, b.y) * v;
 }
 
@@ -36,9 +39,9 @@ fn transform_uv(row0: vec4<u32>, row1: vec4<u32>, uv: vec2<f32>) -> vec2<f32> {
 // scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
-    let uv0: vec2<f32> = vec2<f32>(scene_shading[base].w, scene_shading[base + 1u].w);
-    let rest: vec4<f32> = scene_shading[base + 3u];
-    let uv1: vec2<f32> = vec2<f32>(scene_shading[base + 2u].w, rest.x);
+    let uv0: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + base].w, lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].w);
+    let rest: vec4<f32> = lp_scene_vec4f[scene.lp_start_shading + (base + 3u)];
+    let uv1: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + (base + 2u)].w, rest.x);
     let uv2: vec2<f32> = vec2<f32>(rest.y, rest.z);
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
@@ -46,7 +49,7 @@ fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
 // texture_ref::referenced_uv (lightport-tracer/src/kernel/texture_ref.rs:52)
 fn referenced_uv(texture_: u32, triangle: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = scene.texture_ref_first + texture_ * TEXTURE_REF_TEXELS;
-    let row0: vec4<u32> = scene_texture_info[base];
+    let row0: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + base];
     var uv: vec2<f32>;
     if (scene.has_texcoord1 != 0u) && (row0.w == 1u) {
         uv = texcoord1(triangle, u, v);
@@ -54,7 +57,7 @@ fn referenced_uv(texture_: u32, triangle: u32, u: f32, v: f32) -> vec2<f32> {
         uv = texcoord(triangle, u, v);
     }
     if scene.has_texture_transform != 0u {
-        uv = transform_uv(row0, scene_texture_info[base + 1u], uv);
+        uv = transform_uv(row0, lp_scene_vec4u[scene.lp_start_texture_info + (base + 1u)], uv);
     }
     return uv;
 }

@@ -572,7 +572,14 @@ fn assert_input_restarts_within_the_budget(api: &str) {
     let unsplit = browse(
         &server.url,
         "slow",
-        &[("scene", "cornell-box"), ("size", "640x480"), ("bandBudget", "0"), ("inputs", "2"), ("settle", "2"), ("api", api)],
+        &[
+            ("scene", "cornell-box"),
+            ("size", "640x480"),
+            ("bandBudget", "0"),
+            ("inputs", "2"),
+            ("settle", "2"),
+            ("api", api),
+        ],
     );
     no_page_error(&unsplit);
     let unsplit_latencies = restart_latencies(&unsplit, false);

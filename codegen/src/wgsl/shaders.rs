@@ -45,7 +45,8 @@ pub(super) fn resources(blocks: &[ResourceBlock]) -> String {
             let _ = writeln!(out, "    {m},");
         }
         if !starts.is_empty() {
-            let names: Vec<String> = [false, true].iter().filter(|u| elements[**u as usize]).map(|u| texel_buffer(base, *u)).collect();
+            let names: Vec<String> =
+                [false, true].iter().filter(|u| elements[**u as usize]).map(|u| texel_buffer(base, *u)).collect();
             let _ = writeln!(out, "    // Where each texel array starts in {} (in texels).", names.join(" / "));
         }
         for m in &starts {

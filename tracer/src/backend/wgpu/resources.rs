@@ -65,19 +65,18 @@ pub(crate) fn place_arrays<'a>(
     let mut placed = Vec::new();
     for (member, _) in uniform.map_or(&[][..], |u| &u.members) {
         let Some(field) = member.strip_prefix(START_PREFIX) else { continue };
-        let (name, bytes, unsigned): (&'static str, &[u8], bool) =
-            match bindings.iter().find(|(n, _)| *n == field) {
-                Some((n, Binding::Vec4s(t))) => (n, bytemuck::cast_slice(t.as_slice()), false),
-                Some((n, Binding::UVec4s(t))) => (n, bytemuck::cast_slice(t.as_slice()), true),
-                other => {
-                    return Err(WgpuError::UnboundResource {
-                        name: format!("{SCENE_UNIFORM}.{member}"),
-                        detail: other.map_or(String::new(), |(_, b)| {
-                            format!(" as a texel array's start (the Scene field is {})", b.dsl_type())
-                        }),
-                    })
-                }
-            };
+        let (name, bytes, unsigned): (&'static str, &[u8], bool) = match bindings.iter().find(|(n, _)| *n == field) {
+            Some((n, Binding::Vec4s(t))) => (n, bytemuck::cast_slice(t.as_slice()), false),
+            Some((n, Binding::UVec4s(t))) => (n, bytemuck::cast_slice(t.as_slice()), true),
+            other => {
+                return Err(WgpuError::UnboundResource {
+                    name: format!("{SCENE_UNIFORM}.{member}"),
+                    detail: other.map_or(String::new(), |(_, b)| {
+                        format!(" as a texel array's start (the Scene field is {})", b.dsl_type())
+                    }),
+                })
+            }
+        };
         let end = &mut ends[unsigned as usize];
         placed.push(PlacedArray { field: name, unsigned, start: *end, bytes });
         *end += bytes.len() as u64 / 16;
@@ -349,8 +348,9 @@ pub(crate) fn check_scene_limits(
     }
     let own_storage = layout.own.iter().filter(|r| r.uniform.is_none()).count();
     let storage_buffers = (layout.texel_buffers.len() + own_storage) as u64;
-    let groups = 1 + layout.texel_buffers.iter().map(|b| b.group).chain(layout.own.iter().map(|r| r.group)).max().unwrap_or(0)
-        as u64;
+    let groups =
+        1 + layout.texel_buffers.iter().map(|b| b.group).chain(layout.own.iter().map(|r| r.group)).max().unwrap_or(0)
+            as u64;
     let uniform_size = layout.scene_uniform.as_ref().map_or(0, |u| u.size) as u64;
     for (limit, needed, max) in [
         ("max_storage_buffers_per_shader_stage", storage_buffers, storage_buffers_limit(limits, options) as u64),

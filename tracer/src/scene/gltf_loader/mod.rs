@@ -19,7 +19,6 @@ use serde_json::{Map, Value};
 
 mod materials;
 
-use materials::ImageSource;
 use super::accessor::Buffers;
 use super::texture::{
     decode_textures_forgiving, is_texture_problem, material_label, probe_srgb, ImageHeader, ImageProblems,
@@ -31,6 +30,7 @@ use super::{
     flat_normal, Camera, FoundCamera, LoadOptions, Material, PointLight, Scene, SceneError, Triangle, Warnings, Wrap,
     MAX_SCENE_TEXELS, MAX_TRIANGLES,
 };
+use materials::ImageSource;
 
 /// Extensions Lightport implements.
 const SUPPORTED_EXTENSIONS: &[&str] = &[
