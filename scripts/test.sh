@@ -54,9 +54,6 @@ step "clippy"
 cargo clippy --workspace --all-targets -- -D warnings
 cargo clippy -p lightport-web --target wasm32-unknown-unknown -- -D warnings
 
-step "generated shaders are fresh"
-cargo run -q -- shaders --check >/dev/null || cargo run -q -- shaders --check
-
 step "tests"
 # Every process the tests start carries this marker in its environment, so that any left running
 # afterwards is found (scripts/leftover-processes.sh), whether the tests passed or not.
@@ -64,7 +61,9 @@ session="$$-$(date +%s%N)"
 status=0
 # One invocation: libraries, binaries, integration tests and doc tests share one build (a
 # separate `--doc` run resolved other features and rebuilt half the workspace, ~1.5 min), and
-# every failing test binary is reported, not only the first.
+# every failing test binary is reported, not only the first. That shaders-generated/ is fresh is
+# a test (tests/codegen.rs): a separate `cargo run -- shaders --check` resolved the binary's
+# features alone and built many dependencies a second time (~15 min on 2 cores, cold).
 LIGHTPORT_TEST_SESSION=$session cargo test --workspace --no-fail-fast || status=$?
 
 step "no process outlives the tests"

@@ -126,6 +126,17 @@ fn every_generated_file_matches_its_snapshot_and_the_committed_file() {
                 .unwrap_or_default();
         assert!(committed == f.source, "shaders-generated/{} is stale: run `cargo run -- shaders`", f.name);
     }
+    // And nothing else: a file no kernel module generates any more is stale too (CI's only
+    // freshness check, as `lightport shaders --check` is; this one shares the test build).
+    let dir = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders-generated")).expect("shaders-generated/");
+    for entry in dir {
+        let name = entry.expect("directory entry").file_name().to_string_lossy().into_owned();
+        let shader = name.ends_with(".glsl") || name.ends_with(".wgsl");
+        assert!(
+            !shader || files.iter().any(|f| f.name == name),
+            "shaders-generated/{name}: no kernel module generates it any more: run `cargo run -- shaders`"
+        );
+    }
 }
 
 #[test]

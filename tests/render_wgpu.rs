@@ -138,46 +138,12 @@ fn restart_and_uniform_updates_take_effect() {
 }
 
 /// A frame rendered in bands of rows (the same dispatch over fewer rows, as the WebGPU page's
-/// frame loop submits them) is the frame rendered whole, exactly; the sample count advances
-/// with a frame's last band only, and a restart in the middle of a split frame leaves nothing
-/// of it behind. As `tests/web.rs` checks GL's bands.
+/// frame loop submits them) is the frame rendered whole, exactly (`common::bands`, as GL's in
+/// `tests/web.rs`). Heights that are not multiples of the 8-row workgroup, so that a band's
+/// last workgroup reaches into rows that belong to the next band.
 #[test]
 fn a_frame_split_into_bands_is_the_unsplit_frame() {
     let base = packed(&scene::cornell_box(), Strategy::Mis, 20, 4);
-    let (width, height) = (base.scene.width, base.scene.height);
-    assert_eq!((width, height), (20, 20));
-    let mut whole = wgpu_renderer(base.clone(), 3);
-    let mut banded = wgpu_renderer(base, 3);
-    let same = |a: &WgpuRenderer, b: &WgpuRenderer, what: &str| {
-        let (x, y) = (a.accumulation().expect("readback"), b.accumulation().expect("readback"));
-        let differing = x.iter().zip(&y).filter(|(p, q)| p != q).count();
-        assert_eq!(differing, 0, "{what}: {differing} of {} pixels differ", x.len());
-        assert!(x.iter().all(|p| p.w == a.frames() as f32), "{what}: every pixel has every sample");
-        assert!(x.iter().map(|p| p.x as f64).sum::<f64>() > 0.0, "{what}: black");
-    };
-    // Heights that are not multiples of the 8-row workgroup, so that a band's last workgroup
-    // reaches into rows that belong to the next band.
-    let mut heights = [5u32, 7, 1, 13, 20, 3, 11].into_iter().cycle();
-    let mut bands = 0;
-    for frame in 0..4 {
-        whole.render_frame().expect("frame");
-        bands += 1;
-        while !banded.render_band(heights.next().unwrap()).expect("band") {
-            assert_eq!(banded.frames(), frame, "the sample count advances with the frame's last band only");
-            bands += 1;
-        }
-        assert_eq!(banded.frames(), frame + 1);
-        same(&whole, &banded, &format!("frame {frame}"));
-    }
-    assert!(bands >= 12, "frames were split: {bands} bands");
-    banded.render_band(6).expect("band");
-    assert_eq!(banded.rows_left(), 14);
-    banded.restart().expect("restart");
-    whole.restart().expect("restart");
-    assert_eq!(banded.rows_left(), 20, "a restart abandons the split frame");
-    for _ in 0..2 {
-        whole.render_frame().expect("frame");
-        while !banded.render_band(9).expect("band") {}
-    }
-    same(&whole, &banded, "after a restart in the middle of a frame");
+    assert_eq!((base.scene.width, base.scene.height), (20, 20));
+    common::bands::assert_bands_make_the_whole_frame(wgpu_renderer(base.clone(), 3), wgpu_renderer(base, 3), 20);
 }

@@ -607,37 +607,8 @@ fn a_frame_split_into_bands_is_the_unsplit_frame() {
     let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
     let settings = RenderSettings { width: 40, height: 36, strategy: Strategy::Mis, max_depth: SERVED_MAX_DEPTH };
     let base = pack(&scene, &bvh, &settings).expect("pack");
-    let mut whole = GlRenderer::headless(base.clone(), 3).expect("GL");
-    let mut banded = GlRenderer::headless(base.clone(), 3).expect("GL");
-    let same = |a: &GlRenderer, b: &GlRenderer, what: &str| {
-        let (x, y) = (a.accumulation().expect("readback"), b.accumulation().expect("readback"));
-        let differing = x.iter().zip(&y).filter(|(p, q)| p != q).count();
-        assert_eq!(differing, 0, "{what}: {differing} of {} pixels differ", x.len());
-        assert!(x.iter().map(|p| p.x as f64).sum::<f64>() > 0.0, "{what}: black");
-    };
-    let mut heights = [5u32, 7, 1, 13, 36, 3, 11].into_iter().cycle();
-    let mut bands = 0;
-    for frame in 0..4 {
-        whole.render_frame().expect("frame");
-        bands += 1;
-        while !banded.render_band(heights.next().unwrap()).expect("band") {
-            assert_eq!(banded.frames(), frame, "the sample count advances with the frame's last band only");
-            bands += 1;
-        }
-        assert_eq!(banded.frames(), frame + 1);
-        same(&whole, &banded, &format!("frame {frame}"));
-    }
-    assert!(bands >= 12, "frames 0, 1 and 3 were split: {bands} bands");
-    banded.render_band(10).expect("band");
-    assert_eq!(banded.rows_left(), 26);
-    banded.restart().expect("restart");
-    whole.restart().expect("restart");
-    assert_eq!(banded.rows_left(), 36, "a restart abandons the split frame");
-    for _ in 0..2 {
-        whole.render_frame().expect("frame");
-        while !banded.render_band(20).expect("band") {}
-    }
-    same(&whole, &banded, "after a restart in the middle of a frame");
+    let renderer = || GlRenderer::headless(base.clone(), 3).expect("GL");
+    common::bands::assert_bands_make_the_whole_frame(renderer(), renderer(), 36);
 
     // The page's loop: fenced bands, one in flight, heights from the measured (here: a
     // simulated 30 ms per step) times.
@@ -655,5 +626,5 @@ fn a_frame_split_into_bands_is_the_unsplit_frame() {
     two.render_frame().expect("frame");
     two.render_frame().expect("frame");
     assert!(submitted > 2, "the pacer split the frames: {submitted} bands");
-    same(&two, &paced, "paced bands");
+    common::bands::assert_same(&two, &paced, "paced bands");
 }

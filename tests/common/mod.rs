@@ -8,6 +8,7 @@
 #![allow(dead_code)]
 
 pub mod agreement;
+pub mod bands;
 
 use glam::{DVec3, Vec3};
 

@@ -95,6 +95,30 @@ try {
     if (apis.length === 2) cells.push(`${(frame[apis[1]] / frame[apis[0]]).toFixed(2)}x`);
     console.log(`| ${cells.join(' | ')} |`);
   }
+
+  // Where the cold first frame's time goes: the page's startup marks (web/www/main.js), as
+  // the median duration of each step from the previous mark (the first from navigation start).
+  const steps = [['wasm', 'wasm ready'], ['device', 'WebGPU device'], ['scenes', 'scenes.json'],
+    ['fetched', 'bundle fetched'], ['installed', 'installed'], ['first', 'first frame on screen']];
+  console.log('\nCold first frame, step by step (ms from the previous step; median over rounds):\n');
+  const stepHead = ['scene', 'api', ...steps.map(([, label]) => label), 'total'];
+  console.log(`| ${stepHead.join(' | ')} |`);
+  console.log(`|${stepHead.map(() => '---').join('|')}|`);
+  for (const s of scenes) {
+    for (const api of apis) {
+      const rows = runs[api][s.name];
+      const durations = steps.map(([key]) => median(rows.map((r) => {
+        const marks = { ...r.coldStartup, first: r.coldFirstFrameMs };
+        const at = steps.map(([k]) => marks[k]);
+        const i = steps.findIndex(([k]) => k === key);
+        if (at[i] === undefined) return NaN;
+        const previous = at.slice(0, i).filter((t) => t !== undefined).at(-1) ?? 0;
+        return at[i] - previous;
+      })));
+      const cell = (ms) => (Number.isFinite(ms) ? ms.toFixed(0) : '–');
+      console.log(`| ${s.name} | ${api} | ${durations.map(cell).join(' | ')} | ${cell(median(rows.map((r) => r.coldFirstFrameMs)))} |`);
+    }
+  }
 } finally {
   server.kill();
 }

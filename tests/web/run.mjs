@@ -467,10 +467,12 @@ async function bench(o) {
           await page.evaluate(() => window.lightport.renderFrames(1));
           const timing = await page.evaluate(() => ({
             firstFrameMs: window.lightport.firstFrameMs,
+            startup: window.lightport.startup,
             fromCache: window.lightport.bundleSources.at(-1).fromCache,
             bytes: window.lightport.bundleSources.at(-1).bytes,
           }));
           row[`${visit}FirstFrameMs`] = timing.firstFrameMs;
+          row[`${visit}Startup`] = timing.startup;
           row[`${visit}FromCache`] = timing.fromCache;
           row.bundleBytes = timing.bytes;
           row[`${visit}WallMs`] = Date.now() - navigationStart;

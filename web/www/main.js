@@ -44,6 +44,10 @@ const hook = {
   frames: 0, // frames rendered by this page, all scenes together
   error: null, // the last error shown to the user
   firstFrameMs: null, // performance.now() at the first frame drawn (from navigation start)
+  // What the time to the first frame went on: performance.now() once the wasm module is
+  // ready (wasm), the WebGPU device is (device), scenes.json is read (scenes), the first bundle
+  // is fetched (fetched) and installed (installed: decoded, uploaded, kernel compile started).
+  startup: {},
   bands: 0, // bands submitted by the frame loop
   // Per camera input that restarted the accumulation, once the restarted accumulation's first
   // band is done on the GPU: { inputAt (the event's timeStamp), handledAt, submittedAt (its
@@ -280,7 +284,9 @@ async function loadServedScene(name) {
       showMessage(`downloading ${scene.name}: ${formatBytes(received)}`, 'info');
     });
     hook.bundleSources.push({ name: scene.name, fromCache, bytes: bytes.byteLength });
+    hook.startup.fetched ??= performance.now();
     viewer.loadBundle(new Uint8Array(bytes));
+    hook.startup.installed ??= performance.now();
     hasScene = true;
     currentName = scene.name;
     $('scene').value = scene.name;
@@ -599,6 +605,7 @@ $('api').addEventListener('change', (e) => {
 async function main() {
   try {
     await init();
+    hook.startup.wasm = performance.now();
   } catch (e) {
     showMessage(`the WebAssembly module did not load: ${e.message || e}`);
     hook.ready = true;
@@ -616,6 +623,7 @@ async function main() {
   if (api !== 'webgl2') {
     try {
       viewer.useWebGpu(await requestWebGpu());
+      hook.startup.device = performance.now();
     } catch (e) {
       const why = String(e.message || e);
       viewer.webGpuUnavailable(why);
@@ -644,6 +652,7 @@ async function main() {
     scenes = (await response.json()).scenes || [];
     // The cache keys on the absolute path.
     for (const s of scenes) s.url = new URL(s.url, response.url).pathname;
+    hook.startup.scenes = performance.now();
   } catch (e) {
     showMessage(`the scene list (scenes.json) did not load: ${e.message || e}; drop a .glb to render it`);
   }

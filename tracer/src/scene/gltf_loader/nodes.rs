@@ -1,0 +1,417 @@
+//! The node hierarchy: transforms, cameras, lights and meshes, and each mesh primitive's
+//! triangles, normals, texture coordinates and tangents (decoded once per mesh, instanced per node).
+
+use super::*;
+
+/// One primitive's triangles in mesh space, decoded once per mesh and instanced per node.
+pub(super) struct LocalPrimitive {
+    positions: Vec<Vec3>,
+    normals: Option<Vec<Vec3>>,
+    uvs: Option<Vec<Vec2>>,
+    /// `TEXCOORD_1`, read only when the primitive's material samples a texture on it.
+    uvs1: Option<Vec<Vec2>>,
+    triangles: Vec<[u32; 3]>,
+    /// Per corner of `triangles`: the file's `TANGENT`s, else MikkTSpace's; only for a
+    /// material with a normal map.
+    tangents: Option<Vec<[Vec4; 3]>>,
+    material: u32,
+}
+
+impl Loader<'_> {
+    /// Walks the node hierarchy depth-first (pre-order, children in file order).
+    pub(super) fn visit(&mut self, roots: &[usize]) -> Result<(), SceneError> {
+        let root = self.root;
+        let mut visited = vec![false; root.nodes.len()];
+        let mut stack: Vec<(usize, Mat4)> = roots.iter().rev().map(|&n| (n, Mat4::IDENTITY)).collect();
+        while let Some((n, parent)) = stack.pop() {
+            let node = root.nodes.get(n).ok_or_else(|| malformed(format!("node {n} does not exist")))?;
+            let seen = visited.get_mut(n).ok_or_else(|| malformed(format!("node {n} does not exist")))?;
+            if *seen {
+                return Err(malformed(format!(
+                    "node {n} is reached twice: the node hierarchy must be a tree (no cycles, no shared children)"
+                )));
+            }
+            *seen = true;
+            let world = parent * node_matrix(node, n)?;
+            if !world.is_finite() {
+                return Err(malformed(format!("node {n} has a non-finite world transform")));
+            }
+            if node.skin.is_some() {
+                self.warnings
+                    .once("skinning", || "skinning is not supported: skinned meshes are rendered unskinned".into());
+            }
+            if let Some(ext) = &node.extensions {
+                warn_extensions(&mut self.warnings, Some(&ext.others));
+                if let Some(l) = &ext.khr_lights_punctual {
+                    self.light(l.light.value(), n, &world)?;
+                }
+            }
+            if let Some(c) = node.camera {
+                self.camera(c.value(), &world)?;
+            }
+            if let Some(m) = node.mesh {
+                self.mesh_instances += 1;
+                self.instantiate(m.value(), &world)?;
+            }
+            for child in node.children.iter().flatten().rev() {
+                stack.push((child.value(), world));
+            }
+        }
+        Ok(())
+    }
+
+    fn camera(&mut self, index: usize, world: &Mat4) -> Result<(), SceneError> {
+        if self.camera.is_some() {
+            return Ok(());
+        }
+        let cam = self.root.cameras.get(index).ok_or_else(|| malformed(format!("camera {index} does not exist")))?;
+        let perspective = match (cam.type_, &cam.perspective) {
+            (Checked::Valid(CameraType::Perspective), Some(p)) => p,
+            _ => {
+                self.saw_orthographic = true;
+                return Ok(());
+            }
+        };
+        let yfov = perspective.yfov;
+        if !(yfov > 0.0 && yfov < std::f32::consts::PI) {
+            return Err(malformed(format!("camera {index}: yfov {yfov} is not in (0, π)")));
+        }
+        let forward = world.transform_vector3(Vec3::NEG_Z).normalize_or_zero();
+        let up = world.transform_vector3(Vec3::Y).normalize_or_zero();
+        if forward == Vec3::ZERO || up == Vec3::ZERO {
+            self.warnings
+                .once("degenerate camera", || "a camera node has a degenerate transform: it is ignored".into());
+            return Ok(());
+        }
+        self.camera = Some(FoundCamera { position: world.transform_point3(Vec3::ZERO), forward, up, yfov });
+        Ok(())
+    }
+
+    fn light(&mut self, index: usize, node: usize, world: &Mat4) -> Result<(), SceneError> {
+        let light = self
+            .root
+            .extensions
+            .as_ref()
+            .and_then(|e| e.khr_lights_punctual.as_ref())
+            .and_then(|l| l.lights.get(index))
+            .ok_or_else(|| {
+                malformed(format!("node {node} uses KHR_lights_punctual light {index}, which does not exist"))
+            })?;
+        let intensity = Vec3::from(light.color) * light.intensity;
+        if !intensity.is_finite() || intensity.min_element() < 0.0 || intensity.max_element() > super::MAX_RADIANCE {
+            return Err(malformed(format!(
+                "KHR_lights_punctual light {index}: color x intensity must be finite, >= 0 and at most {:e}",
+                super::MAX_RADIANCE
+            )));
+        }
+        match light.type_ {
+            Checked::Valid(LightType::Point) => {}
+            Checked::Valid(LightType::Spot) => self.warnings.once("spot lights", || {
+                "KHR_lights_punctual spot lights are treated as point lights (their cone is ignored)".into()
+            }),
+            Checked::Valid(LightType::Directional) => {
+                self.warnings.once("directional lights", || {
+                    "KHR_lights_punctual directional lights are not supported: they are ignored".into()
+                });
+                return Ok(());
+            }
+            Checked::Invalid => {
+                return Err(malformed(format!("KHR_lights_punctual light {index} has an invalid type")))
+            }
+        }
+        self.point_lights.push(PointLight { position: world.transform_point3(Vec3::ZERO), intensity });
+        Ok(())
+    }
+
+    /// Appends a mesh instance's world-space triangles.
+    fn instantiate(&mut self, mesh: usize, world: &Mat4) -> Result<(), SceneError> {
+        let prims = self.mesh(mesh)?;
+        let linear = Mat3::from_mat4(*world);
+        let det = linear.determinant();
+        if det == 0.0 {
+            return Ok(()); // a zero scale hides the mesh: nothing to render
+        }
+        let normal_matrix = linear.inverse().transpose();
+        let flip = det < 0.0;
+        let added: usize = prims.iter().map(|p| p.triangles.len()).sum();
+        if self.triangles.len().saturating_add(added) > MAX_TRIANGLES {
+            return Err(SceneError::TooLarge(format!(
+                "the scene has more than {MAX_TRIANGLES} triangles after instancing"
+            )));
+        }
+        self.triangles.reserve(added);
+        for prim in prims.iter() {
+            for (t, tri) in prim.triangles.iter().enumerate() {
+                let mut idx = *tri;
+                if flip {
+                    idx.swap(1, 2);
+                }
+                let fetch = |i: u32| prim.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO);
+                let positions = idx.map(|i| world.transform_point3(fetch(i)));
+                if !positions.iter().all(|p| p.is_finite()) {
+                    return Err(malformed(format!("mesh {mesh}: a vertex is not finite after its node transform")));
+                }
+                let flat = flat_normal(&positions);
+                let normals = match &prim.normals {
+                    Some(ns) => idx.map(|i| {
+                        let n = ns.get(i as usize).copied().unwrap_or(Vec3::ZERO);
+                        let n = (normal_matrix * n).normalize_or_zero();
+                        if n == Vec3::ZERO {
+                            flat
+                        } else {
+                            n
+                        }
+                    }),
+                    None => [flat; 3],
+                };
+                let corner_uvs = |set: &Option<Vec<Vec2>>| match set {
+                    Some(uv) => idx.map(|i| uv.get(i as usize).copied().unwrap_or(Vec2::ZERO)),
+                    None => [Vec2::ZERO; 3],
+                };
+                let (uvs, uvs1) = (corner_uvs(&prim.uvs), corner_uvs(&prim.uvs1));
+                let mut tangents = match &prim.tangents {
+                    Some(ts) => ts.get(t).map_or([Vec4::ZERO; 3], |c| c.map(|c| world_tangent(&linear, c, flip))),
+                    None => [Vec4::ZERO; 3],
+                };
+                if flip {
+                    tangents.swap(1, 2);
+                }
+                self.triangles.push(Triangle { positions, normals, uvs, uvs1, tangents, material: prim.material });
+            }
+        }
+        Ok(())
+    }
+
+    /// Decodes a mesh's primitives (once per mesh).
+    fn mesh(&mut self, index: usize) -> Result<Rc<Vec<LocalPrimitive>>, SceneError> {
+        if let Some(m) = self.meshes.get(&index) {
+            return Ok(m.clone());
+        }
+        let mesh = self.root.meshes.get(index).ok_or_else(|| malformed(format!("mesh {index} does not exist")))?;
+        warn_extensions(&mut self.warnings, mesh.extensions.as_ref().map(|e| &e.others));
+        let mut prims = Vec::with_capacity(mesh.primitives.len());
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            if let Some(local) = self.primitive(index, p, prim)? {
+                prims.push(local);
+            }
+        }
+        let prims = Rc::new(prims);
+        self.meshes.insert(index, prims.clone());
+        Ok(prims)
+    }
+
+    fn primitive(
+        &mut self,
+        m: usize,
+        p: usize,
+        prim: &gltf::json::mesh::Primitive,
+    ) -> Result<Option<LocalPrimitive>, SceneError> {
+        let what = format!("mesh {m} primitive {p}");
+        let mode = match prim.mode {
+            Checked::Valid(mode) => mode,
+            Checked::Invalid => return Err(malformed(format!("{what}: invalid mode"))),
+        };
+        if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+            self.warnings.once("non-triangle primitive modes", || {
+                format!("primitive mode {mode:?} is not supported: only triangles (lists, strips, fans) are rendered; such primitives are skipped")
+            });
+            return Ok(None);
+        }
+        let ext = prim.extensions.as_ref().map(|e| &e.others);
+        warn_extensions(&mut self.warnings, ext);
+        let compressed = ext.is_some_and(|e| {
+            e.contains_key("KHR_draco_mesh_compression")
+                || e.contains_key("EXT_meshopt_compression")
+                || e.contains_key("KHR_meshopt_compression")
+        });
+        if prim.targets.as_ref().is_some_and(|t| !t.is_empty()) {
+            self.warnings.once("morph targets", || {
+                "morph targets are not supported: meshes are rendered in their base shape".into()
+            });
+        }
+        let mut position = None;
+        let mut normal = None;
+        let mut uv = None;
+        let mut uv1 = None;
+        let mut tangent = None;
+        for (semantic, accessor) in &prim.attributes {
+            match semantic {
+                Checked::Valid(Semantic::Positions) => position = Some(accessor.value()),
+                Checked::Valid(Semantic::Normals) => normal = Some(accessor.value()),
+                Checked::Valid(Semantic::Tangents) => tangent = Some(accessor.value()),
+                Checked::Valid(Semantic::TexCoords(0)) => uv = Some(accessor.value()),
+                Checked::Valid(Semantic::TexCoords(1)) => uv1 = Some(accessor.value()),
+                Checked::Valid(Semantic::Colors(0)) => self
+                    .warnings
+                    .once("COLOR_0", || "vertex colours (COLOR_0) are not supported: they are ignored".into()),
+                _ => {}
+            }
+        }
+        let Some(position) = position else {
+            self.warnings.once("no POSITION", || "primitives without POSITION are skipped".into());
+            return Ok(None);
+        };
+        if compressed
+            && self.root.accessors.get(position).is_some_and(|a| a.buffer_view.is_none() && a.sparse.is_none())
+        {
+            // Compressed data only, no uncompressed fallback to read.
+            return Ok(None);
+        }
+        let positions = to_vec3(self.buffers.read_f32(position, 3, &format!("{what} POSITION"))?);
+        let vertex_count = positions.len();
+        let normals = match normal {
+            Some(a) => {
+                let n = to_vec3(self.buffers.read_f32(a, 3, &format!("{what} NORMAL"))?);
+                if n.len() != vertex_count {
+                    return Err(malformed(format!("{what}: NORMAL has {} elements, POSITION {vertex_count}", n.len())));
+                }
+                Some(n)
+            }
+            None => None,
+        };
+        let uvs = self.texcoords(uv, 0, vertex_count, &what)?;
+        let indices = match prim.indices {
+            Some(a) => {
+                let indices = self.buffers.read_indices(a.value(), &format!("{what} indices"))?;
+                if let Some(bad) = indices.iter().find(|&&i| i as usize >= vertex_count) {
+                    return Err(malformed(format!("{what}: index {bad} is out of range ({vertex_count} vertices)")));
+                }
+                indices
+            }
+            None => (0..vertex_count as u32).collect(),
+        };
+        let triangles = assemble(mode, &indices)
+            .ok_or_else(|| malformed(format!("{what}: {} indices do not form whole triangles", indices.len())))?;
+        let mut material = self.material(prim.material.map(|i| i.value()))?;
+        let uses_set1 = self.materials.get(material as usize).is_some_and(texture_ref::uses_texcoord1);
+        let uvs1 = match (uses_set1, uv1) {
+            (true, Some(a)) => self.texcoords(Some(a), 1, vertex_count, &what)?,
+            (true, None) => {
+                material = self.material_without_texcoord1(material, &what);
+                None
+            }
+            (false, _) => None,
+        };
+        let normal_mapped = self.materials.get(material as usize).is_some_and(|m| m.normal_texture.is_some());
+        // MikkTSpace follows the UV set the normal map is read on.
+        let normal_set = self.materials.get(material as usize).map_or(0, |m| m.texture_uvs[3].texcoord);
+        let map_uvs = if normal_set == 1 { &uvs1 } else { &uvs };
+        let tangents = match (normal_mapped, tangent, map_uvs) {
+            (false, _, _) => None,
+            (true, Some(a), _) => {
+                let t = self.buffers.read_f32(a, 4, &format!("{what} TANGENT"))?;
+                if t.len() != vertex_count * 4 {
+                    return Err(malformed(format!(
+                        "{what}: TANGENT has {} elements, POSITION {vertex_count}",
+                        t.len() / 4
+                    )));
+                }
+                let t: Vec<Vec4> =
+                    t.chunks_exact(4).map(|c| super::tangents::unit_tangent(Vec4::from_slice(c))).collect();
+                Some(triangles.iter().map(|tri| tri.map(|i| t[i as usize])).collect())
+            }
+            (true, None, Some(uvs)) => {
+                super::tangents::mikktspace_tangents(&positions, normals.as_deref(), uvs, &triangles)
+            }
+            (true, None, None) => {
+                self.warnings.once("normal map without TEXCOORD_0", || {
+                    format!("{what}: a normal-mapped primitive has no TEXCOORD_0, so no tangents: its normal map is ignored")
+                });
+                None
+            }
+        };
+        Ok(Some(LocalPrimitive { positions, normals, uvs, uvs1, triangles, tangents, material }))
+    }
+}
+
+pub(super) fn semantic_name(s: &Checked<Semantic>) -> String {
+    match s {
+        Checked::Valid(Semantic::Positions) => "POSITION".into(),
+        Checked::Valid(Semantic::Normals) => "NORMAL".into(),
+        Checked::Valid(Semantic::Tangents) => "TANGENT".into(),
+        Checked::Valid(Semantic::TexCoords(n)) => format!("TEXCOORD_{n}"),
+        Checked::Valid(Semantic::Colors(n)) => format!("COLOR_{n}"),
+        Checked::Valid(Semantic::Joints(n)) => format!("JOINTS_{n}"),
+        Checked::Valid(Semantic::Weights(n)) => format!("WEIGHTS_{n}"),
+        Checked::Valid(other) => format!("{other:?}"),
+        Checked::Invalid => "(invalid)".into(),
+    }
+}
+
+/// A mesh-space tangent (xyz unit, w ±1) in world space under `linear`: tangents are carried
+/// like positions (not like normals), and a mirroring transform flips their handedness.
+fn world_tangent(linear: &Mat3, t: Vec4, flip: bool) -> Vec4 {
+    match (*linear * t.truncate()).try_normalize() {
+        Some(xyz) => xyz.extend(if flip { -t.w } else { t.w }),
+        None => Vec4::ZERO,
+    }
+}
+
+/// A node's local transform (matrix, or TRS with the rotation normalised).
+fn node_matrix(node: &gltf::json::scene::Node, n: usize) -> Result<Mat4, SceneError> {
+    if let Some(m) = node.matrix {
+        let m = Mat4::from_cols_array(&m);
+        if !m.is_finite() {
+            return Err(malformed(format!("node {n}: matrix is not finite")));
+        }
+        return Ok(m);
+    }
+    let t = Vec3::from(node.translation.unwrap_or([0.0; 3]));
+    let s = Vec3::from(node.scale.unwrap_or([1.0; 3]));
+    let q = node.rotation.map_or(Quat::IDENTITY, |r| Quat::from_array(r.0));
+    if !(t.is_finite() && s.is_finite() && q.is_finite()) {
+        return Err(malformed(format!("node {n}: transform is not finite")));
+    }
+    let len = q.length();
+    let q = if len > 0.0 { q / len } else { Quat::IDENTITY };
+    Ok(Mat4::from_scale_rotation_translation(s, q, t))
+}
+
+/// Triangles from an index list in one of the triangle modes; `None` when a TRIANGLES list is
+/// not a multiple of three.
+fn assemble(mode: Mode, idx: &[u32]) -> Option<Vec<[u32; 3]>> {
+    match mode {
+        Mode::Triangles => {
+            if !idx.len().is_multiple_of(3) {
+                return None;
+            }
+            Some(idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+        }
+        Mode::TriangleStrip => Some(
+            idx.windows(3)
+                .enumerate()
+                .map(|(i, w)| if i % 2 == 0 { [w[0], w[1], w[2]] } else { [w[0], w[2], w[1]] })
+                // Strips join with repeated indices; those triangles have no area.
+                .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+                .collect(),
+        ),
+        Mode::TriangleFan => {
+            let Some(&first) = idx.first() else {
+                return Some(Vec::new());
+            };
+            Some(idx.get(1..).unwrap_or(&[]).windows(2).map(|w| [w[0], w[1], first]).collect())
+        }
+        _ => Some(Vec::new()),
+    }
+}
+
+fn to_vec3(v: Vec<f32>) -> Vec<Vec3> {
+    v.chunks_exact(3).map(Vec3::from_slice).collect()
+}
+
+pub(super) fn to_vec2(v: Vec<f32>) -> Vec<Vec2> {
+    v.chunks_exact(2).map(Vec2::from_slice).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strips_and_fans() {
+        assert_eq!(assemble(Mode::TriangleStrip, &[0, 1, 2, 3]).unwrap(), vec![[0, 1, 2], [1, 3, 2]]);
+        assert_eq!(assemble(Mode::TriangleFan, &[0, 1, 2, 3]).unwrap(), vec![[1, 2, 0], [2, 3, 0]]);
+        assert!(assemble(Mode::Triangles, &[0, 1]).is_none());
+        assert_eq!(assemble(Mode::TriangleFan, &[]).map(|v| v.len()), Some(0));
+    }
+}
