@@ -245,14 +245,24 @@ fn edge_cases() {
         .collect();
     let b = bvh::build(&line).unwrap();
     println!("line: binary depth {}, 4-wide depth and stack {:?}", b.depth(), check_wide("line", &b));
-    // Many identical triangles build a chain; leaves are intersected at once, so it needs
-    // almost no stack however deep it is.
+    // Many identical triangles: once a chain thousands of levels deep (and a quadratic build),
+    // now one builder primitive split into a balanced subtree (`bvh::coincident`).
     let many = vec![tri(Vec3::ZERO, Vec3::X, Vec3::Y); 5_000];
     let b = bvh::build(&many).unwrap();
     let (depth, stack) = check_wide("identical", &b);
-    assert!(depth > 100 && stack <= 2, "identical: depth {depth}, stack {stack}");
-    // Pushing its leaves would need far more than the kernel's stack (the chain is what
-    // `tracer::pack`'s leaf_stack_limit is for).
+    assert!(depth <= 14 && stack <= 3 * depth, "identical: depth {depth} (binary: 13 levels), stack {stack}");
+    assert!(b.widen().unwrap().stack_needed_with_leaves <= STACK_SIZE as u32);
+    // Nested triangles (each 1% larger than the last, about one point) still build a chain:
+    // leaves are intersected at once, so it needs almost no stack however deep it is, but
+    // pushing its leaves would need far more than the kernel's stack (what `tracer::pack`'s
+    // leaf_stack_limit is for).
+    let nested: Vec<Triangle> = (0..5_000)
+        .map(|i| 1.01f32.powi(i))
+        .map(|s| tri(Vec3::new(-s, -s, 0.0), Vec3::new(s, -s, 0.0), Vec3::new(0.0, s, 0.0)))
+        .collect();
+    let b = bvh::build(&nested).unwrap();
+    let (depth, stack) = check_wide("nested", &b);
+    assert!(depth > 100 && stack <= 2, "nested: depth {depth}, stack {stack}");
     assert!(b.widen().unwrap().stack_needed_with_leaves > STACK_SIZE as u32);
 
     // Many identical triangles: all tie; the smallest index wins.

@@ -254,3 +254,49 @@ fn an_mtl_colour_with_two_values_is_refused_with_its_line() {
     let err = scene::load_obj_slice(obj.as_bytes(), "kd.obj", &read, &LoadOptions::default()).unwrap_err();
     assert!(err.to_string().contains("line 2: Kd needs three values (r g b), found 2"), "{err}");
 }
+
+/// Loads `input` as glTF on another thread; `None` if that takes over a minute.
+fn load_gltf_within_a_minute(input: Vec<u8>) -> Option<Result<usize, SceneError>> {
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        let loaded = scene::load_gltf_slice(&input, None, &LoadOptions::default()).map(|s| s.triangles.len());
+        let _ = tx.send(loaded);
+    });
+    rx.recv_timeout(Duration::from_secs(60)).ok()
+}
+
+/// The fuzz campaign's hang (issue 31): accessors without a buffer view are zero-filled, as the
+/// specification says, so 65,535 (or 3,000,000) positions all sit at the origin: 21,845
+/// triangles of zero area, on which the BVH build was quadratic (5.6 s; the 3,000,000 variant
+/// ran for over 300 s). Zero-area triangles are dropped now, and a scene of nothing else is
+/// refused, saying so.
+#[test]
+fn a_gltf_of_zero_filled_accessors_is_refused_at_once() {
+    for (name, triangles) in
+        [("zero-filled-accessors-hang.gltf", 21_845), ("zero-filled-accessors-3m-hang.gltf", 1_000_000)]
+    {
+        let loaded = load_gltf_within_a_minute(regression(Target::Gltf, name)).expect("loading ended");
+        let err = loaded.expect_err("no triangle can be hit");
+        assert!(err.to_string().contains(&format!("all {triangles} of its triangles have zero area")), "{name}: {err}");
+    }
+}
+
+/// Zero-area faces among real ones are dropped with one warning that counts them.
+#[test]
+fn zero_area_triangles_are_dropped_with_one_warning() {
+    let mut obj = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\n");
+    for _ in 0..10_000 {
+        obj.push_str("f 1 2 4\nf 1 1 1\n"); // collinear, then coincident
+    }
+    let read = |p: &Path| -> Result<Vec<u8>, SceneError> {
+        Err(SceneError::Io { path: p.to_owned(), source: std::io::ErrorKind::NotFound.into() })
+    };
+    let scene = scene::load_obj_slice(obj.as_bytes(), "z.obj", &read, &LoadOptions::default()).expect("one face");
+    assert_eq!(scene.triangles.len(), 1);
+    let about: Vec<_> = scene.warnings.iter().filter(|w| w.contains("zero area")).collect();
+    assert_eq!(about.len(), 1, "{:?}", scene.warnings);
+    assert!(about[0].starts_with("20000 triangle(s) of zero area"), "{}", about[0]);
+    let only_degenerate = "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n";
+    let err = scene::load_obj_slice(only_degenerate.as_bytes(), "z.obj", &read, &LoadOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("all 1 of its triangles have zero area"), "{err}");
+}

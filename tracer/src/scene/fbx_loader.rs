@@ -196,7 +196,9 @@ impl Loader<'_> {
             }
         }
         if self.triangles.is_empty() {
-            return Err(SceneError::NoTriangles(" (the FBX file has no visible polygon meshes)".into()));
+            return Err(SceneError::NoTriangles(
+                self.warnings.why_no_triangles(" (the FBX file has no visible polygon meshes)"),
+            ));
         }
         let images: Vec<(&[u8], &ImageHeader)> = self.images.iter().map(|(b, h)| (b.as_slice(), h)).collect();
         let textures = decode_textures_forgiving(
@@ -291,7 +293,9 @@ impl Loader<'_> {
             let count = mesh.triangulate_face(&mut corners, *face) as usize;
             for tri in corners.get(..count * 3).unwrap_or(&[]).chunks_exact(3) {
                 let triangle = world.triangle([tri[0], tri[1], tri[2]], material)?;
-                self.triangles.push(triangle);
+                if self.warnings.keep_triangle(&triangle.positions) {
+                    self.triangles.push(triangle);
+                }
             }
         }
         Ok(())

@@ -720,9 +720,44 @@ impl Scene {
 pub(crate) struct Warnings {
     seen: std::collections::HashSet<String>,
     list: Vec<String>,
+    /// Zero-area triangles the loader dropped ([`Warnings::keep_triangle`]), reported as one
+    /// warning with their count.
+    degenerate: usize,
 }
 
 impl Warnings {
+    /// Whether a loader keeps a triangle with these world-space corners: not when its area is
+    /// exactly zero (collinear or coincident corners), since no ray can hit it (the kernel's
+    /// intersection test refuses a zero determinant) and many of them at one place made the
+    /// BVH build quadratic. Dropped ones are counted for one warning.
+    pub(crate) fn keep_triangle(&mut self, positions: &[Vec3; 3]) -> bool {
+        let keep = (positions[1] - positions[0]).cross(positions[2] - positions[0]) != Vec3::ZERO;
+        if !keep {
+            self.degenerate += 1;
+        }
+        keep
+    }
+
+    /// Why a loader found no triangles: `otherwise`, unless it dropped every one as degenerate.
+    pub(crate) fn why_no_triangles(&self, otherwise: &str) -> String {
+        match self.degenerate {
+            0 => otherwise.to_owned(),
+            n => format!(" (all {n} of its triangles have zero area)"),
+        }
+    }
+
+    /// Turns the count of dropped triangles into its warning (once, when the loader is done).
+    fn report_degenerate(&mut self) {
+        let n = std::mem::take(&mut self.degenerate);
+        if n > 0 {
+            self.once("degenerate triangles", || {
+                format!(
+                    "{n} triangle(s) of zero area (collinear or coincident corners) were dropped: no ray can hit them"
+                )
+            });
+        }
+    }
+
     /// Reports `message` unless something was already reported under `key`.
     pub(crate) fn once(&mut self, key: &str, message: impl FnOnce() -> String) {
         if self.seen.insert(key.to_owned()) {
@@ -732,15 +767,18 @@ impl Warnings {
         }
     }
 
-    pub(crate) fn list_is_empty(&self) -> bool {
+    pub(crate) fn list_is_empty(&mut self) -> bool {
+        self.report_degenerate();
         self.list.is_empty()
     }
 
-    pub(crate) fn joined(&self) -> String {
+    pub(crate) fn joined(&mut self) -> String {
+        self.report_degenerate();
         self.list.join("; ")
     }
 
-    pub(crate) fn into_vec(self) -> Vec<String> {
+    pub(crate) fn into_vec(mut self) -> Vec<String> {
+        self.report_degenerate();
         self.list
     }
 }

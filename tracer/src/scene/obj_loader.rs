@@ -138,6 +138,9 @@ fn load_obj_from(
                     SceneError::Malformed(format!("{what}: vertex index {i} is out of range ({vertex_count} vertices)"))
                 })?;
             }
+            if !warnings.keep_triangle(&p) {
+                continue;
+            }
             let flat = flat_normal(&p);
             let normals = match &normals {
                 Some(ns) => {
@@ -160,7 +163,7 @@ fn load_obj_from(
         }
     }
     if triangles.is_empty() {
-        return Err(SceneError::NoTriangles(" (the OBJ has no faces)".into()));
+        return Err(SceneError::NoTriangles(warnings.why_no_triangles(" (the OBJ has no faces)")));
     }
     let images: Vec<(&[u8], &ImageHeader)> = textures.images.iter().map(|(b, h)| (b.as_slice(), h)).collect();
     let mut problems = textures.problems;

@@ -321,8 +321,11 @@ impl Loader<'_> {
         self.visit(&roots)?;
 
         if self.triangles.is_empty() {
+            let degenerate = self.warnings.why_no_triangles("");
             let why = if self.mesh_instances == 0 {
                 " (no node of the scene has a mesh)".to_owned()
+            } else if !degenerate.is_empty() {
+                degenerate
             } else if self.warnings.list_is_empty() {
                 " (its meshes have no triangles)".to_owned()
             } else {
@@ -383,7 +386,6 @@ impl Loader<'_> {
         }
         Ok((0..root.nodes.len()).filter(|&n| !is_child[n]).collect())
     }
-
 }
 
 #[cfg(test)]

@@ -21,7 +21,9 @@
 //! boxes) and its parallel reinsertion optimiser, then converts to this layout in one pass that
 //! also collapses subtrees into leaves of at most [`BuildOptions::max_leaf_size`] triangles
 //! wherever that lowers the SAH cost (the same criterion as obvhs' leaf collapser, applied to
-//! whole subtrees, without its separate node rewrite).
+//! whole subtrees, without its separate node rewrite). Triangles sharing one box with many
+//! others (coincident geometry, on which PLOC is quadratic) are built over as one primitive
+//! and split evenly afterwards (`coincident`).
 
 use glam::{Vec3, Vec3A};
 use obvhs::aabb::Aabb as ObAabb;
@@ -32,6 +34,9 @@ use obvhs::bvh2::Bvh2;
 use obvhs::ploc::PlocBuilder;
 
 use crate::scene::Triangle;
+
+mod coincident;
+use coincident::Coincident;
 
 /// One BVH node (32 bytes): a box and either two children or a range of triangles.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -201,14 +206,15 @@ pub fn build_with(triangles: &[Triangle], options: &BuildOptions) -> Result<Bvh,
         if !(a.is_finite() && b.is_finite() && c.is_finite()) {
             return Err(BvhError::NonFinite(i));
         }
-        let (a, b, c) = (Vec3A::from(a), Vec3A::from(b), Vec3A::from(c));
-        aabbs.push(ObAabb::new(a.min(b).min(c), a.max(b).max(c)));
+        aabbs.push(triangle_aabb(t));
     }
     let p = preset(options);
-    let indices: Vec<u32> = (0..triangles.len() as u32).collect();
-    let mut bvh2 = PlocBuilder::with_capacity(aabbs.len()).build(
+    let coincident = Coincident::find(&aabbs);
+    let primitives = coincident.as_ref().map_or(&aabbs[..], |c| &c.boxes[..]);
+    let indices: Vec<u32> = (0..primitives.len() as u32).collect();
+    let mut bvh2 = PlocBuilder::with_capacity(primitives.len()).build(
         p.ploc_search_distance,
-        &aabbs,
+        primitives,
         indices,
         p.sort_precision,
         p.search_depth_threshold,
@@ -223,7 +229,53 @@ pub fn build_with(triangles: &[Triangle], options: &BuildOptions) -> Result<Bvh,
         collapse(&mut bvh2, max_leaf, traversal_cost);
         reinsertion.run(&mut bvh2, post_collapse, None);
     }
-    convert(&bvh2, triangles.len(), max_leaf, traversal_cost)
+    let primitives = Primitives { coincident: coincident.as_ref(), aabbs: &aabbs };
+    convert(&bvh2, &primitives, max_leaf, traversal_cost)
+}
+
+/// A triangle's bounding box, as the builder takes it.
+fn triangle_aabb(t: &Triangle) -> ObAabb {
+    let [a, b, c] = t.positions.map(Vec3A::from);
+    ObAabb::new(a.min(b).min(c), a.max(b).max(c))
+}
+
+/// What the builder's primitives stand for: triangles, or groups of coincident triangles.
+struct Primitives<'a> {
+    coincident: Option<&'a Coincident>,
+    /// Every triangle's box.
+    aabbs: &'a [ObAabb],
+}
+
+impl Primitives<'_> {
+    /// Appends primitive `p`'s triangles to `order`; returns how many.
+    fn extend(&self, p: u32, order: &mut Vec<u32>) -> u32 {
+        match self.coincident {
+            Some(c) => {
+                let members = c.members(p);
+                order.extend_from_slice(members);
+                members.len() as u32
+            }
+            None => {
+                order.push(p);
+                1
+            }
+        }
+    }
+
+    fn triangle_count(&self, p: u32) -> u32 {
+        self.coincident.map_or(1, |c| c.members(p).len() as u32)
+    }
+
+    /// Tight bounds of the reordered triangles `order[range]`.
+    fn bounds(&self, order: &[u32]) -> (Vec3, Vec3) {
+        let mut b = ObAabb::empty();
+        for &t in order {
+            if let Some(a) = self.aabbs.get(t as usize) {
+                b = b.union(a);
+            }
+        }
+        (Vec3::from(b.min), Vec3::from(b.max))
+    }
 }
 
 fn preset(options: &BuildOptions) -> obvhs::BvhBuildParams {
@@ -242,7 +294,11 @@ fn preset(options: &BuildOptions) -> obvhs::BvhBuildParams {
 /// collapsing subtrees into leaves where the SAH says so (at most `max_leaf` triangles, node
 /// traversal costing `traversal_cost` triangle tests). Doing the collapse here, in one
 /// bottom-up pass over the tree, replaces obvhs' separate collapse step and its node rewrite.
-fn convert(bvh2: &Bvh2, triangle_count: usize, max_leaf: u32, traversal_cost: f32) -> Result<Bvh, BvhError> {
+///
+/// A builder leaf may stand for more than `max_leaf` triangles (a group of coincident ones,
+/// see [`coincident`]): it becomes a balanced subtree over them, halves of its triangle range.
+fn convert(bvh2: &Bvh2, primitives: &Primitives, max_leaf: u32, traversal_cost: f32) -> Result<Bvh, BvhError> {
+    let triangle_count = primitives.aabbs.len();
     let internal = |m: &str| BvhError::Internal(m.to_owned());
     let src = &bvh2.nodes;
     let prims = &bvh2.primitive_indices;
@@ -284,8 +340,12 @@ fn convert(bvh2: &Bvh2, triangle_count: usize, max_leaf: u32, traversal_cost: f3
         let node = &src[s];
         let area = node.aabb().half_area();
         if node.is_leaf() {
-            count[s] = node.prim_count;
-            cost[s] = area * node.prim_count as f32;
+            let start = node.first_index as usize;
+            let range = prims
+                .get(start..start + node.prim_count as usize)
+                .ok_or_else(|| internal("leaf range out of range"))?;
+            count[s] = range.iter().map(|&p| primitives.triangle_count(p)).fold(0, u32::saturating_add);
+            cost[s] = area * count[s] as f32;
             continue;
         }
         let (l, r) = children(node)?;
@@ -306,9 +366,29 @@ fn convert(bvh2: &Bvh2, triangle_count: usize, max_leaf: u32, traversal_cost: f3
     let mut order: Vec<u32> = Vec::with_capacity(triangle_count);
     let placeholder = BvhNode { min: Vec3::ZERO, max: Vec3::ZERO, first: 0, count: 0 };
     nodes.push(placeholder);
-    let mut stack: Vec<(usize, usize)> = vec![(0, 0)];
+    let mut stack: Vec<Emit> = vec![Emit::Node { source: 0, to: 0 }];
     let mut gather: Vec<usize> = Vec::new();
-    while let Some((s, d)) = stack.pop() {
+    while let Some(job) = stack.pop() {
+        let (s, d) = match job {
+            Emit::Node { source, to } => (source, to),
+            Emit::Range { first, count, to } => {
+                let range = order.get(first as usize..(first + count) as usize).unwrap_or(&[]);
+                let (min, max) = primitives.bounds(range);
+                let out = if count <= max_leaf {
+                    BvhNode { min, max, first, count }
+                } else {
+                    let child = nodes.len();
+                    nodes.push(placeholder);
+                    nodes.push(placeholder);
+                    let half = count / 2;
+                    stack.push(Emit::Range { first: first + half, count: count - half, to: child + 1 });
+                    stack.push(Emit::Range { first, count: half, to: child });
+                    BvhNode { min, max, first: child as u32, count: 0 }
+                };
+                *nodes.get_mut(to).ok_or_else(|| internal("destination out of range"))? = out;
+                continue;
+            }
+        };
         let node = &src[s]; // every `s` here was reached in step 1
         let (min, max) = (Vec3::from(node.aabb().min), Vec3::from(node.aabb().max));
         let out = if node.is_leaf() || collapse[s] {
@@ -321,21 +401,29 @@ fn convert(bvh2: &Bvh2, triangle_count: usize, max_leaf: u32, traversal_cost: f3
                     let range = prims
                         .get(start..start + n.prim_count as usize)
                         .ok_or_else(|| internal("leaf range out of range"))?;
-                    order.extend_from_slice(range);
+                    for &p in range {
+                        primitives.extend(p, &mut order);
+                    }
                 } else {
                     let (l, r) = children(n)?;
                     gather.push(r);
                     gather.push(l);
                 }
             }
-            BvhNode { min, max, first, count: order.len() as u32 - first }
+            let count = order.len() as u32 - first;
+            if count > max_leaf {
+                // More coincident triangles than a leaf holds: split their range in halves.
+                stack.push(Emit::Range { first, count, to: d });
+                continue;
+            }
+            BvhNode { min, max, first, count }
         } else {
             let (l, r) = children(node)?;
             let child = nodes.len();
             nodes.push(placeholder);
             nodes.push(placeholder);
-            stack.push((r, child + 1));
-            stack.push((l, child));
+            stack.push(Emit::Node { source: r, to: child + 1 });
+            stack.push(Emit::Node { source: l, to: child });
             BvhNode { min, max, first: child as u32, count: 0 }
         };
         *nodes.get_mut(d).ok_or_else(|| internal("destination out of range"))? = out;
@@ -344,6 +432,13 @@ fn convert(bvh2: &Bvh2, triangle_count: usize, max_leaf: u32, traversal_cost: f3
         return Err(internal("leaves do not reference every triangle once"));
     }
     Ok(Bvh { nodes, triangle_order: order })
+}
+
+/// A pending step of [`convert`]'s output pass: a builder node to emit at `nodes[to]`, or a
+/// range of the reordered triangles (one oversized leaf's) to split into a subtree there.
+enum Emit {
+    Node { source: usize, to: usize },
+    Range { first: u32, count: u32, to: usize },
 }
 
 /// 1 + 2·γ(3) (γ(n) = nε / (1 - nε)): scaling a slab test's exit distance by this makes it
