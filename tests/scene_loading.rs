@@ -18,8 +18,7 @@ fn load(rel: &str) -> Scene {
     scene::load(&scene_file(rel)).unwrap_or_else(|e| panic!("{rel}: {e}"))
 }
 
-/// Every vendored scene with its triangle count (the counts of `../shared/scenes/MANIFEST.md`,
-/// where the larger scenes the benchmarks use are listed too).
+/// Every vendored scene (`tests/data/README.md`) with its triangle count.
 const VENDORED: &[(&str, usize)] = &[
     ("cornell-box/CornellBox-Original.obj", 36),
     ("cornell-box/CornellBox-Original.gltf", 36),
