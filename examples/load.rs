@@ -77,7 +77,8 @@ fn read_response(reader: &mut BufReader<TcpStream>) -> std::io::Result<(u16, u64
 }
 
 pub fn run(options: &Options) -> anyhow::Result<Report> {
-    let sky = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/hdri/venice_sunset_1k.hdr");
+    // The sky vendored for the tests (tests/data/README.md): tests/load.rs runs this.
+    let sky = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/scenes/hdri/venice_sunset_1k.hdr");
     let sky = sky.to_string_lossy().into_owned();
     let (mut server, url) =
         serve_child::start_serve(&options.exe, &["--sky", &sky, "--timeout", "2"], Duration::from_secs(120), false)?;

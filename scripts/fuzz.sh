@@ -6,7 +6,7 @@
 # Targets: gltf obj texture sky bundle http (see docs/fuzzing.md). The binaries are built with
 # SanitizerCoverage (rustc's -Cpasses=sancov-module; no cargo-fuzz, no nightly) into
 # target/<host triple>/release (host builds are untouched). The corpus grows in
-# fuzz/corpus/TARGET (seeded from the shared data and fuzz/regressions/TARGET); findings land
+# fuzz/corpus/TARGET (seeded from tests/data, or $LIGHTPORT_SHARED, and fuzz/regressions/TARGET); findings land
 # in fuzz/artifacts/TARGET. Each input runs under a time bound (-timeout, a hang is a finding)
 # and the process under an RSS limit (-rss_limit_mb).
 set -euo pipefail

@@ -1,10 +1,12 @@
 //! The `lightport render` command line: forgiving loading, `--strict`, and the warning for a
 //! scene that nothing lights.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-const SCENES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes");
+use common::test_data;
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("lightport-cli-{}-{name}", std::process::id()));
@@ -12,11 +14,12 @@ fn scratch(name: &str) -> PathBuf {
     dir
 }
 
-/// `lightport render SCENE ARGS` at a tiny size, writing into `dir`.
+/// `lightport render SCENE ARGS` at a tiny size, writing into `dir`; `scene` relative to
+/// `tests/data/scenes/`.
 fn render(scene: &str, args: &[&str], dir: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_lightport"))
         .arg("render")
-        .arg(format!("{SCENES}/{scene}"))
+        .arg(test_data(&format!("scenes/{scene}")))
         .args(["--width", "8", "--height", "8", "--spp", "1", "--out"])
         .arg(dir.join("out.png"))
         .args(args)
@@ -30,20 +33,21 @@ fn stderr(o: &Output) -> String {
 
 #[test]
 fn a_missing_texture_is_a_warning_and_strict_refuses_it() {
-    let dir = scratch("pica");
-    let pica = "extra/kajiya/pica_pica_-_mini_diorama_01/scene.gltf";
-    let lenient = render(pica, &[], &dir);
+    let dir = scratch("missing-texture");
+    // Two textured boxes; the second one's base colour image is not there.
+    let scene = "missing-texture/MissingTexture.gltf";
+    let lenient = render(scene, &[], &dir);
     let err = stderr(&lenient);
     assert!(lenient.status.success(), "{err}");
-    let warned: Vec<&str> = err.lines().filter(|l| l.contains("Wax_Pastel_Label_02_baseColor.png")).collect();
+    let warned: Vec<&str> = err.lines().filter(|l| l.contains("Label_baseColor.png")).collect();
     assert!(warned.len() == 1 && warned[0].starts_with("warning: "), "{err}");
     assert!(dir.join("out.png").is_file());
     std::fs::remove_file(dir.join("out.png")).unwrap();
 
-    let strict = render(pica, &["--strict"], &dir);
+    let strict = render(scene, &["--strict"], &dir);
     let err = stderr(&strict);
     assert!(!strict.status.success(), "{err}");
-    assert!(err.starts_with("error: ") && err.contains("Wax_Pastel_Label_02_baseColor.png"), "{err}");
+    assert!(err.starts_with("error: ") && err.contains("Label_baseColor.png"), "{err}");
     assert!(!dir.join("out.png").exists(), "an image was written anyway");
     std::fs::remove_dir_all(dir).ok();
 }
@@ -51,8 +55,8 @@ fn a_missing_texture_is_a_warning_and_strict_refuses_it() {
 #[test]
 fn an_unlit_scene_is_warned_about_and_a_sky_lights_it() {
     let dir = scratch("unlit");
-    // kajiya's Cornell box: its light's material does not emit.
-    let unlit = "extra/kajiya/cornell_box/scene.gltf";
+    // Khronos' Box: one material, which does not emit, and no sky.
+    let unlit = "khronos/Box/glTF-Binary/Box.glb";
     let dark = render(unlit, &[], &dir);
     let err = stderr(&dark);
     assert!(dark.status.success(), "{err}");
@@ -60,8 +64,8 @@ fn an_unlit_scene_is_warned_about_and_a_sky_lights_it() {
     let strict = render(unlit, &["--strict"], &dir);
     assert!(!strict.status.success() && stderr(&strict).contains("nothing lights the scene"), "{}", stderr(&strict));
 
-    let sky = format!("{SCENES}/hdri/venice_sunset_1k.hdr");
-    let lit = render(unlit, &["--strict", "--sky", &sky], &dir);
+    let sky = test_data("scenes/hdri/venice_sunset_1k.hdr");
+    let lit = render(unlit, &["--strict", "--sky", sky.to_str().unwrap()], &dir);
     assert!(lit.status.success(), "{}", stderr(&lit));
     assert!(!stderr(&lit).contains("warning"), "{}", stderr(&lit));
     // The built-in Cornell box has its light.

@@ -1,4 +1,4 @@
-//! FBX loading (`../shared/scenes/fbx/`, ufbx's own test files): each FBX against the OBJ the
+//! FBX loading (`tests/data/scenes/fbx/`, ufbx's own test files): each FBX against the OBJ the
 //! same tool exported from the same model (triangles, bounds, and rendered images that agree
 //! statistically), axis systems, ASCII against binary, embedded and external textures, what is
 //! warned about, and mutated files, which must give an error or a scene and never a panic or a
@@ -7,7 +7,7 @@
 mod common;
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use glam::{DVec3, Mat3, Vec3};
@@ -17,7 +17,7 @@ use tracer::scene::{self, Aabb, Camera, LoadOptions, Material, Scene, SceneError
 use tracer::stats::Estimate;
 
 fn fbx_dir() -> PathBuf {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes/fbx")).to_owned()
+    common::test_data("scenes/fbx")
 }
 
 fn load(name: &str) -> Scene {

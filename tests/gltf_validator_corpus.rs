@@ -1,6 +1,8 @@
-//! The Khronos glTF-Validator corpus (`../shared/gltf-validator-tests/`, 372 mostly invalid
+//! The Khronos glTF-Validator corpus (`tests/data/gltf-validator-tests/`, 372 mostly invalid
 //! files): every file loads or is refused with an error; none panics, none hangs. Files the
 //! validator reports as error-free and that contain triangles must load.
+
+mod common;
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
@@ -9,7 +11,7 @@ use std::time::{Duration, Instant};
 use tracer::scene::{self, SceneError};
 
 fn corpus_dir() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/gltf-validator-tests"))
+    common::test_data("gltf-validator-tests")
 }
 
 fn collect(dir: &Path, out: &mut Vec<PathBuf>) {

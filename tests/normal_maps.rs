@@ -422,14 +422,11 @@ fn adversarial_maps_keep_energy_bounded_in_a_white_furnace() {
 // ---------------------------------------------------------------------------------------------
 // (5) Loading.
 
-fn shared(path: &str) -> std::path::PathBuf {
-    common::agreement::shared(path)
-}
-
 #[test]
 fn damaged_helmet_loads_with_normal_maps_and_renders_finite() {
     let mut scene =
-        tracer::scene::load(&shared("scenes/khronos/DamagedHelmet/glTF/DamagedHelmet.gltf")).expect("loads");
+        tracer::scene::load(&common::test_data("scenes/khronos/DamagedHelmet/glTF-Binary/DamagedHelmet.glb"))
+            .expect("loads");
     assert!(scene.materials.iter().any(|m| m.normal_texture.is_some()), "DamagedHelmet has a normal map");
     assert!(!scene.warnings.iter().any(|w| w.contains("normal")), "{:?}", scene.warnings);
     let with_tangents = scene.triangles.iter().filter(|t| t.tangents[0] != Vec4::ZERO).count();

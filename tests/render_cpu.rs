@@ -122,8 +122,8 @@ fn strategies_agree_on_the_cornell_box() {
 
 #[test]
 fn strategies_agree_on_a_textured_scene() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes/khronos/BoxTextured/glTF/BoxTextured.gltf");
-    let mut scene = scene::load(std::path::Path::new(path)).expect("BoxTextured loads");
+    let path = common::test_data("scenes/khronos/BoxTextured/glTF/BoxTextured.gltf");
+    let mut scene = scene::load(&path).expect("BoxTextured loads");
     scene.sky = Some(Sky::uniform(Vec3::splat(1.0)));
     assert_strategies_agree(&scene, 32, 128);
 }

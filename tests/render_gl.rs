@@ -4,9 +4,9 @@
 
 mod common;
 
-use std::path::Path;
 use std::time::Instant;
 
+use common::test_data;
 use glam::{DVec3, Vec3, Vec4Swizzles};
 use tracer::backend::cpu::CpuRenderer;
 use tracer::backend::gl::{GlError, GlOptions, GlRenderer, HeadlessContext};
@@ -22,10 +22,6 @@ const Z_BOUND: f64 = 5.0;
 
 /// Regions per side: the image's 4 x 4 blocks, plus the whole image.
 const BLOCKS: u32 = 4;
-
-fn shared(path: &str) -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared").join(path)
-}
 
 fn packed(scene: &Scene, strategy: Strategy, size: u32, max_depth: u32) -> Packed {
     let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
@@ -126,7 +122,7 @@ fn gl_agrees_with_cpu_on_the_cornell_box() {
 
 #[test]
 fn gl_agrees_with_cpu_on_a_textured_scene() {
-    let mut scene = scene::load(&shared("scenes/khronos/BoxTextured/glTF/BoxTextured.gltf")).expect("BoxTextured");
+    let mut scene = scene::load(&test_data("scenes/khronos/BoxTextured/glTF/BoxTextured.gltf")).expect("BoxTextured");
     scene.sky = Some(Sky::uniform(Vec3::ONE));
     assert_gl_agrees_with_cpu("BoxTextured", &scene, 32, 128, 6);
 }
@@ -145,7 +141,7 @@ fn gl_agrees_with_cpu_on_metal_rough_spheres() {
 #[test]
 fn gl_agrees_with_cpu_on_normal_maps() {
     let mut scene =
-        scene::load(&shared("scenes/khronos/DamagedHelmet/glTF/DamagedHelmet.gltf")).expect("DamagedHelmet");
+        scene::load(&test_data("scenes/khronos/DamagedHelmet/glTF-Binary/DamagedHelmet.glb")).expect("DamagedHelmet");
     scene.sky = Some(Sky::uniform(Vec3::ONE));
     assert!(packed(&scene, Strategy::Mis, 4, 2).features.normal_map);
     assert_gl_agrees_with_cpu("DamagedHelmet", &scene, 32, 64, 4);
@@ -153,7 +149,7 @@ fn gl_agrees_with_cpu_on_normal_maps() {
 
 fn sky_lit_plane() -> Scene {
     let mut scene = scene::diffuse_plane(Vec3::splat(0.6));
-    scene.sky = Some(scene::load_sky(&shared("scenes/hdri/venice_sunset_1k.hdr"), 1.0, 0.0).expect("sky"));
+    scene.sky = Some(scene::load_sky(&test_data("scenes/hdri/venice_sunset_1k.hdr"), 1.0, 0.0).expect("sky"));
     scene
 }
 

@@ -1,54 +1,49 @@
-//! Scene loading: every scene of `../shared/scenes/MANIFEST.md`, the loaders' conventions
-//! (transforms, winding, units, cameras) on small glTF files written here, and malformed input,
-//! which must give an error and never a panic.
+//! Scene loading: every scene vendored in `tests/data/scenes/` (see `tests/data/README.md`),
+//! the loaders' conventions (transforms, winding, units, cameras) on small glTF files written
+//! here, and malformed input, which must give an error and never a panic.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::PathBuf;
 
 use glam::{Vec2, Vec3, Vec4};
 use tracer::scene::{self, LoadOptions, Scene, SceneError, Wrap};
 
-fn shared(rel: &str) -> PathBuf {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes")).join(rel)
+/// A scene file of the vendored test data, `rel` relative to `tests/data/scenes/`.
+fn scene_file(rel: &str) -> PathBuf {
+    common::test_data(&format!("scenes/{rel}"))
 }
 
 fn load(rel: &str) -> Scene {
-    scene::load(&shared(rel)).unwrap_or_else(|e| panic!("{rel}: {e}"))
+    scene::load(&scene_file(rel)).unwrap_or_else(|e| panic!("{rel}: {e}"))
 }
 
-/// Every scene in the manifest with its triangle count.
-const MANIFEST: &[(&str, usize)] = &[
+/// Every vendored scene (`tests/data/README.md`) with its triangle count.
+const VENDORED: &[(&str, usize)] = &[
     ("cornell-box/CornellBox-Original.obj", 36),
     ("cornell-box/CornellBox-Original.gltf", 36),
     ("khronos/Box/glTF/Box.gltf", 12),
     ("khronos/Box/glTF-Binary/Box.glb", 12),
     ("khronos/BoxTextured/glTF/BoxTextured.gltf", 12),
     ("khronos/BoxTextured/glTF-Binary/BoxTextured.glb", 12),
-    ("khronos/Avocado/glTF/Avocado.gltf", 682),
     ("khronos/Duck/glTF/Duck.gltf", 4212),
     ("khronos/Duck/glTF-Binary/Duck.glb", 4212),
-    ("khronos/DamagedHelmet/glTF/DamagedHelmet.gltf", 15452),
     ("khronos/DamagedHelmet/glTF-Binary/DamagedHelmet.glb", 15452),
     ("khronos/EmissiveStrengthTest/glTF/EmissiveStrengthTest.gltf", 90),
     ("khronos/EmissiveStrengthTest/glTF-Binary/EmissiveStrengthTest.glb", 90),
-    ("khronos/LightsPunctualLamp/glTF/LightsPunctualLamp.gltf", 6000),
-    ("khronos/StainedGlassLamp/glTF-JPG-PNG/StainedGlassLamp.gltf", 35132),
-    ("threejs/LittlestTokyo.glb", 141_802),
-    ("threejs/collision-world.glb", 1754),
-    ("extra/bitterli-cornell-box/bitterli-cornell-box.gltf", 36),
-    ("extra/kajiya/cornell_box/scene.gltf", 32),
     ("extra/kajiya/emissive/triangle.glb", 1),
-    ("extra/GlassVaseFlowers/glTF/GlassVaseFlowers.gltf", 14036),
+    ("missing-texture/MissingTexture.gltf", 24),
 ];
 
 #[test]
-fn manifest_scenes_load_with_their_triangle_counts() {
+fn vendored_scenes_load_with_their_triangle_counts() {
     let mut failures = Vec::new();
-    for &(rel, triangles) in MANIFEST {
-        match scene::load(&shared(rel)) {
+    for &(rel, triangles) in VENDORED {
+        match scene::load(&scene_file(rel)) {
             Ok(s) => {
                 s.validate().unwrap();
                 if s.triangles.len() != triangles {
-                    failures.push(format!("{rel}: {} triangles, manifest says {triangles}", s.triangles.len()));
+                    failures.push(format!("{rel}: {} triangles, expected {triangles}", s.triangles.len()));
                 }
                 println!(
                     "{rel}: {} triangles, {} materials, {} textures, {} emissive, {} point lights, {} warnings",
@@ -73,37 +68,47 @@ fn strict() -> LoadOptions {
     LoadOptions { strict: true }
 }
 
+/// Two textured boxes (`tests/data/scenes/missing-texture/`), the second one's base colour image
+/// absent, as in the Pica Pica diorama this test used before the test scenes were vendored.
 #[test]
-fn pica_pica_loads_with_one_warning_for_its_missing_texture() {
-    let path = shared("extra/kajiya/pica_pica_-_mini_diorama_01/scene.gltf");
+fn a_scene_loads_with_one_warning_for_its_missing_texture() {
+    let path = scene_file("missing-texture/MissingTexture.gltf");
     let s = scene::load(&path).unwrap();
-    assert_eq!(s.triangles.len(), 76_274);
-    let missing: Vec<&String> = s.warnings.iter().filter(|w| w.contains("Wax_Pastel_Label_02_baseColor.png")).collect();
+    assert_eq!(s.triangles.len(), 24);
+    let missing: Vec<&String> = s.warnings.iter().filter(|w| w.contains("Label_baseColor.png")).collect();
     assert_eq!(missing.len(), 1, "{:?}", s.warnings);
     // The warning names the material that lost its texture; that material keeps its factors.
-    let wax = s.materials.iter().position(|m| missing[0].contains(&format!("{:?}", m.name))).expect("material named");
-    assert_eq!(s.materials[wax].base_color_texture, None);
-    // Its other textures are kept: four decals and a metal-roughness map.
-    assert_eq!(s.textures.len(), 5);
-    assert_eq!(s.materials.iter().filter(|m| m.base_color_texture.is_some()).count(), 4);
-    assert!(s.materials.iter().any(|m| m.metallic_roughness_texture.is_some()));
+    let label = s.materials.iter().position(|m| missing[0].contains(&format!("{:?}", m.name))).expect("material named");
+    let m = &s.materials[label];
+    assert_eq!(m.name, "Label");
+    assert_eq!(m.base_color_texture, None);
+    assert!((m.base_color - Vec3::new(0.8, 0.3, 0.2)).abs().max_element() < 1e-6, "{m:?}");
+    assert_eq!((m.metallic, m.roughness), (0.5, 0.7));
+    // Its other texture is kept, and so is the other material's.
+    assert!(m.metallic_roughness_texture.is_some(), "{m:?}");
+    let decal = s.materials.iter().find(|m| m.name == "Decal").expect("Decal");
+    assert!(decal.base_color_texture.is_some() && decal.is_emissive(), "{decal:?}");
+    // One texture: the logo, Decal's base colour and Label's metal-roughness map.
+    assert_eq!(s.textures.len(), 1);
+    assert_eq!(decal.base_color_texture, m.metallic_roughness_texture);
+    assert_eq!(s.materials.iter().filter(|m| m.base_color_texture.is_some()).count(), 1);
     let e = scene::load_with(&path, &strict()).unwrap_err();
-    assert!(matches!(e, SceneError::Io { .. }) && e.to_string().contains("Wax_Pastel_Label_02_baseColor.png"), "{e}");
+    assert!(matches!(e, SceneError::Io { .. }) && e.to_string().contains("Label_baseColor.png"), "{e}");
 }
 
 #[test]
 fn webp_textures_are_decoded_in_preference_to_their_fallback() {
     // BoxTextured with its texture's EXT_texture_webp image (solid red) beside the PNG fallback.
     let dir = scratch("webp");
-    let gltf = std::fs::read_to_string(shared("khronos/BoxTextured/glTF/BoxTextured.gltf")).unwrap();
+    let gltf = std::fs::read_to_string(scene_file("khronos/BoxTextured/glTF/BoxTextured.gltf")).unwrap();
     let gltf = gltf
         .replace(r#""source": 0"#, r#""source": 0, "extensions": {"EXT_texture_webp": {"source": 1}}"#)
         .replace(r#""uri": "CesiumLogoFlat.png""#, r#""uri": "CesiumLogoFlat.png"}, {"uri": "red.webp""#)
         .replacen("{", r#"{"extensionsUsed": ["EXT_texture_webp"], "extensionsRequired": ["EXT_texture_webp"],"#, 1);
     for f in ["BoxTextured0.bin", "CesiumLogoFlat.png"] {
-        std::fs::copy(shared(&format!("khronos/BoxTextured/glTF/{f}")), dir.join(f)).unwrap();
+        std::fs::copy(scene_file(&format!("khronos/BoxTextured/glTF/{f}")), dir.join(f)).unwrap();
     }
-    let webp = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/gltf-validator-tests/ext/EXT_texture_webp"));
+    let webp = common::test_data("gltf-validator-tests/ext/EXT_texture_webp");
     for (file, alpha) in [("VP8L_red.webp", 1.0), ("VP8_red.webp", 1.0), ("VP8X_red_transparent.webp", 128.0 / 255.0)] {
         std::fs::copy(webp.join("data/image").join(file), dir.join("red.webp")).unwrap();
         std::fs::write(dir.join("box.gltf"), &gltf).unwrap();
@@ -117,12 +122,41 @@ fn webp_textures_are_decoded_in_preference_to_their_fallback() {
     }
 }
 
+/// A glass vase in the manner of Khronos' GlassVaseFlowers and LightsPunctualLamp (which this
+/// test read before the test scenes were vendored): three primitives, each with its own
+/// transmissive, volumetric material, and a point light. Every material names both extensions:
+/// each is warned about once, and the light is kept.
 #[test]
 fn unsupported_features_are_warned_about_once() {
-    let lamp = load("khronos/LightsPunctualLamp/glTF/LightsPunctualLamp.gltf");
-    assert!(lamp.warnings.iter().any(|w| w.contains("KHR_materials_transmission")), "{:?}", lamp.warnings);
-    assert!(!lamp.point_lights.is_empty());
-    let vase = load("extra/GlassVaseFlowers/glTF/GlassVaseFlowers.gltf");
+    let nodes = r#"[
+        {"mesh": 0, "children": [1]},
+        {"translation": [0, 2, 0], "extensions": {"KHR_lights_punctual": {"light": 0}}}
+    ]"#;
+    let glass = |name: &str| {
+        format!(
+            r#"{{"name": "{name}", "extensions": {{
+                "KHR_materials_transmission": {{"transmissionFactor": 1.0}},
+                "KHR_materials_volume": {{"thicknessFactor": 0.1, "attenuationDistance": 0.5}}}}}}"#
+        )
+    };
+    let extra = format!(
+        r#",
+  "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_transmission", "KHR_materials_volume"],
+  "extensions": {{"KHR_lights_punctual": {{"lights": [{{"type": "point", "intensity": 5}}]}}}},
+  "materials": [{}, {}, {}]"#,
+        glass("glass"),
+        glass("water"),
+        glass("stem")
+    );
+    let one = r#"{"attributes": {"POSITION": 0}, "indices": 1"#;
+    let json = gltf_json(&TRI, &[0, 1, 2], nodes, &extra).replace(
+        &format!("[{one}}}]"),
+        &format!("[{one}, \"material\": 0}}, {one}, \"material\": 1}}, {one}, \"material\": 2}}]"),
+    );
+    let vase = load_str(&json).unwrap();
+    assert_eq!(vase.triangles.len(), 3);
+    assert_eq!(vase.materials.len(), 3, "{:?}", vase.materials);
+    assert_eq!(vase.point_lights.len(), 1);
     for ext in ["KHR_materials_transmission", "KHR_materials_volume"] {
         assert_eq!(vase.warnings.iter().filter(|w| w.contains(ext)).count(), 1, "{ext}: {:?}", vase.warnings);
     }
@@ -132,9 +166,28 @@ fn unsupported_features_are_warned_about_once() {
     assert_eq!(sorted.len(), vase.warnings.len(), "duplicated warnings: {:?}", vase.warnings);
 }
 
+/// A primitive compressed with Draco, the extension required (as in the Draco-compressed
+/// LittlestTokyo, 4 MB, which this test read before the test scenes were vendored): its
+/// accessors have no buffer views, the compressed data is a buffer view of its own.
 #[test]
 fn draco_compressed_scene_is_refused_by_name() {
-    let err = scene::load(&shared("extra/LittlestTokyo.draco.glb")).unwrap_err();
+    let json = r#"{
+  "asset": {"version": "2.0"},
+  "extensionsUsed": ["KHR_draco_mesh_compression"],
+  "extensionsRequired": ["KHR_draco_mesh_compression"],
+  "scene": 0,
+  "scenes": [{"nodes": [0]}],
+  "nodes": [{"mesh": 0}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "extensions": {
+      "KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}}]}],
+  "buffers": [{"byteLength": 16, "uri": "data:application/octet-stream;base64,RFJBQ08CAgEBAAAAAAAAAA=="}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 16}],
+  "accessors": [
+    {"componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+    {"componentType": 5123, "count": 3, "type": "SCALAR"}
+  ]
+}"#;
+    let err = load_str(json).unwrap_err();
     assert!(
         matches!(err, SceneError::UnsupportedRequiredExtension(ref e) if e == "KHR_draco_mesh_compression"),
         "{err:?}"
@@ -186,20 +239,56 @@ fn textures_and_emission_are_decoded_to_linear() {
     let m = &boxed.materials[boxed.triangles[0].material as usize];
     assert_eq!(m.base_color_texture, Some(0));
 
-    let helmet = load("khronos/DamagedHelmet/glTF/DamagedHelmet.gltf");
+    // DamagedHelmet: five JPEG images in the GLB's buffer.
+    let helmet = load("khronos/DamagedHelmet/glTF-Binary/DamagedHelmet.glb");
     let m = &helmet.materials[0];
     assert!(m.base_color_texture.is_some() && m.emissive_texture.is_some());
     assert!(m.emission.max_element() > 0.0);
+    assert!(helmet.emissive_triangle_count() > 0);
 
     // EmissiveStrengthTest: emissiveFactor x KHR_materials_emissive_strength.
     let strength = load("khronos/EmissiveStrengthTest/glTF/EmissiveStrengthTest.gltf");
     let max = strength.materials.iter().map(|m| m.emission.max_element()).fold(0.0, f32::max);
     assert!(max > 1.5, "strength not applied: max emission {max}");
 
-    // JPEG + PNG textures.
-    let lamp = load("khronos/StainedGlassLamp/glTF-JPG-PNG/StainedGlassLamp.gltf");
-    assert!(!lamp.textures.is_empty());
+    // JPEG and PNG textures as files beside a .gltf (StainedGlassLamp's glTF-JPG-PNG form, 12 MB,
+    // was read here before the test scenes were vendored): BoxTextured with its PNG as base
+    // colour and the helmet's emissive JPEG, cut out of its GLB, as emissive texture.
+    let dir = scratch("jpg-png");
+    for f in ["BoxTextured0.bin", "CesiumLogoFlat.png"] {
+        std::fs::copy(scene_file(&format!("khronos/BoxTextured/glTF/{f}")), dir.join(f)).unwrap();
+    }
+    let jpeg = glb_image(&std::fs::read(scene_file("khronos/DamagedHelmet/glTF-Binary/DamagedHelmet.glb")).unwrap(), 2);
+    assert_eq!(jpeg[..3], [0xFF, 0xD8, 0xFF], "a JPEG");
+    std::fs::write(dir.join("emissive.jpg"), &jpeg).unwrap();
+    let gltf = std::fs::read_to_string(scene_file("khronos/BoxTextured/glTF/BoxTextured.gltf")).unwrap();
+    let gltf = gltf
+        .replace(
+            r#""name": "Texture""#,
+            r#""name": "Texture", "emissiveFactor": [1, 1, 1], "emissiveTexture": {"index": 1}"#,
+        )
+        .replace(r#""source": 0"#, r#""source": 0}, {"sampler": 0, "source": 1"#)
+        .replace(r#""uri": "CesiumLogoFlat.png""#, r#""uri": "CesiumLogoFlat.png"}, {"uri": "emissive.jpg""#);
+    std::fs::write(dir.join("jpg-png.gltf"), gltf).unwrap();
+    let lamp = scene::load_with(&dir.join("jpg-png.gltf"), &strict()).unwrap();
+    assert_eq!(lamp.textures.len(), 2, "{:?}", lamp.warnings);
+    let m = &lamp.materials[0];
+    assert!(m.base_color_texture.is_some() && m.emissive_texture.is_some(), "{m:?}");
+    assert_ne!(m.base_color_texture, m.emissive_texture);
+    let emissive = &lamp.textures[m.emissive_texture.unwrap() as usize];
+    assert!(emissive.width > 256 && emissive.height > 256, "the JPEG is the helmet's: {}", emissive.width);
     assert!(lamp.emissive_triangle_count() > 0);
+}
+
+/// The bytes of image `index` of a GLB whose images are buffer views of its BIN chunk.
+fn glb_image(glb: &[u8], index: usize) -> Vec<u8> {
+    let u32_at = |at: usize| u32::from_le_bytes(glb[at..at + 4].try_into().unwrap()) as usize;
+    let json_len = u32_at(12);
+    let json: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let bin = &glb[20 + json_len + 8..];
+    let view = &json["bufferViews"][json["images"][index]["bufferView"].as_u64().unwrap() as usize];
+    let offset = view["byteOffset"].as_u64().unwrap_or(0) as usize;
+    bin[offset..offset + view["byteLength"].as_u64().unwrap() as usize].to_vec()
 }
 
 #[test]
@@ -215,22 +304,32 @@ fn duck_node_transform_is_applied() {
 
 #[test]
 fn skies_load() {
-    let sky = scene::load_sky(&shared("hdri/venice_sunset_1k.hdr"), 2.0, 0.5).unwrap();
+    let sky = scene::load_sky(&scene_file("hdri/venice_sunset_1k.hdr"), 2.0, 0.5).unwrap();
     assert_eq!((sky.width, sky.height), (1024, 512));
     assert_eq!(sky.texels.len(), 1024 * 512);
     assert_eq!((sky.intensity, sky.rotation), (2.0, 0.5));
     assert!(sky.texels.iter().all(|t| t.is_finite() && t.min_element() >= 0.0));
     assert!(sky.texels.iter().any(|t| t.max_element() > 1.0), "HDR data expected");
-    let tiny = scene::load_sky(&shared("hdri/spot1Lux.hdr"), 1.0, 0.0).unwrap();
+    let tiny = scene::load_sky(&scene_file("hdri/spot1Lux.hdr"), 1.0, 0.0).unwrap();
     assert!(tiny.width > 0 && tiny.height > 0);
-    let exr = scene::load_sky(&shared("extra/bitterli-cornell-box/tungsten/TungstenRender.exr"), 1.0, 0.0).unwrap();
+    // An OpenEXR sky, written here (Tungsten's reference render of Bitterli's Cornell box, 2.7 MB,
+    // was read here before the test scenes were vendored): its values come back.
+    let dir = scratch("exr-sky");
+    let radiance = |x: u32, y: u32| [x as f32 * 0.25, y as f32 * 2.0, 40.0];
+    image::Rgb32FImage::from_fn(16, 8, |x, y| image::Rgb(radiance(x, y))).save(dir.join("sky.exr")).unwrap();
+    let exr = scene::load_sky(&dir.join("sky.exr"), 1.0, 0.0).unwrap();
+    assert_eq!((exr.width, exr.height), (16, 8));
     assert!(exr.width > 0 && exr.texels.len() == (exr.width * exr.height) as usize);
+    for (i, t) in exr.texels.iter().enumerate() {
+        let expected = Vec3::from(radiance(i as u32 % 16, i as u32 / 16));
+        assert!((*t - expected).abs().max_element() < 1e-3 * expected.max_element(), "texel {i}: {t}");
+    }
 
-    let missing = scene::load_sky(&shared("hdri/does-not-exist.hdr"), 1.0, 0.0).unwrap_err();
+    let missing = scene::load_sky(&scene_file("hdri/does-not-exist.hdr"), 1.0, 0.0).unwrap_err();
     assert!(matches!(missing, SceneError::Io { .. }), "{missing}");
-    assert!(scene::load_sky(&shared("hdri/venice_sunset_1k.hdr"), f32::NAN, 0.0).is_err());
-    assert!(scene::load_sky(&shared("hdri/venice_sunset_1k.hdr"), -1.0, 0.0).is_err());
-    assert!(scene::load_sky(&shared("cornell-box/CornellBox-Original.obj"), 1.0, 0.0).is_err());
+    assert!(scene::load_sky(&scene_file("hdri/venice_sunset_1k.hdr"), f32::NAN, 0.0).is_err());
+    assert!(scene::load_sky(&scene_file("hdri/venice_sunset_1k.hdr"), -1.0, 0.0).is_err());
+    assert!(scene::load_sky(&scene_file("cornell-box/CornellBox-Original.obj"), 1.0, 0.0).is_err());
 
     // The documented mapping: up is row 0, -Z is the image centre.
     let s = tracer::scene::Sky::uniform(Vec3::ONE);
@@ -550,7 +649,7 @@ fn malformed_files_are_refused() {
     };
 
     // Truncated .glb files, at many lengths.
-    let glb = std::fs::read(shared("khronos/BoxTextured/glTF-Binary/BoxTextured.glb")).unwrap();
+    let glb = std::fs::read(scene_file("khronos/BoxTextured/glTF-Binary/BoxTextured.glb")).unwrap();
     for len in [0, 3, 4, 11, 12, 19, 20, 100, glb.len() / 2, glb.len() - 1] {
         let p = write("truncated.glb", &glb[..len]);
         expect_error(&format!("glb truncated to {len} bytes"), scene::load(&p));
@@ -581,20 +680,20 @@ fn malformed_files_are_refused() {
     expect_error("missing file", scene::load(&dir.join("nope.gltf")));
 
     // Missing .bin.
-    let gltf = std::fs::read_to_string(shared("khronos/Box/glTF/Box.gltf")).unwrap();
+    let gltf = std::fs::read_to_string(scene_file("khronos/Box/glTF/Box.gltf")).unwrap();
     let e = expect_error("missing .bin", scene::load(&write("missing-bin.gltf", gltf.as_bytes())));
     assert!(matches!(e, SceneError::Io { .. }) && e.to_string().contains("Box0.bin"), "{e}");
 
     // Truncated .bin.
-    let bin = std::fs::read(shared("khronos/Box/glTF/Box0.bin")).unwrap();
+    let bin = std::fs::read(scene_file("khronos/Box/glTF/Box0.bin")).unwrap();
     write("Box0.bin", &bin[..bin.len() / 2]);
     let e = expect_error("truncated .bin", scene::load(&write("truncated-bin.gltf", gltf.as_bytes())));
     assert!(e.to_string().contains("truncated"), "{e}");
 
     // A texture that cannot be used (missing, unreadable, corrupt, truncated): a warning naming
     // the file and the material, which keeps its factors; an error when loading is strict.
-    let textured = std::fs::read_to_string(shared("khronos/BoxTextured/glTF/BoxTextured.gltf")).unwrap();
-    std::fs::copy(shared("khronos/BoxTextured/glTF/BoxTextured0.bin"), dir.join("BoxTextured0.bin")).unwrap();
+    let textured = std::fs::read_to_string(scene_file("khronos/BoxTextured/glTF/BoxTextured.gltf")).unwrap();
+    std::fs::copy(scene_file("khronos/BoxTextured/glTF/BoxTextured0.bin"), dir.join("BoxTextured0.bin")).unwrap();
     let p = write("missing-texture.gltf", textured.as_bytes());
     let forgiven = |what: &str| {
         let s = scene::load(&p).unwrap_or_else(|e| panic!("{what}: {e}"));
@@ -618,7 +717,7 @@ fn malformed_files_are_refused() {
 
     write("CesiumLogoFlat.png", &garbage[..100]);
     forgiven("corrupt texture");
-    let mut png = std::fs::read(shared("khronos/BoxTextured/glTF/CesiumLogoFlat.png")).unwrap();
+    let mut png = std::fs::read(scene_file("khronos/BoxTextured/glTF/CesiumLogoFlat.png")).unwrap();
     png.truncate(png.len() / 2);
     write("CesiumLogoFlat.png", &png);
     forgiven("truncated texture (fails when its pixels are decoded)");

@@ -4,6 +4,8 @@
 //! One server is shared by the tests that only read (it takes a few seconds to start); each
 //! test's traffic is bounded in count and time.
 
+mod common;
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::PathBuf;
@@ -11,9 +13,14 @@ use std::process::{Child, ChildStdin, Command, Stdio};
 use std::sync::{mpsc, Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
-const SCENES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes");
 /// The server's --timeout in these tests (seconds): short, so the slow-client test is quick.
 const SERVER_TIMEOUT_S: u64 = 2;
+
+/// A scene of the vendored test data (`rel` relative to `tests/data/scenes/`), as the command
+/// line takes it.
+fn scene_path(rel: &str) -> String {
+    common::test_data(&format!("scenes/{rel}")).to_str().expect("a UTF-8 path").to_owned()
+}
 
 struct Server {
     child: Child,
@@ -157,7 +164,7 @@ fn start(args: &[&str], web: TempDir) -> Result<Server, (Option<i32>, String)> {
 fn server() -> &'static Server {
     static SERVER: OnceLock<Server> = OnceLock::new();
     SERVER.get_or_init(|| {
-        let textured = format!("{SCENES}/khronos/BoxTextured/glTF-Binary/BoxTextured.glb");
+        let textured = scene_path("khronos/BoxTextured/glTF-Binary/BoxTextured.glb");
         start(&[&textured], web_dir(true)).unwrap_or_else(|(code, err)| panic!("serve exited ({code:?}): {err}"))
     })
 }
@@ -496,7 +503,7 @@ fn missing_or_malformed_scenes_stop_the_server_at_start() {
     let broken = dir.0.join("broken.gltf");
     std::fs::write(&broken, "{ this is not json").unwrap();
     let missing = dir.0.join("missing.glb");
-    let good = format!("{SCENES}/khronos/Box/glTF-Binary/Box.glb");
+    let good = scene_path("khronos/Box/glTF-Binary/Box.glb");
     let (broken, missing) = (broken.to_str().unwrap(), missing.to_str().unwrap());
     refuses(&[missing], &["missing.glb", "1 of 2 scene(s) failed to load"]);
     // Every failure is reported, even next to scenes that load.
@@ -506,9 +513,10 @@ fn missing_or_malformed_scenes_stop_the_server_at_start() {
 
 #[test]
 fn strict_refuses_scenes_with_warnings() {
-    let pica = format!("{SCENES}/extra/kajiya/pica_pica_-_mini_diorama_01/scene.gltf");
-    let unlit = format!("{SCENES}/extra/kajiya/cornell_box/scene.gltf");
-    refuses(&["--strict", &pica], &["Wax_Pastel_Label_02_baseColor.png", "1 of 2 scene(s) failed to load"]);
+    // A base colour image that is not there; a scene with no emissive material and no sky.
+    let missing_texture = scene_path("missing-texture/MissingTexture.gltf");
+    let unlit = scene_path("khronos/Box/glTF-Binary/Box.glb");
+    refuses(&["--strict", &missing_texture], &["Label_baseColor.png", "1 of 2 scene(s) failed to load"]);
     refuses(&["--strict", &unlit], &["nothing lights the scene", "--sky", "1 of 2 scene(s) failed to load"]);
 }
 
@@ -522,8 +530,8 @@ fn a_missing_wasm_build_is_reported_with_the_command_that_builds_it() {
 
 #[test]
 fn names_are_unique_and_start_up_prints_the_sizes() {
-    let a = format!("{SCENES}/khronos/Box/glTF-Binary/Box.glb");
-    let b = format!("{SCENES}/khronos/Box/glTF/Box.gltf");
+    let a = scene_path("khronos/Box/glTF-Binary/Box.glb");
+    let b = scene_path("khronos/Box/glTF/Box.gltf");
     let s = start(&[&a, &b], web_dir(true)).unwrap_or_else(|(code, err)| panic!("serve exited ({code:?}): {err}"));
     let list = scenes_json(s.port);
     let names: Vec<&str> = list["scenes"].as_array().unwrap().iter().map(|s| s["name"].as_str().unwrap()).collect();

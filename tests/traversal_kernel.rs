@@ -132,8 +132,8 @@ fn cornell_box() {
 
 #[test]
 fn duck() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/scenes/khronos/Duck/glTF/Duck.gltf");
-    check(&scene::load(std::path::Path::new(path)).expect("Duck loads"), 3_000);
+    let path = common::test_data("scenes/khronos/Duck/glTF/Duck.gltf");
+    check(&scene::load(&path).expect("Duck loads"), 3_000);
 }
 
 #[test]

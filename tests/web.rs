@@ -13,7 +13,7 @@ mod common;
 #[path = "../src/serve_child.rs"]
 mod serve_child;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Duration;
 
 use browser::{browse, no_page_error};
@@ -36,10 +36,6 @@ const SERVED_MAX_DEPTH: u32 = 8;
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn shared(path: &str) -> PathBuf {
-    root().join("../shared").join(path)
 }
 
 /// `lightport serve` on a free port, killed when dropped.
@@ -181,8 +177,8 @@ fn the_browser_agrees_with_the_cpu_on_the_cornell_box_on_webgpu() {
 
 /// BoxTextured under venice_sunset, served as the page gets it, and loaded here for the CPU.
 fn textured_scene() -> (Server, Scene) {
-    let gltf = shared("scenes/khronos/BoxTextured/glTF/BoxTextured.gltf");
-    let sky = shared("scenes/hdri/venice_sunset_1k.hdr");
+    let gltf = common::test_data("scenes/khronos/BoxTextured/glTF/BoxTextured.gltf");
+    let sky = common::test_data("scenes/hdri/venice_sunset_1k.hdr");
     let server = Server::start(&[gltf.to_str().unwrap(), "--sky", sky.to_str().unwrap()]);
     let mut scene = scene::load(&gltf).expect("BoxTextured");
     scene.sky = Some(scene::load_sky(&sky, 1.0, 0.0).expect("sky"));
@@ -212,7 +208,7 @@ fn sky_lit_plane() -> (Server, Scene) {
     let obj = "mtllib plane.mtl\nv -10 0 10\nv 10 0 10\nv 10 0 -10\nv -10 0 -10\nusemtl grey\nf 1 2 3\nf 1 3 4\n";
     let path = dir.join("plane.obj");
     std::fs::write(&path, obj).expect("obj");
-    let sky = shared("scenes/hdri/venice_sunset_1k.hdr");
+    let sky = common::test_data("scenes/hdri/venice_sunset_1k.hdr");
     let server = Server::start(&[path.to_str().unwrap(), "--sky", sky.to_str().unwrap()]);
     let mut scene = scene::load(&path).expect("plane");
     scene.sky = Some(scene::load_sky(&sky, 1.0, 0.0).expect("sky"));
@@ -359,7 +355,7 @@ fn camera_input_restarts_the_accumulation() {
 #[test]
 fn a_bad_dropped_file_shows_an_error_and_the_page_keeps_working() {
     let server = Server::start(&[]);
-    let dir = shared("scenes/khronos/BoxTextured/glTF");
+    let dir = common::test_data("scenes/khronos/BoxTextured/glTF");
     let files: Vec<String> = ["BoxTextured.gltf", "BoxTextured0.bin", "CesiumLogoFlat.png"]
         .iter()
         .map(|f| dir.join(f).to_string_lossy().into_owned())

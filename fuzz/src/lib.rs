@@ -6,7 +6,7 @@
 //!   as a loaded input goes in the program (a scene that loads is also packed; a bundle that
 //!   decodes is also rendered).
 //! * [`http`]: the server target, over loopback against a running `lightport serve`.
-//! * [`seeds`]: the starting inputs (the glTF validator corpus, the shared scenes, tiny images
+//! * [`seeds`]: the starting inputs (the glTF validator corpus, the test scenes, tiny images
 //!   of every format made here, and the committed regression inputs under `fuzz/regressions/`).
 //! * [`mutate`]: byte-level and structure-aware mutations (glTF JSON fields, GLB chunks, bundle
 //!   entries, HTTP request lines and headers), used by libFuzzer's custom mutator hook and by

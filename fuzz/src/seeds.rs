@@ -1,5 +1,6 @@
-//! The inputs each target starts from: files from `../shared` (the Khronos glTF validator's
-//! corpus and the test scenes), tiny inputs of every format made here, and the committed
+//! The inputs each target starts from: the test data (the Khronos glTF validator's corpus and
+//! the test scenes vendored in `tests/data/`, or the larger `../shared` folder of the same
+//! layout through `$LIGHTPORT_SHARED`), tiny inputs of every format made here, and the committed
 //! regression inputs (`fuzz/regressions/<target>/`), each a crash the fuzzers found, minimised.
 
 use std::io::Cursor;
@@ -17,11 +18,13 @@ use crate::Target;
 /// A named input.
 pub type Seed = (String, Vec<u8>);
 
-/// The shared data folder: `$LIGHTPORT_SHARED`, else `../shared` beside the repository.
+/// The data folder (`scenes/`, `gltf-validator-tests/`): `$LIGHTPORT_SHARED` (e.g. the
+/// larger `../shared` beside the repository, with the benchmark scenes), else the test data
+/// vendored in the repository's `tests/data/`.
 pub fn shared_dir() -> PathBuf {
     match std::env::var_os("LIGHTPORT_SHARED") {
         Some(dir) => PathBuf::from(dir),
-        None => Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared"),
+        None => Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data"),
     }
 }
 
@@ -30,7 +33,7 @@ pub fn regressions_dir(target: Target) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("regressions").join(target.name())
 }
 
-/// Every seed of `target` (shared files that are missing are skipped: the generated seeds and
+/// Every seed of `target` (data files that are missing are skipped: the generated seeds and
 /// the regressions are always there), none longer than [`Target::max_len`].
 pub fn seeds(target: Target) -> Vec<Seed> {
     let shared = shared_dir();

@@ -1,4 +1,4 @@
-//! CI's smoke run of every file fuzz target: its seeds (the shared corpora, the generated
+//! CI's smoke run of every file fuzz target: its seeds (the corpora of `tests/data/`, the generated
 //! inputs and the committed regression inputs in `fuzz/regressions/`) and a few thousand
 //! structure-aware and byte-level mutations, each input under the driver's time bound. Seconds
 //! per target; the long coverage-guided runs are `scripts/fuzz.sh` (docs/fuzzing.md).
@@ -20,7 +20,7 @@ fn every_file_target_survives_its_seeds_and_mutations() {
     let mut problems = Vec::new();
     for target in Target::FILES {
         let seeds = seeds::seeds(target);
-        // The shared corpora must be there: a smoke run of generated seeds alone proves little.
+        // The corpora must be there: a smoke run of generated seeds alone proves little.
         let minimum = match target {
             Target::Gltf => 300,
             Target::Texture => 10,
@@ -29,7 +29,7 @@ fn every_file_target_survives_its_seeds_and_mutations() {
         };
         assert!(
             seeds.len() >= minimum,
-            "{}: {} seeds, expected at least {minimum} (is ../shared there? see docs/fuzzing.md)",
+            "{}: {} seeds, expected at least {minimum} (is tests/data there, or $LIGHTPORT_SHARED right? see docs/fuzzing.md)",
             target.name(),
             seeds.len()
         );

@@ -1,7 +1,6 @@
 //! Image-level agreement of a GPU backend with the CPU backend, shared by `render_gl.rs` and
 //! `render_wgpu.rs`: the same scenes, the same per-frame region statistics, the same bound.
 
-use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::{DVec3, Vec3, Vec4, Vec4Swizzles};
@@ -19,10 +18,6 @@ pub const Z_BOUND: f64 = 5.0;
 /// Regions per side: the image's 4 x 4 blocks, plus the whole image.
 pub const BLOCKS: u32 = 4;
 
-pub fn shared(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared").join(path)
-}
-
 pub fn packed(scene: &Scene, strategy: Strategy, size: u32, max_depth: u32) -> Packed {
     let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
     let settings = RenderSettings { width: size, height: size, strategy, max_depth };
@@ -31,7 +26,8 @@ pub fn packed(scene: &Scene, strategy: Strategy, size: u32, max_depth: u32) -> P
 
 /// BoxTextured under a uniform white sky.
 pub fn textured_box() -> Scene {
-    let mut scene = scene::load(&shared("scenes/khronos/BoxTextured/glTF/BoxTextured.gltf")).expect("BoxTextured");
+    let mut scene =
+        scene::load(&super::test_data("scenes/khronos/BoxTextured/glTF/BoxTextured.gltf")).expect("BoxTextured");
     scene.sky = Some(Sky::uniform(Vec3::ONE));
     scene
 }
@@ -39,7 +35,7 @@ pub fn textured_box() -> Scene {
 /// A diffuse plane under the venice_sunset HDR sky.
 pub fn sky_lit_plane() -> Scene {
     let mut scene = scene::diffuse_plane(Vec3::splat(0.6));
-    scene.sky = Some(scene::load_sky(&shared("scenes/hdri/venice_sunset_1k.hdr"), 1.0, 0.0).expect("sky"));
+    scene.sky = Some(scene::load_sky(&super::test_data("scenes/hdri/venice_sunset_1k.hdr"), 1.0, 0.0).expect("sky"));
     scene
 }
 

@@ -1,6 +1,6 @@
-//! Helpers shared by the integration tests: a small deterministic random number generator
-//! (independent of the kernel's own RNG, so kernel tests do not test the RNG with itself)
-//! and the statistics used by the sampling tests.
+//! Helpers shared by the integration tests: the path of the vendored test data, a small
+//! deterministic random number generator (independent of the kernel's own RNG, so kernel tests
+//! do not test the RNG with itself) and the statistics used by the sampling tests.
 //!
 //! Include it with `mod common;` from a test file.
 
@@ -10,7 +10,16 @@
 pub mod agreement;
 pub mod bands;
 
+use std::path::{Path, PathBuf};
+
 use glam::{DVec3, Vec3};
+
+/// A file of the test data vendored in `tests/data/` (see its README.md), named relative to
+/// that folder: `test_data("scenes/khronos/Duck/glTF-Binary/Duck.glb")`. Every test reads its
+/// scenes through this, so that a plain clone runs them with nothing beside it.
+pub fn test_data(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(rel)
+}
 
 /// xorshift64* (Vigna 2016): a fast, good-enough generator for test inputs. Deterministic,
 /// so a failing statistical test fails the same way every run.

@@ -203,7 +203,7 @@ fn metal_rough_functions_agree() {
 
 #[test]
 fn texture_and_scene_fetches_agree() {
-    let scene = tracer::scene::load(&shared("scenes/khronos/Duck/glTF-Binary/Duck.glb")).expect("Duck loads");
+    let scene = tracer::scene::load(&test_data("scenes/khronos/Duck/glTF-Binary/Duck.glb")).expect("Duck loads");
     let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
     let packed = pack(&scene, &bvh, &RenderSettings::default()).expect("pack");
     assert!(packed.features.textures, "the Duck is textured");

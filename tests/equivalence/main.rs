@@ -19,9 +19,7 @@ mod kernels;
 mod normal_map;
 mod texture_ref;
 
-use std::path::{Path, PathBuf};
-
-use common::{node_child_box, TestRng};
+use common::{node_child_box, test_data, TestRng};
 use glam::{IVec2, UVec3, UVec4, Vec2, Vec3};
 use tracer::backend::harness::{Backend, Equivalence, Outcome, Tolerance, Values};
 use tracer::kernel::intersect::{self, TriangleHit, MISS};
@@ -29,10 +27,6 @@ use tracer::kernel::scene_data::{self, Scene, NONE};
 use tracer::kernel::traverse::{self, Hit};
 use tracer::kernel::{camera, metal_rough, rng, sampling};
 use tracer::pack::{pack, RenderSettings};
-
-fn shared(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared").join(path)
-}
 
 /// CPU, GL, wgpu, WebGL2 and WebGPU, with the hazards module linked in. Fails (never skips)
 /// without a usable GL or Vulkan driver or browser.

@@ -77,7 +77,8 @@ fn normal_map_functions_agree() {
     );
 
     // Scene functions on DamagedHelmet, which has a normal map.
-    let scene = tracer::scene::load(&shared("scenes/khronos/DamagedHelmet/glTF/DamagedHelmet.gltf")).expect("loads");
+    let scene =
+        tracer::scene::load(&test_data("scenes/khronos/DamagedHelmet/glTF-Binary/DamagedHelmet.glb")).expect("loads");
     let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
     let packed = pack(&scene, &bvh, &RenderSettings::default()).expect("pack");
     assert!(packed.features.normal_map, "{:?}", packed.features);

@@ -9,7 +9,9 @@
 // Each API (the page's `api=`) runs every scene; the table puts them side by side with the
 // WebGPU / WebGL2 frame-time ratio.
 //
-// Needs web/pkg (scripts/build-web.sh) and `npm ci` in tests/web.
+// Needs web/pkg (scripts/build-web.sh), `npm ci` in tests/web, and the benchmark scenes, which
+// are not in the repository: the data folder `../shared` beside it, or `$LIGHTPORT_SHARED`.
+// Not part of the test suite.
 
 import { spawn, execFileSync } from 'node:child_process';
 import { createInterface } from 'node:readline';
@@ -27,7 +29,7 @@ const args = Object.fromEntries(process.argv.slice(2).reduce((pairs, a, i, all) 
 const lightport = args.lightport || join(root, 'target/release/lightport');
 const size = args.size || '640x480';
 const frames = args.frames || '5';
-const shared = join(root, '../shared/scenes');
+const shared = join(process.env.LIGHTPORT_SHARED || join(root, '../shared'), 'scenes');
 const scenePaths = [
   'khronos/Avocado/glTF/Avocado.gltf',
   'khronos/DamagedHelmet/glTF-Binary/DamagedHelmet.glb',

@@ -760,8 +760,9 @@ mod tests {
     use crate::backend::cpu::CpuRenderer;
     use crate::pack::{pack, RenderSettings};
 
-    fn shared(rel: &str) -> std::path::PathBuf {
-        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared")).join(rel)
+    /// A file of the repository's vendored test data (`tests/data/`, see its README.md).
+    fn test_data(rel: &str) -> std::path::PathBuf {
+        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data")).join(rel)
     }
 
     fn packed(scene: &crate::scene::Scene) -> Packed {
@@ -777,8 +778,9 @@ mod tests {
     /// The textured scene, with a sky so that the sky arrays are exercised as well.
     fn textured_with_sky() -> Packed {
         let mut scene =
-            crate::scene::load(&shared("scenes/khronos/BoxTextured/glTF/BoxTextured.gltf")).expect("BoxTextured");
-        scene.sky = Some(crate::scene::load_sky(&shared("scenes/hdri/venice_sunset_1k.hdr"), 1.0, 0.3).expect("sky"));
+            crate::scene::load(&test_data("scenes/khronos/BoxTextured/glTF/BoxTextured.gltf")).expect("BoxTextured");
+        scene.sky =
+            Some(crate::scene::load_sky(&test_data("scenes/hdri/venice_sunset_1k.hdr"), 1.0, 0.3).expect("sky"));
         let p = packed(&scene);
         assert!(p.features.textures && p.features.sky, "the scene must use textures and a sky: {:?}", p.features);
         p
