@@ -98,10 +98,10 @@ impl Loader<'_> {
                 malformed(format!("node {node} uses KHR_lights_punctual light {index}, which does not exist"))
             })?;
         let intensity = Vec3::from(light.color) * light.intensity;
-        if !intensity.is_finite() || intensity.min_element() < 0.0 || intensity.max_element() > super::MAX_RADIANCE {
+        if !intensity.is_finite() || intensity.min_element() < 0.0 || intensity.max_element() > super::super::MAX_RADIANCE {
             return Err(malformed(format!(
                 "KHR_lights_punctual light {index}: color x intensity must be finite, >= 0 and at most {:e}",
-                super::MAX_RADIANCE
+                super::super::MAX_RADIANCE
             )));
         }
         match light.type_ {
@@ -307,11 +307,11 @@ impl Loader<'_> {
                     )));
                 }
                 let t: Vec<Vec4> =
-                    t.chunks_exact(4).map(|c| super::tangents::unit_tangent(Vec4::from_slice(c))).collect();
+                    t.chunks_exact(4).map(|c| super::super::tangents::unit_tangent(Vec4::from_slice(c))).collect();
                 Some(triangles.iter().map(|tri| tri.map(|i| t[i as usize])).collect())
             }
             (true, None, Some(uvs)) => {
-                super::tangents::mikktspace_tangents(&positions, normals.as_deref(), uvs, &triangles)
+                super::super::tangents::mikktspace_tangents(&positions, normals.as_deref(), uvs, &triangles)
             }
             (true, None, None) => {
                 self.warnings.once("normal map without TEXCOORD_0", || {
