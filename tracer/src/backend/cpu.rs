@@ -73,7 +73,8 @@ impl Renderer for CpuRenderer {
     /// Renders the band's rows in parallel, adding each pixel's sample in place: between the
     /// bands of a split frame, the rows rendered already hold the frame's sample (as on wgpu).
     fn render_band(&mut self, rows: u32) -> Result<bool, RenderError> {
-        let rows = rows.clamp(1, self.rows_left());
+        // At least one row, at most those left (none of an empty image).
+        let rows = rows.max(1).min(self.rows_left());
         self.packed.scene.frame_seed = frame_seed(self.frames, self.seed);
         let scene = &self.packed.scene;
         let width = scene.width as usize;

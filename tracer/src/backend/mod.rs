@@ -17,10 +17,10 @@ use glam::Vec3;
 
 #[cfg(not(target_arch = "wasm32"))]
 pub use renderer::create;
+pub(crate) use renderer::update_uniforms;
 pub use renderer::{
     mean_image, rejected_samples, PendingAccumulation, RenderError, Renderer, RendererInfo, RendererKind,
 };
-pub(crate) use renderer::update_uniforms;
 
 /// Seed of frame `frame`: spreads consecutive frames over the hash's input space.
 pub fn frame_seed(frame: u32, seed: u32) -> u32 {

@@ -175,6 +175,8 @@ pub fn create(kind: RendererKind, packed: Packed, seed: u32) -> Result<Box<dyn R
         #[cfg(feature = "wgpu")]
         RendererKind::Wgpu => Box::new(super::wgpu::WgpuRenderer::headless(packed, seed)?),
         #[allow(unreachable_patterns)]
-        other => return Err(RenderError::Unsupported { runtime: other.name(), what: "is not built in (cargo feature)" }),
+        other => {
+            return Err(RenderError::Unsupported { runtime: other.name(), what: "is not built in (cargo feature)" })
+        }
     })
 }

@@ -442,7 +442,10 @@ impl Renderer for GlRenderer {
             gl.get_error()
         };
         if error != glow::NO_ERROR {
-            return Err(RenderError::Gl(GlError::Gl { what: "glReadPixels (RGBA, FLOAT)", detail: format!("error {error:#06x}") }));
+            return Err(RenderError::Gl(GlError::Gl {
+                what: "glReadPixels (RGBA, FLOAT)",
+                detail: format!("error {error:#06x}"),
+            }));
         }
         Ok(words.chunks_exact(4).map(|t| Vec4::from_array([t[0], t[1], t[2], t[3]].map(f32::from_bits))).collect())
     }
