@@ -26,98 +26,65 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use tracer::backend::cpu::CpuRenderer;
-use tracer::backend::gl::GlRenderer;
-use tracer::backend::wgpu::WgpuRenderer;
+use tracer::backend::{create, Renderer, RendererKind};
 use tracer::pack::{pack, Packed, RenderSettings, Strategy};
 
-/// One renderer under test.
-enum Renderer {
-    Cpu(Box<CpuRenderer>),
-    Gl(Box<GlRenderer>),
-    Wgpu(Box<WgpuRenderer>),
+/// Renders `frames` frames and returns samples per second; waits for the device first.
+fn samples_per_second(r: &mut dyn Renderer, frames: u32) -> Result<f64> {
+    r.finish()?;
+    let t = Instant::now();
+    for _ in 0..frames {
+        r.render_frame()?;
+    }
+    r.finish()?;
+    let seconds = t.elapsed().as_secs_f64();
+    let p = r.packed();
+    Ok(frames as f64 * p.scene.width as f64 * p.scene.height as f64 / seconds)
 }
 
-impl Renderer {
-    /// Renders `frames` frames and returns samples per second; waits for the device first.
-    fn samples_per_second(&mut self, frames: u32) -> Result<f64> {
-        self.finish()?;
-        let t = Instant::now();
-        for _ in 0..frames {
-            match self {
-                Renderer::Cpu(r) => r.render_frame(),
-                Renderer::Gl(r) => r.render_frame()?,
-                Renderer::Wgpu(r) => r.render_frame()?,
-            }
-        }
-        self.finish()?;
-        let seconds = t.elapsed().as_secs_f64();
-        let p = self.packed();
-        Ok(frames as f64 * p.scene.width as f64 * p.scene.height as f64 / seconds)
-    }
-
-    fn finish(&self) -> Result<()> {
-        match self {
-            Renderer::Cpu(_) => {}
-            Renderer::Gl(r) => r.finish()?,
-            Renderer::Wgpu(r) => r.finish()?,
-        }
-        Ok(())
-    }
-
-    fn packed(&self) -> &Packed {
-        match self {
-            Renderer::Cpu(r) => r.packed(),
-            Renderer::Gl(r) => r.packed(),
-            Renderer::Wgpu(r) => r.packed(),
-        }
-    }
-
-    /// A GPU backend that dropped non-finite samples measured something else than the kernel.
-    fn check(&self) -> Result<()> {
-        let rejected = match self {
-            Renderer::Cpu(_) => 0,
-            Renderer::Gl(r) => r.rejected_samples()?,
-            Renderer::Wgpu(r) => r.rejected_samples()?,
-        };
-        anyhow::ensure!(rejected == 0, "a backend dropped {rejected} non-finite samples");
-        Ok(())
-    }
+/// A renderer that dropped non-finite samples measured something else than the kernel.
+fn check(r: &dyn Renderer) -> Result<()> {
+    let rejected = r.rejected_samples()?;
+    anyhow::ensure!(rejected == 0, "the {} backend dropped {rejected} non-finite samples", r.describe().runtime);
+    Ok(())
 }
 
 /// The columns, in the order renderers are created.
 const COLUMNS: [&str; 6] = ["CPU", "GL", "GL, 64-entry stack", "GL, leaves at once", "wgpu", "wgpu, 64-entry stack"];
 
-fn renderers(p: &Packed) -> Result<Vec<Renderer>> {
+fn renderers(p: &Packed) -> Result<Vec<Box<dyn Renderer>>> {
     let mut stack_64 = p.clone();
     stack_64.features.traversal_stack = 0; // no specialisation: the kernel's own 64 entries
     let mut at_once = p.clone();
     at_once.scene.leaf_stack_limit = 0;
-    Ok(vec![
-        Renderer::Cpu(Box::new(CpuRenderer::new(p.clone(), 0))),
-        Renderer::Gl(Box::new(GlRenderer::headless(p.clone(), 0)?)),
-        Renderer::Gl(Box::new(GlRenderer::headless(stack_64.clone(), 0)?)),
-        Renderer::Gl(Box::new(GlRenderer::headless(at_once, 0)?)),
-        Renderer::Wgpu(Box::new(WgpuRenderer::headless(p.clone(), 0)?)),
-        Renderer::Wgpu(Box::new(WgpuRenderer::headless(stack_64, 0)?)),
-    ])
+    [
+        (RendererKind::Cpu, p.clone()),
+        (RendererKind::Gl, p.clone()),
+        (RendererKind::Gl, stack_64.clone()),
+        (RendererKind::Gl, at_once),
+        (RendererKind::Wgpu, p.clone()),
+        (RendererKind::Wgpu, stack_64),
+    ]
+    .into_iter()
+    .map(|(kind, packed)| Ok(create(kind, packed, 0)?))
+    .collect()
 }
 
 /// Median samples per second of each renderer over `rounds` rotated rounds.
-fn measure(renderers: &mut [Renderer], frames: u32, rounds: usize) -> Result<Vec<f64>> {
+fn measure(renderers: &mut [Box<dyn Renderer>], frames: u32, rounds: usize) -> Result<Vec<f64>> {
     for r in renderers.iter_mut() {
-        r.samples_per_second(1)?; // warm-up: shader compilation, first uploads
+        samples_per_second(r.as_mut(), 1)?; // warm-up: shader compilation, first uploads
     }
     let n = renderers.len();
     let mut samples = vec![Vec::with_capacity(rounds); n];
     for round in 0..rounds {
         for k in 0..n {
             let i = (round + k) % n;
-            samples[i].push(renderers[i].samples_per_second(frames)?);
+            samples[i].push(samples_per_second(renderers[i].as_mut(), frames)?);
         }
     }
     for r in renderers.iter() {
-        r.check()?;
+        check(r.as_ref())?;
     }
     Ok(samples.into_iter().map(median).collect())
 }
@@ -163,16 +130,20 @@ fn main() -> Result<()> {
     for (name, scene, size) in scenes {
         let p = packed(&scene, size)?;
         let mut rs = renderers(&p)?;
-        if let (Renderer::Gl(gl), Renderer::Wgpu(wgpu)) = (&rs[1], &rs[4]) {
-            devices = format!("GL: {}; wgpu: {} ({})", gl.info().renderer, wgpu.info().adapter, wgpu.info().backend);
+        // Each runtime's device, once: "cpu: 2 threads; gl: llvmpipe (...); wgpu: llvmpipe (...) (Vulkan)".
+        let mut described: Vec<String> = Vec::new();
+        for r in &rs {
+            let info = r.describe();
+            let line = format!("{}: {}", info.runtime, info.device);
+            if !described.contains(&line) {
+                described.push(line);
+            }
         }
+        devices = described.join("; ");
         let m = measure(&mut rs, frames, rounds)?;
         table.push((name, size, p.triangle_count, p.features.traversal_stack, m));
     }
-    println!(
-        "{frames} frames x {rounds} rounds (medians), MIS, max depth 8; CPU: {} threads; {devices}",
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    );
+    println!("{frames} frames x {rounds} rounds (medians), MIS, max depth 8; {devices}");
     println!("columns: {}", COLUMNS.join(", "));
     println!(
         "| scene | size | triangles | stack | CPU Ms/s | GL Ms/s | wgpu Ms/s | GL / CPU | wgpu / CPU | wgpu / GL \

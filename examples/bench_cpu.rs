@@ -14,6 +14,7 @@ use std::time::Instant;
 use glam::Vec2;
 use rayon::prelude::*;
 use tracer::backend::cpu::CpuRenderer;
+use tracer::backend::Renderer;
 use tracer::kernel::camera::camera_ray;
 use tracer::kernel::intersect::MISS;
 use tracer::kernel::traverse::{occluded, trace_closest};
@@ -35,11 +36,11 @@ fn samples_per_second(packed: &Packed, frames: u32, threads: usize) -> (f64, Opt
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
     pool.install(|| {
         let mut r = CpuRenderer::new(packed.clone(), 1);
-        r.render_frame(); // warm-up
+        r.render_frame().expect("frame"); // warm-up
         let cpu = process_cpu_ns();
         let t = Instant::now();
         for _ in 0..frames {
-            r.render_frame();
+            r.render_frame().expect("frame");
         }
         let wall = t.elapsed().as_secs_f64();
         let cpu = cpu.zip(process_cpu_ns()).map(|(a, b)| b.saturating_sub(a) as f64 * 1e-9);

@@ -36,6 +36,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use lightport_codegen::Target;
 use tracer::backend::gl::{compile_program, GlRenderer, HeadlessContext};
+use tracer::backend::Renderer;
 use tracer::kernel::scene_data::SHADING_TEXELS;
 use tracer::pack::{pack, texture_shape, Features, Packed, RenderSettings, Strategy};
 use tracer::scene::{self, Scene, Sky};

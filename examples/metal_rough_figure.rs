@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use tracer::backend::cpu::CpuRenderer;
-use tracer::backend::Image;
+use tracer::backend::{Image, Renderer};
 use tracer::output::{write_image, Display, ToneMap};
 use tracer::pack::{build_and_pack, RenderSettings, Strategy};
 use tracer::scene::{metal_rough_spheres, Scene};
@@ -56,9 +56,9 @@ fn render(scene: &Scene, size: u32, spp: u32) -> Result<(Image, f64)> {
     let mut r = CpuRenderer::new(packed, 1);
     let t = Instant::now();
     for _ in 0..spp {
-        r.render_frame();
+        r.render_frame()?;
     }
-    Ok((r.image(), t.elapsed().as_secs_f64()))
+    Ok((r.image()?, t.elapsed().as_secs_f64()))
 }
 
 /// `image` as `display` shows it, in linear values that the clamped display writes unchanged.

@@ -154,6 +154,16 @@ enum BackendArg {
     Wgpu,
 }
 
+impl BackendArg {
+    fn kind(self) -> tracer::backend::RendererKind {
+        match self {
+            BackendArg::Cpu => tracer::backend::RendererKind::Cpu,
+            BackendArg::Gl => tracer::backend::RendererKind::Gl,
+            BackendArg::Wgpu => tracer::backend::RendererKind::Wgpu,
+        }
+    }
+}
+
 fn render(args: &RenderArgs) -> Result<()> {
     use std::time::Instant;
     use tracer::pack::{RenderSettings, Strategy};
@@ -205,37 +215,15 @@ fn render(args: &RenderArgs) -> Result<()> {
             .progress_chars("=> "),
     );
     let t3 = Instant::now();
-    let (image, rejected) = match args.backend {
-        BackendArg::Cpu => {
-            let mut r = tracer::backend::cpu::CpuRenderer::new(packed, args.seed);
-            for _ in 0..args.spp {
-                r.render_frame();
-                bar.inc(1);
-            }
-            (r.image(), r.rejected_samples())
-        }
-        BackendArg::Gl => {
-            let mut r =
-                tracer::backend::gl::GlRenderer::headless(packed, args.seed).context("starting the GL backend")?;
-            for _ in 0..args.spp {
-                r.render_frame()?;
-                // Wait for each frame so that the progress bar tells the truth.
-                r.finish()?;
-                bar.inc(1);
-            }
-            (r.image()?, r.rejected_samples()?)
-        }
-        BackendArg::Wgpu => {
-            let mut r = tracer::backend::wgpu::WgpuRenderer::headless(packed, args.seed)
-                .context("starting the wgpu backend")?;
-            for _ in 0..args.spp {
-                r.render_frame()?;
-                r.finish()?;
-                bar.inc(1);
-            }
-            (r.image()?, r.rejected_samples()?)
-        }
-    };
+    let mut r = tracer::backend::create(args.backend.kind(), packed, args.seed)
+        .with_context(|| format!("starting the {} backend", args.backend.kind().name()))?;
+    for _ in 0..args.spp {
+        r.render_frame()?;
+        // Wait for each frame so that the progress bar tells the truth.
+        r.finish()?;
+        bar.inc(1);
+    }
+    let (image, rejected) = (r.image()?, r.rejected_samples()?);
     let render_time = t3.elapsed();
     bar.finish_and_clear();
     let display = tracer::output::Display { tone_map: args.tonemap.into(), exposure: args.exposure };
@@ -254,11 +242,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         args.width,
         args.height,
         samples / render_time.as_secs_f64() / 1e6,
-        match args.backend {
-            BackendArg::Cpu => "cpu",
-            BackendArg::Gl => "gl",
-            BackendArg::Wgpu => "wgpu",
-        },
+        r.describe().runtime,
         settings.strategy.name()
     );
     if rejected > 0 {

@@ -12,6 +12,7 @@ use std::time::{Duration, Instant};
 
 use glam::{DVec3, Mat3, Vec3};
 use tracer::backend::cpu::CpuRenderer;
+use tracer::backend::Renderer;
 use tracer::pack::{pack, RenderSettings, Strategy};
 use tracer::scene::{self, Aabb, Camera, LoadOptions, Material, Scene, SceneError, Sky};
 use tracer::stats::Estimate;
@@ -132,14 +133,14 @@ fn render_regions(scene: &Scene, size: u32, frames: u32, seed: u32) -> Vec<Vec<D
     let mut per_frame = Vec::new();
     let mut previous = vec![DVec3::ZERO; 17];
     for _ in 0..frames {
-        r.render_frame();
-        let img = r.image();
+        r.render_frame().expect("frame");
+        let img = r.image().expect("image");
         let n = r.frames() as f64;
         let sums = common::region_means(size, 4, |i| img.pixels[i].as_dvec3() * n);
         per_frame.push(sums.iter().zip(&previous).map(|(s, p)| *s - *p).collect());
         previous = sums;
     }
-    assert_eq!(r.rejected_samples(), 0, "no NaN/Inf may reach the accumulation buffer");
+    assert_eq!(r.rejected_samples().expect("accumulation"), 0, "no NaN/Inf may reach the accumulation buffer");
     per_frame
 }
 

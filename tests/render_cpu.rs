@@ -5,6 +5,7 @@ mod common;
 
 use glam::{DVec3, Vec3};
 use tracer::backend::cpu::CpuRenderer;
+use tracer::backend::Renderer;
 use tracer::pack::{pack, RenderSettings, Strategy};
 use tracer::scene::{self, Scene, Sky};
 use tracer::stats::Estimate;
@@ -18,8 +19,8 @@ fn render(scene: &Scene, strategy: Strategy, size: u32, frames: u32, max_depth: 
     let mut per_frame = Vec::new();
     let mut previous = vec![DVec3::ZERO; 17];
     for _ in 0..frames {
-        r.render_frame();
-        let img = r.image();
+        r.render_frame().expect("frame");
+        let img = r.image().expect("image");
         let n = r.frames() as f64;
         let sums = common::region_means(size, 4, |i| img.pixels[i].as_dvec3() * n);
         per_frame.push(sums.iter().zip(&previous).map(|(s, p)| *s - *p).collect());
@@ -48,7 +49,7 @@ fn white_furnace_converges_to_the_truncated_geometric_series() {
     let exact = (e * (1.0 - a.powi(depth as i32)) / (1.0 - a)) as f64;
     for strategy in STRATEGIES {
         let (r, per_frame) = render(&scene, strategy, 32, 64, depth);
-        assert_eq!(r.rejected_samples(), 0);
+        assert_eq!(r.rejected_samples().expect("accumulation"), 0);
         for block in 0..17 {
             let est = estimate(&per_frame, block, 0);
             let z = est.z_score_to(exact);
@@ -69,7 +70,7 @@ fn diffuse_plane_under_a_uniform_sky_is_albedo_times_sky() {
     scene.sky = Some(Sky::uniform(sky));
     for strategy in STRATEGIES {
         let (r, per_frame) = render(&scene, strategy, 32, 64, 2);
-        assert_eq!(r.rejected_samples(), 0);
+        assert_eq!(r.rejected_samples().expect("accumulation"), 0);
         for block in 0..17 {
             for c in 0..3 {
                 let exact = (albedo * sky[c]) as f64;
@@ -90,7 +91,7 @@ fn diffuse_plane_under_a_uniform_sky_is_albedo_times_sky() {
 fn assert_strategies_agree(scene: &Scene, size: u32, frames: u32) {
     let runs: Vec<_> = STRATEGIES.iter().map(|s| render(scene, *s, size, frames, 6)).collect();
     for (r, _) in &runs {
-        assert_eq!(r.rejected_samples(), 0, "no NaN/Inf may reach the accumulation buffer");
+        assert_eq!(r.rejected_samples().expect("accumulation"), 0, "no NaN/Inf may reach the accumulation buffer");
     }
     for i in 0..3 {
         for j in i + 1..3 {
@@ -149,5 +150,56 @@ fn the_same_seed_gives_the_same_image() {
     let scene = scene::cornell_box();
     let (a, _) = render(&scene, Strategy::Mis, 16, 4, 6);
     let (b, _) = render(&scene, Strategy::Mis, 16, 4, 6);
-    assert_eq!(a.image(), b.image());
+    assert_eq!(a.image().expect("image"), b.image().expect("image"));
+}
+
+/// A frame rendered in bands of rows (`Renderer::render_band`, each band with its frame's seed)
+/// is the frame rendered whole, bit for bit; the sample count advances with a frame's last band,
+/// and a restart abandons a split frame (`common::bands`, as GL's and wgpu's).
+#[test]
+fn a_frame_split_into_bands_is_the_unsplit_frame() {
+    let scene = scene::cornell_box();
+    let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
+    let settings = RenderSettings { width: 20, height: 20, strategy: Strategy::Mis, max_depth: 4 };
+    let base = pack(&scene, &bvh, &settings).expect("pack");
+    common::bands::assert_bands_make_the_whole_frame(
+        &mut CpuRenderer::new(base.clone(), 3),
+        &mut CpuRenderer::new(base, 3),
+        20,
+    );
+}
+
+/// `set_uniforms` restarts the accumulation and renders what a renderer created with the new
+/// uniforms renders; the image size cannot change.
+#[test]
+fn set_uniforms_renders_like_a_fresh_renderer() {
+    let scene = scene::cornell_box();
+    let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
+    let settings = RenderSettings { width: 16, height: 12, strategy: Strategy::Mis, max_depth: 4 };
+    let base = pack(&scene, &bvh, &settings).expect("pack");
+    let mut moved = base.clone();
+    moved.scene.camera_position += Vec3::new(0.2, -0.1, 0.3);
+    moved.scene.strategy = Strategy::Nee.uniform_value();
+    let camera = (moved.scene.camera_position, moved.scene.strategy);
+    let mut reused = CpuRenderer::new(base, 5);
+    for _ in 0..3 {
+        reused.render_frame().expect("frame");
+    }
+    reused.render_band(5).expect("band");
+    reused
+        .set_uniforms(&mut |s| {
+            s.camera_position = camera.0;
+            s.strategy = camera.1;
+        })
+        .expect("set_uniforms");
+    assert_eq!((reused.frames(), reused.rows_left()), (0, 12));
+    let mut fresh = CpuRenderer::new(moved, 5);
+    for _ in 0..2 {
+        reused.render_frame().expect("frame");
+        fresh.render_frame().expect("frame");
+    }
+    assert_eq!(reused.accumulation().expect("sums"), fresh.accumulation().expect("sums"));
+    let err = reused.set_uniforms(&mut |s| s.height += 1).expect_err("the size is fixed");
+    assert!(err.to_string().contains("fixed at 16x12"), "{err}");
+    assert_eq!(reused.packed().scene.height, 12, "a refused change leaves the size as it was");
 }

@@ -10,6 +10,7 @@ use common::test_data;
 use glam::{DVec3, Vec3, Vec4Swizzles};
 use tracer::backend::cpu::CpuRenderer;
 use tracer::backend::gl::{GlError, GlOptions, GlRenderer, HeadlessContext};
+use tracer::backend::Renderer;
 use tracer::pack::{pack, Packed, RenderSettings, Strategy};
 use tracer::scene::{self, Scene, Sky};
 use tracer::stats::Estimate;
@@ -48,13 +49,13 @@ fn run_cpu(packed: Packed, seed: u32, frames: u32) -> Run {
     let mut per_frame = Vec::new();
     let t = Instant::now();
     for _ in 0..frames {
-        r.render_frame();
+        r.render_frame().expect("frame");
         let n = r.frames() as f64;
-        let sums: Vec<DVec3> = r.image().pixels.iter().map(|p| p.as_dvec3() * n).collect();
+        let sums: Vec<DVec3> = r.image().expect("image").pixels.iter().map(|p| p.as_dvec3() * n).collect();
         per_frame.push(common::region_means(size, BLOCKS, |i| sums[i] - previous[i]));
         previous = sums;
     }
-    Run { per_frame, rejected: r.rejected_samples(), seconds: t.elapsed().as_secs_f64() }
+    Run { per_frame, rejected: r.rejected_samples().expect("accumulation"), seconds: t.elapsed().as_secs_f64() }
 }
 
 fn run_gl(packed: Packed, seed: u32, frames: u32) -> Run {
@@ -177,12 +178,16 @@ fn the_random_sequence_matches_the_cpu() {
     for strategy in STRATEGIES {
         let p = packed(&sky_lit_plane(), strategy, size, 3);
         let mut cpu = CpuRenderer::new(p.clone(), seed);
-        cpu.render_frame();
+        cpu.render_frame().expect("frame");
         let mut other = CpuRenderer::new(p.clone(), seed + 1);
-        other.render_frame();
+        other.render_frame().expect("frame");
         let mut gl = gl_renderer(p, seed);
         gl.render_frame().expect("frame");
-        let (cpu, other, gl) = (cpu.image().pixels, other.image().pixels, gl.image().expect("readback").pixels);
+        let (cpu, other, gl) = (
+            cpu.image().expect("image").pixels,
+            other.image().expect("image").pixels,
+            gl.image().expect("readback").pixels,
+        );
         let agree = same(&cpu, &gl);
         let control = same(&cpu, &other);
         eprintln!(

@@ -8,9 +8,9 @@
 
 mod common;
 
-use common::agreement::{self, accumulated_sums, assert_agrees_with_cpu, packed, Frames};
-use glam::DVec3;
+use common::agreement::{self, assert_agrees_with_cpu, packed};
 use tracer::backend::wgpu::{WgpuDevice, WgpuError, WgpuOptions, WgpuRenderer};
+use tracer::backend::{RenderError, Renderer, RendererKind};
 use tracer::pack::{Packed, RenderSettings, Strategy};
 use tracer::scene;
 
@@ -18,44 +18,24 @@ fn wgpu_renderer(packed: Packed, seed: u32) -> WgpuRenderer {
     WgpuRenderer::headless(packed, seed).unwrap_or_else(|e| panic!("the wgpu backend must run here: {e}"))
 }
 
-impl Frames for WgpuRenderer {
-    fn frame(&mut self) {
-        self.render_frame().expect("wgpu frame");
-    }
-    fn sums(&mut self) -> Vec<DVec3> {
-        accumulated_sums(&self.accumulation().expect("readback"))
-    }
-    fn rejected(&mut self) -> u64 {
-        self.rejected_samples().expect("readback")
-    }
-}
-
-fn boxed(packed: Packed, seed: u32) -> Box<dyn Frames> {
-    Box::new(wgpu_renderer(packed, seed))
-}
-
 #[test]
 fn wgpu_agrees_with_cpu_on_the_cornell_box() {
-    assert_agrees_with_cpu("wgpu", &mut boxed, "Cornell box", &scene::cornell_box(), 32, 128, 6);
+    assert_agrees_with_cpu(RendererKind::Wgpu, "Cornell box", &scene::cornell_box(), 32, 128, 6);
 }
 
 #[test]
 fn wgpu_agrees_with_cpu_on_a_textured_scene() {
-    assert_agrees_with_cpu("wgpu", &mut boxed, "BoxTextured", &agreement::textured_box(), 32, 96, 6);
+    assert_agrees_with_cpu(RendererKind::Wgpu, "BoxTextured", &agreement::textured_box(), 32, 96, 6);
 }
 
 #[test]
 fn wgpu_agrees_with_cpu_under_an_hdr_sky() {
-    assert_agrees_with_cpu("wgpu", &mut boxed, "plane under venice_sunset", &agreement::sky_lit_plane(), 32, 96, 4);
+    assert_agrees_with_cpu(RendererKind::Wgpu, "plane under venice_sunset", &agreement::sky_lit_plane(), 32, 96, 4);
 }
 
 #[test]
 fn the_random_sequence_matches_the_cpu() {
-    agreement::assert_same_random_sequence("wgpu", &mut |p, seed| {
-        let mut r = wgpu_renderer(p, seed);
-        r.render_frame().expect("frame");
-        r.image().expect("readback").pixels
-    });
+    agreement::assert_same_random_sequence(RendererKind::Wgpu);
 }
 
 #[test]
@@ -129,12 +109,12 @@ fn restart_and_uniform_updates_take_effect() {
     r.restart().unwrap();
     assert_eq!(r.frames(), 0);
     assert!(r.accumulation().unwrap().iter().all(|a| *a == glam::Vec4::ZERO), "restart clears the sums");
-    r.set_uniforms(|s| s.camera_position += s.camera_forward * 10.0).unwrap();
+    r.set_uniforms(&mut |s| s.camera_position += s.camera_forward * 10.0).unwrap();
     r.render_frame().unwrap();
     let moved = r.image().unwrap();
     assert_ne!(before.mean(), moved.mean(), "the camera moved behind the back wall");
-    let err = r.set_uniforms(|s| s.width = 17).expect_err("the size is fixed");
-    assert!(matches!(err, WgpuError::SizeChanged { .. }), "{err}");
+    let err = r.set_uniforms(&mut |s| s.width = 17).expect_err("the size is fixed");
+    assert!(matches!(err, RenderError::SizeChanged { .. }), "{err}");
 }
 
 /// A frame rendered in bands of rows (the same dispatch over fewer rows, as the WebGPU page's
@@ -145,5 +125,9 @@ fn restart_and_uniform_updates_take_effect() {
 fn a_frame_split_into_bands_is_the_unsplit_frame() {
     let base = packed(&scene::cornell_box(), Strategy::Mis, 20, 4);
     assert_eq!((base.scene.width, base.scene.height), (20, 20));
-    common::bands::assert_bands_make_the_whole_frame(wgpu_renderer(base.clone(), 3), wgpu_renderer(base, 3), 20);
+    common::bands::assert_bands_make_the_whole_frame(
+        &mut wgpu_renderer(base.clone(), 3),
+        &mut wgpu_renderer(base, 3),
+        20,
+    );
 }

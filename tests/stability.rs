@@ -28,6 +28,7 @@ use std::time::{Duration, Instant};
 
 use glam::{DVec3, Vec3};
 use tracer::backend::cpu::CpuRenderer;
+use tracer::backend::Renderer;
 use tracer::pack::{pack, RenderSettings, Strategy};
 use tracer::scene::stability::{self, StabilityCase};
 use tracer::scene::{self, Scene, SceneError};
@@ -97,16 +98,16 @@ fn render_runs(scenes: [&Scene; 3], strategies: [Strategy; 3], frames: u32) -> R
     for _ in 0..frames {
         for (s, r) in renderers.iter_mut().enumerate() {
             let start = Instant::now();
-            r.render_frame();
+            r.render_frame().expect("frame");
             times[s].push(start.elapsed());
             let n = r.frames() as f64;
-            let sums: Vec<DVec3> = r.image().pixels.iter().map(|p| p.as_dvec3() * n).collect();
+            let sums: Vec<DVec3> = r.image().expect("image").pixels.iter().map(|p| p.as_dvec3() * n).collect();
             per_frame[s].push(regions(&sums, &previous[s]));
             previous[s] = sums;
         }
     }
     let variance = std::array::from_fn(|s| renderers[s].variance().iter().map(|v| v.as_dvec3().element_sum()).sum());
-    let mean = std::array::from_fn(|s| renderers[s].image().mean().as_dvec3().element_sum());
+    let mean = std::array::from_fn(|s| renderers[s].image().expect("image").mean().as_dvec3().element_sum());
     // The fastest frame: the machine is shared, and other work only ever slows a frame down.
     let frame_time = std::array::from_fn(|s| times[s].iter().copied().min().unwrap_or_default());
     Runs { per_frame, variance, mean, frame_time, renderers }
@@ -119,8 +120,17 @@ fn estimate(per_frame: &[[f64; REGIONS]], region: usize) -> Estimate {
 /// No NaN or infinity anywhere: no dropped sample, every pixel finite.
 fn assert_finite(name: &str, runs: &Runs) {
     for (r, s) in runs.renderers.iter().zip(Strategy::ALL) {
-        assert_eq!(r.rejected_samples(), 0, "{name} {}: non-finite samples were dropped", s.name());
-        assert!(r.image().pixels.iter().all(|p| p.is_finite()), "{name} {}: non-finite pixel", s.name());
+        assert_eq!(
+            r.rejected_samples().expect("accumulation"),
+            0,
+            "{name} {}: non-finite samples were dropped",
+            s.name()
+        );
+        assert!(
+            r.image().expect("image").pixels.iter().all(|p| p.is_finite()),
+            "{name} {}: non-finite pixel",
+            s.name()
+        );
     }
 }
 
@@ -206,7 +216,7 @@ fn check_case(case: &StabilityCase, compared: &[usize]) -> Runs {
     assert_finite(case.name, &runs);
     if case.black {
         for (r, s) in runs.renderers.iter().zip(Strategy::ALL) {
-            let lit = r.image().pixels.iter().filter(|p| **p != Vec3::ZERO).count();
+            let lit = r.image().expect("image").pixels.iter().filter(|p| **p != Vec3::ZERO).count();
             assert_eq!(lit, 0, "{} {}: {lit} pixels received light", case.name, s.name());
         }
         report(case.name, &runs, 0.0);

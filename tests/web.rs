@@ -20,6 +20,7 @@ use browser::{browse, no_page_error};
 use glam::{DVec3, Vec3};
 use serde_json::Value;
 use tracer::backend::cpu::CpuRenderer;
+use tracer::backend::Renderer;
 use tracer::pack::{pack, Packed, RenderSettings, Strategy};
 use tracer::scene::{self, Scene};
 use tracer::stats::Estimate;
@@ -122,12 +123,12 @@ fn assert_browser_agrees_with_cpu(server: &Server, scene_name: &str, scene: &Sce
     let mut cpu_sums = Vec::new();
     for _ in 0..batches {
         for _ in 0..frames {
-            cpu.render_frame();
+            cpu.render_frame().expect("frame");
         }
         let n = cpu.frames() as f64;
-        cpu_sums.push(cpu.image().pixels.iter().map(|p| p.as_dvec3() * n).collect::<Vec<_>>());
+        cpu_sums.push(cpu.image().expect("image").pixels.iter().map(|p| p.as_dvec3() * n).collect::<Vec<_>>());
     }
-    assert_eq!(cpu.rejected_samples(), 0);
+    assert_eq!(cpu.rejected_samples().expect("accumulation"), 0);
 
     let browser = batch_regions(&browser_sums, frames as f64);
     let cpu = batch_regions(&cpu_sums, frames as f64);
@@ -459,7 +460,7 @@ fn set_uniforms_renders_like_a_fresh_renderer() {
         reused.render_frame().expect("frame");
     }
     reused
-        .set_uniforms(|s| {
+        .set_uniforms(&mut |s| {
             s.camera_position = camera.0;
             s.strategy = camera.1;
         })
@@ -473,7 +474,7 @@ fn set_uniforms_renders_like_a_fresh_renderer() {
     let (a, b) = (reused.accumulation().expect("readback"), fresh.accumulation().expect("readback"));
     assert!(a.iter().zip(&b).all(|(x, y)| x == y), "same uniforms and seed must give the same accumulation");
 
-    let err = reused.set_uniforms(|s| s.width += 1).expect_err("the size is fixed");
+    let err = reused.set_uniforms(&mut |s| s.width += 1).expect_err("the size is fixed");
     assert!(err.to_string().contains("fixed"), "{err}");
     assert_eq!(reused.packed().scene.width, SIZE, "a refused change leaves the size as it was");
 }
@@ -604,7 +605,7 @@ fn a_frame_split_into_bands_is_the_unsplit_frame() {
     let settings = RenderSettings { width: 40, height: 36, strategy: Strategy::Mis, max_depth: SERVED_MAX_DEPTH };
     let base = pack(&scene, &bvh, &settings).expect("pack");
     let renderer = || GlRenderer::headless(base.clone(), 3).expect("GL");
-    common::bands::assert_bands_make_the_whole_frame(renderer(), renderer(), 36);
+    common::bands::assert_bands_make_the_whole_frame(&mut renderer(), &mut renderer(), 36);
 
     // The page's loop: fenced bands, one in flight, heights from the measured (here: a
     // simulated 30 ms per step) times.

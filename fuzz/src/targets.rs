@@ -5,6 +5,7 @@ use std::sync::OnceLock;
 
 use glam::Vec3;
 use tracer::backend::cpu::CpuRenderer;
+use tracer::backend::Renderer;
 use tracer::pack::{build_and_pack, RenderSettings};
 use tracer::scene::{self, LoadOptions, Scene, SceneError, SkyFormat};
 
@@ -139,7 +140,7 @@ pub fn bundle(data: &[u8]) {
     if let Ok(mut packed) = tracer::bundle::decode(data) {
         packed.scene.width = 4;
         packed.scene.height = 3;
-        CpuRenderer::new(packed, 1).render_frame();
+        CpuRenderer::new(packed, 1).render_frame().expect("the CPU renderer does not fail");
     }
 }
 

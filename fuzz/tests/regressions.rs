@@ -7,6 +7,7 @@ use std::time::Duration;
 
 use lightport_fuzz::{regressions, seeds, Target};
 use tracer::backend::cpu::CpuRenderer;
+use tracer::backend::Renderer;
 use tracer::scene::{self, LoadOptions, SceneError};
 
 fn regression(target: Target, name: &str) -> Vec<u8> {
@@ -53,8 +54,8 @@ fn render_within_a_minute(packed: tracer::pack::Packed) -> Option<tracer::backen
     let (tx, rx) = mpsc::channel();
     std::thread::spawn(move || {
         let mut renderer = CpuRenderer::new(packed, 1);
-        renderer.render_frame();
-        let _ = tx.send(renderer.image());
+        renderer.render_frame().expect("frame");
+        let _ = tx.send(renderer.image().expect("image"));
     });
     rx.recv_timeout(Duration::from_secs(60)).ok()
 }

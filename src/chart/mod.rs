@@ -28,9 +28,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, ensure, Context, Result};
 use glam::Vec3;
 use tracer::backend::cpu::CpuRenderer;
-use tracer::backend::gl::GlRenderer;
-use tracer::backend::wgpu::WgpuRenderer;
-use tracer::backend::Image;
+use tracer::backend::{Image, Renderer, RendererKind};
 use tracer::pack::{pack, Features, Packed, RenderSettings, Strategy};
 use tracer::scene::{self, Scene, Sky};
 
@@ -302,11 +300,11 @@ fn reference(scene: &ChartScene, args: &ChartArgs, kernel_hash: u64) -> Result<(
     );
     bar.set_message(scene.slug.clone());
     for _ in 0..args.reference_spp {
-        r.render_frame();
+        r.render_frame()?;
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let image = r.image();
+    let image = r.image()?;
     ensure!(image.pixels.iter().all(|p| p.is_finite()), "the reference render is not finite");
     // The reference's own MSE: the per-pixel variance of its mean.
     let n = r.frames() as f64;
@@ -328,50 +326,15 @@ fn checkpoints(max: u32) -> Vec<u32> {
     c
 }
 
-/// The in-process backends behind one interface, for the measurement loop.
-/// Boxed: the renderers differ in size by kilobytes (the GPU ones carry their pipeline state).
-enum Renderer {
-    Cpu(Box<CpuRenderer>),
-    Gl(Box<GlRenderer>),
-    Wgpu(Box<WgpuRenderer>),
-}
-
-impl Renderer {
-    fn new(backend: ChartBackend, packed: Packed, seed: u32) -> Result<Renderer> {
-        Ok(match backend {
-            ChartBackend::Cpu => Renderer::Cpu(Box::new(CpuRenderer::new(packed, seed))),
-            ChartBackend::Gl => Renderer::Gl(Box::new(GlRenderer::headless(packed, seed)?)),
-            ChartBackend::Wgpu => Renderer::Wgpu(Box::new(WgpuRenderer::headless(packed, seed)?)),
-            ChartBackend::Web => bail!("the web backend renders in a browser (web::lines), not in this process"),
-        })
-    }
-
-    fn render_frame(&mut self) -> Result<()> {
-        match self {
-            Renderer::Cpu(r) => r.render_frame(),
-            Renderer::Gl(r) => r.render_frame()?,
-            Renderer::Wgpu(r) => r.render_frame()?,
-        }
-        Ok(())
-    }
-
-    /// Waits for queued work (GPU backends), so that a clock read after it is honest.
-    fn finish(&self) -> Result<()> {
-        match self {
-            Renderer::Cpu(_) => {}
-            Renderer::Gl(r) => r.finish()?,
-            Renderer::Wgpu(r) => r.finish()?,
-        }
-        Ok(())
-    }
-
-    fn image(&self) -> Result<(Image, u64)> {
-        Ok(match self {
-            Renderer::Cpu(r) => (r.image(), r.rejected_samples()),
-            Renderer::Gl(r) => (r.image()?, r.rejected_samples()?),
-            Renderer::Wgpu(r) => (r.image()?, r.rejected_samples()?),
-        })
-    }
+/// An in-process renderer of `backend` (the web backend renders in a browser: [`web::lines`]).
+fn renderer(backend: ChartBackend, packed: Packed, seed: u32) -> Result<Box<dyn Renderer>> {
+    let kind = match backend {
+        ChartBackend::Cpu => RendererKind::Cpu,
+        ChartBackend::Gl => RendererKind::Gl,
+        ChartBackend::Wgpu => RendererKind::Wgpu,
+        ChartBackend::Web => bail!("the web backend renders in a browser (web::lines), not in this process"),
+    };
+    Ok(tracer::backend::create(kind, packed, seed)?)
 }
 
 /// Renders one line (backend x strategy) through every checkpoint.
@@ -385,11 +348,11 @@ fn run_line(
     if backend != ChartBackend::Cpu {
         // The driver compiles (JITs) the shader at the first draw; a throwaway renderer pays
         // for it here, so the timed one does not.
-        let mut warm = Renderer::new(backend, packed.clone(), args.seed ^ 0xFFFF)?;
+        let mut warm = renderer(backend, packed.clone(), args.seed ^ 0xFFFF)?;
         warm.render_frame()?;
         warm.finish()?;
     }
-    let mut r = Renderer::new(backend, packed.clone(), args.seed)?;
+    let mut r = renderer(backend, packed.clone(), args.seed)?;
     let mut points = Vec::new();
     let mut elapsed = Duration::ZERO;
     let mut frames = 0;
@@ -401,7 +364,7 @@ fn run_line(
         }
         r.finish()?;
         elapsed += start.elapsed();
-        let (image, rejected) = r.image()?;
+        let (image, rejected) = (r.image()?, r.rejected_samples()?);
         points.push(Point {
             backend,
             strategy,

@@ -1,10 +1,12 @@
-//! Image-level agreement of a GPU backend with the CPU backend, shared by `render_gl.rs` and
-//! `render_wgpu.rs`: the same scenes, the same per-frame region statistics, the same bound.
+//! Image-level agreement of a GPU backend with the CPU backend, through the `Renderer` trait
+//! (used by `render_wgpu.rs`): the same scenes, the same per-frame region statistics, the same
+//! bound.
 
 use std::time::Instant;
 
 use glam::{DVec3, Vec3, Vec4, Vec4Swizzles};
 use tracer::backend::cpu::CpuRenderer;
+use tracer::backend::{create, Renderer, RendererKind};
 use tracer::pack::{pack, Packed, RenderSettings, Strategy};
 use tracer::scene::{self, Scene, Sky};
 use tracer::stats::Estimate;
@@ -47,45 +49,29 @@ pub struct Run {
     pub seconds: f64,
 }
 
-/// A backend as the agreement test drives it: one frame, then the running sum.
-pub trait Frames {
-    fn frame(&mut self);
-    /// The running sum of samples per pixel.
-    fn sums(&mut self) -> Vec<DVec3>;
-    /// Samples that were not finite and were dropped.
-    fn rejected(&mut self) -> u64;
+/// A renderer of `kind` (the GPU ones on their own headless context or device); a runtime that
+/// cannot start fails the test with the reason.
+pub fn renderer(kind: RendererKind, packed: Packed, seed: u32) -> Box<dyn Renderer> {
+    create(kind, packed, seed).unwrap_or_else(|e| panic!("the {} backend must run here: {e}", kind.name()))
 }
 
-impl Frames for CpuRenderer {
-    fn frame(&mut self) {
-        self.render_frame();
-    }
-    fn sums(&mut self) -> Vec<DVec3> {
-        let n = self.frames() as f64;
-        self.image().pixels.iter().map(|p| p.as_dvec3() * n).collect()
-    }
-    fn rejected(&mut self) -> u64 {
-        self.rejected_samples()
-    }
-}
-
-/// The running sums of a GPU accumulation (rgb: sum of samples, w: finite samples).
+/// The running sums of an accumulation (rgb: sum of samples, w: finite samples).
 pub fn accumulated_sums(accumulation: &[Vec4]) -> Vec<DVec3> {
     accumulation.iter().map(|a| a.xyz().as_dvec3()).collect()
 }
 
 /// Renders `frames` frames, recording each frame's region means.
-pub fn run(renderer: &mut dyn Frames, size: u32, frames: u32) -> Run {
+pub fn run(renderer: &mut dyn Renderer, size: u32, frames: u32) -> Run {
     let mut previous = vec![DVec3::ZERO; (size * size) as usize];
     let mut per_frame = Vec::new();
     let t = Instant::now();
     for _ in 0..frames {
-        renderer.frame();
-        let sums = renderer.sums();
+        renderer.render_frame().expect("frame");
+        let sums = accumulated_sums(&renderer.accumulation().expect("readback"));
         per_frame.push(super::region_means(size, BLOCKS, |i| sums[i] - previous[i]));
         previous = sums;
     }
-    let rejected = renderer.rejected();
+    let rejected = renderer.rejected_samples().expect("readback");
     Run { per_frame, rejected, seconds: t.elapsed().as_secs_f64() }
 }
 
@@ -94,23 +80,23 @@ fn estimate(run: &Run, region: usize, channel: usize) -> Estimate {
     Estimate::from_samples(&samples)
 }
 
-/// Renders `scene` on the CPU and on `backend` (named `name`) with each strategy (independent
-/// seeds) and asserts that every region mean agrees within the bound and no sample was
-/// rejected. Returns the largest z-score.
+/// Renders `scene` on the CPU and on `kind` with each strategy (independent seeds) and asserts
+/// that every region mean agrees within the bound and no sample was rejected. Returns the
+/// largest z-score.
 pub fn assert_agrees_with_cpu(
-    name: &str,
-    backend: &mut dyn FnMut(Packed, u32) -> Box<dyn Frames>,
+    kind: RendererKind,
     what: &str,
     scene: &Scene,
     size: u32,
     frames: u32,
     max_depth: u32,
 ) -> f64 {
+    let name = kind.name();
     let mut worst = 0.0f64;
     for strategy in STRATEGIES {
         let p = packed(scene, strategy, size, max_depth);
         let cpu = run(&mut CpuRenderer::new(p.clone(), 1), size, frames);
-        let gpu = run(backend(p, 2).as_mut(), size, frames);
+        let gpu = run(renderer(kind, p, 2).as_mut(), size, frames);
         assert_eq!(cpu.rejected, 0, "{what} {strategy:?}: the CPU dropped non-finite samples");
         assert_eq!(gpu.rejected, 0, "{what} {strategy:?}: no NaN/Inf may reach the {name} accumulation");
         let mut worst_here = 0.0f64;
@@ -145,19 +131,20 @@ pub fn share_equal(a: &[Vec3], b: &[Vec3]) -> f64 {
     close.count() as f64 / a.len() as f64
 }
 
-/// With the same seed, the CPU and `backend` draw the same random numbers: one frame's samples
+/// With the same seed, the CPU and `kind` draw the same random numbers: one frame's samples
 /// agree pixel by pixel; with different seeds they would not (the control). See
 /// `render_gl.rs` for why not every pixel: an ulp of `atan2`/`acos` can move a sky lookup.
-pub fn assert_same_random_sequence(name: &str, backend: &mut dyn FnMut(Packed, u32) -> Vec<Vec3>) {
-    let (size, seed) = (32u32, 12345);
+pub fn assert_same_random_sequence(kind: RendererKind) {
+    let (size, seed, name) = (32u32, 12345, kind.name());
+    let first_frame = |r: &mut dyn Renderer| {
+        r.render_frame().expect("frame");
+        r.image().expect("readback").pixels
+    };
     for strategy in STRATEGIES {
         let p = packed(&sky_lit_plane(), strategy, size, 3);
-        let mut cpu = CpuRenderer::new(p.clone(), seed);
-        cpu.render_frame();
-        let mut other = CpuRenderer::new(p.clone(), seed + 1);
-        other.render_frame();
-        let gpu = backend(p, seed);
-        let (cpu, other) = (cpu.image().pixels, other.image().pixels);
+        let cpu = first_frame(&mut CpuRenderer::new(p.clone(), seed));
+        let other = first_frame(&mut CpuRenderer::new(p.clone(), seed + 1));
+        let gpu = first_frame(renderer(kind, p, seed).as_mut());
         let agree = share_equal(&cpu, &gpu);
         let control = share_equal(&cpu, &other);
         eprintln!(

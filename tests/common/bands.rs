@@ -1,56 +1,12 @@
-//! Frames split into bands of rows, shared by the GL (`web.rs`, the page's loop) and wgpu
-//! (`render_wgpu.rs`) tests: whatever the split, a frame is the frame rendered whole, exactly.
+//! Frames split into bands of rows, shared by the CPU (`render_cpu.rs`), GL (`web.rs`, the
+//! page's loop) and wgpu (`render_wgpu.rs`) tests, through the `Renderer` trait: whatever the
+//! split, a frame is the frame rendered whole, exactly.
 
-use std::fmt::Debug;
-
-use glam::Vec4;
-use tracer::backend::gl::GlRenderer;
-use tracer::backend::wgpu::WgpuRenderer;
-
-/// The progressive-frame surface both GPU renderers offer.
-pub trait Bands {
-    type Error: Debug;
-    fn render_frame(&mut self) -> Result<(), Self::Error>;
-    /// Renders the next `rows` rows of the current frame; true when that finished the frame.
-    fn render_band(&mut self, rows: u32) -> Result<bool, Self::Error>;
-    fn restart(&mut self) -> Result<(), Self::Error>;
-    fn rows_left(&self) -> u32;
-    fn frames(&self) -> u32;
-    fn accumulation(&self) -> Result<Vec<Vec4>, Self::Error>;
-}
-
-macro_rules! bands_for {
-    ($renderer:ty, $error:ty) => {
-        impl Bands for $renderer {
-            type Error = $error;
-            fn render_frame(&mut self) -> Result<(), Self::Error> {
-                <$renderer>::render_frame(self)
-            }
-            fn render_band(&mut self, rows: u32) -> Result<bool, Self::Error> {
-                <$renderer>::render_band(self, rows)
-            }
-            fn restart(&mut self) -> Result<(), Self::Error> {
-                <$renderer>::restart(self)
-            }
-            fn rows_left(&self) -> u32 {
-                <$renderer>::rows_left(self)
-            }
-            fn frames(&self) -> u32 {
-                <$renderer>::frames(self)
-            }
-            fn accumulation(&self) -> Result<Vec<Vec4>, Self::Error> {
-                <$renderer>::accumulation(self)
-            }
-        }
-    };
-}
-
-bands_for!(GlRenderer, tracer::backend::gl::GlError);
-bands_for!(WgpuRenderer, tracer::backend::wgpu::WgpuError);
+use tracer::backend::Renderer;
 
 /// Asserts that `a` and `b` hold the same accumulation, bit for bit, and that it is a real
 /// image (not black, every pixel carrying every sample of the frames rendered).
-pub fn assert_same<R: Bands>(a: &R, b: &R, what: &str) {
+pub fn assert_same(a: &dyn Renderer, b: &dyn Renderer, what: &str) {
     let (x, y) = (a.accumulation().expect("readback"), b.accumulation().expect("readback"));
     let differing = x.iter().zip(&y).filter(|(p, q)| p != q).count();
     assert_eq!(differing, 0, "{what}: {differing} of {} pixels differ", x.len());
@@ -63,7 +19,7 @@ pub fn assert_same<R: Bands>(a: &R, b: &R, what: &str) {
 /// into the next band's rows) on `banded`, both of `height` rows from the same packed scene
 /// and seed; the sample count advances with a frame's last band only, and a restart in the
 /// middle of a split frame leaves nothing of it behind.
-pub fn assert_bands_make_the_whole_frame<R: Bands>(mut whole: R, mut banded: R, height: u32) {
+pub fn assert_bands_make_the_whole_frame(whole: &mut dyn Renderer, banded: &mut dyn Renderer, height: u32) {
     assert!(height > 13, "the band heights need a taller image than {height} rows");
     let mut heights = [5u32, 7, 1, 13, height, 3, 11].into_iter().cycle();
     let mut bands = 0;
@@ -75,7 +31,7 @@ pub fn assert_bands_make_the_whole_frame<R: Bands>(mut whole: R, mut banded: R, 
             bands += 1;
         }
         assert_eq!(banded.frames(), frame + 1);
-        assert_same(&whole, &banded, &format!("frame {frame}"));
+        assert_same(whole, banded, &format!("frame {frame}"));
     }
     assert!(bands >= 12, "frames were split: {bands} bands");
     banded.render_band(6).expect("band");
@@ -87,5 +43,5 @@ pub fn assert_bands_make_the_whole_frame<R: Bands>(mut whole: R, mut banded: R, 
         whole.render_frame().expect("frame");
         while !banded.render_band(height / 2 - 1).expect("band") {}
     }
-    assert_same(&whole, &banded, "after a restart in the middle of a frame");
+    assert_same(whole, banded, "after a restart in the middle of a frame");
 }

@@ -4,7 +4,7 @@
 use glam::{Vec3, Vec4, Vec4Swizzles};
 use rayon::prelude::*;
 
-use super::{frame_seed, Image};
+use super::{frame_seed, update_uniforms, RenderError, Renderer, RendererInfo};
 use crate::kernel::integrator::render_sample;
 use crate::kernel::scene_data::Scene;
 use crate::pack::Packed;
@@ -13,6 +13,8 @@ pub struct CpuRenderer {
     packed: Packed,
     seed: u32,
     frames: u32,
+    /// Rows of the frame in progress already rendered ([`Renderer::render_band`]).
+    band_row: u32,
     /// Sum of samples per pixel: rgb, and the number of accepted (finite) samples in w.
     accumulation: Vec<Vec4>,
     /// Sum of squared samples per pixel, for variance estimates.
@@ -23,43 +25,13 @@ impl CpuRenderer {
     /// A renderer for `packed`; `seed` selects the random sequence (same seed, same image).
     pub fn new(packed: Packed, seed: u32) -> Self {
         let n = packed.scene.width as usize * packed.scene.height as usize;
-        CpuRenderer { packed, seed, frames: 0, accumulation: vec![Vec4::ZERO; n], squares: vec![Vec3::ZERO; n] }
-    }
-
-    pub fn frames(&self) -> u32 {
-        self.frames
-    }
-
-    pub fn packed(&self) -> &Packed {
-        &self.packed
-    }
-
-    /// Adds one sample per pixel.
-    pub fn render_frame(&mut self) {
-        self.packed.scene.frame_seed = frame_seed(self.frames, self.seed);
-        let scene = &self.packed.scene;
-        let width = scene.width as usize;
-        self.accumulation
-            .par_chunks_mut(width)
-            .zip(self.squares.par_chunks_mut(width))
-            .enumerate()
-            .for_each(|(y, (row, squares))| render_row_fastest(scene, y as u32, row, squares));
-        self.frames += 1;
-    }
-
-    /// Samples that were not finite and were dropped, over the whole image.
-    pub fn rejected_samples(&self) -> u64 {
-        let accepted: f64 = self.accumulation.iter().map(|a| a.w as f64).sum();
-        (self.frames as u64 * self.accumulation.len() as u64).saturating_sub(accepted.round() as u64)
-    }
-
-    /// The mean of the accumulated samples (linear RGB).
-    pub fn image(&self) -> Image {
-        let n = self.frames.max(1) as f32;
-        Image {
-            width: self.packed.scene.width,
-            height: self.packed.scene.height,
-            pixels: self.accumulation.iter().map(|a| a.xyz() / n).collect(),
+        CpuRenderer {
+            packed,
+            seed,
+            frames: 0,
+            band_row: 0,
+            accumulation: vec![Vec4::ZERO; n],
+            squares: vec![Vec3::ZERO; n],
         }
     }
 
@@ -77,6 +49,70 @@ impl CpuRenderer {
                 ((*q / n - mean * mean) * (n / (n - 1.0))).max(Vec3::ZERO)
             })
             .collect()
+    }
+}
+
+impl Renderer for CpuRenderer {
+    fn describe(&self) -> RendererInfo {
+        let threads = rayon::current_num_threads();
+        RendererInfo { runtime: "cpu", device: format!("{threads} threads"), limits: Vec::new() }
+    }
+
+    fn packed(&self) -> &Packed {
+        &self.packed
+    }
+
+    fn frames(&self) -> u32 {
+        self.frames
+    }
+
+    fn rows_left(&self) -> u32 {
+        self.packed.scene.height - self.band_row
+    }
+
+    /// Renders the band's rows in parallel, adding each pixel's sample in place: between the
+    /// bands of a split frame, the rows rendered already hold the frame's sample (as on wgpu).
+    fn render_band(&mut self, rows: u32) -> Result<bool, RenderError> {
+        // At least one row, at most those left (none of an empty image).
+        let rows = rows.max(1).min(self.rows_left());
+        self.packed.scene.frame_seed = frame_seed(self.frames, self.seed);
+        let scene = &self.packed.scene;
+        let width = scene.width as usize;
+        let (first, end) = (self.band_row as usize * width, (self.band_row + rows) as usize * width);
+        let first_row = self.band_row;
+        self.accumulation[first..end]
+            .par_chunks_mut(width)
+            .zip(self.squares[first..end].par_chunks_mut(width))
+            .enumerate()
+            .for_each(|(y, (row, squares))| render_row_fastest(scene, first_row + y as u32, row, squares));
+        self.band_row += rows;
+        if self.band_row < scene.height {
+            return Ok(false);
+        }
+        self.band_row = 0;
+        self.frames += 1;
+        Ok(true)
+    }
+
+    fn finish(&self) -> Result<(), RenderError> {
+        Ok(())
+    }
+
+    fn accumulation(&self) -> Result<Vec<Vec4>, RenderError> {
+        Ok(self.accumulation.clone())
+    }
+
+    fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
+        update_uniforms(&mut self.packed.scene, update)?;
+        self.restart()
+    }
+
+    fn restart(&mut self) -> Result<(), RenderError> {
+        self.accumulation.fill(Vec4::ZERO);
+        self.squares.fill(Vec3::ZERO);
+        self.frames = 0;
+        self.band_row = 0;
+        Ok(())
     }
 }
 

@@ -22,7 +22,8 @@
 
 use glow::HasContext;
 
-use super::gl::{GlError, GlRenderer};
+use super::gl::GlRenderer;
+use super::{RenderError, Renderer};
 
 /// The longest a single GPU submission should take (milliseconds), by default.
 pub const DEFAULT_BUDGET_MS: f64 = 50.0;
@@ -179,7 +180,7 @@ impl Pacer {
         renderer: &mut GlRenderer,
         now_ms: f64,
         then: impl FnOnce(&GlRenderer, bool),
-    ) -> Result<Step, GlError> {
+    ) -> Result<Step, RenderError> {
         if !self.poll(renderer.gl(), now_ms) {
             return Ok(Step::Waiting);
         }

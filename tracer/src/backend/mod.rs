@@ -1,6 +1,7 @@
-//! Backends run the same kernel over the same packed data. They share one shape: create from
-//! a [`Packed`](crate::pack::Packed) scene, `render_frame` adds one sample per pixel, and the
-//! accumulated image is read back as linear RGB.
+//! Backends run the same kernel over the same packed data, behind one interface, [`Renderer`]:
+//! create from a [`Packed`](crate::pack::Packed) scene, `render_frame` (or `render_band`) adds
+//! one sample per pixel, and the accumulated image is read back as linear RGB. [`create`] makes
+//! one of any [`RendererKind`] natively.
 
 pub mod cpu;
 #[cfg(feature = "gl")]
@@ -8,10 +9,18 @@ pub mod egl;
 pub mod frame_split;
 pub mod gl;
 pub mod harness;
+mod renderer;
 #[cfg(feature = "wgpu")]
 pub mod wgpu;
 
 use glam::Vec3;
+
+#[cfg(not(target_arch = "wasm32"))]
+pub use renderer::create;
+pub(crate) use renderer::update_uniforms;
+pub use renderer::{
+    mean_image, rejected_samples, PendingAccumulation, RenderError, Renderer, RendererInfo, RendererKind,
+};
 
 /// Seed of frame `frame`: spreads consecutive frames over the hash's input space.
 pub fn frame_seed(frame: u32, seed: u32) -> u32 {

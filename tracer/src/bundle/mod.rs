@@ -758,6 +758,7 @@ mod tests {
 
     use super::*;
     use crate::backend::cpu::CpuRenderer;
+    use crate::backend::Renderer;
     use crate::pack::{pack, RenderSettings};
 
     /// A file of the repository's vendored test data (`tests/data/`, see its README.md).
@@ -789,9 +790,9 @@ mod tests {
     fn render(p: Packed) -> crate::backend::Image {
         let mut r = CpuRenderer::new(p, 7);
         for _ in 0..3 {
-            r.render_frame();
+            r.render_frame().expect("frame");
         }
-        r.image()
+        r.image().expect("image")
     }
 
     #[test]

@@ -1,6 +1,8 @@
 //! The two runtimes the viewer drives, behind one small interface: WebGL2 (the GL backend) and
 //! WebGPU (the wgpu backend). Everything the page does (frames, the frame loop's steps, camera
-//! and setting changes, read-backs, screenshots, the read-outs) goes through [`Runtime`].
+//! and setting changes, read-backs, screenshots, the read-outs) goes through [`Runtime`]: what
+//! concerns the renderer through its [`Renderer`] trait object, what concerns the canvas (the
+//! display pass, frame pacing, the context) through the runtime itself.
 
 pub mod webgl2;
 pub mod webgpu;
@@ -11,6 +13,7 @@ use std::pin::Pin;
 use glam::Vec4;
 use js_sys::Object;
 use tracer::backend::frame_split::Step;
+use tracer::backend::Renderer;
 use tracer::kernel::scene_data::Scene;
 use tracer::output::Display;
 use tracer::pack::Packed;
@@ -67,18 +70,27 @@ impl Runtime {
         }
     }
 
-    pub fn frames(&self) -> u32 {
+    /// The renderer, whichever runtime holds it.
+    pub fn renderer(&self) -> &dyn Renderer {
         match self {
-            Runtime::WebGl2(r) => r.renderer().frames(),
-            Runtime::WebGpu(r) => r.renderer().frames(),
+            Runtime::WebGl2(r) => r.renderer(),
+            Runtime::WebGpu(r) => r.renderer(),
         }
     }
 
-    pub fn packed(&self) -> &Packed {
+    fn renderer_mut(&mut self) -> &mut dyn Renderer {
         match self {
-            Runtime::WebGl2(r) => r.renderer().packed(),
-            Runtime::WebGpu(r) => r.renderer().packed(),
+            Runtime::WebGl2(r) => r.renderer_mut(),
+            Runtime::WebGpu(r) => r.renderer_mut(),
         }
+    }
+
+    pub fn frames(&self) -> u32 {
+        self.renderer().frames()
+    }
+
+    pub fn packed(&self) -> &Packed {
+        self.renderer().packed()
     }
 
     /// Whether the runtime's context or device is gone (nothing may be drawn).
@@ -121,11 +133,8 @@ impl Runtime {
     }
 
     /// Sets uniforms through `update` and restarts the accumulation.
-    pub fn set_uniforms(&mut self, update: impl FnOnce(&mut Scene)) -> Result<(), String> {
-        match self {
-            Runtime::WebGl2(r) => r.renderer_mut().set_uniforms(update).map_err(|e| e.to_string()),
-            Runtime::WebGpu(r) => r.renderer_mut().set_uniforms(update).map_err(|e| e.to_string()),
-        }
+    pub fn set_uniforms(&mut self, mut update: impl FnMut(&mut Scene)) -> Result<(), String> {
+        self.renderer_mut().set_uniforms(&mut update).map_err(|e| e.to_string())
     }
 
     /// Resolves once the GPU has done the work queued so far (WebGL2: already, by a 1-pixel
@@ -142,10 +151,8 @@ impl Runtime {
 
     /// The running sum per pixel (rows from the top; rgb: sum, w: finite samples).
     pub fn read_accumulation(&self) -> Pending<Vec<Vec4>> {
-        match self {
-            Runtime::WebGl2(r) => Box::pin(std::future::ready(r.renderer().accumulation().map_err(|e| e.to_string()))),
-            Runtime::WebGpu(r) => Box::pin(r.read_accumulation()),
-        }
+        let read = self.renderer().read_accumulation();
+        Box::pin(async move { read.await.map_err(|e| e.to_string()) })
     }
 
     /// The read-outs of `sceneInfo`: the API and adapter, and how frames are submitted.

@@ -5,6 +5,7 @@
 use glow::HasContext;
 use tracer::backend::frame_split::{Pacer, Step};
 use tracer::backend::gl::{GlDisplay, GlOptions, GlRenderer};
+use tracer::backend::Renderer;
 use tracer::output::Display;
 use tracer::pack::Packed;
 use wasm_bindgen::JsCast;

@@ -14,9 +14,9 @@ use std::rc::Rc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
-use glam::Vec4;
 use tracer::backend::frame_split::{BandPolicy, Step};
 use tracer::backend::wgpu::{DisplayPass, PipelineCheck, WgpuDevice, WgpuOptions, WgpuRenderer};
+use tracer::backend::Renderer;
 use tracer::output::Display;
 use tracer::pack::Packed;
 use wasm_bindgen::prelude::*;
@@ -257,11 +257,5 @@ impl GpuRuntime {
     /// Resolves once the queued work is done.
     pub fn sync(&self) -> impl std::future::Future<Output = ()> + 'static {
         self.renderer.done()
-    }
-
-    /// Resolves to the accumulation (rows from the top).
-    pub fn read_accumulation(&self) -> impl std::future::Future<Output = Result<Vec<Vec4>, String>> + 'static {
-        let read = self.renderer.read_accumulation();
-        async move { read.await.map_err(|e| e.to_string()) }
     }
 }

@@ -7,6 +7,7 @@ use glow::HasContext;
 use lightport_codegen::{Generated, Target};
 
 use super::{compile_program, gl_failed, GlError, GlRenderer};
+use crate::backend::Renderer;
 use crate::kernel::{self, ShaderError};
 use crate::output::Display;
 

@@ -27,12 +27,12 @@ pub use display::{display_fragment_shader, GlDisplay};
 
 use std::marker::PhantomData;
 
-use glam::{UVec4, Vec3, Vec4, Vec4Swizzles};
+use glam::{UVec4, Vec3, Vec4};
 use glow::HasContext;
 use kernel_dsl::Texels;
 use lightport_codegen::Target;
 
-use super::{frame_seed, Image};
+use super::{frame_seed, update_uniforms, RenderError, Renderer, RendererInfo};
 use crate::kernel::scene_data::Scene;
 use crate::kernel::ShaderError;
 use crate::pack::{self, PackError, Packed};
@@ -328,22 +328,39 @@ impl GlRenderer {
         &self.pipeline.info
     }
 
-    pub fn frames(&self) -> u32 {
+    /// The texture holding the running sum (what [`accumulation`](Self::accumulation) reads),
+    /// for a display pass that draws the converging image (the web viewer).
+    pub fn accumulation_texture(&self) -> glow::Texture {
+        self.pipeline.accumulation[self.current]
+    }
+
+    /// During the first frame after a (re)start, split into bands: the texture its bands are
+    /// drawn into (the rows drawn hold one sample, the others zero), for a display pass that
+    /// shows the new view band by band instead of the old one for a whole slow frame.
+    pub fn first_frame_in_progress(&self) -> Option<glow::Texture> {
+        (self.frames == 0 && self.band_row > 0).then_some(self.pipeline.accumulation[1 - self.current])
+    }
+}
+
+impl Renderer for GlRenderer {
+    fn describe(&self) -> RendererInfo {
+        let info = &self.pipeline.info;
+        RendererInfo {
+            runtime: "gl",
+            device: format!("{} ({})", info.renderer, info.version),
+            limits: vec![("GL_MAX_TEXTURE_SIZE", info.max_texture_size as u64)],
+        }
+    }
+
+    fn frames(&self) -> u32 {
         self.frames
     }
 
-    pub fn packed(&self) -> &Packed {
+    fn packed(&self) -> &Packed {
         &self.packed
     }
 
-    /// Adds one sample per pixel (queued on the GL context; [`finish`](Self::finish) waits).
-    /// In the middle of a split frame, draws the rows left of it.
-    pub fn render_frame(&mut self) -> Result<(), GlError> {
-        self.render_band(self.rows_left()).map(|_| ())
-    }
-
-    /// Rows of the current frame not drawn yet (the image height between frames).
-    pub fn rows_left(&self) -> u32 {
+    fn rows_left(&self) -> u32 {
         self.packed.scene.height - self.band_row
     }
 
@@ -353,7 +370,7 @@ impl GlRenderer {
     /// [`accumulation`](Self::accumulation) and [`image`](Self::image) show the new sample,
     /// when the last row is drawn: returns whether this band completed the frame. See
     /// [`frame_split`](super::frame_split).
-    pub fn render_band(&mut self, rows: u32) -> Result<bool, GlError> {
+    fn render_band(&mut self, rows: u32) -> Result<bool, RenderError> {
         self.activate()?;
         let gl = &self.gl;
         let p = &self.pipeline;
@@ -393,17 +410,15 @@ impl GlRenderer {
         Ok(true)
     }
 
-    /// Waits until every queued frame has been rendered (`glFinish`), e.g. around timings.
-    pub fn finish(&self) -> Result<(), GlError> {
+    /// `glFinish`.
+    fn finish(&self) -> Result<(), RenderError> {
         self.activate()?;
         // SAFETY: a plain synchronisation call on the current context.
         unsafe { self.gl.finish() };
         Ok(())
     }
 
-    /// The running sum per pixel, row y = kernel row y: rgb the sum of samples, w the number
-    /// of finite samples.
-    pub fn accumulation(&self) -> Result<Vec<Vec4>, GlError> {
+    fn accumulation(&self) -> Result<Vec<Vec4>, RenderError> {
         self.activate()?;
         let (width, height) = (self.packed.scene.width as usize, self.packed.scene.height as usize);
         let mut words = vec![0u32; width * height * 4];
@@ -427,57 +442,21 @@ impl GlRenderer {
             gl.get_error()
         };
         if error != glow::NO_ERROR {
-            return Err(GlError::Gl { what: "glReadPixels (RGBA, FLOAT)", detail: format!("error {error:#06x}") });
+            return Err(RenderError::Gl(GlError::Gl {
+                what: "glReadPixels (RGBA, FLOAT)",
+                detail: format!("error {error:#06x}"),
+            }));
         }
         Ok(words.chunks_exact(4).map(|t| Vec4::from_array([t[0], t[1], t[2], t[3]].map(f32::from_bits))).collect())
-    }
-
-    /// The mean of the accumulated samples (linear RGB), as the CPU backend computes it.
-    pub fn image(&self) -> Result<Image, GlError> {
-        let n = self.frames.max(1) as f32;
-        Ok(Image {
-            width: self.packed.scene.width,
-            height: self.packed.scene.height,
-            pixels: self.accumulation()?.iter().map(|a| a.xyz() / n).collect(),
-        })
-    }
-
-    /// Samples that were not finite and were dropped, over the whole image.
-    pub fn rejected_samples(&self) -> Result<u64, GlError> {
-        let accumulation = self.accumulation()?;
-        let accepted: f64 = accumulation.iter().map(|a| a.w as f64).sum();
-        Ok((self.frames as u64 * accumulation.len() as u64).saturating_sub(accepted.round() as u64))
-    }
-
-    /// The texture holding the running sum (what [`accumulation`](Self::accumulation) reads),
-    /// for a display pass that draws the converging image (the web viewer).
-    pub fn accumulation_texture(&self) -> glow::Texture {
-        self.pipeline.accumulation[self.current]
-    }
-
-    /// During the first frame after a (re)start, split into bands: the texture its bands are
-    /// drawn into (the rows drawn hold one sample, the others zero), for a display pass that
-    /// shows the new view band by band instead of the old one for a whole slow frame.
-    pub fn first_frame_in_progress(&self) -> Option<glow::Texture> {
-        (self.frames == 0 && self.band_row > 0).then_some(self.pipeline.accumulation[1 - self.current])
     }
 
     /// Changes the scene's uniforms (camera, strategy, depth...) and restarts the accumulation,
     /// without recompiling the shader or re-uploading the data textures: an interactive camera
     /// costs nothing. Texel arrays changed by `update` are not re-uploaded; the image size
     /// cannot change (its textures are allocated at creation): that is an error.
-    pub fn set_uniforms(&mut self, update: impl FnOnce(&mut Scene)) -> Result<(), GlError> {
+    fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
         self.activate()?;
-        let (width, height) = (self.packed.scene.width, self.packed.scene.height);
-        update(&mut self.packed.scene);
-        let scene = &mut self.packed.scene;
-        if (scene.width, scene.height) != (width, height) {
-            let wanted = format!("{}x{}", scene.width, scene.height);
-            (scene.width, scene.height) = (width, height);
-            return Err(GlError::Unsupported(format!(
-                "the image size is fixed at {width}x{height} when the renderer is created; create one for {wanted}"
-            )));
-        }
+        update_uniforms(&mut self.packed.scene, update)?;
         let gl = &self.gl;
         let program = self.pipeline.program;
         // SAFETY: uniform updates on this context's linked program, which is current.
@@ -497,9 +476,7 @@ impl GlRenderer {
         self.restart()
     }
 
-    /// Drops every accumulated sample: the next frame is sample 1 again (a split frame in
-    /// progress is abandoned: the next band is its first row).
-    pub fn restart(&mut self) -> Result<(), GlError> {
+    fn restart(&mut self) -> Result<(), RenderError> {
         self.activate()?;
         let gl = &self.gl;
         // SAFETY: clears this context's RGBA32F accumulation attachments with a float clear,
@@ -515,7 +492,8 @@ impl GlRenderer {
             gl.get_error()
         };
         if error != glow::NO_ERROR {
-            return Err(GlError::Gl { what: "clearing the accumulation", detail: format!("error {error:#06x}") });
+            let detail = format!("error {error:#06x}");
+            return Err(GlError::Gl { what: "clearing the accumulation", detail }.into());
         }
         self.frames = 0;
         self.band_row = 0;

@@ -11,6 +11,7 @@ use lightport_codegen::Target;
 use wgpu::util::DeviceExt;
 
 use super::{WgpuError, WgpuRenderer};
+use crate::backend::Renderer;
 use crate::output::Display;
 
 /// The entry points and resources the pass adds to the generated tone-map module.

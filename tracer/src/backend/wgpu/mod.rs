@@ -32,8 +32,6 @@ use std::sync::{Arc, Mutex};
 
 use glam::Vec4;
 #[cfg(not(target_arch = "wasm32"))]
-use glam::Vec4Swizzles;
-#[cfg(not(target_arch = "wasm32"))]
 use lightport_codegen::Generated;
 use lightport_codegen::Target;
 use wgpu::util::DeviceExt;
@@ -48,9 +46,7 @@ pub(crate) use resources::{
 };
 pub use resources::{compile_pipeline, start_pipeline, PipelineCheck};
 
-use super::frame_seed;
-#[cfg(not(target_arch = "wasm32"))]
-use super::Image;
+use super::{frame_seed, update_uniforms, PendingAccumulation, RenderError, Renderer, RendererInfo};
 use crate::kernel::scene_data::Scene;
 use crate::kernel::ShaderError;
 use crate::pack::Packed;
@@ -91,8 +87,6 @@ pub enum WgpuError {
     Compile { log: String },
     #[error("the shader declares `{name}`, which the wgpu backend does not bind{detail}")]
     UnboundResource { name: String, detail: String },
-    #[error("the image size is fixed at {width}x{height} when the renderer is created; create one for {wanted}")]
-    SizeChanged { width: u32, height: u32, wanted: String },
     #[error("wgpu {what} failed: {detail}")]
     Wgpu { what: &'static str, detail: String },
 }
@@ -265,14 +259,6 @@ impl WgpuRenderer {
         &self.device
     }
 
-    pub fn frames(&self) -> u32 {
-        self.frames
-    }
-
-    pub fn packed(&self) -> &Packed {
-        &self.packed
-    }
-
     /// The first error wgpu reported outside an error scope since the renderer was created.
     pub fn check_uncaptured(&self) -> Result<(), WgpuError> {
         let slot = self.uncaptured.lock().unwrap_or_else(|p| p.into_inner());
@@ -282,24 +268,85 @@ impl WgpuRenderer {
         }
     }
 
-    /// Adds one sample per pixel (queued on the device; [`finish`](Self::finish) waits): the
-    /// rest of the current frame, when it was begun in bands.
-    pub fn render_frame(&mut self) -> Result<(), WgpuError> {
-        self.render_band(self.rows_left()).map(|_| ())
+    /// Resolves when everything submitted so far has run on the device (never blocks; in the
+    /// browser, `onSubmittedWorkDone`).
+    pub fn done(&self) -> impl std::future::Future<Output = ()> + 'static {
+        let (sender, receiver) = oneshot::channel();
+        self.device.queue.on_submitted_work_done(move || sender.send(()));
+        async move {
+            let _ = receiver.await;
+        }
     }
 
-    /// Rows of the current frame not rendered yet (the image height between frames).
-    pub fn rows_left(&self) -> u32 {
+    /// The running-sum buffer (rgb: sum of samples, w: finite samples; row-major, row 0 at
+    /// the top), e.g. for a display pass.
+    pub fn accumulation_buffer(&self) -> &wgpu::Buffer {
+        &self.pipeline.accumulation
+    }
+
+    /// Queues the copy of the accumulation into the readback buffer and returns the future
+    /// that resolves once the device has mapped it. One read at a time: a second before the
+    /// first resolved is an error.
+    fn read_back(&self) -> impl std::future::Future<Output = Result<Vec<Vec4>, WgpuError>> + 'static {
+        let p = &self.pipeline;
+        let mut encoder = self.device.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&p.accumulation, 0, &p.readback, 0, p.accumulation.size());
+        self.device.queue.submit([encoder.finish()]);
+        let readback = p.readback.clone();
+        let (sender, receiver) = oneshot::channel();
+        readback.slice(..).map_async(wgpu::MapMode::Read, move |result| sender.send(result));
+        let failed = |detail: String| WgpuError::Wgpu { what: "mapping the readback buffer", detail };
+        let uncaptured = self.check_uncaptured();
+        async move {
+            uncaptured?;
+            receiver
+                .await
+                .ok_or_else(|| failed("the device dropped the request".into()))?
+                .map_err(|e| failed(e.to_string()))?;
+            let texels: Vec<Vec4> = {
+                let view = readback
+                    .slice(..)
+                    .get_mapped_range()
+                    .map_err(|e| WgpuError::Wgpu { what: "reading the readback buffer", detail: e.to_string() })?;
+                bytemuck::pod_collect_to_vec(&view)
+            };
+            readback.unmap();
+            Ok(texels)
+        }
+    }
+}
+
+impl Renderer for WgpuRenderer {
+    fn describe(&self) -> RendererInfo {
+        let info = &self.device.info;
+        let limits = &self.device.limits;
+        RendererInfo {
+            runtime: "wgpu",
+            device: format!("{} ({})", info.adapter, info.backend),
+            limits: vec![
+                ("max_storage_buffer_binding_size", info.max_storage_buffer_binding_size),
+                ("max_buffer_size", info.max_buffer_size),
+                ("max_storage_buffers_per_shader_stage", limits.max_storage_buffers_per_shader_stage as u64),
+            ],
+        }
+    }
+
+    fn frames(&self) -> u32 {
+        self.frames
+    }
+
+    fn packed(&self) -> &Packed {
+        &self.packed
+    }
+
+    fn rows_left(&self) -> u32 {
         self.packed.scene.height - self.band_row
     }
 
-    /// Renders the next `rows` rows (kernel rows from the top, clamped to those left) of the
-    /// current frame: the same dispatch as a whole frame over fewer rows, so the pixels and
-    /// their random sequence are the unsplit frame's. The sample count advances when the last
-    /// row is rendered: returns whether this band completed the frame. As
-    /// [`GlRenderer::render_band`](crate::backend::gl::GlRenderer::render_band); see
+    /// The same dispatch as a whole frame over fewer rows, so the pixels and their random
+    /// sequence are the unsplit frame's; each invocation adds its sample in place. See
     /// [`frame_split`](super::frame_split).
-    pub fn render_band(&mut self, rows: u32) -> Result<bool, WgpuError> {
+    fn render_band(&mut self, rows: u32) -> Result<bool, RenderError> {
         self.check_uncaptured()?;
         let p = &self.pipeline;
         let queue = &self.device.queue;
@@ -334,131 +381,45 @@ impl WgpuRenderer {
         Ok(frame_done)
     }
 
-    /// Waits until every queued frame has been rendered, e.g. around timings.
-    #[cfg(not(target_arch = "wasm32"))]
-    pub fn finish(&self) -> Result<(), WgpuError> {
+    /// Waits until the queue is idle. In the browser nothing blocks: it reports the device's
+    /// errors only (await [`WgpuRenderer::done`] instead).
+    fn finish(&self) -> Result<(), RenderError> {
+        #[cfg(not(target_arch = "wasm32"))]
         self.device
             .device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| WgpuError::Wgpu { what: "waiting for the queue", detail: e.to_string() })?;
-        self.check_uncaptured()
+        Ok(self.check_uncaptured()?)
     }
 
-    /// The running sum per pixel, row y = kernel row y: rgb the sum of samples, w the number
-    /// of finite samples.
-    #[cfg(not(target_arch = "wasm32"))]
-    pub fn accumulation(&self) -> Result<Vec<Vec4>, WgpuError> {
-        let p = &self.pipeline;
-        let mut encoder = self.device.device.create_command_encoder(&Default::default());
-        encoder.copy_buffer_to_buffer(&p.accumulation, 0, &p.readback, 0, p.accumulation.size());
-        self.device.queue.submit([encoder.finish()]);
-        let slice = p.readback.slice(..);
-        let (sender, receiver) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |result| {
-            let _ = sender.send(result);
-        });
-        self.finish()?;
-        receiver
-            .recv()
-            .map_err(|e| WgpuError::Wgpu { what: "mapping the readback buffer", detail: e.to_string() })?
-            .map_err(|e| WgpuError::Wgpu { what: "mapping the readback buffer", detail: e.to_string() })?;
-        let texels: Vec<Vec4> = {
-            let view = slice
-                .get_mapped_range()
-                .map_err(|e| WgpuError::Wgpu { what: "reading the readback buffer", detail: e.to_string() })?;
-            bytemuck::pod_collect_to_vec(&view)
-        };
-        p.readback.unmap();
-        Ok(texels)
-    }
-
-    /// [`accumulation`](Self::accumulation) without blocking: the copy is queued now and the
-    /// future resolves once the device has mapped it (in the browser, a promise; natively,
-    /// someone must poll the device). One read at a time: a second before the first resolved
-    /// is an error.
-    pub fn read_accumulation(&self) -> impl std::future::Future<Output = Result<Vec<Vec4>, WgpuError>> + 'static {
-        let p = &self.pipeline;
-        let mut encoder = self.device.device.create_command_encoder(&Default::default());
-        encoder.copy_buffer_to_buffer(&p.accumulation, 0, &p.readback, 0, p.accumulation.size());
-        self.device.queue.submit([encoder.finish()]);
-        let readback = p.readback.clone();
-        let (sender, receiver) = oneshot::channel();
-        readback.slice(..).map_async(wgpu::MapMode::Read, move |result| sender.send(result));
-        let failed = |detail: String| WgpuError::Wgpu { what: "mapping the readback buffer", detail };
-        let uncaptured = self.check_uncaptured();
-        async move {
-            uncaptured?;
-            receiver
-                .await
-                .ok_or_else(|| failed("the device dropped the request".into()))?
-                .map_err(|e| failed(e.to_string()))?;
-            let texels: Vec<Vec4> = {
-                let view = readback
-                    .slice(..)
-                    .get_mapped_range()
-                    .map_err(|e| WgpuError::Wgpu { what: "reading the readback buffer", detail: e.to_string() })?;
-                bytemuck::pod_collect_to_vec(&view)
-            };
-            readback.unmap();
-            Ok(texels)
+    /// Natively, [`read_accumulation`](Renderer::read_accumulation) waited for by polling the
+    /// device. In the browser a read-back cannot block: an error.
+    fn accumulation(&self) -> Result<Vec<Vec4>, RenderError> {
+        #[cfg(not(target_arch = "wasm32"))]
+        {
+            let read = self.read_back();
+            self.finish()?;
+            Ok(pollster::block_on(read)?)
         }
+        #[cfg(target_arch = "wasm32")]
+        Err(RenderError::Unsupported { runtime: "wgpu", what: "cannot block for a read-back in the browser" })
     }
 
-    /// Resolves when everything submitted so far has run on the device (never blocks; in the
-    /// browser, `onSubmittedWorkDone`).
-    pub fn done(&self) -> impl std::future::Future<Output = ()> + 'static {
-        let (sender, receiver) = oneshot::channel();
-        self.device.queue.on_submitted_work_done(move || sender.send(()));
-        async move {
-            let _ = receiver.await;
-        }
+    fn read_accumulation(&self) -> PendingAccumulation {
+        let read = self.read_back();
+        Box::pin(async move { Ok(read.await?) })
     }
 
-    /// The running-sum buffer (rgb: sum of samples, w: finite samples; row-major, row 0 at
-    /// the top), e.g. for a display pass.
-    pub fn accumulation_buffer(&self) -> &wgpu::Buffer {
-        &self.pipeline.accumulation
-    }
-
-    /// The mean of the accumulated samples (linear RGB), as the CPU backend computes it.
-    #[cfg(not(target_arch = "wasm32"))]
-    pub fn image(&self) -> Result<Image, WgpuError> {
-        let n = self.frames.max(1) as f32;
-        Ok(Image {
-            width: self.packed.scene.width,
-            height: self.packed.scene.height,
-            pixels: self.accumulation()?.iter().map(|a| a.xyz() / n).collect(),
-        })
-    }
-
-    /// Samples that were not finite and were dropped, over the whole image.
-    #[cfg(not(target_arch = "wasm32"))]
-    pub fn rejected_samples(&self) -> Result<u64, WgpuError> {
-        let accumulation = self.accumulation()?;
-        let accepted: f64 = accumulation.iter().map(|a| a.w as f64).sum();
-        Ok((self.frames as u64 * accumulation.len() as u64).saturating_sub(accepted.round() as u64))
-    }
-
-    /// Changes the scene's uniforms (camera, strategy, depth...) and restarts the accumulation,
-    /// without recompiling the shader or re-uploading the storage buffers. Texel arrays changed
-    /// by `update` are not re-uploaded; the image size cannot change: that is an error.
-    pub fn set_uniforms(&mut self, update: impl FnOnce(&mut Scene)) -> Result<(), WgpuError> {
-        let (width, height) = (self.packed.scene.width, self.packed.scene.height);
-        update(&mut self.packed.scene);
-        let scene = &mut self.packed.scene;
-        if (scene.width, scene.height) != (width, height) {
-            let wanted = format!("{}x{}", scene.width, scene.height);
-            (scene.width, scene.height) = (width, height);
-            return Err(WgpuError::SizeChanged { width, height, wanted });
-        }
+    /// Rewrites the `scene` uniform; the storage buffers stay as uploaded.
+    fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
+        update_uniforms(&mut self.packed.scene, update)?;
         if let Some((buffer, layout)) = &self.pipeline.scene_uniform {
             self.device.queue.write_buffer(buffer, 0, &scene_uniform_bytes(layout, &self.packed.scene)?);
         }
         self.restart()
     }
 
-    /// Drops every accumulated sample: the next frame is sample 1 again.
-    pub fn restart(&mut self) -> Result<(), WgpuError> {
+    fn restart(&mut self) -> Result<(), RenderError> {
         self.check_uncaptured()?;
         let mut encoder = self.device.device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&self.pipeline.accumulation, 0, None);
