@@ -140,12 +140,13 @@ mod tests {
     use super::*;
     use std::path::Path;
 
-    fn shared(path: &str) -> std::path::PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes").join(path)
+    /// A scene vendored for the tests (`tests/data/scenes/`, each with its licence).
+    fn test_scene(path: &str) -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/scenes").join(path)
     }
 
     fn dropped(path: &str, name: &str) -> DroppedFile {
-        let bytes = std::fs::read(shared(path)).unwrap_or_else(|e| panic!("{path}: {e}"));
+        let bytes = std::fs::read(test_scene(path)).unwrap_or_else(|e| panic!("{path}: {e}"));
         DroppedFile { name: name.into(), bytes }
     }
 
@@ -159,7 +160,7 @@ mod tests {
             dropped(&format!("{dir}/CesiumLogoFlat.png"), "textures/CesiumLogoFlat.png"),
         ];
         let (name, scene) = load_dropped(&files).expect("loads");
-        let on_disk = tracer::scene::load(&shared(&format!("{dir}/BoxTextured.gltf"))).expect("on disk");
+        let on_disk = tracer::scene::load(&test_scene(&format!("{dir}/BoxTextured.gltf"))).expect("on disk");
         assert_eq!(name, "BoxTextured.gltf");
         assert_eq!(scene.triangles, on_disk.triangles);
         assert_eq!(scene.textures, on_disk.textures);
