@@ -158,10 +158,7 @@ fn the_same_seed_gives_the_same_image() {
 /// and a restart abandons a split frame (`common::bands`, as GL's and wgpu's).
 #[test]
 fn a_frame_split_into_bands_is_the_unsplit_frame() {
-    let scene = scene::cornell_box();
-    let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
-    let settings = RenderSettings { width: 20, height: 20, strategy: Strategy::Mis, max_depth: 4 };
-    let base = pack(&scene, &bvh, &settings).expect("pack");
+    let base = common::agreement::packed(&scene::cornell_box(), Strategy::Mis, 20, 4);
     common::bands::assert_bands_make_the_whole_frame(
         &mut CpuRenderer::new(base.clone(), 3),
         &mut CpuRenderer::new(base, 3),

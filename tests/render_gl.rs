@@ -6,12 +6,13 @@ mod common;
 
 use std::time::Instant;
 
+use common::agreement::{packed, BLOCKS};
 use common::test_data;
 use glam::{DVec3, Vec3, Vec4Swizzles};
 use tracer::backend::cpu::CpuRenderer;
 use tracer::backend::gl::{GlError, GlOptions, GlRenderer, HeadlessContext};
 use tracer::backend::Renderer;
-use tracer::pack::{pack, Packed, RenderSettings, Strategy};
+use tracer::pack::{Packed, RenderSettings, Strategy};
 use tracer::scene::{self, Scene, Sky};
 use tracer::stats::Estimate;
 
@@ -20,15 +21,6 @@ const STRATEGIES: [Strategy; 3] = [Strategy::Bsdf, Strategy::Nee, Strategy::Mis]
 /// |CPU - GL| within 5 combined standard errors, per region and channel (a false alarm at
 /// 5 sigma is ~1 in 10^6 per comparison; the runs use fixed seeds).
 const Z_BOUND: f64 = 5.0;
-
-/// Regions per side: the image's 4 x 4 blocks, plus the whole image.
-const BLOCKS: u32 = 4;
-
-fn packed(scene: &Scene, strategy: Strategy, size: u32, max_depth: u32) -> Packed {
-    let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
-    let settings = RenderSettings { width: size, height: size, strategy, max_depth };
-    pack(scene, &bvh, &settings).expect("pack")
-}
 
 fn gl_renderer(packed: Packed, seed: u32) -> GlRenderer {
     GlRenderer::headless(packed, seed).unwrap_or_else(|e| panic!("the GL backend must run here: {e}"))
