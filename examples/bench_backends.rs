@@ -7,12 +7,17 @@
 //!
 //! Every renderer is created once and renders one untimed warm-up frame (drivers compile their
 //! shaders on the first draw). Then R rounds (default 5) time FRAMES frames (default 8) on each
-//! renderer, waiting for the device before and after; the order of the renderers rotates from
-//! round to round, so that a noisy neighbour on a shared machine hits every column alike. The
-//! table gives each renderer's median and the ratios of medians.
+//! renderer of each scene, waiting for the device before and after; the order of the renderers
+//! rotates from round to round, so that a noisy neighbour on a shared machine hits every column
+//! and every row alike. The table gives each renderer's median and the ratios of medians.
 //!
 //! `--size N` renders both scenes at NxN (default: the Cornell box at 256x256, LittlestTokyo at
 //! 128x128; a GPU wants more pixels per dispatch to be busy, e.g. `--size 1024`).
+//!
+//! Rows: the Cornell box, LittlestTokyo under a uniform white sky as shipped (alpha-masked
+//! materials) and the same made opaque (every `alphaMode` MASK and BLEND dropped: the same
+//! geometry and BVH), so that the second table, the cost of masks per runtime (opaque / masked
+//! samples per second), is measured in one run.
 //!
 //! Columns beyond the backends:
 //! - **sized / 64**: the kernel with its traversal stack sized to the scene (`Features::
@@ -121,28 +126,43 @@ fn main() -> Result<()> {
     let frames: u32 =
         args.first().filter(|a| !a.starts_with("--")).map(|a| a.parse()).transpose().context("FRAMES")?.unwrap_or(8);
     let tokyo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/threejs/LittlestTokyo.glb");
+    let mut tokyo = tracer::scene::load(&tokyo).context("loading LittlestTokyo")?;
+    // Under a white sky, as a user first renders it (`--sky white.hdr`): the scene has few lights.
+    tokyo.sky = Some(tracer::scene::Sky::uniform(glam::Vec3::ONE));
+    let mut opaque = tokyo.clone();
+    for m in &mut opaque.materials {
+        m.alpha_cutoff = None;
+    }
     let scenes = [
         ("Cornell box", tracer::scene::cornell_box(), size.unwrap_or(256)),
-        ("LittlestTokyo", tracer::scene::load(&tokyo).context("loading LittlestTokyo")?, size.unwrap_or(128)),
+        ("LittlestTokyo", tokyo, size.unwrap_or(128)),
+        ("LittlestTokyo, opaque", opaque, size.unwrap_or(128)),
     ];
-    let mut table = Vec::new();
-    let mut devices = String::new();
+    // Every renderer of every scene in one rotation, so that noise on a shared machine hits
+    // the scenes alike (the mask cost below compares two of them).
+    let mut rows = Vec::new();
+    let mut all: Vec<Box<dyn Renderer>> = Vec::new();
     for (name, scene, size) in scenes {
         let p = packed(&scene, size)?;
-        let mut rs = renderers(&p)?;
-        // Each runtime's device, once: "cpu: 2 threads; gl: llvmpipe (...); wgpu: llvmpipe (...) (Vulkan)".
-        let mut described: Vec<String> = Vec::new();
-        for r in &rs {
-            let info = r.describe();
-            let line = format!("{}: {}", info.runtime, info.device);
-            if !described.contains(&line) {
-                described.push(line);
-            }
-        }
-        devices = described.join("; ");
-        let m = measure(&mut rs, frames, rounds)?;
-        table.push((name, size, p.triangle_count, p.features.traversal_stack, m));
+        all.extend(renderers(&p)?);
+        rows.push((name, size, p.triangle_count, p.features.traversal_stack));
     }
+    // Each runtime's device, once: "cpu: 2 threads; gl: llvmpipe (...); wgpu: llvmpipe (...) (Vulkan)".
+    let mut described: Vec<String> = Vec::new();
+    for r in &all {
+        let info = r.describe();
+        let line = format!("{}: {}", info.runtime, info.device);
+        if !described.contains(&line) {
+            described.push(line);
+        }
+    }
+    let devices = described.join("; ");
+    let medians = measure(&mut all, frames, rounds)?;
+    let table: Vec<_> = rows
+        .into_iter()
+        .zip(medians.chunks(COLUMNS.len()))
+        .map(|((name, size, triangles, stack), m)| (name, size, triangles, stack, m.to_vec()))
+        .collect();
     println!("{frames} frames x {rounds} rounds (medians), MIS, max depth 8; {devices}");
     println!("columns: {}", COLUMNS.join(", "));
     println!(
@@ -150,8 +170,9 @@ fn main() -> Result<()> {
          | GL sized / 64 | wgpu sized / 64 | GL leaves at once / pushed |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
-    for (name, size, triangles, stack, m) in table {
+    for (name, size, triangles, stack, m) in &table {
         let [cpu, gl, gl_64, gl_at_once, wgpu, wgpu_64] = m[..] else { unreachable!("one median per column") };
+        let (size, triangles, stack) = (*size, *triangles, *stack);
         println!(
             "| {name} | {size}x{size} | {triangles} | {stack} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
             cpu / 1e6,
@@ -165,5 +186,16 @@ fn main() -> Result<()> {
             gl_at_once / gl,
         );
     }
+    // The cost of alpha masks per runtime: the same scene opaque against as shipped.
+    let masked = &table[1].4;
+    let opaque = &table[2].4;
+    println!("\n| LittlestTokyo, cost of masks (opaque / masked samples per second) | CPU | GL | wgpu |");
+    println!("|---|---|---|---|");
+    println!(
+        "| as shipped | {:.2} | {:.2} | {:.2} |",
+        opaque[0] / masked[0],
+        opaque[1] / masked[1],
+        opaque[4] / masked[4]
+    );
     Ok(())
 }

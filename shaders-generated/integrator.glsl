@@ -73,9 +73,10 @@ struct TriangleData {
     vec3 v2;
     uint material;
     uint light;
+    bool masked;
 };
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:120)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -83,7 +84,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:283)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:292)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -91,7 +92,7 @@ struct MetalRoughData {
     float specular;
 };
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:333)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:342)
 struct AlphaMaskData {
     uint texture_;
     float alpha;
@@ -402,23 +403,51 @@ uint stack_entry(uint first, uint count) {
     return (first << 8) | count;
 }
 
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:135)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:143)
 bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:126)
+// traverse::zero_to_miss (lightport-tracer/src/kernel/traverse.rs:58)
+vec4 zero_to_miss(vec4 v) {
+    return vec4(v.x == 0.0 ? MISS : v.x, v.y == 0.0 ? MISS : v.y, v.z == 0.0 ? MISS : v.z, v.w == 0.0 ? MISS : v.w);
+}
+
+// traverse::intersect_node (lightport-tracer/src/kernel/traverse.rs:73)
+NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float t_max) {
+    uint base = node * NODE_TEXELS;
+    vec4 ox = vec4(origin.x);
+    vec4 oy = vec4(origin.y);
+    vec4 oz = vec4(origin.z);
+    vec4 enter_x = (lp_fetch_vec4(scene_nodes, base + near.x) - ox) * inv_dir.x;
+    vec4 exit_x = (lp_fetch_vec4(scene_nodes, base + 1u - near.x) - ox) * inv_dir.x;
+    vec4 enter_y = (lp_fetch_vec4(scene_nodes, base + 2u + near.y) - oy) * inv_dir.y;
+    vec4 exit_y = (lp_fetch_vec4(scene_nodes, base + 3u - near.y) - oy) * inv_dir.y;
+    vec4 enter_z = (lp_fetch_vec4(scene_nodes, base + 4u + near.z) - oz) * inv_dir.z;
+    vec4 exit_z = (lp_fetch_vec4(scene_nodes, base + 5u - near.z) - oz) * inv_dir.z;
+    vec4 enter = max(max(max(enter_x, enter_y), enter_z), vec4(0.0));
+    vec4 exit = min(min(exit_x, exit_y), exit_z);
+    if ((exit.x == 0.0) || (exit.y == 0.0) || (exit.z == 0.0) || (exit.w == 0.0)) {
+        exit = min(min(zero_to_miss(exit_x), zero_to_miss(exit_y)), zero_to_miss(exit_z));
+    }
+    vec4 exit_1 = min(exit * 1.0000008, vec4(t_max));
+    uvec4 e = lp_fetch_uvec4(scene_node_children, node);
+    vec4 t = vec4(enter.x <= exit_1.x && (e.x != 0u) ? enter.x : MISS, enter.y <= exit_1.y && (e.y != 0u) ? enter.y : MISS, enter.z <= exit_1.z && (e.z != 0u) ? enter.z : MISS, enter.w <= exit_1.w && (e.w != 0u) ? enter.w : MISS);
+    return NodeHits(t, e);
+}
+
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:134)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:136)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
     vec4 b = lp_fetch_vec4(scene_triangles, base + 1u);
     vec4 c = lp_fetch_vec4(scene_triangles, base + 2u);
-    return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
+    return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
 }
 
 // intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
@@ -444,12 +473,7 @@ TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2)
     }
 }
 
-// scene_data::triangle_masked (lightport-tracer/src/kernel/scene_data.rs:348)
-bool triangle_masked(uint triangle) {
-    return lp_fetch_vec4(scene_triangles, triangle * TRIANGLE_TEXELS + 2u).w > 0.0;
-}
-
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:342)
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:351)
 AlphaMaskData fetch_alpha_mask(uint material) {
     vec4 t = lp_fetch_vec4(scene_materials, scene_alpha_mask_first + material);
     return AlphaMaskData(index_of(t.x), t.y, t.z);
@@ -463,7 +487,7 @@ vec2 texcoord1(uint triangle, float u, float v) {
     return vec2(a.x, a.y) * (1.0 - u - v) + vec2(a.z, a.w) * u + vec2(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:172)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -505,12 +529,12 @@ vec2 texture_uv(uint texture_, uint triangle, float u, float v) {
     }
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:310)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
 
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:173)
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:182)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -523,7 +547,7 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:220)
 uint texel_word(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -535,7 +559,7 @@ uint texel_word(uvec4 info, int x, int y) {
     return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
 }
 
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:240)
 vec4 decode_unorm8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -544,12 +568,12 @@ vec4 decode_unorm8(uint word) {
     return vec4(r, g, b, a);
 }
 
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:199)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:199)
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:208)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -558,7 +582,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:254)
 vec4 texel_as(uvec4 info, int x, int y, bool data) {
     uint word = texel_word(info, x, y);
     if (data) {
@@ -568,7 +592,7 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:274)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -582,12 +606,12 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:255)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:264)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }
 
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:353)
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:357)
 float coverage(AlphaMaskData mask, vec2 uv) {
     float a = mask.alpha;
     if ((scene_has_textures != 0u) && (mask.texture_ != NONE)) {
@@ -596,63 +620,31 @@ float coverage(AlphaMaskData mask, vec2 uv) {
     return a;
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:364)
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:369)
 bool is_hole(uint triangle, uint material, float u, float v) {
-    bool hole = false;
-    if (triangle_masked(triangle)) {
-        AlphaMaskData mask = fetch_alpha_mask(material);
-        vec2 uv = vec2(0.0);
-        if ((scene_has_shading != 0u) && (mask.texture_ != NONE)) {
-            uv = texture_uv(mask.texture_, triangle, u, v);
-        }
-        hole = coverage(mask, uv) < mask.cutoff;
+    AlphaMaskData mask = fetch_alpha_mask(material);
+    vec2 uv = vec2(0.0);
+    if ((scene_has_shading != 0u) && (mask.texture_ != NONE)) {
+        uv = texture_uv(mask.texture_, triangle, u, v);
     }
-    return hole;
+    return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:109)
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:116)
 void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
     uint first = entry >> 8;
     uint i_end = first + (entry & 255u);
     for (uint i = first; i < i_end; ++i) {
         TriangleData tri = fetch_triangle(i);
         TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if ((scene_has_alpha_mask != 0u) && h.t < hit.t && is_hole(i, tri.material, h.u, h.v)) {
+        if ((scene_has_alpha_mask != 0u) && h.t < hit.t && tri.masked && is_hole(i, tri.material, h.u, h.v)) {
         } else if (h.t < hit.t) {
             hit = Hit(i, h.t, h.u, h.v);
         }
     }
 }
 
-// traverse::zero_to_miss (lightport-tracer/src/kernel/traverse.rs:58)
-vec4 zero_to_miss(vec4 v) {
-    return vec4(v.x == 0.0 ? MISS : v.x, v.y == 0.0 ? MISS : v.y, v.z == 0.0 ? MISS : v.z, v.w == 0.0 ? MISS : v.w);
-}
-
-// traverse::intersect_node (lightport-tracer/src/kernel/traverse.rs:73)
-NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float t_max) {
-    uint base = node * NODE_TEXELS;
-    vec4 ox = vec4(origin.x);
-    vec4 oy = vec4(origin.y);
-    vec4 oz = vec4(origin.z);
-    vec4 enter_x = (lp_fetch_vec4(scene_nodes, base + near.x) - ox) * inv_dir.x;
-    vec4 exit_x = (lp_fetch_vec4(scene_nodes, base + 1u - near.x) - ox) * inv_dir.x;
-    vec4 enter_y = (lp_fetch_vec4(scene_nodes, base + 2u + near.y) - oy) * inv_dir.y;
-    vec4 exit_y = (lp_fetch_vec4(scene_nodes, base + 3u - near.y) - oy) * inv_dir.y;
-    vec4 enter_z = (lp_fetch_vec4(scene_nodes, base + 4u + near.z) - oz) * inv_dir.z;
-    vec4 exit_z = (lp_fetch_vec4(scene_nodes, base + 5u - near.z) - oz) * inv_dir.z;
-    vec4 enter = max(max(max(enter_x, enter_y), enter_z), vec4(0.0));
-    vec4 exit = min(min(exit_x, exit_y), exit_z);
-    if ((exit.x == 0.0) || (exit.y == 0.0) || (exit.z == 0.0) || (exit.w == 0.0)) {
-        exit = min(min(zero_to_miss(exit_x), zero_to_miss(exit_y)), zero_to_miss(exit_z));
-    }
-    vec4 exit_1 = min(exit * 1.0000008, vec4(t_max));
-    uvec4 e = lp_fetch_uvec4(scene_node_children, node);
-    vec4 t = vec4(enter.x <= exit_1.x && (e.x != 0u) ? enter.x : MISS, enter.y <= exit_1.y && (e.y != 0u) ? enter.y : MISS, enter.z <= exit_1.z && (e.z != 0u) ? enter.z : MISS, enter.w <= exit_1.w && (e.w != 0u) ? enter.w : MISS);
-    return NodeHits(t, e);
-}
-
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:152)
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:162)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -665,10 +657,14 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     uint sp = 0u;
     uint entry = stack_entry(0u, 0u);
     bool visiting = true;
+    uint leaves[3];
+    for (int i_2 = 0; i_2 < 3; ++i_2) { leaves[i_2] = 0u; }
     while (visiting) {
         bool descend = false;
+        uint leaf_count = 0u;
         if (is_leaf(entry)) {
-            intersect_leaf(entry, origin, dir, hit);
+            leaves[0u] = entry;
+            leaf_count = 1u;
         } else {
             NodeHits n = intersect_node(entry >> 8, origin, inv_dir, near, hit.t);
             float t0 = n.t.x;
@@ -721,7 +717,8 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
             }
             if (t3 < MISS) {
                 if (sp >= leaf_limit && is_leaf(e3)) {
-                    intersect_leaf(e3, origin, dir, hit);
+                    leaves[leaf_count] = e3;
+                    leaf_count += 1u;
                 } else if (sp < STACK_SIZE) {
                     stack[sp] = e3;
                     stack_t[sp] = t3;
@@ -730,7 +727,8 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
             }
             if (t2 < MISS) {
                 if (sp >= leaf_limit && is_leaf(e2)) {
-                    intersect_leaf(e2, origin, dir, hit);
+                    leaves[leaf_count] = e2;
+                    leaf_count += 1u;
                 } else if (sp < STACK_SIZE) {
                     stack[sp] = e2;
                     stack_t[sp] = t2;
@@ -739,7 +737,8 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
             }
             if (t1 < MISS) {
                 if (sp >= leaf_limit && is_leaf(e1)) {
-                    intersect_leaf(e1, origin, dir, hit);
+                    leaves[leaf_count] = e1;
+                    leaf_count += 1u;
                 } else if (sp < STACK_SIZE) {
                     stack[sp] = e1;
                     stack_t[sp] = t1;
@@ -750,6 +749,10 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
                 entry = e0;
                 descend = true;
             }
+        }
+        uint k_end = leaf_count;
+        for (uint k = 0u; k < k_end; ++k) {
+            intersect_leaf(leaves[k], origin, dir, hit);
         }
         if (!descend) {
             visiting = false;
@@ -806,7 +809,7 @@ vec3 sky_radiance(vec3 dir) {
     return lp_fetch_vec4(scene_sky, i).xyz * scene_sky_intensity;
 }
 
-// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:154)
+// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:163)
 vec3 shading_normal(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec3 n0 = lp_fetch_vec4(scene_shading, base).xyz;
@@ -830,7 +833,7 @@ vec4 interpolated_tangent(uint triangle, float u, float v) {
     return t0 * (1.0 - u - v) + t1 * u + t2 * v;
 }
 
-// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:260)
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:269)
 vec4 sample_data_texture(uint index, vec2 uv) {
     return bilinear(index, uv, true);
 }
@@ -895,7 +898,7 @@ vec3 normal_mapped(Hit hit, uint material, vec3 ns, float flip, vec3 ng, vec3 wo
     return n;
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:142)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:151)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
@@ -998,7 +1001,7 @@ LightSample sample_light(vec3 p, vec3 u) {
         vec3 normal = vec3(data.y, data.z, data.w);
         float area = lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS + 2u).x;
         float pdf = area_pdf_to_solid_angle(pmf, area, dist, -dot(normal, dir));
-        if ((scene_has_alpha_mask != 0u) && is_hole(tri_index, tri.material, b.x, b.y)) {
+        if ((scene_has_alpha_mask != 0u) && tri.masked && is_hole(tri_index, tri.material, b.x, b.y)) {
             return none;
         } else if (!(pdf > 0.0)) {
             return none;
@@ -1036,21 +1039,16 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// traverse::passes_through (lightport-tracer/src/kernel/traverse.rs:327)
-bool passes_through(uint triangle, TriangleData tri, vec3 origin, vec3 dir, float t_max) {
-    TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-    return !(h.t < t_max) || is_hole(triangle, tri.material, h.u, h.v);
-}
-
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:121)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:128)
 bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     uint first = entry >> 8;
     bool blocked = false;
     uint i_end = first + (entry & 255u);
     for (uint i = first; i < i_end; ++i) {
         TriangleData tri = fetch_triangle(i);
-        if ((scene_has_alpha_mask != 0u) && passes_through(i, tri, origin, dir, t_max)) {
-        } else if (intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max) {
+        TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+        if ((scene_has_alpha_mask != 0u) && h.t < t_max && tri.masked && is_hole(i, tri.material, h.u, h.v)) {
+        } else if (h.t < t_max) {
             blocked = true;
             break;
         }
@@ -1058,7 +1056,7 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:274)
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:295)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -1067,40 +1065,52 @@ bool occluded(vec3 origin, vec3 dir, float t_max) {
     stack[0u] = stack_entry(0u, 0u);
     uint sp = 1u;
     bool blocked = false;
+    uint leaves[4];
+    for (int i_1 = 0; i_1 < 4; ++i_1) { leaves[i_1] = 0u; }
     while (sp > 0u && !blocked) {
         sp -= 1u;
         NodeHits n = intersect_node(stack[sp] >> 8, origin, inv_dir, near, t_max);
+        uint leaf_count = 0u;
         if (n.t.x < MISS) {
             if (is_leaf(n.entries.x)) {
-                blocked = leaf_occludes(n.entries.x, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.x;
+                leaf_count += 1u;
             } else if (sp < STACK_SIZE) {
                 stack[sp] = n.entries.x;
                 sp += 1u;
             }
         }
-        if (n.t.y < MISS && !blocked) {
+        if (n.t.y < MISS) {
             if (is_leaf(n.entries.y)) {
-                blocked = leaf_occludes(n.entries.y, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.y;
+                leaf_count += 1u;
             } else if (sp < STACK_SIZE) {
                 stack[sp] = n.entries.y;
                 sp += 1u;
             }
         }
-        if (n.t.z < MISS && !blocked) {
+        if (n.t.z < MISS) {
             if (is_leaf(n.entries.z)) {
-                blocked = leaf_occludes(n.entries.z, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.z;
+                leaf_count += 1u;
             } else if (sp < STACK_SIZE) {
                 stack[sp] = n.entries.z;
                 sp += 1u;
             }
         }
-        if (n.t.w < MISS && !blocked) {
+        if (n.t.w < MISS) {
             if (is_leaf(n.entries.w)) {
-                blocked = leaf_occludes(n.entries.w, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.w;
+                leaf_count += 1u;
             } else if (sp < STACK_SIZE) {
                 stack[sp] = n.entries.w;
                 sp += 1u;
             }
+        }
+        uint k = 0u;
+        while (k < leaf_count && !blocked) {
+            blocked = leaf_occludes(leaves[k], origin, dir, t_max);
+            k += 1u;
         }
     }
     return blocked;
@@ -1132,7 +1142,7 @@ vec3 sample_cosine_around(vec3 n, float u1, float u2) {
     return onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2));
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:292)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:301)
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);

@@ -74,9 +74,10 @@ struct TriangleData {
     v2: vec3<f32>,
     material: u32,
     light: u32,
+    masked: bool,
 }
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:120)
 struct MaterialData {
     base_color: vec3<f32>,
     base_texture: u32,
@@ -84,7 +85,7 @@ struct MaterialData {
     emissive_texture: u32,
 }
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:283)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:292)
 struct MetalRoughData {
     metallic: f32,
     roughness: f32,
@@ -92,7 +93,7 @@ struct MetalRoughData {
     specular: f32,
 }
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:333)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:342)
 struct AlphaMaskData {
     texture_: u32,
     alpha: f32,
@@ -378,23 +379,51 @@ fn stack_entry(first: u32, count: u32) -> u32 {
     return (first << 8u) | count;
 }
 
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:135)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:143)
 fn is_leaf(entry: u32) -> bool {
     return (entry & 255u) > 0u;
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:126)
+// traverse::zero_to_miss (lightport-tracer/src/kernel/traverse.rs:58)
+fn zero_to_miss(v: vec4<f32>) -> vec4<f32> {
+    return vec4<f32>(select(v.x, MISS, v.x == 0.0), select(v.y, MISS, v.y == 0.0), select(v.z, MISS, v.z == 0.0), select(v.w, MISS, v.w == 0.0));
+}
+
+// traverse::intersect_node (lightport-tracer/src/kernel/traverse.rs:73)
+fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u32>, t_max: f32) -> NodeHits {
+    let base: u32 = node * NODE_TEXELS;
+    let ox: vec4<f32> = vec4<f32>(origin.x);
+    let oy: vec4<f32> = vec4<f32>(origin.y);
+    let oz: vec4<f32> = vec4<f32>(origin.z);
+    let enter_x: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + near.x)] - ox) * inv_dir.x;
+    let exit_x: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 1u - near.x)] - ox) * inv_dir.x;
+    let enter_y: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 2u + near.y)] - oy) * inv_dir.y;
+    let exit_y: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 3u - near.y)] - oy) * inv_dir.y;
+    let enter_z: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 4u + near.z)] - oz) * inv_dir.z;
+    let exit_z: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 5u - near.z)] - oz) * inv_dir.z;
+    let enter: vec4<f32> = max(max(max(enter_x, enter_y), enter_z), vec4<f32>(0.0));
+    var exit: vec4<f32> = min(min(exit_x, exit_y), exit_z);
+    if (exit.x == 0.0) || (exit.y == 0.0) || (exit.z == 0.0) || (exit.w == 0.0) {
+        exit = min(min(zero_to_miss(exit_x), zero_to_miss(exit_y)), zero_to_miss(exit_z));
+    }
+    let exit_1: vec4<f32> = min(exit * 1.0000008, vec4<f32>(t_max));
+    let e: vec4<u32> = lp_scene_vec4u[scene.lp_start_node_children + node];
+    let t: vec4<f32> = vec4<f32>(select(MISS, enter.x, enter.x <= exit_1.x && (e.x != 0u)), select(MISS, enter.y, enter.y <= exit_1.y && (e.y != 0u)), select(MISS, enter.z, enter.z <= exit_1.z && (e.z != 0u)), select(MISS, enter.w, enter.w <= exit_1.w && (e.w != 0u)));
+    return NodeHits(t, e);
+}
+
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:134)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:136)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + (base + 1u)];
     let c: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + (base + 2u)];
-    return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
+    return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
 }
 
 // intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
@@ -420,12 +449,7 @@ fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3
     }
 }
 
-// scene_data::triangle_masked (lightport-tracer/src/kernel/scene_data.rs:348)
-fn triangle_masked(triangle: u32) -> bool {
-    return lp_scene_vec4f[scene.lp_start_triangles + (triangle * TRIANGLE_TEXELS + 2u)].w > 0.0;
-}
-
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:342)
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:351)
 fn fetch_alpha_mask(material: u32) -> AlphaMaskData {
     let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.alpha_mask_first + material)];
     return AlphaMaskData(index_of(t.x), t.y, t.z);
@@ -439,7 +463,7 @@ fn texcoord1(triangle: u32, u: f32, v: f32) -> vec2<f32> {
     return vec2<f32>(a.x, a.y) * (1.0 - u - v) + vec2<f32>(a.z, a.w) * u + vec2<f32>(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:172)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + base].w, lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].w);
@@ -481,12 +505,12 @@ fn texture_uv(texture_: u32, triangle: u32, u: f32, v: f32) -> vec2<f32> {
     }
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:310)
 fn bounded_coordinate(v: f32) -> f32 {
     return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
 }
 
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:173)
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:182)
 fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     if mode == WRAP_CLAMP {
         return clamp(i, 0i, size - 1i);
@@ -499,7 +523,7 @@ fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     }
 }
 
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:220)
 fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     let w: i32 = bitcast<i32>(info.y);
     let h: i32 = bitcast<i32>(info.z);
@@ -511,7 +535,7 @@ fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
 }
 
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:240)
 fn decode_unorm8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -520,12 +544,12 @@ fn decode_unorm8(word: u32) -> vec4<f32> {
     return vec4<f32>(r, g, b, a);
 }
 
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:199)
 fn srgb_to_linear(c: f32) -> f32 {
     return select(pow((c + 0.055) / 1.055, 2.4), c / 12.92, c <= 0.04045);
 }
 
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:199)
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:208)
 fn decode_srgba8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -534,7 +558,7 @@ fn decode_srgba8(word: u32) -> vec4<f32> {
     return vec4<f32>(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:254)
 fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     let word: u32 = texel_word(info, x, y);
     if data {
@@ -544,7 +568,7 @@ fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:274)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
     let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -558,12 +582,12 @@ fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:255)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:264)
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, false);
 }
 
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:353)
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:357)
 fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
     var a: f32 = mask.alpha;
     if (scene.has_textures != 0u) && (mask.texture_ != NONE) {
@@ -572,63 +596,31 @@ fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
     return a;
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:364)
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:369)
 fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
-    var hole: bool = false;
-    if triangle_masked(triangle) {
-        let mask: AlphaMaskData = fetch_alpha_mask(material);
-        var uv: vec2<f32> = vec2<f32>(0.0);
-        if (scene.has_shading != 0u) && (mask.texture_ != NONE) {
-            uv = texture_uv(mask.texture_, triangle, u, v);
-        }
-        hole = coverage(mask, uv) < mask.cutoff;
+    let mask: AlphaMaskData = fetch_alpha_mask(material);
+    var uv: vec2<f32> = vec2<f32>(0.0);
+    if (scene.has_shading != 0u) && (mask.texture_ != NONE) {
+        uv = texture_uv(mask.texture_, triangle, u, v);
     }
-    return hole;
+    return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:109)
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:116)
 fn intersect_leaf(entry: u32, origin: vec3<f32>, dir: vec3<f32>, hit: ptr<function, Hit>) {
     let first: u32 = entry >> 8u;
     let i_end: u32 = first + (entry & 255u);
     for (var i: u32 = first; i < i_end; i++) {
         let tri: TriangleData = fetch_triangle(i);
         let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if (scene.has_alpha_mask != 0u) && h.t < (*hit).t && is_hole(i, tri.material, h.u, h.v) {
+        if (scene.has_alpha_mask != 0u) && h.t < (*hit).t && tri.masked && is_hole(i, tri.material, h.u, h.v) {
         } else if h.t < (*hit).t {
             *hit = Hit(i, h.t, h.u, h.v);
         }
     }
 }
 
-// traverse::zero_to_miss (lightport-tracer/src/kernel/traverse.rs:58)
-fn zero_to_miss(v: vec4<f32>) -> vec4<f32> {
-    return vec4<f32>(select(v.x, MISS, v.x == 0.0), select(v.y, MISS, v.y == 0.0), select(v.z, MISS, v.z == 0.0), select(v.w, MISS, v.w == 0.0));
-}
-
-// traverse::intersect_node (lightport-tracer/src/kernel/traverse.rs:73)
-fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u32>, t_max: f32) -> NodeHits {
-    let base: u32 = node * NODE_TEXELS;
-    let ox: vec4<f32> = vec4<f32>(origin.x);
-    let oy: vec4<f32> = vec4<f32>(origin.y);
-    let oz: vec4<f32> = vec4<f32>(origin.z);
-    let enter_x: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + near.x)] - ox) * inv_dir.x;
-    let exit_x: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 1u - near.x)] - ox) * inv_dir.x;
-    let enter_y: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 2u + near.y)] - oy) * inv_dir.y;
-    let exit_y: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 3u - near.y)] - oy) * inv_dir.y;
-    let enter_z: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 4u + near.z)] - oz) * inv_dir.z;
-    let exit_z: vec4<f32> = (lp_scene_vec4f[scene.lp_start_nodes + (base + 5u - near.z)] - oz) * inv_dir.z;
-    let enter: vec4<f32> = max(max(max(enter_x, enter_y), enter_z), vec4<f32>(0.0));
-    var exit: vec4<f32> = min(min(exit_x, exit_y), exit_z);
-    if (exit.x == 0.0) || (exit.y == 0.0) || (exit.z == 0.0) || (exit.w == 0.0) {
-        exit = min(min(zero_to_miss(exit_x), zero_to_miss(exit_y)), zero_to_miss(exit_z));
-    }
-    let exit_1: vec4<f32> = min(exit * 1.0000008, vec4<f32>(t_max));
-    let e: vec4<u32> = lp_scene_vec4u[scene.lp_start_node_children + node];
-    let t: vec4<f32> = vec4<f32>(select(MISS, enter.x, enter.x <= exit_1.x && (e.x != 0u)), select(MISS, enter.y, enter.y <= exit_1.y && (e.y != 0u)), select(MISS, enter.z, enter.z <= exit_1.z && (e.z != 0u)), select(MISS, enter.w, enter.w <= exit_1.w && (e.w != 0u)));
-    return NodeHits(t, e);
-}
-
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:152)
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:162)
 fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -639,10 +631,13 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     var sp: u32 = 0u;
     var entry: u32 = stack_entry(0u, 0u);
     var visiting: bool = true;
+    var leaves: array<u32, 3>;
     while visiting {
         var descend: bool = false;
+        var leaf_count: u32 = 0u;
         if is_leaf(entry) {
-            intersect_leaf(entry, origin, dir, &hit);
+            leaves[0u] = entry;
+            leaf_count = 1u;
         } else {
             let n: NodeHits = intersect_node(entry >> 8u, origin, inv_dir, near, hit.t);
             var t0: f32 = n.t.x;
@@ -695,7 +690,8 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
             }
             if t3 < MISS {
                 if sp >= leaf_limit && is_leaf(e3) {
-                    intersect_leaf(e3, origin, dir, &hit);
+                    leaves[leaf_count] = e3;
+                    leaf_count += 1u;
                 } else if sp < STACK_SIZE {
                     stack[sp] = e3;
                     stack_t[sp] = t3;
@@ -704,7 +700,8 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
             }
             if t2 < MISS {
                 if sp >= leaf_limit && is_leaf(e2) {
-                    intersect_leaf(e2, origin, dir, &hit);
+                    leaves[leaf_count] = e2;
+                    leaf_count += 1u;
                 } else if sp < STACK_SIZE {
                     stack[sp] = e2;
                     stack_t[sp] = t2;
@@ -713,7 +710,8 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
             }
             if t1 < MISS {
                 if sp >= leaf_limit && is_leaf(e1) {
-                    intersect_leaf(e1, origin, dir, &hit);
+                    leaves[leaf_count] = e1;
+                    leaf_count += 1u;
                 } else if sp < STACK_SIZE {
                     stack[sp] = e1;
                     stack_t[sp] = t1;
@@ -724,6 +722,10 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
                 entry = e0;
                 descend = true;
             }
+        }
+        let k_end: u32 = leaf_count;
+        for (var k: u32 = 0u; k < k_end; k++) {
+            intersect_leaf(leaves[k], origin, dir, &hit);
         }
         if !descend {
             visiting = false;
@@ -780,7 +782,7 @@ fn sky_radiance(dir: vec3<f32>) -> vec3<f32> {
     return lp_scene_vec4f[scene.lp_start_sky + i].xyz * scene.sky_intensity;
 }
 
-// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:154)
+// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:163)
 fn shading_normal(index: u32, u: f32, v: f32) -> vec3<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let n0: vec3<f32> = lp_scene_vec4f[scene.lp_start_shading + base].xyz;
@@ -804,7 +806,7 @@ fn interpolated_tangent(triangle: u32, u: f32, v: f32) -> vec4<f32> {
     return t0 * (1.0 - u - v) + t1 * u + t2 * v;
 }
 
-// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:260)
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:269)
 fn sample_data_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, true);
 }
@@ -869,7 +871,7 @@ fn normal_mapped(hit: Hit, material: u32, ns: vec3<f32>, flip: f32, ng: vec3<f32
     return n;
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:142)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:151)
 fn fetch_material(index: u32) -> MaterialData {
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + index * MATERIAL_TEXELS];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (index * MATERIAL_TEXELS + 1u)];
@@ -972,7 +974,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         let normal: vec3<f32> = vec3<f32>(data.y, data.z, data.w);
         let area: f32 = lp_scene_vec4f[scene.lp_start_lights + (index * LIGHT_TEXELS + 2u)].x;
         let pdf: f32 = area_pdf_to_solid_angle(pmf, area, dist, -dot(normal, dir));
-        if (scene.has_alpha_mask != 0u) && is_hole(tri_index, tri.material, b.x, b.y) {
+        if (scene.has_alpha_mask != 0u) && tri.masked && is_hole(tri_index, tri.material, b.x, b.y) {
             return none;
         } else if !(pdf > 0.0) {
             return none;
@@ -1010,21 +1012,16 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     }
 }
 
-// traverse::passes_through (lightport-tracer/src/kernel/traverse.rs:327)
-fn passes_through(triangle: u32, tri: TriangleData, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
-    let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-    return !(h.t < t_max) || is_hole(triangle, tri.material, h.u, h.v);
-}
-
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:121)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:128)
 fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let first: u32 = entry >> 8u;
     var blocked: bool = false;
     let i_end: u32 = first + (entry & 255u);
     for (var i: u32 = first; i < i_end; i++) {
         let tri: TriangleData = fetch_triangle(i);
-        if (scene.has_alpha_mask != 0u) && passes_through(i, tri, origin, dir, t_max) {
-        } else if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
+        let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+        if (scene.has_alpha_mask != 0u) && h.t < t_max && tri.masked && is_hole(i, tri.material, h.u, h.v) {
+        } else if h.t < t_max {
             blocked = true;
             break;
         }
@@ -1032,7 +1029,7 @@ fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> b
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:274)
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:295)
 fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -1040,40 +1037,51 @@ fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     stack[0u] = stack_entry(0u, 0u);
     var sp: u32 = 1u;
     var blocked: bool = false;
+    var leaves: array<u32, 4>;
     while sp > 0u && !blocked {
         sp -= 1u;
         let n: NodeHits = intersect_node(stack[sp] >> 8u, origin, inv_dir, near, t_max);
+        var leaf_count: u32 = 0u;
         if n.t.x < MISS {
             if is_leaf(n.entries.x) {
-                blocked = leaf_occludes(n.entries.x, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.x;
+                leaf_count += 1u;
             } else if sp < STACK_SIZE {
                 stack[sp] = n.entries.x;
                 sp += 1u;
             }
         }
-        if n.t.y < MISS && !blocked {
+        if n.t.y < MISS {
             if is_leaf(n.entries.y) {
-                blocked = leaf_occludes(n.entries.y, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.y;
+                leaf_count += 1u;
             } else if sp < STACK_SIZE {
                 stack[sp] = n.entries.y;
                 sp += 1u;
             }
         }
-        if n.t.z < MISS && !blocked {
+        if n.t.z < MISS {
             if is_leaf(n.entries.z) {
-                blocked = leaf_occludes(n.entries.z, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.z;
+                leaf_count += 1u;
             } else if sp < STACK_SIZE {
                 stack[sp] = n.entries.z;
                 sp += 1u;
             }
         }
-        if n.t.w < MISS && !blocked {
+        if n.t.w < MISS {
             if is_leaf(n.entries.w) {
-                blocked = leaf_occludes(n.entries.w, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.w;
+                leaf_count += 1u;
             } else if sp < STACK_SIZE {
                 stack[sp] = n.entries.w;
                 sp += 1u;
             }
+        }
+        var k: u32 = 0u;
+        while k < leaf_count && !blocked {
+            blocked = leaf_occludes(leaves[k], origin, dir, t_max);
+            k += 1u;
         }
     }
     return blocked;
@@ -1105,7 +1113,7 @@ fn sample_cosine_around(n: vec3<f32>, u1: f32, u2: f32) -> vec3<f32> {
     return onb_to_world(onb_from_normal(n), cosine_sample_hemisphere(u1, u2));
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:292)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:301)
 fn fetch_metal_rough(index: u32) -> MetalRoughData {
     let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_metal_rough + index];
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);

@@ -38,9 +38,10 @@ struct TriangleData {
     vec3 v2;
     uint material;
     uint light;
+    bool masked;
 };
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:120)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -48,7 +49,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:333)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:342)
 struct AlphaMaskData {
     uint texture_;
     float alpha;
@@ -167,7 +168,7 @@ float luminance(vec3 c) {
     return dot(c, vec3(0.2126, 0.7152, 0.0722));
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:126)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
@@ -190,19 +191,19 @@ float light_pmf(uint index) {
     return lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS).z;
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:142)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:151)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:310)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
 
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:173)
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:182)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -215,7 +216,7 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:220)
 uint texel_word(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -227,7 +228,7 @@ uint texel_word(uvec4 info, int x, int y) {
     return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
 }
 
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:240)
 vec4 decode_unorm8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -236,12 +237,12 @@ vec4 decode_unorm8(uint word) {
     return vec4(r, g, b, a);
 }
 
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:199)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:199)
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:208)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -250,7 +251,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:254)
 vec4 texel_as(uvec4 info, int x, int y, bool data) {
     uint word = texel_word(info, x, y);
     if (data) {
@@ -260,7 +261,7 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:274)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -274,7 +275,7 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:255)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:264)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }
@@ -287,7 +288,7 @@ vec2 texcoord1(uint triangle, float u, float v) {
     return vec2(a.x, a.y) * (1.0 - u - v) + vec2(a.z, a.w) * u + vec2(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:172)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -419,13 +420,13 @@ uint search_sky_column(uint row, float u) {
     return lo;
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:134)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:136)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
     vec4 b = lp_fetch_vec4(scene_triangles, base + 1u);
     vec4 c = lp_fetch_vec4(scene_triangles, base + 2u);
-    return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
+    return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
 }
 
 // sampling::uniform_sample_triangle (lightport-tracer/src/kernel/sampling.rs:81)
@@ -434,18 +435,13 @@ vec2 uniform_sample_triangle(float u1, float u2) {
     return vec2(s * (1.0 - u2), s * u2);
 }
 
-// scene_data::triangle_masked (lightport-tracer/src/kernel/scene_data.rs:348)
-bool triangle_masked(uint triangle) {
-    return lp_fetch_vec4(scene_triangles, triangle * TRIANGLE_TEXELS + 2u).w > 0.0;
-}
-
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:342)
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:351)
 AlphaMaskData fetch_alpha_mask(uint material) {
     vec4 t = lp_fetch_vec4(scene_materials, scene_alpha_mask_first + material);
     return AlphaMaskData(index_of(t.x), t.y, t.z);
 }
 
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:353)
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:357)
 float coverage(AlphaMaskData mask, vec2 uv) {
     float a = mask.alpha;
     if ((scene_has_textures != 0u) && (mask.texture_ != NONE)) {
@@ -454,18 +450,14 @@ float coverage(AlphaMaskData mask, vec2 uv) {
     return a;
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:364)
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:369)
 bool is_hole(uint triangle, uint material, float u, float v) {
-    bool hole = false;
-    if (triangle_masked(triangle)) {
-        AlphaMaskData mask = fetch_alpha_mask(material);
-        vec2 uv = vec2(0.0);
-        if ((scene_has_shading != 0u) && (mask.texture_ != NONE)) {
-            uv = texture_uv(mask.texture_, triangle, u, v);
-        }
-        hole = coverage(mask, uv) < mask.cutoff;
+    AlphaMaskData mask = fetch_alpha_mask(material);
+    vec2 uv = vec2(0.0);
+    if ((scene_has_shading != 0u) && (mask.texture_ != NONE)) {
+        uv = texture_uv(mask.texture_, triangle, u, v);
     }
-    return hole;
+    return coverage(mask, uv) < mask.cutoff;
 }
 
 // lights::sample_light (lightport-tracer/src/kernel/lights.rs:155)
@@ -491,7 +483,7 @@ LightSample sample_light(vec3 p, vec3 u) {
         vec3 normal = vec3(data.y, data.z, data.w);
         float area = lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS + 2u).x;
         float pdf = area_pdf_to_solid_angle(pmf, area, dist, -dot(normal, dir));
-        if ((scene_has_alpha_mask != 0u) && is_hole(tri_index, tri.material, b.x, b.y)) {
+        if ((scene_has_alpha_mask != 0u) && tri.masked && is_hole(tri_index, tri.material, b.x, b.y)) {
             return none;
         } else if (!(pdf > 0.0)) {
             return none;

@@ -39,9 +39,10 @@ struct TriangleData {
     v2: vec3<f32>,
     material: u32,
     light: u32,
+    masked: bool,
 }
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:120)
 struct MaterialData {
     base_color: vec3<f32>,
     base_texture: u32,
@@ -49,7 +50,7 @@ struct MaterialData {
     emissive_texture: u32,
 }
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:333)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:342)
 struct AlphaMaskData {
     texture_: u32,
     alpha: f32,
@@ -143,7 +144,7 @@ fn luminance(c: vec3<f32>) -> f32 {
     return dot(c, vec3<f32>(0.2126, 0.7152, 0.0722));
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:126)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
@@ -166,19 +167,19 @@ fn light_pmf(index: u32) -> f32 {
     return lp_scene_vec4f[scene.lp_start_lights + index * LIGHT_TEXELS].z;
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:142)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:151)
 fn fetch_material(index: u32) -> MaterialData {
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + index * MATERIAL_TEXELS];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (index * MATERIAL_TEXELS + 1u)];
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:310)
 fn bounded_coordinate(v: f32) -> f32 {
     return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
 }
 
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:173)
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:182)
 fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     if mode == WRAP_CLAMP {
         return clamp(i, 0i, size - 1i);
@@ -191,7 +192,7 @@ fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     }
 }
 
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:220)
 fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     let w: i32 = bitcast<i32>(info.y);
     let h: i32 = bitcast<i32>(info.z);
@@ -203,7 +204,7 @@ fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
 }
 
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:240)
 fn decode_unorm8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -212,12 +213,12 @@ fn decode_unorm8(word: u32) -> vec4<f32> {
     return vec4<f32>(r, g, b, a);
 }
 
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:199)
 fn srgb_to_linear(c: f32) -> f32 {
     return select(pow((c + 0.055) / 1.055, 2.4), c / 12.92, c <= 0.04045);
 }
 
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:199)
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:208)
 fn decode_srgba8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -226,7 +227,7 @@ fn decode_srgba8(word: u32) -> vec4<f32> {
     return vec4<f32>(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:254)
 fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     let word: u32 = texel_word(info, x, y);
     if data {
@@ -236,7 +237,7 @@ fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:274)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
     let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -250,7 +251,7 @@ fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:255)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:264)
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, false);
 }
@@ -263,7 +264,7 @@ fn texcoord1(triangle: u32, u: f32, v: f32) -> vec2<f32> {
     return vec2<f32>(a.x, a.y) * (1.0 - u - v) + vec2<f32>(a.z, a.w) * u + vec2<f32>(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:172)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + base].w, lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].w);
@@ -395,13 +396,13 @@ fn search_sky_column(row: u32, u: f32) -> u32 {
     return lo;
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:134)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:136)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + (base + 1u)];
     let c: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + (base + 2u)];
-    return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
+    return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
 }
 
 // sampling::uniform_sample_triangle (lightport-tracer/src/kernel/sampling.rs:81)
@@ -410,18 +411,13 @@ fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
     return vec2<f32>(s * (1.0 - u2), s * u2);
 }
 
-// scene_data::triangle_masked (lightport-tracer/src/kernel/scene_data.rs:348)
-fn triangle_masked(triangle: u32) -> bool {
-    return lp_scene_vec4f[scene.lp_start_triangles + (triangle * TRIANGLE_TEXELS + 2u)].w > 0.0;
-}
-
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:342)
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:351)
 fn fetch_alpha_mask(material: u32) -> AlphaMaskData {
     let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.alpha_mask_first + material)];
     return AlphaMaskData(index_of(t.x), t.y, t.z);
 }
 
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:353)
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:357)
 fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
     var a: f32 = mask.alpha;
     if (scene.has_textures != 0u) && (mask.texture_ != NONE) {
@@ -430,18 +426,14 @@ fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
     return a;
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:364)
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:369)
 fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
-    var hole: bool = false;
-    if triangle_masked(triangle) {
-        let mask: AlphaMaskData = fetch_alpha_mask(material);
-        var uv: vec2<f32> = vec2<f32>(0.0);
-        if (scene.has_shading != 0u) && (mask.texture_ != NONE) {
-            uv = texture_uv(mask.texture_, triangle, u, v);
-        }
-        hole = coverage(mask, uv) < mask.cutoff;
+    let mask: AlphaMaskData = fetch_alpha_mask(material);
+    var uv: vec2<f32> = vec2<f32>(0.0);
+    if (scene.has_shading != 0u) && (mask.texture_ != NONE) {
+        uv = texture_uv(mask.texture_, triangle, u, v);
     }
-    return hole;
+    return coverage(mask, uv) < mask.cutoff;
 }
 
 // lights::sample_light (lightport-tracer/src/kernel/lights.rs:155)
@@ -467,7 +459,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         let normal: vec3<f32> = vec3<f32>(data.y, data.z, data.w);
         let area: f32 = lp_scene_vec4f[scene.lp_start_lights + (index * LIGHT_TEXELS + 2u)].x;
         let pdf: f32 = area_pdf_to_solid_angle(pmf, area, dist, -dot(normal, dir));
-        if (scene.has_alpha_mask != 0u) && is_hole(tri_index, tri.material, b.x, b.y) {
+        if (scene.has_alpha_mask != 0u) && tri.masked && is_hole(tri_index, tri.material, b.x, b.y) {
             return none;
         } else if !(pdf > 0.0) {
             return none;

@@ -47,9 +47,10 @@ struct TriangleData {
     vec3 v2;
     uint material;
     uint light;
+    bool masked;
 };
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:120)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -250,59 +251,9 @@ uint stack_entry(uint first, uint count) {
     return (first << 8) | count;
 }
 
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:135)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:143)
 bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
-}
-
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:126)
-uint index_of(float x) {
-    return x < 0.0 ? NONE : lp_f32_to_u32(x);
-}
-
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:134)
-TriangleData fetch_triangle(uint index) {
-    uint base = index * TRIANGLE_TEXELS;
-    vec4 a = lp_fetch_vec4(scene_triangles, base);
-    vec4 b = lp_fetch_vec4(scene_triangles, base + 1u);
-    vec4 c = lp_fetch_vec4(scene_triangles, base + 2u);
-    return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
-}
-
-// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
-TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2) {
-    TriangleHit miss = TriangleHit(MISS, 0.0, 0.0);
-    vec3 e1 = v1 - v0;
-    vec3 e2 = v2 - v0;
-    vec3 p = cross(dir, e2);
-    float det = dot(e1, p);
-    if (det == 0.0) {
-        return miss;
-    }
-    float inv_det = 1.0 / det;
-    vec3 s = origin - v0;
-    float u = dot(s, p) * inv_det;
-    vec3 q = cross(s, e1);
-    float v = dot(dir, q) * inv_det;
-    float t = dot(e2, q) * inv_det;
-    if (u >= 0.0 && u <= 1.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < MISS) {
-        return TriangleHit(t, u, v);
-    } else {
-        return miss;
-    }
-}
-
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:109)
-void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
-    uint first = entry >> 8;
-    uint i_end = first + (entry & 255u);
-    for (uint i = first; i < i_end; ++i) {
-        TriangleData tri = fetch_triangle(i);
-        TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if (h.t < hit.t) {
-            hit = Hit(i, h.t, h.u, h.v);
-        }
-    }
 }
 
 // traverse::zero_to_miss (lightport-tracer/src/kernel/traverse.rs:58)
@@ -333,7 +284,57 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
     return NodeHits(t, e);
 }
 
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:152)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
+uint index_of(float x) {
+    return x < 0.0 ? NONE : lp_f32_to_u32(x);
+}
+
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:136)
+TriangleData fetch_triangle(uint index) {
+    uint base = index * TRIANGLE_TEXELS;
+    vec4 a = lp_fetch_vec4(scene_triangles, base);
+    vec4 b = lp_fetch_vec4(scene_triangles, base + 1u);
+    vec4 c = lp_fetch_vec4(scene_triangles, base + 2u);
+    return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
+}
+
+// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
+TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2) {
+    TriangleHit miss = TriangleHit(MISS, 0.0, 0.0);
+    vec3 e1 = v1 - v0;
+    vec3 e2 = v2 - v0;
+    vec3 p = cross(dir, e2);
+    float det = dot(e1, p);
+    if (det == 0.0) {
+        return miss;
+    }
+    float inv_det = 1.0 / det;
+    vec3 s = origin - v0;
+    float u = dot(s, p) * inv_det;
+    vec3 q = cross(s, e1);
+    float v = dot(dir, q) * inv_det;
+    float t = dot(e2, q) * inv_det;
+    if (u >= 0.0 && u <= 1.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < MISS) {
+        return TriangleHit(t, u, v);
+    } else {
+        return miss;
+    }
+}
+
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:116)
+void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
+    uint first = entry >> 8;
+    uint i_end = first + (entry & 255u);
+    for (uint i = first; i < i_end; ++i) {
+        TriangleData tri = fetch_triangle(i);
+        TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+        if (h.t < hit.t) {
+            hit = Hit(i, h.t, h.u, h.v);
+        }
+    }
+}
+
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:162)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -346,10 +347,14 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     uint sp = 0u;
     uint entry = stack_entry(0u, 0u);
     bool visiting = true;
+    uint leaves[3];
+    for (int i_2 = 0; i_2 < 3; ++i_2) { leaves[i_2] = 0u; }
     while (visiting) {
         bool descend = false;
+        uint leaf_count = 0u;
         if (is_leaf(entry)) {
-            intersect_leaf(entry, origin, dir, hit);
+            leaves[0u] = entry;
+            leaf_count = 1u;
         } else {
             NodeHits n = intersect_node(entry >> 8, origin, inv_dir, near, hit.t);
             float t0 = n.t.x;
@@ -402,7 +407,8 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
             }
             if (t3 < MISS) {
                 if (sp >= leaf_limit && is_leaf(e3)) {
-                    intersect_leaf(e3, origin, dir, hit);
+                    leaves[leaf_count] = e3;
+                    leaf_count += 1u;
                 } else if (sp < STACK_SIZE) {
                     stack[sp] = e3;
                     stack_t[sp] = t3;
@@ -411,7 +417,8 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
             }
             if (t2 < MISS) {
                 if (sp >= leaf_limit && is_leaf(e2)) {
-                    intersect_leaf(e2, origin, dir, hit);
+                    leaves[leaf_count] = e2;
+                    leaf_count += 1u;
                 } else if (sp < STACK_SIZE) {
                     stack[sp] = e2;
                     stack_t[sp] = t2;
@@ -420,7 +427,8 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
             }
             if (t1 < MISS) {
                 if (sp >= leaf_limit && is_leaf(e1)) {
-                    intersect_leaf(e1, origin, dir, hit);
+                    leaves[leaf_count] = e1;
+                    leaf_count += 1u;
                 } else if (sp < STACK_SIZE) {
                     stack[sp] = e1;
                     stack_t[sp] = t1;
@@ -431,6 +439,10 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
                 entry = e0;
                 descend = true;
             }
+        }
+        uint k_end = leaf_count;
+        for (uint k = 0u; k < k_end; ++k) {
+            intersect_leaf(leaves[k], origin, dir, hit);
         }
         if (!descend) {
             visiting = false;
@@ -469,7 +481,7 @@ float hit_emission_weight(float bsdf_pdf, float light_pdf) {
     }
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:142)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:151)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
@@ -546,14 +558,15 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:121)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:128)
 bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     uint first = entry >> 8;
     bool blocked = false;
     uint i_end = first + (entry & 255u);
     for (uint i = first; i < i_end; ++i) {
         TriangleData tri = fetch_triangle(i);
-        if (intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max) {
+        TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+        if (h.t < t_max) {
             blocked = true;
             break;
         }
@@ -561,7 +574,7 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:274)
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:295)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -570,40 +583,52 @@ bool occluded(vec3 origin, vec3 dir, float t_max) {
     stack[0u] = stack_entry(0u, 0u);
     uint sp = 1u;
     bool blocked = false;
+    uint leaves[4];
+    for (int i_1 = 0; i_1 < 4; ++i_1) { leaves[i_1] = 0u; }
     while (sp > 0u && !blocked) {
         sp -= 1u;
         NodeHits n = intersect_node(stack[sp] >> 8, origin, inv_dir, near, t_max);
+        uint leaf_count = 0u;
         if (n.t.x < MISS) {
             if (is_leaf(n.entries.x)) {
-                blocked = leaf_occludes(n.entries.x, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.x;
+                leaf_count += 1u;
             } else if (sp < STACK_SIZE) {
                 stack[sp] = n.entries.x;
                 sp += 1u;
             }
         }
-        if (n.t.y < MISS && !blocked) {
+        if (n.t.y < MISS) {
             if (is_leaf(n.entries.y)) {
-                blocked = leaf_occludes(n.entries.y, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.y;
+                leaf_count += 1u;
             } else if (sp < STACK_SIZE) {
                 stack[sp] = n.entries.y;
                 sp += 1u;
             }
         }
-        if (n.t.z < MISS && !blocked) {
+        if (n.t.z < MISS) {
             if (is_leaf(n.entries.z)) {
-                blocked = leaf_occludes(n.entries.z, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.z;
+                leaf_count += 1u;
             } else if (sp < STACK_SIZE) {
                 stack[sp] = n.entries.z;
                 sp += 1u;
             }
         }
-        if (n.t.w < MISS && !blocked) {
+        if (n.t.w < MISS) {
             if (is_leaf(n.entries.w)) {
-                blocked = leaf_occludes(n.entries.w, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.w;
+                leaf_count += 1u;
             } else if (sp < STACK_SIZE) {
                 stack[sp] = n.entries.w;
                 sp += 1u;
             }
+        }
+        uint k = 0u;
+        while (k < leaf_count && !blocked) {
+            blocked = leaf_occludes(leaves[k], origin, dir, t_max);
+            k += 1u;
         }
     }
     return blocked;

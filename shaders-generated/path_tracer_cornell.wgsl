@@ -48,9 +48,10 @@ struct TriangleData {
     v2: vec3<f32>,
     material: u32,
     light: u32,
+    masked: bool,
 }
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:120)
 struct MaterialData {
     base_color: vec3<f32>,
     base_texture: u32,
@@ -239,59 +240,9 @@ fn stack_entry(first: u32, count: u32) -> u32 {
     return (first << 8u) | count;
 }
 
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:135)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:143)
 fn is_leaf(entry: u32) -> bool {
     return (entry & 255u) > 0u;
-}
-
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:126)
-fn index_of(x: f32) -> u32 {
-    return select(lp_f32_to_u32(x), NONE, x < 0.0);
-}
-
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:134)
-fn fetch_triangle(index: u32) -> TriangleData {
-    let base: u32 = index * TRIANGLE_TEXELS;
-    let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];
-    let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + (base + 1u)];
-    let c: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + (base + 2u)];
-    return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
-}
-
-// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
-fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> TriangleHit {
-    let miss: TriangleHit = TriangleHit(MISS, 0.0, 0.0);
-    let e1: vec3<f32> = v1 - v0;
-    let e2: vec3<f32> = v2 - v0;
-    let p: vec3<f32> = cross(dir, e2);
-    let det: f32 = dot(e1, p);
-    if det == 0.0 {
-        return miss;
-    }
-    let inv_det: f32 = 1.0 / det;
-    let s: vec3<f32> = origin - v0;
-    let u: f32 = dot(s, p) * inv_det;
-    let q: vec3<f32> = cross(s, e1);
-    let v: f32 = dot(dir, q) * inv_det;
-    let t: f32 = dot(e2, q) * inv_det;
-    if u >= 0.0 && u <= 1.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < MISS {
-        return TriangleHit(t, u, v);
-    } else {
-        return miss;
-    }
-}
-
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:109)
-fn intersect_leaf(entry: u32, origin: vec3<f32>, dir: vec3<f32>, hit: ptr<function, Hit>) {
-    let first: u32 = entry >> 8u;
-    let i_end: u32 = first + (entry & 255u);
-    for (var i: u32 = first; i < i_end; i++) {
-        let tri: TriangleData = fetch_triangle(i);
-        let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if h.t < (*hit).t {
-            *hit = Hit(i, h.t, h.u, h.v);
-        }
-    }
 }
 
 // traverse::zero_to_miss (lightport-tracer/src/kernel/traverse.rs:58)
@@ -322,7 +273,57 @@ fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u
     return NodeHits(t, e);
 }
 
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:152)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
+fn index_of(x: f32) -> u32 {
+    return select(lp_f32_to_u32(x), NONE, x < 0.0);
+}
+
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:136)
+fn fetch_triangle(index: u32) -> TriangleData {
+    let base: u32 = index * TRIANGLE_TEXELS;
+    let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];
+    let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + (base + 1u)];
+    let c: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + (base + 2u)];
+    return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
+}
+
+// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
+fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> TriangleHit {
+    let miss: TriangleHit = TriangleHit(MISS, 0.0, 0.0);
+    let e1: vec3<f32> = v1 - v0;
+    let e2: vec3<f32> = v2 - v0;
+    let p: vec3<f32> = cross(dir, e2);
+    let det: f32 = dot(e1, p);
+    if det == 0.0 {
+        return miss;
+    }
+    let inv_det: f32 = 1.0 / det;
+    let s: vec3<f32> = origin - v0;
+    let u: f32 = dot(s, p) * inv_det;
+    let q: vec3<f32> = cross(s, e1);
+    let v: f32 = dot(dir, q) * inv_det;
+    let t: f32 = dot(e2, q) * inv_det;
+    if u >= 0.0 && u <= 1.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < MISS {
+        return TriangleHit(t, u, v);
+    } else {
+        return miss;
+    }
+}
+
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:116)
+fn intersect_leaf(entry: u32, origin: vec3<f32>, dir: vec3<f32>, hit: ptr<function, Hit>) {
+    let first: u32 = entry >> 8u;
+    let i_end: u32 = first + (entry & 255u);
+    for (var i: u32 = first; i < i_end; i++) {
+        let tri: TriangleData = fetch_triangle(i);
+        let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+        if h.t < (*hit).t {
+            *hit = Hit(i, h.t, h.u, h.v);
+        }
+    }
+}
+
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:162)
 fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -333,10 +334,13 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     var sp: u32 = 0u;
     var entry: u32 = stack_entry(0u, 0u);
     var visiting: bool = true;
+    var leaves: array<u32, 3>;
     while visiting {
         var descend: bool = false;
+        var leaf_count: u32 = 0u;
         if is_leaf(entry) {
-            intersect_leaf(entry, origin, dir, &hit);
+            leaves[0u] = entry;
+            leaf_count = 1u;
         } else {
             let n: NodeHits = intersect_node(entry >> 8u, origin, inv_dir, near, hit.t);
             var t0: f32 = n.t.x;
@@ -389,7 +393,8 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
             }
             if t3 < MISS {
                 if sp >= leaf_limit && is_leaf(e3) {
-                    intersect_leaf(e3, origin, dir, &hit);
+                    leaves[leaf_count] = e3;
+                    leaf_count += 1u;
                 } else if sp < STACK_SIZE {
                     stack[sp] = e3;
                     stack_t[sp] = t3;
@@ -398,7 +403,8 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
             }
             if t2 < MISS {
                 if sp >= leaf_limit && is_leaf(e2) {
-                    intersect_leaf(e2, origin, dir, &hit);
+                    leaves[leaf_count] = e2;
+                    leaf_count += 1u;
                 } else if sp < STACK_SIZE {
                     stack[sp] = e2;
                     stack_t[sp] = t2;
@@ -407,7 +413,8 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
             }
             if t1 < MISS {
                 if sp >= leaf_limit && is_leaf(e1) {
-                    intersect_leaf(e1, origin, dir, &hit);
+                    leaves[leaf_count] = e1;
+                    leaf_count += 1u;
                 } else if sp < STACK_SIZE {
                     stack[sp] = e1;
                     stack_t[sp] = t1;
@@ -418,6 +425,10 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
                 entry = e0;
                 descend = true;
             }
+        }
+        let k_end: u32 = leaf_count;
+        for (var k: u32 = 0u; k < k_end; k++) {
+            intersect_leaf(leaves[k], origin, dir, &hit);
         }
         if !descend {
             visiting = false;
@@ -456,7 +467,7 @@ fn hit_emission_weight(bsdf_pdf: f32, light_pdf: f32) -> f32 {
     }
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:142)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:151)
 fn fetch_material(index: u32) -> MaterialData {
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + index * MATERIAL_TEXELS];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (index * MATERIAL_TEXELS + 1u)];
@@ -533,14 +544,15 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     }
 }
 
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:121)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:128)
 fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let first: u32 = entry >> 8u;
     var blocked: bool = false;
     let i_end: u32 = first + (entry & 255u);
     for (var i: u32 = first; i < i_end; i++) {
         let tri: TriangleData = fetch_triangle(i);
-        if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
+        let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+        if h.t < t_max {
             blocked = true;
             break;
         }
@@ -548,7 +560,7 @@ fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> b
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:274)
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:295)
 fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -556,40 +568,51 @@ fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     stack[0u] = stack_entry(0u, 0u);
     var sp: u32 = 1u;
     var blocked: bool = false;
+    var leaves: array<u32, 4>;
     while sp > 0u && !blocked {
         sp -= 1u;
         let n: NodeHits = intersect_node(stack[sp] >> 8u, origin, inv_dir, near, t_max);
+        var leaf_count: u32 = 0u;
         if n.t.x < MISS {
             if is_leaf(n.entries.x) {
-                blocked = leaf_occludes(n.entries.x, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.x;
+                leaf_count += 1u;
             } else if sp < STACK_SIZE {
                 stack[sp] = n.entries.x;
                 sp += 1u;
             }
         }
-        if n.t.y < MISS && !blocked {
+        if n.t.y < MISS {
             if is_leaf(n.entries.y) {
-                blocked = leaf_occludes(n.entries.y, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.y;
+                leaf_count += 1u;
             } else if sp < STACK_SIZE {
                 stack[sp] = n.entries.y;
                 sp += 1u;
             }
         }
-        if n.t.z < MISS && !blocked {
+        if n.t.z < MISS {
             if is_leaf(n.entries.z) {
-                blocked = leaf_occludes(n.entries.z, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.z;
+                leaf_count += 1u;
             } else if sp < STACK_SIZE {
                 stack[sp] = n.entries.z;
                 sp += 1u;
             }
         }
-        if n.t.w < MISS && !blocked {
+        if n.t.w < MISS {
             if is_leaf(n.entries.w) {
-                blocked = leaf_occludes(n.entries.w, origin, dir, t_max);
+                leaves[leaf_count] = n.entries.w;
+                leaf_count += 1u;
             } else if sp < STACK_SIZE {
                 stack[sp] = n.entries.w;
                 sp += 1u;
             }
+        }
+        var k: u32 = 0u;
+        while k < leaf_count && !blocked {
+            blocked = leaf_occludes(leaves[k], origin, dir, t_max);
+            k += 1u;
         }
     }
     return blocked;

@@ -27,9 +27,10 @@ struct TriangleData {
     vec3 v2;
     uint material;
     uint light;
+    bool masked;
 };
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:120)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -37,7 +38,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:283)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:292)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -45,7 +46,7 @@ struct MetalRoughData {
     float specular;
 };
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:333)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:342)
 struct AlphaMaskData {
     uint texture_;
     float alpha;
@@ -132,28 +133,28 @@ uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:126)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:134)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:136)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
     vec4 b = lp_fetch_vec4(scene_triangles, base + 1u);
     vec4 c = lp_fetch_vec4(scene_triangles, base + 2u);
-    return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w));
+    return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:142)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:151)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:154)
+// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:163)
 vec3 shading_normal(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec3 n0 = lp_fetch_vec4(scene_shading, base).xyz;
@@ -162,7 +163,7 @@ vec3 shading_normal(uint index, float u, float v) {
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:163)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:172)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -172,7 +173,7 @@ vec2 texcoord(uint index, float u, float v) {
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
 
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:173)
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:182)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -185,12 +186,12 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:190)
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:199)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:199)
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:208)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -199,7 +200,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:211)
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:220)
 uint texel_word(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -211,7 +212,7 @@ uint texel_word(uvec4 info, int x, int y) {
     return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
 }
 
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:231)
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:240)
 vec4 decode_unorm8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -220,12 +221,12 @@ vec4 decode_unorm8(uint word) {
     return vec4(r, g, b, a);
 }
 
-// scene_data::texel (lightport-tracer/src/kernel/scene_data.rs:240)
+// scene_data::texel (lightport-tracer/src/kernel/scene_data.rs:249)
 vec4 texel(uvec4 info, int x, int y) {
     return decode_srgba8(texel_word(info, x, y));
 }
 
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:245)
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:254)
 vec4 texel_as(uvec4 info, int x, int y, bool data) {
     uint word = texel_word(info, x, y);
     if (data) {
@@ -235,12 +236,12 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:301)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:310)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:265)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:274)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -254,34 +255,29 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:255)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:264)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }
 
-// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:260)
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:269)
 vec4 sample_data_texture(uint index, vec2 uv) {
     return bilinear(index, uv, true);
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:292)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:301)
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
 }
 
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:342)
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:351)
 AlphaMaskData fetch_alpha_mask(uint material) {
     vec4 t = lp_fetch_vec4(scene_materials, scene_alpha_mask_first + material);
     return AlphaMaskData(index_of(t.x), t.y, t.z);
 }
 
-// scene_data::triangle_masked (lightport-tracer/src/kernel/scene_data.rs:348)
-bool triangle_masked(uint triangle) {
-    return lp_fetch_vec4(scene_triangles, triangle * TRIANGLE_TEXELS + 2u).w > 0.0;
-}
-
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:353)
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:357)
 float coverage(AlphaMaskData mask, vec2 uv) {
     float a = mask.alpha;
     if ((scene_has_textures != 0u) && (mask.texture_ != NONE)) {
@@ -330,16 +326,12 @@ vec2 texture_uv(uint texture_, uint triangle, float u, float v) {
     }
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:364)
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:369)
 bool is_hole(uint triangle, uint material, float u, float v) {
-    bool hole = false;
-    if (triangle_masked(triangle)) {
-        AlphaMaskData mask = fetch_alpha_mask(material);
-        vec2 uv = vec2(0.0);
-        if ((scene_has_shading != 0u) && (mask.texture_ != NONE)) {
-            uv = texture_uv(mask.texture_, triangle, u, v);
-        }
-        hole = coverage(mask, uv) < mask.cutoff;
+    AlphaMaskData mask = fetch_alpha_mask(material);
+    vec2 uv = vec2(0.0);
+    if ((scene_has_shading != 0u) && (mask.texture_ != NONE)) {
+        uv = texture_uv(mask.texture_, triangle, u, v);
     }
-    return hole;
+    return coverage(mask, uv) < mask.cutoff;
 }

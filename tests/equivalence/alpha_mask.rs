@@ -1,4 +1,4 @@
-//! Alpha masks (`scene_data::is_hole` and the functions it uses, `traverse::passes_through`),
+//! Alpha masks (`scene_data::is_hole` and the functions it uses, `traverse::leaf_occludes`),
 //! and the traversal and light sampling that call them, on the generated alpha-masked scene
 //! (`scene::alpha_masked_screen`): every input stated once and run on every runtime.
 
@@ -11,7 +11,7 @@ const COVERAGE: Tolerance = Tolerance::ulps(16).with_absolute(1e-6).flushing_sub
 /// How far the coverage at (u, v) of `triangle` is from its cutoff (infinite for unmasked
 /// triangles): GPU rounding may decide points closer than a margin the other way.
 fn cutoff_distance(k: &Scene, triangle: u32, u: f32, v: f32) -> f32 {
-    if !scene_data::triangle_masked(k, triangle) {
+    if !scene_data::fetch_triangle(k, triangle).masked {
         return f32::INFINITY;
     }
     let tri = scene_data::fetch_triangle(k, triangle);
@@ -52,14 +52,14 @@ fn alpha_mask_functions_agree() {
         Tolerance::EXACT,
     );
     let tris: Vec<(u32,)> = (0..triangles).map(|i| (i,)).collect();
-    let masked = assert_equivalent(
+    let fetched = assert_equivalent(
         &mut eq,
-        "triangle_masked",
+        "fetch_triangle",
         &tris,
-        |s, &(i,)| (scene_data::triangle_masked(s, i),),
+        |s, &(i,)| (scene_data::fetch_triangle(s, i),),
         Tolerance::EXACT,
     );
-    let masked_count = masked.output(Backend::Cpu).unwrap().iter().filter(|(m,)| *m).count();
+    let masked_count = fetched.output(Backend::Cpu).unwrap().iter().filter(|(t,)| t.masked).count();
     assert_eq!(masked_count, 4, "the screen's and the light's two triangles each");
 
     // Coverage of every material's mask over uv in and beyond [0, 1] (clamped textures).
@@ -121,8 +121,7 @@ fn alpha_mask_functions_agree() {
         .filter(|(&(o, d, _), (h,))| {
             (0..triangles).any(|i| {
                 let tri = scene_data::fetch_triangle(&k, i);
-                scene_data::triangle_masked(&k, i)
-                    && intersect::intersect_triangle(o, d, tri.v0, tri.v1, tri.v2).t < h.t
+                tri.masked && intersect::intersect_triangle(o, d, tri.v0, tri.v1, tri.v2).t < h.t
             })
         })
         .count();
@@ -145,22 +144,20 @@ fn alpha_mask_functions_agree() {
         Tolerance::EXACT,
     );
 
-    let segments: Vec<(u32, scene_data::TriangleData, Vec3, Vec3, f32)> = shadow
+    // Each segment against a leaf of one triangle: hit outside a hole blocks, in a hole passes.
+    let segments: Vec<(u32, Vec3, Vec3, f32)> = shadow
         .iter()
         .enumerate()
-        .map(|(j, &(o, d, t))| {
-            let i = j as u32 % triangles;
-            (i, scene_data::fetch_triangle(&k, i), o, d, t)
-        })
+        .map(|(j, &(o, d, t))| (traverse::stack_entry(j as u32 % triangles, 1), o, d, t))
         .collect();
-    let passes = assert_equivalent(
+    let occludes = assert_equivalent(
         &mut eq,
-        "passes_through",
+        "leaf_occludes",
         &segments,
-        |s, &(i, tri, o, d, t)| (traverse::passes_through(s, i, tri, o, d, t),),
+        |s, &(leaf, o, d, t)| (traverse::leaf_occludes(s, leaf, o, d, t),),
         Tolerance::EXACT,
     );
-    let blocked = passes.output(Backend::Cpu).unwrap().iter().filter(|(p,)| !*p).count();
+    let blocked = occludes.output(Backend::Cpu).unwrap().iter().filter(|(b,)| *b).count();
     assert!(blocked > 0 && blocked < segments.len(), "{blocked} of {} segments blocked", segments.len());
 
     // Light sampling on the masked emitter: samples in its holes are invalid (pdf 0).

@@ -174,7 +174,7 @@ pub mod lights {
             let normal = Vec3::new(data.y, data.z, data.w);
             let area = scene.lights.fetch(index * LIGHT_TEXELS + 2).x;
             let pdf = area_pdf_to_solid_angle(pmf, area, dist, -normal.dot(dir));
-            if scene.has_alpha_mask != 0 && is_hole(scene, tri_index, tri.material, b.x, b.y) {
+            if scene.has_alpha_mask != 0 && tri.masked && is_hole(scene, tri_index, tri.material, b.x, b.y) {
                 return none; // a hole of an alpha-masked emitter emits nothing (BSDF rays pass through)
             } else if !(pdf > 0.0) {
                 return none;

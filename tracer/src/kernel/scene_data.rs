@@ -112,6 +112,8 @@ pub mod scene_data {
         pub material: u32,
         /// Index in the light table, or NONE.
         pub light: u32,
+        /// Its material is alpha-masked (`Features::alpha_mask`; always false without).
+        pub masked: bool,
     }
 
     #[derive(Clone, Copy, Debug, PartialEq)]
@@ -136,7 +138,14 @@ pub mod scene_data {
         let a = scene.triangles.fetch(base);
         let b = scene.triangles.fetch(base + 1);
         let c = scene.triangles.fetch(base + 2);
-        TriangleData { v0: a.xyz(), v1: b.xyz(), v2: c.xyz(), material: index_of(a.w), light: index_of(b.w) }
+        TriangleData {
+            v0: a.xyz(),
+            v1: b.xyz(),
+            v2: c.xyz(),
+            material: index_of(a.w),
+            light: index_of(b.w),
+            masked: c.w > 0.0,
+        }
     }
 
     pub fn fetch_material(scene: &Scene, index: u32) -> MaterialData {
@@ -344,11 +353,6 @@ pub mod scene_data {
         AlphaMaskData { texture: index_of(t.x), alpha: t.y, cutoff: t.z }
     }
 
-    /// Whether triangle `triangle`'s material is masked (the flag in its third texel's w).
-    pub fn triangle_masked(scene: &Scene, triangle: u32) -> bool {
-        scene.triangles.fetch(triangle * TRIANGLE_TEXELS + 2).w > 0.0
-    }
-
     /// Coverage of `mask` at texture coordinates `uv`: the factor times the texture's alpha.
     pub fn coverage(scene: &Scene, mask: AlphaMaskData, uv: Vec2) -> f32 {
         let mut a = mask.alpha;
@@ -359,19 +363,16 @@ pub mod scene_data {
     }
 
     /// Whether the point at barycentrics (u, v) of triangle `triangle` (material `material`)
-    /// is a hole: the triangle is masked and its coverage there is below the cutoff (a NaN
-    /// coverage is opaque).
+    /// is a hole: the triangle is masked (`TriangleData::masked`, which the caller has
+    /// fetched and tests first) and its coverage there is below the cutoff (a NaN coverage is
+    /// opaque).
     pub fn is_hole(scene: &Scene, triangle: u32, material: u32, u: f32, v: f32) -> bool {
-        let mut hole = false;
-        if triangle_masked(scene, triangle) {
-            let mask = fetch_alpha_mask(scene, material);
-            let mut uv = Vec2::ZERO;
-            if scene.has_shading != 0 && mask.texture != NONE {
-                // The base colour texture's UV: its UV set and transform, as shading reads it.
-                uv = texture_uv(scene, mask.texture, triangle, u, v);
-            }
-            hole = coverage(scene, mask, uv) < mask.cutoff;
+        let mask = fetch_alpha_mask(scene, material);
+        let mut uv = Vec2::ZERO;
+        if scene.has_shading != 0 && mask.texture != NONE {
+            // The base colour texture's UV: its UV set and transform, as shading reads it.
+            uv = texture_uv(scene, mask.texture, triangle, u, v);
         }
-        hole
+        coverage(scene, mask, uv) < mask.cutoff
     }
 }

@@ -8,7 +8,7 @@ pub mod traverse {
     use glam::{UVec3, UVec4, Vec3, Vec4};
 
     use crate::kernel::intersect::{intersect_triangle, safe_inverse, MISS};
-    use crate::kernel::scene_data::{fetch_triangle, is_hole, Scene, TriangleData, NODE_TEXELS, NONE};
+    use crate::kernel::scene_data::{fetch_triangle, is_hole, Scene, NODE_TEXELS, NONE};
 
     /// Traversal stack depth: `tracer::pack` refuses a tree whose child nodes alone could need
     /// more (`tracer::bvh::WideBvh::stack_needed`) and limits the leaves pushed on top of them
@@ -104,6 +104,13 @@ pub mod traverse {
         NodeHits { t, entries: e }
     }
 
+    // Alpha masks (`Features::alpha_mask`, `scene_data::is_hole`): a hit in a hole is skipped
+    // (the empty first branch below: the search goes on behind it). The hole test runs only for
+    // a triangle that is hit, closer than the hit so far and masked (the flag is in a texel
+    // `fetch_triangle` has read), and each traversal has exactly one leaf-intersection site,
+    // so that the shader compiler inlines the texture lookup once per traversal, not once per
+    // child slot. Specialisation removes the branch: scenes without masks get the code they had.
+
     /// Intersects the triangles of the leaf `entry` (a stack entry with count > 0), keeping
     /// the closest hit in `hit`.
     pub fn intersect_leaf(scene: &Scene, entry: u32, origin: Vec3, dir: Vec3, hit: &mut Hit) {
@@ -111,20 +118,21 @@ pub mod traverse {
         for i in first..first + (entry & 255) {
             let tri = fetch_triangle(scene, i);
             let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-            if scene.has_alpha_mask != 0 && h.t < hit.t && is_hole(scene, i, tri.material, h.u, h.v) {
+            if scene.has_alpha_mask != 0 && h.t < hit.t && tri.masked && is_hole(scene, i, tri.material, h.u, h.v) {
             } else if h.t < hit.t {
                 *hit = Hit { triangle: i, t: h.t, u: h.u, v: h.v };
             }
         }
     }
-    /// Whether any triangle of the leaf `entry` is hit for t in (0, t_max).
+    /// Whether any triangle of the leaf `entry` is hit for t in (0, t_max) outside a hole.
     pub fn leaf_occludes(scene: &Scene, entry: u32, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
         let first = entry >> 8;
         let mut blocked = false;
         for i in first..first + (entry & 255) {
             let tri = fetch_triangle(scene, i);
-            if scene.has_alpha_mask != 0 && passes_through(scene, i, tri, origin, dir, t_max) {
-            } else if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
+            let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+            if scene.has_alpha_mask != 0 && h.t < t_max && tri.masked && is_hole(scene, i, tri.material, h.u, h.v) {
+            } else if h.t < t_max {
                 blocked = true;
                 break;
             }
@@ -145,8 +153,10 @@ pub mod traverse {
     /// as degenerate geometry builds, would deepen the stack by up to three entries per level:
     /// leaves are pushed only below `scene.leaf_stack_limit` entries and intersected at once
     /// beyond it (see `tracer::pack`, which sets the limit so that the stack cannot overflow).
-    // The DSL has no `std::mem::swap`: the sorting network swaps through temporaries.
-    #[allow(clippy::manual_swap)]
+    /// Either way the leaves of an iteration are intersected at one place, after the node.
+    // The DSL has no `std::mem::swap` and no iterators: the sorting network swaps through
+    // temporaries, and the leaves are visited by index.
+    #[allow(clippy::manual_swap, clippy::needless_range_loop)]
     // Inlined into the CPU backend's row loop, which is also compiled for AVX2 (backend/cpu.rs).
     #[inline(always)]
     pub fn trace_closest(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
@@ -161,10 +171,15 @@ pub mod traverse {
         // the first test), then the nearest hit child of each node, else the next one popped.
         let mut entry = stack_entry(0, 0);
         let mut visiting = true;
+        // The leaves to intersect in this iteration: the one visited, or a node's hit leaves
+        // that do not go on the stack (at most three: the nearest child is visited next).
+        let mut leaves = [0u32; 3];
         while visiting {
             let mut descend = false;
+            let mut leaf_count: usize = 0;
             if is_leaf(entry) {
-                intersect_leaf(scene, entry, origin, dir, &mut hit);
+                leaves[0] = entry;
+                leaf_count = 1;
             } else {
                 let n = intersect_node(scene, entry >> 8, origin, inv_dir, near, hit.t);
                 let mut t0 = n.t.x;
@@ -221,7 +236,8 @@ pub mod traverse {
                 // worth visiting; the pop test below catches hits found meanwhile.)
                 if t3 < MISS {
                     if sp >= leaf_limit && is_leaf(e3) {
-                        intersect_leaf(scene, e3, origin, dir, &mut hit);
+                        leaves[leaf_count] = e3;
+                        leaf_count += 1;
                     } else if sp < STACK_SIZE {
                         stack[sp] = e3;
                         stack_t[sp] = t3;
@@ -230,7 +246,8 @@ pub mod traverse {
                 }
                 if t2 < MISS {
                     if sp >= leaf_limit && is_leaf(e2) {
-                        intersect_leaf(scene, e2, origin, dir, &mut hit);
+                        leaves[leaf_count] = e2;
+                        leaf_count += 1;
                     } else if sp < STACK_SIZE {
                         stack[sp] = e2;
                         stack_t[sp] = t2;
@@ -239,7 +256,8 @@ pub mod traverse {
                 }
                 if t1 < MISS {
                     if sp >= leaf_limit && is_leaf(e1) {
-                        intersect_leaf(scene, e1, origin, dir, &mut hit);
+                        leaves[leaf_count] = e1;
+                        leaf_count += 1;
                     } else if sp < STACK_SIZE {
                         stack[sp] = e1;
                         stack_t[sp] = t1;
@@ -250,6 +268,9 @@ pub mod traverse {
                     entry = e0;
                     descend = true;
                 }
+            }
+            for k in 0..leaf_count {
+                intersect_leaf(scene, leaves[k], origin, dir, &mut hit);
             }
             if !descend {
                 // Pop the nearest pending entry that may still hold a closer hit.
@@ -278,61 +299,54 @@ pub mod traverse {
         stack[0] = stack_entry(0, 0);
         let mut sp: usize = 1;
         let mut blocked = false;
+        // A node's hit leaves, intersected after its hit nodes are pushed: one site (above).
+        let mut leaves = [0u32; 4];
         while sp > 0 && !blocked {
             sp -= 1;
             let n = intersect_node(scene, stack[sp] >> 8, origin, inv_dir, near, t_max);
+            let mut leaf_count: usize = 0;
             if n.t.x < MISS {
                 if is_leaf(n.entries.x) {
-                    blocked = leaf_occludes(scene, n.entries.x, origin, dir, t_max);
+                    leaves[leaf_count] = n.entries.x;
+                    leaf_count += 1;
                 } else if sp < STACK_SIZE {
                     stack[sp] = n.entries.x;
                     sp += 1;
                 }
             }
-            if n.t.y < MISS && !blocked {
+            if n.t.y < MISS {
                 if is_leaf(n.entries.y) {
-                    blocked = leaf_occludes(scene, n.entries.y, origin, dir, t_max);
+                    leaves[leaf_count] = n.entries.y;
+                    leaf_count += 1;
                 } else if sp < STACK_SIZE {
                     stack[sp] = n.entries.y;
                     sp += 1;
                 }
             }
-            if n.t.z < MISS && !blocked {
+            if n.t.z < MISS {
                 if is_leaf(n.entries.z) {
-                    blocked = leaf_occludes(scene, n.entries.z, origin, dir, t_max);
+                    leaves[leaf_count] = n.entries.z;
+                    leaf_count += 1;
                 } else if sp < STACK_SIZE {
                     stack[sp] = n.entries.z;
                     sp += 1;
                 }
             }
-            if n.t.w < MISS && !blocked {
+            if n.t.w < MISS {
                 if is_leaf(n.entries.w) {
-                    blocked = leaf_occludes(scene, n.entries.w, origin, dir, t_max);
+                    leaves[leaf_count] = n.entries.w;
+                    leaf_count += 1;
                 } else if sp < STACK_SIZE {
                     stack[sp] = n.entries.w;
                     sp += 1;
                 }
             }
+            let mut k: usize = 0;
+            while k < leaf_count && !blocked {
+                blocked = leaf_occludes(scene, leaves[k], origin, dir, t_max);
+                k += 1;
+            }
         }
         blocked
-    }
-
-    // Alpha masks (`Features::alpha_mask`, `scene_data::is_hole`): with the feature, a hit in a hole
-    // is skipped by `intersect_leaf` (the empty branch: the closest-hit search goes on behind it)
-    // and `leaf_occludes` (through `passes_through`). Written as a first branch that
-    // specialisation removes, so that scenes without masks get exactly the code they had.
-
-    /// Whether the segment `origin + t * dir`, t in (0, t_max), misses triangle `triangle`
-    /// (vertices `tri`) or meets it in a hole of its alpha mask: a shadow ray passes it.
-    pub fn passes_through(
-        scene: &Scene,
-        triangle: u32,
-        tri: TriangleData,
-        origin: Vec3,
-        dir: Vec3,
-        t_max: f32,
-    ) -> bool {
-        let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        !(h.t < t_max) || is_hole(scene, triangle, tri.material, h.u, h.v)
     }
 }

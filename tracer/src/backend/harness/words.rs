@@ -155,7 +155,7 @@ mod kernel_structs {
         TriangleHit { t, u, v }
         Hit { triangle, t, u, v }
         NodeHits { t, entries }
-        TriangleData { v0, v1, v2, material, light }
+        TriangleData { v0, v1, v2, material, light, masked }
         MaterialData { base_color, base_texture, emission, emissive_texture }
         Onb { tangent, bitangent, normal }
         LightSample { dir, dist, radiance, pdf, delta }
