@@ -17,7 +17,9 @@
 //! Rows: the Cornell box, LittlestTokyo under a uniform white sky as shipped (alpha-masked
 //! materials) and the same made opaque (every `alphaMode` MASK and BLEND dropped: the same
 //! geometry and BVH), so that the second table, the cost of masks per runtime (opaque / masked
-//! samples per second), is measured in one run.
+//! samples per second), is measured in one run. Two more rows split that cost: masks without
+//! holes (cutoff 0: the opaque scene's light paths, every hole test run) and the same with no
+//! triangle flagged as masked (the hole test compiled into traversal but never run).
 //!
 //! Columns beyond the backends:
 //! - **sized / 64**: the kernel with its traversal stack sized to the scene (`Features::
@@ -133,17 +135,38 @@ fn main() -> Result<()> {
     for m in &mut opaque.materials {
         m.alpha_cutoff = None;
     }
+    // The masked kernel and data, but a cutoff of 0 leaves no holes: the same light paths as
+    // the opaque scene, so that the mask cost splits into the test itself and the longer paths.
+    let mut no_holes = tokyo.clone();
+    for m in &mut no_holes.materials {
+        m.alpha_cutoff = m.alpha_cutoff.map(|_| 0.0);
+    }
+    let tokyo_size = size.unwrap_or(128);
     let scenes = [
-        ("Cornell box", tracer::scene::cornell_box(), size.unwrap_or(256)),
-        ("LittlestTokyo", tokyo, size.unwrap_or(128)),
-        ("LittlestTokyo, opaque", opaque, size.unwrap_or(128)),
+        ("Cornell box", tracer::scene::cornell_box(), size.unwrap_or(256), false),
+        ("LittlestTokyo", tokyo, tokyo_size, false),
+        ("LittlestTokyo, opaque", opaque, tokyo_size, false),
+        ("LittlestTokyo, masked without holes", no_holes.clone(), tokyo_size, false),
+        ("LittlestTokyo, masked, no triangle flagged", no_holes, tokyo_size, true),
     ];
     // Every renderer of every scene in one rotation, so that noise on a shared machine hits
     // the scenes alike (the mask cost below compares two of them).
     let mut rows = Vec::new();
     let mut all: Vec<Box<dyn Renderer>> = Vec::new();
-    for (name, scene, size) in scenes {
-        let p = packed(&scene, size)?;
+    for (name, scene, size, unflag) in scenes {
+        let mut p = packed(&scene, size)?;
+        if unflag {
+            // The masked kernel and data, but no triangle says it is masked: the hole test is
+            // compiled into traversal and never runs.
+            let t = p.scene.triangles.as_slice().to_vec();
+            p.scene.triangles = kernel_dsl::Texels::from_fn(t.len(), |i| {
+                let mut texel = t[i];
+                if i % tracer::kernel::scene_data::TRIANGLE_TEXELS as usize == 2 {
+                    texel.w = 0.0;
+                }
+                texel
+            });
+        }
         all.extend(renderers(&p)?);
         rows.push((name, size, p.triangle_count, p.features.traversal_stack));
     }
@@ -186,16 +209,16 @@ fn main() -> Result<()> {
             gl_at_once / gl,
         );
     }
-    // The cost of alpha masks per runtime: the same scene opaque against as shipped.
-    let masked = &table[1].4;
-    let opaque = &table[2].4;
-    println!("\n| LittlestTokyo, cost of masks (opaque / masked samples per second) | CPU | GL | wgpu |");
+    // The cost of alpha masks per runtime, and where it goes.
+    let [masked, opaque, no_holes, unflagged] = [&table[1].4, &table[2].4, &table[3].4, &table[4].4];
+    let row = |what: &str, a: &[f64], b: &[f64]| {
+        println!("| {what} | {:.2} | {:.2} | {:.2} |", a[0] / b[0], a[1] / b[1], a[4] / b[4]);
+    };
+    println!("\n| LittlestTokyo, cost of masks (ratio of samples per second) | CPU | GL | wgpu |");
     println!("|---|---|---|---|");
-    println!(
-        "| as shipped | {:.2} | {:.2} | {:.2} |",
-        opaque[0] / masked[0],
-        opaque[1] / masked[1],
-        opaque[4] / masked[4]
-    );
+    row("as shipped: opaque / masked", opaque, masked);
+    row("the paths through holes: masked without holes / masked", no_holes, masked);
+    row("the hole tests run: no triangle flagged / masked without holes", unflagged, no_holes);
+    row("the masked code present: opaque / no triangle flagged", opaque, unflagged);
     Ok(())
 }

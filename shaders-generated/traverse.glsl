@@ -83,6 +83,8 @@ const uint TEXTURE_REF_TEXELS = 2u;
 const uint TEXCOORD1_TEXELS = 2u;
 // traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:17)
 const uint STACK_SIZE = 64u;
+// traverse::MAX_HOLES (lightport-tracer/src/kernel/traverse.rs:119)
+const uint MAX_HOLES = 32u;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
 // u32 as f32, rounded to nearest even like Rust: both halves convert exactly, the sum rounds once.
@@ -183,6 +185,18 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
     return NodeHits(t, e);
 }
 
+// traverse::before_any_hit (lightport-tracer/src/kernel/traverse.rs:122)
+Hit before_any_hit() {
+    return Hit(NONE, -1.0, 0.0, 0.0);
+}
+
+// traverse::is_next_candidate (lightport-tracer/src/kernel/traverse.rs:130)
+bool is_next_candidate(float t, uint triangle, Hit after, Hit best) {
+    bool before_best = t < best.t || ((t == best.t) && triangle < best.triangle && (best.triangle != NONE));
+    bool past_after = t > after.t || ((t == after.t) && triangle > after.triangle);
+    return before_best && past_after;
+}
+
 // scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
@@ -218,6 +232,177 @@ TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2)
     } else {
         return miss;
     }
+}
+
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:139)
+void intersect_leaf(uint entry, vec3 origin, vec3 dir, Hit after, bool only_masked, inout Hit hit) {
+    uint first = entry >> 8;
+    uint i_end = first + (entry & 255u);
+    for (uint i = first; i < i_end; ++i) {
+        TriangleData tri = fetch_triangle(i);
+        TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+        if (scene_has_alpha_mask != 0u) {
+            if ((tri.masked || !only_masked) && is_next_candidate(h.t, i, after, hit)) {
+                hit = Hit(i, h.t, h.u, h.v);
+            }
+        } else if (h.t < hit.t) {
+            hit = Hit(i, h.t, h.u, h.v);
+        }
+    }
+}
+
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:163)
+bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
+    uint first = entry >> 8;
+    bool blocked = false;
+    uint i_end = first + (entry & 255u);
+    for (uint i = first; i < i_end; ++i) {
+        TriangleData tri = fetch_triangle(i);
+        if ((scene_has_alpha_mask != 0u) && tri.masked) {
+        } else if (intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max) {
+            blocked = true;
+            break;
+        }
+    }
+    return blocked;
+}
+
+// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:48)
+vec3 safe_inverse(vec3 dir) {
+    float tiny = 1e-20;
+    float x = abs(dir.x) < tiny ? (dir.x >= 0.0 ? tiny : -tiny) : dir.x;
+    float y = abs(dir.y) < tiny ? (dir.y >= 0.0 ? tiny : -tiny) : dir.y;
+    float z = abs(dir.z) < tiny ? (dir.z >= 0.0 ? tiny : -tiny) : dir.z;
+    return vec3(1.0 / x, 1.0 / y, 1.0 / z);
+}
+
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:202)
+bool is_leaf(uint entry) {
+    return (entry & 255u) > 0u;
+}
+
+// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:233)
+Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_masked) {
+    vec3 inv_dir = safe_inverse(dir);
+    uvec3 near = near_planes(inv_dir);
+    Hit hit = Hit(NONE, t_max, 0.0, 0.0);
+    uint stack[64];
+    for (int i = 0; i < 64; ++i) { stack[i] = 0u; }
+    float stack_t[64];
+    for (int i_1 = 0; i_1 < 64; ++i_1) { stack_t[i_1] = 0.0; }
+    uint leaf_limit = scene_leaf_stack_limit;
+    uint sp = 0u;
+    uint entry = stack_entry(0u, 0u);
+    bool visiting = true;
+    uint leaves[3];
+    for (int i_2 = 0; i_2 < 3; ++i_2) { leaves[i_2] = 0u; }
+    while (visiting) {
+        bool descend = false;
+        uint leaf_count = 0u;
+        if (is_leaf(entry)) {
+            leaves[0u] = entry;
+            leaf_count = 1u;
+        } else {
+            NodeHits n = intersect_node(entry >> 8, origin, inv_dir, near, hit.t);
+            float t0 = n.t.x;
+            float t1 = n.t.y;
+            float t2 = n.t.z;
+            float t3 = n.t.w;
+            uint e0 = n.entries.x;
+            uint e1 = n.entries.y;
+            uint e2 = n.entries.z;
+            uint e3 = n.entries.w;
+            if (t1 < t0) {
+                float t = t0;
+                t0 = t1;
+                t1 = t;
+                uint e = e0;
+                e0 = e1;
+                e1 = e;
+            }
+            if (t3 < t2) {
+                float t_1 = t2;
+                t2 = t3;
+                t3 = t_1;
+                uint e_1 = e2;
+                e2 = e3;
+                e3 = e_1;
+            }
+            if (t2 < t0) {
+                float t_2 = t0;
+                t0 = t2;
+                t2 = t_2;
+                uint e_2 = e0;
+                e0 = e2;
+                e2 = e_2;
+            }
+            if (t3 < t1) {
+                float t_3 = t1;
+                t1 = t3;
+                t3 = t_3;
+                uint e_3 = e1;
+                e1 = e3;
+                e3 = e_3;
+            }
+            if (t2 < t1) {
+                float t_4 = t1;
+                t1 = t2;
+                t2 = t_4;
+                uint e_4 = e1;
+                e1 = e2;
+                e2 = e_4;
+            }
+            if (t3 < MISS) {
+                if (sp >= leaf_limit && is_leaf(e3)) {
+                    leaves[leaf_count] = e3;
+                    leaf_count += 1u;
+                } else if (sp < STACK_SIZE) {
+                    stack[sp] = e3;
+                    stack_t[sp] = t3;
+                    sp += 1u;
+                }
+            }
+            if (t2 < MISS) {
+                if (sp >= leaf_limit && is_leaf(e2)) {
+                    leaves[leaf_count] = e2;
+                    leaf_count += 1u;
+                } else if (sp < STACK_SIZE) {
+                    stack[sp] = e2;
+                    stack_t[sp] = t2;
+                    sp += 1u;
+                }
+            }
+            if (t1 < MISS) {
+                if (sp >= leaf_limit && is_leaf(e1)) {
+                    leaves[leaf_count] = e1;
+                    leaf_count += 1u;
+                } else if (sp < STACK_SIZE) {
+                    stack[sp] = e1;
+                    stack_t[sp] = t1;
+                    sp += 1u;
+                }
+            }
+            if (t0 < MISS) {
+                entry = e0;
+                descend = true;
+            }
+        }
+        uint k_end = leaf_count;
+        for (uint k = 0u; k < k_end; ++k) {
+            intersect_leaf(leaves[k], origin, dir, after, only_masked, hit);
+        }
+        if (!descend) {
+            visiting = false;
+            while (sp > 0u && !visiting) {
+                sp -= 1u;
+                if (!(stack_t[sp] > hit.t)) {
+                    entry = stack[sp];
+                    visiting = true;
+                }
+            }
+        }
+    }
+    return hit;
 }
 
 // scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:351)
@@ -377,177 +562,38 @@ bool is_hole(uint triangle, uint material, float u, float v) {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:116)
-void intersect_leaf(uint entry, vec3 origin, vec3 dir, inout Hit hit) {
-    uint first = entry >> 8;
-    uint i_end = first + (entry & 255u);
-    for (uint i = first; i < i_end; ++i) {
-        TriangleData tri = fetch_triangle(i);
-        TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if ((scene_has_alpha_mask != 0u) && h.t < hit.t && tri.masked && is_hole(i, tri.material, h.u, h.v)) {
-        } else if (h.t < hit.t) {
-            hit = Hit(i, h.t, h.u, h.v);
-        }
-    }
-}
-
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:128)
-bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
-    uint first = entry >> 8;
-    bool blocked = false;
-    uint i_end = first + (entry & 255u);
-    for (uint i = first; i < i_end; ++i) {
-        TriangleData tri = fetch_triangle(i);
-        TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if ((scene_has_alpha_mask != 0u) && h.t < t_max && tri.masked && is_hole(i, tri.material, h.u, h.v)) {
-        } else if (h.t < t_max) {
-            blocked = true;
-            break;
-        }
-    }
-    return blocked;
-}
-
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:143)
-bool is_leaf(uint entry) {
-    return (entry & 255u) > 0u;
-}
-
-// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:48)
-vec3 safe_inverse(vec3 dir) {
-    float tiny = 1e-20;
-    float x = abs(dir.x) < tiny ? (dir.x >= 0.0 ? tiny : -tiny) : dir.x;
-    float y = abs(dir.y) < tiny ? (dir.y >= 0.0 ? tiny : -tiny) : dir.y;
-    float z = abs(dir.z) < tiny ? (dir.z >= 0.0 ? tiny : -tiny) : dir.z;
-    return vec3(1.0 / x, 1.0 / y, 1.0 / z);
-}
-
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:162)
-Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
-    vec3 inv_dir = safe_inverse(dir);
-    uvec3 near = near_planes(inv_dir);
-    Hit hit = Hit(NONE, t_max, 0.0, 0.0);
-    uint stack[64];
-    for (int i = 0; i < 64; ++i) { stack[i] = 0u; }
-    float stack_t[64];
-    for (int i_1 = 0; i_1 < 64; ++i_1) { stack_t[i_1] = 0.0; }
-    uint leaf_limit = scene_leaf_stack_limit;
-    uint sp = 0u;
-    uint entry = stack_entry(0u, 0u);
-    bool visiting = true;
-    uint leaves[3];
-    for (int i_2 = 0; i_2 < 3; ++i_2) { leaves[i_2] = 0u; }
-    while (visiting) {
-        bool descend = false;
-        uint leaf_count = 0u;
-        if (is_leaf(entry)) {
-            leaves[0u] = entry;
-            leaf_count = 1u;
-        } else {
-            NodeHits n = intersect_node(entry >> 8, origin, inv_dir, near, hit.t);
-            float t0 = n.t.x;
-            float t1 = n.t.y;
-            float t2 = n.t.z;
-            float t3 = n.t.w;
-            uint e0 = n.entries.x;
-            uint e1 = n.entries.y;
-            uint e2 = n.entries.z;
-            uint e3 = n.entries.w;
-            if (t1 < t0) {
-                float t = t0;
-                t0 = t1;
-                t1 = t;
-                uint e = e0;
-                e0 = e1;
-                e1 = e;
-            }
-            if (t3 < t2) {
-                float t_1 = t2;
-                t2 = t3;
-                t3 = t_1;
-                uint e_1 = e2;
-                e2 = e3;
-                e3 = e_1;
-            }
-            if (t2 < t0) {
-                float t_2 = t0;
-                t0 = t2;
-                t2 = t_2;
-                uint e_2 = e0;
-                e0 = e2;
-                e2 = e_2;
-            }
-            if (t3 < t1) {
-                float t_3 = t1;
-                t1 = t3;
-                t3 = t_3;
-                uint e_3 = e1;
-                e1 = e3;
-                e3 = e_3;
-            }
-            if (t2 < t1) {
-                float t_4 = t1;
-                t1 = t2;
-                t2 = t_4;
-                uint e_4 = e1;
-                e1 = e2;
-                e2 = e_4;
-            }
-            if (t3 < MISS) {
-                if (sp >= leaf_limit && is_leaf(e3)) {
-                    leaves[leaf_count] = e3;
-                    leaf_count += 1u;
-                } else if (sp < STACK_SIZE) {
-                    stack[sp] = e3;
-                    stack_t[sp] = t3;
-                    sp += 1u;
-                }
-            }
-            if (t2 < MISS) {
-                if (sp >= leaf_limit && is_leaf(e2)) {
-                    leaves[leaf_count] = e2;
-                    leaf_count += 1u;
-                } else if (sp < STACK_SIZE) {
-                    stack[sp] = e2;
-                    stack_t[sp] = t2;
-                    sp += 1u;
-                }
-            }
-            if (t1 < MISS) {
-                if (sp >= leaf_limit && is_leaf(e1)) {
-                    leaves[leaf_count] = e1;
-                    leaf_count += 1u;
-                } else if (sp < STACK_SIZE) {
-                    stack[sp] = e1;
-                    stack_t[sp] = t1;
-                    sp += 1u;
-                }
-            }
-            if (t0 < MISS) {
-                entry = e0;
-                descend = true;
-            }
-        }
-        uint k_end = leaf_count;
-        for (uint k = 0u; k < k_end; ++k) {
-            intersect_leaf(leaves[k], origin, dir, hit);
-        }
-        if (!descend) {
-            visiting = false;
-            while (sp > 0u && !visiting) {
-                sp -= 1u;
-                if (!(stack_t[sp] > hit.t)) {
-                    entry = stack[sp];
-                    visiting = true;
-                }
+// traverse::visible_hit (lightport-tracer/src/kernel/traverse.rs:181)
+Hit visible_hit(vec3 origin, vec3 dir, float t_max, bool only_masked) {
+    Hit after = before_any_hit();
+    Hit hit = after;
+    uint holes = 0u;
+    bool searching = true;
+    while (searching) {
+        hit = closest_candidate(origin, dir, t_max, after, only_masked);
+        searching = false;
+        if ((hit.triangle != NONE) && holes < MAX_HOLES) {
+            TriangleData tri = fetch_triangle(hit.triangle);
+            if (tri.masked && is_hole(hit.triangle, tri.material, hit.u, hit.v)) {
+                after = hit;
+                holes += 1u;
+                searching = true;
             }
         }
     }
     return hit;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:295)
-bool occluded(vec3 origin, vec3 dir, float t_max) {
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:210)
+Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
+    if (scene_has_alpha_mask != 0u) {
+        return visible_hit(origin, dir, t_max, false);
+    } else {
+        return closest_candidate(origin, dir, t_max, before_any_hit(), false);
+    }
+}
+
+// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:377)
+bool any_hit(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
     uint stack[64];
@@ -602,6 +648,15 @@ bool occluded(vec3 origin, vec3 dir, float t_max) {
             blocked = leaf_occludes(leaves[k], origin, dir, t_max);
             k += 1u;
         }
+    }
+    return blocked;
+}
+
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:365)
+bool occluded(vec3 origin, vec3 dir, float t_max) {
+    bool blocked = any_hit(origin, dir, t_max);
+    if ((scene_has_alpha_mask != 0u) && !blocked) {
+        blocked = visible_hit(origin, dir, t_max, true).triangle != NONE;
     }
     return blocked;
 }

@@ -84,6 +84,8 @@ const TEXTURE_REF_TEXELS: u32 = 2u;
 const TEXCOORD1_TEXELS: u32 = 2u;
 // traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:17)
 const STACK_SIZE: u32 = 64u;
+// traverse::MAX_HOLES (lightport-tracer/src/kernel/traverse.rs:119)
+const MAX_HOLES: u32 = 32u;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
 // u32 as f32, rounded to nearest even like Rust: both halves convert exactly, the sum rounds once.
@@ -159,6 +161,18 @@ fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u
     return NodeHits(t, e);
 }
 
+// traverse::before_any_hit (lightport-tracer/src/kernel/traverse.rs:122)
+fn before_any_hit() -> Hit {
+    return Hit(NONE, -1.0, 0.0, 0.0);
+}
+
+// traverse::is_next_candidate (lightport-tracer/src/kernel/traverse.rs:130)
+fn is_next_candidate(t: f32, triangle: u32, after: Hit, best: Hit) -> bool {
+    let before_best: bool = t < best.t || ((t == best.t) && triangle < best.triangle && (best.triangle != NONE));
+    let past_after: bool = t > after.t || ((t == after.t) && triangle > after.triangle);
+    return before_best && past_after;
+}
+
 // scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
@@ -194,6 +208,174 @@ fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3
     } else {
         return miss;
     }
+}
+
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:139)
+fn intersect_leaf(entry: u32, origin: vec3<f32>, dir: vec3<f32>, after: Hit, only_masked: bool, hit: ptr<function, Hit>) {
+    let first: u32 = entry >> 8u;
+    let i_end: u32 = first + (entry & 255u);
+    for (var i: u32 = first; i < i_end; i++) {
+        let tri: TriangleData = fetch_triangle(i);
+        let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+        if scene.has_alpha_mask != 0u {
+            if (tri.masked || !only_masked) && is_next_candidate(h.t, i, after, *hit) {
+                *hit = Hit(i, h.t, h.u, h.v);
+            }
+        } else if h.t < (*hit).t {
+            *hit = Hit(i, h.t, h.u, h.v);
+        }
+    }
+}
+
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:163)
+fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+    let first: u32 = entry >> 8u;
+    var blocked: bool = false;
+    let i_end: u32 = first + (entry & 255u);
+    for (var i: u32 = first; i < i_end; i++) {
+        let tri: TriangleData = fetch_triangle(i);
+        if (scene.has_alpha_mask != 0u) && tri.masked {
+        } else if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
+            blocked = true;
+            break;
+        }
+    }
+    return blocked;
+}
+
+// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:48)
+fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
+    let tiny: f32 = 1e-20;
+    let x: f32 = select(dir.x, select(-tiny, tiny, dir.x >= 0.0), abs(dir.x) < tiny);
+    let y: f32 = select(dir.y, select(-tiny, tiny, dir.y >= 0.0), abs(dir.y) < tiny);
+    let z: f32 = select(dir.z, select(-tiny, tiny, dir.z >= 0.0), abs(dir.z) < tiny);
+    return vec3<f32>(1.0 / x, 1.0 / y, 1.0 / z);
+}
+
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:202)
+fn is_leaf(entry: u32) -> bool {
+    return (entry & 255u) > 0u;
+}
+
+// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:233)
+fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, only_masked: bool) -> Hit {
+    let inv_dir: vec3<f32> = safe_inverse(dir);
+    let near: vec3<u32> = near_planes(inv_dir);
+    var hit: Hit = Hit(NONE, t_max, 0.0, 0.0);
+    var stack: array<u32, 64>;
+    var stack_t: array<f32, 64>;
+    let leaf_limit: u32 = scene.leaf_stack_limit;
+    var sp: u32 = 0u;
+    var entry: u32 = stack_entry(0u, 0u);
+    var visiting: bool = true;
+    var leaves: array<u32, 3>;
+    while visiting {
+        var descend: bool = false;
+        var leaf_count: u32 = 0u;
+        if is_leaf(entry) {
+            leaves[0u] = entry;
+            leaf_count = 1u;
+        } else {
+            let n: NodeHits = intersect_node(entry >> 8u, origin, inv_dir, near, hit.t);
+            var t0: f32 = n.t.x;
+            var t1: f32 = n.t.y;
+            var t2: f32 = n.t.z;
+            var t3: f32 = n.t.w;
+            var e0: u32 = n.entries.x;
+            var e1: u32 = n.entries.y;
+            var e2: u32 = n.entries.z;
+            var e3: u32 = n.entries.w;
+            if t1 < t0 {
+                let t: f32 = t0;
+                t0 = t1;
+                t1 = t;
+                let e: u32 = e0;
+                e0 = e1;
+                e1 = e;
+            }
+            if t3 < t2 {
+                let t_1: f32 = t2;
+                t2 = t3;
+                t3 = t_1;
+                let e_1: u32 = e2;
+                e2 = e3;
+                e3 = e_1;
+            }
+            if t2 < t0 {
+                let t_2: f32 = t0;
+                t0 = t2;
+                t2 = t_2;
+                let e_2: u32 = e0;
+                e0 = e2;
+                e2 = e_2;
+            }
+            if t3 < t1 {
+                let t_3: f32 = t1;
+                t1 = t3;
+                t3 = t_3;
+                let e_3: u32 = e1;
+                e1 = e3;
+                e3 = e_3;
+            }
+            if t2 < t1 {
+                let t_4: f32 = t1;
+                t1 = t2;
+                t2 = t_4;
+                let e_4: u32 = e1;
+                e1 = e2;
+                e2 = e_4;
+            }
+            if t3 < MISS {
+                if sp >= leaf_limit && is_leaf(e3) {
+                    leaves[leaf_count] = e3;
+                    leaf_count += 1u;
+                } else if sp < STACK_SIZE {
+                    stack[sp] = e3;
+                    stack_t[sp] = t3;
+                    sp += 1u;
+                }
+            }
+            if t2 < MISS {
+                if sp >= leaf_limit && is_leaf(e2) {
+                    leaves[leaf_count] = e2;
+                    leaf_count += 1u;
+                } else if sp < STACK_SIZE {
+                    stack[sp] = e2;
+                    stack_t[sp] = t2;
+                    sp += 1u;
+                }
+            }
+            if t1 < MISS {
+                if sp >= leaf_limit && is_leaf(e1) {
+                    leaves[leaf_count] = e1;
+                    leaf_count += 1u;
+                } else if sp < STACK_SIZE {
+                    stack[sp] = e1;
+                    stack_t[sp] = t1;
+                    sp += 1u;
+                }
+            }
+            if t0 < MISS {
+                entry = e0;
+                descend = true;
+            }
+        }
+        let k_end: u32 = leaf_count;
+        for (var k: u32 = 0u; k < k_end; k++) {
+            intersect_leaf(leaves[k], origin, dir, after, only_masked, &hit);
+        }
+        if !descend {
+            visiting = false;
+            while sp > 0u && !visiting {
+                sp -= 1u;
+                if !(stack_t[sp] > hit.t) {
+                    entry = stack[sp];
+                    visiting = true;
+                }
+            }
+        }
+    }
+    return hit;
 }
 
 // scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:351)
@@ -353,174 +535,38 @@ fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:116)
-fn intersect_leaf(entry: u32, origin: vec3<f32>, dir: vec3<f32>, hit: ptr<function, Hit>) {
-    let first: u32 = entry >> 8u;
-    let i_end: u32 = first + (entry & 255u);
-    for (var i: u32 = first; i < i_end; i++) {
-        let tri: TriangleData = fetch_triangle(i);
-        let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if (scene.has_alpha_mask != 0u) && h.t < (*hit).t && tri.masked && is_hole(i, tri.material, h.u, h.v) {
-        } else if h.t < (*hit).t {
-            *hit = Hit(i, h.t, h.u, h.v);
-        }
-    }
-}
-
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:128)
-fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
-    let first: u32 = entry >> 8u;
-    var blocked: bool = false;
-    let i_end: u32 = first + (entry & 255u);
-    for (var i: u32 = first; i < i_end; i++) {
-        let tri: TriangleData = fetch_triangle(i);
-        let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if (scene.has_alpha_mask != 0u) && h.t < t_max && tri.masked && is_hole(i, tri.material, h.u, h.v) {
-        } else if h.t < t_max {
-            blocked = true;
-            break;
-        }
-    }
-    return blocked;
-}
-
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:143)
-fn is_leaf(entry: u32) -> bool {
-    return (entry & 255u) > 0u;
-}
-
-// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:48)
-fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
-    let tiny: f32 = 1e-20;
-    let x: f32 = select(dir.x, select(-tiny, tiny, dir.x >= 0.0), abs(dir.x) < tiny);
-    let y: f32 = select(dir.y, select(-tiny, tiny, dir.y >= 0.0), abs(dir.y) < tiny);
-    let z: f32 = select(dir.z, select(-tiny, tiny, dir.z >= 0.0), abs(dir.z) < tiny);
-    return vec3<f32>(1.0 / x, 1.0 / y, 1.0 / z);
-}
-
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:162)
-fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
-    let inv_dir: vec3<f32> = safe_inverse(dir);
-    let near: vec3<u32> = near_planes(inv_dir);
-    var hit: Hit = Hit(NONE, t_max, 0.0, 0.0);
-    var stack: array<u32, 64>;
-    var stack_t: array<f32, 64>;
-    let leaf_limit: u32 = scene.leaf_stack_limit;
-    var sp: u32 = 0u;
-    var entry: u32 = stack_entry(0u, 0u);
-    var visiting: bool = true;
-    var leaves: array<u32, 3>;
-    while visiting {
-        var descend: bool = false;
-        var leaf_count: u32 = 0u;
-        if is_leaf(entry) {
-            leaves[0u] = entry;
-            leaf_count = 1u;
-        } else {
-            let n: NodeHits = intersect_node(entry >> 8u, origin, inv_dir, near, hit.t);
-            var t0: f32 = n.t.x;
-            var t1: f32 = n.t.y;
-            var t2: f32 = n.t.z;
-            var t3: f32 = n.t.w;
-            var e0: u32 = n.entries.x;
-            var e1: u32 = n.entries.y;
-            var e2: u32 = n.entries.z;
-            var e3: u32 = n.entries.w;
-            if t1 < t0 {
-                let t: f32 = t0;
-                t0 = t1;
-                t1 = t;
-                let e: u32 = e0;
-                e0 = e1;
-                e1 = e;
-            }
-            if t3 < t2 {
-                let t_1: f32 = t2;
-                t2 = t3;
-                t3 = t_1;
-                let e_1: u32 = e2;
-                e2 = e3;
-                e3 = e_1;
-            }
-            if t2 < t0 {
-                let t_2: f32 = t0;
-                t0 = t2;
-                t2 = t_2;
-                let e_2: u32 = e0;
-                e0 = e2;
-                e2 = e_2;
-            }
-            if t3 < t1 {
-                let t_3: f32 = t1;
-                t1 = t3;
-                t3 = t_3;
-                let e_3: u32 = e1;
-                e1 = e3;
-                e3 = e_3;
-            }
-            if t2 < t1 {
-                let t_4: f32 = t1;
-                t1 = t2;
-                t2 = t_4;
-                let e_4: u32 = e1;
-                e1 = e2;
-                e2 = e_4;
-            }
-            if t3 < MISS {
-                if sp >= leaf_limit && is_leaf(e3) {
-                    leaves[leaf_count] = e3;
-                    leaf_count += 1u;
-                } else if sp < STACK_SIZE {
-                    stack[sp] = e3;
-                    stack_t[sp] = t3;
-                    sp += 1u;
-                }
-            }
-            if t2 < MISS {
-                if sp >= leaf_limit && is_leaf(e2) {
-                    leaves[leaf_count] = e2;
-                    leaf_count += 1u;
-                } else if sp < STACK_SIZE {
-                    stack[sp] = e2;
-                    stack_t[sp] = t2;
-                    sp += 1u;
-                }
-            }
-            if t1 < MISS {
-                if sp >= leaf_limit && is_leaf(e1) {
-                    leaves[leaf_count] = e1;
-                    leaf_count += 1u;
-                } else if sp < STACK_SIZE {
-                    stack[sp] = e1;
-                    stack_t[sp] = t1;
-                    sp += 1u;
-                }
-            }
-            if t0 < MISS {
-                entry = e0;
-                descend = true;
-            }
-        }
-        let k_end: u32 = leaf_count;
-        for (var k: u32 = 0u; k < k_end; k++) {
-            intersect_leaf(leaves[k], origin, dir, &hit);
-        }
-        if !descend {
-            visiting = false;
-            while sp > 0u && !visiting {
-                sp -= 1u;
-                if !(stack_t[sp] > hit.t) {
-                    entry = stack[sp];
-                    visiting = true;
-                }
+// traverse::visible_hit (lightport-tracer/src/kernel/traverse.rs:181)
+fn visible_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, only_masked: bool) -> Hit {
+    var after: Hit = before_any_hit();
+    var hit: Hit = after;
+    var holes: u32 = 0u;
+    var searching: bool = true;
+    while searching {
+        hit = closest_candidate(origin, dir, t_max, after, only_masked);
+        searching = false;
+        if (hit.triangle != NONE) && holes < MAX_HOLES {
+            let tri: TriangleData = fetch_triangle(hit.triangle);
+            if tri.masked && is_hole(hit.triangle, tri.material, hit.u, hit.v) {
+                after = hit;
+                holes += 1u;
+                searching = true;
             }
         }
     }
     return hit;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:295)
-fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:210)
+fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
+    if scene.has_alpha_mask != 0u {
+        return visible_hit(origin, dir, t_max, false);
+    } else {
+        return closest_candidate(origin, dir, t_max, before_any_hit(), false);
+    }
+}
+
+// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:377)
+fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
     var stack: array<u32, 64>;
@@ -573,6 +619,15 @@ fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
             blocked = leaf_occludes(leaves[k], origin, dir, t_max);
             k += 1u;
         }
+    }
+    return blocked;
+}
+
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:365)
+fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+    var blocked: bool = any_hit(origin, dir, t_max);
+    if (scene.has_alpha_mask != 0u) && !blocked {
+        blocked = visible_hit(origin, dir, t_max, true).triangle != NONE;
     }
     return blocked;
 }

@@ -1,4 +1,4 @@
-//! Alpha masks (`scene_data::is_hole` and the functions it uses, `traverse::leaf_occludes`),
+//! Alpha masks (`scene_data::is_hole` and the functions it uses, `traverse::visible_hit`),
 //! and the traversal and light sampling that call them, on the generated alpha-masked scene
 //! (`scene::alpha_masked_screen`): every input stated once and run on every runtime.
 
@@ -144,7 +144,8 @@ fn alpha_mask_functions_agree() {
         Tolerance::EXACT,
     );
 
-    // Each segment against a leaf of one triangle: hit outside a hole blocks, in a hole passes.
+    // Each segment against a leaf of one triangle: an unmasked triangle hit blocks; masked
+    // ones are left to `visible_hit` (the hole test stays out of traversal's loops).
     let segments: Vec<(u32, Vec3, Vec3, f32)> = shadow
         .iter()
         .enumerate()
@@ -159,6 +160,21 @@ fn alpha_mask_functions_agree() {
     );
     let blocked = occludes.output(Backend::Cpu).unwrap().iter().filter(|(b,)| *b).count();
     assert!(blocked > 0 && blocked < segments.len(), "{blocked} of {} segments blocked", segments.len());
+    // The masked triangles alone, holes skipped: what shadow rays test after the loop.
+    let masked_only: Vec<(Vec3, Vec3, f32, bool)> = shadow.iter().map(|&(o, d, t)| (o, d, t, true)).collect();
+    let visible = assert_equivalent(
+        &mut eq,
+        "visible_hit",
+        &masked_only,
+        |s, &(o, d, t, only_masked)| (traverse::visible_hit(s, o, d, t, only_masked),),
+        Tolerance::ulps(16).with_absolute(1e-6).flushing_subnormals(),
+    );
+    let masked_hits = visible.output(Backend::Cpu).unwrap().iter().filter(|(h,)| h.triangle != NONE).count();
+    assert!(
+        masked_hits > 0 && masked_hits < shadow.len(),
+        "{masked_hits} of {} segments meet a masked texel",
+        shadow.len()
+    );
 
     // Light sampling on the masked emitter: samples in its holes are invalid (pdf 0).
     let light_cases: Vec<(Vec3, Vec3)> = (0..1 << 14)

@@ -104,47 +104,119 @@ pub mod traverse {
         NodeHits { t, entries: e }
     }
 
-    // Alpha masks (`Features::alpha_mask`, `scene_data::is_hole`): a hit in a hole is skipped
-    // (the empty first branch below: the search goes on behind it). The hole test runs only for
-    // a triangle that is hit, closer than the hit so far and masked (the flag is in a texel
-    // `fetch_triangle` has read), and each traversal has exactly one leaf-intersection site,
-    // so that the shader compiler inlines the texture lookup once per traversal, not once per
-    // child slot. Specialisation removes the branch: scenes without masks get the code they had.
+    // Alpha masks (`Features::alpha_mask`, `scene_data::is_hole`). The hole test (a texture
+    // lookup) is kept out of the traversal loops: SIMD drivers (llvmpipe, SwiftShader) run both
+    // sides of a branch under a lane mask, so a test in the per-triangle loop cost every
+    // triangle of every ray its texel fetches, masked or not (2.4x per sample on GL for
+    // LittlestTokyo, issue 31). Instead traversal returns the closest *candidate* in (t,
+    // triangle) order after a given one, holes included, and `trace_closest` tests only that
+    // candidate, searching again behind it when it is a hole (`visible_hit`); shadow rays test
+    // unmasked triangles in the loop and masked ones through `visible_hit`. Specialisation
+    // removes all of it: scenes without masks get the code they had.
+
+    /// Most holes one ray passes through (`visible_hit`): each costs a traversal. The candidate
+    /// after that many holes counts as a hit (a dense cut-out canopy seen edge-on may darken).
+    pub const MAX_HOLES: u32 = 32;
+
+    /// No candidate yet: the start of the (t, triangle) order (every hit has t > 0).
+    pub fn before_any_hit() -> Hit {
+        Hit { triangle: NONE, t: -1.0, u: 0.0, v: 0.0 }
+    }
+
+    /// Whether a hit on triangle `triangle` at `t` comes after `after` and before `best` in
+    /// (t, triangle) order: a total order, so that searching behind a hole neither skips a
+    /// triangle at the same distance nor finds the hole again. `best` is the closest so far
+    /// (triangle NONE: none yet, its t the exclusive `t_max`).
+    pub fn is_next_candidate(t: f32, triangle: u32, after: Hit, best: Hit) -> bool {
+        let before_best = t < best.t || (t == best.t && triangle < best.triangle && best.triangle != NONE);
+        let past_after = t > after.t || (t == after.t && triangle > after.triangle);
+        before_best && past_after
+    }
 
     /// Intersects the triangles of the leaf `entry` (a stack entry with count > 0), keeping
-    /// the closest hit in `hit`.
-    pub fn intersect_leaf(scene: &Scene, entry: u32, origin: Vec3, dir: Vec3, hit: &mut Hit) {
+    /// the closest hit in `hit`; with alpha masks, the closest candidate after `after` (of the
+    /// masked triangles only, when `only_masked`), holes included.
+    pub fn intersect_leaf(
+        scene: &Scene,
+        entry: u32,
+        origin: Vec3,
+        dir: Vec3,
+        after: Hit,
+        only_masked: bool,
+        hit: &mut Hit,
+    ) {
         let first = entry >> 8;
         for i in first..first + (entry & 255) {
             let tri = fetch_triangle(scene, i);
             let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-            if scene.has_alpha_mask != 0 && h.t < hit.t && tri.masked && is_hole(scene, i, tri.material, h.u, h.v) {
+            if scene.has_alpha_mask != 0 {
+                if (tri.masked || !only_masked) && is_next_candidate(h.t, i, after, *hit) {
+                    *hit = Hit { triangle: i, t: h.t, u: h.u, v: h.v };
+                }
             } else if h.t < hit.t {
                 *hit = Hit { triangle: i, t: h.t, u: h.u, v: h.v };
             }
         }
     }
-    /// Whether any triangle of the leaf `entry` is hit for t in (0, t_max) outside a hole.
+    /// Whether any triangle of the leaf `entry` is hit for t in (0, t_max); with alpha masks,
+    /// any unmasked one (`occluded` tests the masked ones apart).
     pub fn leaf_occludes(scene: &Scene, entry: u32, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
         let first = entry >> 8;
         let mut blocked = false;
         for i in first..first + (entry & 255) {
             let tri = fetch_triangle(scene, i);
-            let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-            if scene.has_alpha_mask != 0 && h.t < t_max && tri.masked && is_hole(scene, i, tri.material, h.u, h.v) {
-            } else if h.t < t_max {
+            if scene.has_alpha_mask != 0 && tri.masked {
+            } else if intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2).t < t_max {
                 blocked = true;
                 break;
             }
         }
         blocked
     }
+
+    /// The closest hit for t in (0, t_max) outside the holes of alpha masks (of the masked
+    /// triangles only, when `only_masked`): the closest candidate, tested; behind a hole, the
+    /// next candidate, at most `MAX_HOLES` times. The hole test runs once per candidate, not
+    /// once per triangle intersected.
+    pub fn visible_hit(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32, only_masked: bool) -> Hit {
+        let mut after = before_any_hit();
+        let mut hit = after;
+        let mut holes = 0u32;
+        let mut searching = true;
+        while searching {
+            hit = closest_candidate(scene, origin, dir, t_max, after, only_masked);
+            searching = false;
+            if hit.triangle != NONE && holes < MAX_HOLES {
+                let tri = fetch_triangle(scene, hit.triangle);
+                if tri.masked && is_hole(scene, hit.triangle, tri.material, hit.u, hit.v) {
+                    after = hit;
+                    holes += 1;
+                    searching = true;
+                }
+            }
+        }
+        hit
+    }
+
     /// Whether a stack entry is a leaf.
     pub fn is_leaf(entry: u32) -> bool {
         (entry & 255) > 0
     }
 
-    /// Closest intersection along `origin + t * dir` for t in (0, t_max).
+    /// Closest intersection along `origin + t * dir` for t in (0, t_max) (outside the holes of
+    /// alpha masks).
+    // Inlined into the CPU backend's row loop, which is also compiled for AVX2 (backend/cpu.rs).
+    #[inline(always)]
+    pub fn trace_closest(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
+        if scene.has_alpha_mask != 0 {
+            visible_hit(scene, origin, dir, t_max, false)
+        } else {
+            closest_candidate(scene, origin, dir, t_max, before_any_hit(), false)
+        }
+    }
+
+    /// Closest intersection along `origin + t * dir` for t in (0, t_max); with alpha masks, the
+    /// closest candidate after `after` in (t, triangle) order, holes included (`intersect_leaf`).
     ///
     /// A node's nearest hit child is visited next; its other hit children are pushed, farthest
     /// first and leaves included, and popped (nearest first) when a leaf or a node without hit
@@ -157,9 +229,8 @@ pub mod traverse {
     // The DSL has no `std::mem::swap` and no iterators: the sorting network swaps through
     // temporaries, and the leaves are visited by index.
     #[allow(clippy::manual_swap, clippy::needless_range_loop)]
-    // Inlined into the CPU backend's row loop, which is also compiled for AVX2 (backend/cpu.rs).
     #[inline(always)]
-    pub fn trace_closest(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
+    pub fn closest_candidate(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32, after: Hit, only_masked: bool) -> Hit {
         let inv_dir = safe_inverse(dir);
         let near = near_planes(inv_dir);
         let mut hit = Hit { triangle: NONE, t: t_max, u: 0.0, v: 0.0 };
@@ -270,7 +341,7 @@ pub mod traverse {
                 }
             }
             for k in 0..leaf_count {
-                intersect_leaf(scene, leaves[k], origin, dir, &mut hit);
+                intersect_leaf(scene, leaves[k], origin, dir, after, only_masked, &mut hit);
             }
             if !descend {
                 // Pop the nearest pending entry that may still hold a closer hit.
@@ -288,11 +359,22 @@ pub mod traverse {
     }
 
     /// Whether anything blocks `origin + t * dir` for t in (0, t_max): the shadow-ray test.
-    /// Any hit ends it, so children are visited in slot order, and leaves are intersected at
-    /// once: the stack holds child nodes only (`tracer::bvh::WideBvh::stack_needed` bounds it).
+    /// With alpha masks, an unmasked triangle or a masked one outside its holes.
     // Inlined into the CPU backend's row loop, which is also compiled for AVX2 (backend/cpu.rs).
     #[inline(always)]
     pub fn occluded(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        let mut blocked = any_hit(scene, origin, dir, t_max);
+        if scene.has_alpha_mask != 0 && !blocked {
+            blocked = visible_hit(scene, origin, dir, t_max, true).triangle != NONE;
+        }
+        blocked
+    }
+
+    /// Whether any triangle (with alpha masks, any unmasked one) is hit for t in (0, t_max).
+    /// Any hit ends it, so children are visited in slot order, and leaves are intersected at
+    /// once: the stack holds child nodes only (`tracer::bvh::WideBvh::stack_needed` bounds it).
+    #[inline(always)]
+    pub fn any_hit(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
         let inv_dir = safe_inverse(dir);
         let near = near_planes(inv_dir);
         let mut stack = [0u32; STACK_SIZE];
