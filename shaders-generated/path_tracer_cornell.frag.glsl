@@ -107,7 +107,7 @@ struct Bsdf {
     Surface surface;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:146)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:149)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -561,12 +561,6 @@ vec3 onb_to_local(Onb onb, vec3 v) {
     return vec3(dot(v, onb.tangent), dot(v, onb.bitangent), dot(v, onb.normal));
 }
 
-// integrator::shading_at (lightport-tracer/src/kernel/integrator.rs:157)
-Shading shading_at(Bsdf bsdf, vec3 p, vec3 dir, vec3 ng, vec3 ns) {
-    Onb frame = onb_from_normal(bsdf_normal(bsdf, ns, ng, dir));
-    return Shading(offset_origin(p, ng), ng, frame, onb_to_local(frame, -dir), bsdf);
-}
-
 // lights::choose_light (lightport-tracer/src/kernel/lights.rs:35)
 uint choose_light(float u) {
     uint n = scene_light_count;
@@ -694,7 +688,7 @@ vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     return wi.z > 0.0 ? b.surface.diffuse * INV_PI : vec3(0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:166)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:161)
 vec3 sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     vec3 direct = vec3(0.0);
@@ -784,7 +778,8 @@ vec4 render_sample(uint x, uint y) {
             break;
         }
         Bsdf bsdf = bsdf_at(material, tri.material, hit);
-        Shading sh = shading_at(bsdf, p, dir, ng, ns);
+        Onb frame = onb_from_normal(bsdf_normal(bsdf, ns, ng, dir));
+        Shading sh = Shading(offset_origin(p, ng), ng, frame, onb_to_local(frame, -dir), bsdf);
         radiance += throughput * sample_ld(sh, rng);
         BrdfSample bs = bsdf_sample(sh.bsdf, sh.wo, rng);
         vec3 next = onb_to_world(sh.frame, bs.dir);

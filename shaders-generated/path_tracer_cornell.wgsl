@@ -108,7 +108,7 @@ struct Bsdf {
     surface: Surface,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:146)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:149)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -548,12 +548,6 @@ fn onb_to_local(onb: Onb, v: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(dot(v, onb.tangent), dot(v, onb.bitangent), dot(v, onb.normal));
 }
 
-// integrator::shading_at (lightport-tracer/src/kernel/integrator.rs:157)
-fn shading_at(bsdf: Bsdf, p: vec3<f32>, dir: vec3<f32>, ng: vec3<f32>, ns: vec3<f32>) -> Shading {
-    let frame: Onb = onb_from_normal(bsdf_normal(bsdf, ns, ng, dir));
-    return Shading(offset_origin(p, ng), ng, frame, onb_to_local(frame, -dir), bsdf);
-}
-
 // lights::choose_light (lightport-tracer/src/kernel/lights.rs:35)
 fn choose_light(u: f32) -> u32 {
     let n: u32 = scene.light_count;
@@ -680,7 +674,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     return select(vec3<f32>(0.0), b.surface.diffuse * INV_PI, wi.z > 0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:166)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:161)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> vec3<f32> {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var direct: vec3<f32> = vec3<f32>(0.0);
@@ -770,7 +764,8 @@ fn render_sample(x: u32, y: u32) -> vec4<f32> {
             break;
         }
         let bsdf: Bsdf = bsdf_at(material, tri.material, hit);
-        let sh: Shading = shading_at(bsdf, p, dir, ng, ns);
+        let frame: Onb = onb_from_normal(bsdf_normal(bsdf, ns, ng, dir));
+        let sh: Shading = Shading(offset_origin(p, ng), ng, frame, onb_to_local(frame, -dir), bsdf);
         radiance += throughput * sample_ld(sh, &rng);
         let bs: BrdfSample = bsdf_sample(sh.bsdf, sh.wo, &rng);
         let next: vec3<f32> = onb_to_world(sh.frame, bs.dir);

