@@ -56,7 +56,7 @@ struct BrdfSample {
     vec3 weight;
 };
 
-// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:35)
+// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:37)
 struct Bsdf {
     uint kind;
     Surface surface;
@@ -86,9 +86,9 @@ const float MIN_ROUGHNESS = 0.045;
 const float MIN_COSINE = 1e-6;
 // metal_rough::DIELECTRIC_F0 (lightport-tracer/src/kernel/metal_rough.rs:37)
 const float DIELECTRIC_F0 = 0.04;
-// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:28)
+// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:30)
 const uint BSDF_LAMBERT = 0u;
-// bsdf::BSDF_METAL_ROUGH (lightport-tracer/src/kernel/bsdf.rs:31)
+// bsdf::BSDF_METAL_ROUGH (lightport-tracer/src/kernel/bsdf.rs:33)
 const uint BSDF_METAL_ROUGH = 1u;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -336,7 +336,7 @@ Surface surface_at(MaterialData material, uint material_index, uint triangle, fl
     return metal_rough_surface(base, metallic, roughness, params.specular);
 }
 
-// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:43)
+// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:45)
 Bsdf bsdf_at(MaterialData material, uint material_index, Hit hit) {
     if (scene_has_metal_rough != 0u) {
         Surface surface = surface_at(material, material_index, hit.triangle, hit.u, hit.v);
@@ -352,7 +352,7 @@ Bsdf bsdf_at(MaterialData material, uint material_index, Hit hit) {
     }
 }
 
-// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:63)
+// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:65)
 vec3 bsdf_normal(Bsdf b, vec3 ns, vec3 ng, vec3 dir) {
     return (scene_has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH) ? (dot(ns, dir) < 0.0 ? ns : ng) : ns;
 }
@@ -398,7 +398,7 @@ vec3 metal_rough_eval(Surface s, vec3 wo, vec3 wi) {
     return (vec3(1.0) - f) * s.diffuse * INV_PI + specular;
 }
 
-// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:77)
+// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:79)
 vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     if ((scene_has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH)) {
         return metal_rough_eval(b.surface, wo, wi);
@@ -437,7 +437,7 @@ float metal_rough_pdf(Surface s, vec3 wo, vec3 wi) {
     return p * vndf_reflection_pdf(s.alpha, wo, h) + (1.0 - p) * wi.z * INV_PI;
 }
 
-// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:89)
+// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:91)
 float bsdf_pdf(Bsdf b, vec3 wo, vec3 wi) {
     if ((scene_has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH)) {
         return metal_rough_pdf(b.surface, wo, wi);
@@ -518,7 +518,7 @@ BrdfSample metal_rough_sample(Surface s, vec3 wo, vec3 u) {
     return BrdfSample(wi, pdf, weight);
 }
 
-// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:101)
+// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:103)
 BrdfSample bsdf_sample(Bsdf b, vec3 wo, inout uint rng) {
     float u1 = random_float(rng);
     float u2 = random_float(rng);

@@ -57,7 +57,7 @@ struct BrdfSample {
     weight: vec3<f32>,
 }
 
-// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:35)
+// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:37)
 struct Bsdf {
     kind: u32,
     surface: Surface,
@@ -87,9 +87,9 @@ const MIN_ROUGHNESS: f32 = 0.045;
 const MIN_COSINE: f32 = 1e-6;
 // metal_rough::DIELECTRIC_F0 (lightport-tracer/src/kernel/metal_rough.rs:37)
 const DIELECTRIC_F0: f32 = 0.04;
-// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:28)
+// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:30)
 const BSDF_LAMBERT: u32 = 0u;
-// bsdf::BSDF_METAL_ROUGH (lightport-tracer/src/kernel/bsdf.rs:31)
+// bsdf::BSDF_METAL_ROUGH (lightport-tracer/src/kernel/bsdf.rs:33)
 const BSDF_METAL_ROUGH: u32 = 1u;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -312,7 +312,7 @@ fn surface_at(material: MaterialData, material_index: u32, triangle: u32, u: f32
     return metal_rough_surface(base, metallic, roughness, params.specular);
 }
 
-// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:43)
+// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:45)
 fn bsdf_at(material: MaterialData, material_index: u32, hit: Hit) -> Bsdf {
     if scene.has_metal_rough != 0u {
         let surface: Surface = surface_at(material, material_index, hit.triangle, hit.u, hit.v);
@@ -328,7 +328,7 @@ fn bsdf_at(material: MaterialData, material_index: u32, hit: Hit) -> Bsdf {
     }
 }
 
-// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:63)
+// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:65)
 fn bsdf_normal(b: Bsdf, ns: vec3<f32>, ng: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
     return select(ns, select(ng, ns, dot(ns, dir) < 0.0), (scene.has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH));
 }
@@ -374,7 +374,7 @@ fn metal_rough_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     return (vec3<f32>(1.0) - f) * s.diffuse * INV_PI + specular;
 }
 
-// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:77)
+// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:79)
 fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     if (scene.has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH) {
         return metal_rough_eval(b.surface, wo, wi);
@@ -413,7 +413,7 @@ fn metal_rough_pdf(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     return p * vndf_reflection_pdf(s.alpha, wo, h) + (1.0 - p) * wi.z * INV_PI;
 }
 
-// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:89)
+// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:91)
 fn bsdf_pdf(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     if (scene.has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH) {
         return metal_rough_pdf(b.surface, wo, wi);
@@ -494,7 +494,7 @@ fn metal_rough_sample(s: Surface, wo: vec3<f32>, u: vec3<f32>) -> BrdfSample {
     return BrdfSample(wi, pdf, weight);
 }
 
-// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:101)
+// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:103)
 fn bsdf_sample(b: Bsdf, wo: vec3<f32>, rng: ptr<function, u32>) -> BrdfSample {
     let u1: f32 = random_float(rng);
     let u2: f32 = random_float(rng);

@@ -148,13 +148,13 @@ struct NormalMapData {
     float scale;
 };
 
-// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:35)
+// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:37)
 struct Bsdf {
     uint kind;
     Surface surface;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:149)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:150)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -215,9 +215,9 @@ const float DIELECTRIC_F0 = 0.04;
 const uint TANGENT_TEXELS = 3u;
 // normal_map::MIN_REFLECTION_COSINE (lightport-tracer/src/kernel/normal_map.rs:33)
 const float MIN_REFLECTION_COSINE = 0.01;
-// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:28)
+// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:30)
 const uint BSDF_LAMBERT = 0u;
-// bsdf::BSDF_METAL_ROUGH (lightport-tracer/src/kernel/bsdf.rs:31)
+// bsdf::BSDF_METAL_ROUGH (lightport-tracer/src/kernel/bsdf.rs:33)
 const uint BSDF_METAL_ROUGH = 1u;
 // integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:25)
 const uint RR_START_DEPTH = 3u;
@@ -967,7 +967,7 @@ Surface surface_at(MaterialData material, uint material_index, uint triangle, fl
     return metal_rough_surface(base, metallic, roughness, params.specular);
 }
 
-// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:43)
+// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:45)
 Bsdf bsdf_at(MaterialData material, uint material_index, Hit hit) {
     if (scene_has_metal_rough != 0u) {
         Surface surface = surface_at(material, material_index, hit.triangle, hit.u, hit.v);
@@ -991,7 +991,7 @@ Onb onb_from_normal(vec3 n) {
     return Onb(vec3(1.0 + sign_ * n.x * n.x * a, sign_ * b, -sign_ * n.x), vec3(b, sign_ + n.y * n.y * a, -n.y), n);
 }
 
-// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:63)
+// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:65)
 vec3 bsdf_normal(Bsdf b, vec3 ns, vec3 ng, vec3 dir) {
     return (scene_has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH) ? (dot(ns, dir) < 0.0 ? ns : ng) : ns;
 }
@@ -1172,7 +1172,7 @@ float metal_rough_pdf(Surface s, vec3 wo, vec3 wi) {
     return p * vndf_reflection_pdf(s.alpha, wo, h) + (1.0 - p) * wi.z * INV_PI;
 }
 
-// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:89)
+// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:91)
 float bsdf_pdf(Bsdf b, vec3 wo, vec3 wi) {
     if ((scene_has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH)) {
         return metal_rough_pdf(b.surface, wo, wi);
@@ -1268,7 +1268,7 @@ vec3 metal_rough_eval(Surface s, vec3 wo, vec3 wi) {
     return (vec3(1.0) - f) * s.diffuse * INV_PI + specular;
 }
 
-// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:77)
+// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:79)
 vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     if ((scene_has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH)) {
         return metal_rough_eval(b.surface, wo, wi);
@@ -1279,7 +1279,7 @@ vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:161)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:162)
 vec3 sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     vec3 direct = vec3(0.0);
@@ -1340,7 +1340,7 @@ BrdfSample metal_rough_sample(Surface s, vec3 wo, vec3 u) {
     return BrdfSample(wi, pdf, weight);
 }
 
-// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:101)
+// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:103)
 BrdfSample bsdf_sample(Bsdf b, vec3 wo, inout uint rng) {
     float u1 = random_float(rng);
     float u2 = random_float(rng);

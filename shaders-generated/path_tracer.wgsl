@@ -138,13 +138,13 @@ struct NormalMapData {
     scale: f32,
 }
 
-// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:35)
+// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:37)
 struct Bsdf {
     kind: u32,
     surface: Surface,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:149)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:150)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -205,7 +205,7 @@ const DIELECTRIC_F0: f32 = 0.04;
 const TANGENT_TEXELS: u32 = 3u;
 // normal_map::MIN_REFLECTION_COSINE (lightport-tracer/src/kernel/normal_map.rs:33)
 const MIN_REFLECTION_COSINE: f32 = 0.01;
-// bsdf::BSDF_METAL_ROUGH (lightport-tracer/src/kernel/bsdf.rs:31)
+// bsdf::BSDF_METAL_ROUGH (lightport-tracer/src/kernel/bsdf.rs:33)
 const BSDF_METAL_ROUGH: u32 = 1u;
 // integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:25)
 const RR_START_DEPTH: u32 = 3u;
@@ -916,7 +916,7 @@ fn surface_at(material: MaterialData, material_index: u32, triangle: u32, u: f32
     return metal_rough_surface(base, metallic, roughness, params.specular);
 }
 
-// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:43)
+// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:45)
 fn bsdf_at(material: MaterialData, material_index: u32, hit: Hit) -> Bsdf {
     let surface: Surface = surface_at(material, material_index, hit.triangle, hit.u, hit.v);
     return Bsdf(BSDF_METAL_ROUGH, surface);
@@ -930,7 +930,7 @@ fn onb_from_normal(n: vec3<f32>) -> Onb {
     return Onb(vec3<f32>(1.0 + sign_ * n.x * n.x * a, sign_ * b, -sign_ * n.x), vec3<f32>(b, sign_ + n.y * n.y * a, -n.y), n);
 }
 
-// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:63)
+// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:65)
 fn bsdf_normal(b: Bsdf, ns: vec3<f32>, ng: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
     return select(ns, select(ng, ns, dot(ns, dir) < 0.0), (1u != 0u) && (b.kind == BSDF_METAL_ROUGH));
 }
@@ -1117,7 +1117,7 @@ fn metal_rough_pdf(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     return p * vndf_reflection_pdf(s.alpha, wo, h) + (1.0 - p) * wi.z * INV_PI;
 }
 
-// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:89)
+// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:91)
 fn bsdf_pdf(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     if (1u != 0u) && (b.kind == BSDF_METAL_ROUGH) {
         return metal_rough_pdf(b.surface, wo, wi);
@@ -1212,7 +1212,7 @@ fn metal_rough_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     return (vec3<f32>(1.0) - f) * s.diffuse * INV_PI + specular;
 }
 
-// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:77)
+// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:79)
 fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     if (1u != 0u) && (b.kind == BSDF_METAL_ROUGH) {
         return metal_rough_eval(b.surface, wo, wi);
@@ -1223,7 +1223,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:161)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:162)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> vec3<f32> {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var direct: vec3<f32> = vec3<f32>(0.0);
@@ -1284,7 +1284,7 @@ fn metal_rough_sample(s: Surface, wo: vec3<f32>, u: vec3<f32>) -> BrdfSample {
     return BrdfSample(wi, pdf, weight);
 }
 
-// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:101)
+// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:103)
 fn bsdf_sample(b: Bsdf, wo: vec3<f32>, rng: ptr<function, u32>) -> BrdfSample {
     let u1: f32 = random_float(rng);
     let u2: f32 = random_float(rng);

@@ -101,13 +101,13 @@ struct BrdfSample {
     vec3 weight;
 };
 
-// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:35)
+// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:37)
 struct Bsdf {
     uint kind;
     Surface surface;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:149)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:150)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -142,7 +142,7 @@ const uint STRATEGY_NEE = 1u;
 const uint STRATEGY_MIS = 2u;
 // traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:17)
 const uint STACK_SIZE = 11u;
-// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:28)
+// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:30)
 const uint BSDF_LAMBERT = 0u;
 // integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:25)
 const uint RR_START_DEPTH = 3u;
@@ -526,7 +526,7 @@ vec3 triangle_emission(uint triangle, uint material, float u, float v) {
     return e;
 }
 
-// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:43)
+// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:45)
 Bsdf bsdf_at(MaterialData material, uint material_index, Hit hit) {
     {
         vec3 albedo = material.base_color;
@@ -543,7 +543,7 @@ Onb onb_from_normal(vec3 n) {
     return Onb(vec3(1.0 + sign_ * n.x * n.x * a, sign_ * b, -sign_ * n.x), vec3(b, sign_ + n.y * n.y * a, -n.y), n);
 }
 
-// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:63)
+// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:65)
 vec3 bsdf_normal(Bsdf b, vec3 ns, vec3 ng, vec3 dir) {
     {
         return ns;
@@ -613,7 +613,7 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:89)
+// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:91)
 float bsdf_pdf(Bsdf b, vec3 wo, vec3 wi) {
     {
         return max(wi.z, 0.0) * INV_PI;
@@ -683,12 +683,12 @@ bool occluded(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:77)
+// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:79)
 vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     return wi.z > 0.0 ? b.surface.diffuse * INV_PI : vec3(0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:161)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:162)
 vec3 sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     vec3 direct = vec3(0.0);
@@ -717,7 +717,7 @@ vec3 cosine_sample_hemisphere(float u1, float u2) {
     return vec3(r * cs.x, r * cs.y, z);
 }
 
-// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:101)
+// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:103)
 BrdfSample bsdf_sample(Bsdf b, vec3 wo, inout uint rng) {
     float u1 = random_float(rng);
     float u2 = random_float(rng);

@@ -102,13 +102,13 @@ struct BrdfSample {
     weight: vec3<f32>,
 }
 
-// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:35)
+// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:37)
 struct Bsdf {
     kind: u32,
     surface: Surface,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:149)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:150)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -143,7 +143,7 @@ const STRATEGY_NEE: u32 = 1u;
 const STRATEGY_MIS: u32 = 2u;
 // traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:17)
 const STACK_SIZE: u32 = 11u;
-// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:28)
+// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:30)
 const BSDF_LAMBERT: u32 = 0u;
 // integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:25)
 const RR_START_DEPTH: u32 = 3u;
@@ -513,7 +513,7 @@ fn triangle_emission(triangle: u32, material: u32, u: f32, v: f32) -> vec3<f32> 
     return e;
 }
 
-// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:43)
+// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:45)
 fn bsdf_at(material: MaterialData, material_index: u32, hit: Hit) -> Bsdf {
     {
         var albedo: vec3<f32> = material.base_color;
@@ -530,7 +530,7 @@ fn onb_from_normal(n: vec3<f32>) -> Onb {
     return Onb(vec3<f32>(1.0 + sign_ * n.x * n.x * a, sign_ * b, -sign_ * n.x), vec3<f32>(b, sign_ + n.y * n.y * a, -n.y), n);
 }
 
-// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:63)
+// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:65)
 fn bsdf_normal(b: Bsdf, ns: vec3<f32>, ng: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
     {
         return ns;
@@ -600,7 +600,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     }
 }
 
-// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:89)
+// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:91)
 fn bsdf_pdf(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     {
         return max(wi.z, 0.0) * INV_PI;
@@ -669,12 +669,12 @@ fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     return blocked;
 }
 
-// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:77)
+// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:79)
 fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     return select(vec3<f32>(0.0), b.surface.diffuse * INV_PI, wi.z > 0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:161)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:162)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> vec3<f32> {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var direct: vec3<f32> = vec3<f32>(0.0);
@@ -703,7 +703,7 @@ fn cosine_sample_hemisphere(u1: f32, u2: f32) -> vec3<f32> {
     return vec3<f32>(r * cs.x, r * cs.y, z);
 }
 
-// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:101)
+// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:103)
 fn bsdf_sample(b: Bsdf, wo: vec3<f32>, rng: ptr<function, u32>) -> BrdfSample {
     let u1: f32 = random_float(rng);
     let u2: f32 = random_float(rng);

@@ -16,7 +16,9 @@ pub mod bsdf {
 
     use glam::{Vec3, Vec4Swizzles};
 
-    use crate::kernel::metal_rough::{metal_rough_eval, metal_rough_pdf, metal_rough_sample, surface_at, BrdfSample, Surface};
+    use crate::kernel::metal_rough::{
+        metal_rough_eval, metal_rough_pdf, metal_rough_sample, surface_at, BrdfSample, Surface,
+    };
     use crate::kernel::rng::random_float;
     use crate::kernel::sampling::{cosine_sample_hemisphere, INV_PI};
     use crate::kernel::scene_data::{sample_texture, MaterialData, Scene, NONE};

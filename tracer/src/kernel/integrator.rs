@@ -74,7 +74,8 @@ pub mod integrator {
                     if scene.strategy == STRATEGY_MIS && scatter_pdf > 0.0 {
                         light_pdf = sky_pdf(scene, dir) * light_pmf(scene, scene.light_count - 1);
                     }
-                    radiance += throughput * sky_radiance(scene, dir) * hit_emission_weight(scene, scatter_pdf, light_pdf);
+                    radiance +=
+                        throughput * sky_radiance(scene, dir) * hit_emission_weight(scene, scatter_pdf, light_pdf);
                 }
                 break;
             }

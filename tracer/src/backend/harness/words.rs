@@ -140,8 +140,8 @@ macro_rules! harness_struct_words {
 pub use lightport_codegen::HarnessWord;
 
 mod kernel_structs {
-    use crate::kernel::camera::Ray;
     use crate::kernel::bsdf::Bsdf;
+    use crate::kernel::camera::Ray;
     use crate::kernel::integrator::Shading;
     use crate::kernel::intersect::TriangleHit;
     use crate::kernel::lights::LightSample;
