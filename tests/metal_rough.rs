@@ -442,3 +442,61 @@ fn metal_roughness_texture_channels_follow_gltf() {
     let roughness = 128.0f32 / 255.0;
     assert!((metal.alpha - roughness * roughness).abs() < 1e-5, "{metal:?}");
 }
+
+/// The integrator's BSDF interface (`kernel::bsdf`) over both kinds: each sample's pdf is
+/// `bsdf_pdf` and its weight `bsdf_eval · cos / pdf`; Lambert is the albedo over π with the
+/// cosine pdf; a scene without `Features::metal_rough` gets Lambert whatever the material, and
+/// each kind draws the uniforms it always drew (Lambert two, metal-roughness three), so the
+/// Cornell box's random sequence is the one it had before the interface.
+#[test]
+fn bsdf_interface_dispatches_on_the_kind_and_agrees_with_itself() {
+    use tracer::kernel::bsdf::{bsdf_eval, bsdf_pdf, bsdf_sample, Bsdf, BSDF_LAMBERT, BSDF_METAL_ROUGH};
+    use tracer::kernel::rng::random_float;
+    let lambert_scene = common::agreement::packed(&tracer::scene::cornell_box(), tracer::pack::Strategy::Mis, 4, 4);
+    let mr_scene = common::agreement::packed(&tracer::scene::metal_rough_spheres(), tracer::pack::Strategy::Mis, 4, 4);
+    assert!(!lambert_scene.features.metal_rough && mr_scene.features.metal_rough);
+    let albedo = Vec3::new(0.7, 0.5, 0.2);
+    let lambert =
+        Bsdf { kind: BSDF_LAMBERT, surface: Surface { diffuse: albedo, f0: Vec3::ZERO, alpha: 1.0, specular: 0.0 } };
+    let cases = [
+        (&lambert_scene.scene, lambert, 2),
+        // A metal-roughness BSDF in a scene without the feature is Lambert over its diffuse albedo.
+        (&lambert_scene.scene, Bsdf { kind: BSDF_METAL_ROUGH, surface: surface(0.0, 0.5) }, 2),
+        (&mr_scene.scene, Bsdf { kind: BSDF_METAL_ROUGH, surface: surface(0.0, 0.5) }, 3),
+        (&mr_scene.scene, Bsdf { kind: BSDF_METAL_ROUGH, surface: surface(1.0, 0.2) }, 3),
+    ];
+    let mut rng = TestRng::new(27);
+    for (i, &(scene, b, draws)) in cases.iter().enumerate() {
+        let lambert_here = scene.has_metal_rough == 0;
+        for theta in THETA_O {
+            let wo = wo_at(theta);
+            for _ in 0..2000 {
+                let seed = rng.next_u64() as u32 | 1;
+                let (mut state, mut reference) = (seed, seed);
+                let s = bsdf_sample(scene, b, wo, &mut state);
+                for _ in 0..draws {
+                    random_float(&mut reference);
+                }
+                assert_eq!(state, reference, "case {i}: {draws} uniforms drawn");
+                if s.pdf <= 0.0 || s.pdf.is_nan() {
+                    assert!(!lambert_here, "case {i}: Lambert always samples ({s:?})");
+                    continue;
+                }
+                let pdf = bsdf_pdf(scene, b, wo, s.dir);
+                assert!((pdf - s.pdf).abs() <= 1e-4 * pdf, "case {i}: pdf {pdf} vs {s:?}");
+                let f = bsdf_eval(scene, b, wo, s.dir);
+                let weight = f * (s.dir.z / s.pdf);
+                assert!((weight - s.weight).abs().max_element() <= 1e-4 * weight.max_element().max(1.0), "case {i}");
+                if lambert_here {
+                    assert!((f - b.surface.diffuse / std::f32::consts::PI).abs().max_element() < 1e-6, "case {i}");
+                    assert!((s.pdf - s.dir.z / std::f32::consts::PI).abs() < 1e-6, "case {i}");
+                    assert_eq!(s.weight, b.surface.diffuse, "case {i}");
+                }
+            }
+        }
+    }
+    // Below the surface: no reflection.
+    let below = Vec3::new(0.3, 0.0, -0.9).normalize();
+    assert_eq!(bsdf_eval(&lambert_scene.scene, lambert, wo_at(30.0), below), Vec3::ZERO);
+    assert_eq!(bsdf_pdf(&lambert_scene.scene, lambert, wo_at(30.0), below), 0.0);
+}

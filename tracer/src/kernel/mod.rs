@@ -6,6 +6,8 @@
 // every target. `RangeInclusive::contains` is not part of the DSL.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::manual_range_contains)]
 
+#[path = "bsdf.rs"]
+mod bsdf_src;
 #[path = "camera.rs"]
 mod camera_src;
 #[path = "integrator.rs"]
@@ -34,6 +36,7 @@ mod tonemap_src;
 #[path = "traverse.rs"]
 mod traverse_src;
 
+pub use bsdf_src::bsdf;
 pub use camera_src::camera;
 pub use integrator_src::integrator;
 pub use intersect_src::intersect;
@@ -60,6 +63,7 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
         lights::kernel_ir(),
         metal_rough::kernel_ir(),
         normal_map::kernel_ir(),
+        bsdf::kernel_ir(),
         integrator::kernel_ir(),
         tonemap::kernel_ir(),
     ]
@@ -67,7 +71,7 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
 
 /// Every kernel module's captured description, as the macro serialised it (what
 /// [`modules`] parses): a stable text to fingerprint the kernel with.
-pub fn ir_json() -> [&'static str; 12] {
+pub fn ir_json() -> [&'static str; 13] {
     [
         rng::KERNEL_IR_JSON,
         sampling::KERNEL_IR_JSON,
@@ -79,6 +83,7 @@ pub fn ir_json() -> [&'static str; 12] {
         lights::KERNEL_IR_JSON,
         metal_rough::KERNEL_IR_JSON,
         normal_map::KERNEL_IR_JSON,
+        bsdf::KERNEL_IR_JSON,
         integrator::KERNEL_IR_JSON,
         tonemap::KERNEL_IR_JSON,
     ]

@@ -495,7 +495,8 @@ mod tests {
             ("Surface", top_fields::<crate::kernel::metal_rough::Surface>()),
             ("BrdfSample", top_fields::<crate::kernel::metal_rough::BrdfSample>()),
             ("MetalRoughData", top_fields::<crate::kernel::scene_data::MetalRoughData>()),
-            ("Bounce", top_fields::<crate::kernel::integrator::Bounce>()),
+            ("Bsdf", top_fields::<crate::kernel::bsdf::Bsdf>()),
+            ("Shading", top_fields::<crate::kernel::integrator::Shading>()),
             ("NormalMapData", top_fields::<crate::kernel::normal_map::NormalMapData>()),
             ("AlphaMaskData", top_fields::<crate::kernel::scene_data::AlphaMaskData>()),
         ];
@@ -514,7 +515,7 @@ mod tests {
         }
         assert_eq!(
             structs.len(),
-            14,
+            15,
             "a new kernel struct needs a Words impl here: {:?}",
             structs.iter().map(|s| &s.name).collect::<Vec<_>>()
         );

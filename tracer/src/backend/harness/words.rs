@@ -140,8 +140,9 @@ macro_rules! harness_struct_words {
 pub use lightport_codegen::HarnessWord;
 
 mod kernel_structs {
+    use crate::kernel::bsdf::Bsdf;
     use crate::kernel::camera::Ray;
-    use crate::kernel::integrator::Bounce;
+    use crate::kernel::integrator::Shading;
     use crate::kernel::intersect::TriangleHit;
     use crate::kernel::lights::LightSample;
     use crate::kernel::metal_rough::{BrdfSample, Surface};
@@ -162,7 +163,8 @@ mod kernel_structs {
         Surface { diffuse, f0, alpha, specular }
         BrdfSample { dir, pdf, weight }
         MetalRoughData { metallic, roughness, texture, specular }
-        Bounce { direct, dir, pdf, weight }
+        Bsdf { kind, surface }
+        Shading { p, ng, frame, wo, bsdf }
         NormalMapData { texture, scale }
         AlphaMaskData { texture, alpha, cutoff }
     }
