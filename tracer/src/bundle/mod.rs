@@ -33,7 +33,8 @@ use kernel_dsl::Texels;
 mod bounds;
 
 use crate::kernel::scene_data::{Scene, LIGHT_TEXELS, TRIANGLE_TEXELS};
-use crate::pack::{Features, Packed};
+use crate::kernel::features::Features;
+use crate::pack::Packed;
 
 /// The first bytes of every bundle.
 pub const MAGIC: [u8; 8] = *b"LPBUNDLE";
@@ -759,7 +760,8 @@ mod tests {
     use super::*;
     use crate::backend::cpu::CpuRenderer;
     use crate::backend::Renderer;
-    use crate::pack::{pack, RenderSettings};
+    use crate::kernel::features::RenderSettings;
+    use crate::pack::pack;
 
     /// A file of the repository's vendored test data (`tests/data/`, see its README.md).
     fn test_data(rel: &str) -> std::path::PathBuf {
