@@ -56,7 +56,14 @@ impl Writer {
     }
 
     /// Appends one entry; `data` writes exactly `count * components` elements.
-    pub(super) fn entry(&mut self, name: &str, element: ElementType, components: u8, count: u64, data: impl FnOnce(&mut Vec<u8>)) {
+    pub(super) fn entry(
+        &mut self,
+        name: &str,
+        element: ElementType,
+        components: u8,
+        count: u64,
+        data: impl FnOnce(&mut Vec<u8>),
+    ) {
         debug_assert!(name.len() <= u8::MAX as usize, "field names are short");
         self.out.push(name.len() as u8);
         self.out.extend_from_slice(name.as_bytes());

@@ -19,33 +19,16 @@ mod geometry;
 mod lights;
 mod materials;
 mod sky;
-mod texture_refs;
-mod textures;
 #[cfg(test)]
 mod tests;
+mod texture_refs;
+mod textures;
 
 // `Features`, `RenderSettings` and `Strategy` live in the kernel (`kernel::features`); re-exported
 // here, where the scene's features are decided, for the callers that pack scenes.
 pub use crate::kernel::features::{Features, RenderSettings, Strategy};
 pub use texture_refs::TextureRefs;
 pub use textures::{pack_textures, PackedTextures};
-
-/// Used and allocated texels of one packed array once laid out as a 2D texture.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ArrayStats {
-    pub name: &'static str,
-    pub texels: usize,
-    pub width: u32,
-    pub height: u32,
-    /// Bytes per texel (16 for RGBA32F / RGBA32UI).
-    pub texel_bytes: usize,
-}
-
-impl ArrayStats {
-    pub fn allocated(&self) -> usize {
-        self.width as usize * self.height as usize
-    }
-}
 
 /// The packed scene.
 #[derive(Clone, Debug)]
@@ -77,18 +60,6 @@ pub enum PackError {
     LeafTooLarge { triangles: u32, max: u32 },
     #[error("the packed textures were made from another scene (they do not match this scene's textures)")]
     TexturesMismatch,
-}
-
-/// Lays out `texels` as a 2D texture of power-of-two width no larger than `max_size`:
-/// the narrowest power of two that keeps the height within `max_size` and near-square.
-pub fn texture_shape(texels: usize, max_size: u32) -> Option<(u32, u32)> {
-    let texels = texels.max(1);
-    let mut width = 1u32;
-    while (width as usize) * (width as usize) < texels && width < max_size {
-        width *= 2;
-    }
-    let height = texels.div_ceil(width as usize);
-    (height <= max_size as usize).then_some((width, height as u32))
 }
 
 /// An optional index as the packed layout stores it: the index as an exact float, or -1.
@@ -264,37 +235,5 @@ impl Packed {
             s.width = settings.width;
             s.height = settings.height;
         }
-    }
-
-    /// Every packed array with its texture layout for `max_texture_size`; arrays the scene
-    /// does not use are absent.
-    pub fn arrays(&self, max_texture_size: u32) -> Result<Vec<ArrayStats>, PackError> {
-        let s = &self.scene;
-        let list: [(&'static str, usize); 11] = [
-            ("triangles", s.triangles.len()),
-            ("shading", s.shading.len()),
-            ("nodes", s.nodes.len()),
-            ("node_children", s.node_children.len()),
-            ("materials", s.materials.len()),
-            ("lights", s.lights.len()),
-            ("texture_texels", s.texture_texels.len()),
-            ("texture_info", s.texture_info.len()),
-            ("sky", s.sky.len()),
-            ("sky_rows", s.sky_rows.len()),
-            ("metal_rough", s.metal_rough.len()),
-        ];
-        let mut out = Vec::new();
-        for (name, texels) in list {
-            if texels == 0 {
-                continue;
-            }
-            let (width, height) = texture_shape(texels, max_texture_size).ok_or(PackError::TooLarge {
-                what: name,
-                texels,
-                max: max_texture_size,
-            })?;
-            out.push(ArrayStats { name, texels, width, height, texel_bytes: 16 });
-        }
-        Ok(out)
     }
 }
