@@ -35,10 +35,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use lightport_codegen::Target;
+use tracer::backend::gl::texture_shape;
 use tracer::backend::gl::{compile_program, GlRenderer, HeadlessContext};
 use tracer::backend::Renderer;
 use tracer::kernel::scene_data::SHADING_TEXELS;
-use tracer::pack::{pack, texture_shape, Features, Packed, RenderSettings, Strategy};
+use tracer::pack::{pack, Features, Packed, RenderSettings, Strategy};
 use tracer::scene::{self, Scene, Sky};
 
 /// Texture size limit used for the memory layout (llvmpipe's GL_MAX_TEXTURE_SIZE).

@@ -4,7 +4,8 @@
 
 use std::path::Path;
 
-use crate::backend::Image;
+use glam::Vec3;
+
 use crate::kernel::tonemap;
 
 #[derive(Debug, thiserror::Error)]
@@ -113,5 +114,20 @@ pub fn write_image(path: &Path, image: &Image, display: &Display) -> Result<(), 
             buffer.save(path).map_err(err)
         }
         other => Err(OutputError::Format(other.to_string())),
+    }
+}
+
+/// A linear-RGB image: the mean of the accumulated samples.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<Vec3>,
+}
+
+impl Image {
+    pub fn mean(&self) -> Vec3 {
+        let sum: glam::DVec3 = self.pixels.iter().map(|p| p.as_dvec3()).sum();
+        (sum / self.pixels.len().max(1) as f64).as_vec3()
     }
 }

@@ -151,7 +151,8 @@ unsafe fn render_row_avx2(scene: &Scene, y: u32, row: &mut [Vec4], squares: &mut
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pack::{pack, RenderSettings};
+    use crate::kernel::features::RenderSettings;
+    use crate::pack::pack;
 
     /// Every row the dispatched renderer gives equals the baseline build's, bit for bit: on the
     /// Cornell box (area lights) and the generated terrain (a sky, deep paths), two frames each.

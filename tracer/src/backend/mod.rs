@@ -13,11 +13,11 @@ mod renderer;
 #[cfg(feature = "wgpu")]
 pub mod wgpu;
 
-use glam::Vec3;
-
 #[cfg(not(target_arch = "wasm32"))]
 pub use renderer::create;
 pub(crate) use renderer::update_uniforms;
+// The image a renderer reads back lives with what writes and displays it (`output`).
+pub use crate::output::Image;
 pub use renderer::{
     mean_image, rejected_samples, PendingAccumulation, RenderError, Renderer, RendererInfo, RendererKind,
 };
@@ -25,19 +25,4 @@ pub use renderer::{
 /// Seed of frame `frame`: spreads consecutive frames over the hash's input space.
 pub fn frame_seed(frame: u32, seed: u32) -> u32 {
     frame.wrapping_mul(0x9e37_79b9) ^ seed.wrapping_mul(0x85eb_ca6b)
-}
-
-/// A linear-RGB image: the mean of the accumulated samples.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Image {
-    pub width: u32,
-    pub height: u32,
-    pub pixels: Vec<Vec3>,
-}
-
-impl Image {
-    pub fn mean(&self) -> Vec3 {
-        let sum: glam::DVec3 = self.pixels.iter().map(|p| p.as_dvec3()).sum();
-        (sum / self.pixels.len().max(1) as f64).as_vec3()
-    }
 }

@@ -36,6 +36,8 @@ mod tonemap_src;
 #[path = "traverse.rs"]
 mod traverse_src;
 
+pub mod features;
+
 pub use bsdf_src::bsdf;
 pub use camera_src::camera;
 pub use integrator_src::integrator;
@@ -49,6 +51,8 @@ pub use scene_data_src::scene_data;
 pub use texture_ref_src::texture_ref;
 pub use tonemap_src::tonemap;
 pub use traverse_src::traverse;
+
+pub use features::{Features, RenderSettings, Strategy};
 
 /// Every kernel module's IR, in link order.
 pub fn modules() -> Vec<kernel_dsl::ir::Module> {
@@ -92,7 +96,7 @@ pub fn ir_json() -> [&'static str; 13] {
 /// The path tracer's complete shader for `target`, specialised to `features`: a GLSL ES 3.00
 /// fragment shader or a WGSL compute shader around `integrator::render_sample`, validated.
 pub fn path_tracer_shader(
-    features: &crate::pack::Features,
+    features: &Features,
     target: lightport_codegen::Target,
 ) -> Result<lightport_codegen::Generated, ShaderError> {
     path_tracer_shader_for(features, target, None)
@@ -100,7 +104,7 @@ pub fn path_tracer_shader(
 
 /// [`path_tracer_shader`], with `regenerate` (how the file is regenerated) in its header.
 fn path_tracer_shader_for(
-    features: &crate::pack::Features,
+    features: &Features,
     target: lightport_codegen::Target,
     regenerate: Option<&str>,
 ) -> Result<lightport_codegen::Generated, ShaderError> {
@@ -152,7 +156,7 @@ pub fn generated_shaders() -> Result<Vec<GeneratedFile>, ShaderError> {
         }
     }
     // The complete path tracer: every feature on, and the variant a Cornell box needs.
-    let variants = [("path_tracer", crate::pack::Features::all()), ("path_tracer_cornell", cornell_features())];
+    let variants = [("path_tracer", Features::all()), ("path_tracer_cornell", cornell_features())];
     for (name, features) in variants {
         for target in [Target::GlslEs300, Target::Wgsl] {
             let generated = path_tracer_shader_for(&features, target, Some(REGENERATE))?;
@@ -170,8 +174,8 @@ const REGENERATE: &str = "regenerate with `cargo run -- shaders`";
 /// What the built-in Cornell box uses: emissive triangles only, and a traversal stack of
 /// `CORNELL_STACK` entries (`tests/codegen.rs` checks this against the packed scene).
 #[cfg(feature = "validate")]
-fn cornell_features() -> crate::pack::Features {
-    crate::pack::Features { emissive_triangles: true, traversal_stack: CORNELL_STACK, ..Default::default() }
+fn cornell_features() -> Features {
+    Features { emissive_triangles: true, traversal_stack: CORNELL_STACK, ..Default::default() }
 }
 
 /// The traversal stack the built-in Cornell box's BVH needs with every leaf pushed.

@@ -112,7 +112,7 @@ fn mean_luminance(texels: &[u32]) -> f32 {
         let [r, g, b, _] = texel.to_le_bytes();
         sum + Vec3::new(srgb_lut[r as usize], srgb_lut[g as usize], srgb_lut[b as usize])
     });
-    crate::pack::luminance(sum / texels.len().max(1) as f32)
+    crate::kernel::lights::luminance(sum / texels.len().max(1) as f32)
 }
 
 /// An image whose header was read ([`probe_srgb`]), to be decoded later.

@@ -110,7 +110,7 @@ pub fn annotate_log(log: &str, generated: Option<&Generated>) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pack;
+    use crate::kernel::features::Features;
     use lightport_codegen::Target;
 
     #[test]
@@ -123,7 +123,7 @@ mod tests {
 
     #[test]
     fn log_messages_point_at_the_rust_source() {
-        let features = pack::Features { emissive_triangles: true, ..Default::default() };
+        let features = Features { emissive_triangles: true, ..Default::default() };
         let generated = crate::kernel::path_tracer_shader(&features, Target::GlslEs300).expect("kernel");
         let n = generated.source.lines().position(|l| l.contains("power_heuristic(float")).expect("fn") as u32 + 2;
         let annotated = annotate_log(&format!("0:{n}(5): error: something"), Some(&generated));

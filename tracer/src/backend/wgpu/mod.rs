@@ -528,7 +528,7 @@ fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pack::Features;
+    use crate::kernel::features::Features;
 
     /// Every resource of every kernel variant is one the backend binds (reflection only: no
     /// device needed).

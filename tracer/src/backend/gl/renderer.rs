@@ -1,0 +1,483 @@
+//! [`GlRenderer`]: the kernel's fragment shader drawn into two ping-ponged RGBA32F framebuffers,
+//! and the pipeline (program, data textures, framebuffers) it builds for a packed scene.
+
+use std::marker::PhantomData;
+
+use glam::Vec4;
+use glow::HasContext;
+use lightport_codegen::Target;
+
+use super::bindings::check_active_uniforms;
+#[cfg(feature = "gl")]
+use super::HeadlessContext;
+use super::{
+    compile_program, gl_failed, scene_bindings, set_nearest, upload_texels, words_as_bytes, words_as_bytes_mut,
+    Binding, GlError, GlInfo, GlOptions, ACCUMULATION_UNIFORM, SCENE_UNIFORM_PREFIX,
+};
+use crate::backend::{frame_seed, update_uniforms, RenderError, Renderer, RendererInfo};
+use crate::kernel::scene_data::Scene;
+use crate::pack::Packed;
+
+/// Every GL object a renderer created, deleted together.
+#[derive(Default)]
+struct Objects {
+    textures: Vec<glow::Texture>,
+    framebuffers: Vec<glow::Framebuffer>,
+    programs: Vec<glow::Program>,
+    vertex_arrays: Vec<glow::VertexArray>,
+}
+
+impl Objects {
+    fn delete(&mut self, gl: &glow::Context) {
+        // SAFETY: each object was created on `gl` and is deleted once (the lists are drained).
+        unsafe {
+            for t in self.textures.drain(..) {
+                gl.delete_texture(t);
+            }
+            for f in self.framebuffers.drain(..) {
+                gl.delete_framebuffer(f);
+            }
+            for p in self.programs.drain(..) {
+                gl.delete_program(p);
+            }
+            for v in self.vertex_arrays.drain(..) {
+                gl.delete_vertex_array(v);
+            }
+        }
+    }
+}
+
+/// The state [`GlRenderer`] keeps besides its objects.
+struct Pipeline {
+    program: glow::Program,
+    vertex_array: glow::VertexArray,
+    /// (texture unit, texture) of every data texture the shader samples.
+    data_textures: Vec<(u32, glow::Texture)>,
+    accumulation_unit: u32,
+    accumulation: [glow::Texture; 2],
+    framebuffers: [glow::Framebuffer; 2],
+    frame_seed_location: Option<glow::UniformLocation>,
+    info: GlInfo,
+}
+
+/// The kernel on a GL context. Create it from a [`Packed`] scene; [`render_frame`](Self::render_frame)
+/// adds one sample per pixel; [`image`](Self::image) reads the mean back, as
+/// [`CpuRenderer`](super::cpu::CpuRenderer) does.
+///
+/// A GL context is current on one thread: the renderer is not `Send`.
+pub struct GlRenderer {
+    gl: glow::Context,
+    packed: Packed,
+    seed: u32,
+    frames: u32,
+    objects: Objects,
+    pipeline: Pipeline,
+    /// Which accumulation texture holds the running sum.
+    current: usize,
+    /// Rows of the frame in progress already drawn ([`render_band`](Self::render_band)).
+    band_row: u32,
+    /// The EGL context this renderer created ([`headless`](Self::headless)); dropped last.
+    #[cfg(feature = "gl")]
+    headless: Option<HeadlessContext>,
+    _not_send: PhantomData<*const ()>,
+}
+
+impl GlRenderer {
+    /// A renderer on `gl` (which must be current) for `packed`; `seed` selects the random
+    /// sequence, as for the CPU backend.
+    pub fn new(gl: glow::Context, packed: Packed, seed: u32) -> Result<Self, GlError> {
+        Self::with_options(gl, packed, seed, &GlOptions::default())
+    }
+
+    pub fn with_options(gl: glow::Context, packed: Packed, seed: u32, options: &GlOptions) -> Result<Self, GlError> {
+        let mut objects = Objects::default();
+        match build(&gl, &packed, options, &mut objects) {
+            Ok(pipeline) => Ok(GlRenderer {
+                gl,
+                packed,
+                seed,
+                frames: 0,
+                objects,
+                pipeline,
+                current: 0,
+                band_row: 0,
+                #[cfg(feature = "gl")]
+                headless: None,
+                _not_send: PhantomData,
+            }),
+            Err(e) => {
+                objects.delete(&gl);
+                Err(e)
+            }
+        }
+    }
+
+    /// A renderer on its own headless EGL context (OpenGL ES 3.0, no surface).
+    #[cfg(feature = "gl")]
+    pub fn headless(packed: Packed, seed: u32) -> Result<Self, GlError> {
+        Self::headless_with_options(packed, seed, &GlOptions::default())
+    }
+
+    #[cfg(feature = "gl")]
+    pub fn headless_with_options(packed: Packed, seed: u32, options: &GlOptions) -> Result<Self, GlError> {
+        let context = HeadlessContext::new()?;
+        let gl = context.glow();
+        let mut renderer = Self::with_options(gl, packed, seed, options)?;
+        renderer.headless = Some(context);
+        Ok(renderer)
+    }
+
+    /// Makes the renderer's own EGL context current if another one is.
+    fn activate(&self) -> Result<(), GlError> {
+        #[cfg(feature = "gl")]
+        if let Some(context) = &self.headless {
+            if !context.is_current() {
+                context.make_current()?;
+            }
+        }
+        Ok(())
+    }
+
+    pub fn gl(&self) -> &glow::Context {
+        &self.gl
+    }
+
+    pub fn info(&self) -> &GlInfo {
+        &self.pipeline.info
+    }
+
+    /// The texture holding the running sum (what [`accumulation`](Self::accumulation) reads),
+    /// for a display pass that draws the converging image (the web viewer).
+    pub fn accumulation_texture(&self) -> glow::Texture {
+        self.pipeline.accumulation[self.current]
+    }
+
+    /// During the first frame after a (re)start, split into bands: the texture its bands are
+    /// drawn into (the rows drawn hold one sample, the others zero), for a display pass that
+    /// shows the new view band by band instead of the old one for a whole slow frame.
+    pub fn first_frame_in_progress(&self) -> Option<glow::Texture> {
+        (self.frames == 0 && self.band_row > 0).then_some(self.pipeline.accumulation[1 - self.current])
+    }
+}
+
+impl Renderer for GlRenderer {
+    fn describe(&self) -> RendererInfo {
+        let info = &self.pipeline.info;
+        RendererInfo {
+            runtime: "gl",
+            device: format!("{} ({})", info.renderer, info.version),
+            limits: vec![("GL_MAX_TEXTURE_SIZE", info.max_texture_size as u64)],
+        }
+    }
+
+    fn frames(&self) -> u32 {
+        self.frames
+    }
+
+    fn packed(&self) -> &Packed {
+        &self.packed
+    }
+
+    fn rows_left(&self) -> u32 {
+        self.packed.scene.height - self.band_row
+    }
+
+    /// Draws the next `rows` rows (kernel rows from the top, clamped to those left) of the
+    /// current frame: the same fragment pass as a whole frame, over a scissor rectangle, so the
+    /// pixels and their random sequence are the unsplit frame's. The sample count advances, and
+    /// [`accumulation`](Self::accumulation) and [`image`](Self::image) show the new sample,
+    /// when the last row is drawn: returns whether this band completed the frame. See
+    /// [`frame_split`](super::frame_split).
+    fn render_band(&mut self, rows: u32) -> Result<bool, RenderError> {
+        self.activate()?;
+        let gl = &self.gl;
+        let p = &self.pipeline;
+        let (width, height) = (self.packed.scene.width as i32, self.packed.scene.height as i32);
+        let rows = rows.clamp(1, self.rows_left()) as i32;
+        // SAFETY: every object belongs to this context, which is current; the draw reads the
+        // textures bound here and writes the other accumulation texture (no feedback loop).
+        unsafe {
+            gl.use_program(Some(p.program));
+            for &(unit, texture) in &p.data_textures {
+                gl.active_texture(glow::TEXTURE0 + unit);
+                gl.bind_texture(glow::TEXTURE_2D, Some(texture));
+            }
+            gl.active_texture(glow::TEXTURE0 + p.accumulation_unit);
+            gl.bind_texture(glow::TEXTURE_2D, Some(p.accumulation[self.current]));
+            gl.uniform_1_u32(p.frame_seed_location.as_ref(), frame_seed(self.frames, self.seed));
+            gl.bind_framebuffer(glow::FRAMEBUFFER, Some(p.framebuffers[1 - self.current]));
+            gl.viewport(0, 0, width, height);
+            gl.disable(glow::BLEND);
+            gl.disable(glow::DEPTH_TEST);
+            // Framebuffer row y is kernel row y (gl_FragCoord is unchanged by the scissor).
+            gl.enable(glow::SCISSOR_TEST);
+            gl.scissor(0, self.band_row as i32, width, rows);
+            gl.bind_vertex_array(Some(p.vertex_array));
+            gl.draw_arrays(glow::TRIANGLES, 0, 3);
+            gl.bind_vertex_array(None);
+            gl.disable(glow::SCISSOR_TEST);
+            gl.bind_framebuffer(glow::FRAMEBUFFER, None);
+        }
+        self.band_row += rows as u32;
+        if self.band_row < height as u32 {
+            return Ok(false);
+        }
+        self.band_row = 0;
+        self.current = 1 - self.current;
+        self.frames += 1;
+        Ok(true)
+    }
+
+    /// `glFinish`.
+    fn finish(&self) -> Result<(), RenderError> {
+        self.activate()?;
+        // SAFETY: a plain synchronisation call on the current context.
+        unsafe { self.gl.finish() };
+        Ok(())
+    }
+
+    fn accumulation(&self) -> Result<Vec<Vec4>, RenderError> {
+        self.activate()?;
+        let (width, height) = (self.packed.scene.width as usize, self.packed.scene.height as usize);
+        let mut words = vec![0u32; width * height * 4];
+        let gl = &self.gl;
+        // SAFETY: the framebuffer belongs to this context; the slice holds width x height RGBA
+        // floats, the size glReadPixels writes with PACK_ALIGNMENT 4.
+        let error = unsafe {
+            gl.bind_framebuffer(glow::READ_FRAMEBUFFER, Some(self.pipeline.framebuffers[self.current]));
+            gl.read_buffer(glow::COLOR_ATTACHMENT0);
+            gl.pixel_store_i32(glow::PACK_ALIGNMENT, 4);
+            gl.read_pixels(
+                0,
+                0,
+                width as i32,
+                height as i32,
+                glow::RGBA,
+                glow::FLOAT,
+                glow::PixelPackData::Slice(Some(words_as_bytes_mut(&mut words))),
+            );
+            gl.bind_framebuffer(glow::READ_FRAMEBUFFER, None);
+            gl.get_error()
+        };
+        if error != glow::NO_ERROR {
+            return Err(RenderError::Gl(GlError::Gl {
+                what: "glReadPixels (RGBA, FLOAT)",
+                detail: format!("error {error:#06x}"),
+            }));
+        }
+        Ok(words.chunks_exact(4).map(|t| Vec4::from_array([t[0], t[1], t[2], t[3]].map(f32::from_bits))).collect())
+    }
+
+    /// Changes the scene's uniforms (camera, strategy, depth...) and restarts the accumulation,
+    /// without recompiling the shader or re-uploading the data textures: an interactive camera
+    /// costs nothing. Texel arrays changed by `update` are not re-uploaded; the image size
+    /// cannot change (its textures are allocated at creation): that is an error.
+    fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
+        self.activate()?;
+        update_uniforms(&mut self.packed.scene, update)?;
+        let gl = &self.gl;
+        let program = self.pipeline.program;
+        // SAFETY: uniform updates on this context's linked program, which is current.
+        unsafe {
+            gl.use_program(Some(program));
+            for (name, binding) in scene_bindings(&self.packed.scene) {
+                let location = gl.get_uniform_location(program, &format!("{SCENE_UNIFORM_PREFIX}{name}"));
+                match binding {
+                    Binding::F32(x) => gl.uniform_1_f32(location.as_ref(), *x),
+                    Binding::U32(x) => gl.uniform_1_u32(location.as_ref(), *x),
+                    Binding::Vec3(v) => gl.uniform_3_f32(location.as_ref(), v.x, v.y, v.z),
+                    Binding::Vec4s(_) | Binding::UVec4s(_) => {}
+                }
+            }
+            gl.use_program(None);
+        }
+        self.restart()
+    }
+
+    fn restart(&mut self) -> Result<(), RenderError> {
+        self.activate()?;
+        let gl = &self.gl;
+        // SAFETY: clears this context's RGBA32F accumulation attachments with a float clear,
+        // valid for float colour buffers: the one the next frame reads, and the one it writes
+        // (rows a split first frame has not reached yet show zero, not an old sum).
+        let error = unsafe {
+            gl.disable(glow::SCISSOR_TEST);
+            for framebuffer in self.pipeline.framebuffers {
+                gl.bind_framebuffer(glow::FRAMEBUFFER, Some(framebuffer));
+                gl.clear_buffer_f32_slice(glow::COLOR, 0, &[0.0; 4]);
+            }
+            gl.bind_framebuffer(glow::FRAMEBUFFER, None);
+            gl.get_error()
+        };
+        if error != glow::NO_ERROR {
+            let detail = format!("error {error:#06x}");
+            return Err(GlError::Gl { what: "clearing the accumulation", detail }.into());
+        }
+        self.frames = 0;
+        self.band_row = 0;
+        Ok(())
+    }
+}
+
+impl Drop for GlRenderer {
+    fn drop(&mut self) {
+        if self.activate().is_ok() {
+            self.objects.delete(&self.gl);
+        }
+        // `headless` (declared after `gl`) is dropped after this, destroying the context.
+    }
+}
+
+/// Whether the context can render to an RGBA32F framebuffer: desktop GL 3.0+, OpenGL ES 3.2,
+/// or `EXT_color_buffer_float` (OpenGL ES 3.0/3.1, WebGL2).
+fn float_render_targets(gl: &glow::Context) -> bool {
+    let v = gl.version();
+    let extensions = gl.supported_extensions();
+    (!v.is_embedded && v.major >= 3)
+        || (v.is_embedded && (v.major, v.minor) >= (3, 2))
+        || extensions.contains("GL_EXT_color_buffer_float")
+        || extensions.contains("EXT_color_buffer_float")
+}
+
+/// Creates the program, textures and framebuffers for `packed`, recording each object in
+/// `objects` (deleted by the caller on error).
+fn build(gl: &glow::Context, packed: &Packed, options: &GlOptions, objects: &mut Objects) -> Result<Pipeline, GlError> {
+    // SAFETY (every block below): plain queries and object creation on the current context;
+    // uploads pass slices of exactly width x height texels of the declared format.
+    let (version, renderer, device_max, viewport) = unsafe {
+        let mut viewport = [0i32; 2];
+        gl.get_parameter_i32_slice(glow::MAX_VIEWPORT_DIMS, &mut viewport);
+        (
+            gl.get_parameter_string(glow::VERSION),
+            gl.get_parameter_string(glow::RENDERER),
+            gl.get_parameter_i32(glow::MAX_TEXTURE_SIZE).max(0) as u32,
+            viewport,
+        )
+    };
+    let v = gl.version();
+    if v.major < 3 {
+        return Err(GlError::Unsupported(format!(
+            "it is {version}; the kernel needs OpenGL ES 3.0, WebGL2 or desktop OpenGL 3.0+"
+        )));
+    }
+    if !float_render_targets(gl) {
+        return Err(GlError::Unsupported(format!(
+            "{version} ({renderer}) cannot render to RGBA32F (no EXT_color_buffer_float), which the accumulation needs"
+        )));
+    }
+    let max_texture_size = options.max_texture_size.map_or(device_max, |m| m.min(device_max));
+    let info = GlInfo { version, renderer, max_texture_size };
+
+    // Limits: every packed array and the image must fit.
+    packed.arrays(max_texture_size).map_err(|reason| GlError::SceneTooLarge { max_texture_size, reason })?;
+    let scene = &packed.scene;
+    let (width, height) = (scene.width, scene.height);
+    for (limit, max) in [
+        ("GL_MAX_TEXTURE_SIZE", max_texture_size),
+        ("GL_MAX_VIEWPORT_DIMS", viewport[0].min(viewport[1]).max(0) as u32),
+    ] {
+        if width > max || height > max {
+            return Err(GlError::ImageTooLarge { width, height, limit, max });
+        }
+    }
+
+    let fragment = crate::kernel::path_tracer_shader(&packed.features, Target::GlslEs300)?;
+    let program = compile_program(gl, &fragment)?;
+    objects.programs.push(program);
+
+    let bindings = scene_bindings(scene);
+    check_active_uniforms(gl, program, &bindings)?;
+
+    let mut data_textures = Vec::new();
+    let mut frame_seed_location = None;
+    // SAFETY: see above.
+    unsafe {
+        gl.use_program(Some(program));
+        for (name, binding) in &bindings {
+            let Some(location) = gl.get_uniform_location(program, &format!("{SCENE_UNIFORM_PREFIX}{name}")) else {
+                continue; // removed by specialisation
+            };
+            let location = Some(&location);
+            match binding {
+                Binding::Vec4s(_) | Binding::UVec4s(_) => {
+                    let unit = data_textures.len() as u32;
+                    let texture = upload_texels(gl, binding, max_texture_size, name)?;
+                    objects.textures.push(texture);
+                    gl.uniform_1_i32(location, unit as i32);
+                    data_textures.push((unit, texture));
+                }
+                Binding::F32(x) => gl.uniform_1_f32(location, **x),
+                Binding::U32(x) => gl.uniform_1_u32(location, **x),
+                Binding::Vec3(v) => gl.uniform_3_f32(location, v.x, v.y, v.z),
+            }
+            if *name == "frame_seed" {
+                frame_seed_location = location.cloned();
+            }
+        }
+        let accumulation_unit = data_textures.len() as u32;
+        let units = gl.get_parameter_i32(glow::MAX_TEXTURE_IMAGE_UNITS).max(0) as u32;
+        if accumulation_unit + 1 > units {
+            return Err(GlError::Unsupported(format!(
+                "the shader samples {} textures but GL_MAX_TEXTURE_IMAGE_UNITS is {units}",
+                accumulation_unit + 1
+            )));
+        }
+        let accumulation_location = gl.get_uniform_location(program, ACCUMULATION_UNIFORM).ok_or_else(|| {
+            GlError::Unsupported(format!("the generated entry point has no `{ACCUMULATION_UNIFORM}` sampler"))
+        })?;
+        gl.uniform_1_i32(Some(&accumulation_location), accumulation_unit as i32);
+
+        let zeros = vec![0u32; width as usize * height as usize * 4];
+        let mut accumulation = Vec::new();
+        let mut framebuffers = Vec::new();
+        for _ in 0..2 {
+            let texture = gl.create_texture().map_err(gl_failed("glCreateTexture (accumulation)"))?;
+            objects.textures.push(texture);
+            gl.bind_texture(glow::TEXTURE_2D, Some(texture));
+            set_nearest(gl);
+            gl.tex_image_2d(
+                glow::TEXTURE_2D,
+                0,
+                glow::RGBA32F as i32,
+                width as i32,
+                height as i32,
+                0,
+                glow::RGBA,
+                glow::FLOAT,
+                glow::PixelUnpackData::Slice(Some(words_as_bytes(&zeros))),
+            );
+            let framebuffer = gl.create_framebuffer().map_err(gl_failed("glCreateFramebuffer"))?;
+            objects.framebuffers.push(framebuffer);
+            gl.bind_framebuffer(glow::FRAMEBUFFER, Some(framebuffer));
+            gl.framebuffer_texture_2d(glow::FRAMEBUFFER, glow::COLOR_ATTACHMENT0, glow::TEXTURE_2D, Some(texture), 0);
+            gl.draw_buffers(&[glow::COLOR_ATTACHMENT0]);
+            let status = gl.check_framebuffer_status(glow::FRAMEBUFFER);
+            gl.bind_framebuffer(glow::FRAMEBUFFER, None);
+            if status != glow::FRAMEBUFFER_COMPLETE {
+                return Err(GlError::Unsupported(format!(
+                    "an RGBA32F {width}x{height} framebuffer is incomplete (status {status:#06x})"
+                )));
+            }
+            accumulation.push(texture);
+            framebuffers.push(framebuffer);
+        }
+        gl.bind_texture(glow::TEXTURE_2D, None);
+        let vertex_array = gl.create_vertex_array().map_err(gl_failed("glCreateVertexArray"))?;
+        objects.vertex_arrays.push(vertex_array);
+        gl.use_program(None);
+        let error = gl.get_error();
+        if error != glow::NO_ERROR {
+            return Err(GlError::Gl { what: "setting up the renderer", detail: format!("error {error:#06x}") });
+        }
+        Ok(Pipeline {
+            program,
+            vertex_array,
+            data_textures,
+            accumulation_unit,
+            accumulation: [accumulation[0], accumulation[1]],
+            framebuffers: [framebuffers[0], framebuffers[1]],
+            frame_seed_location,
+            info,
+        })
+    }
+}

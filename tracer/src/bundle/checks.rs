@@ -1,0 +1,142 @@
+//! Cross-field checks on a decoded bundle: what the format alone cannot tell (index bounds are
+//! `bounds`').
+
+use super::{bounds, BundleError, MAX_DEPTH};
+use crate::kernel::features::Features;
+use crate::kernel::scene_data::{Scene, LIGHT_TEXELS, TRIANGLE_TEXELS};
+use crate::pack::Packed;
+
+/// Cross-field checks: what the format alone cannot tell, and what would make a renderer
+/// misbehave (an image size it cannot allocate, counts that disagree with the arrays).
+pub(super) fn check_consistency(p: &Packed) -> Result<(), BundleError> {
+    let s = &p.scene;
+    let fail = |what: String| Err(BundleError::Inconsistent(what));
+    check_uniforms(s)?;
+    let stack = crate::kernel::traverse::STACK_SIZE as u32;
+    if s.leaf_stack_limit > stack {
+        return fail(format!("leaf_stack_limit {} is above the traversal stack ({stack})", s.leaf_stack_limit));
+    }
+    // A GPU variant's stack is `traversal_stack` entries: the limit must keep pushes within it.
+    let sized = p.features.traversal_stack;
+    if sized > stack || (sized > 0 && s.leaf_stack_limit > sized) {
+        return fail(format!(
+            "traversal_stack {sized} with leaf_stack_limit {} (the stack is at most {stack} entries and holds the limit)",
+            s.leaf_stack_limit
+        ));
+    }
+    if Some(s.triangles.len()) != p.triangle_count.checked_mul(TRIANGLE_TEXELS as usize) {
+        return fail(format!("{} triangle texels for {} triangles", s.triangles.len(), p.triangle_count));
+    }
+    if s.light_count as usize != p.light_count
+        || Some(s.lights.len()) != p.light_count.checked_mul(LIGHT_TEXELS as usize)
+    {
+        return fail(format!("{} light texels, light count {} / {}", s.lights.len(), s.light_count, p.light_count));
+    }
+    let f = &p.features;
+    let flags = [
+        ("sky", f.sky, s.has_sky),
+        ("textures", f.textures, s.has_textures),
+        ("shading", f.shading, s.has_shading),
+        ("lights", f.lights(), s.has_lights),
+        ("triangle_lights", f.emissive_triangles, s.has_triangle_lights),
+        ("point_lights", f.point_lights, s.has_point_lights),
+        ("metal_rough", f.metal_rough, s.has_metal_rough),
+        ("normal_map", f.normal_map, s.has_normal_map),
+        ("alpha_mask", f.alpha_mask, s.has_alpha_mask),
+        ("texture_transform", f.texture_transform, s.has_texture_transform),
+        ("texcoord1", f.texcoord1, s.has_texcoord1),
+    ];
+    for (name, feature, flag) in flags {
+        if flag != feature as u32 {
+            return fail(format!("feature {name} is {feature} but the kernel flag has_{name} is {flag}"));
+        }
+    }
+    // Normal maps' tangents extend `shading` at the offset the uniform gives; a reader trusting
+    // a wrong offset would fetch beyond the array.
+    if f.normal_map {
+        let first = s.tangent_first as usize;
+        // Where the tangents end (the second UV set, or the array's end) is `check_texture_refs`'s.
+        if Some(first) != p.triangle_count.checked_mul(crate::kernel::scene_data::SHADING_TEXELS as usize) {
+            return fail(format!(
+                "normal maps: tangents from {} in {} shading texels, {} triangles",
+                s.tangent_first,
+                s.shading.len(),
+                p.triangle_count
+            ));
+        }
+    }
+    check_material_sections(s, f)?;
+    if f.sky
+        && (s.sky.len() as u64 != s.sky_width as u64 * s.sky_height as u64 || s.sky_rows.len() != s.sky_height as usize)
+    {
+        return fail(format!(
+            "sky {}x{} with {} texels and {} rows",
+            s.sky_width,
+            s.sky_height,
+            s.sky.len(),
+            s.sky_rows.len()
+        ));
+    }
+    bounds::check_indices(p)
+}
+
+/// The image size and the uniforms the kernel takes as they are.
+fn check_uniforms(s: &Scene) -> Result<(), BundleError> {
+    let fail = |what: String| Err(BundleError::Inconsistent(what));
+    if !(1..=16384).contains(&s.width) || !(1..=16384).contains(&s.height) {
+        return fail(format!("image size {}x{} (each side must be 1..=16384)", s.width, s.height));
+    }
+    // Uniforms the kernel takes as they are: a NaN scale or camera, an unbounded depth or an
+    // unknown strategy would make every sample NaN, or a frame never end (found by fuzzing).
+    let vectors = [
+        ("camera_position", s.camera_position),
+        ("camera_right", s.camera_right),
+        ("camera_up", s.camera_up),
+        ("camera_forward", s.camera_forward),
+    ];
+    if let Some((name, v)) = vectors.iter().find(|(_, v)| !v.is_finite()) {
+        return fail(format!("{name} {v} is not finite"));
+    }
+    let scalars = [
+        ("lens_radius", s.lens_radius, 0.0),
+        ("focus_distance", s.focus_distance, f32::MIN_POSITIVE),
+        ("sky_intensity", s.sky_intensity, 0.0),
+        ("sky_rotation", s.sky_rotation, f32::MIN),
+        ("scene_scale", s.scene_scale, 0.0),
+    ];
+    if let Some((name, v, min)) = scalars.iter().find(|(_, v, min)| !(v.is_finite() && v >= min)) {
+        return fail(format!("{name} is {v} (must be finite and at least {min})"));
+    }
+    if !(1..=MAX_DEPTH).contains(&s.max_depth) {
+        return fail(format!("max_depth {} (must be 1..={MAX_DEPTH})", s.max_depth));
+    }
+    if s.strategy > crate::kernel::scene_data::STRATEGY_MIS {
+        return fail(format!("strategy {} (0, 1 or 2)", s.strategy));
+    }
+    Ok(())
+}
+
+/// `materials` holds the base texels of `n` materials (`MATERIAL_TEXELS` each), then with
+/// normal maps one texel each from `normal_map_first`, then with alpha masks one texel each
+/// from `alpha_mask_first`, and nothing else: the offsets the uniforms give must be those.
+fn check_material_sections(s: &Scene, f: &Features) -> Result<(), BundleError> {
+    use crate::kernel::scene_data::MATERIAL_TEXELS;
+    let per = MATERIAL_TEXELS as usize + f.normal_map as usize + f.alpha_mask as usize;
+    let n = s.materials.len() / per;
+    let maps = if f.normal_map { MATERIAL_TEXELS as usize * n } else { 0 };
+    let masks = if f.alpha_mask { (MATERIAL_TEXELS as usize + f.normal_map as usize) * n } else { 0 };
+    if !s.materials.len().is_multiple_of(per)
+        || s.normal_map_first as usize != maps
+        || s.alpha_mask_first as usize != masks
+    {
+        return Err(BundleError::Inconsistent(format!(
+            "{} material texels (normal maps {}, alpha masks {}) with normal maps from {} and alpha masks from {}",
+            s.materials.len(),
+            f.normal_map,
+            f.alpha_mask,
+            s.normal_map_first,
+            s.alpha_mask_first
+        )));
+    }
+    Ok(())
+}

@@ -1,0 +1,243 @@
+//! Each field of [`Packed`] as an entry under its path: texel arrays, uniforms, flags, counts,
+//! and [`record!`]'s one list of every struct's fields.
+
+use glam::{UVec4, Vec3, Vec4};
+use kernel_dsl::Texels;
+
+use super::format::{f32s, u32s, ElementType, Reader, Writer};
+use super::BundleError;
+use crate::kernel::features::Features;
+use crate::kernel::scene_data::Scene;
+use crate::pack::Packed;
+
+/// A value stored in a bundle under a name.
+pub(super) trait Field: Sized {
+    fn write(&self, name: &str, w: &mut Writer);
+    fn read(name: &str, r: &mut Reader) -> Result<Self, BundleError>;
+}
+
+/// A fixed-size texel or vector: `COMPONENTS` elements of one type.
+trait Texel: Copy + Default {
+    const ELEMENT: ElementType;
+    const COMPONENTS: u8;
+    fn put(&self, out: &mut Vec<u8>);
+    fn get(data: &[u8]) -> Vec<Self>;
+}
+
+impl Texel for Vec4 {
+    const ELEMENT: ElementType = ElementType::F32;
+    const COMPONENTS: u8 = 4;
+    fn put(&self, out: &mut Vec<u8>) {
+        for c in self.to_array() {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    fn get(data: &[u8]) -> Vec<Self> {
+        let v: Vec<f32> = f32s(data).collect();
+        v.chunks_exact(4).map(Vec4::from_slice).collect()
+    }
+}
+
+impl Texel for UVec4 {
+    const ELEMENT: ElementType = ElementType::U32;
+    const COMPONENTS: u8 = 4;
+    fn put(&self, out: &mut Vec<u8>) {
+        for c in self.to_array() {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    fn get(data: &[u8]) -> Vec<Self> {
+        let v: Vec<u32> = u32s(data).collect();
+        v.chunks_exact(4).map(UVec4::from_slice).collect()
+    }
+}
+
+impl Texel for Vec3 {
+    const ELEMENT: ElementType = ElementType::F32;
+    const COMPONENTS: u8 = 3;
+    fn put(&self, out: &mut Vec<u8>) {
+        for c in self.to_array() {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    fn get(data: &[u8]) -> Vec<Self> {
+        let v: Vec<f32> = f32s(data).collect();
+        v.chunks_exact(3).map(Vec3::from_slice).collect()
+    }
+}
+
+impl Texel for f32 {
+    const ELEMENT: ElementType = ElementType::F32;
+    const COMPONENTS: u8 = 1;
+    fn put(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.to_le_bytes());
+    }
+    fn get(data: &[u8]) -> Vec<Self> {
+        f32s(data).collect()
+    }
+}
+
+impl Texel for u32 {
+    const ELEMENT: ElementType = ElementType::U32;
+    const COMPONENTS: u8 = 1;
+    fn put(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.to_le_bytes());
+    }
+    fn get(data: &[u8]) -> Vec<Self> {
+        u32s(data).collect()
+    }
+}
+
+impl<T: Texel> Field for Texels<T> {
+    fn write(&self, name: &str, w: &mut Writer) {
+        w.entry(name, T::ELEMENT, T::COMPONENTS, self.len() as u64, |out| {
+            for t in self.as_slice() {
+                t.put(out);
+            }
+        });
+    }
+    fn read(name: &str, r: &mut Reader) -> Result<Self, BundleError> {
+        Ok(Texels::new(T::get(r.take(name, T::ELEMENT, T::COMPONENTS)?.data)))
+    }
+}
+
+/// Uniforms: one texel-like value.
+macro_rules! single_value_fields {
+    ($($ty:ty),*) => {$(
+        impl Field for $ty {
+            fn write(&self, name: &str, w: &mut Writer) {
+                w.entry(name, <$ty as Texel>::ELEMENT, <$ty as Texel>::COMPONENTS, 1, |out| self.put(out));
+            }
+            fn read(name: &str, r: &mut Reader) -> Result<Self, BundleError> {
+                let data = r.scalar(name, <$ty as Texel>::ELEMENT, <$ty as Texel>::COMPONENTS)?;
+                Ok(<$ty as Texel>::get(data)[0])
+            }
+        }
+    )*};
+}
+single_value_fields!(Vec3, f32, u32);
+
+impl Field for bool {
+    fn write(&self, name: &str, w: &mut Writer) {
+        w.entry(name, ElementType::U8, 1, 1, |out| out.push(*self as u8));
+    }
+    fn read(name: &str, r: &mut Reader) -> Result<Self, BundleError> {
+        match r.scalar(name, ElementType::U8, 1)?[0] {
+            0 => Ok(false),
+            1 => Ok(true),
+            v => Err(BundleError::InvalidValue { field: name.to_string(), reason: format!("flag {v} is not 0 or 1") }),
+        }
+    }
+}
+
+impl Field for usize {
+    fn write(&self, name: &str, w: &mut Writer) {
+        w.entry(name, ElementType::U64, 1, 1, |out| out.extend_from_slice(&(*self as u64).to_le_bytes()));
+    }
+    fn read(name: &str, r: &mut Reader) -> Result<Self, BundleError> {
+        let data = r.scalar(name, ElementType::U64, 1)?;
+        let v = u64::from_le_bytes(data.try_into().expect("a u64 entry of count 1 holds 8 bytes"));
+        usize::try_from(v).map_err(|_| BundleError::InvalidValue {
+            field: name.to_string(),
+            reason: format!("{v} does not fit this platform's usize"),
+        })
+    }
+}
+
+impl Field for String {
+    fn write(&self, name: &str, w: &mut Writer) {
+        w.entry(name, ElementType::U8, 1, self.len() as u64, |out| out.extend_from_slice(self.as_bytes()));
+    }
+    fn read(name: &str, r: &mut Reader) -> Result<Self, BundleError> {
+        let data = r.take(name, ElementType::U8, 1)?.data;
+        String::from_utf8(data.to_vec())
+            .map_err(|_| BundleError::InvalidValue { field: name.to_string(), reason: "not UTF-8".into() })
+    }
+}
+
+fn field_name(prefix: &str, field: &str) -> String {
+    if prefix.is_empty() {
+        field.to_string()
+    } else {
+        format!("{prefix}.{field}")
+    }
+}
+
+/// A struct stored field by field under `<prefix>.<field>`. The destructuring pattern and the
+/// struct literal both name every field (no `..`): a field added to the struct is a compile
+/// error here until it is listed, and the list cannot name a field the struct lacks.
+macro_rules! record {
+    ($ty:ident { $($field:ident),* $(,)? }) => {
+        impl Field for $ty {
+            fn write(&self, prefix: &str, w: &mut Writer) {
+                let $ty { $($field),* } = self;
+                $( $field.write(&field_name(prefix, stringify!($field)), w); )*
+            }
+            fn read(prefix: &str, r: &mut Reader) -> Result<Self, BundleError> {
+                Ok($ty { $($field: Field::read(&field_name(prefix, stringify!($field)), r)?),* })
+            }
+        }
+    };
+}
+
+record!(Packed { scene, features, triangle_count, light_count });
+record!(Features {
+    sky,
+    textures,
+    shading,
+    point_lights,
+    emissive_triangles,
+    metal_rough,
+    normal_map,
+    alpha_mask,
+    texture_transform,
+    texcoord1,
+    traversal_stack
+});
+record!(Scene {
+    triangles,
+    shading,
+    nodes,
+    node_children,
+    materials,
+    lights,
+    texture_texels,
+    texture_info,
+    sky,
+    sky_rows,
+    metal_rough,
+    tangent_first,
+    normal_map_first,
+    alpha_mask_first,
+    texture_ref_first,
+    texcoord1_first,
+    camera_position,
+    camera_right,
+    camera_up,
+    camera_forward,
+    lens_radius,
+    focus_distance,
+    width,
+    height,
+    frame_seed,
+    max_depth,
+    strategy,
+    light_count,
+    sky_width,
+    sky_height,
+    sky_intensity,
+    sky_rotation,
+    scene_scale,
+    leaf_stack_limit,
+    has_sky,
+    has_textures,
+    has_shading,
+    has_lights,
+    has_triangle_lights,
+    has_point_lights,
+    has_metal_rough,
+    has_normal_map,
+    has_alpha_mask,
+    has_texture_transform,
+    has_texcoord1,
+});

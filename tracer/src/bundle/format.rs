@@ -1,0 +1,246 @@
+//! The container: header, entries (name, element type, components, count), 16-byte aligned data.
+//! Writing appends entries; reading splits the input into entries, bounds-checked, before any
+//! data is converted.
+
+use super::{BundleError, ALIGN, HEADER_BYTES, MAGIC, MAX_BUNDLE_BYTES, VERSION};
+
+/// Element types of an entry's data.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub(super) enum ElementType {
+    U8 = 1,
+    U32 = 2,
+    F32 = 3,
+    U64 = 4,
+}
+
+impl ElementType {
+    pub(super) fn from_code(code: u8) -> Option<ElementType> {
+        [ElementType::U8, ElementType::U32, ElementType::F32, ElementType::U64].into_iter().find(|t| *t as u8 == code)
+    }
+
+    pub(super) fn size(self) -> u64 {
+        match self {
+            ElementType::U8 => 1,
+            ElementType::U32 | ElementType::F32 => 4,
+            ElementType::U64 => 8,
+        }
+    }
+
+    pub(super) fn name(self) -> &'static str {
+        match self {
+            ElementType::U8 => "u8",
+            ElementType::U32 => "u32",
+            ElementType::F32 => "f32",
+            ElementType::U64 => "u64",
+        }
+    }
+}
+
+pub(super) fn describe(element: ElementType, components: u8, count: u64) -> String {
+    format!("{} x {components} x {count}", element.name())
+}
+
+pub(super) struct Writer {
+    out: Vec<u8>,
+    entries: u32,
+}
+
+impl Writer {
+    pub(super) fn new() -> Writer {
+        let mut out = Vec::with_capacity(1 << 12);
+        out.extend_from_slice(&MAGIC);
+        out.extend_from_slice(&VERSION.to_le_bytes());
+        out.extend_from_slice(&[0; 4 + 8]); // entry count and total length, patched in `finish`
+        Writer { out, entries: 0 }
+    }
+
+    /// Appends one entry; `data` writes exactly `count * components` elements.
+    pub(super) fn entry(
+        &mut self,
+        name: &str,
+        element: ElementType,
+        components: u8,
+        count: u64,
+        data: impl FnOnce(&mut Vec<u8>),
+    ) {
+        debug_assert!(name.len() <= u8::MAX as usize, "field names are short");
+        self.out.push(name.len() as u8);
+        self.out.extend_from_slice(name.as_bytes());
+        self.out.extend_from_slice(&[element as u8, components, 0, 0]);
+        self.out.extend_from_slice(&count.to_le_bytes());
+        self.out.resize(self.out.len().next_multiple_of(ALIGN), 0);
+        let start = self.out.len();
+        self.out.reserve((count * components as u64 * element.size()) as usize);
+        data(&mut self.out);
+        debug_assert_eq!((self.out.len() - start) as u64, count * components as u64 * element.size());
+        self.entries += 1;
+    }
+
+    pub(super) fn finish(mut self) -> Vec<u8> {
+        let total = self.out.len() as u64;
+        self.out[12..16].copy_from_slice(&self.entries.to_le_bytes());
+        self.out[16..24].copy_from_slice(&total.to_le_bytes());
+        self.out
+    }
+}
+
+/// One entry as read from the input, its data not yet interpreted.
+pub(super) struct Entry<'a> {
+    name: &'a str,
+    element: ElementType,
+    components: u8,
+    count: u64,
+    pub(super) data: &'a [u8],
+    taken: bool,
+}
+
+pub(super) struct Reader<'a> {
+    entries: Vec<Entry<'a>>,
+}
+
+/// Bounds-checked cursor over the input.
+struct Cursor<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl<'a> Cursor<'a> {
+    fn take(&mut self, n: u64) -> Result<&'a [u8], BundleError> {
+        let end = (self.at as u64).checked_add(n).filter(|end| *end <= self.bytes.len() as u64);
+        let end = end.ok_or(BundleError::Truncated {
+            needed: (self.at as u64).saturating_add(n),
+            available: self.bytes.len() as u64,
+        })? as usize;
+        let slice = &self.bytes[self.at..end];
+        self.at = end;
+        Ok(slice)
+    }
+
+    fn u8(&mut self) -> Result<u8, BundleError> {
+        Ok(self.take(1)?[0])
+    }
+
+    fn array<const N: usize>(&mut self) -> Result<[u8; N], BundleError> {
+        let mut a = [0; N];
+        a.copy_from_slice(self.take(N as u64)?);
+        Ok(a)
+    }
+}
+
+impl<'a> Reader<'a> {
+    /// Checks the header and splits the input into entries (no data is converted yet).
+    pub(super) fn parse(bytes: &'a [u8]) -> Result<Reader<'a>, BundleError> {
+        let actual = bytes.len() as u64;
+        if actual > MAX_BUNDLE_BYTES {
+            return Err(BundleError::TooLarge { bytes: actual, max: MAX_BUNDLE_BYTES });
+        }
+        if bytes.len() < MAGIC.len() || bytes[..MAGIC.len()] != MAGIC {
+            // A prefix of the magic is a truncated bundle, anything else is not a bundle.
+            return Err(if MAGIC.starts_with(bytes) {
+                BundleError::Truncated { needed: HEADER_BYTES as u64, available: actual }
+            } else {
+                BundleError::BadMagic
+            });
+        }
+        let mut c = Cursor { bytes, at: MAGIC.len() };
+        let header = |c: &mut Cursor<'a>| -> Result<(u32, u32, u64), BundleError> {
+            Ok((u32::from_le_bytes(c.array()?), u32::from_le_bytes(c.array()?), u64::from_le_bytes(c.array()?)))
+        };
+        let (version, entry_count, declared) =
+            header(&mut c).map_err(|_| BundleError::Truncated { needed: HEADER_BYTES as u64, available: actual })?;
+        if version != VERSION {
+            return Err(BundleError::UnsupportedVersion { found: version, supported: VERSION });
+        }
+        if declared > MAX_BUNDLE_BYTES {
+            return Err(BundleError::TooLarge { bytes: declared, max: MAX_BUNDLE_BYTES });
+        }
+        if actual < declared {
+            return Err(BundleError::Truncated { needed: declared, available: actual });
+        }
+        if actual > declared {
+            return Err(BundleError::TrailingBytes { declared, actual });
+        }
+        // Every entry takes at least 16 bytes: a count beyond that is corrupt (and would
+        // otherwise size an allocation).
+        if entry_count as u64 > actual / 16 {
+            return Err(BundleError::BadEntry { offset: 12, reason: "more entries than the bundle can hold" });
+        }
+        let mut entries: Vec<Entry<'a>> = Vec::with_capacity(entry_count as usize);
+        for _ in 0..entry_count {
+            let offset = c.at as u64;
+            let bad = |reason| BundleError::BadEntry { offset, reason };
+            let name_len = c.u8()?;
+            let name = std::str::from_utf8(c.take(name_len as u64)?).map_err(|_| bad("the name is not UTF-8"))?;
+            let [element, components, reserved @ ..] = c.array::<4>()?;
+            let element = ElementType::from_code(element).ok_or(bad("unknown element type"))?;
+            if components == 0 || reserved != [0, 0] {
+                return Err(bad("zero components or non-zero reserved bytes"));
+            }
+            let count = u64::from_le_bytes(c.array()?);
+            let padding = c.take((c.at.next_multiple_of(ALIGN) - c.at) as u64)?;
+            if padding.iter().any(|b| *b != 0) {
+                return Err(bad("non-zero padding"));
+            }
+            let len = count
+                .checked_mul(components as u64)
+                .and_then(|n| n.checked_mul(element.size()))
+                .ok_or(bad("the data size overflows"))?;
+            let data = c.take(len)?;
+            if entries.iter().any(|e| e.name == name) {
+                return Err(BundleError::DuplicateField(name.to_string()));
+            }
+            entries.push(Entry { name, element, components, count, data, taken: false });
+        }
+        if c.at != bytes.len() {
+            return Err(BundleError::BadEntry { offset: c.at as u64, reason: "bytes after the last entry" });
+        }
+        Ok(Reader { entries })
+    }
+
+    /// The entry `name`, which must hold `components`-element values of type `element`.
+    pub(super) fn take(&mut self, name: &str, element: ElementType, components: u8) -> Result<&Entry<'a>, BundleError> {
+        let entry = self
+            .entries
+            .iter_mut()
+            .find(|e| e.name == name)
+            .ok_or_else(|| BundleError::MissingField(name.to_string()))?;
+        if entry.element != element || entry.components != components {
+            return Err(BundleError::WrongType {
+                field: name.to_string(),
+                expected: format!("{} x {components}", element.name()),
+                found: describe(entry.element, entry.components, entry.count),
+            });
+        }
+        entry.taken = true;
+        Ok(entry)
+    }
+
+    /// A single value (count 1).
+    pub(super) fn scalar(&mut self, name: &str, element: ElementType, components: u8) -> Result<&[u8], BundleError> {
+        let entry = self.take(name, element, components)?;
+        if entry.count != 1 {
+            return Err(BundleError::WrongType {
+                field: name.to_string(),
+                expected: format!("{} x {components} x 1", element.name()),
+                found: describe(entry.element, entry.components, entry.count),
+            });
+        }
+        Ok(entry.data)
+    }
+
+    pub(super) fn finish(self) -> Result<(), BundleError> {
+        match self.entries.iter().find(|e| !e.taken) {
+            Some(e) => Err(BundleError::UnknownField(e.name.to_string())),
+            None => Ok(()),
+        }
+    }
+}
+
+pub(super) fn f32s(data: &[u8]) -> impl Iterator<Item = f32> + '_ {
+    data.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+}
+
+pub(super) fn u32s(data: &[u8]) -> impl Iterator<Item = u32> + '_ {
+    data.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+}

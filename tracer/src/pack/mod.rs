@@ -1,0 +1,239 @@
+//! Packing: a loaded scene and its BVH become the texel arrays and uniforms the kernel reads
+//! (`kernel::scene_data::Scene`), plus the [`Features`] the scene uses. The same packed data
+//! feeds every backend: the CPU reads the arrays directly, GPUs upload them as textures.
+//!
+//! Nothing is packed that the scene does not use: no sky means no sky arrays, no textures
+//! means no texture atlas (and no per-vertex UVs), flat geometry means no shading normals.
+//!
+//! One module per concept: [`geometry`] (the BVH checks, triangles, shading data and nodes),
+//! [`materials`], [`textures`] (the atlas, made once per scene) and [`texture_refs`],
+//! [`lights`] (the light list and its alias table), [`sky`] (the environment map and its
+//! sampling CDFs) and [`camera`]; this file decides the [`Features`] and assembles the result.
+
+use crate::bvh::Bvh;
+use crate::kernel::scene_data::Scene as KernelScene;
+use crate::scene::Scene;
+
+mod camera;
+mod geometry;
+mod lights;
+mod materials;
+mod sky;
+#[cfg(test)]
+mod tests;
+mod texture_refs;
+mod textures;
+
+// `Features`, `RenderSettings` and `Strategy` live in the kernel (`kernel::features`); re-exported
+// here, where the scene's features are decided, for the callers that pack scenes.
+pub use crate::kernel::features::{Features, RenderSettings, Strategy};
+pub use texture_refs::TextureRefs;
+pub use textures::{pack_textures, PackedTextures};
+
+/// The packed scene.
+#[derive(Clone, Debug)]
+pub struct Packed {
+    pub scene: KernelScene,
+    pub features: Features,
+    pub triangle_count: usize,
+    pub light_count: usize,
+}
+
+/// Why a scene cannot be packed.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum PackError {
+    #[error(
+        "the scene has {0} triangles; the packed layout stores indices as exact floats, so at most 16,777,216 fit"
+    )]
+    TooManyTriangles(usize),
+    #[error("the BVH references triangle {0}, which the scene does not have")]
+    BadBvh(u32),
+    #[error("{what} needs {texels} texels, more than a {max}x{max} texture holds")]
+    TooLarge { what: &'static str, texels: usize, max: u32 },
+    #[error("the BVH needs a traversal stack of {needed} entries; the kernel's holds {max}")]
+    BvhTooDeep { needed: u32, max: u32 },
+    #[error(transparent)]
+    Bvh(crate::bvh::BvhError),
+    #[error("the image size {width}x{height} is invalid (each side 1..=16384)")]
+    BadSize { width: u32, height: u32 },
+    #[error("a BVH leaf holds {triangles} triangles; the kernel's traversal takes at most {max}")]
+    LeafTooLarge { triangles: u32, max: u32 },
+    #[error("the packed textures were made from another scene (they do not match this scene's textures)")]
+    TexturesMismatch,
+}
+
+/// An optional index as the packed layout stores it: the index as an exact float, or -1.
+fn index_value(i: Option<u32>) -> f32 {
+    i.map_or(-1.0, |i| i as f32)
+}
+
+/// Builds the BVH and packs `scene` for `settings`, packing the textures in parallel with the
+/// BVH build (neither needs the other).
+pub fn build_and_pack(scene: &Scene, settings: &RenderSettings) -> Result<(Bvh, Packed), BuildAndPackError> {
+    let (bvh, textures) = rayon::join(|| crate::bvh::build(&scene.triangles), || pack_textures(scene));
+    let bvh = bvh?;
+    let packed = pack_with_textures(scene, &bvh, &textures, settings)?;
+    Ok((bvh, packed))
+}
+
+/// Why [`build_and_pack`] failed.
+#[derive(Debug, thiserror::Error)]
+pub enum BuildAndPackError {
+    #[error(transparent)]
+    Bvh(#[from] crate::bvh::BvhError),
+    #[error(transparent)]
+    Pack(#[from] PackError),
+}
+
+/// Packs `scene` (with its BVH) for rendering with `settings`: [`pack_textures`], then
+/// [`pack_with_textures`].
+pub fn pack(scene: &Scene, bvh: &Bvh, settings: &RenderSettings) -> Result<Packed, PackError> {
+    pack_with_textures(scene, bvh, &pack_textures(scene), settings)
+}
+
+/// Packs `scene` (with its BVH) for rendering with `settings`, taking its textures already
+/// packed by [`pack_textures`] (shared, not copied).
+pub fn pack_with_textures(
+    scene: &Scene,
+    bvh: &Bvh,
+    textures: &PackedTextures,
+    settings: &RenderSettings,
+) -> Result<Packed, PackError> {
+    let matches = textures.emissive_mean_luminance.len() == scene.textures.len()
+        && if textures.used { texture_refs::matches(scene, textures) } else { textures.info.is_empty() };
+    if !matches {
+        return Err(PackError::TexturesMismatch);
+    }
+    let (width, height) = (settings.width, settings.height);
+    if !(1..=16384).contains(&width) || !(1..=16384).contains(&height) {
+        return Err(PackError::BadSize { width, height });
+    }
+    let ordered = geometry::Ordered::new(scene, bvh)?;
+    let emissive = lights::Emissive::new(scene, bvh);
+    // Which materials the kernel alpha-tests ([`crate::scene::Material::is_masked`]).
+    let masked_material: Vec<bool> = scene.materials.iter().map(|m| m.is_masked(textures.used)).collect();
+    let features = scene_features(scene, textures, &ordered, &emissive, &masked_material);
+
+    let bounds = scene.bounds();
+    let sky = sky::pack_sky(scene.sky.as_ref());
+    let lights = lights::pack_lights(scene, &ordered.triangles, &emissive, textures, bounds, sky.mean_radiance);
+    let geometry = geometry::pack_geometry(&ordered, &features, &emissive, &masked_material);
+    let materials = materials::pack_materials(scene, textures, &features);
+    let camera = camera::PackedCamera::new(&scene.camera, width, height);
+    let scene_scale = bounds.min.abs().max(bounds.max.abs()).max_element();
+    let parts = Parts { geometry, materials, lights, sky, camera, scene_scale };
+    let light_count = parts.lights.count;
+    let kernel_scene = kernel_scene(parts, scene, textures, &features, settings, ordered.leaf_stack_limit);
+    Ok(Packed { scene: kernel_scene, features, triangle_count: ordered.triangles.len(), light_count })
+}
+
+/// What `scene` uses, once its triangles are in BVH order and its emitters and masked
+/// materials known.
+fn scene_features(
+    scene: &Scene,
+    textures: &PackedTextures,
+    ordered: &geometry::Ordered,
+    emissive: &lights::Emissive,
+    masked_material: &[bool],
+) -> Features {
+    let textures_used = textures.used;
+    Features {
+        sky: scene.sky.is_some(),
+        textures: textures_used,
+        shading: textures_used || ordered.smooth(),
+        point_lights: !scene.point_lights.is_empty(),
+        emissive_triangles: !emissive.triangles.is_empty(),
+        metal_rough: scene.materials.iter().any(|m| m.uses_metal_rough()),
+        normal_map: textures_used && scene.materials.iter().any(|m| m.normal_texture.is_some()),
+        alpha_mask: masked_material.contains(&true),
+        texture_transform: textures_used && textures.refs.as_ref().is_some_and(|r| r.transform),
+        texcoord1: textures_used && textures.refs.as_ref().is_some_and(|r| r.texcoord1),
+        traversal_stack: ordered.traversal_stack,
+    }
+}
+
+/// The packed arrays of each concept, before they become the kernel's `Scene`.
+struct Parts {
+    geometry: geometry::PackedGeometry,
+    materials: materials::PackedMaterials,
+    lights: lights::PackedLights,
+    sky: sky::PackedSky,
+    camera: camera::PackedCamera,
+    scene_scale: f32,
+}
+
+/// The kernel's `Scene`: every array and uniform.
+fn kernel_scene(
+    parts: Parts,
+    scene: &Scene,
+    textures: &PackedTextures,
+    features: &Features,
+    settings: &RenderSettings,
+    leaf_stack_limit: u32,
+) -> KernelScene {
+    let Parts { geometry, materials, lights, sky, camera, scene_scale } = parts;
+    let scene_sky = scene.sky.as_ref();
+    KernelScene {
+        triangles: geometry.triangles,
+        shading: geometry.shading,
+        nodes: geometry.nodes,
+        node_children: geometry.node_children,
+        materials: materials.materials,
+        lights: lights.lights,
+        texture_texels: textures.texels.clone(),
+        texture_info: textures.info.clone(),
+        sky: sky.texels,
+        sky_rows: sky.rows,
+        metal_rough: materials.metal_rough,
+        tangent_first: geometry.tangent_first,
+        normal_map_first: materials.normal_map_first,
+        alpha_mask_first: materials.alpha_mask_first,
+        texture_ref_first: textures.refs.as_ref().filter(|_| features.textures).map_or(0, |r| r.refs.len() as u32),
+        texcoord1_first: geometry.texcoord1_first,
+        camera_position: camera.position,
+        camera_right: camera.right,
+        camera_up: camera.up,
+        camera_forward: camera.forward,
+        lens_radius: camera.lens_radius,
+        focus_distance: camera.focus_distance,
+        width: settings.width,
+        height: settings.height,
+        frame_seed: 0,
+        max_depth: settings.max_depth.max(1),
+        strategy: settings.strategy.uniform_value(),
+        light_count: lights.count as u32,
+        sky_width: scene_sky.map_or(0, |s| s.width),
+        sky_height: scene_sky.map_or(0, |s| s.height),
+        sky_intensity: scene_sky.map_or(0.0, |s| s.intensity),
+        sky_rotation: scene_sky.map_or(0.0, |s| s.rotation),
+        scene_scale: if scene_scale.is_finite() { scene_scale } else { 1.0 },
+        leaf_stack_limit,
+        has_sky: features.sky as u32,
+        has_textures: features.textures as u32,
+        has_shading: features.shading as u32,
+        has_lights: features.lights() as u32,
+        has_triangle_lights: features.emissive_triangles as u32,
+        has_point_lights: features.point_lights as u32,
+        has_metal_rough: features.metal_rough as u32,
+        has_normal_map: features.normal_map as u32,
+        has_alpha_mask: features.alpha_mask as u32,
+        has_texture_transform: features.texture_transform as u32,
+        has_texcoord1: features.texcoord1 as u32,
+    }
+}
+
+impl Packed {
+    /// Sets the render settings that are uniforms (no repacking needed).
+    pub fn apply(&mut self, settings: &RenderSettings) {
+        let s = &mut self.scene;
+        s.max_depth = settings.max_depth.max(1);
+        s.strategy = settings.strategy.uniform_value();
+        if settings.width != s.width || settings.height != s.height {
+            let aspect_old = s.width as f32 / s.height as f32;
+            let aspect_new = settings.width as f32 / settings.height as f32;
+            s.camera_right *= aspect_new / aspect_old;
+            s.width = settings.width;
+            s.height = settings.height;
+        }
+    }
+}
