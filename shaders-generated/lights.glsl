@@ -49,7 +49,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:342)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:353)
 struct AlphaMaskData {
     uint texture_;
     float alpha;
@@ -198,7 +198,7 @@ MaterialData fetch_material(uint index) {
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:310)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:321)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
@@ -261,7 +261,7 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:274)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:285)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -275,7 +275,7 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:264)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:275)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }
@@ -435,13 +435,13 @@ vec2 uniform_sample_triangle(float u1, float u2) {
     return vec2(s * (1.0 - u2), s * u2);
 }
 
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:351)
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:362)
 AlphaMaskData fetch_alpha_mask(uint material) {
     vec4 t = lp_fetch_vec4(scene_materials, scene_alpha_mask_first + material);
     return AlphaMaskData(index_of(t.x), t.y, t.z);
 }
 
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:357)
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:368)
 float coverage(AlphaMaskData mask, vec2 uv) {
     float a = mask.alpha;
     if ((scene_has_textures != 0u) && (mask.texture_ != NONE)) {
@@ -450,7 +450,7 @@ float coverage(AlphaMaskData mask, vec2 uv) {
     return a;
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:369)
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:380)
 bool is_hole(uint triangle, uint material, float u, float v) {
     AlphaMaskData mask = fetch_alpha_mask(material);
     vec2 uv = vec2(0.0);

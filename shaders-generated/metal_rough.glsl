@@ -24,7 +24,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:292)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:303)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -32,7 +32,7 @@ struct MetalRoughData {
     float specular;
 };
 
-// metal_rough::Surface (lightport-tracer/src/kernel/metal_rough.rs:41)
+// metal_rough::Surface (lightport-tracer/src/kernel/metal_rough.rs:39)
 struct Surface {
     vec3 diffuse;
     vec3 f0;
@@ -40,7 +40,7 @@ struct Surface {
     float specular;
 };
 
-// metal_rough::BrdfSample (lightport-tracer/src/kernel/metal_rough.rs:56)
+// metal_rough::BrdfSample (lightport-tracer/src/kernel/metal_rough.rs:54)
 struct BrdfSample {
     vec3 dir;
     float pdf;
@@ -65,11 +65,11 @@ const uint WRAP_MIRROR = 2u;
 const uint TEXTURE_REF_TEXELS = 2u;
 // texture_ref::TEXCOORD1_TEXELS (lightport-tracer/src/kernel/texture_ref.rs:24)
 const uint TEXCOORD1_TEXELS = 2u;
-// metal_rough::MIN_ROUGHNESS (lightport-tracer/src/kernel/metal_rough.rs:32)
+// metal_rough::MIN_ROUGHNESS (lightport-tracer/src/kernel/metal_rough.rs:30)
 const float MIN_ROUGHNESS = 0.045;
-// metal_rough::MIN_COSINE (lightport-tracer/src/kernel/metal_rough.rs:35)
+// metal_rough::MIN_COSINE (lightport-tracer/src/kernel/metal_rough.rs:33)
 const float MIN_COSINE = 1e-6;
-// metal_rough::DIELECTRIC_F0 (lightport-tracer/src/kernel/metal_rough.rs:37)
+// metal_rough::DIELECTRIC_F0 (lightport-tracer/src/kernel/metal_rough.rs:35)
 const float DIELECTRIC_F0 = 0.04;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -142,21 +142,21 @@ uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
 }
 
-// metal_rough::metal_rough_surface (lightport-tracer/src/kernel/metal_rough.rs:64)
+// metal_rough::metal_rough_surface (lightport-tracer/src/kernel/metal_rough.rs:62)
 Surface metal_rough_surface(vec3 base_color, float metallic, float roughness, float specular) {
     float m = metallic > 0.0 ? min(metallic, 1.0) : 0.0;
     float r = roughness < 1.0 ? max(roughness, MIN_ROUGHNESS) : 1.0;
     return Surface(base_color * (1.0 - m), vec3(DIELECTRIC_F0) * (1.0 - m) + base_color * m, r * r, specular);
 }
 
-// metal_rough::schlick_fresnel (lightport-tracer/src/kernel/metal_rough.rs:77)
+// metal_rough::schlick_fresnel (lightport-tracer/src/kernel/metal_rough.rs:75)
 vec3 schlick_fresnel(Surface s, float c) {
     float m = clamp(1.0 - c, 0.0, 1.0);
     float m2 = m * m;
     return (s.f0 + (vec3(1.0) - s.f0) * (m2 * m2 * m)) * s.specular;
 }
 
-// metal_rough::ggx_distribution (lightport-tracer/src/kernel/metal_rough.rs:86)
+// metal_rough::ggx_distribution (lightport-tracer/src/kernel/metal_rough.rs:84)
 float ggx_distribution(float alpha, vec3 h) {
     if (!(h.z > 0.0)) {
         return 0.0;
@@ -167,19 +167,19 @@ float ggx_distribution(float alpha, vec3 h) {
     }
 }
 
-// metal_rough::smith_root (lightport-tracer/src/kernel/metal_rough.rs:97)
+// metal_rough::smith_root (lightport-tracer/src/kernel/metal_rough.rs:95)
 float smith_root(float alpha, float c) {
     float a2 = alpha * alpha;
     return sqrt(max(a2 + c * c * (1.0 - a2), 0.0));
 }
 
-// metal_rough::smith_visibility (lightport-tracer/src/kernel/metal_rough.rs:103)
+// metal_rough::smith_visibility (lightport-tracer/src/kernel/metal_rough.rs:101)
 float smith_visibility(float alpha, float nl, float nv) {
     float denominator = nl * smith_root(alpha, nv) + nv * smith_root(alpha, nl);
     return denominator > 0.0 ? 0.5 / denominator : 0.0;
 }
 
-// metal_rough::metal_rough_eval (lightport-tracer/src/kernel/metal_rough.rs:114)
+// metal_rough::metal_rough_eval (lightport-tracer/src/kernel/metal_rough.rs:112)
 vec3 metal_rough_eval(Surface s, vec3 wo, vec3 wi) {
     if (!(wo.z > MIN_COSINE) || !(wi.z > MIN_COSINE)) {
         return vec3(0.0);
@@ -195,7 +195,7 @@ float luminance(vec3 c) {
     return dot(c, vec3(0.2126, 0.7152, 0.0722));
 }
 
-// metal_rough::specular_probability (lightport-tracer/src/kernel/metal_rough.rs:128)
+// metal_rough::specular_probability (lightport-tracer/src/kernel/metal_rough.rs:126)
 float specular_probability(Surface s, float nv) {
     vec3 f = schlick_fresnel(s, nv);
     float specular = luminance(f);
@@ -203,12 +203,12 @@ float specular_probability(Surface s, float nv) {
     return specular + diffuse > 0.0 ? specular / (specular + diffuse) : 1.0;
 }
 
-// metal_rough::vndf_reflection_pdf (lightport-tracer/src/kernel/metal_rough.rs:142)
+// metal_rough::vndf_reflection_pdf (lightport-tracer/src/kernel/metal_rough.rs:140)
 float vndf_reflection_pdf(float alpha, vec3 wo, vec3 h) {
     return ggx_distribution(alpha, h) / (2.0 * (wo.z + smith_root(alpha, wo.z)));
 }
 
-// metal_rough::metal_rough_pdf (lightport-tracer/src/kernel/metal_rough.rs:147)
+// metal_rough::metal_rough_pdf (lightport-tracer/src/kernel/metal_rough.rs:145)
 float metal_rough_pdf(Surface s, vec3 wo, vec3 wi) {
     if (!(wo.z > MIN_COSINE) || !(wi.z > MIN_COSINE)) {
         return 0.0;
@@ -237,7 +237,7 @@ vec2 cos_sin_turns(float t) {
     }
 }
 
-// metal_rough::sample_ggx_vndf (lightport-tracer/src/kernel/metal_rough.rs:158)
+// metal_rough::sample_ggx_vndf (lightport-tracer/src/kernel/metal_rough.rs:156)
 vec3 sample_ggx_vndf(float alpha, vec3 wo, float u1, float u2) {
     vec3 v = normalize(vec3(wo.x * alpha, wo.y * alpha, wo.z));
     vec2 cs = cos_sin_turns(u1);
@@ -255,7 +255,7 @@ vec3 cosine_sample_hemisphere(float u1, float u2) {
     return vec3(r * cs.x, r * cs.y, z);
 }
 
-// metal_rough::metal_rough_sample (lightport-tracer/src/kernel/metal_rough.rs:172)
+// metal_rough::metal_rough_sample (lightport-tracer/src/kernel/metal_rough.rs:170)
 BrdfSample metal_rough_sample(Surface s, vec3 wo, vec3 u) {
     if (!(wo.z > MIN_COSINE)) {
         return BrdfSample(vec3(0.0, 0.0, 1.0), 0.0, vec3(0.0));
@@ -282,7 +282,7 @@ uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:301)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:312)
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
@@ -338,7 +338,7 @@ vec2 texture_uv(uint texture_, uint triangle, float u, float v) {
     }
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:310)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:321)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
@@ -401,7 +401,7 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:274)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:285)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -415,32 +415,36 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:264)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:275)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }
 
-// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:269)
+// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:265)
+vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
+    vec3 base = material.base_color;
+    if ((scene_has_textures != 0u) && (material.base_texture != NONE)) {
+        vec2 uv = texture_uv(material.base_texture, triangle, u, v);
+        base *= sample_texture(material.base_texture, uv).xyz;
+    }
+    return base;
+}
+
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:280)
 vec4 sample_data_texture(uint index, vec2 uv) {
     return bilinear(index, uv, true);
 }
 
-// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:190)
+// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:188)
 Surface surface_at(MaterialData material, uint material_index, uint triangle, float u, float v) {
     MetalRoughData params = fetch_metal_rough(material_index);
-    vec3 base = material.base_color;
+    vec3 base = base_color_at(material, triangle, u, v);
     float metallic = params.metallic;
     float roughness = params.roughness;
-    if ((scene_has_textures != 0u) && ((material.base_texture != NONE) || (params.texture_ != NONE))) {
-        if (material.base_texture != NONE) {
-            vec2 uv = texture_uv(material.base_texture, triangle, u, v);
-            base *= sample_texture(material.base_texture, uv).xyz;
-        }
-        if (params.texture_ != NONE) {
-            vec4 mr = sample_data_texture(params.texture_, texture_uv(params.texture_, triangle, u, v));
-            roughness *= mr.y;
-            metallic *= mr.z;
-        }
+    if ((scene_has_textures != 0u) && (params.texture_ != NONE)) {
+        vec4 mr = sample_data_texture(params.texture_, texture_uv(params.texture_, triangle, u, v));
+        roughness *= mr.y;
+        metallic *= mr.z;
     }
     return metal_rough_surface(base, metallic, roughness, params.specular);
 }

@@ -73,7 +73,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:292)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:303)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -81,7 +81,7 @@ struct MetalRoughData {
     float specular;
 };
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:342)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:353)
 struct AlphaMaskData {
     uint texture_;
     float alpha;
@@ -117,7 +117,7 @@ struct LightSample {
     bool delta;
 };
 
-// metal_rough::Surface (lightport-tracer/src/kernel/metal_rough.rs:41)
+// metal_rough::Surface (lightport-tracer/src/kernel/metal_rough.rs:39)
 struct Surface {
     vec3 diffuse;
     vec3 f0;
@@ -125,7 +125,7 @@ struct Surface {
     float specular;
 };
 
-// metal_rough::BrdfSample (lightport-tracer/src/kernel/metal_rough.rs:56)
+// metal_rough::BrdfSample (lightport-tracer/src/kernel/metal_rough.rs:54)
 struct BrdfSample {
     vec3 dir;
     float pdf;
@@ -138,7 +138,7 @@ struct NormalMapData {
     float scale;
 };
 
-// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:37)
+// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:36)
 struct Bsdf {
     uint kind;
     Surface surface;
@@ -197,17 +197,17 @@ const uint TEXCOORD1_TEXELS = 2u;
 const uint STACK_SIZE = 64u;
 // traverse::MAX_HOLES (lightport-tracer/src/kernel/traverse.rs:119)
 const uint MAX_HOLES = 32u;
-// metal_rough::MIN_ROUGHNESS (lightport-tracer/src/kernel/metal_rough.rs:32)
+// metal_rough::MIN_ROUGHNESS (lightport-tracer/src/kernel/metal_rough.rs:30)
 const float MIN_ROUGHNESS = 0.045;
-// metal_rough::MIN_COSINE (lightport-tracer/src/kernel/metal_rough.rs:35)
+// metal_rough::MIN_COSINE (lightport-tracer/src/kernel/metal_rough.rs:33)
 const float MIN_COSINE = 1e-6;
-// metal_rough::DIELECTRIC_F0 (lightport-tracer/src/kernel/metal_rough.rs:37)
+// metal_rough::DIELECTRIC_F0 (lightport-tracer/src/kernel/metal_rough.rs:35)
 const float DIELECTRIC_F0 = 0.04;
 // normal_map::TANGENT_TEXELS (lightport-tracer/src/kernel/normal_map.rs:30)
 const uint TANGENT_TEXELS = 3u;
 // normal_map::MIN_REFLECTION_COSINE (lightport-tracer/src/kernel/normal_map.rs:33)
 const float MIN_REFLECTION_COSINE = 0.01;
-// bsdf::BSDF_METAL_ROUGH (lightport-tracer/src/kernel/bsdf.rs:33)
+// bsdf::BSDF_METAL_ROUGH (lightport-tracer/src/kernel/bsdf.rs:32)
 const uint BSDF_METAL_ROUGH = 1u;
 // integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:25)
 const uint RR_START_DEPTH = 3u;
@@ -604,7 +604,7 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
     return hit;
 }
 
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:351)
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:362)
 AlphaMaskData fetch_alpha_mask(uint material) {
     vec4 t = lp_fetch_vec4(scene_materials, scene_alpha_mask_first + material);
     return AlphaMaskData(index_of(t.x), t.y, t.z);
@@ -654,7 +654,7 @@ vec2 texture_uv(uint texture_, uint triangle, float u, float v) {
     return referenced_uv(texture_, triangle, u, v);
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:310)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:321)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
@@ -717,7 +717,7 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:274)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:285)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -731,12 +731,12 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:264)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:275)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }
 
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:357)
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:368)
 float coverage(AlphaMaskData mask, vec2 uv) {
     float a = mask.alpha;
     if ((1u != 0u) && (mask.texture_ != NONE)) {
@@ -745,7 +745,7 @@ float coverage(AlphaMaskData mask, vec2 uv) {
     return a;
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:369)
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:380)
 bool is_hole(uint triangle, uint material, float u, float v) {
     AlphaMaskData mask = fetch_alpha_mask(material);
     vec2 uv = vec2(0.0);
@@ -864,7 +864,7 @@ vec4 interpolated_tangent(uint triangle, float u, float v) {
     return t0 * (1.0 - u - v) + t1 * u + t2 * v;
 }
 
-// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:269)
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:280)
 vec4 sample_data_texture(uint index, vec2 uv) {
     return bilinear(index, uv, true);
 }
@@ -951,40 +951,44 @@ vec3 triangle_emission(uint triangle, uint material, float u, float v) {
     return e;
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:301)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:312)
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
 }
 
-// metal_rough::metal_rough_surface (lightport-tracer/src/kernel/metal_rough.rs:64)
+// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:265)
+vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
+    vec3 base = material.base_color;
+    if ((1u != 0u) && (material.base_texture != NONE)) {
+        vec2 uv = texture_uv(material.base_texture, triangle, u, v);
+        base *= sample_texture(material.base_texture, uv).xyz;
+    }
+    return base;
+}
+
+// metal_rough::metal_rough_surface (lightport-tracer/src/kernel/metal_rough.rs:62)
 Surface metal_rough_surface(vec3 base_color, float metallic, float roughness, float specular) {
     float m = metallic > 0.0 ? min(metallic, 1.0) : 0.0;
     float r = roughness < 1.0 ? max(roughness, MIN_ROUGHNESS) : 1.0;
     return Surface(base_color * (1.0 - m), vec3(DIELECTRIC_F0) * (1.0 - m) + base_color * m, r * r, specular);
 }
 
-// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:190)
+// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:188)
 Surface surface_at(MaterialData material, uint material_index, uint triangle, float u, float v) {
     MetalRoughData params = fetch_metal_rough(material_index);
-    vec3 base = material.base_color;
+    vec3 base = base_color_at(material, triangle, u, v);
     float metallic = params.metallic;
     float roughness = params.roughness;
-    if ((1u != 0u) && ((material.base_texture != NONE) || (params.texture_ != NONE))) {
-        if (material.base_texture != NONE) {
-            vec2 uv = texture_uv(material.base_texture, triangle, u, v);
-            base *= sample_texture(material.base_texture, uv).xyz;
-        }
-        if (params.texture_ != NONE) {
-            vec4 mr = sample_data_texture(params.texture_, texture_uv(params.texture_, triangle, u, v));
-            roughness *= mr.y;
-            metallic *= mr.z;
-        }
+    if ((1u != 0u) && (params.texture_ != NONE)) {
+        vec4 mr = sample_data_texture(params.texture_, texture_uv(params.texture_, triangle, u, v));
+        roughness *= mr.y;
+        metallic *= mr.z;
     }
     return metal_rough_surface(base, metallic, roughness, params.specular);
 }
 
-// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:45)
+// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:44)
 Bsdf bsdf_at(MaterialData material, uint material_index, Hit hit) {
     Surface surface = surface_at(material, material_index, hit.triangle, hit.u, hit.v);
     return Bsdf(BSDF_METAL_ROUGH, surface);
@@ -998,7 +1002,7 @@ Onb onb_from_normal(vec3 n) {
     return Onb(vec3(1.0 + sign_ * n.x * n.x * a, sign_ * b, -sign_ * n.x), vec3(b, sign_ + n.y * n.y * a, -n.y), n);
 }
 
-// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:65)
+// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:60)
 vec3 bsdf_normal(Bsdf b, vec3 ns, vec3 ng, vec3 dir) {
     return (1u != 0u) && (b.kind == BSDF_METAL_ROUGH) ? (dot(ns, dir) < 0.0 ? ns : ng) : ns;
 }
@@ -1133,7 +1137,7 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// metal_rough::schlick_fresnel (lightport-tracer/src/kernel/metal_rough.rs:77)
+// metal_rough::schlick_fresnel (lightport-tracer/src/kernel/metal_rough.rs:75)
 vec3 schlick_fresnel(Surface s, float c) {
     float m = clamp(1.0 - c, 0.0, 1.0);
     float m2 = m * m;
@@ -1145,7 +1149,7 @@ float luminance(vec3 c) {
     return dot(c, vec3(0.2126, 0.7152, 0.0722));
 }
 
-// metal_rough::specular_probability (lightport-tracer/src/kernel/metal_rough.rs:128)
+// metal_rough::specular_probability (lightport-tracer/src/kernel/metal_rough.rs:126)
 float specular_probability(Surface s, float nv) {
     vec3 f = schlick_fresnel(s, nv);
     float specular = luminance(f);
@@ -1153,7 +1157,7 @@ float specular_probability(Surface s, float nv) {
     return specular + diffuse > 0.0 ? specular / (specular + diffuse) : 1.0;
 }
 
-// metal_rough::ggx_distribution (lightport-tracer/src/kernel/metal_rough.rs:86)
+// metal_rough::ggx_distribution (lightport-tracer/src/kernel/metal_rough.rs:84)
 float ggx_distribution(float alpha, vec3 h) {
     if (!(h.z > 0.0)) {
         return 0.0;
@@ -1164,18 +1168,18 @@ float ggx_distribution(float alpha, vec3 h) {
     }
 }
 
-// metal_rough::smith_root (lightport-tracer/src/kernel/metal_rough.rs:97)
+// metal_rough::smith_root (lightport-tracer/src/kernel/metal_rough.rs:95)
 float smith_root(float alpha, float c) {
     float a2 = alpha * alpha;
     return sqrt(max(a2 + c * c * (1.0 - a2), 0.0));
 }
 
-// metal_rough::vndf_reflection_pdf (lightport-tracer/src/kernel/metal_rough.rs:142)
+// metal_rough::vndf_reflection_pdf (lightport-tracer/src/kernel/metal_rough.rs:140)
 float vndf_reflection_pdf(float alpha, vec3 wo, vec3 h) {
     return ggx_distribution(alpha, h) / (2.0 * (wo.z + smith_root(alpha, wo.z)));
 }
 
-// metal_rough::metal_rough_pdf (lightport-tracer/src/kernel/metal_rough.rs:147)
+// metal_rough::metal_rough_pdf (lightport-tracer/src/kernel/metal_rough.rs:145)
 float metal_rough_pdf(Surface s, vec3 wo, vec3 wi) {
     if (!(wo.z > MIN_COSINE) || !(wi.z > MIN_COSINE)) {
         return 0.0;
@@ -1185,7 +1189,7 @@ float metal_rough_pdf(Surface s, vec3 wo, vec3 wi) {
     return p * vndf_reflection_pdf(s.alpha, wo, h) + (1.0 - p) * wi.z * INV_PI;
 }
 
-// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:91)
+// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:86)
 float bsdf_pdf(Bsdf b, vec3 wo, vec3 wi) {
     if ((1u != 0u) && (b.kind == BSDF_METAL_ROUGH)) {
         return metal_rough_pdf(b.surface, wo, wi);
@@ -1279,13 +1283,13 @@ bool occluded(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// metal_rough::smith_visibility (lightport-tracer/src/kernel/metal_rough.rs:103)
+// metal_rough::smith_visibility (lightport-tracer/src/kernel/metal_rough.rs:101)
 float smith_visibility(float alpha, float nl, float nv) {
     float denominator = nl * smith_root(alpha, nv) + nv * smith_root(alpha, nl);
     return denominator > 0.0 ? 0.5 / denominator : 0.0;
 }
 
-// metal_rough::metal_rough_eval (lightport-tracer/src/kernel/metal_rough.rs:114)
+// metal_rough::metal_rough_eval (lightport-tracer/src/kernel/metal_rough.rs:112)
 vec3 metal_rough_eval(Surface s, vec3 wo, vec3 wi) {
     if (!(wo.z > MIN_COSINE) || !(wi.z > MIN_COSINE)) {
         return vec3(0.0);
@@ -1296,7 +1300,7 @@ vec3 metal_rough_eval(Surface s, vec3 wo, vec3 wi) {
     return (vec3(1.0) - f) * s.diffuse * INV_PI + specular;
 }
 
-// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:79)
+// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:74)
 vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     if ((1u != 0u) && (b.kind == BSDF_METAL_ROUGH)) {
         return metal_rough_eval(b.surface, wo, wi);
@@ -1328,7 +1332,7 @@ vec3 sample_ld(Shading sh, inout uint rng) {
     return direct;
 }
 
-// metal_rough::sample_ggx_vndf (lightport-tracer/src/kernel/metal_rough.rs:158)
+// metal_rough::sample_ggx_vndf (lightport-tracer/src/kernel/metal_rough.rs:156)
 vec3 sample_ggx_vndf(float alpha, vec3 wo, float u1, float u2) {
     vec3 v = normalize(vec3(wo.x * alpha, wo.y * alpha, wo.z));
     vec2 cs = cos_sin_turns(u1);
@@ -1346,7 +1350,7 @@ vec3 cosine_sample_hemisphere(float u1, float u2) {
     return vec3(r * cs.x, r * cs.y, z);
 }
 
-// metal_rough::metal_rough_sample (lightport-tracer/src/kernel/metal_rough.rs:172)
+// metal_rough::metal_rough_sample (lightport-tracer/src/kernel/metal_rough.rs:170)
 BrdfSample metal_rough_sample(Surface s, vec3 wo, vec3 u) {
     if (!(wo.z > MIN_COSINE)) {
         return BrdfSample(vec3(0.0, 0.0, 1.0), 0.0, vec3(0.0));
@@ -1368,7 +1372,7 @@ BrdfSample metal_rough_sample(Surface s, vec3 wo, vec3 u) {
     return BrdfSample(wi, pdf, weight);
 }
 
-// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:103)
+// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:98)
 BrdfSample bsdf_sample(Bsdf b, vec3 wo, inout uint rng) {
     float u1 = random_float(rng);
     float u2 = random_float(rng);

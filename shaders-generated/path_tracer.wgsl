@@ -74,7 +74,7 @@ struct MaterialData {
     emissive_texture: u32,
 }
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:292)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:303)
 struct MetalRoughData {
     metallic: f32,
     roughness: f32,
@@ -82,7 +82,7 @@ struct MetalRoughData {
     specular: f32,
 }
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:342)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:353)
 struct AlphaMaskData {
     texture_: u32,
     alpha: f32,
@@ -118,7 +118,7 @@ struct LightSample {
     delta: bool,
 }
 
-// metal_rough::Surface (lightport-tracer/src/kernel/metal_rough.rs:41)
+// metal_rough::Surface (lightport-tracer/src/kernel/metal_rough.rs:39)
 struct Surface {
     diffuse: vec3<f32>,
     f0: vec3<f32>,
@@ -126,7 +126,7 @@ struct Surface {
     specular: f32,
 }
 
-// metal_rough::BrdfSample (lightport-tracer/src/kernel/metal_rough.rs:56)
+// metal_rough::BrdfSample (lightport-tracer/src/kernel/metal_rough.rs:54)
 struct BrdfSample {
     dir: vec3<f32>,
     pdf: f32,
@@ -139,7 +139,7 @@ struct NormalMapData {
     scale: f32,
 }
 
-// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:37)
+// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:36)
 struct Bsdf {
     kind: u32,
     surface: Surface,
@@ -198,17 +198,17 @@ const TEXCOORD1_TEXELS: u32 = 2u;
 const STACK_SIZE: u32 = 64u;
 // traverse::MAX_HOLES (lightport-tracer/src/kernel/traverse.rs:119)
 const MAX_HOLES: u32 = 32u;
-// metal_rough::MIN_ROUGHNESS (lightport-tracer/src/kernel/metal_rough.rs:32)
+// metal_rough::MIN_ROUGHNESS (lightport-tracer/src/kernel/metal_rough.rs:30)
 const MIN_ROUGHNESS: f32 = 0.045;
-// metal_rough::MIN_COSINE (lightport-tracer/src/kernel/metal_rough.rs:35)
+// metal_rough::MIN_COSINE (lightport-tracer/src/kernel/metal_rough.rs:33)
 const MIN_COSINE: f32 = 1e-6;
-// metal_rough::DIELECTRIC_F0 (lightport-tracer/src/kernel/metal_rough.rs:37)
+// metal_rough::DIELECTRIC_F0 (lightport-tracer/src/kernel/metal_rough.rs:35)
 const DIELECTRIC_F0: f32 = 0.04;
 // normal_map::TANGENT_TEXELS (lightport-tracer/src/kernel/normal_map.rs:30)
 const TANGENT_TEXELS: u32 = 3u;
 // normal_map::MIN_REFLECTION_COSINE (lightport-tracer/src/kernel/normal_map.rs:33)
 const MIN_REFLECTION_COSINE: f32 = 0.01;
-// bsdf::BSDF_METAL_ROUGH (lightport-tracer/src/kernel/bsdf.rs:33)
+// bsdf::BSDF_METAL_ROUGH (lightport-tracer/src/kernel/bsdf.rs:32)
 const BSDF_METAL_ROUGH: u32 = 1u;
 // integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:25)
 const RR_START_DEPTH: u32 = 3u;
@@ -577,7 +577,7 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
     return hit;
 }
 
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:351)
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:362)
 fn fetch_alpha_mask(material: u32) -> AlphaMaskData {
     let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.alpha_mask_first + material)];
     return AlphaMaskData(index_of(t.x), t.y, t.z);
@@ -627,7 +627,7 @@ fn texture_uv(texture_: u32, triangle: u32, u: f32, v: f32) -> vec2<f32> {
     return referenced_uv(texture_, triangle, u, v);
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:310)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:321)
 fn bounded_coordinate(v: f32) -> f32 {
     return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
 }
@@ -690,7 +690,7 @@ fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:274)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:285)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
     let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -704,12 +704,12 @@ fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:264)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:275)
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, false);
 }
 
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:357)
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:368)
 fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
     var a: f32 = mask.alpha;
     if (1u != 0u) && (mask.texture_ != NONE) {
@@ -718,7 +718,7 @@ fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
     return a;
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:369)
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:380)
 fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
     let mask: AlphaMaskData = fetch_alpha_mask(material);
     var uv: vec2<f32> = vec2<f32>(0.0);
@@ -837,7 +837,7 @@ fn interpolated_tangent(triangle: u32, u: f32, v: f32) -> vec4<f32> {
     return t0 * (1.0 - u - v) + t1 * u + t2 * v;
 }
 
-// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:269)
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:280)
 fn sample_data_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, true);
 }
@@ -924,40 +924,44 @@ fn triangle_emission(triangle: u32, material: u32, u: f32, v: f32) -> vec3<f32> 
     return e;
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:301)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:312)
 fn fetch_metal_rough(index: u32) -> MetalRoughData {
     let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_metal_rough + index];
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
 }
 
-// metal_rough::metal_rough_surface (lightport-tracer/src/kernel/metal_rough.rs:64)
+// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:265)
+fn base_color_at(material: MaterialData, triangle: u32, u: f32, v: f32) -> vec3<f32> {
+    var base: vec3<f32> = material.base_color;
+    if (1u != 0u) && (material.base_texture != NONE) {
+        let uv: vec2<f32> = texture_uv(material.base_texture, triangle, u, v);
+        base *= sample_texture(material.base_texture, uv).xyz;
+    }
+    return base;
+}
+
+// metal_rough::metal_rough_surface (lightport-tracer/src/kernel/metal_rough.rs:62)
 fn metal_rough_surface(base_color: vec3<f32>, metallic: f32, roughness: f32, specular: f32) -> Surface {
     let m: f32 = select(0.0, min(metallic, 1.0), metallic > 0.0);
     let r: f32 = select(1.0, max(roughness, MIN_ROUGHNESS), roughness < 1.0);
     return Surface(base_color * (1.0 - m), vec3<f32>(DIELECTRIC_F0) * (1.0 - m) + base_color * m, r * r, specular);
 }
 
-// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:190)
+// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:188)
 fn surface_at(material: MaterialData, material_index: u32, triangle: u32, u: f32, v: f32) -> Surface {
     let params: MetalRoughData = fetch_metal_rough(material_index);
-    var base: vec3<f32> = material.base_color;
+    let base: vec3<f32> = base_color_at(material, triangle, u, v);
     var metallic: f32 = params.metallic;
     var roughness: f32 = params.roughness;
-    if (1u != 0u) && ((material.base_texture != NONE) || (params.texture_ != NONE)) {
-        if material.base_texture != NONE {
-            let uv: vec2<f32> = texture_uv(material.base_texture, triangle, u, v);
-            base *= sample_texture(material.base_texture, uv).xyz;
-        }
-        if params.texture_ != NONE {
-            let mr: vec4<f32> = sample_data_texture(params.texture_, texture_uv(params.texture_, triangle, u, v));
-            roughness *= mr.y;
-            metallic *= mr.z;
-        }
+    if (1u != 0u) && (params.texture_ != NONE) {
+        let mr: vec4<f32> = sample_data_texture(params.texture_, texture_uv(params.texture_, triangle, u, v));
+        roughness *= mr.y;
+        metallic *= mr.z;
     }
     return metal_rough_surface(base, metallic, roughness, params.specular);
 }
 
-// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:45)
+// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:44)
 fn bsdf_at(material: MaterialData, material_index: u32, hit: Hit) -> Bsdf {
     let surface: Surface = surface_at(material, material_index, hit.triangle, hit.u, hit.v);
     return Bsdf(BSDF_METAL_ROUGH, surface);
@@ -971,7 +975,7 @@ fn onb_from_normal(n: vec3<f32>) -> Onb {
     return Onb(vec3<f32>(1.0 + sign_ * n.x * n.x * a, sign_ * b, -sign_ * n.x), vec3<f32>(b, sign_ + n.y * n.y * a, -n.y), n);
 }
 
-// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:65)
+// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:60)
 fn bsdf_normal(b: Bsdf, ns: vec3<f32>, ng: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
     return select(ns, select(ng, ns, dot(ns, dir) < 0.0), (1u != 0u) && (b.kind == BSDF_METAL_ROUGH));
 }
@@ -1106,7 +1110,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     }
 }
 
-// metal_rough::schlick_fresnel (lightport-tracer/src/kernel/metal_rough.rs:77)
+// metal_rough::schlick_fresnel (lightport-tracer/src/kernel/metal_rough.rs:75)
 fn schlick_fresnel(s: Surface, c: f32) -> vec3<f32> {
     let m: f32 = clamp(1.0 - c, 0.0, 1.0);
     let m2: f32 = m * m;
@@ -1118,7 +1122,7 @@ fn luminance(c: vec3<f32>) -> f32 {
     return dot(c, vec3<f32>(0.2126, 0.7152, 0.0722));
 }
 
-// metal_rough::specular_probability (lightport-tracer/src/kernel/metal_rough.rs:128)
+// metal_rough::specular_probability (lightport-tracer/src/kernel/metal_rough.rs:126)
 fn specular_probability(s: Surface, nv: f32) -> f32 {
     let f: vec3<f32> = schlick_fresnel(s, nv);
     let specular: f32 = luminance(f);
@@ -1126,7 +1130,7 @@ fn specular_probability(s: Surface, nv: f32) -> f32 {
     return select(1.0, specular / (specular + diffuse), specular + diffuse > 0.0);
 }
 
-// metal_rough::ggx_distribution (lightport-tracer/src/kernel/metal_rough.rs:86)
+// metal_rough::ggx_distribution (lightport-tracer/src/kernel/metal_rough.rs:84)
 fn ggx_distribution(alpha: f32, h: vec3<f32>) -> f32 {
     if !(h.z > 0.0) {
         return 0.0;
@@ -1137,18 +1141,18 @@ fn ggx_distribution(alpha: f32, h: vec3<f32>) -> f32 {
     }
 }
 
-// metal_rough::smith_root (lightport-tracer/src/kernel/metal_rough.rs:97)
+// metal_rough::smith_root (lightport-tracer/src/kernel/metal_rough.rs:95)
 fn smith_root(alpha: f32, c: f32) -> f32 {
     let a2: f32 = alpha * alpha;
     return sqrt(max(a2 + c * c * (1.0 - a2), 0.0));
 }
 
-// metal_rough::vndf_reflection_pdf (lightport-tracer/src/kernel/metal_rough.rs:142)
+// metal_rough::vndf_reflection_pdf (lightport-tracer/src/kernel/metal_rough.rs:140)
 fn vndf_reflection_pdf(alpha: f32, wo: vec3<f32>, h: vec3<f32>) -> f32 {
     return ggx_distribution(alpha, h) / (2.0 * (wo.z + smith_root(alpha, wo.z)));
 }
 
-// metal_rough::metal_rough_pdf (lightport-tracer/src/kernel/metal_rough.rs:147)
+// metal_rough::metal_rough_pdf (lightport-tracer/src/kernel/metal_rough.rs:145)
 fn metal_rough_pdf(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     if !(wo.z > MIN_COSINE) || !(wi.z > MIN_COSINE) {
         return 0.0;
@@ -1158,7 +1162,7 @@ fn metal_rough_pdf(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     return p * vndf_reflection_pdf(s.alpha, wo, h) + (1.0 - p) * wi.z * INV_PI;
 }
 
-// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:91)
+// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:86)
 fn bsdf_pdf(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     if (1u != 0u) && (b.kind == BSDF_METAL_ROUGH) {
         return metal_rough_pdf(b.surface, wo, wi);
@@ -1250,13 +1254,13 @@ fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     return blocked;
 }
 
-// metal_rough::smith_visibility (lightport-tracer/src/kernel/metal_rough.rs:103)
+// metal_rough::smith_visibility (lightport-tracer/src/kernel/metal_rough.rs:101)
 fn smith_visibility(alpha: f32, nl: f32, nv: f32) -> f32 {
     let denominator: f32 = nl * smith_root(alpha, nv) + nv * smith_root(alpha, nl);
     return select(0.0, 0.5 / denominator, denominator > 0.0);
 }
 
-// metal_rough::metal_rough_eval (lightport-tracer/src/kernel/metal_rough.rs:114)
+// metal_rough::metal_rough_eval (lightport-tracer/src/kernel/metal_rough.rs:112)
 fn metal_rough_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     if !(wo.z > MIN_COSINE) || !(wi.z > MIN_COSINE) {
         return vec3<f32>(0.0);
@@ -1267,7 +1271,7 @@ fn metal_rough_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     return (vec3<f32>(1.0) - f) * s.diffuse * INV_PI + specular;
 }
 
-// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:79)
+// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:74)
 fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     if (1u != 0u) && (b.kind == BSDF_METAL_ROUGH) {
         return metal_rough_eval(b.surface, wo, wi);
@@ -1299,7 +1303,7 @@ fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> vec3<f32> {
     return direct;
 }
 
-// metal_rough::sample_ggx_vndf (lightport-tracer/src/kernel/metal_rough.rs:158)
+// metal_rough::sample_ggx_vndf (lightport-tracer/src/kernel/metal_rough.rs:156)
 fn sample_ggx_vndf(alpha: f32, wo: vec3<f32>, u1: f32, u2: f32) -> vec3<f32> {
     let v: vec3<f32> = normalize(vec3<f32>(wo.x * alpha, wo.y * alpha, wo.z));
     let cs: vec2<f32> = cos_sin_turns(u1);
@@ -1317,7 +1321,7 @@ fn cosine_sample_hemisphere(u1: f32, u2: f32) -> vec3<f32> {
     return vec3<f32>(r * cs.x, r * cs.y, z);
 }
 
-// metal_rough::metal_rough_sample (lightport-tracer/src/kernel/metal_rough.rs:172)
+// metal_rough::metal_rough_sample (lightport-tracer/src/kernel/metal_rough.rs:170)
 fn metal_rough_sample(s: Surface, wo: vec3<f32>, u: vec3<f32>) -> BrdfSample {
     if !(wo.z > MIN_COSINE) {
         return BrdfSample(vec3<f32>(0.0, 0.0, 1.0), 0.0, vec3<f32>(0.0));
@@ -1339,7 +1343,7 @@ fn metal_rough_sample(s: Surface, wo: vec3<f32>, u: vec3<f32>) -> BrdfSample {
     return BrdfSample(wi, pdf, weight);
 }
 
-// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:103)
+// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:98)
 fn bsdf_sample(b: Bsdf, wo: vec3<f32>, rng: ptr<function, u32>) -> BrdfSample {
     let u1: f32 = random_float(rng);
     let u2: f32 = random_float(rng);

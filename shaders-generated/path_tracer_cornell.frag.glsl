@@ -87,7 +87,7 @@ struct LightSample {
     bool delta;
 };
 
-// metal_rough::Surface (lightport-tracer/src/kernel/metal_rough.rs:41)
+// metal_rough::Surface (lightport-tracer/src/kernel/metal_rough.rs:39)
 struct Surface {
     vec3 diffuse;
     vec3 f0;
@@ -95,14 +95,14 @@ struct Surface {
     float specular;
 };
 
-// metal_rough::BrdfSample (lightport-tracer/src/kernel/metal_rough.rs:56)
+// metal_rough::BrdfSample (lightport-tracer/src/kernel/metal_rough.rs:54)
 struct BrdfSample {
     vec3 dir;
     float pdf;
     vec3 weight;
 };
 
-// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:37)
+// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:36)
 struct Bsdf {
     uint kind;
     Surface surface;
@@ -143,7 +143,7 @@ const uint STRATEGY_NEE = 1u;
 const uint STRATEGY_MIS = 2u;
 // traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:17)
 const uint STACK_SIZE = 11u;
-// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:30)
+// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:29)
 const uint BSDF_LAMBERT = 0u;
 // integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:25)
 const uint RR_START_DEPTH = 3u;
@@ -550,10 +550,16 @@ vec3 triangle_emission(uint triangle, uint material, float u, float v) {
     return e;
 }
 
-// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:45)
+// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:265)
+vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
+    vec3 base = material.base_color;
+    return base;
+}
+
+// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:44)
 Bsdf bsdf_at(MaterialData material, uint material_index, Hit hit) {
     {
-        vec3 albedo = material.base_color;
+        vec3 albedo = base_color_at(material, hit.triangle, hit.u, hit.v);
         Surface surface_1 = Surface(albedo, vec3(0.0), 1.0, 0.0);
         return Bsdf(BSDF_LAMBERT, surface_1);
     }
@@ -567,7 +573,7 @@ Onb onb_from_normal(vec3 n) {
     return Onb(vec3(1.0 + sign_ * n.x * n.x * a, sign_ * b, -sign_ * n.x), vec3(b, sign_ + n.y * n.y * a, -n.y), n);
 }
 
-// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:65)
+// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:60)
 vec3 bsdf_normal(Bsdf b, vec3 ns, vec3 ng, vec3 dir) {
     {
         return ns;
@@ -637,7 +643,7 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:91)
+// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:86)
 float bsdf_pdf(Bsdf b, vec3 wo, vec3 wi) {
     {
         return max(wi.z, 0.0) * INV_PI;
@@ -725,7 +731,7 @@ bool occluded(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:79)
+// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:74)
 vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     return wi.z > 0.0 ? b.surface.diffuse * INV_PI : vec3(0.0);
 }
@@ -759,7 +765,7 @@ vec3 cosine_sample_hemisphere(float u1, float u2) {
     return vec3(r * cs.x, r * cs.y, z);
 }
 
-// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:103)
+// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:98)
 BrdfSample bsdf_sample(Bsdf b, vec3 wo, inout uint rng) {
     float u1 = random_float(rng);
     float u2 = random_float(rng);

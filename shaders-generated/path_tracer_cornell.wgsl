@@ -88,7 +88,7 @@ struct LightSample {
     delta: bool,
 }
 
-// metal_rough::Surface (lightport-tracer/src/kernel/metal_rough.rs:41)
+// metal_rough::Surface (lightport-tracer/src/kernel/metal_rough.rs:39)
 struct Surface {
     diffuse: vec3<f32>,
     f0: vec3<f32>,
@@ -96,14 +96,14 @@ struct Surface {
     specular: f32,
 }
 
-// metal_rough::BrdfSample (lightport-tracer/src/kernel/metal_rough.rs:56)
+// metal_rough::BrdfSample (lightport-tracer/src/kernel/metal_rough.rs:54)
 struct BrdfSample {
     dir: vec3<f32>,
     pdf: f32,
     weight: vec3<f32>,
 }
 
-// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:37)
+// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:36)
 struct Bsdf {
     kind: u32,
     surface: Surface,
@@ -144,7 +144,7 @@ const STRATEGY_NEE: u32 = 1u;
 const STRATEGY_MIS: u32 = 2u;
 // traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:17)
 const STACK_SIZE: u32 = 11u;
-// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:30)
+// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:29)
 const BSDF_LAMBERT: u32 = 0u;
 // integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:25)
 const RR_START_DEPTH: u32 = 3u;
@@ -536,10 +536,16 @@ fn triangle_emission(triangle: u32, material: u32, u: f32, v: f32) -> vec3<f32> 
     return e;
 }
 
-// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:45)
+// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:265)
+fn base_color_at(material: MaterialData, triangle: u32, u: f32, v: f32) -> vec3<f32> {
+    var base: vec3<f32> = material.base_color;
+    return base;
+}
+
+// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:44)
 fn bsdf_at(material: MaterialData, material_index: u32, hit: Hit) -> Bsdf {
     {
-        var albedo: vec3<f32> = material.base_color;
+        let albedo: vec3<f32> = base_color_at(material, hit.triangle, hit.u, hit.v);
         let surface_1: Surface = Surface(albedo, vec3<f32>(0.0), 1.0, 0.0);
         return Bsdf(BSDF_LAMBERT, surface_1);
     }
@@ -553,7 +559,7 @@ fn onb_from_normal(n: vec3<f32>) -> Onb {
     return Onb(vec3<f32>(1.0 + sign_ * n.x * n.x * a, sign_ * b, -sign_ * n.x), vec3<f32>(b, sign_ + n.y * n.y * a, -n.y), n);
 }
 
-// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:65)
+// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:60)
 fn bsdf_normal(b: Bsdf, ns: vec3<f32>, ng: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
     {
         return ns;
@@ -623,7 +629,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     }
 }
 
-// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:91)
+// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:86)
 fn bsdf_pdf(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     {
         return max(wi.z, 0.0) * INV_PI;
@@ -709,7 +715,7 @@ fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     return blocked;
 }
 
-// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:79)
+// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:74)
 fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     return select(vec3<f32>(0.0), b.surface.diffuse * INV_PI, wi.z > 0.0);
 }
@@ -743,7 +749,7 @@ fn cosine_sample_hemisphere(u1: f32, u2: f32) -> vec3<f32> {
     return vec3<f32>(r * cs.x, r * cs.y, z);
 }
 
-// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:103)
+// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:98)
 fn bsdf_sample(b: Bsdf, wo: vec3<f32>, rng: ptr<function, u32>) -> BrdfSample {
     let u1: f32 = random_float(rng);
     let u2: f32 = random_float(rng);

@@ -38,7 +38,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:292)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:303)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -46,7 +46,7 @@ struct MetalRoughData {
     float specular;
 };
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:342)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:353)
 struct AlphaMaskData {
     uint texture_;
     float alpha;
@@ -236,56 +236,6 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:310)
-float bounded_coordinate(float v) {
-    return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
-}
-
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:274)
-vec4 bilinear(uint index, vec2 uv, bool data) {
-    uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
-    float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
-    float y = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
-    float fx = x - floor(x);
-    float fy = y - floor(y);
-    int x0 = lp_f32_to_i32(floor(x));
-    int y0 = lp_f32_to_i32(floor(y));
-    vec4 top = texel_as(info, x0, y0, data) * (1.0 - fx) + texel_as(info, x0 + 1, y0, data) * fx;
-    vec4 bottom = texel_as(info, x0, y0 + 1, data) * (1.0 - fx) + texel_as(info, x0 + 1, y0 + 1, data) * fx;
-    return top * (1.0 - fy) + bottom * fy;
-}
-
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:264)
-vec4 sample_texture(uint index, vec2 uv) {
-    return bilinear(index, uv, false);
-}
-
-// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:269)
-vec4 sample_data_texture(uint index, vec2 uv) {
-    return bilinear(index, uv, true);
-}
-
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:301)
-MetalRoughData fetch_metal_rough(uint index) {
-    vec4 t = lp_fetch_vec4(scene_metal_rough, index);
-    return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
-}
-
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:351)
-AlphaMaskData fetch_alpha_mask(uint material) {
-    vec4 t = lp_fetch_vec4(scene_materials, scene_alpha_mask_first + material);
-    return AlphaMaskData(index_of(t.x), t.y, t.z);
-}
-
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:357)
-float coverage(AlphaMaskData mask, vec2 uv) {
-    float a = mask.alpha;
-    if ((scene_has_textures != 0u) && (mask.texture_ != NONE)) {
-        a *= sample_texture(mask.texture_, uv).w;
-    }
-    return a;
-}
-
 // texture_ref::texcoord1 (lightport-tracer/src/kernel/texture_ref.rs:27)
 vec2 texcoord1(uint triangle, float u, float v) {
     uint base = scene_texcoord1_first + triangle * TEXCOORD1_TEXELS;
@@ -326,7 +276,67 @@ vec2 texture_uv(uint texture_, uint triangle, float u, float v) {
     }
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:369)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:321)
+float bounded_coordinate(float v) {
+    return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
+}
+
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:285)
+vec4 bilinear(uint index, vec2 uv, bool data) {
+    uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
+    float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
+    float y = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
+    float fx = x - floor(x);
+    float fy = y - floor(y);
+    int x0 = lp_f32_to_i32(floor(x));
+    int y0 = lp_f32_to_i32(floor(y));
+    vec4 top = texel_as(info, x0, y0, data) * (1.0 - fx) + texel_as(info, x0 + 1, y0, data) * fx;
+    vec4 bottom = texel_as(info, x0, y0 + 1, data) * (1.0 - fx) + texel_as(info, x0 + 1, y0 + 1, data) * fx;
+    return top * (1.0 - fy) + bottom * fy;
+}
+
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:275)
+vec4 sample_texture(uint index, vec2 uv) {
+    return bilinear(index, uv, false);
+}
+
+// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:265)
+vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
+    vec3 base = material.base_color;
+    if ((scene_has_textures != 0u) && (material.base_texture != NONE)) {
+        vec2 uv = texture_uv(material.base_texture, triangle, u, v);
+        base *= sample_texture(material.base_texture, uv).xyz;
+    }
+    return base;
+}
+
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:280)
+vec4 sample_data_texture(uint index, vec2 uv) {
+    return bilinear(index, uv, true);
+}
+
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:312)
+MetalRoughData fetch_metal_rough(uint index) {
+    vec4 t = lp_fetch_vec4(scene_metal_rough, index);
+    return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
+}
+
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:362)
+AlphaMaskData fetch_alpha_mask(uint material) {
+    vec4 t = lp_fetch_vec4(scene_materials, scene_alpha_mask_first + material);
+    return AlphaMaskData(index_of(t.x), t.y, t.z);
+}
+
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:368)
+float coverage(AlphaMaskData mask, vec2 uv) {
+    float a = mask.alpha;
+    if ((scene_has_textures != 0u) && (mask.texture_ != NONE)) {
+        a *= sample_texture(mask.texture_, uv).w;
+    }
+    return a;
+}
+
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:380)
 bool is_hole(uint triangle, uint material, float u, float v) {
     AlphaMaskData mask = fetch_alpha_mask(material);
     vec2 uv = vec2(0.0);

@@ -39,7 +39,7 @@ struct MaterialData {
     emissive_texture: u32,
 }
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:292)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:303)
 struct MetalRoughData {
     metallic: f32,
     roughness: f32,
@@ -47,7 +47,7 @@ struct MetalRoughData {
     specular: f32,
 }
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:342)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:353)
 struct AlphaMaskData {
     texture_: u32,
     alpha: f32,
@@ -212,56 +212,6 @@ fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     }
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:310)
-fn bounded_coordinate(v: f32) -> f32 {
-    return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
-}
-
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:274)
-fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
-    let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
-    let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
-    let y: f32 = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
-    let fx: f32 = x - floor(x);
-    let fy: f32 = y - floor(y);
-    let x0: i32 = lp_f32_to_i32(floor(x));
-    let y0: i32 = lp_f32_to_i32(floor(y));
-    let top: vec4<f32> = texel_as(info, x0, y0, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0, data) * fx;
-    let bottom: vec4<f32> = texel_as(info, x0, y0 + 1i, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0 + 1i, data) * fx;
-    return top * (1.0 - fy) + bottom * fy;
-}
-
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:264)
-fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
-    return bilinear(index, uv, false);
-}
-
-// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:269)
-fn sample_data_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
-    return bilinear(index, uv, true);
-}
-
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:301)
-fn fetch_metal_rough(index: u32) -> MetalRoughData {
-    let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_metal_rough + index];
-    return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
-}
-
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:351)
-fn fetch_alpha_mask(material: u32) -> AlphaMaskData {
-    let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.alpha_mask_first + material)];
-    return AlphaMaskData(index_of(t.x), t.y, t.z);
-}
-
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:357)
-fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
-    var a: f32 = mask.alpha;
-    if (scene.has_textures != 0u) && (mask.texture_ != NONE) {
-        a *= sample_texture(mask.texture_, uv).w;
-    }
-    return a;
-}
-
 // texture_ref::texcoord1 (lightport-tracer/src/kernel/texture_ref.rs:27)
 fn texcoord1(triangle: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = scene.texcoord1_first + triangle * TEXCOORD1_TEXELS;
@@ -302,7 +252,67 @@ fn texture_uv(texture_: u32, triangle: u32, u: f32, v: f32) -> vec2<f32> {
     }
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:369)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:321)
+fn bounded_coordinate(v: f32) -> f32 {
+    return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
+}
+
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:285)
+fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
+    let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
+    let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
+    let y: f32 = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
+    let fx: f32 = x - floor(x);
+    let fy: f32 = y - floor(y);
+    let x0: i32 = lp_f32_to_i32(floor(x));
+    let y0: i32 = lp_f32_to_i32(floor(y));
+    let top: vec4<f32> = texel_as(info, x0, y0, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0, data) * fx;
+    let bottom: vec4<f32> = texel_as(info, x0, y0 + 1i, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0 + 1i, data) * fx;
+    return top * (1.0 - fy) + bottom * fy;
+}
+
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:275)
+fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
+    return bilinear(index, uv, false);
+}
+
+// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:265)
+fn base_color_at(material: MaterialData, triangle: u32, u: f32, v: f32) -> vec3<f32> {
+    var base: vec3<f32> = material.base_color;
+    if (scene.has_textures != 0u) && (material.base_texture != NONE) {
+        let uv: vec2<f32> = texture_uv(material.base_texture, triangle, u, v);
+        base *= sample_texture(material.base_texture, uv).xyz;
+    }
+    return base;
+}
+
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:280)
+fn sample_data_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
+    return bilinear(index, uv, true);
+}
+
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:312)
+fn fetch_metal_rough(index: u32) -> MetalRoughData {
+    let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_metal_rough + index];
+    return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
+}
+
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:362)
+fn fetch_alpha_mask(material: u32) -> AlphaMaskData {
+    let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.alpha_mask_first + material)];
+    return AlphaMaskData(index_of(t.x), t.y, t.z);
+}
+
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:368)
+fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
+    var a: f32 = mask.alpha;
+    if (scene.has_textures != 0u) && (mask.texture_ != NONE) {
+        a *= sample_texture(mask.texture_, uv).w;
+    }
+    return a;
+}
+
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:380)
 fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
     let mask: AlphaMaskData = fetch_alpha_mask(material);
     var uv: vec2<f32> = vec2<f32>(0.0);

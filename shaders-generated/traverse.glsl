@@ -40,7 +40,7 @@ struct TriangleData {
     bool masked;
 };
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:342)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:353)
 struct AlphaMaskData {
     uint texture_;
     float alpha;
@@ -405,7 +405,7 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
     return hit;
 }
 
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:351)
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:362)
 AlphaMaskData fetch_alpha_mask(uint material) {
     vec4 t = lp_fetch_vec4(scene_materials, scene_alpha_mask_first + material);
     return AlphaMaskData(index_of(t.x), t.y, t.z);
@@ -461,7 +461,7 @@ vec2 texture_uv(uint texture_, uint triangle, float u, float v) {
     }
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:310)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:321)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
@@ -524,7 +524,7 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:274)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:285)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -538,12 +538,12 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:264)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:275)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }
 
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:357)
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:368)
 float coverage(AlphaMaskData mask, vec2 uv) {
     float a = mask.alpha;
     if ((scene_has_textures != 0u) && (mask.texture_ != NONE)) {
@@ -552,7 +552,7 @@ float coverage(AlphaMaskData mask, vec2 uv) {
     return a;
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:369)
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:380)
 bool is_hole(uint triangle, uint material, float u, float v) {
     AlphaMaskData mask = fetch_alpha_mask(material);
     vec2 uv = vec2(0.0);

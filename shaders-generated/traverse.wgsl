@@ -41,7 +41,7 @@ struct TriangleData {
     masked: bool,
 }
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:342)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:353)
 struct AlphaMaskData {
     texture_: u32,
     alpha: f32,
@@ -378,7 +378,7 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
     return hit;
 }
 
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:351)
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:362)
 fn fetch_alpha_mask(material: u32) -> AlphaMaskData {
     let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.alpha_mask_first + material)];
     return AlphaMaskData(index_of(t.x), t.y, t.z);
@@ -434,7 +434,7 @@ fn texture_uv(texture_: u32, triangle: u32, u: f32, v: f32) -> vec2<f32> {
     }
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:310)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:321)
 fn bounded_coordinate(v: f32) -> f32 {
     return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
 }
@@ -497,7 +497,7 @@ fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:274)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:285)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
     let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -511,12 +511,12 @@ fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:264)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:275)
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, false);
 }
 
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:357)
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:368)
 fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
     var a: f32 = mask.alpha;
     if (scene.has_textures != 0u) && (mask.texture_ != NONE) {
@@ -525,7 +525,7 @@ fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
     return a;
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:369)
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:380)
 fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
     let mask: AlphaMaskData = fetch_alpha_mask(material);
     var uv: vec2<f32> = vec2<f32>(0.0);

@@ -400,33 +400,25 @@ fn shader_functions(source: &str) -> Vec<(String, String)> {
     functions
 }
 
+/// Call sites of function `name` in `body` (not those of functions whose names end in it).
+fn call_sites(body: &str, name: &str) -> usize {
+    let call = format!("{name}(");
+    body.match_indices(&call).filter(|(i, _)| !body[..*i].ends_with(|c: char| c.is_alphanumeric() || c == '_')).count()
+}
+
 /// How many copies of `callee` a shader compiler that inlines every call (as GPU drivers do)
 /// makes inside `root`: its call sites, each multiplied by the copies of its caller.
-fn inlined_copies(source: &str, root: &str, callee: &str) -> usize {
-    let functions = shader_functions(source);
-    let calls = |body: &str, name: &str| {
-        body.match_indices(&format!("{name}("))
-            .filter(|(i, _)| !body[..*i].ends_with(|c: char| c.is_alphanumeric() || c == '_'))
-            .count()
-    };
-    fn copies(functions: &[(String, String)], calls: &dyn Fn(&str, &str) -> usize, from: &str, callee: &str) -> usize {
-        let body = &functions.iter().find(|(n, _)| n == from).unwrap_or_else(|| panic!("no function {from}")).1;
-        functions
-            .iter()
-            .filter(|(n, _)| n != from)
-            .map(|(n, _)| {
-                let sites = calls(body, n);
-                if sites == 0 {
-                    0
-                } else if n == callee {
-                    sites
-                } else {
-                    sites * copies(functions, calls, n, callee)
-                }
-            })
-            .sum()
-    }
-    copies(&functions, &calls, root, callee)
+fn inlined_copies(functions: &[(String, String)], root: &str, callee: &str) -> usize {
+    let body = &functions.iter().find(|(n, _)| n == root).unwrap_or_else(|| panic!("no function {root}")).1;
+    functions
+        .iter()
+        .filter(|(n, _)| n != root)
+        .map(|(n, _)| match call_sites(body, n) {
+            0 => 0,
+            sites if n == callee => sites,
+            sites => sites * inlined_copies(functions, n, callee),
+        })
+        .sum()
 }
 
 /// The cost of masks on the GPU runtimes was the hole test (texel fetches) in traversal's
@@ -440,12 +432,13 @@ fn the_hole_test_stays_out_of_the_traversal_loops() {
     assert!(packed.features.alpha_mask);
     for target in [Target::GlslEs300, Target::Wgsl] {
         let source = tracer::kernel::path_tracer_shader(&packed.features, target).unwrap().source;
+        let functions = shader_functions(&source);
         for traversal_loop in ["closest_candidate", "any_hit", "intersect_leaf", "leaf_occludes"] {
-            assert_eq!(inlined_copies(&source, traversal_loop, "is_hole"), 0, "{target:?}: {traversal_loop}");
+            assert_eq!(inlined_copies(&functions, traversal_loop, "is_hole"), 0, "{target:?}: {traversal_loop}");
         }
         for (traversal, loops) in [("trace_closest", 1), ("occluded", 2)] {
-            assert_eq!(inlined_copies(&source, traversal, "is_hole"), 1, "{target:?}: {traversal}");
-            assert_eq!(inlined_copies(&source, traversal, "intersect_triangle"), loops, "{target:?}: {traversal}");
+            assert_eq!(inlined_copies(&functions, traversal, "is_hole"), 1, "{target:?}: {traversal}");
+            assert_eq!(inlined_copies(&functions, traversal, "intersect_triangle"), loops, "{target:?}: {traversal}");
         }
     }
 }

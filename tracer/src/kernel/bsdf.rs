@@ -14,15 +14,14 @@ pub mod bsdf {
     //! scene without the kind, so that scene's kernel carries only the Lambert code (the
     //! Cornell box's kernel has no GGX in it).
 
-    use glam::{Vec3, Vec4Swizzles};
+    use glam::Vec3;
 
     use crate::kernel::metal_rough::{
         metal_rough_eval, metal_rough_pdf, metal_rough_sample, surface_at, BrdfSample, Surface,
     };
     use crate::kernel::rng::random_float;
     use crate::kernel::sampling::{cosine_sample_hemisphere, INV_PI};
-    use crate::kernel::scene_data::{sample_texture, MaterialData, Scene, NONE};
-    use crate::kernel::texture_ref::texture_uv;
+    use crate::kernel::scene_data::{base_color_at, MaterialData, Scene};
     use crate::kernel::traverse::Hit;
 
     /// Lambert: a diffuse albedo (`Bsdf::surface.diffuse`), the only kind of a scene without
@@ -47,11 +46,7 @@ pub mod bsdf {
             let surface = surface_at(scene, material, material_index, hit.triangle, hit.u, hit.v);
             Bsdf { kind: BSDF_METAL_ROUGH, surface }
         } else {
-            let mut albedo = material.base_color;
-            if scene.has_textures != 0 && material.base_texture != NONE {
-                let uv = texture_uv(scene, material.base_texture, hit.triangle, hit.u, hit.v);
-                albedo *= sample_texture(scene, material.base_texture, uv).xyz();
-            }
+            let albedo = base_color_at(scene, material, hit.triangle, hit.u, hit.v);
             let surface = Surface { diffuse: albedo, f0: Vec3::ZERO, alpha: 1.0, specular: 0.0 };
             Bsdf { kind: BSDF_LAMBERT, surface }
         }

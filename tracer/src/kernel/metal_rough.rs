@@ -17,13 +17,11 @@ pub mod metal_rough {
     //! Caps") and the diffuse lobe by the cosine; every pdf is the combined one of both lobes,
     //! which is what MIS with light sampling needs.
 
-    use glam::{Vec3, Vec4Swizzles};
+    use glam::Vec3;
 
     use crate::kernel::lights::luminance;
     use crate::kernel::sampling::{cos_sin_turns, cosine_sample_hemisphere, INV_PI, PI};
-    use crate::kernel::scene_data::{
-        fetch_metal_rough, sample_data_texture, sample_texture, MaterialData, Scene, NONE,
-    };
+    use crate::kernel::scene_data::{base_color_at, fetch_metal_rough, sample_data_texture, MaterialData, Scene, NONE};
     use crate::kernel::texture_ref::texture_uv;
 
     /// Roughness is clamped to at least this (α ≥ 0.002025, Filament's limit for f32): below
@@ -196,19 +194,13 @@ pub mod metal_rough {
         v: f32,
     ) -> Surface {
         let params = fetch_metal_rough(scene, material_index);
-        let mut base = material.base_color;
+        let base = base_color_at(scene, material, triangle, u, v);
         let mut metallic = params.metallic;
         let mut roughness = params.roughness;
-        if scene.has_textures != 0 && (material.base_texture != NONE || params.texture != NONE) {
-            if material.base_texture != NONE {
-                let uv = texture_uv(scene, material.base_texture, triangle, u, v);
-                base *= sample_texture(scene, material.base_texture, uv).xyz();
-            }
-            if params.texture != NONE {
-                let mr = sample_data_texture(scene, params.texture, texture_uv(scene, params.texture, triangle, u, v));
-                roughness *= mr.y;
-                metallic *= mr.z;
-            }
+        if scene.has_textures != 0 && params.texture != NONE {
+            let mr = sample_data_texture(scene, params.texture, texture_uv(scene, params.texture, triangle, u, v));
+            roughness *= mr.y;
+            metallic *= mr.z;
         }
         metal_rough_surface(base, metallic, roughness, params.specular)
     }

@@ -260,6 +260,17 @@ pub mod scene_data {
         }
     }
 
+    /// The base colour of `material` (its fetched data) at barycentrics (u, v) of `triangle`:
+    /// the factor times the base colour texture, when there is one.
+    pub fn base_color_at(scene: &Scene, material: MaterialData, triangle: u32, u: f32, v: f32) -> Vec3 {
+        let mut base = material.base_color;
+        if scene.has_textures != 0 && material.base_texture != NONE {
+            let uv = texture_uv(scene, material.base_texture, triangle, u, v);
+            base *= sample_texture(scene, material.base_texture, uv).xyz();
+        }
+        base
+    }
+
     /// Bilinear lookup of colour texture `index` at `uv` (glTF convention: v = 0 is the top row).
     pub fn sample_texture(scene: &Scene, index: u32, uv: Vec2) -> Vec4 {
         bilinear(scene, index, uv, false)
