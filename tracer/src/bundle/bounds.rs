@@ -95,12 +95,7 @@ fn check_nodes(s: &Scene, triangle_count: usize) -> Result<(), BundleError> {
 /// the texture count.
 fn check_textures(s: &Scene) -> Result<usize, BundleError> {
     let texels = s.texture_texels.len() as u64 * TEXTURE_TEXELS_PER_ELEMENT as u64;
-    // With texture references, their transform texels follow the textures (`check_texture_refs`).
-    let count = if has_texture_refs(s) {
-        (s.texture_ref_first as usize).min(s.texture_info.len())
-    } else {
-        s.texture_info.len()
-    };
+    let count = texture_count(s);
     for (i, info) in s.texture_info.as_slice().iter().take(count).enumerate() {
         let (first, w, h, wrap) = (info.x as u64, info.y as u64, info.z as u64, info.w);
         if w == 0 || h == 0 || first + w * h > texels {
@@ -111,6 +106,16 @@ fn check_textures(s: &Scene) -> Result<usize, BundleError> {
         }
     }
     Ok(count)
+}
+
+/// How many textures `texture_info` describes: with texture references, their transform
+/// texels follow the textures (`check_texture_refs`).
+pub(super) fn texture_count(s: &Scene) -> usize {
+    if has_texture_refs(s) {
+        (s.texture_ref_first as usize).min(s.texture_info.len())
+    } else {
+        s.texture_info.len()
+    }
 }
 
 fn has_texture_refs(s: &Scene) -> bool {

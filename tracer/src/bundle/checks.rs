@@ -77,7 +77,8 @@ pub(super) fn check_consistency(p: &Packed) -> Result<(), BundleError> {
             s.sky_rows.len()
         ));
     }
-    bounds::check_indices(p)
+    bounds::check_indices(p)?;
+    check_texture_images(p)
 }
 
 /// The image size and the uniforms the kernel takes as they are.
@@ -137,6 +138,35 @@ fn check_material_sections(s: &Scene, f: &Features) -> Result<(), BundleError> {
             s.normal_map_first,
             s.alpha_mask_first
         )));
+    }
+    Ok(())
+}
+
+/// The textures' images are the textures `texture_info` describes, laid out as it says.
+fn check_texture_images(p: &Packed) -> Result<(), BundleError> {
+    let images = &p.texture_images;
+    if images.is_empty() {
+        return Ok(());
+    }
+    let fail = |what: String| Err(BundleError::Inconsistent(what));
+    let count = bounds::texture_count(&p.scene);
+    if !p.features.textures || images.len() != count {
+        return fail(format!(
+            "{} texture images for {count} textures (textures: {})",
+            images.len(),
+            p.features.textures
+        ));
+    }
+    let per = crate::kernel::scene_data::TEXTURE_TEXELS_PER_ELEMENT;
+    let mut first = 0u32;
+    for (i, (info, image)) in p.scene.texture_info.as_slice().iter().zip(images).enumerate() {
+        if (info.x, info.y, info.z) != (first, image.width, image.height) {
+            return fail(format!(
+                "texture {i} is {} x {} from texel {}, its image {} x {} from texel {first}",
+                info.y, info.z, info.x, image.width, image.height
+            ));
+        }
+        first += (image.width * image.height).div_ceil(per) * per;
     }
     Ok(())
 }

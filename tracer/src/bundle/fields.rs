@@ -97,7 +97,7 @@ impl<T: Texel> Field for Texels<T> {
         });
     }
     fn read(name: &str, r: &mut Reader) -> Result<Self, BundleError> {
-        Ok(Texels::new(T::get(r.take(name, T::ELEMENT, T::COMPONENTS)?.data)))
+        Ok(Texels::new(T::get(&r.take(name, T::ELEMENT, T::COMPONENTS)?.data)))
     }
 }
 
@@ -149,7 +149,7 @@ impl Field for String {
         w.entry(name, ElementType::U8, 1, self.len() as u64, |out| out.extend_from_slice(self.as_bytes()));
     }
     fn read(name: &str, r: &mut Reader) -> Result<Self, BundleError> {
-        let data = r.take(name, ElementType::U8, 1)?.data;
+        let data = &r.take(name, ElementType::U8, 1)?.data;
         String::from_utf8(data.to_vec())
             .map_err(|_| BundleError::InvalidValue { field: name.to_string(), reason: "not UTF-8".into() })
     }
@@ -180,7 +180,39 @@ macro_rules! record {
     };
 }
 
-record!(Packed { scene, features, triangle_count, light_count });
+/// The packed scene, field by field as [`record!`] stores a struct, except that the texture
+/// atlas travels as its images ([`super::textures`]): `scene.texture_texels` is stored empty
+/// when there are images, and decoded from them on reading.
+impl Field for Packed {
+    fn write(&self, prefix: &str, w: &mut Writer) {
+        let Packed { scene, features, triangle_count, light_count, texture_images } = self;
+        let name = |field| field_name(prefix, field);
+        if texture_images.is_empty() {
+            scene.write(&name("scene"), w);
+        } else {
+            Scene { texture_texels: Texels::default(), ..scene.clone() }.write(&name("scene"), w);
+        }
+        features.write(&name("features"), w);
+        triangle_count.write(&name("triangle_count"), w);
+        light_count.write(&name("light_count"), w);
+        super::textures::write(texture_images, &scene.texture_texels, w);
+    }
+    fn read(prefix: &str, r: &mut Reader) -> Result<Self, BundleError> {
+        let name = |field| field_name(prefix, field);
+        let mut scene = Scene::read(&name("scene"), r)?;
+        let features = Features::read(&name("features"), r)?;
+        let triangle_count = usize::read(&name("triangle_count"), r)?;
+        let light_count = usize::read(&name("light_count"), r)?;
+        let (atlas, texture_images) = super::textures::read(r)?;
+        if !texture_images.is_empty() {
+            if !scene.texture_texels.is_empty() {
+                return Err(BundleError::Inconsistent("the texture atlas is stored as texels and as images".into()));
+            }
+            scene.texture_texels = atlas;
+        }
+        Ok(Packed { scene, features, triangle_count, light_count, texture_images })
+    }
+}
 record!(Features {
     sky,
     textures,

@@ -6,15 +6,19 @@
 //!
 //! ```text
 //! header   "LPBUNDLE" (8 bytes) | version: u32 | entry count: u32 | total length in bytes: u64
-//! entry    name length: u8 | name (UTF-8) | element type: u8 | components: u8 | reserved: u16 (0)
-//!          | count: u64 | zero padding to a multiple of 16 from the start of the bundle
-//!          | data: count × components elements of the element type, little-endian
+//! entry    name length: u8 | name (UTF-8) | element type: u8 | components: u8 | encoding: u8
+//!          | reserved: u8 (0) | count: u64 | zero padding to a multiple of 16 from the start
+//!          | data: count × components elements of the element type, little-endian (encoding 0)
+//!            or its stored length: u64 and an LZMA2 stream of those elements (encoding 1)
 //! ```
 //!
 //! An entry is one field of [`Packed`], named by its path (`scene.triangles`, `features.sky`,
 //! `triangle_count`), plus `meta.name` (the scene's name). A `Texels<Vec4>` is `f32` × 4 × texels,
 //! a `Vec3` uniform `f32` × 3 × 1, a `u32` uniform `u32` × 1 × 1, a flag `u8` × 1 × 1 (0 or 1).
-//! Data starts 16-byte aligned, so a reader may view the arrays in place.
+//! Plain data starts 16-byte aligned, so a reader may view the arrays in place; numeric arrays
+//! over 4 KiB are compressed ([`format`] says why and how). The texture atlas is
+//! the exception: it travels as the image files it was decoded from ([`textures`]), so a bundle
+//! is no larger than the scene the artist exported.
 //!
 //! Decoding is strict: wrong magic, another version, a length that disagrees with the input,
 //! truncation, an unknown, missing, duplicated or mistyped field, or values that contradict each
@@ -26,14 +30,17 @@
 //! does not compile until the bundle stores it.
 //!
 //! [`format`] reads and writes the container (header, entries, alignment), [`fields`] maps each
-//! field to its entry, [`checks`] (with `bounds`) refuses values that contradict each other.
+//! field to its entry, [`textures`] stores the atlas as images, [`checks`] (with `bounds`)
+//! refuses values that contradict each other.
 //!
-//! No I/O and no threads here: the module compiles for `wasm32-unknown-unknown`.
+//! No I/O here: the module compiles for `wasm32-unknown-unknown` (where the texture decoder's rayon
+//! runs on the calling thread).
 
 mod bounds;
 mod checks;
 mod fields;
 mod format;
+mod textures;
 
 use crate::pack::Packed;
 use checks::check_consistency;
@@ -49,8 +56,10 @@ pub const MAGIC: [u8; 8] = *b"LPBUNDLE";
 /// `scene.normal_map_first`. 5: `features.alpha_mask`, `scene.has_alpha_mask`,
 /// `scene.alpha_mask_first`, the alpha-mask flag in each triangle's third texel. 6:
 /// `features.texture_transform`, `features.texcoord1`, `scene.has_texture_transform`,
-/// `scene.has_texcoord1`, `scene.texture_ref_first`, `scene.texcoord1_first`.)
-pub const VERSION: u32 = 6;
+/// `scene.has_texcoord1`, `scene.texture_ref_first`, `scene.texcoord1_first`. 7: textures as
+/// image files, `textures.images`, `textures.image_ends`, `textures.image_of`; LZMA2-compressed
+/// entries.)
+pub const VERSION: u32 = 7;
 /// The largest bundle accepted (and produced): well within wasm32's 4 GiB address space.
 pub const MAX_BUNDLE_BYTES: u64 = 1 << 30;
 /// File extension used for bundles (the server serves `/bundles/<hash>.lpb`).
@@ -135,6 +144,12 @@ pub fn encode_named(name: &str, packed: &Packed) -> Vec<u8> {
     kernel_fingerprint().write(KERNEL_FIELD, &mut w);
     packed.write("", &mut w);
     w.finish()
+}
+
+/// Each entry's name and data, in the bundle's order (the container is checked, the data not
+/// interpreted): what the bytes of a bundle are spent on.
+pub fn entries(bytes: &[u8]) -> Result<Vec<(&str, &[u8])>, BundleError> {
+    Ok(Reader::parse(bytes)?.entries().collect())
 }
 
 /// Decodes a bundle's packed scene (its name is dropped; see [`Bundle::decode`]).
@@ -316,6 +331,39 @@ mod tests {
         let at = entry_offset(&bad, "scene.nodes");
         bad[at - 1] = b'z';
         assert_eq!(decode(&bad).unwrap_err(), BundleError::MissingField("scene.nodes".into()));
+    }
+
+    #[test]
+    fn compressed_entries_are_checked() {
+        let good = encode(&textured_with_sky());
+        let at = entry_offset(&good, "scene.sky");
+        assert_eq!(good[at + 2], 1, "the sky is large enough to be compressed");
+        let data = (at + 12).next_multiple_of(ALIGN);
+        let stored = u64::from_le_bytes(good[data..data + 8].try_into().unwrap()) as usize;
+        assert_eq!(stored, entries(&good).unwrap().iter().find(|e| e.0 == "scene.sky").unwrap().1.len());
+        let bad_entry = |bytes: &[u8], says: &str| match decode(bytes).unwrap_err() {
+            BundleError::BadEntry { reason, .. } => assert!(reason.contains(says), "{reason}"),
+            other => panic!("expected a bad entry ({says}), got {other}"),
+        };
+        // Corrupt compressed data, a count it does not fill, an unknown encoding.
+        let mut bad = good.clone();
+        bad[data + 8 + stored / 2..data + 8 + stored / 2 + 16].fill(0x55);
+        bad_entry(&bad, "corrupt");
+        let mut bad = good.clone();
+        let count = u64::from_le_bytes(good[at + 4..at + 12].try_into().unwrap());
+        bad[at + 4..at + 12].copy_from_slice(&(count + 1).to_le_bytes());
+        bad_entry(&bad, "corrupt or shorter");
+        bad[at + 4..at + 12].copy_from_slice(&(count - 1).to_le_bytes());
+        bad_entry(&bad, "longer than its count");
+        bad[at + 4..at + 12].copy_from_slice(&(1u64 << 40).to_le_bytes());
+        bad_entry(&bad, "more than 1 GiB");
+        let mut bad = good.clone();
+        bad[at + 2] = 7;
+        bad_entry(&bad, "unknown encoding");
+        // A stored length past the end.
+        let mut bad = good;
+        bad[data..data + 8].copy_from_slice(&u64::MAX.to_le_bytes());
+        assert!(matches!(decode(&bad).unwrap_err(), BundleError::Truncated { .. }));
     }
 
     #[test]

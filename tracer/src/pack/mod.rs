@@ -28,7 +28,7 @@ mod textures;
 // here, where the scene's features are decided, for the callers that pack scenes.
 pub use crate::kernel::features::{Features, RenderSettings, Strategy};
 pub use texture_refs::TextureRefs;
-pub use textures::{pack_textures, PackedTextures};
+pub use textures::{pack_textures, AtlasImage, PackedTextures};
 
 /// The packed scene.
 #[derive(Clone, Debug)]
@@ -37,6 +37,9 @@ pub struct Packed {
     pub features: Features,
     pub triangle_count: usize,
     pub light_count: usize,
+    /// The textures of `scene.texture_texels`, in order, as images: what a bundle ships instead
+    /// of the texels (empty when the scene has no textures).
+    pub texture_images: Vec<AtlasImage>,
 }
 
 /// Why a scene cannot be packed.
@@ -124,7 +127,8 @@ pub fn pack_with_textures(
     let parts = Parts { geometry, materials, lights, sky, camera, scene_scale };
     let light_count = parts.lights.count;
     let kernel_scene = kernel_scene(parts, scene, textures, &features, settings, ordered.leaf_stack_limit);
-    Ok(Packed { scene: kernel_scene, features, triangle_count: ordered.triangles.len(), light_count })
+    let texture_images = if features.textures { textures.images.clone() } else { Vec::new() };
+    Ok(Packed { scene: kernel_scene, features, triangle_count: ordered.triangles.len(), light_count, texture_images })
 }
 
 /// What `scene` uses, once its triangles are in BVH order and its emitters and masked

@@ -6,7 +6,16 @@ use kernel_dsl::Texels;
 
 use super::texture_refs::{self, TextureRefs};
 use crate::kernel::scene_data::{self, TEXTURE_TEXELS_PER_ELEMENT};
-use crate::scene::{Scene, Wrap};
+use crate::scene::{EncodedImage, Scene, Wrap};
+
+/// One texture of the atlas as an image: its size and the file its texels were decoded from
+/// (`None` for texels made in code). Bundles carry the atlas this way, as image files.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AtlasImage {
+    pub width: u32,
+    pub height: u32,
+    pub file: Option<EncodedImage>,
+}
 
 /// The texture half of packing: the texel atlas and its per-texture table. It depends only on
 /// the scene's textures and materials, so it is made once (in parallel with the BVH build, see
@@ -27,6 +36,8 @@ pub struct PackedTextures {
     /// Mean linear luminance of each texture some material emits through (`None` for the
     /// others): the emitting triangles' power estimate for light selection.
     pub emissive_mean_luminance: Vec<Option<f32>>,
+    /// Each texture of [`PackedTextures::texels`], in order, as an image (empty when unused).
+    pub images: Vec<AtlasImage>,
 }
 
 /// Packs the textures of `scene` (see [`PackedTextures`]). A loaded scene's textures already
@@ -93,7 +104,11 @@ pub fn pack_textures(scene: &Scene) -> PackedTextures {
         Some(r) => r.texture_info(&info),
         None => info,
     };
-    PackedTextures { used, texels, info: Texels::new(info), refs, emissive_mean_luminance }
+    let images = textures
+        .iter()
+        .map(|t| AtlasImage { width: t.width, height: t.height, file: t.texels.source().cloned() })
+        .collect();
+    PackedTextures { used, texels, info: Texels::new(info), refs, emissive_mean_luminance, images }
 }
 
 fn wrap_code(w: Wrap) -> u32 {

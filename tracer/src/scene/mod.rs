@@ -97,7 +97,7 @@ pub fn builtin(name: &str) -> Option<Scene> {
 pub use gltf_loader::load_gltf_slice;
 pub use obj_loader::load_obj_slice;
 pub use sky::{load_sky, load_sky_slice, SkyFormat};
-pub use texture::{srgb_to_linear, srgba8_to_linear, TextureTexels};
+pub use texture::{srgb_to_linear, srgba8_to_linear, EncodedImage, TextureTexels};
 pub use texture_ref::UvTransform;
 
 /// Most triangles a loaded scene may have after instancing (each [`Triangle`] is 100 bytes,

@@ -45,7 +45,13 @@ pub struct TextureTexels {
     /// [`TextureTexels::mean_luminance`], once computed (loaders compute it while decoding
     /// emissive textures). Shared by clones: the texels cannot change.
     mean_luminance: Arc<OnceLock<f32>>,
+    /// The image file these texels were decoded from, when they were ([`TextureTexels::source`]).
+    source: Option<EncodedImage>,
 }
+
+/// An image file's bytes (PNG, JPEG or WebP) as the scene shipped them, shared by every texture
+/// decoded from it. Bundles carry textures this way: a JPEG is a tenth of its texels or less.
+pub type EncodedImage = Arc<[u8]>;
 
 impl TextureTexels {
     /// The atlas holding these texels, from element [`TextureTexels::first_element`] on.
@@ -56,6 +62,12 @@ impl TextureTexels {
     /// Index of the atlas element holding the first texel.
     pub fn first_element(&self) -> usize {
         self.first
+    }
+
+    /// The image file these texels are the decoding of ([`ImageHeader::decode_into`]), when
+    /// they were loaded from one; `None` for texels made in code.
+    pub fn source(&self) -> Option<&EncodedImage> {
+        self.source.as_ref()
     }
 
     /// Mean linear luminance (sRGB decoded, alpha ignored), the estimate of an emissive
@@ -83,7 +95,7 @@ impl From<Vec<u32>> for TextureTexels {
             lanes[..four.len()].copy_from_slice(four);
             UVec4::from_array(lanes)
         });
-        TextureTexels { atlas, first: 0, len: texels.len(), mean_luminance: Arc::default() }
+        TextureTexels { atlas, first: 0, len: texels.len(), mean_luminance: Arc::default(), source: None }
     }
 }
 
@@ -317,6 +329,13 @@ pub(crate) fn decode_textures(
             })
             .collect::<Vec<_>>();
     });
+    // Each image's bytes once, shared by its textures (only the images some texture shows).
+    let mut sources: Vec<Option<EncodedImage>> = vec![None; images.len()];
+    for t in textures {
+        if let (Some(source), Some((bytes, _))) = (sources.get_mut(t.image), images.get(t.image)) {
+            source.get_or_insert_with(|| Arc::from(*bytes));
+        }
+    }
     let mut means = Vec::with_capacity(results.len());
     let mut failures = Vec::new();
     for (image, r) in results.into_iter().enumerate() {
@@ -341,10 +360,52 @@ pub(crate) fn decode_textures(
                     first,
                     len: header.texels() as usize,
                     mean_luminance: Arc::new(mean.map(OnceLock::from).unwrap_or_default()),
+                    source: sources.get(t.image).cloned().flatten(),
                 },
                 wrap_s: t.wrap_s,
                 wrap_t: t.wrap_t,
             }
+        })
+        .collect())
+}
+
+/// Decodes image files into one atlas in the packed layout (see [`TextureTexels`]), texture `i`
+/// showing image `image_of[i]`: how a bundle's textures become texels again. The same decoder
+/// as loading, so the texels are the ones the scene was packed with. Every image must be a
+/// PNG, JPEG or WebP; `max_texels` bounds all the textures together, checked from the headers
+/// before anything is allocated. The textures share one atlas and their images' bytes; their
+/// wrap modes are `Repeat` (the caller's to set).
+pub fn decode_atlas(images: &[EncodedImage], image_of: &[u32], max_texels: u64) -> Result<Vec<Texture>, SceneError> {
+    let mut headers = Vec::with_capacity(images.len());
+    for (i, bytes) in images.iter().enumerate() {
+        let name = format!("image {i}");
+        match probe_srgb(bytes, &name, MAX_IMAGE_TEXELS)? {
+            Probed::Image(header) => headers.push(header),
+            Probed::Unsupported(format) => {
+                return Err(SceneError::Image { name, message: format!("{format} is not a texture format") })
+            }
+        }
+    }
+    let mut pending = Vec::with_capacity(image_of.len());
+    let mut texels = 0u64;
+    for &image in image_of {
+        let header = headers.get(image as usize).ok_or_else(|| {
+            SceneError::Malformed(format!("a texture shows image {image}; there are {}", images.len()))
+        })?;
+        texels += header.texels();
+        if texels > max_texels {
+            return Err(SceneError::Malformed(format!("the textures hold more than {max_texels} texels")));
+        }
+        pending.push(PendingTexture { image: image as usize, wrap_s: Wrap::Repeat, wrap_t: Wrap::Repeat });
+    }
+    let pairs: Vec<(&[u8], &ImageHeader)> = images.iter().map(|b| &**b).zip(&headers).collect();
+    let decoded = decode_textures(&pairs, &pending, &[]).map_err(|mut failures| failures.swap_remove(0).1)?;
+    Ok(decoded
+        .into_iter()
+        .zip(image_of)
+        .map(|(t, &image)| Texture {
+            texels: TextureTexels { source: images.get(image as usize).cloned(), ..t.texels },
+            ..t
         })
         .collect())
 }
