@@ -231,6 +231,21 @@ fn api_report(server: &Server, api: &str, extra: &[(&str, &str)]) -> Value {
     browse(&server.url, "api", &options)
 }
 
+/// A bundle's textures travel as the files they were loaded from (DamagedHelmet: JPEGs) and the
+/// page decodes them in wasm: to the very texels the native loader made, or the browser and
+/// the CPU reference would render different scenes.
+#[test]
+fn the_page_decodes_a_bundles_images_to_the_native_texels() {
+    let helmet = common::test_data("scenes/khronos/DamagedHelmet/glTF-Binary/DamagedHelmet.glb");
+    let server = Server::start(&[helmet.to_str().unwrap()]);
+    let report = api_report(&server, "webgl2", &[("scene", "DamagedHelmet")]);
+    no_page_error(&report);
+    let native = packed(&scene::load(&helmet).expect("DamagedHelmet"), Strategy::Mis);
+    assert!(native.texture_images.len() >= 4, "the scene has JPEG textures");
+    assert_eq!(report["info"]["name"], "DamagedHelmet");
+    assert_eq!(report["info"]["textureChecksum"], native.texture_checksum(), "the page's texels differ");
+}
+
 /// The page runs WebGPU when asked, and by default (auto) where the browser offers it, WebGL2
 /// when asked; the read-out names the API and the adapter, and both render the scene.
 #[test]

@@ -199,7 +199,7 @@ fn mutate_value(root: &mut Value, rng: &mut Rng) {
     let mut all = Vec::new();
     pointers(root, String::new(), &mut all);
     let numbers: Vec<&String> = all.iter().filter(|p| root.pointer(p).is_some_and(Value::is_number)).collect();
-    let choice = rng.below(10);
+    let choice = rng.below(11);
     match choice {
         // Most often: a number becomes an interesting one (sizes, offsets, indices, enums).
         0..=3 if !numbers.is_empty() => {
@@ -287,6 +287,7 @@ fn mutate_value(root: &mut Value, rng: &mut Rng) {
                 }
             }
         }
+        9 => grow_accessor_count(root, rng),
         _ => {
             // A reference to a small index (often out of range, or self-referencing).
             let p = rng.pick(&numbers).map(|p| p.to_string()).unwrap_or_default();
@@ -294,6 +295,28 @@ fn mutate_value(root: &mut Value, rng: &mut Rng) {
                 *v = Value::Number((rng.below(6) as i64).into());
             }
         }
+    }
+}
+/// An accessor's count grown (doubled, times up to 100,000, or to 3,000,000), half the time
+/// with its buffer view dropped: the specification zero-fills such an accessor, so a few bytes
+/// of JSON declare millions of coincident vertices (issue 31's hang was one; the loader and
+/// the BVH build must stay O(n log n) on them).
+fn grow_accessor_count(root: &mut Value, rng: &mut Rng) {
+    let Some(Value::Array(accessors)) = root.get_mut("accessors") else { return };
+    if accessors.is_empty() {
+        return;
+    }
+    let i = rng.below(accessors.len());
+    let Some(accessor) = accessors[i].as_object_mut() else { return };
+    let old = accessor.get("count").and_then(Value::as_u64).unwrap_or(1).max(1);
+    let grown = match rng.below(3) {
+        0 => old.saturating_mul(2),
+        1 => old.saturating_mul(2 + rng.below(100_000) as u64),
+        _ => 3_000_000,
+    };
+    accessor.insert("count".to_owned(), grown.into());
+    if rng.one_in(2) {
+        accessor.remove("bufferView");
     }
 }
 
@@ -503,6 +526,22 @@ mod tests {
         let out = gltf(&glb, &mut rng).unwrap();
         let (j, bin) = crate::glb::split(&out).expect("still a GLB");
         assert!(serde_json::from_slice::<Value>(j).is_ok() && bin == Some(&[0u8; 12][..]));
+    }
+
+    #[test]
+    fn accessor_counts_grow_to_millions_with_and_without_their_buffer_view() {
+        let json = br#"{"accessors":[{"count":3,"bufferView":0}],"bufferViews":[{"byteLength":12}]}"#;
+        let mut rng = Rng::new(11);
+        let (mut millions, mut zero_filled) = (0, 0);
+        for _ in 0..2000 {
+            let out: Value = serde_json::from_slice(&gltf(json, &mut rng).unwrap()).unwrap();
+            let accessor = &out["accessors"][0];
+            if accessor["count"].as_u64().is_some_and(|c| c >= 1_000_000) {
+                millions += 1;
+                zero_filled += usize::from(accessor.get("bufferView").is_none());
+            }
+        }
+        assert!(millions >= 20 && zero_filled >= 5, "{millions} grown to millions, {zero_filled} of them zero-filled");
     }
 
     #[test]

@@ -407,6 +407,7 @@ impl Viewer {
             set(&info, "name", loaded.name.as_str());
             set(&info, "triangles", loaded.packed.triangle_count as u32);
             set(&info, "lights", loaded.packed.light_count as u32);
+            set(&info, "textureChecksum", loaded.packed.texture_checksum());
             let features = Object::new();
             for (name, on) in [
                 ("sky", f.sky),

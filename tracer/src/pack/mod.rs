@@ -227,6 +227,13 @@ fn kernel_scene(
 }
 
 impl Packed {
+    /// FNV-1a over the texture atlas's texels: the page reports it, so a test can tell that the
+    /// browser decoded a bundle's images to the very texels the native loader made.
+    pub fn texture_checksum(&self) -> u32 {
+        let words: &[u32] = bytemuck::cast_slice(self.scene.texture_texels.as_slice());
+        words.iter().flat_map(|w| w.to_le_bytes()).fold(0x811c_9dc5, |h, b| (h ^ b as u32).wrapping_mul(0x0100_0193))
+    }
+
     /// Sets the render settings that are uniforms (no repacking needed).
     pub fn apply(&mut self, settings: &RenderSettings) {
         let s = &mut self.scene;
