@@ -50,7 +50,7 @@ pub const MAGIC: [u8; 8] = *b"LPBUNDLE";
 /// `scene.alpha_mask_first`, the alpha-mask flag in each triangle's third texel. 6:
 /// `features.texture_transform`, `features.texcoord1`, `scene.has_texture_transform`,
 /// `scene.has_texcoord1`, `scene.texture_ref_first`, `scene.texcoord1_first`.)
-pub const VERSION: u32 = 6;
+pub const VERSION: u32 = 7;
 /// The largest bundle accepted (and produced): well within wasm32's 4 GiB address space.
 pub const MAX_BUNDLE_BYTES: u64 = 1 << 30;
 /// File extension used for bundles (the server serves `/bundles/<hash>.lpb`).

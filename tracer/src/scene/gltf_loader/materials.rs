@@ -86,7 +86,8 @@ impl Loader<'_> {
             normal_scale,
             alpha,
             alpha_cutoff,
-            texture_uvs: [base_uv, emissive_uv, metal_rough_uv, normal_uv],
+            texture_uvs: [base_uv, emissive_uv, metal_rough_uv, normal_uv, UvTransform::default()],
+            ..Material::diffuse("", Vec3::ONE)
         })
     }
 
