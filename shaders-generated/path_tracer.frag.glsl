@@ -154,7 +154,7 @@ struct Bsdf {
     Surface surface;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:169)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:171)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -225,13 +225,13 @@ const float MIN_REFLECTION_COSINE = 0.01;
 const uint BSDF_METAL_ROUGH = 1u;
 // bsdf::BSDF_DIELECTRIC (lightport-tracer/src/kernel/bsdf.rs:39)
 const uint BSDF_DIELECTRIC = 2u;
-// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:27)
+// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:29)
 const uint RR_START_DEPTH = 3u;
-// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:30)
+// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:32)
 const float RR_MAX_SURVIVAL = 0.95;
-// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:33)
+// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:35)
 const float ORIGIN_OFFSET = 4e-6;
-// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:36)
+// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:38)
 const float SHADOW_RAY_SHORTENING = 1.0 - 0.0001;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -845,7 +845,7 @@ float power_heuristic(float a, float b) {
     return a2 + b2 > 0.0 ? a2 / (a2 + b2) : 0.0;
 }
 
-// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:47)
+// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:49)
 float hit_emission_weight(float scatter_pdf, float light_pdf) {
     if (scatter_pdf <= 0.0 || (scene_strategy == STRATEGY_BSDF)) {
         return 1.0;
@@ -959,7 +959,7 @@ GlassData fetch_glass(uint material) {
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:228)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:230)
 vec3 volume_transmittance(uint material, float t) {
     vec3 sigma = fetch_glass(material).sigma_a;
     return vec3(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -1052,7 +1052,7 @@ vec3 bsdf_normal(Bsdf b, vec3 ns, vec3 ng, vec3 dir) {
     return (1u != 0u) && (b.kind == BSDF_METAL_ROUGH) ? (dot(ns, dir) < 0.0 ? ns : ng) : (1u != 0u) && (b.kind == BSDF_DIELECTRIC) ? (dot(ns, dir) < 0.0 ? ns : ng) : ns;
 }
 
-// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:40)
+// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:42)
 vec3 offset_origin(vec3 p, vec3 n) {
     float eps = (lp_max_element_vec3(abs(p)) + scene_scene_scale) * ORIGIN_OFFSET;
     return p + n * eps;
@@ -1443,7 +1443,7 @@ vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:181)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:183)
 vec3 sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     vec3 direct = vec3(0.0);
@@ -1582,7 +1582,7 @@ vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }
 
-// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:60)
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:62)
 vec4 render_sample(uint x, uint y) {
     uint rng = pixel_seed(y * scene_width + x, scene_frame_seed);
     vec2 film = vec2(lp_u32_to_f32(x) + random_float(rng), lp_u32_to_f32(y) + random_float(rng));

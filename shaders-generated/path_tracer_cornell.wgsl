@@ -109,7 +109,7 @@ struct Bsdf {
     surface: Surface,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:169)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:171)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -146,13 +146,13 @@ const STRATEGY_MIS: u32 = 2u;
 const STACK_SIZE: u32 = 11u;
 // bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:33)
 const BSDF_LAMBERT: u32 = 0u;
-// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:27)
+// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:29)
 const RR_START_DEPTH: u32 = 3u;
-// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:30)
+// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:32)
 const RR_MAX_SURVIVAL: f32 = 0.95;
-// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:33)
+// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:35)
 const ORIGIN_OFFSET: f32 = 4e-6;
-// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:36)
+// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:38)
 const SHADOW_RAY_SHORTENING: f32 = 1.0 - 0.0001;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -506,7 +506,7 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     return select(0.0, a2 / (a2 + b2), a2 + b2 > 0.0);
 }
 
-// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:47)
+// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:49)
 fn hit_emission_weight(scatter_pdf: f32, light_pdf: f32) -> f32 {
     if scatter_pdf <= 0.0 || (scene.strategy == STRATEGY_BSDF) {
         return 1.0;
@@ -566,7 +566,7 @@ fn bsdf_normal(b: Bsdf, ns: vec3<f32>, ng: vec3<f32>, dir: vec3<f32>) -> vec3<f3
     }
 }
 
-// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:40)
+// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:42)
 fn offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let eps: f32 = (lp_max_element_vec3(abs(p)) + scene.scene_scale) * ORIGIN_OFFSET;
     return p + n * eps;
@@ -720,7 +720,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     return select(vec3<f32>(0.0), b.surface.diffuse * INV_PI, wi.z > 0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:181)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:183)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> vec3<f32> {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var direct: vec3<f32> = vec3<f32>(0.0);
@@ -769,7 +769,7 @@ fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }
 
-// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:60)
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:62)
 fn render_sample(x: u32, y: u32) -> vec4<f32> {
     var rng: u32 = pixel_seed(y * scene.width + x, scene.frame_seed);
     let film: vec2<f32> = vec2<f32>(lp_u32_to_f32(x) + random_float(&rng), lp_u32_to_f32(y) + random_float(&rng));
