@@ -285,7 +285,8 @@ impl Material {
     /// attenuation distance (per scene unit), 0 without a volume or with an infinite distance.
     /// A colour channel of 0 absorbs as 1e-6 would (finite σa).
     pub fn absorption(&self) -> Vec3 {
-        if !self.has_volume() || !(self.attenuation_distance > 0.0) || !self.attenuation_distance.is_finite() {
+        let d = self.attenuation_distance;
+        if !self.has_volume() || !d.is_finite() || d <= 0.0 {
             return Vec3::ZERO;
         }
         let c = self.attenuation_color.clamp(Vec3::splat(1e-6), Vec3::ONE);
