@@ -139,6 +139,8 @@ fn feature_list(f: &Features) -> String {
         (f.alpha_mask, "alpha-mask"),
         (f.texture_transform, "texture-transform"),
         (f.texcoord1, "texcoord1"),
+        (f.transmission, "transmission"),
+        (f.volume, "volume"),
     ]
     .iter()
     .filter(|(on, _)| *on)
@@ -284,7 +286,19 @@ fn lambert(mut scene: Scene) -> Scene {
 fn transformed(mut scene: Scene) -> Scene {
     let t = tracer::scene::UvTransform { offset: glam::Vec2::new(0.25, 0.5), rotation: 0.3, ..Default::default() };
     for m in &mut scene.materials {
-        m.texture_uvs = [t; 4];
+        m.texture_uvs = [t; 5];
+    }
+    scene
+}
+
+/// `scene` with every non-emissive material transmissive glass with an absorbing volume
+/// (`Features::transmission`, `Features::volume`).
+fn glass(mut scene: Scene) -> Scene {
+    for m in scene.materials.iter_mut().filter(|m| !m.is_emissive()) {
+        m.transmission = 1.0;
+        m.thickness = 1.0;
+        m.attenuation_color = glam::Vec3::new(0.9, 0.7, 0.5);
+        m.attenuation_distance = 1.0;
     }
     scene
 }
@@ -295,7 +309,7 @@ fn on_texcoord1(mut scene: Scene) -> Scene {
         t.uvs1 = t.uvs;
     }
     for m in &mut scene.materials {
-        m.texture_uvs = [tracer::scene::UvTransform { texcoord: 1, ..Default::default() }; 4];
+        m.texture_uvs = [tracer::scene::UvTransform { texcoord: 1, ..Default::default() }; 5];
     }
     scene
 }
@@ -336,6 +350,7 @@ fn main() -> Result<()> {
         ("MetalRoughSpheres, every material Lambert", lambert(scene::metal_rough_spheres())),
         ("alpha-masked screen (built-in, alpha mask)", scene::alpha_masked_screen()),
         ("alpha-masked screen, every material opaque", opaque(scene::alpha_masked_screen())),
+        ("MetalRoughSpheres, every sphere absorbing glass", glass(scene::metal_rough_spheres())),
     ];
 
     let context = HeadlessContext::new()?;

@@ -32,7 +32,7 @@ struct SceneUniforms {
 @group(0) @binding(1) var<storage, read> lp_scene_vec4f: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> lp_scene_vec4u: array<vec4<u32>>;
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:108)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:112)
 struct TriangleData {
     v0: vec3<f32>,
     v1: vec3<f32>,
@@ -42,7 +42,7 @@ struct TriangleData {
     masked: bool,
 }
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:120)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:124)
 struct MaterialData {
     base_color: vec3<f32>,
     base_texture: u32,
@@ -50,7 +50,7 @@ struct MaterialData {
     emissive_texture: u32,
 }
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:353)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:357)
 struct AlphaMaskData {
     texture_: u32,
     alpha: f32,
@@ -144,7 +144,7 @@ fn luminance(c: vec3<f32>) -> f32 {
     return dot(c, vec3<f32>(0.2126, 0.7152, 0.0722));
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:132)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
@@ -167,19 +167,19 @@ fn light_pmf(index: u32) -> f32 {
     return lp_scene_vec4f[scene.lp_start_lights + index * LIGHT_TEXELS].z;
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:151)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:155)
 fn fetch_material(index: u32) -> MaterialData {
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + index * MATERIAL_TEXELS];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (index * MATERIAL_TEXELS + 1u)];
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:321)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:325)
 fn bounded_coordinate(v: f32) -> f32 {
     return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
 }
 
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:186)
 fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     if mode == WRAP_CLAMP {
         return clamp(i, 0i, size - 1i);
@@ -192,7 +192,7 @@ fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     }
 }
 
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:220)
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:224)
 fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     let w: i32 = bitcast<i32>(info.y);
     let h: i32 = bitcast<i32>(info.z);
@@ -204,7 +204,7 @@ fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
 }
 
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:240)
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:244)
 fn decode_unorm8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -213,12 +213,12 @@ fn decode_unorm8(word: u32) -> vec4<f32> {
     return vec4<f32>(r, g, b, a);
 }
 
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:199)
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:203)
 fn srgb_to_linear(c: f32) -> f32 {
     return select(pow((c + 0.055) / 1.055, 2.4), c / 12.92, c <= 0.04045);
 }
 
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:208)
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:212)
 fn decode_srgba8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -227,7 +227,7 @@ fn decode_srgba8(word: u32) -> vec4<f32> {
     return vec4<f32>(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:254)
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:258)
 fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     let word: u32 = texel_word(info, x, y);
     if data {
@@ -237,7 +237,7 @@ fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:285)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:289)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
     let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -251,7 +251,7 @@ fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:275)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:279)
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, false);
 }
@@ -264,7 +264,7 @@ fn texcoord1(triangle: u32, u: f32, v: f32) -> vec2<f32> {
     return vec2<f32>(a.x, a.y) * (1.0 - u - v) + vec2<f32>(a.z, a.w) * u + vec2<f32>(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:172)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:176)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + base].w, lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].w);
@@ -396,7 +396,7 @@ fn search_sky_column(row: u32, u: f32) -> u32 {
     return lo;
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:136)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:140)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];
@@ -411,13 +411,13 @@ fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
     return vec2<f32>(s * (1.0 - u2), s * u2);
 }
 
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:362)
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:366)
 fn fetch_alpha_mask(material: u32) -> AlphaMaskData {
     let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.alpha_mask_first + material)];
     return AlphaMaskData(index_of(t.x), t.y, t.z);
 }
 
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:368)
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:372)
 fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
     var a: f32 = mask.alpha;
     if (scene.has_textures != 0u) && (mask.texture_ != NONE) {
@@ -426,7 +426,7 @@ fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
     return a;
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:380)
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:384)
 fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
     let mask: AlphaMaskData = fetch_alpha_mask(material);
     var uv: vec2<f32> = vec2<f32>(0.0);

@@ -16,7 +16,7 @@ uniform uint scene_has_textures;
 uniform uint scene_has_texture_transform;
 uniform uint scene_has_texcoord1;
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:120)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:124)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -24,7 +24,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:303)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:307)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -277,12 +277,12 @@ BrdfSample metal_rough_sample(Surface s, vec3 wo, vec3 u) {
     return BrdfSample(wi, pdf, weight);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:132)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:312)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:316)
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
@@ -296,7 +296,7 @@ vec2 texcoord1(uint triangle, float u, float v) {
     return vec2(a.x, a.y) * (1.0 - u - v) + vec2(a.z, a.w) * u + vec2(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:172)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:176)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -338,12 +338,12 @@ vec2 texture_uv(uint texture_, uint triangle, float u, float v) {
     }
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:321)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:325)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
 
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:186)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -356,7 +356,7 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:220)
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:224)
 uint texel_word(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -368,7 +368,7 @@ uint texel_word(uvec4 info, int x, int y) {
     return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
 }
 
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:240)
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:244)
 vec4 decode_unorm8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -377,12 +377,12 @@ vec4 decode_unorm8(uint word) {
     return vec4(r, g, b, a);
 }
 
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:199)
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:203)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:208)
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:212)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -391,7 +391,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:254)
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:258)
 vec4 texel_as(uvec4 info, int x, int y, bool data) {
     uint word = texel_word(info, x, y);
     if (data) {
@@ -401,7 +401,7 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:285)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:289)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -415,12 +415,12 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:275)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:279)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }
 
-// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:265)
+// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:269)
 vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
     vec3 base = material.base_color;
     if ((scene_has_textures != 0u) && (material.base_texture != NONE)) {
@@ -430,7 +430,7 @@ vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
     return base;
 }
 
-// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:280)
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:284)
 vec4 sample_data_texture(uint index, vec2 uv) {
     return bilinear(index, uv, true);
 }

@@ -87,7 +87,7 @@ fn lp_is_nan(x: f32) -> bool {
     return (bitcast<u32>(x) & 0x7fffffffu) > 0x7f800000u;
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:132)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
@@ -161,7 +161,7 @@ fn texcoord1(triangle: u32, u: f32, v: f32) -> vec2<f32> {
     return vec2<f32>(a.x, a.y) * (1.0 - u - v) + vec2<f32>(a.z, a.w) * u + vec2<f32>(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:172)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:176)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + base].w, lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].w);
@@ -203,12 +203,12 @@ fn texture_uv(texture_: u32, triangle: u32, u: f32, v: f32) -> vec2<f32> {
     }
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:321)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:325)
 fn bounded_coordinate(v: f32) -> f32 {
     return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
 }
 
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:186)
 fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     if mode == WRAP_CLAMP {
         return clamp(i, 0i, size - 1i);
@@ -221,7 +221,7 @@ fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     }
 }
 
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:220)
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:224)
 fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     let w: i32 = bitcast<i32>(info.y);
     let h: i32 = bitcast<i32>(info.z);
@@ -233,7 +233,7 @@ fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
 }
 
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:240)
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:244)
 fn decode_unorm8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -242,12 +242,12 @@ fn decode_unorm8(word: u32) -> vec4<f32> {
     return vec4<f32>(r, g, b, a);
 }
 
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:199)
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:203)
 fn srgb_to_linear(c: f32) -> f32 {
     return select(pow((c + 0.055) / 1.055, 2.4), c / 12.92, c <= 0.04045);
 }
 
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:208)
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:212)
 fn decode_srgba8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -256,7 +256,7 @@ fn decode_srgba8(word: u32) -> vec4<f32> {
     return vec4<f32>(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:254)
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:258)
 fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     let word: u32 = texel_word(info, x, y);
     if data {
@@ -266,7 +266,7 @@ fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:285)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:289)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
     let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -280,7 +280,7 @@ fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:280)
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:284)
 fn sample_data_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, true);
 }

@@ -40,7 +40,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:108)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:112)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -50,7 +50,7 @@ struct TriangleData {
     bool masked;
 };
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:120)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:124)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -102,13 +102,13 @@ struct BrdfSample {
     vec3 weight;
 };
 
-// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:36)
+// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:43)
 struct Bsdf {
     uint kind;
     Surface surface;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:150)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:171)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -135,23 +135,23 @@ const uint LIGHT_TEXELS = 3u;
 const uint LIGHT_TRIANGLE = 0u;
 // scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:35)
 const uint NONE = 0xffffffffu;
-// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:102)
+// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:106)
 const uint STRATEGY_BSDF = 0u;
-// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:103)
+// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:107)
 const uint STRATEGY_NEE = 1u;
-// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:104)
+// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:108)
 const uint STRATEGY_MIS = 2u;
 // traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:17)
 const uint STACK_SIZE = 11u;
-// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:29)
+// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:33)
 const uint BSDF_LAMBERT = 0u;
-// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:25)
+// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:29)
 const uint RR_START_DEPTH = 3u;
-// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:28)
+// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:32)
 const float RR_MAX_SURVIVAL = 0.95;
-// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:31)
+// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:35)
 const float ORIGIN_OFFSET = 4e-6;
-// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:34)
+// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:38)
 const float SHADOW_RAY_SHORTENING = 1.0 - 0.0001;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -327,12 +327,12 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
     return NodeHits(t, e);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:132)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:136)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:140)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -520,7 +520,7 @@ float power_heuristic(float a, float b) {
     return a2 + b2 > 0.0 ? a2 / (a2 + b2) : 0.0;
 }
 
-// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:45)
+// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:49)
 float hit_emission_weight(float scatter_pdf, float light_pdf) {
     if (scatter_pdf <= 0.0 || (scene_strategy == STRATEGY_BSDF)) {
         return 1.0;
@@ -531,7 +531,7 @@ float hit_emission_weight(float scatter_pdf, float light_pdf) {
     }
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:151)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:155)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
@@ -550,13 +550,13 @@ vec3 triangle_emission(uint triangle, uint material, float u, float v) {
     return e;
 }
 
-// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:265)
+// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:269)
 vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
     vec3 base = material.base_color;
     return base;
 }
 
-// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:44)
+// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:51)
 Bsdf bsdf_at(MaterialData material, uint material_index, Hit hit) {
     {
         vec3 albedo = base_color_at(material, hit.triangle, hit.u, hit.v);
@@ -573,14 +573,14 @@ Onb onb_from_normal(vec3 n) {
     return Onb(vec3(1.0 + sign_ * n.x * n.x * a, sign_ * b, -sign_ * n.x), vec3(b, sign_ + n.y * n.y * a, -n.y), n);
 }
 
-// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:60)
+// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:67)
 vec3 bsdf_normal(Bsdf b, vec3 ns, vec3 ng, vec3 dir) {
     {
         return ns;
     }
 }
 
-// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:38)
+// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:42)
 vec3 offset_origin(vec3 p, vec3 n) {
     float eps = (lp_max_element_vec3(abs(p)) + scene_scene_scale) * ORIGIN_OFFSET;
     return p + n * eps;
@@ -643,7 +643,7 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:86)
+// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:102)
 float bsdf_pdf(Bsdf b, vec3 wo, vec3 wi) {
     {
         return max(wi.z, 0.0) * INV_PI;
@@ -731,12 +731,12 @@ bool occluded(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:74)
+// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:88)
 vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     return wi.z > 0.0 ? b.surface.diffuse * INV_PI : vec3(0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:162)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:183)
 vec3 sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     vec3 direct = vec3(0.0);
@@ -765,7 +765,7 @@ vec3 cosine_sample_hemisphere(float u1, float u2) {
     return vec3(r * cs.x, r * cs.y, z);
 }
 
-// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:98)
+// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:116)
 BrdfSample bsdf_sample(Bsdf b, vec3 wo, inout uint rng) {
     float u1 = random_float(rng);
     float u2 = random_float(rng);
@@ -785,7 +785,7 @@ vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }
 
-// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:58)
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:62)
 vec4 render_sample(uint x, uint y) {
     uint rng = pixel_seed(y * scene_width + x, scene_frame_seed);
     vec2 film = vec2(lp_u32_to_f32(x) + random_float(rng), lp_u32_to_f32(y) + random_float(rng));

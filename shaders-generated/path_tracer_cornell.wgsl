@@ -41,7 +41,7 @@ struct TriangleHit {
     v: f32,
 }
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:108)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:112)
 struct TriangleData {
     v0: vec3<f32>,
     v1: vec3<f32>,
@@ -51,7 +51,7 @@ struct TriangleData {
     masked: bool,
 }
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:120)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:124)
 struct MaterialData {
     base_color: vec3<f32>,
     base_texture: u32,
@@ -103,13 +103,13 @@ struct BrdfSample {
     weight: vec3<f32>,
 }
 
-// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:36)
+// bsdf::Bsdf (lightport-tracer/src/kernel/bsdf.rs:43)
 struct Bsdf {
     kind: u32,
     surface: Surface,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:150)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:171)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -136,23 +136,23 @@ const LIGHT_TEXELS: u32 = 3u;
 const LIGHT_TRIANGLE: u32 = 0u;
 // scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:35)
 const NONE: u32 = 0xffffffffu;
-// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:102)
+// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:106)
 const STRATEGY_BSDF: u32 = 0u;
-// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:103)
+// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:107)
 const STRATEGY_NEE: u32 = 1u;
-// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:104)
+// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:108)
 const STRATEGY_MIS: u32 = 2u;
 // traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:17)
 const STACK_SIZE: u32 = 11u;
-// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:29)
+// bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:33)
 const BSDF_LAMBERT: u32 = 0u;
-// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:25)
+// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:29)
 const RR_START_DEPTH: u32 = 3u;
-// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:28)
+// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:32)
 const RR_MAX_SURVIVAL: f32 = 0.95;
-// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:31)
+// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:35)
 const ORIGIN_OFFSET: f32 = 4e-6;
-// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:34)
+// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:38)
 const SHADOW_RAY_SHORTENING: f32 = 1.0 - 0.0001;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -316,12 +316,12 @@ fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u
     return NodeHits(t, e);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:132)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:136)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:140)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];
@@ -506,7 +506,7 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     return select(0.0, a2 / (a2 + b2), a2 + b2 > 0.0);
 }
 
-// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:45)
+// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:49)
 fn hit_emission_weight(scatter_pdf: f32, light_pdf: f32) -> f32 {
     if scatter_pdf <= 0.0 || (scene.strategy == STRATEGY_BSDF) {
         return 1.0;
@@ -517,7 +517,7 @@ fn hit_emission_weight(scatter_pdf: f32, light_pdf: f32) -> f32 {
     }
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:151)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:155)
 fn fetch_material(index: u32) -> MaterialData {
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + index * MATERIAL_TEXELS];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (index * MATERIAL_TEXELS + 1u)];
@@ -536,13 +536,13 @@ fn triangle_emission(triangle: u32, material: u32, u: f32, v: f32) -> vec3<f32> 
     return e;
 }
 
-// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:265)
+// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:269)
 fn base_color_at(material: MaterialData, triangle: u32, u: f32, v: f32) -> vec3<f32> {
     var base: vec3<f32> = material.base_color;
     return base;
 }
 
-// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:44)
+// bsdf::bsdf_at (lightport-tracer/src/kernel/bsdf.rs:51)
 fn bsdf_at(material: MaterialData, material_index: u32, hit: Hit) -> Bsdf {
     {
         let albedo: vec3<f32> = base_color_at(material, hit.triangle, hit.u, hit.v);
@@ -559,14 +559,14 @@ fn onb_from_normal(n: vec3<f32>) -> Onb {
     return Onb(vec3<f32>(1.0 + sign_ * n.x * n.x * a, sign_ * b, -sign_ * n.x), vec3<f32>(b, sign_ + n.y * n.y * a, -n.y), n);
 }
 
-// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:60)
+// bsdf::bsdf_normal (lightport-tracer/src/kernel/bsdf.rs:67)
 fn bsdf_normal(b: Bsdf, ns: vec3<f32>, ng: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
     {
         return ns;
     }
 }
 
-// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:38)
+// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:42)
 fn offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let eps: f32 = (lp_max_element_vec3(abs(p)) + scene.scene_scale) * ORIGIN_OFFSET;
     return p + n * eps;
@@ -629,7 +629,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     }
 }
 
-// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:86)
+// bsdf::bsdf_pdf (lightport-tracer/src/kernel/bsdf.rs:102)
 fn bsdf_pdf(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     {
         return max(wi.z, 0.0) * INV_PI;
@@ -715,12 +715,12 @@ fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     return blocked;
 }
 
-// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:74)
+// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:88)
 fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     return select(vec3<f32>(0.0), b.surface.diffuse * INV_PI, wi.z > 0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:162)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:183)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> vec3<f32> {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var direct: vec3<f32> = vec3<f32>(0.0);
@@ -749,7 +749,7 @@ fn cosine_sample_hemisphere(u1: f32, u2: f32) -> vec3<f32> {
     return vec3<f32>(r * cs.x, r * cs.y, z);
 }
 
-// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:98)
+// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:116)
 fn bsdf_sample(b: Bsdf, wo: vec3<f32>, rng: ptr<function, u32>) -> BrdfSample {
     let u1: f32 = random_float(rng);
     let u2: f32 = random_float(rng);
@@ -769,7 +769,7 @@ fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }
 
-// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:58)
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:62)
 fn render_sample(x: u32, y: u32) -> vec4<f32> {
     var rng: u32 = pixel_seed(y * scene.width + x, scene.frame_seed);
     let film: vec2<f32> = vec2<f32>(lp_u32_to_f32(x) + random_float(&rng), lp_u32_to_f32(y) + random_float(&rng));

@@ -15,12 +15,13 @@ uniform highp sampler2D scene_metal_rough;
 uniform uint scene_alpha_mask_first;
 uniform uint scene_texture_ref_first;
 uniform uint scene_texcoord1_first;
+uniform uint scene_transmission_first;
 uniform uint scene_has_textures;
 uniform uint scene_has_shading;
 uniform uint scene_has_texture_transform;
 uniform uint scene_has_texcoord1;
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:108)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:112)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -30,7 +31,7 @@ struct TriangleData {
     bool masked;
 };
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:120)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:124)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -38,7 +39,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:303)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:307)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -46,11 +47,20 @@ struct MetalRoughData {
     float specular;
 };
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:353)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:357)
 struct AlphaMaskData {
     uint texture_;
     float alpha;
     float cutoff;
+};
+
+// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:410)
+struct GlassData {
+    float transmission;
+    float ior;
+    uint texture_;
+    bool thin;
+    vec3 sigma_a;
 };
 
 // scene_data::TRIANGLE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:14)
@@ -67,6 +77,8 @@ const uint NONE = 0xffffffffu;
 const uint WRAP_CLAMP = 1u;
 // scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:38)
 const uint WRAP_MIRROR = 2u;
+// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:406)
+const uint GLASS_TEXELS = 2u;
 // texture_ref::TEXTURE_REF_TEXELS (lightport-tracer/src/kernel/texture_ref.rs:22)
 const uint TEXTURE_REF_TEXELS = 2u;
 // texture_ref::TEXCOORD1_TEXELS (lightport-tracer/src/kernel/texture_ref.rs:24)
@@ -133,12 +145,12 @@ uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:132)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:136)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:140)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -147,14 +159,14 @@ TriangleData fetch_triangle(uint index) {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:151)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:155)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:163)
+// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:167)
 vec3 shading_normal(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec3 n0 = lp_fetch_vec4(scene_shading, base).xyz;
@@ -163,7 +175,7 @@ vec3 shading_normal(uint index, float u, float v) {
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:172)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:176)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -173,7 +185,7 @@ vec2 texcoord(uint index, float u, float v) {
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
 
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:186)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -186,12 +198,12 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:199)
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:203)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:208)
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:212)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -200,7 +212,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:220)
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:224)
 uint texel_word(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -212,7 +224,7 @@ uint texel_word(uvec4 info, int x, int y) {
     return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
 }
 
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:240)
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:244)
 vec4 decode_unorm8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -221,12 +233,12 @@ vec4 decode_unorm8(uint word) {
     return vec4(r, g, b, a);
 }
 
-// scene_data::texel (lightport-tracer/src/kernel/scene_data.rs:249)
+// scene_data::texel (lightport-tracer/src/kernel/scene_data.rs:253)
 vec4 texel(uvec4 info, int x, int y) {
     return decode_srgba8(texel_word(info, x, y));
 }
 
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:254)
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:258)
 vec4 texel_as(uvec4 info, int x, int y, bool data) {
     uint word = texel_word(info, x, y);
     if (data) {
@@ -276,12 +288,12 @@ vec2 texture_uv(uint texture_, uint triangle, float u, float v) {
     }
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:321)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:325)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:285)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:289)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -295,12 +307,12 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:275)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:279)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }
 
-// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:265)
+// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:269)
 vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
     vec3 base = material.base_color;
     if ((scene_has_textures != 0u) && (material.base_texture != NONE)) {
@@ -310,24 +322,24 @@ vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
     return base;
 }
 
-// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:280)
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:284)
 vec4 sample_data_texture(uint index, vec2 uv) {
     return bilinear(index, uv, true);
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:312)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:316)
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
 }
 
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:362)
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:366)
 AlphaMaskData fetch_alpha_mask(uint material) {
     vec4 t = lp_fetch_vec4(scene_materials, scene_alpha_mask_first + material);
     return AlphaMaskData(index_of(t.x), t.y, t.z);
 }
 
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:368)
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:372)
 float coverage(AlphaMaskData mask, vec2 uv) {
     float a = mask.alpha;
     if ((scene_has_textures != 0u) && (mask.texture_ != NONE)) {
@@ -336,7 +348,7 @@ float coverage(AlphaMaskData mask, vec2 uv) {
     return a;
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:380)
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:384)
 bool is_hole(uint triangle, uint material, float u, float v) {
     AlphaMaskData mask = fetch_alpha_mask(material);
     vec2 uv = vec2(0.0);
@@ -344,4 +356,11 @@ bool is_hole(uint triangle, uint material, float u, float v) {
         uv = texture_uv(mask.texture_, triangle, u, v);
     }
     return coverage(mask, uv) < mask.cutoff;
+}
+
+// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:422)
+GlassData fetch_glass(uint material) {
+    vec4 a = lp_fetch_vec4(scene_materials, scene_transmission_first + material * GLASS_TEXELS);
+    vec4 b = lp_fetch_vec4(scene_materials, scene_transmission_first + material * GLASS_TEXELS + 1u);
+    return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }

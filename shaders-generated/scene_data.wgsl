@@ -5,6 +5,7 @@ struct SceneUniforms {
     alpha_mask_first: u32,
     texture_ref_first: u32,
     texcoord1_first: u32,
+    transmission_first: u32,
     has_textures: u32,
     has_shading: u32,
     has_texture_transform: u32,
@@ -21,7 +22,7 @@ struct SceneUniforms {
 @group(0) @binding(1) var<storage, read> lp_scene_vec4f: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> lp_scene_vec4u: array<vec4<u32>>;
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:108)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:112)
 struct TriangleData {
     v0: vec3<f32>,
     v1: vec3<f32>,
@@ -31,7 +32,7 @@ struct TriangleData {
     masked: bool,
 }
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:120)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:124)
 struct MaterialData {
     base_color: vec3<f32>,
     base_texture: u32,
@@ -39,7 +40,7 @@ struct MaterialData {
     emissive_texture: u32,
 }
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:303)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:307)
 struct MetalRoughData {
     metallic: f32,
     roughness: f32,
@@ -47,11 +48,20 @@ struct MetalRoughData {
     specular: f32,
 }
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:353)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:357)
 struct AlphaMaskData {
     texture_: u32,
     alpha: f32,
     cutoff: f32,
+}
+
+// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:410)
+struct GlassData {
+    transmission: f32,
+    ior: f32,
+    texture_: u32,
+    thin: bool,
+    sigma_a: vec3<f32>,
 }
 
 // scene_data::TRIANGLE_TEXELS (lightport-tracer/src/kernel/scene_data.rs:14)
@@ -68,6 +78,8 @@ const NONE: u32 = 0xffffffffu;
 const WRAP_CLAMP: u32 = 1u;
 // scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:38)
 const WRAP_MIRROR: u32 = 2u;
+// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:406)
+const GLASS_TEXELS: u32 = 2u;
 // texture_ref::TEXTURE_REF_TEXELS (lightport-tracer/src/kernel/texture_ref.rs:22)
 const TEXTURE_REF_TEXELS: u32 = 2u;
 // texture_ref::TEXCOORD1_TEXELS (lightport-tracer/src/kernel/texture_ref.rs:24)
@@ -109,12 +121,12 @@ fn lp_is_nan(x: f32) -> bool {
     return (bitcast<u32>(x) & 0x7fffffffu) > 0x7f800000u;
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:132)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:136)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:140)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];
@@ -123,14 +135,14 @@ fn fetch_triangle(index: u32) -> TriangleData {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:151)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:155)
 fn fetch_material(index: u32) -> MaterialData {
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + index * MATERIAL_TEXELS];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (index * MATERIAL_TEXELS + 1u)];
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:163)
+// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:167)
 fn shading_normal(index: u32, u: f32, v: f32) -> vec3<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let n0: vec3<f32> = lp_scene_vec4f[scene.lp_start_shading + base].xyz;
@@ -139,7 +151,7 @@ fn shading_normal(index: u32, u: f32, v: f32) -> vec3<f32> {
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:172)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:176)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + base].w, lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].w);
@@ -149,7 +161,7 @@ fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
 
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:186)
 fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     if mode == WRAP_CLAMP {
         return clamp(i, 0i, size - 1i);
@@ -162,12 +174,12 @@ fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     }
 }
 
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:199)
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:203)
 fn srgb_to_linear(c: f32) -> f32 {
     return select(pow((c + 0.055) / 1.055, 2.4), c / 12.92, c <= 0.04045);
 }
 
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:208)
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:212)
 fn decode_srgba8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -176,7 +188,7 @@ fn decode_srgba8(word: u32) -> vec4<f32> {
     return vec4<f32>(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:220)
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:224)
 fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     let w: i32 = bitcast<i32>(info.y);
     let h: i32 = bitcast<i32>(info.z);
@@ -188,7 +200,7 @@ fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
 }
 
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:240)
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:244)
 fn decode_unorm8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -197,12 +209,12 @@ fn decode_unorm8(word: u32) -> vec4<f32> {
     return vec4<f32>(r, g, b, a);
 }
 
-// scene_data::texel (lightport-tracer/src/kernel/scene_data.rs:249)
+// scene_data::texel (lightport-tracer/src/kernel/scene_data.rs:253)
 fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
     return decode_srgba8(texel_word(info, x, y));
 }
 
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:254)
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:258)
 fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     let word: u32 = texel_word(info, x, y);
     if data {
@@ -252,12 +264,12 @@ fn texture_uv(texture_: u32, triangle: u32, u: f32, v: f32) -> vec2<f32> {
     }
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:321)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:325)
 fn bounded_coordinate(v: f32) -> f32 {
     return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:285)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:289)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
     let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -271,12 +283,12 @@ fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:275)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:279)
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, false);
 }
 
-// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:265)
+// scene_data::base_color_at (lightport-tracer/src/kernel/scene_data.rs:269)
 fn base_color_at(material: MaterialData, triangle: u32, u: f32, v: f32) -> vec3<f32> {
     var base: vec3<f32> = material.base_color;
     if (scene.has_textures != 0u) && (material.base_texture != NONE) {
@@ -286,24 +298,24 @@ fn base_color_at(material: MaterialData, triangle: u32, u: f32, v: f32) -> vec3<
     return base;
 }
 
-// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:280)
+// scene_data::sample_data_texture (lightport-tracer/src/kernel/scene_data.rs:284)
 fn sample_data_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, true);
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:312)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:316)
 fn fetch_metal_rough(index: u32) -> MetalRoughData {
     let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_metal_rough + index];
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
 }
 
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:362)
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:366)
 fn fetch_alpha_mask(material: u32) -> AlphaMaskData {
     let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.alpha_mask_first + material)];
     return AlphaMaskData(index_of(t.x), t.y, t.z);
 }
 
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:368)
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:372)
 fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
     var a: f32 = mask.alpha;
     if (scene.has_textures != 0u) && (mask.texture_ != NONE) {
@@ -312,7 +324,7 @@ fn coverage(mask: AlphaMaskData, uv: vec2<f32>) -> f32 {
     return a;
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:380)
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:384)
 fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
     let mask: AlphaMaskData = fetch_alpha_mask(material);
     var uv: vec2<f32> = vec2<f32>(0.0);
@@ -320,4 +332,11 @@ fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
         uv = texture_uv(mask.texture_, triangle, u, v);
     }
     return coverage(mask, uv) < mask.cutoff;
+}
+
+// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:422)
+fn fetch_glass(material: u32) -> GlassData {
+    let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.transmission_first + material * GLASS_TEXELS)];
+    let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.transmission_first + material * GLASS_TEXELS + 1u)];
+    return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }

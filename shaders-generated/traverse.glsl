@@ -30,7 +30,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:108)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:112)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -40,7 +40,7 @@ struct TriangleData {
     bool masked;
 };
 
-// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:353)
+// scene_data::AlphaMaskData (lightport-tracer/src/kernel/scene_data.rs:357)
 struct AlphaMaskData {
     uint texture_;
     float alpha;
@@ -197,12 +197,12 @@ bool is_next_candidate(float t, uint triangle, Hit after, Hit best) {
     return before_best && past_after;
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:128)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:132)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:136)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:140)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -405,7 +405,7 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
     return hit;
 }
 
-// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:362)
+// scene_data::fetch_alpha_mask (lightport-tracer/src/kernel/scene_data.rs:366)
 AlphaMaskData fetch_alpha_mask(uint material) {
     vec4 t = lp_fetch_vec4(scene_materials, scene_alpha_mask_first + material);
     return AlphaMaskData(index_of(t.x), t.y, t.z);
@@ -419,7 +419,7 @@ vec2 texcoord1(uint triangle, float u, float v) {
     return vec2(a.x, a.y) * (1.0 - u - v) + vec2(a.z, a.w) * u + vec2(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:172)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:176)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -461,12 +461,12 @@ vec2 texture_uv(uint texture_, uint triangle, float u, float v) {
     }
 }
 
-// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:321)
+// scene_data::bounded_coordinate (lightport-tracer/src/kernel/scene_data.rs:325)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
 
-// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::wrap_coordinate (lightport-tracer/src/kernel/scene_data.rs:186)
 int wrap_coordinate(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, size - 1);
@@ -479,7 +479,7 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:220)
+// scene_data::texel_word (lightport-tracer/src/kernel/scene_data.rs:224)
 uint texel_word(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -491,7 +491,7 @@ uint texel_word(uvec4 info, int x, int y) {
     return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
 }
 
-// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:240)
+// scene_data::decode_unorm8 (lightport-tracer/src/kernel/scene_data.rs:244)
 vec4 decode_unorm8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -500,12 +500,12 @@ vec4 decode_unorm8(uint word) {
     return vec4(r, g, b, a);
 }
 
-// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:199)
+// scene_data::srgb_to_linear (lightport-tracer/src/kernel/scene_data.rs:203)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:208)
+// scene_data::decode_srgba8 (lightport-tracer/src/kernel/scene_data.rs:212)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -514,7 +514,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:254)
+// scene_data::texel_as (lightport-tracer/src/kernel/scene_data.rs:258)
 vec4 texel_as(uvec4 info, int x, int y, bool data) {
     uint word = texel_word(info, x, y);
     if (data) {
@@ -524,7 +524,7 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:285)
+// scene_data::bilinear (lightport-tracer/src/kernel/scene_data.rs:289)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -538,12 +538,12 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:275)
+// scene_data::sample_texture (lightport-tracer/src/kernel/scene_data.rs:279)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }
 
-// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:368)
+// scene_data::coverage (lightport-tracer/src/kernel/scene_data.rs:372)
 float coverage(AlphaMaskData mask, vec2 uv) {
     float a = mask.alpha;
     if ((scene_has_textures != 0u) && (mask.texture_ != NONE)) {
@@ -552,7 +552,7 @@ float coverage(AlphaMaskData mask, vec2 uv) {
     return a;
 }
 
-// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:380)
+// scene_data::is_hole (lightport-tracer/src/kernel/scene_data.rs:384)
 bool is_hole(uint triangle, uint material, float u, float v) {
     AlphaMaskData mask = fetch_alpha_mask(material);
     vec2 uv = vec2(0.0);

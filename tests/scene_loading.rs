@@ -124,10 +124,10 @@ fn webp_textures_are_decoded_in_preference_to_their_fallback() {
 
 /// A glass vase in the manner of Khronos' GlassVaseFlowers and LightsPunctualLamp (which this
 /// test read before the test scenes were vendored): three primitives, each with its own
-/// transmissive, volumetric material, and a point light. Every material names both extensions:
-/// each is warned about once, and the light is kept.
+/// transmissive, volumetric material, and a point light. Both extensions are supported (issue
+/// 29): no warning, the materials carry them, and the light is kept.
 #[test]
-fn unsupported_features_are_warned_about_once() {
+fn glass_vase_loads_its_transmission_and_volume() {
     let nodes = r#"[
         {"mesh": 0, "children": [1]},
         {"translation": [0, 2, 0], "extensions": {"KHR_lights_punctual": {"light": 0}}}
@@ -157,13 +157,45 @@ fn unsupported_features_are_warned_about_once() {
     assert_eq!(vase.triangles.len(), 3);
     assert_eq!(vase.materials.len(), 3, "{:?}", vase.materials);
     assert_eq!(vase.point_lights.len(), 1);
-    for ext in ["KHR_materials_transmission", "KHR_materials_volume"] {
-        assert_eq!(vase.warnings.iter().filter(|w| w.contains(ext)).count(), 1, "{ext}: {:?}", vase.warnings);
+    assert!(vase.warnings.is_empty(), "{:?}", vase.warnings);
+    for m in &vase.materials {
+        assert_eq!((m.transmission, m.ior, m.thickness, m.attenuation_distance), (1.0, 1.5, 0.1, 0.5), "{m:?}");
+        assert!(m.has_volume() && m.attenuation_color == glam::Vec3::ONE, "{m:?}");
     }
-    let mut sorted = vase.warnings.clone();
-    sorted.sort();
-    sorted.dedup();
-    assert_eq!(sorted.len(), vase.warnings.len(), "duplicated warnings: {:?}", vase.warnings);
+}
+
+/// Out-of-range glass parameters (ior below 1, a transmission above 1, negative thickness and
+/// attenuation distance, a colour above 1) are each replaced by the specification's default
+/// with a warning that names the material, the value and the default; `--strict` refuses them.
+#[test]
+fn bad_glass_values_are_warned_with_their_defaults() {
+    let nodes = r#"[{"mesh": 0}]"#;
+    let extra = r#",
+  "extensionsUsed": ["KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume"],
+  "materials": [{"name": "bad glass", "extensions": {
+      "KHR_materials_transmission": {"transmissionFactor": 1.5},
+      "KHR_materials_ior": {"ior": 0.5},
+      "KHR_materials_volume": {"thicknessFactor": -1, "attenuationDistance": -2,
+                               "attenuationColor": [2, 0.5, 0.5]}}}]"#;
+    let json = gltf_json(&TRI, &[0, 1, 2], nodes, extra).replace(r#""indices": 1}"#, r#""indices": 1, "material": 0}"#);
+    let scene = load_str(&json).unwrap();
+    let m = &scene.materials[0];
+    assert_eq!((m.transmission, m.ior, m.thickness), (0.0, 1.5, 0.0), "{m:?}");
+    assert_eq!(m.attenuation_distance, f32::INFINITY);
+    assert_eq!(m.attenuation_color, glam::Vec3::ONE);
+    for (name, value, default) in [
+        ("transmissionFactor", "1.5", "0"),
+        ("ior", "0.5", "1.5"),
+        ("thicknessFactor", "-1", "0"),
+        ("attenuationDistance", "-2", "inf"),
+        ("attenuationColor", "[2, 0.5, 0.5]", "[1, 1, 1]"),
+    ] {
+        let w: Vec<_> = scene.warnings.iter().filter(|w| w.contains(name)).collect();
+        assert_eq!(w.len(), 1, "{name}: {:?}", scene.warnings);
+        assert!(w[0].contains("bad glass") && w[0].contains(value) && w[0].contains(default), "{w:?}");
+    }
+    let err = scene::load_gltf_slice(json.as_bytes(), None, &LoadOptions { strict: true }).unwrap_err();
+    assert!(err.to_string().contains("bad glass") || err.to_string().contains("material"), "{err}");
 }
 
 /// A primitive compressed with Draco, the extension required (as in the Draco-compressed

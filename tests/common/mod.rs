@@ -9,6 +9,7 @@
 
 pub mod agreement;
 pub mod bands;
+pub mod sphere_grid;
 
 use std::path::{Path, PathBuf};
 

@@ -28,7 +28,7 @@ fn scene() -> tracer::scene::Scene {
     m.emission = Vec3::ONE;
     let turn = UvTransform { texcoord: 1, ..quads::quarter_turn() };
     m.texture_uvs =
-        [turn, UvTransform { scale: Vec2::new(3.0, -0.5), ..Default::default() }, turn, UvTransform::default()];
+        [turn, UvTransform { scale: Vec2::new(3.0, -0.5), ..Default::default() }, turn, UvTransform::default(), turn];
     let mut s = quads::scene(quads::square(uv0, uv1), m);
     s.generate_tangents();
     s

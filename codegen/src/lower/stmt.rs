@@ -87,6 +87,21 @@ impl<'a> Lowerer<'a> {
     pub(super) fn is_block_like(&self, e: &Expr) -> bool {
         let e = strip_parens(e);
         match &e.kind {
+            // Decided by specialisation: only the live branch is emitted, so the value is an
+            // expression when that branch is one (`let x = if scene.has_f != 0 { a } else { b };`
+            // in a variant without `f` is `let x = b;`, the text it had before `f` existed).
+            K::If { cond, then, otherwise } if self.const_bool(cond).is_some() => {
+                let live = if self.const_bool(cond) == Some(true) {
+                    then.tail.as_deref().filter(|_| then.stmts.is_empty())
+                } else {
+                    otherwise.as_deref().map(strip_parens).and_then(|o| match &o.kind {
+                        K::Block(b) if b.stmts.is_empty() => b.tail.as_deref(),
+                        K::If { .. } => Some(o),
+                        _ => None,
+                    })
+                };
+                live.is_none_or(|x| self.is_block_like(x))
+            }
             K::If { .. } => !self.is_simple_if(e),
             K::Match { .. } | K::Block(_) => true,
             _ => false,

@@ -12,7 +12,7 @@
 
 use super::BundleError;
 use crate::kernel::scene_data::{
-    Scene, LIGHT_SKY, LIGHT_TEXELS, LIGHT_TRIANGLE, MATERIAL_TEXELS, NODE_TEXELS, SHADING_TEXELS,
+    Scene, GLASS_TEXELS, LIGHT_SKY, LIGHT_TEXELS, LIGHT_TRIANGLE, MATERIAL_TEXELS, NODE_TEXELS, SHADING_TEXELS,
     TEXTURE_TEXELS_PER_ELEMENT, TRIANGLE_TEXELS, WRAP_MIRROR,
 };
 use crate::pack::Packed;
@@ -164,7 +164,8 @@ fn check_materials(s: &Scene, textures: usize) -> Result<usize, BundleError> {
     // Normal maps and alpha masks, one texel per material each, follow the materials (from
     // `normal_map_first` and `alpha_mask_first`, which `check_material_sections` has checked
     // against the array length: each section holds exactly one texel per material).
-    let extra = (s.has_normal_map != 0) as usize + (s.has_alpha_mask != 0) as usize;
+    let glass = if s.has_transmission != 0 { GLASS_TEXELS as usize } else { 0 };
+    let extra = (s.has_normal_map != 0) as usize + (s.has_alpha_mask != 0) as usize + glass;
     let count = s.materials.len() / (per + extra);
     let all = s.materials.as_slice();
     let section =
@@ -181,6 +182,17 @@ fn check_materials(s: &Scene, textures: usize) -> Result<usize, BundleError> {
     }
     if let Some(i) = masks.iter().position(|t| float_index(t.x, textures).is_none()) {
         return fail(format!("material {i}: alpha-mask texture {} of {textures}", masks[i].x));
+    }
+    if s.has_transmission != 0 {
+        let first = s.transmission_first as usize;
+        let Some(glass) = all.get(first..first + glass * count) else {
+            return fail(format!("{} material texels for {count} glass materials", all.len()));
+        };
+        for (i, g) in glass.chunks_exact(GLASS_TEXELS as usize).enumerate() {
+            if float_index(g[0].z, textures).is_none() {
+                return fail(format!("material {i}: transmission texture {} of {textures}", g[0].z));
+            }
+        }
     }
     for (i, m) in materials.chunks_exact(per).enumerate() {
         if float_index(m[0].w, textures).is_none() || float_index(m[1].w, textures).is_none() {

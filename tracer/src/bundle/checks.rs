@@ -45,6 +45,8 @@ pub(super) fn check_consistency(p: &Packed) -> Result<(), BundleError> {
         ("alpha_mask", f.alpha_mask, s.has_alpha_mask),
         ("texture_transform", f.texture_transform, s.has_texture_transform),
         ("texcoord1", f.texcoord1, s.has_texcoord1),
+        ("transmission", f.transmission, s.has_transmission),
+        ("volume", f.volume, s.has_volume),
     ];
     for (name, feature, flag) in flags {
         if flag != feature as u32 {
@@ -119,24 +121,35 @@ fn check_uniforms(s: &Scene) -> Result<(), BundleError> {
 
 /// `materials` holds the base texels of `n` materials (`MATERIAL_TEXELS` each), then with
 /// normal maps one texel each from `normal_map_first`, then with alpha masks one texel each
-/// from `alpha_mask_first`, and nothing else: the offsets the uniforms give must be those.
+/// from `alpha_mask_first`, then with glass `GLASS_TEXELS` each from `transmission_first`, and
+/// nothing else: the offsets the uniforms give must be those.
 fn check_material_sections(s: &Scene, f: &Features) -> Result<(), BundleError> {
-    use crate::kernel::scene_data::MATERIAL_TEXELS;
-    let per = MATERIAL_TEXELS as usize + f.normal_map as usize + f.alpha_mask as usize;
+    use crate::kernel::scene_data::{GLASS_TEXELS, MATERIAL_TEXELS};
+    let glass = if f.transmission { GLASS_TEXELS as usize } else { 0 };
+    let per = MATERIAL_TEXELS as usize + f.normal_map as usize + f.alpha_mask as usize + glass;
     let n = s.materials.len() / per;
     let maps = if f.normal_map { MATERIAL_TEXELS as usize * n } else { 0 };
     let masks = if f.alpha_mask { (MATERIAL_TEXELS as usize + f.normal_map as usize) * n } else { 0 };
+    let glass_first = if f.transmission { (per - glass) * n } else { 0 };
     if !s.materials.len().is_multiple_of(per)
         || s.normal_map_first as usize != maps
         || s.alpha_mask_first as usize != masks
+        || s.transmission_first as usize != glass_first
+        || (f.transmission && !f.metal_rough)
+        || (f.volume && !f.transmission)
     {
         return Err(BundleError::Inconsistent(format!(
-            "{} material texels (normal maps {}, alpha masks {}) with normal maps from {} and alpha masks from {}",
+            "{} material texels (normal maps {}, alpha masks {}, glass {}) with normal maps from {}, alpha masks \
+             from {} and glass from {} (metal-roughness {}, volume {})",
             s.materials.len(),
             f.normal_map,
             f.alpha_mask,
+            f.transmission,
             s.normal_map_first,
-            s.alpha_mask_first
+            s.alpha_mask_first,
+            s.transmission_first,
+            f.metal_rough,
+            f.volume
         )));
     }
     Ok(())

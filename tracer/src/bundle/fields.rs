@@ -224,6 +224,8 @@ record!(Features {
     alpha_mask,
     texture_transform,
     texcoord1,
+    transmission,
+    volume,
     traversal_stack
 });
 record!(Scene {
@@ -243,6 +245,7 @@ record!(Scene {
     alpha_mask_first,
     texture_ref_first,
     texcoord1_first,
+    transmission_first,
     camera_position,
     camera_right,
     camera_up,
@@ -272,4 +275,6 @@ record!(Scene {
     has_alpha_mask,
     has_texture_transform,
     has_texcoord1,
+    has_transmission,
+    has_volume,
 });

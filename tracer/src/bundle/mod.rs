@@ -58,8 +58,9 @@ pub const MAGIC: [u8; 8] = *b"LPBUNDLE";
 /// `features.texture_transform`, `features.texcoord1`, `scene.has_texture_transform`,
 /// `scene.has_texcoord1`, `scene.texture_ref_first`, `scene.texcoord1_first`. 7: textures as
 /// image files, `textures.images`, `textures.image_ends`, `textures.image_of`; LZMA2-compressed
-/// entries.)
-pub const VERSION: u32 = 7;
+/// entries. 8: `features.transmission`, `features.volume`, `scene.has_transmission`,
+/// `scene.has_volume`, `scene.transmission_first`.)
+pub const VERSION: u32 = 8;
 /// The largest bundle accepted (and produced): well within wasm32's 4 GiB address space.
 pub const MAX_BUNDLE_BYTES: u64 = 1 << 30;
 /// File extension used for bundles (the server serves `/bundles/<hash>.lpb`).

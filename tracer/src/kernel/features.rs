@@ -31,6 +31,16 @@ pub struct Features {
     /// Some texture is read on `TEXCOORD_1`: texture references as above, and per triangle two
     /// texels of the second UV set appended to `Scene::shading`.
     pub texcoord1: bool,
+    /// Some material transmits (glTF `KHR_materials_transmission`, [`crate::scene::Material::transmission`]):
+    /// the dielectric BSDF (`kernel::dielectric`), two-sided light sampling and refracted
+    /// continuations in the integrator, and per material two texels appended to
+    /// `Scene::materials` (`kernel::scene_data::fetch_glass`); nothing without. Implies
+    /// `metal_rough` (the opaque rest of a transmissive material is metal-roughness).
+    pub transmission: bool,
+    /// Some transmissive material has a volume that absorbs (glTF `KHR_materials_volume` with
+    /// a finite attenuation distance): Beer–Lambert absorption along segments inside it
+    /// (`kernel::integrator::volume_transmittance`).
+    pub volume: bool,
     /// Entries the traversal stack needs for this scene's BVH (`WideBvh::stack_needed*`, at
     /// most the kernel's `STACK_SIZE`): GPU variants size their stacks to it instead of
     /// `STACK_SIZE` (the Cornell box needs 11, not 64). 0: not fixed, the kernel's `STACK_SIZE`.
@@ -52,6 +62,8 @@ impl Features {
             ("has_alpha_mask", self.alpha_mask),
             ("has_texture_transform", self.texture_transform),
             ("has_texcoord1", self.texcoord1),
+            ("has_transmission", self.transmission),
+            ("has_volume", self.volume),
         ]
         .into_iter()
         .map(|(k, v)| (format!("Scene.{k}"), v as u32))
@@ -76,6 +88,8 @@ impl Features {
             alpha_mask: true,
             texture_transform: true,
             texcoord1: true,
+            transmission: true,
+            volume: true,
             traversal_stack: 0,
         }
     }

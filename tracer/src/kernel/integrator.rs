@@ -6,8 +6,11 @@ pub mod integrator {
     //! continuation, Russian roulette.
     use glam::{Vec2, Vec3, Vec4};
 
-    use crate::kernel::bsdf::{bsdf_at, bsdf_eval, bsdf_normal, bsdf_pdf, bsdf_sample, Bsdf};
+    use crate::kernel::bsdf::{
+        bsdf_at, bsdf_eval, bsdf_normal, bsdf_pdf, bsdf_sample, glass_at, Bsdf, BSDF_DIELECTRIC,
+    };
     use crate::kernel::camera::camera_ray;
+    use crate::kernel::dielectric::DELTA_PDF;
     use crate::kernel::intersect::MISS;
     use crate::kernel::lights::{
         area_pdf_to_solid_angle, finite_or_zero, light_pmf, power_heuristic, sample_light, sky_pdf, sky_radiance,
@@ -17,7 +20,8 @@ pub mod integrator {
     use crate::kernel::rng::{pixel_seed, random_float};
     use crate::kernel::sampling::{onb_from_normal, onb_to_local, onb_to_world, Onb};
     use crate::kernel::scene_data::{
-        fetch_material, fetch_triangle, shading_normal, Scene, NONE, STRATEGY_BSDF, STRATEGY_MIS, STRATEGY_NEE,
+        fetch_glass, fetch_material, fetch_triangle, shading_normal, Scene, NONE, STRATEGY_BSDF, STRATEGY_MIS,
+        STRATEGY_NEE,
     };
     use crate::kernel::traverse::{occluded, trace_closest};
 
@@ -100,6 +104,10 @@ pub mod integrator {
                 ns = normal_mapped(scene, hit, tri.material, ns, flip, ng, -dir);
             }
             let material = fetch_material(scene, tri.material);
+            if scene.has_volume != 0 && flip < 0.0 {
+                // The segment that ends here, at a back face, ran inside this material's volume.
+                throughput *= volume_transmittance(scene, tri.material, hit.t);
+            }
 
             // Emission found by this ray (one-sided: only the front face emits).
             if material.emission.max_element() > 0.0 && flip > 0.0 {
@@ -118,13 +126,23 @@ pub mod integrator {
             // The shading record (built here: as a function's result it would be more words than
             // the equivalence harness reads back), then one light sample and one BSDF sample,
             // whatever the BSDF.
-            let bsdf = bsdf_at(scene, material, tri.material, hit);
+            let bsdf = if scene.has_transmission != 0 {
+                glass_at(scene, material, tri.material, hit, flip, random_float(&mut rng))
+            } else {
+                bsdf_at(scene, material, tri.material, hit)
+            };
             let frame = onb_from_normal(bsdf_normal(scene, bsdf, ns, ng, dir));
             let sh = Shading { p: offset_origin(scene, p, ng), ng, frame, wo: onb_to_local(frame, -dir), bsdf };
             radiance += throughput * sample_ld(scene, sh, &mut rng);
             let bs = bsdf_sample(scene, sh.bsdf, sh.wo, &mut rng);
             let next = onb_to_world(sh.frame, bs.dir);
-            if !(bs.pdf > 0.0) || ng.dot(next) <= 0.0 {
+            // No sample (a delta lobe's DELTA_PDF is one), or one on the wrong side of the geometric
+            // surface (a reflection continues above it, a refraction below).
+            if (if scene.has_transmission != 0 {
+                !(bs.pdf > 0.0 || bs.pdf == DELTA_PDF) || !(ng.dot(next) * bs.dir.z > 0.0)
+            } else {
+                !(bs.pdf > 0.0) || ng.dot(next) <= 0.0
+            }) {
                 break;
             }
             scatter_pdf = bs.pdf;
@@ -138,6 +156,9 @@ pub mod integrator {
                 throughput /= q;
             }
             origin = sh.p;
+            if scene.has_transmission != 0 && bs.dir.z < 0.0 {
+                origin = offset_origin(scene, p, -ng);
+            }
             dir = next;
         }
         finite_or_zero(radiance)
@@ -165,17 +186,49 @@ pub mod integrator {
         if scene.has_lights != 0 && scene.light_count > 0 {
             let ls = sample_light(scene, sh.p, u_light);
             let wi = onb_to_local(sh.frame, ls.dir);
-            if ls.pdf > 0.0 && wi.z > 0.0 && sh.ng.dot(ls.dir) > 0.0 && (ls.delta || scene.strategy != STRATEGY_BSDF) {
+            if ls.pdf > 0.0
+                // With glass: a rough dielectric sees light from both sides, a delta lobe none (it is
+                // left to BSDF sampling), every other BSDF from above.
+                && (if scene.has_transmission != 0 {
+                    (sh.bsdf.kind != BSDF_DIELECTRIC && wi.z > 0.0)
+                        || (sh.bsdf.kind == BSDF_DIELECTRIC && sh.bsdf.surface.alpha > 0.0 && wi.z != 0.0)
+                } else {
+                    wi.z > 0.0
+                })
+                && (if scene.has_transmission != 0 { sh.ng.dot(ls.dir) * wi.z > 0.0 } else { sh.ng.dot(ls.dir) > 0.0 })
+                && (ls.delta || scene.strategy != STRATEGY_BSDF)
+            {
                 let mut weight = 1.0;
                 if !ls.delta && scene.strategy == STRATEGY_MIS {
                     weight = power_heuristic(ls.pdf, bsdf_pdf(scene, sh.bsdf, sh.wo, wi));
                 }
                 let t_max = if ls.dist < MISS { ls.dist * SHADOW_RAY_SHORTENING } else { MISS };
-                if !occluded(scene, sh.p, ls.dir, t_max) {
-                    direct = bsdf_eval(scene, sh.bsdf, sh.wo, wi) * (wi.z * weight / ls.pdf) * ls.radiance;
+                // With glass, a light seen through a rough dielectric (below the surface): the
+                // shadow ray leaves from `sh.p` moved back through the surface by twice its offset.
+                if !occluded(
+                    scene,
+                    if scene.has_transmission != 0 && wi.z < 0.0 {
+                        sh.p - sh.ng * (2.0 * (sh.p.abs().max_element() + scene.scene_scale) * ORIGIN_OFFSET)
+                    } else {
+                        sh.p
+                    },
+                    ls.dir,
+                    t_max,
+                ) {
+                    direct = bsdf_eval(scene, sh.bsdf, sh.wo, wi)
+                        * ((if scene.has_transmission != 0 { wi.z.abs() } else { wi.z }) * weight / ls.pdf)
+                        * ls.radiance;
                 }
             }
         }
         direct
+    }
+
+    /// Beer–Lambert transmittance `exp(−σa t)` of a segment of length `t` inside the volume of
+    /// material `material` (`Features::volume`). One medium at a time: a ray leaving a volume
+    /// is taken to be outside every volume (nested or overlapping volumes are not modelled).
+    pub fn volume_transmittance(scene: &Scene, material: u32, t: f32) -> Vec3 {
+        let sigma = fetch_glass(scene, material).sigma_a;
+        Vec3::new((-sigma.x * t).exp(), (-sigma.y * t).exp(), (-sigma.z * t).exp())
     }
 }

@@ -10,7 +10,12 @@
 mod bsdf_src;
 #[path = "camera.rs"]
 mod camera_src;
+#[path = "dielectric.rs"]
+mod dielectric_src;
 #[path = "integrator.rs"]
+// Conditions that specialisation decides are written `if (if scene.has_x != 0 { a } else { b })`:
+// the folded kernel keeps the text it had without the feature.
+#[allow(unused_parens)]
 mod integrator_src;
 #[path = "intersect.rs"]
 mod intersect_src;
@@ -40,6 +45,7 @@ pub mod features;
 
 pub use bsdf_src::bsdf;
 pub use camera_src::camera;
+pub use dielectric_src::dielectric;
 pub use integrator_src::integrator;
 pub use intersect_src::intersect;
 pub use lights_src::lights;
@@ -66,6 +72,7 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
         camera::kernel_ir(),
         lights::kernel_ir(),
         metal_rough::kernel_ir(),
+        dielectric::kernel_ir(),
         normal_map::kernel_ir(),
         bsdf::kernel_ir(),
         integrator::kernel_ir(),
@@ -75,7 +82,7 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
 
 /// Every kernel module's captured description, as the macro serialised it (what
 /// [`modules`] parses): a stable text to fingerprint the kernel with.
-pub fn ir_json() -> [&'static str; 13] {
+pub fn ir_json() -> [&'static str; 14] {
     [
         rng::KERNEL_IR_JSON,
         sampling::KERNEL_IR_JSON,
@@ -86,6 +93,7 @@ pub fn ir_json() -> [&'static str; 13] {
         camera::KERNEL_IR_JSON,
         lights::KERNEL_IR_JSON,
         metal_rough::KERNEL_IR_JSON,
+        dielectric::KERNEL_IR_JSON,
         normal_map::KERNEL_IR_JSON,
         bsdf::KERNEL_IR_JSON,
         integrator::KERNEL_IR_JSON,

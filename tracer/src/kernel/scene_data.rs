@@ -63,6 +63,8 @@ pub mod scene_data {
         pub alpha_mask_first: u32,
         pub texture_ref_first: u32,
         pub texcoord1_first: u32,
+        /// Where the glass section of `materials` starts (`Features::transmission`; 0 without).
+        pub transmission_first: u32,
         /// The camera: `camera_right` scaled by tan(fov/2) * aspect, `camera_up` by tan(fov/2).
         pub camera_position: Vec3,
         pub camera_right: Vec3,
@@ -97,6 +99,8 @@ pub mod scene_data {
         pub has_alpha_mask: u32,
         pub has_texture_transform: u32,
         pub has_texcoord1: u32,
+        pub has_transmission: u32,
+        pub has_volume: u32,
     }
 
     pub const STRATEGY_BSDF: u32 = 0;
@@ -385,5 +389,39 @@ pub mod scene_data {
             uv = texture_uv(scene, mask.texture, triangle, u, v);
         }
         coverage(scene, mask, uv) < mask.cutoff
+    }
+
+    // ---------------------------------------------------------------------------------------
+    // Glass.
+    //
+    // glTF `KHR_materials_transmission`, `KHR_materials_ior` and `KHR_materials_volume`
+    // (`Features::transmission`, `Features::volume`; `kernel::dielectric`). Layout (only packed
+    // for scenes with a transmissive material; `Scene::transmission_first` is 0 without): per
+    // material two texels at `scene.transmission_first + 2 * material` in `materials`:
+    // `[transmission factor, ior, transmission texture or -1, thin-walled 1 or 0]`,
+    // `[absorption coefficient σa (per scene unit, RGB), 0]` (σa = −ln(attenuation colour) /
+    // attenuation distance; 0 without a volume or with an infinite distance).
+
+    /// Texels per material in the glass section of `materials`.
+    pub const GLASS_TEXELS: u32 = 2;
+
+    /// A material's glass parameters.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct GlassData {
+        /// `transmission`: the share of the non-metallic part that is transmitted (0: opaque).
+        pub transmission: f32,
+        pub ior: f32,
+        /// Transmission texture (red channel, linear, multiplies `transmission`) or NONE.
+        pub texture: u32,
+        /// No volume behind the surface: it transmits without bending.
+        pub thin: bool,
+        /// Beer–Lambert absorption coefficient inside the volume.
+        pub sigma_a: Vec3,
+    }
+
+    pub fn fetch_glass(scene: &Scene, material: u32) -> GlassData {
+        let a = scene.materials.fetch(scene.transmission_first + material * GLASS_TEXELS);
+        let b = scene.materials.fetch(scene.transmission_first + material * GLASS_TEXELS + 1);
+        GlassData { transmission: a.x, ior: a.y, texture: index_of(a.z), thin: a.w > 0.0, sigma_a: b.xyz() }
     }
 }

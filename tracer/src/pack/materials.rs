@@ -15,6 +15,7 @@ pub(super) struct PackedMaterials {
     pub metal_rough: Texels<Vec4>,
     pub normal_map_first: u32,
     pub alpha_mask_first: u32,
+    pub transmission_first: u32,
 }
 
 pub(super) fn pack_materials(scene: &Scene, textures: &PackedTextures, features: &Features) -> PackedMaterials {
@@ -43,6 +44,16 @@ pub(super) fn pack_materials(scene: &Scene, textures: &PackedTextures, features:
             materials.push(Vec4::new(texture_index(i, 0, m.base_color_texture), m.alpha, cutoff, 0.0));
         }
     }
+    let transmission_first = if features.transmission { materials.len() as u32 } else { 0 };
+    if features.transmission {
+        // `kernel::scene_data::fetch_glass`: two texels per material (GLASS_TEXELS).
+        for (i, m) in scene.materials.iter().enumerate() {
+            let thin = if m.has_volume() { 0.0 } else { 1.0 };
+            let transmission = if m.transmits() { m.transmission.min(1.0) } else { 0.0 };
+            materials.push(Vec4::new(transmission, m.ior, texture_index(i, 4, m.transmission_texture), thin));
+            materials.push(m.absorption().extend(0.0));
+        }
+    }
     let metal_rough = if features.metal_rough {
         let texels = scene.materials.iter().enumerate().map(|(i, m)| {
             let specular = if m.uses_metal_rough() { 1.0 } else { 0.0 };
@@ -52,5 +63,11 @@ pub(super) fn pack_materials(scene: &Scene, textures: &PackedTextures, features:
     } else {
         Texels::default()
     };
-    PackedMaterials { materials: Texels::new(materials), metal_rough, normal_map_first, alpha_mask_first }
+    PackedMaterials {
+        materials: Texels::new(materials),
+        metal_rough,
+        normal_map_first,
+        alpha_mask_first,
+        transmission_first,
+    }
 }

@@ -148,6 +148,8 @@ fn scene_features(
         point_lights: !scene.point_lights.is_empty(),
         emissive_triangles: !emissive.triangles.is_empty(),
         metal_rough: scene.materials.iter().any(|m| m.uses_metal_rough()),
+        transmission: scene.materials.iter().any(|m| m.transmits()),
+        volume: scene.materials.iter().any(|m| m.absorption().max_element() > 0.0),
         normal_map: textures_used && scene.materials.iter().any(|m| m.normal_texture.is_some()),
         alpha_mask: masked_material.contains(&true),
         texture_transform: textures_used && textures.refs.as_ref().is_some_and(|r| r.transform),
@@ -194,6 +196,7 @@ fn kernel_scene(
         alpha_mask_first: materials.alpha_mask_first,
         texture_ref_first: textures.refs.as_ref().filter(|_| features.textures).map_or(0, |r| r.refs.len() as u32),
         texcoord1_first: geometry.texcoord1_first,
+        transmission_first: materials.transmission_first,
         camera_position: camera.position,
         camera_right: camera.right,
         camera_up: camera.up,
@@ -223,6 +226,8 @@ fn kernel_scene(
         has_alpha_mask: features.alpha_mask as u32,
         has_texture_transform: features.texture_transform as u32,
         has_texcoord1: features.texcoord1 as u32,
+        has_transmission: features.transmission as u32,
+        has_volume: features.volume as u32,
     }
 }
 

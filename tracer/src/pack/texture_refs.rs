@@ -17,7 +17,7 @@ pub struct TextureRefs {
     /// Per reference, its texture (an index into the scene's textures) and how it is read.
     pub refs: Vec<(u32, UvTransform)>,
     /// Per material, per [`crate::scene::Material::texture_slots`] entry, its reference.
-    pub slots: Vec<[Option<u32>; 4]>,
+    pub slots: Vec<[Option<u32>; 5]>,
     /// Some reference transforms its UVs (`Features::texture_transform`).
     pub transform: bool,
     /// Some reference reads `TEXCOORD_1` (`Features::texcoord1`).
@@ -49,7 +49,7 @@ pub fn texture_refs(scene: &Scene) -> Option<TextureRefs> {
     let mut out = TextureRefs { transform, texcoord1, ..Default::default() };
     let mut index = HashMap::new();
     for m in &scene.materials {
-        let mut slots = [None; 4];
+        let mut slots = [None; 5];
         for (slot, (texture, uv)) in slots.iter_mut().zip(m.texture_slots().into_iter().zip(m.texture_uvs)) {
             let Some(texture) = texture.filter(|&t| (t as usize) < scene.textures.len()) else { continue };
             let next = out.refs.len() as u32;

@@ -195,7 +195,24 @@ pub struct Material {
     pub alpha_cutoff: Option<f32>,
     /// How each of [`Material::texture_slots`] is read (same order): its texture coordinate
     /// set and `KHR_texture_transform`. The default reads `TEXCOORD_0` untransformed.
-    pub texture_uvs: [UvTransform; 4],
+    pub texture_uvs: [UvTransform; 5],
+    /// glTF `KHR_materials_transmission` `transmissionFactor` in `[0, 1]`: the share of the
+    /// non-metallic part that light passes through (tinted by the base colour), as a rough
+    /// dielectric (`kernel::dielectric`). 0: opaque.
+    pub transmission: f32,
+    /// `transmissionTexture`: its red channel (linear) multiplies `transmission`.
+    pub transmission_texture: Option<u32>,
+    /// glTF `KHR_materials_ior` (1.5 by default), at least 1.
+    pub ior: f32,
+    /// glTF `KHR_materials_volume` `thicknessFactor`: 0 (or no volume) makes a transmissive
+    /// surface thin-walled (no refraction: light passes through a sheet); above 0 the mesh
+    /// encloses a volume that refracts and absorbs.
+    pub thickness: f32,
+    /// `attenuationColor`: the colour white light has after `attenuation_distance` inside the
+    /// volume (Beer–Lambert: σa = −ln(colour) / distance).
+    pub attenuation_color: Vec3,
+    /// `attenuationDistance` (infinite: no absorption), above 0.
+    pub attenuation_distance: f32,
 }
 
 impl Material {
@@ -214,7 +231,13 @@ impl Material {
             normal_scale: 1.0,
             alpha: 1.0,
             alpha_cutoff: None,
-            texture_uvs: [UvTransform::default(); 4],
+            texture_uvs: [UvTransform::default(); 5],
+            transmission: 0.0,
+            transmission_texture: None,
+            ior: 1.5,
+            thickness: 0.0,
+            attenuation_color: Vec3::ONE,
+            attenuation_distance: f32::INFINITY,
         }
     }
 
@@ -237,7 +260,37 @@ impl Material {
     /// dielectric specular layer is left out for it (at roughness 1 it moves reflected
     /// energy by a few percent, most at grazing angles).
     pub fn uses_metal_rough(&self) -> bool {
-        self.metallic != 0.0 || self.roughness != 1.0 || self.metallic_roughness_texture.is_some()
+        self.metallic != 0.0 || self.roughness != 1.0 || self.metallic_roughness_texture.is_some() || self.transmits()
+    }
+
+    /// Whether some light passes through the material (`Features::transmission`).
+    pub fn transmits(&self) -> bool {
+        self.transmission > 0.0
+    }
+
+    /// A smooth (roughness 0) transmissive glass of index `ior`: with `volume`, a solid that
+    /// refracts (thickness 1, no absorption); without, a thin-walled sheet.
+    pub fn glass(name: &str, tint: Vec3, ior: f32, volume: bool) -> Self {
+        let thickness = if volume { 1.0 } else { 0.0 };
+        Self { transmission: 1.0, ior, thickness, roughness: 0.0, ..Self::diffuse(name, tint) }
+    }
+
+    /// Whether the material encloses a volume (`thickness` > 0), so refracts rather than
+    /// passing light straight through a sheet.
+    pub fn has_volume(&self) -> bool {
+        self.transmits() && self.thickness > 0.0
+    }
+
+    /// The volume's Beer–Lambert absorption coefficient σa = −ln(attenuation colour) /
+    /// attenuation distance (per scene unit), 0 without a volume or with an infinite distance.
+    /// A colour channel of 0 absorbs as 1e-6 would (finite σa).
+    pub fn absorption(&self) -> Vec3 {
+        let d = self.attenuation_distance;
+        if !self.has_volume() || !d.is_finite() || d <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let c = self.attenuation_color.clamp(Vec3::splat(1e-6), Vec3::ONE);
+        Vec3::new(-c.x.ln(), -c.y.ln(), -c.z.ln()) / self.attenuation_distance
     }
 
     /// A diffuse material that also emits `emission` radiance.
@@ -251,17 +304,24 @@ impl Material {
     }
 
     /// Its texture references (indices into [`Scene::textures`]), every map it has.
-    pub fn texture_slots(&self) -> [Option<u32>; 4] {
-        [self.base_color_texture, self.emissive_texture, self.metallic_roughness_texture, self.normal_texture]
+    pub fn texture_slots(&self) -> [Option<u32>; 5] {
+        [
+            self.base_color_texture,
+            self.emissive_texture,
+            self.metallic_roughness_texture,
+            self.normal_texture,
+            self.transmission_texture,
+        ]
     }
 
     /// [`Material::texture_slots`], to rewrite (loaders drop textures that fail to decode).
-    pub(crate) fn texture_slots_mut(&mut self) -> [&mut Option<u32>; 4] {
+    pub(crate) fn texture_slots_mut(&mut self) -> [&mut Option<u32>; 5] {
         [
             &mut self.base_color_texture,
             &mut self.emissive_texture,
             &mut self.metallic_roughness_texture,
             &mut self.normal_texture,
+            &mut self.transmission_texture,
         ]
     }
 }

@@ -82,6 +82,7 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
         alpha_mask_first: U32,
         texture_ref_first: U32,
         texcoord1_first: U32,
+        transmission_first: U32,
         camera_position: Vec3,
         camera_right: Vec3,
         camera_up: Vec3,
@@ -111,6 +112,8 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
         has_alpha_mask: U32,
         has_texture_transform: U32,
         has_texcoord1: U32,
+        has_transmission: U32,
+        has_volume: U32,
     )
 }
 

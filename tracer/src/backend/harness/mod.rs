@@ -499,6 +499,7 @@ mod tests {
             ("Shading", top_fields::<crate::kernel::integrator::Shading>()),
             ("NormalMapData", top_fields::<crate::kernel::normal_map::NormalMapData>()),
             ("AlphaMaskData", top_fields::<crate::kernel::scene_data::AlphaMaskData>()),
+            ("GlassData", top_fields::<crate::kernel::scene_data::GlassData>()),
         ];
         let structs: Vec<kernel_dsl::ir::StructDef> = crate::kernel::modules()
             .into_iter()
@@ -515,7 +516,7 @@ mod tests {
         }
         assert_eq!(
             structs.len(),
-            15,
+            16,
             "a new kernel struct needs a Words impl here: {:?}",
             structs.iter().map(|s| &s.name).collect::<Vec<_>>()
         );

@@ -119,11 +119,11 @@ macro_rules! scene_codec {
 
 scene_codec! {
     triangles, shading, nodes, node_children, materials, lights, texture_texels, texture_info, sky, sky_rows,
-    metal_rough, tangent_first, normal_map_first, alpha_mask_first, texture_ref_first, texcoord1_first, camera_position, camera_right, camera_up, camera_forward,
+    metal_rough, tangent_first, normal_map_first, alpha_mask_first, texture_ref_first, texcoord1_first, transmission_first, camera_position, camera_right, camera_up, camera_forward,
     lens_radius, focus_distance, width, height, frame_seed, max_depth, strategy, light_count, sky_width,
     sky_height, sky_intensity, sky_rotation, scene_scale, leaf_stack_limit, has_sky, has_textures, has_shading,
     has_lights, has_triangle_lights, has_point_lights, has_metal_rough, has_normal_map, has_alpha_mask,
-    has_texture_transform, has_texcoord1,
+    has_texture_transform, has_texcoord1, has_transmission, has_volume,
 }
 
 #[cfg(test)]
@@ -148,7 +148,7 @@ mod tests {
         assert_eq!(back.triangles.as_slice()[0].y.to_bits(), (-0.0f32).to_bits());
         assert!(back.triangles.as_slice()[0].z.is_nan());
         assert_eq!((back.max_depth, back.camera_up, back.has_normal_map), (7, scene.camera_up, 1));
-        assert!(decode_scene(&words[..words.len() - 1]).unwrap_err().contains("has_texcoord1"));
+        assert!(decode_scene(&words[..words.len() - 1]).unwrap_err().contains("has_volume"));
         assert!(decode_scene(&[words.as_slice(), &[0]].concat()).unwrap_err().contains("after"));
         assert!(decode_scene(&words[1..]).unwrap_err().contains("not an encoded scene"));
         assert!(decode_scene(&[]).is_err());

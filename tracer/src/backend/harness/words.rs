@@ -148,7 +148,7 @@ mod kernel_structs {
     use crate::kernel::metal_rough::{BrdfSample, Surface};
     use crate::kernel::normal_map::NormalMapData;
     use crate::kernel::sampling::Onb;
-    use crate::kernel::scene_data::{AlphaMaskData, MaterialData, MetalRoughData, TriangleData};
+    use crate::kernel::scene_data::{AlphaMaskData, GlassData, MaterialData, MetalRoughData, TriangleData};
     use crate::kernel::traverse::{Hit, NodeHits};
 
     harness_struct_words! {
@@ -167,6 +167,7 @@ mod kernel_structs {
         Shading { p, ng, frame, wo, bsdf }
         NormalMapData { texture, scale }
         AlphaMaskData { texture, alpha, cutoff }
+        GlassData { transmission, ior, texture, thin, sigma_a }
     }
 }
 

@@ -73,6 +73,8 @@ impl Loader<'_> {
             }
             None => (None, 1.0, UvTransform::default()),
         };
+        let name = self.material_label.clone();
+        let glass = self.glass(m, &name)?;
         Ok(Material {
             name: m.name.clone().unwrap_or_default(),
             base_color,
@@ -86,8 +88,80 @@ impl Loader<'_> {
             normal_scale,
             alpha,
             alpha_cutoff,
-            texture_uvs: [base_uv, emissive_uv, metal_rough_uv, normal_uv],
+            texture_uvs: [base_uv, emissive_uv, metal_rough_uv, normal_uv, glass.transmission_uv],
+            transmission: glass.transmission,
+            transmission_texture: glass.transmission_texture,
+            ior: glass.ior,
+            thickness: glass.thickness,
+            attenuation_color: glass.attenuation_color,
+            attenuation_distance: glass.attenuation_distance,
         })
+    }
+
+    /// `KHR_materials_transmission`, `KHR_materials_ior` and `KHR_materials_volume` of material
+    /// `m` (`what` names it). A value outside the specification's range (transmission outside
+    /// [0, 1], ior below 1, thickness or attenuation distance negative, a colour outside [0, 1],
+    /// NaN or infinity where a finite number is due) is replaced by the specification's default
+    /// with a warning naming the material, the value and the default; under `--strict` it is
+    /// refused. `thicknessTexture` is not read (thickness only decides thin-walled or not).
+    fn glass(&mut self, m: &gltf::json::Material, what: &str) -> Result<Glass, SceneError> {
+        let ext = m.extensions.as_ref();
+        let mut glass = Glass {
+            transmission: 0.0,
+            transmission_texture: None,
+            transmission_uv: UvTransform::default(),
+            ior: 1.5,
+            thickness: 0.0,
+            attenuation_color: Vec3::ONE,
+            attenuation_distance: f32::INFINITY,
+        };
+        if let Some(t) = ext.and_then(|e| e.transmission.as_ref()) {
+            let v = t.transmission_factor.0;
+            glass.transmission = self.glass_value(what, "transmissionFactor", v, (0.0..=1.0).contains(&v), 0.0)?;
+            let label = format!("{what} transmissionTexture");
+            (glass.transmission_texture, glass.transmission_uv) =
+                self.texture_info(t.transmission_texture.as_ref(), &label)?;
+        }
+        if let Some(i) = ext.and_then(|e| e.ior.as_ref()) {
+            let v = i.ior.0;
+            glass.ior = self.glass_value(what, "ior", v, v.is_finite() && v >= 1.0, 1.5)?;
+        }
+        if let Some(volume) = ext.and_then(|e| e.volume.as_ref()) {
+            let v = volume.thickness_factor.0;
+            glass.thickness = self.glass_value(what, "thicknessFactor", v, v.is_finite() && v >= 0.0, 0.0)?;
+            let v = volume.attenuation_distance.0;
+            glass.attenuation_distance = self.glass_value(what, "attenuationDistance", v, v > 0.0, f32::INFINITY)?;
+            let c = Vec3::from(volume.attenuation_color.0);
+            let ok = c.is_finite() && c.min_element() >= 0.0 && c.max_element() <= 1.0;
+            if !ok {
+                let message = format!(
+                    "{what}: KHR_materials_volume attenuationColor {c} is outside [0, 1]: the default [1, 1, 1] is \
+                     used (no absorption)"
+                );
+                if self.strict {
+                    return Err(malformed(message));
+                }
+                self.warnings.once(&format!("{what} attenuationColor"), || message);
+            } else {
+                glass.attenuation_color = c;
+            }
+        }
+        Ok(glass)
+    }
+
+    /// `value` of glass parameter `name` when `ok`, else `default` with a warning naming the
+    /// material, the parameter, the value and the default (an error under `--strict`).
+    fn glass_value(&mut self, what: &str, name: &str, value: f32, ok: bool, default: f32) -> Result<f32, SceneError> {
+        if ok {
+            return Ok(value);
+        }
+        let message =
+            format!("{what}: {name} {value} is outside the specification's range: the default {default} is used");
+        if self.strict {
+            return Err(malformed(message));
+        }
+        self.warnings.once(&format!("{what} {name}"), || message);
+        Ok(default)
     }
 
     pub(super) fn texture_info(
@@ -351,4 +425,15 @@ pub(super) fn wrap(mode: Checked<WrappingMode>) -> Wrap {
         Checked::Valid(WrappingMode::MirroredRepeat) => Wrap::MirroredRepeat,
         _ => Wrap::Repeat,
     }
+}
+
+/// A material's glass parameters as the glTF extensions give them (checked).
+struct Glass {
+    transmission: f32,
+    transmission_texture: Option<u32>,
+    transmission_uv: UvTransform,
+    ior: f32,
+    thickness: f32,
+    attenuation_color: Vec3,
+    attenuation_distance: f32,
 }

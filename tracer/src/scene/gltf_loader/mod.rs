@@ -38,6 +38,9 @@ use nodes::{semantic_name, to_vec2, LocalPrimitive};
 const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_lights_punctual",
     "KHR_materials_emissive_strength",
+    "KHR_materials_transmission",
+    "KHR_materials_ior",
+    "KHR_materials_volume",
     "KHR_mesh_quantization",
     "EXT_texture_webp",
     "KHR_texture_transform",
@@ -52,9 +55,7 @@ fn is_approximable(ext: &str) -> bool {
 /// What Lightport does about an extension it does not implement, for the warning text.
 fn extension_note(ext: &str) -> &'static str {
     match ext {
-        "KHR_materials_transmission" | "KHR_materials_volume" | "KHR_materials_diffuse_transmission" => {
-            "transmissive surfaces are rendered as opaque diffuse"
-        }
+        "KHR_materials_diffuse_transmission" => "transmissive surfaces are rendered as opaque diffuse",
         "KHR_draco_mesh_compression" | "EXT_meshopt_compression" | "KHR_meshopt_compression" => {
             "compressed primitives are read from their uncompressed fallback, or skipped"
         }
