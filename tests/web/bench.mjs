@@ -78,7 +78,8 @@ scenePaths.push(opaqueScene);
 
 // Every scene under the same HDR sky (Avocado has no lights of its own).
 const sky = join(shared, 'hdri/venice_sunset_1k.hdr');
-const server = spawn(lightport, ['serve', '--port', '0', '--sky', sky, ...scenePaths], { stdio: ['ignore', 'pipe', 'inherit'] });
+// The page and wasm of this checkout (web/www, web/pkg), not those built into the binary.
+const server = spawn(lightport, ['serve', '--port', '0', '--web', join(root, 'web'), '--sky', sky, ...scenePaths], { stdio: ['ignore', 'pipe', 'inherit'] });
 const url = await new Promise((resolve, reject) => {
   const lines = createInterface({ input: server.stdout });
   lines.on('line', (line) => {

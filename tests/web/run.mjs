@@ -404,7 +404,13 @@ async function apiChoice(o) {
         const a = await window.lightport.readAccumulation();
         return { spp: a.spp, sum: a.data.reduce((x, y) => x + y, 0) };
       });
+      // The page's split of the time to its first frame, once it has made it.
+      const firstFrame = error ? null : await page.waitForFunction(() => window.lightport.firstFrame, null, { timeout: 30000 })
+        .then(() => page.evaluate(() => window.lightport.firstFrame), () => null);
       return {
+        firstFrame,
+        firstFrameMs: await page.evaluate(() => window.lightport.firstFrameMs),
+        firstFrameReadout: await page.textContent('#first-frame'),
         error: await page.evaluate(() => window.lightport.error),
         firstError: error,
         notice: await page.evaluate(() => window.lightport.notice || null),
