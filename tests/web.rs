@@ -275,7 +275,10 @@ fn the_page_splits_the_time_to_its_first_frame() {
         }
         let total = ms("totalMs");
         let sum: f64 = parts.iter().map(|k| ms(k)).sum();
-        assert!(sum <= total + 1.0, "api={api}: the parts ({sum} ms) overlap: more than the total ({total} ms): {split}");
+        assert!(
+            sum <= total + 1.0,
+            "api={api}: the parts ({sum} ms) overlap: more than the total ({total} ms): {split}"
+        );
         assert!((ms("otherMs") - (total - sum)).abs() < 1e-6, "{split}");
         // The page's first scene counts from navigation start, as firstFrameMs does.
         let first = report["firstFrameMs"].as_f64().unwrap_or(f64::NAN);

@@ -410,7 +410,7 @@ async function apiChoice(o) {
       return {
         firstFrame,
         firstFrameMs: await page.evaluate(() => window.lightport.firstFrameMs),
-        firstFrameReadout: await page.textContent('#first-frame'),
+        firstFrameReadout: await page.evaluate(() => document.getElementById('first-frame')?.textContent ?? null),
         error: await page.evaluate(() => window.lightport.error),
         firstError: error,
         notice: await page.evaluate(() => window.lightport.notice || null),
