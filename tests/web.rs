@@ -271,6 +271,41 @@ fn the_page_runs_and_shows_the_api_asked_for() {
     }
 }
 
+/// The page accounts for its first frame on either API: the time from navigation to the first
+/// finished frame splits into download, decode, upload, compile and the first frame's GPU time,
+/// each measured (non-zero), none overlapping another (their sum is within the total), and the
+/// read-out shows the split.
+#[test]
+fn the_page_splits_the_time_to_its_first_frame() {
+    let server = Server::start(&[]);
+    for api in ["webgl2", "webgpu"] {
+        let report = api_report(&server, api, &[]);
+        no_page_error(&report);
+        let split = &report["firstFrame"];
+        assert!(split.is_object(), "api={api}: the page reports no first-frame split: {report}");
+        let ms = |key: &str| split[key].as_f64().unwrap_or_else(|| panic!("api={api}: no {key} in {split}"));
+        let parts = ["downloadMs", "decodeMs", "uploadMs", "compileMs", "gpuMs"];
+        for key in parts {
+            assert!(ms(key) > 0.0, "api={api}: {key} is measured: {split}");
+        }
+        let total = ms("totalMs");
+        let sum: f64 = parts.iter().map(|k| ms(k)).sum();
+        assert!(
+            sum <= total + 1.0,
+            "api={api}: the parts ({sum} ms) overlap: more than the total ({total} ms): {split}"
+        );
+        assert!((ms("otherMs") - (total - sum)).abs() < 1e-6, "{split}");
+        // The page's first scene counts from navigation start, as firstFrameMs does.
+        let first = report["firstFrameMs"].as_f64().unwrap_or(f64::NAN);
+        assert!((total - first).abs() < 100.0, "api={api}: total {total} ms, first frame at {first} ms: {split}");
+        let readout = report["firstFrameReadout"].as_str().unwrap_or("");
+        for word in ["download", "decode", "upload", "compile", "GPU"] {
+            assert!(readout.contains(word), "api={api}: the read-out shows {word}: {readout:?}");
+        }
+        assert!(readout.starts_with(&format!("{:.2} s", total / 1000.0)), "api={api}: {readout:?} vs {total} ms");
+    }
+}
+
 /// A scene that needs more storage buffers than the WebGPU device allows (a test override of
 /// the device's limit): auto falls back to WebGL2 and says why, naming the limit and the
 /// numbers; an explicit `api=webgpu` shows that error instead.

@@ -1,10 +1,14 @@
 // Benchmark of the web path tracer in headless Chromium (SwiftShader here): frame time at
 // 640x480, 1 sample per pixel per frame, and navigation-to-first-frame with a cold and a warm
-// client cache, per scene, with bundle sizes. Ratios are against the Cornell box measured in
-// the same run (the machine is shared: compare ratios, not absolute times, across runs).
+// client cache, per scene, with bundle sizes; the first frame's time split into download,
+// decode, upload, compile and the first frame's GPU time (the page's own accounting,
+// window.lightport.firstFrame); and what alpha masks cost: LittlestTokyo as shipped against a
+// copy made here with every material's alphaMode removed (opaque), frame time per API. Ratios
+// are measured in the same run (the machine is shared: compare ratios, not absolute times,
+// across runs).
 //
 //   node tests/web/bench.mjs --lightport target/release/lightport [--frames 5] [--size 640x480]
-//        [--apis webgl2,webgpu] [--rounds 1]
+//        [--apis webgl2,webgpu] [--rounds 1] [--scenes cornell-box,LittlestTokyo,...]
 //
 // Each API (the page's `api=`) runs every scene; the table puts them side by side with the
 // WebGPU / WebGL2 frame-time ratio.
@@ -15,7 +19,7 @@
 
 import { spawn, execFileSync } from 'node:child_process';
 import { createInterface } from 'node:readline';
-import { readFileSync, rmSync } from 'node:fs';
+import { mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join, dirname } from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -36,9 +40,46 @@ const scenePaths = [
   'threejs/LittlestTokyo.glb',
 ].map((p) => join(shared, p));
 
+// `glb` with every material's alphaMode (and alphaCutoff) removed: the same scene, opaque. The
+// JSON chunk is rewritten (padded with spaces to 4 bytes, as the format requires); the binary
+// chunk is copied as it is.
+function opaqueGlb(glb) {
+  if (glb.readUInt32LE(0) !== 0x46546c67) throw new Error('not a GLB file');
+  const jsonLength = glb.readUInt32LE(12);
+  if (glb.readUInt32LE(16) !== 0x4e4f534a) throw new Error('the GLB does not start with a JSON chunk');
+  const gltf = JSON.parse(glb.subarray(20, 20 + jsonLength).toString('utf8'));
+  let masked = 0;
+  for (const m of gltf.materials || []) {
+    if (m.alphaMode !== undefined && m.alphaMode !== 'OPAQUE') masked++;
+    delete m.alphaMode;
+    delete m.alphaCutoff;
+  }
+  if (masked === 0) throw new Error('the GLB has no alpha-masked or blended material: nothing to compare');
+  let json = Buffer.from(JSON.stringify(gltf), 'utf8');
+  json = Buffer.concat([json, Buffer.alloc((4 - (json.length % 4)) % 4, 0x20)]);
+  const rest = glb.subarray(20 + jsonLength);
+  const header = Buffer.alloc(20);
+  header.writeUInt32LE(0x46546c67, 0);
+  header.writeUInt32LE(2, 4);
+  header.writeUInt32LE(20 + json.length + rest.length, 8);
+  header.writeUInt32LE(json.length, 12);
+  header.writeUInt32LE(0x4e4f534a, 16);
+  return { bytes: Buffer.concat([header, json, rest]), masked };
+}
+const maskedScene = join(shared, 'threejs/LittlestTokyo.glb');
+const tempDir = mkdtempSync(join(tmpdir(), 'lightport-bench-'));
+// Removed however the run ends ('exit' also follows an uncaught error).
+process.on('exit', () => rmSync(tempDir, { recursive: true, force: true }));
+// Named after the original: `lightport serve` names a scene by its file stem.
+const opaqueScene = join(tempDir, 'LittlestTokyo-opaque.glb');
+const opaque = opaqueGlb(readFileSync(maskedScene));
+writeFileSync(opaqueScene, opaque.bytes);
+scenePaths.push(opaqueScene);
+
 // Every scene under the same HDR sky (Avocado has no lights of its own).
 const sky = join(shared, 'hdri/venice_sunset_1k.hdr');
-const server = spawn(lightport, ['serve', '--port', '0', '--sky', sky, ...scenePaths], { stdio: ['ignore', 'pipe', 'inherit'] });
+// The page and wasm of this checkout (web/www, web/pkg), not those built into the binary.
+const server = spawn(lightport, ['serve', '--port', '0', '--web', join(root, 'web'), '--sky', sky, ...scenePaths], { stdio: ['ignore', 'pipe', 'inherit'] });
 const url = await new Promise((resolve, reject) => {
   const lines = createInterface({ input: server.stdout });
   lines.on('line', (line) => {
@@ -56,7 +97,10 @@ const rounds = Number(args.rounds || '1');
 const median = (v) => [...v].sort((x, y) => x - y)[Math.floor(v.length / 2)];
 
 try {
-  const scenes = (await (await fetch(new URL('scenes.json', url))).json()).scenes;
+  // `--scenes a,b`: only those (by name; default every served scene).
+  const only = args.scenes ? args.scenes.split(',') : null;
+  const scenes = (await (await fetch(new URL('scenes.json', url))).json()).scenes
+    .filter((s) => !only || only.includes(s.name));
   const runs = {}; // api -> scene -> [row]
   const infos = {};
   for (let round = 0; round < rounds; round++) {
@@ -98,27 +142,39 @@ try {
     console.log(`| ${cells.join(' | ')} |`);
   }
 
-  // Where the cold first frame's time goes: the page's startup marks (web/www/main.js), as
-  // the median duration of each step from the previous mark (the first from navigation start).
-  const steps = [['wasm', 'wasm ready'], ['device', 'WebGPU device'], ['scenes', 'scenes.json'],
-    ['fetched', 'bundle fetched'], ['installed', 'installed'], ['first', 'first frame on screen']];
-  console.log('\nCold first frame, step by step (ms from the previous step; median over rounds):\n');
-  const stepHead = ['scene', 'api', ...steps.map(([, label]) => label), 'total'];
-  console.log(`| ${stepHead.join(' | ')} |`);
-  console.log(`|${stepHead.map(() => '---').join('|')}|`);
+  // Where the first frame's time goes (web/www/main.js, window.lightport.firstFrame): the
+  // bundle's download (warm: its read from the page's cache), its decode in wasm, the scene's
+  // upload to GPU textures or buffers, the shader compile (generation, compile and link, or
+  // pipeline creation until the device's verdict), the first frame on the GPU (its submission
+  // until it is finished), and the rest (page, wasm and WebGPU device start, scenes.json, the
+  // driver's round trips). Medians over the rounds, each column on its own.
+  const parts = [['downloadMs', 'download'], ['decodeMs', 'decode'], ['uploadMs', 'upload'], ['compileMs', 'compile'],
+    ['gpuMs', 'first frame GPU'], ['otherMs', 'other'], ['totalMs', 'total']];
+  console.log('\nTime to the first frame, split (ms from navigation start; median over rounds):\n');
+  const splitHead = ['scene', 'api', 'cache', ...parts.map(([, label]) => label)];
+  console.log(`| ${splitHead.join(' | ')} |`);
+  console.log(`|${splitHead.map(() => '---').join('|')}|`);
   for (const s of scenes) {
     for (const api of apis) {
-      const rows = runs[api][s.name];
-      const durations = steps.map(([key]) => median(rows.map((r) => {
-        const marks = { ...r.coldStartup, first: r.coldFirstFrameMs };
-        const at = steps.map(([k]) => marks[k]);
-        const i = steps.findIndex(([k]) => k === key);
-        if (at[i] === undefined) return NaN;
-        const previous = at.slice(0, i).filter((t) => t !== undefined).at(-1) ?? 0;
-        return at[i] - previous;
-      })));
-      const cell = (ms) => (Number.isFinite(ms) ? ms.toFixed(0) : '–');
-      console.log(`| ${s.name} | ${api} | ${durations.map(cell).join(' | ')} | ${cell(median(rows.map((r) => r.coldFirstFrameMs)))} |`);
+      for (const visit of ['cold', 'warm']) {
+        const rows = runs[api][s.name].map((r) => r[`${visit}Split`]).filter(Boolean);
+        const cell = (key) => (rows.length ? median(rows.map((r) => r[key])).toFixed(0) : '–');
+        console.log(`| ${s.name} | ${api} | ${visit} | ${parts.map(([key]) => cell(key)).join(' | ')} |`);
+      }
+    }
+  }
+
+  // What alpha masks cost: LittlestTokyo as shipped against its opaque copy, frame time.
+  const masked = scenes.find((s) => s.name === 'LittlestTokyo');
+  const opaqueRow = scenes.find((s) => s.name === 'LittlestTokyo-opaque');
+  if (masked && opaqueRow) {
+    console.log(`\nAlpha masks: LittlestTokyo as shipped (${opaque.masked} masked or blended materials) and made opaque (every alphaMode removed), frame time (ms, median over rounds):\n`);
+    console.log('| api | as shipped | opaque | as shipped / opaque |');
+    console.log('|---|---|---|---|');
+    for (const api of apis) {
+      const ms = (s) => median(runs[api][s.name].map((r) => r.frameMs));
+      const [a, b] = [ms(masked), ms(opaqueRow)];
+      console.log(`| ${api} | ${a.toFixed(0)} | ${b.toFixed(0)} | ${(a / b).toFixed(2)}x |`);
     }
   }
 } finally {

@@ -13,3 +13,8 @@ pub(crate) fn set(object: &Object, key: &str, value: impl Into<JsValue>) {
     // Setting a plain property on a fresh object cannot fail.
     let _ = Reflect::set(object, &JsValue::from_str(key), &value.into());
 }
+
+/// `performance.now()`: milliseconds on the page's own timeline (the one `main.js` marks).
+pub(crate) fn now_ms() -> f64 {
+    web_sys::window().and_then(|w| w.performance()).map_or_else(js_sys::Date::now, |p| p.now())
+}

@@ -30,7 +30,7 @@ use web_sys::{HtmlCanvasElement, WebGl2RenderingContext};
 
 use crate::camera::OrbitCamera;
 use crate::files::{self, DroppedFile};
-use crate::js::{js_error, set};
+use crate::js::{js_error, now_ms, set};
 use crate::runtime::{webgl2, Api, GlRuntime, GpuDevice, GpuRuntime, Runtime};
 
 /// The loaded scene: the master copy of its packed data (uniforms kept current) and the view.
@@ -40,6 +40,8 @@ struct Loaded {
     camera: OrbitCamera,
     /// The scene's own view, for `resetCamera`.
     home: OrbitCamera,
+    /// Milliseconds decoding its bundle took (0 for dropped files: see `loadDropped`).
+    decode_ms: f64,
 }
 
 /// The path tracer on a canvas. Create it with `new Viewer(canvas)`, optionally give it a
@@ -173,8 +175,10 @@ impl Viewer {
     /// packed scene is uploaded as it is. Returns the scene's description (see `sceneInfo`).
     #[wasm_bindgen(js_name = loadBundle)]
     pub fn load_bundle(&mut self, bytes: &[u8]) -> Result<JsValue, JsError> {
+        let start = now_ms();
         let bundle = tracer::bundle::Bundle::decode(bytes).map_err(js_error)?;
-        self.install(bundle.name, bundle.packed)
+        let decode_ms = now_ms() - start;
+        self.install(bundle.name, bundle.packed, decode_ms)
     }
 
     /// Adds one dropped file (a `.glb`, a `.gltf`, or a file a `.gltf` references);
@@ -195,7 +199,7 @@ impl Viewer {
         let loaded_at = js_sys::Date::now();
         let packed = files::prepare(&name, &scene, &self.settings).map_err(js_error)?;
         let prepared_at = js_sys::Date::now();
-        let info = self.install(name, packed)?;
+        let info = self.install(name, packed, 0.0)?;
         let info = Object::from(info);
         set(&info, "loadMs", loaded_at - start);
         set(&info, "buildAndPackMs", prepared_at - loaded_at);
@@ -205,7 +209,7 @@ impl Viewer {
 
     /// Makes `packed` the current scene, keeping the viewer's size and strategy. If the GL
     /// renderer refuses it (too large for the device...), the previous scene stays.
-    fn install(&mut self, name: String, mut packed: Packed) -> Result<JsValue, JsError> {
+    fn install(&mut self, name: String, mut packed: Packed, decode_ms: f64) -> Result<JsValue, JsError> {
         let bundle_depth = packed.scene.max_depth;
         packed.apply(&RenderSettings { max_depth: bundle_depth, ..self.settings });
         let camera = OrbitCamera::from_uniforms(&packed.scene);
@@ -213,7 +217,7 @@ impl Viewer {
         self.gpu_recoveries = 0;
         self.settings.max_depth = bundle_depth;
         self.running = Some(running);
-        self.loaded = Some(Loaded { name, packed, camera, home: camera });
+        self.loaded = Some(Loaded { name, packed, camera, home: camera, decode_ms });
         Ok(self.scene_info())
     }
 
@@ -429,6 +433,11 @@ impl Viewer {
         set(&info, "webGpuLost", self.web_gpu_lost().map_or(JsValue::NULL, JsValue::from));
         if let Some(running) = &self.running {
             running.describe(&info);
+            // What the scene's way to its first frame took in here (see `Startup`), with the
+            // bundle's decode: the page's first-frame read-out.
+            let startup = running.startup().describe();
+            set(&startup, "decodeMs", self.loaded.as_ref().map_or(0.0, |l| l.decode_ms));
+            set(&info, "startup", startup);
         }
         info.into()
     }

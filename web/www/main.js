@@ -48,6 +48,15 @@ const hook = {
   // ready (wasm), the WebGPU device is (device), scenes.json is read (scenes), the first bundle
   // is fetched (fetched) and installed (installed: decoded, uploaded, kernel compile started).
   startup: {},
+  // Where the time to the last loaded scene's first finished frame went, once it is done
+  // (the read-out "first frame"): { api, scene, totalMs (from navigation start for the page's
+  // first scene, else from the load's start), downloadMs (the bundle's fetch, or its read from
+  // the cache), decodeMs (bundle decode in wasm), uploadMs (scene data to GPU textures or
+  // buffers, until the driver has it), compileMs (shader generation, compile and link, or
+  // pipeline creation until the device's verdict), gpuMs (the first frame: its first
+  // submission, or the compile's end if later, until it is finished on the GPU), otherMs (the
+  // rest: page and wasm start, device request, scene list, waits between steps) }.
+  firstFrame: null,
   bands: 0, // bands submitted by the frame loop
   // Per camera input that restarted the accumulation, once the restarted accumulation's first
   // band is done on the GPU: { inputAt (the event's timeStamp), handledAt, submittedAt (its
@@ -165,12 +174,65 @@ function frameDone() {
     firstFrameWaited = true;
     viewer.sync().then(() => { hook.firstFrameMs = performance.now(); });
   }
+  if (loading && !loading.waiting) {
+    loading.waiting = true;
+    const load = loading;
+    viewer.sync().then(() => finishFirstFrame(load, performance.now()));
+  }
+}
+
+// ---- first frame, accounted for -------------------------------------------------------------
+
+// The scene load whose first frame is not finished yet: performance.now() marks of its steps
+// (start, fetchStart, fetched, submitted: the first band or frame submitted).
+let loading = null;
+
+function beginLoad(name, start = performance.now()) {
+  loading = { name, start, fetchStart: null, fetched: null, submitted: null, waiting: false };
+  hook.firstFrame = null;
+  $('first-frame').textContent = '…';
+}
+
+function markSubmitted(at) {
+  if (loading && loading.submitted === null) loading.submitted = at;
+}
+
+// The first frame of `load` is finished on the GPU (at `doneAt`): splits its time from the
+// page's marks and the viewer's own (sceneInfo().startup: decode, upload, compile in wasm, and
+// on WebGPU when the device's verdict on the pipeline arrived).
+async function finishFirstFrame(load, doneAt) {
+  // WebGPU's verdict arrives as a promise: the frame ran after the compile, so it is there.
+  for (let i = 0; i < 50 && viewer.sceneInfo().startup && viewer.sceneInfo().startup.compiledAt === null; i++) {
+    await new Promise((resolve) => setTimeout(resolve, 10));
+  }
+  if (load !== loading) return; // another scene was loaded meanwhile
+  loading = null;
+  const info = viewer.sceneInfo();
+  const s = info.startup;
+  if (!s) return;
+  const compiledAt = Math.min(s.compiledAt ?? doneAt, doneAt);
+  const split = {
+    api: info.api,
+    scene: load.name,
+    totalMs: doneAt - load.start,
+    downloadMs: load.fetched !== null && load.fetchStart !== null ? load.fetched - load.fetchStart : 0,
+    decodeMs: s.decodeMs,
+    uploadMs: s.uploadMs,
+    compileMs: s.codegenMs + s.compileMs + Math.max(0, compiledAt - s.createdAt),
+    gpuMs: doneAt - Math.max(load.submitted ?? doneAt, compiledAt),
+  };
+  split.otherMs = split.totalMs - split.downloadMs - split.decodeMs - split.uploadMs - split.compileMs - split.gpuMs;
+  hook.firstFrame = split;
+  const sec = (ms) => (ms / 1000).toFixed(2);
+  $('first-frame').textContent = `${sec(split.totalMs)} s: download ${sec(split.downloadMs)}, decode ` +
+    `${sec(split.decodeMs)}, upload ${sec(split.uploadMs)}, compile ${sec(split.compileMs)}, GPU ${sec(split.gpuMs)}`;
 }
 
 // One whole frame in one submission (the test hook's renderFrames).
 function frame() {
   if (!viewer || lost) return;
   try {
+    markSubmitted(performance.now());
     viewer.frame();
   } catch (e) {
     showMessage(String(e.message || e));
@@ -188,8 +250,10 @@ function tick(now) {
   if (!paused && !busy && viewer && !lost && !recovering && hasScene) {
     applyHeldKeys(now);
     let status = 0;
+    const before = performance.now();
     try {
-      status = viewer.step(performance.now());
+      status = viewer.step(before);
+      if (status > 0) markSubmitted(before);
     } catch (e) {
       showMessage(String(e.message || e));
       paused = true;
@@ -278,11 +342,15 @@ async function loadServedScene(name) {
     return;
   }
   busy = true;
+  // The page's first scene counts from the navigation's start.
+  beginLoad(scene.name, hook.startup.fetched === undefined ? 0 : performance.now());
   showMessage(`loading ${scene.name} (${formatBytes(scene.bytes.raw)})…`, 'info');
   try {
+    loading.fetchStart = performance.now();
     const { bytes, fromCache } = await cache.fetch(scene.url, (received) => {
       showMessage(`downloading ${scene.name}: ${formatBytes(received)}`, 'info');
     });
+    loading.fetched = performance.now();
     hook.bundleSources.push({ name: scene.name, fromCache, bytes: bytes.byteLength });
     hook.startup.fetched ??= performance.now();
     viewer.loadBundle(new Uint8Array(bytes));
@@ -295,6 +363,7 @@ async function loadServedScene(name) {
     showNotice();
   } catch (e) {
     showMessage(`${scene.name}: ${e.message || e}`);
+    loading = null;
   } finally {
     busy = false;
     frameMs = null;
@@ -304,11 +373,15 @@ async function loadServedScene(name) {
 
 async function loadBundleUrl(url) {
   busy = true;
+  beginLoad(url, hook.startup.fetched === undefined ? 0 : performance.now());
   showMessage(`loading ${url}…`, 'info');
   try {
+    loading.fetchStart = performance.now();
     const response = await fetch(url, { cache: 'no-store' });
     if (!response.ok) throw new Error(`HTTP ${response.status}`);
     const bytes = await response.arrayBuffer();
+    loading.fetched = performance.now();
+    hook.startup.fetched ??= performance.now();
     hook.bundleSources.push({ name: url, fromCache: false, bytes: bytes.byteLength });
     const info = viewer.loadBundle(new Uint8Array(bytes));
     hasScene = true;
@@ -319,6 +392,7 @@ async function loadBundleUrl(url) {
     showNotice();
   } catch (e) {
     showMessage(`${url}: ${e.message || e}`);
+    loading = null;
   } finally {
     busy = false;
     frameMs = null;
@@ -380,6 +454,9 @@ async function loadFiles(fileList) {
       viewer.addDroppedFile(file.webkitRelativePath || file.name, bytes);
     }
     const info = viewer.loadDropped();
+    // Files from the disk: the read-out splits served bundles' first frames only.
+    loading = null;
+    $('first-frame').textContent = '–';
     hasScene = true;
     currentName = info.name;
     $('scene').value = '';

@@ -22,6 +22,24 @@ pub use renderer::{
     mean_image, rejected_samples, PendingAccumulation, RenderError, Renderer, RendererInfo, RendererKind,
 };
 
+/// Where a GPU renderer's creation went, in milliseconds of the calling thread: generating the
+/// kernel's shader for the scene's features (`codegen_ms`), handing it to the driver and, where
+/// the driver answers synchronously, waiting for its verdict (`compile_ms`: GL's compile and
+/// link; on wgpu only the pipeline creation calls, since WebGPU compiles asynchronously), and
+/// creating and filling the scene's textures or buffers and the accumulation (`upload_ms`: the
+/// data handed to the driver, which may still be copying it when creation returns).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BuildTimes {
+    pub codegen_ms: f64,
+    pub compile_ms: f64,
+    pub upload_ms: f64,
+}
+
+/// Milliseconds since `start` (on wasm too: `web_time` reads `performance.now()` there).
+pub(crate) fn ms_since(start: web_time::Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
+}
+
 /// Seed of frame `frame`: spreads consecutive frames over the hash's input space.
 pub fn frame_seed(frame: u32, seed: u32) -> u32 {
     frame.wrapping_mul(0x9e37_79b9) ^ seed.wrapping_mul(0x85eb_ca6b)

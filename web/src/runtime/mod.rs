@@ -52,6 +52,37 @@ impl Api {
     }
 }
 
+/// What creating a runtime took (the page's first-frame read-out): milliseconds on this thread
+/// for generating the kernel's shader (`codegen_ms`), compiling it and the display pass's
+/// (`compile_ms`: WebGL2's compile and link, which it answers synchronously; WebGPU's pipeline
+/// creation calls only) and getting the scene onto the GPU (`upload_ms`: the data handed over;
+/// on WebGL2 also the `finish()` that waits for the driver to take it), and for WebGPU, which
+/// compiles asynchronously, when the device's verdict on the kernel's pipeline arrived
+/// (`compiled_at`, a `performance.now()` time, to compare with `created_at`, when the runtime
+/// was ready).
+#[derive(Clone, Debug, Default)]
+pub struct Startup {
+    pub codegen_ms: f64,
+    pub compile_ms: f64,
+    pub upload_ms: f64,
+    pub created_at: f64,
+    pub compiled_at: Option<f64>,
+}
+
+impl Startup {
+    /// As a JavaScript object: `codegenMs`, `compileMs`, `uploadMs`, `createdAt` and
+    /// `compiledAt` (`null` until the device answered).
+    pub fn describe(&self) -> Object {
+        let o = Object::new();
+        set(&o, "codegenMs", self.codegen_ms);
+        set(&o, "compileMs", self.compile_ms);
+        set(&o, "uploadMs", self.upload_ms);
+        set(&o, "createdAt", self.created_at);
+        set(&o, "compiledAt", self.compiled_at.map_or(JsValue::NULL, JsValue::from));
+        o
+    }
+}
+
 /// A future of a read-back's result.
 pub type Pending<T> = Pin<Box<dyn Future<Output = Result<T, String>>>>;
 
@@ -91,6 +122,14 @@ impl Runtime {
 
     pub fn packed(&self) -> &Packed {
         self.renderer().packed()
+    }
+
+    /// What creating it took.
+    pub fn startup(&self) -> Startup {
+        match self {
+            Runtime::WebGl2(r) => r.startup(),
+            Runtime::WebGpu(r) => r.startup(),
+        }
     }
 
     /// Whether the runtime's context or device is gone (nothing may be drawn).

@@ -11,6 +11,9 @@ use tracer::pack::Packed;
 use wasm_bindgen::JsCast;
 use web_sys::{HtmlCanvasElement, WebGl2RenderingContext, WebGlContextAttributes};
 
+use super::Startup;
+use crate::js::now_ms;
+
 /// The WebGL2 context of `canvas` (which must not hold another kind of context).
 pub fn context(canvas: &HtmlCanvasElement) -> Result<WebGl2RenderingContext, String> {
     let attributes = WebGlContextAttributes::new();
@@ -39,6 +42,7 @@ pub struct GlRuntime {
     display: Option<GlDisplay>,
     /// Bands of the frame loop (`step`), one on the GPU at a time.
     pacer: Pacer,
+    startup: Startup,
 }
 
 impl GlRuntime {
@@ -51,9 +55,25 @@ impl GlRuntime {
     ) -> Result<Self, String> {
         let gl = glow::Context::from_webgl2_context(context.clone());
         let renderer = GlRenderer::with_options(gl, packed.clone(), seed, options).map_err(|e| e.to_string())?;
+        let build = renderer.build_times();
+        let compiling = now_ms();
         let display = GlDisplay::new(renderer.gl()).map_err(|e| e.to_string())?;
+        let display_ms = now_ms() - compiling;
+        // The texture uploads were only handed to the browser's GPU process: wait until it
+        // has them, so that they count as upload and not as the first frame.
+        let waiting = now_ms();
+        // SAFETY: a plain synchronisation call on the renderer's current context.
+        unsafe { renderer.gl().finish() };
+        let created_at = now_ms();
+        let startup = Startup {
+            codegen_ms: build.codegen_ms,
+            compile_ms: build.compile_ms + display_ms,
+            upload_ms: build.upload_ms + (created_at - waiting),
+            created_at,
+            compiled_at: Some(created_at),
+        };
         let pacer = Pacer::new(packed.scene.height, band_budget_ms);
-        Ok(GlRuntime { context: context.clone(), renderer, display: Some(display), pacer })
+        Ok(GlRuntime { context: context.clone(), renderer, display: Some(display), pacer, startup })
     }
 
     pub fn renderer(&self) -> &GlRenderer {
@@ -62,6 +82,10 @@ impl GlRuntime {
 
     pub fn renderer_mut(&mut self) -> &mut GlRenderer {
         &mut self.renderer
+    }
+
+    pub fn startup(&self) -> Startup {
+        self.startup.clone()
     }
 
     pub fn pacer(&self) -> &Pacer {

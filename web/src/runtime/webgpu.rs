@@ -9,7 +9,7 @@
 //! resolved, and its time (submission to the animation frame that sees it done) chooses the
 //! next band's height.
 
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::rc::Rc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -22,6 +22,9 @@ use tracer::pack::Packed;
 use wasm_bindgen::prelude::*;
 use wasm_bindgen::JsCast;
 use web_sys::HtmlCanvasElement;
+
+use super::Startup;
+use crate::js::now_ms;
 
 /// A WebGPU device for the viewer (what `requestWebGpu()` resolves to), and whether it was lost.
 #[wasm_bindgen]
@@ -106,6 +109,9 @@ pub struct GpuRuntime {
     in_flight: Option<InFlight>,
     /// The shader compiler's verdict, once it arrived with an error.
     compile_error: Rc<RefCell<Option<String>>>,
+    /// What creating it took; `compiled_at` once the verdict arrived.
+    startup: Startup,
+    compiled_at: Rc<Cell<Option<f64>>>,
 }
 
 /// A band submitted to the queue and not yet seen done.
@@ -123,6 +129,13 @@ struct InFlight {
 pub struct Prepared {
     renderer: WgpuRenderer,
     check: PipelineCheck,
+}
+
+/// Milliseconds `run` took on this thread, and what it returned.
+fn timed<T>(run: impl FnOnce() -> T) -> (f64, T) {
+    let start = now_ms();
+    let out = run();
+    (now_ms() - start, out)
 }
 
 impl GpuRuntime {
@@ -157,17 +170,29 @@ impl GpuRuntime {
             .ok_or_else(|| format!("the canvas offers only sRGB formats ({:?})", caps.formats))?;
         config.alpha_mode = wgpu::CompositeAlphaMode::Opaque;
         surface.configure(&device.device, &config);
-        let display = DisplayPass::new(&device.device, config.format).map_err(|e| e.to_string())?;
+        let (display_ms, display) = timed(|| DisplayPass::new(&device.device, config.format));
+        let display = display.map_err(|e| e.to_string())?;
         let compile_error = Rc::new(RefCell::new(None));
-        let slot = compile_error.clone();
+        let compiled_at = Rc::new(Cell::new(None));
+        let (slot, at) = (compile_error.clone(), compiled_at.clone());
         wasm_bindgen_futures::spawn_local(async move {
-            if let Err(e) = check.await {
+            let verdict = check.await;
+            at.set(Some(now_ms()));
+            if let Err(e) = verdict {
                 web_sys::console::error_1(&format!("the WebGPU kernel: {e}").into());
                 *slot.borrow_mut() = Some(e.to_string());
             }
         });
+        let build = renderer.build_times();
+        let startup = Startup {
+            codegen_ms: build.codegen_ms,
+            compile_ms: build.compile_ms + display_ms,
+            upload_ms: build.upload_ms,
+            created_at: now_ms(),
+            compiled_at: None,
+        };
         let policy = BandPolicy::new(height, band_budget_ms);
-        Ok(GpuRuntime { renderer, surface, display, policy, in_flight: None, compile_error })
+        Ok(GpuRuntime { renderer, surface, display, policy, in_flight: None, compile_error, startup, compiled_at })
     }
 
     pub fn renderer(&self) -> &WgpuRenderer {
@@ -176,6 +201,10 @@ impl GpuRuntime {
 
     pub fn renderer_mut(&mut self) -> &mut WgpuRenderer {
         &mut self.renderer
+    }
+
+    pub fn startup(&self) -> Startup {
+        Startup { compiled_at: self.compiled_at.get(), ..self.startup.clone() }
     }
 
     pub fn busy(&self) -> bool {

@@ -14,7 +14,7 @@ use super::{
     compile_program, gl_failed, scene_bindings, set_nearest, upload_texels, words_as_bytes, words_as_bytes_mut,
     Binding, GlError, GlInfo, GlOptions, ACCUMULATION_UNIFORM, SCENE_UNIFORM_PREFIX,
 };
-use crate::backend::{frame_seed, update_uniforms, RenderError, Renderer, RendererInfo};
+use crate::backend::{frame_seed, ms_since, update_uniforms, BuildTimes, RenderError, Renderer, RendererInfo};
 use crate::kernel::scene_data::Scene;
 use crate::pack::Packed;
 
@@ -58,6 +58,8 @@ struct Pipeline {
     framebuffers: [glow::Framebuffer; 2],
     frame_seed_location: Option<glow::UniformLocation>,
     info: GlInfo,
+    /// What creating the pipeline took.
+    times: BuildTimes,
 }
 
 /// The kernel on a GL context. Create it from a [`Packed`] scene; [`render_frame`](Self::render_frame)
@@ -140,6 +142,13 @@ impl GlRenderer {
 
     pub fn gl(&self) -> &glow::Context {
         &self.gl
+    }
+
+    /// What creating the renderer took: generating the shader, compiling and linking it (GL
+    /// answers the link status synchronously), uploading the data textures and creating the
+    /// accumulation (the driver may still be copying the textures when this returns).
+    pub fn build_times(&self) -> BuildTimes {
+        self.pipeline.times
     }
 
     pub fn info(&self) -> &GlInfo {
@@ -381,12 +390,17 @@ fn build(gl: &glow::Context, packed: &Packed, options: &GlOptions, objects: &mut
         }
     }
 
+    let started = web_time::Instant::now();
     let fragment = crate::kernel::path_tracer_shader(&packed.features, Target::GlslEs300)?;
+    let codegen_ms = ms_since(started);
+    let compiling = web_time::Instant::now();
     let program = compile_program(gl, &fragment)?;
     objects.programs.push(program);
 
     let bindings = scene_bindings(scene);
     check_active_uniforms(gl, program, &bindings)?;
+    let compile_ms = ms_since(compiling);
+    let uploading = web_time::Instant::now();
 
     let mut data_textures = Vec::new();
     let mut frame_seed_location = None;
@@ -478,6 +492,7 @@ fn build(gl: &glow::Context, packed: &Packed, options: &GlOptions, objects: &mut
             framebuffers: [framebuffers[0], framebuffers[1]],
             frame_seed_location,
             info,
+            times: BuildTimes { codegen_ms, compile_ms, upload_ms: ms_since(uploading) },
         })
     }
 }

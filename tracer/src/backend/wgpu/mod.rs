@@ -46,7 +46,9 @@ pub(crate) use resources::{
 };
 pub use resources::{compile_pipeline, start_pipeline, PipelineCheck};
 
-use super::{frame_seed, update_uniforms, PendingAccumulation, RenderError, Renderer, RendererInfo};
+use super::{
+    frame_seed, ms_since, update_uniforms, BuildTimes, PendingAccumulation, RenderError, Renderer, RendererInfo,
+};
 use crate::kernel::scene_data::Scene;
 use crate::kernel::ShaderError;
 use crate::pack::Packed;
@@ -191,6 +193,8 @@ struct Pipeline {
     target: (wgpu::Buffer, OwnResource),
     /// Workgroups across the image.
     workgroups_x: u32,
+    /// What creating the pipeline took on this thread.
+    times: BuildTimes,
 }
 
 /// The kernel on a wgpu device. Create it from a [`Packed`] scene;
@@ -249,6 +253,13 @@ impl WgpuRenderer {
     pub fn headless_with_options(packed: Packed, seed: u32, options: &WgpuOptions) -> Result<Self, WgpuError> {
         let device = WgpuDevice::native()?;
         pollster::block_on(Self::new(device, packed, seed, options))
+    }
+
+    /// What creating the renderer took on this thread: generating (and reflecting) the shader,
+    /// creating and filling the buffers, and the pipeline creation calls. WebGPU compiles
+    /// asynchronously: the compile itself ends when the creation's check resolves.
+    pub fn build_times(&self) -> BuildTimes {
+        self.pipeline.times
     }
 
     pub fn info(&self) -> &WgpuInfo {
@@ -489,12 +500,15 @@ fn check_image_limits(limits: &wgpu::Limits, options: &WgpuOptions, scene: &Scen
 
 /// Generates and compiles the shader, uploads the scene and creates the bind groups.
 fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<(Pipeline, PipelineCheck), WgpuError> {
+    let started = web_time::Instant::now();
     let generated = crate::kernel::path_tracer_shader(&packed.features, Target::Wgsl)?;
     let layout = reflect(&generated, &[ACCUMULATION_BUFFER, TARGET_UNIFORM])?;
+    let codegen_ms = ms_since(started);
     let scene = &packed.scene;
     check_scene_limits(&device.limits, options, scene, &layout)?;
     let workgroups = check_image_limits(&device.limits, options, scene)?;
     let d = &device.device;
+    let uploading = web_time::Instant::now();
     let (mut entries, scene_uniform) = upload_scene(d, &layout, scene)?;
 
     let (width, height) = (scene.width as u64, scene.height as u64);
@@ -519,10 +533,13 @@ fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<
     });
     entries.push(BufferEntry::uniform(&target, target_buffer.clone()));
     let (bind_groups, pipeline_layout) = bind_groups(d, &entries);
+    let upload_ms = ms_since(uploading);
+    let compiling = web_time::Instant::now();
     let (pipeline, check) = start_pipeline(d, &generated, Some(&pipeline_layout));
+    let times = BuildTimes { codegen_ms, compile_ms: ms_since(compiling), upload_ms };
     let target = (target_buffer, target);
     let workgroups_x = workgroups[0];
-    Ok((Pipeline { pipeline, bind_groups, scene_uniform, accumulation, readback, target, workgroups_x }, check))
+    Ok((Pipeline { pipeline, bind_groups, scene_uniform, accumulation, readback, target, workgroups_x, times }, check))
 }
 
 #[cfg(test)]
