@@ -155,7 +155,8 @@ fn check_material_sections(s: &Scene, f: &Features) -> Result<(), BundleError> {
     Ok(())
 }
 
-/// The textures' images are the textures `texture_info` describes, laid out as it says.
+/// The textures' images are the textures `texture_info` describes: each entry (a texture, or
+/// with texture references a reference to one) is where one image lies in the atlas, at its size.
 fn check_texture_images(p: &Packed) -> Result<(), BundleError> {
     let images = &p.texture_images;
     if images.is_empty() {
@@ -163,23 +164,34 @@ fn check_texture_images(p: &Packed) -> Result<(), BundleError> {
     }
     let fail = |what: String| Err(BundleError::Inconsistent(what));
     let count = bounds::texture_count(&p.scene);
-    if !p.features.textures || images.len() != count {
+    let references = p.scene.has_texture_transform != 0 || p.scene.has_texcoord1 != 0;
+    if !p.features.textures || (!references && images.len() != count) {
         return fail(format!(
             "{} texture images for {count} textures (textures: {})",
             images.len(),
             p.features.textures
         ));
     }
+    // Where each image lies: the atlas is the images one after another, each from an element.
     let per = crate::kernel::scene_data::TEXTURE_TEXELS_PER_ELEMENT;
     let mut first = 0u32;
-    for (i, (info, image)) in p.scene.texture_info.as_slice().iter().zip(images).enumerate() {
-        if (info.x, info.y, info.z) != (first, image.width, image.height) {
+    let layout: Vec<(u32, u32, u32)> = images
+        .iter()
+        .map(|image| {
+            let at = (first, image.width, image.height);
+            first += (image.width * image.height).div_ceil(per) * per;
+            at
+        })
+        .collect();
+    for (i, info) in p.scene.texture_info.as_slice().iter().take(count).enumerate() {
+        let entry = (info.x, info.y, info.z);
+        let matches = if references { layout.contains(&entry) } else { layout[i] == entry };
+        if !matches {
             return fail(format!(
-                "texture {i} is {} x {} from texel {}, its image {} x {} from texel {first}",
-                info.y, info.z, info.x, image.width, image.height
+                "texture {i} is {} x {} from texel {}, where no image of the bundle lies",
+                info.y, info.z, info.x
             ));
         }
-        first += (image.width * image.height).div_ceil(per) * per;
     }
     Ok(())
 }
