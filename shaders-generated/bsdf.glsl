@@ -102,6 +102,8 @@ const float MIN_COSINE = 1e-6;
 const float DIELECTRIC_F0 = 0.04;
 // dielectric::DELTA_PDF (lightport-tracer/src/kernel/dielectric.rs:47)
 const float DELTA_PDF = -1.0;
+// dielectric::INDEX_MATCHED (lightport-tracer/src/kernel/dielectric.rs:55)
+const float INDEX_MATCHED = 0.01;
 // bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:33)
 const uint BSDF_LAMBERT = 0u;
 // bsdf::BSDF_METAL_ROUGH (lightport-tracer/src/kernel/bsdf.rs:36)
@@ -416,12 +418,12 @@ vec3 metal_rough_eval(Surface s, vec3 wo, vec3 wi) {
     return (vec3(1.0) - f) * s.diffuse * INV_PI + specular;
 }
 
-// dielectric::is_delta (lightport-tracer/src/kernel/dielectric.rs:84)
+// dielectric::is_delta (lightport-tracer/src/kernel/dielectric.rs:93)
 bool is_delta(Surface s) {
     return !(s.alpha > 0.0);
 }
 
-// dielectric::fresnel_dielectric (lightport-tracer/src/kernel/dielectric.rs:62)
+// dielectric::fresnel_dielectric (lightport-tracer/src/kernel/dielectric.rs:71)
 float fresnel_dielectric(float cos_i, float eta) {
     float c = clamp(cos_i, 0.0, 1.0);
     float sin2_t = (1.0 - c * c) / (eta * eta);
@@ -434,7 +436,7 @@ float fresnel_dielectric(float cos_i, float eta) {
     return 0.5 * (rs * rs + rp * rp);
 }
 
-// dielectric::refraction_half (lightport-tracer/src/kernel/dielectric.rs:90)
+// dielectric::refraction_half (lightport-tracer/src/kernel/dielectric.rs:99)
 vec3 refraction_half(vec3 wo, vec3 wi, float eta) {
     vec3 h = wo + wi * eta;
     float len = length(h);
@@ -444,7 +446,7 @@ vec3 refraction_half(vec3 wo, vec3 wi, float eta) {
     return h.z < 0.0 ? h / -len : h / len;
 }
 
-// dielectric::dielectric_eval (lightport-tracer/src/kernel/dielectric.rs:105)
+// dielectric::dielectric_eval (lightport-tracer/src/kernel/dielectric.rs:114)
 vec3 dielectric_eval(Surface s, vec3 wo, vec3 wi) {
     if (is_delta(s) || !(wo.z > MIN_COSINE) || !(abs(wi.z) > MIN_COSINE)) {
         return vec3(0.0);
@@ -515,7 +517,7 @@ float metal_rough_pdf(Surface s, vec3 wo, vec3 wi) {
     return p * vndf_reflection_pdf(s.alpha, wo, h) + (1.0 - p) * wi.z * INV_PI;
 }
 
-// dielectric::dielectric_pdf (lightport-tracer/src/kernel/dielectric.rs:138)
+// dielectric::dielectric_pdf (lightport-tracer/src/kernel/dielectric.rs:147)
 float dielectric_pdf(Surface s, vec3 wo, vec3 wi) {
     if (is_delta(s) || !(wo.z > MIN_COSINE) || !(abs(wi.z) > MIN_COSINE)) {
         return 0.0;
@@ -623,7 +625,7 @@ BrdfSample metal_rough_sample(Surface s, vec3 wo, vec3 u) {
     return BrdfSample(wi, pdf, weight);
 }
 
-// dielectric::refract_dir (lightport-tracer/src/kernel/dielectric.rs:76)
+// dielectric::refract_dir (lightport-tracer/src/kernel/dielectric.rs:85)
 vec3 refract_dir(vec3 wo, vec3 h, float eta) {
     float c = dot(wo, h);
     float sin2_t = (1.0 - c * c) / (eta * eta);
@@ -631,7 +633,7 @@ vec3 refract_dir(vec3 wo, vec3 h, float eta) {
     return normalize(h * (c / eta - cos_t) - wo / eta);
 }
 
-// dielectric::dielectric_sample (lightport-tracer/src/kernel/dielectric.rs:167)
+// dielectric::dielectric_sample (lightport-tracer/src/kernel/dielectric.rs:176)
 BrdfSample dielectric_sample(Surface s, vec3 wo, vec3 u) {
     if (!(wo.z > MIN_COSINE)) {
         return BrdfSample(vec3(0.0, 0.0, 1.0), 0.0, vec3(0.0));
@@ -698,9 +700,10 @@ GlassData fetch_glass(uint material) {
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// dielectric::glass_surface (lightport-tracer/src/kernel/dielectric.rs:53)
+// dielectric::glass_surface (lightport-tracer/src/kernel/dielectric.rs:61)
 Surface glass_surface(vec3 tint, float roughness, float eta, bool thin) {
-    float alpha = roughness >= MIN_ROUGHNESS ? min(roughness, 1.0) * min(roughness, 1.0) : 0.0;
+    bool rough = roughness >= MIN_ROUGHNESS && !(abs(eta - 1.0) < INDEX_MATCHED);
+    float alpha = rough ? min(roughness, 1.0) * min(roughness, 1.0) : 0.0;
     float thin_flag = thin ? 1.0 : 0.0;
     return Surface(tint, vec3(eta, thin_flag, 0.0), alpha, 1.0);
 }

@@ -28,6 +28,8 @@ const float MIN_ROUGHNESS = 0.045;
 const float MIN_COSINE = 1e-6;
 // dielectric::DELTA_PDF (lightport-tracer/src/kernel/dielectric.rs:47)
 const float DELTA_PDF = -1.0;
+// dielectric::INDEX_MATCHED (lightport-tracer/src/kernel/dielectric.rs:55)
+const float INDEX_MATCHED = 0.01;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
 // f32 as u32 saturates like Rust: NaN and negatives give 0, too large gives u32::MAX.
@@ -50,14 +52,15 @@ float lp_round(float x) {
     return t;
 }
 
-// dielectric::glass_surface (lightport-tracer/src/kernel/dielectric.rs:53)
+// dielectric::glass_surface (lightport-tracer/src/kernel/dielectric.rs:61)
 Surface glass_surface(vec3 tint, float roughness, float eta, bool thin) {
-    float alpha = roughness >= MIN_ROUGHNESS ? min(roughness, 1.0) * min(roughness, 1.0) : 0.0;
+    bool rough = roughness >= MIN_ROUGHNESS && !(abs(eta - 1.0) < INDEX_MATCHED);
+    float alpha = rough ? min(roughness, 1.0) * min(roughness, 1.0) : 0.0;
     float thin_flag = thin ? 1.0 : 0.0;
     return Surface(tint, vec3(eta, thin_flag, 0.0), alpha, 1.0);
 }
 
-// dielectric::fresnel_dielectric (lightport-tracer/src/kernel/dielectric.rs:62)
+// dielectric::fresnel_dielectric (lightport-tracer/src/kernel/dielectric.rs:71)
 float fresnel_dielectric(float cos_i, float eta) {
     float c = clamp(cos_i, 0.0, 1.0);
     float sin2_t = (1.0 - c * c) / (eta * eta);
@@ -70,7 +73,7 @@ float fresnel_dielectric(float cos_i, float eta) {
     return 0.5 * (rs * rs + rp * rp);
 }
 
-// dielectric::refract_dir (lightport-tracer/src/kernel/dielectric.rs:76)
+// dielectric::refract_dir (lightport-tracer/src/kernel/dielectric.rs:85)
 vec3 refract_dir(vec3 wo, vec3 h, float eta) {
     float c = dot(wo, h);
     float sin2_t = (1.0 - c * c) / (eta * eta);
@@ -78,12 +81,12 @@ vec3 refract_dir(vec3 wo, vec3 h, float eta) {
     return normalize(h * (c / eta - cos_t) - wo / eta);
 }
 
-// dielectric::is_delta (lightport-tracer/src/kernel/dielectric.rs:84)
+// dielectric::is_delta (lightport-tracer/src/kernel/dielectric.rs:93)
 bool is_delta(Surface s) {
     return !(s.alpha > 0.0);
 }
 
-// dielectric::refraction_half (lightport-tracer/src/kernel/dielectric.rs:90)
+// dielectric::refraction_half (lightport-tracer/src/kernel/dielectric.rs:99)
 vec3 refraction_half(vec3 wo, vec3 wi, float eta) {
     vec3 h = wo + wi * eta;
     float len = length(h);
@@ -116,7 +119,7 @@ float smith_visibility(float alpha, float nl, float nv) {
     return denominator > 0.0 ? 0.5 / denominator : 0.0;
 }
 
-// dielectric::dielectric_eval (lightport-tracer/src/kernel/dielectric.rs:105)
+// dielectric::dielectric_eval (lightport-tracer/src/kernel/dielectric.rs:114)
 vec3 dielectric_eval(Surface s, vec3 wo, vec3 wi) {
     if (is_delta(s) || !(wo.z > MIN_COSINE) || !(abs(wi.z) > MIN_COSINE)) {
         return vec3(0.0);
@@ -151,7 +154,7 @@ float vndf_reflection_pdf(float alpha, vec3 wo, vec3 h) {
     return ggx_distribution(alpha, h) / (2.0 * (wo.z + smith_root(alpha, wo.z)));
 }
 
-// dielectric::dielectric_pdf (lightport-tracer/src/kernel/dielectric.rs:138)
+// dielectric::dielectric_pdf (lightport-tracer/src/kernel/dielectric.rs:147)
 float dielectric_pdf(Surface s, vec3 wo, vec3 wi) {
     if (is_delta(s) || !(wo.z > MIN_COSINE) || !(abs(wi.z) > MIN_COSINE)) {
         return 0.0;
@@ -205,7 +208,7 @@ vec3 sample_ggx_vndf(float alpha, vec3 wo, float u1, float u2) {
     return normalize(vec3(h.x * alpha, h.y * alpha, max(h.z, 0.0)));
 }
 
-// dielectric::dielectric_sample (lightport-tracer/src/kernel/dielectric.rs:167)
+// dielectric::dielectric_sample (lightport-tracer/src/kernel/dielectric.rs:176)
 BrdfSample dielectric_sample(Surface s, vec3 wo, vec3 u) {
     if (!(wo.z > MIN_COSINE)) {
         return BrdfSample(vec3(0.0, 0.0, 1.0), 0.0, vec3(0.0));

@@ -23,6 +23,8 @@ const MIN_ROUGHNESS: f32 = 0.045;
 const MIN_COSINE: f32 = 1e-6;
 // dielectric::DELTA_PDF (lightport-tracer/src/kernel/dielectric.rs:47)
 const DELTA_PDF: f32 = -1.0;
+// dielectric::INDEX_MATCHED (lightport-tracer/src/kernel/dielectric.rs:55)
+const INDEX_MATCHED: f32 = 0.01;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
 // f32 as u32 saturates like Rust: NaN and negatives give 0, too large gives u32::MAX.
@@ -45,14 +47,15 @@ fn lp_round(x: f32) -> f32 {
     return t;
 }
 
-// dielectric::glass_surface (lightport-tracer/src/kernel/dielectric.rs:53)
+// dielectric::glass_surface (lightport-tracer/src/kernel/dielectric.rs:61)
 fn glass_surface(tint: vec3<f32>, roughness: f32, eta: f32, thin: bool) -> Surface {
-    let alpha: f32 = select(0.0, min(roughness, 1.0) * min(roughness, 1.0), roughness >= MIN_ROUGHNESS);
+    let rough: bool = roughness >= MIN_ROUGHNESS && !(abs(eta - 1.0) < INDEX_MATCHED);
+    let alpha: f32 = select(0.0, min(roughness, 1.0) * min(roughness, 1.0), rough);
     let thin_flag: f32 = select(0.0, 1.0, thin);
     return Surface(tint, vec3<f32>(eta, thin_flag, 0.0), alpha, 1.0);
 }
 
-// dielectric::fresnel_dielectric (lightport-tracer/src/kernel/dielectric.rs:62)
+// dielectric::fresnel_dielectric (lightport-tracer/src/kernel/dielectric.rs:71)
 fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
     let c: f32 = clamp(cos_i, 0.0, 1.0);
     let sin2_t: f32 = (1.0 - c * c) / (eta * eta);
@@ -65,7 +68,7 @@ fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
     return 0.5 * (rs * rs + rp * rp);
 }
 
-// dielectric::refract_dir (lightport-tracer/src/kernel/dielectric.rs:76)
+// dielectric::refract_dir (lightport-tracer/src/kernel/dielectric.rs:85)
 fn refract_dir(wo: vec3<f32>, h: vec3<f32>, eta: f32) -> vec3<f32> {
     let c: f32 = dot(wo, h);
     let sin2_t: f32 = (1.0 - c * c) / (eta * eta);
@@ -73,12 +76,12 @@ fn refract_dir(wo: vec3<f32>, h: vec3<f32>, eta: f32) -> vec3<f32> {
     return normalize(h * (c / eta - cos_t) - wo / eta);
 }
 
-// dielectric::is_delta (lightport-tracer/src/kernel/dielectric.rs:84)
+// dielectric::is_delta (lightport-tracer/src/kernel/dielectric.rs:93)
 fn is_delta(s: Surface) -> bool {
     return !(s.alpha > 0.0);
 }
 
-// dielectric::refraction_half (lightport-tracer/src/kernel/dielectric.rs:90)
+// dielectric::refraction_half (lightport-tracer/src/kernel/dielectric.rs:99)
 fn refraction_half(wo: vec3<f32>, wi: vec3<f32>, eta: f32) -> vec3<f32> {
     let h: vec3<f32> = wo + wi * eta;
     let len: f32 = length(h);
@@ -111,7 +114,7 @@ fn smith_visibility(alpha: f32, nl: f32, nv: f32) -> f32 {
     return select(0.0, 0.5 / denominator, denominator > 0.0);
 }
 
-// dielectric::dielectric_eval (lightport-tracer/src/kernel/dielectric.rs:105)
+// dielectric::dielectric_eval (lightport-tracer/src/kernel/dielectric.rs:114)
 fn dielectric_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     if is_delta(s) || !(wo.z > MIN_COSINE) || !(abs(wi.z) > MIN_COSINE) {
         return vec3<f32>(0.0);
@@ -146,7 +149,7 @@ fn vndf_reflection_pdf(alpha: f32, wo: vec3<f32>, h: vec3<f32>) -> f32 {
     return ggx_distribution(alpha, h) / (2.0 * (wo.z + smith_root(alpha, wo.z)));
 }
 
-// dielectric::dielectric_pdf (lightport-tracer/src/kernel/dielectric.rs:138)
+// dielectric::dielectric_pdf (lightport-tracer/src/kernel/dielectric.rs:147)
 fn dielectric_pdf(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     if is_delta(s) || !(wo.z > MIN_COSINE) || !(abs(wi.z) > MIN_COSINE) {
         return 0.0;
@@ -200,7 +203,7 @@ fn sample_ggx_vndf(alpha: f32, wo: vec3<f32>, u1: f32, u2: f32) -> vec3<f32> {
     return normalize(vec3<f32>(h.x * alpha, h.y * alpha, max(h.z, 0.0)));
 }
 
-// dielectric::dielectric_sample (lightport-tracer/src/kernel/dielectric.rs:167)
+// dielectric::dielectric_sample (lightport-tracer/src/kernel/dielectric.rs:176)
 fn dielectric_sample(s: Surface, wo: vec3<f32>, u: vec3<f32>) -> BrdfSample {
     if !(wo.z > MIN_COSINE) {
         return BrdfSample(vec3<f32>(0.0, 0.0, 1.0), 0.0, vec3<f32>(0.0));

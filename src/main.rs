@@ -69,7 +69,7 @@ fn main() -> ExitCode {
 #[derive(clap::Args)]
 struct RenderArgs {
     /// Scene file (.gltf, .glb, .obj, .fbx), or a scene generated in code: `cornell` (the
-    /// default) or `metal-rough-spheres` (a file of that name takes precedence).
+    /// default), `metal-rough-spheres` or `glass-cornell` (a file of that name takes precedence).
     scene: Option<PathBuf>,
     /// Equirectangular sky (.hdr or .exr).
     #[arg(long)]

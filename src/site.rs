@@ -80,7 +80,8 @@ fn gzip(bytes: &[u8]) -> Result<Vec<u8>> {
 /// What to build a site from: the `serve` and `export` arguments they share.
 #[derive(clap::Args)]
 pub struct SiteArgs {
-    /// Scenes to serve (.gltf, .glb, .obj, .fbx), after the built-in Cornell box.
+    /// Scenes to serve (.gltf, .glb, .obj, .fbx, or a built-in name: metal-rough-spheres,
+    /// glass-cornell), after the built-in Cornell box.
     pub scenes: Vec<PathBuf>,
     /// Equirectangular sky (.hdr or .exr) added to every scene.
     #[arg(long)]
@@ -169,9 +170,13 @@ impl Site {
         for (name, path) in scene_names(&args.scenes) {
             let t0 = Instant::now();
             let packed = (|| -> Result<tracer::pack::Packed> {
-                let mut scene = match path {
-                    Some(path) => tracer::scene::load_with(path, &tracer::scene::LoadOptions { strict: args.strict })?,
-                    None => tracer::scene::cornell_box(),
+                let builtin = path.filter(|p| !p.exists()).and_then(|p| tracer::scene::builtin(p.to_str()?));
+                let mut scene = match (path, builtin) {
+                    (_, Some(generated)) => generated,
+                    (Some(path), None) => {
+                        tracer::scene::load_with(path, &tracer::scene::LoadOptions { strict: args.strict })?
+                    }
+                    (None, None) => tracer::scene::cornell_box(),
                 };
                 if sky.is_some() {
                     scene.sky = sky.clone();

@@ -265,6 +265,40 @@ fn the_smooth_interface_is_a_delta_lobe() {
     }
 }
 
+/// An index-matched interface (η = 1, or within `INDEX_MATCHED` of it) is invisible whatever
+/// its roughness: no reflection at η = 1, and light passes straight through, tinted. (The rough
+/// lobe's half vector `wo + η wi` vanishes there: before, every refracted sample had pdf 0 and
+/// the light was lost; the GPU equivalence test found it, llvmpipe giving 1e13 where the CPU
+/// gave 0.)
+#[test]
+fn an_index_matched_interface_passes_light_straight_through() {
+    let mut rng = TestRng::new(41);
+    for eta in [1.0f32, 1.005, 1.0 / 1.005] {
+        for roughness in [0.0, 0.3, 1.0] {
+            for thin in [false, true] {
+                let s = glass_surface(TINT, roughness, eta, thin);
+                for theta in [0.0f32, 45.0, 80.0] {
+                    let wo = wo_at(theta);
+                    for _ in 0..1000 {
+                        let sample = dielectric_sample(s, wo, Vec3::new(rng.f32(), rng.f32(), rng.f32()));
+                        assert_eq!(sample.pdf, DELTA_PDF, "η {eta} roughness {roughness}: {sample:?}");
+                        if sample.dir.z < 0.0 {
+                            // Straight through at η = 1 and for a sheet; else Snell's smooth refraction.
+                            let axis = if thin { -wo } else { refract_dir(wo, Vec3::Z, eta) };
+                            assert!((sample.dir - axis).length() < 1e-5, "η {eta}: {sample:?} from {wo}");
+                            assert!(eta != 1.0 || (sample.dir + wo).length() < 1e-6, "{sample:?}");
+                            let expected = if thin { TINT } else { TINT / (eta * eta) };
+                            assert!((sample.weight - expected).abs().max_element() < 1e-6, "{sample:?}");
+                        } else {
+                            assert!(eta != 1.0, "η = 1 reflects nothing: {sample:?}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// The energy the rough model keeps: the directional albedo in energy (the transmitted
 /// weights times η², undoing radiance's 1/η²), sampled. Smooth interfaces keep all of it; a
 /// single-scattering microfacet model loses what scatters more than once between microfacets,

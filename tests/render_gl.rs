@@ -129,6 +129,17 @@ fn gl_agrees_with_cpu_on_metal_rough_spheres() {
     assert_gl_agrees_with_cpu("MetalRoughSpheres", &scene, 32, 128, 4);
 }
 
+/// Glass (`Features::transmission` and `volume`): the glass Cornell box's smooth sphere (a
+/// delta lobe, its caustic), rough absorbing block (light sampled through a rough lobe,
+/// Beer–Lambert inside), each strategy.
+#[test]
+fn gl_agrees_with_cpu_on_glass() {
+    let scene = scene::glass_cornell();
+    let f = packed(&scene, Strategy::Mis, 4, 2).features;
+    assert!(f.transmission && f.volume, "{f:?}");
+    assert_gl_agrees_with_cpu("glass Cornell box", &scene, 32, 256, 6);
+}
+
 /// Normal maps (`Features::normal_map`): DamagedHelmet (MikkTSpace tangents, metal-roughness)
 /// under a uniform sky, each strategy.
 #[test]

@@ -33,6 +33,15 @@ fn wgpu_agrees_with_cpu_under_an_hdr_sky() {
     assert_agrees_with_cpu(RendererKind::Wgpu, "plane under venice_sunset", &agreement::sky_lit_plane(), 32, 96, 4);
 }
 
+/// Glass: the smooth sphere's delta lobe and caustic, the rough absorbing block, each strategy.
+#[test]
+fn wgpu_agrees_with_cpu_on_glass() {
+    let scene = scene::glass_cornell();
+    let f = packed(&scene, Strategy::Mis, 4, 2).features;
+    assert!(f.transmission && f.volume, "{f:?}");
+    assert_agrees_with_cpu(RendererKind::Wgpu, "glass Cornell box", &scene, 32, 128, 6);
+}
+
 #[test]
 fn the_random_sequence_matches_the_cpu() {
     agreement::assert_same_random_sequence(RendererKind::Wgpu);

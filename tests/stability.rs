@@ -480,6 +480,34 @@ fn alpha_masked_surfaces_agree_across_strategies() {
     check_case(&case, ALL);
 }
 
+#[test]
+fn light_under_glass_light_sampling_fails_every_strategy_agrees() {
+    // No shadow ray passes the pane: the room's light comes from paths through its delta lobe,
+    // which every strategy counts in full, so NEE and MIS are BSDF sampling plus shadow rays
+    // that find nothing (but the top 8 cm of the walls).
+    let runs = check_case(&case("light-under-glass"), ALL);
+    let v = runs.variance;
+    let plain = render_all(&scene::cornell_box(), FRAMES).variance;
+    println!(
+        "light-under-glass: variance NEE / BSDF {:.2}, MIS / BSDF {:.2} (plain Cornell box: {:.2}, {:.2})",
+        v[1] / v[0],
+        v[2] / v[0],
+        plain[1] / plain[0],
+        plain[2] / plain[0]
+    );
+    // In the plain Cornell box light sampling cuts the variance several times; under the pane
+    // it has (almost) nothing to do.
+    assert!(plain[1] < 0.6 * plain[0], "NEE should beat BSDF sampling in the plain Cornell box: {plain:?}");
+    assert!(v[1] > 0.85 * v[0], "NEE should be no better than BSDF sampling under the pane: {v:?}");
+}
+
+#[test]
+fn glass_cornell_agrees_across_strategies() {
+    let runs = check_case(&case("glass-cornell"), ALL);
+    let w = work_variance(&runs);
+    println!("glass-cornell: work-variance {w:?}");
+}
+
 /// A tangent-space normal map of `n x n` texels tilting the normal by ~25° in four directions
 /// in turn (a bumpy floor), bytes as a glTF normal texture stores them.
 fn bumps(n: u32) -> scene::Texture {

@@ -200,6 +200,19 @@ fn the_browser_agrees_with_the_cpu_on_a_textured_scene_on_webgpu() {
     }
 }
 
+/// Glass (the glass Cornell box, served by its built-in name): the delta and rough lobes,
+/// refraction in and out of volumes and absorption, on WebGL2 and WebGPU, each strategy.
+#[test]
+fn the_browser_agrees_with_the_cpu_on_glass() {
+    let server = Server::start(&["glass-cornell"]);
+    let scene = scene::glass_cornell();
+    for api in ["webgl2", "webgpu"] {
+        for strategy in STRATEGIES {
+            assert_browser_agrees_with_cpu(&server, "glass-cornell", &scene, strategy, api);
+        }
+    }
+}
+
 /// A grey plane (an OBJ written here: the page loads files) under venice_sunset: only the sky
 /// lights it, so NEE and MIS sample the sky's importance table.
 fn sky_lit_plane() -> (Server, Scene) {

@@ -13,6 +13,7 @@ mod alpha_mask;
 mod browser;
 #[path = "../common/mod.rs"]
 mod common;
+mod dielectric;
 mod hazards;
 mod intersection;
 mod kernels;

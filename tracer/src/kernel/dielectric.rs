@@ -20,8 +20,8 @@ pub mod dielectric {
     //!
     //! Sampling draws a visible normal, then reflects with probability F and refracts
     //! otherwise: the pdf of each side is F or 1 − F times the visible-normal pdf carried
-    //! through the reflection or refraction Jacobian. Below `MIN_ROUGHNESS` the lobe is a
-    //! delta (a smooth interface): [`dielectric_eval`] and [`dielectric_pdf`] are 0 and
+    //! through the reflection or refraction Jacobian. Below `MIN_ROUGHNESS`, or with η within
+    //! [`INDEX_MATCHED`] of 1, the lobe is a delta (a smooth interface): [`dielectric_eval`] and [`dielectric_pdf`] are 0 and
     //! [`dielectric_sample`] returns the mirror or the refracted direction with pdf
     //! [`DELTA_PDF`] and weight 1 or tint / η², never a division by a vanishing pdf.
     //!
@@ -46,12 +46,21 @@ pub mod dielectric {
     /// from 0 (no sample).
     pub const DELTA_PDF: f32 = -1.0;
 
+    /// Relative indices within this of 1 make a (nearly) index-matched interface, whose
+    /// rough refraction lobe collapses onto −wo: the refraction half vector `wo + η wi` is a
+    /// difference of nearly equal vectors that f32 cannot resolve (at η = 1 it vanishes, and
+    /// the rough lobe's samples had no pdf: light was lost). Such an interface is a delta lobe
+    /// (reflecting at most ((η − 1) / (η + 1))² = 2.5e-5, by Fresnel, as any smooth one);
+    /// what is lost is the spread of a transmitted lobe under 1 % of the roughness's.
+    pub const INDEX_MATCHED: f32 = 0.01;
+
     /// The BSDF parameters of a dielectric interface in the interface's [`Surface`]:
     /// `diffuse` the transmission tint, `f0.x` the relative index η (the far side's over the
     /// viewer's side), `f0.y` 1 for a thin-walled surface (else 0), `alpha` the GGX α (0: a
-    /// smooth interface, a delta lobe), `specular` 1.
+    /// smooth or index-matched interface, a delta lobe), `specular` 1.
     pub fn glass_surface(tint: Vec3, roughness: f32, eta: f32, thin: bool) -> Surface {
-        let alpha = if roughness >= MIN_ROUGHNESS { roughness.min(1.0) * roughness.min(1.0) } else { 0.0 };
+        let rough = roughness >= MIN_ROUGHNESS && !((eta - 1.0).abs() < INDEX_MATCHED);
+        let alpha = if rough { roughness.min(1.0) * roughness.min(1.0) } else { 0.0 };
         let thin_flag = if thin { 1.0 } else { 0.0 };
         Surface { diffuse: tint, f0: Vec3::new(eta, thin_flag, 0.0), alpha, specular: 1.0 }
     }

@@ -266,8 +266,36 @@ pub fn alpha_masked_screen() -> Scene {
     }
 }
 
+/// The Cornell box in glass: its short box replaced by a smooth glass sphere (index 1.5, a solid
+/// that refracts) resting on the floor, its tall box by a rough glass block (roughness 0.3,
+/// index 1.5) that absorbs red and green (Beer–Lambert: 60 % of blue-green light left after
+/// 0.4 m). Every glass path at once: the delta lobe and its caustic on the floor, the rough
+/// lobe with light sampled through it, refraction in and out of volumes, absorption inside.
+pub fn glass_cornell() -> Scene {
+    let mut scene = cornell_box();
+    let (short, tall) = (5u32, 6u32);
+    scene.materials[short as usize] = Material::glass("smoothGlass", Vec3::ONE, 1.5, true);
+    scene.materials[tall as usize] = Material {
+        roughness: 0.3,
+        attenuation_color: Vec3::new(0.6, 0.8, 0.95),
+        attenuation_distance: 0.4,
+        ..Material::glass("roughTintedGlass", Vec3::ONE, 1.5, true)
+    };
+    scene.triangles.retain(|t| t.material != short && t.material != tall);
+    // Both lifted 1 mm off the floor: a glass bottom face on the floor's plane would leave which
+    // surface a ray meets there to rounding.
+    sphere(&mut scene.triangles, v(0.33, 0.301, 0.37), 0.3, short);
+    let first = scene.triangles.len();
+    let h = [(-0.53, 0.09), (0.04, -0.09), (-0.14, -0.67), (-0.71, -0.49)];
+    prism(&mut scene.triangles, h, 1.2, tall);
+    for t in &mut scene.triangles[first..] {
+        t.positions = t.positions.map(|p| p + Vec3::Y * 0.001);
+    }
+    scene
+}
+
 /// Appends a UV sphere (32 segments x 16 rings, outward-facing, smooth normals) to `out`.
-fn sphere(out: &mut Vec<Triangle>, center: Vec3, radius: f32, material: u32) {
+pub(crate) fn sphere(out: &mut Vec<Triangle>, center: Vec3, radius: f32, material: u32) {
     let (segments, rings) = (32, 16);
     let dir = |s: usize, k: usize| {
         let phi = s as f32 / segments as f32 * std::f32::consts::TAU;

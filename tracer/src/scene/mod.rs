@@ -79,20 +79,21 @@ use std::path::{Path, PathBuf};
 use glam::{Vec2, Vec3, Vec4};
 
 pub use generate::{
-    alpha_checker, alpha_masked_screen, cornell_box, diffuse_plane, metal_rough_spheres, terrain_and_spheres,
-    white_furnace,
+    alpha_checker, alpha_masked_screen, cornell_box, diffuse_plane, glass_cornell, metal_rough_spheres,
+    terrain_and_spheres, white_furnace,
 };
 pub use material::Material;
 
-/// The scenes generated in code that the command line names: `cornell` (also `cornell-box`)
-/// and `metal-rough-spheres`.
-pub const BUILTIN_SCENES: [&str; 2] = ["cornell", "metal-rough-spheres"];
+/// The scenes generated in code that the command line names: `cornell` (also `cornell-box`),
+/// `metal-rough-spheres` and `glass-cornell`.
+pub const BUILTIN_SCENES: [&str; 3] = ["cornell", "metal-rough-spheres", "glass-cornell"];
 
 /// The scene generated in code called `name` (see [`BUILTIN_SCENES`]).
 pub fn builtin(name: &str) -> Option<Scene> {
     match name {
         "cornell" | "cornell-box" => Some(cornell_box()),
         "metal-rough-spheres" => Some(metal_rough_spheres()),
+        "glass-cornell" => Some(glass_cornell()),
         _ => None,
     }
 }

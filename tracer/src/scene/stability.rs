@@ -9,11 +9,13 @@
 //! | [`degenerate_triangles`] | zero-area and sliver triangles, a zero-area emitter, in the Cornell box |
 //! | [`camera_inside_geometry`] | a camera inside a closed box: the image must stay black |
 //! | [`scaled`] | the Cornell box at 1e-3 and 1e4 m: self-intersection epsilons |
+//! | [`light_under_glass`] | light sampling through a smooth surface: the light behind a glass pane no shadow ray passes |
+//! | [`glass_cornell`] | every glass path: a delta lobe and its caustic, a rough lobe with light sampled through it, absorption |
 
 use glam::Vec3;
 
 use super::generate::{quad, v};
-use super::{cornell_box, Camera, Material, Scene, Sky, Triangle};
+use super::{cornell_box, glass_cornell, Camera, Material, Scene, Sky, Triangle};
 
 /// One stability scene with what it is built to break.
 #[derive(Clone, Debug)]
@@ -43,6 +45,8 @@ pub fn stability_cases() -> Vec<StabilityCase> {
         },
         case("cornell-1e-3", scaled(cornell_box(), 1e-3), "self-intersection at millimetre scale"),
         case("cornell-1e4", scaled(cornell_box(), 1e4), "self-intersection at 10 km scale"),
+        case("light-under-glass", light_under_glass(), "light sampling through a smooth surface"),
+        case("glass-cornell", glass_cornell(), "glass: delta and rough lobes, caustics, absorption"),
     ]
 }
 
@@ -126,6 +130,24 @@ pub fn sky_through_opening() -> Scene {
         sky: Some(Sky::uniform(Vec3::splat(5.0))),
         ..Scene::default()
     }
+}
+
+/// Height of [`light_under_glass`]'s pane, metres (the light is at 1.98).
+pub const GLASS_PANE_HEIGHT: f32 = 1.9;
+
+/// The Cornell box with a smooth, thin-walled glass pane (index 1.5) under its light, wider
+/// than the light so that no straight line from the room below the pane reaches it. A shadow
+/// ray stops at glass, so light sampling sees the light from nowhere but the top 8 cm of the
+/// walls; the room is lit by paths that pass through the pane's delta lobe, which BSDF
+/// sampling alone finds (and which count in full under every strategy: a delta bounce has no
+/// light-sampling counterpart to weigh against). Every strategy becomes BSDF sampling.
+pub fn light_under_glass() -> Scene {
+    let mut scene = cornell_box();
+    let pane = scene.materials.len() as u32;
+    scene.materials.push(Material::glass("pane", Vec3::ONE, 1.5, false));
+    let y = GLASS_PANE_HEIGHT;
+    quad(&mut scene.triangles, [v(-0.3, y, 0.25), v(-0.3, y, -0.3), v(0.3, y, -0.3), v(0.3, y, 0.25)], pane);
+    scene
 }
 
 /// The Cornell box plus triangles with no area: three collinear vertices, three equal
