@@ -115,12 +115,13 @@ fn tracer_program() -> Program {
     Program::link(&tracer::kernel::modules()).expect("the tracer's kernel links")
 }
 
+/// The committed `shaders-generated/` is the one stored copy of each generated file (its git
+/// diff is the review a snapshot tool would give): it must be what the kernel generates now.
 #[test]
-fn every_generated_file_matches_its_snapshot_and_the_committed_file() {
+fn every_generated_file_matches_the_committed_file() {
     let files = tracer::kernel::generated_shaders().expect("generation and validation succeed");
     assert!(files.len() >= 16, "one GLSL and one WGSL file per kernel module");
     for f in &files {
-        insta::assert_snapshot!(f.name.clone(), f.source);
         let committed =
             std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders-generated/").to_string() + &f.name)
                 .unwrap_or_default();
