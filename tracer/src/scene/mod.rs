@@ -21,7 +21,8 @@
 //!
 //! # What is read
 //! * glTF: the default scene (else the first; with no scene at all, every root node), node
-//!   matrices and TRS, meshes in TRIANGLES / TRIANGLE_STRIP / TRIANGLE_FAN mode (indexed or not,
+//!   matrices and TRS, `EXT_mesh_gpu_instancing` (each instance's TRS under its node, flattened
+//!   like every node), meshes in TRIANGLES / TRIANGLE_STRIP / TRIANGLE_FAN mode (indexed or not,
 //!   sparse accessors, `KHR_mesh_quantization`), POSITION, NORMAL (transformed by the inverse
 //!   transpose; flat normals when absent), TEXCOORD_0, materials (`baseColorFactor`,
 //!   `baseColorTexture`, `emissiveFactor`, `emissiveTexture`, `KHR_materials_emissive_strength`,

@@ -42,6 +42,7 @@ const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_ior",
     "KHR_materials_volume",
     "KHR_mesh_quantization",
+    "EXT_mesh_gpu_instancing",
     "EXT_texture_webp",
     "KHR_texture_transform",
 ];

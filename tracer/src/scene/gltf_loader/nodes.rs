@@ -50,14 +50,75 @@ impl Loader<'_> {
                 self.camera(c.value(), &world)?;
             }
             if let Some(m) = node.mesh {
-                self.mesh_instances += 1;
-                self.instantiate(m.value(), &world)?;
+                match node.extensions.as_ref().and_then(|e| e.others.get("EXT_mesh_gpu_instancing")) {
+                    Some(instancing) => {
+                        for instance in self.gpu_instances(instancing, n)? {
+                            self.mesh_instances += 1;
+                            self.instantiate(m.value(), &(world * instance))?;
+                        }
+                    }
+                    None => {
+                        self.mesh_instances += 1;
+                        self.instantiate(m.value(), &world)?;
+                    }
+                }
             }
             for child in node.children.iter().flatten().rev() {
                 stack.push((child.value(), world));
             }
         }
         Ok(())
+    }
+
+    /// The instance transforms of node `node`'s `EXT_mesh_gpu_instancing`: per instance
+    /// T * R * S from its `TRANSLATION`, `ROTATION` (a quaternion, normalised) and `SCALE`
+    /// accessors (each optional, all of one count), applied under the node's own transform.
+    /// Instances are flattened into the scene's triangles, as every other node.
+    fn gpu_instances(&mut self, instancing: &Value, node: usize) -> Result<Vec<Mat4>, SceneError> {
+        let what = format!("node {node} EXT_mesh_gpu_instancing");
+        let attributes = instancing
+            .get("attributes")
+            .and_then(Value::as_object)
+            .ok_or_else(|| malformed(format!("{what}: no \"attributes\" object")))?;
+        let mut read = |name: &str, components: usize| -> Result<Option<Vec<f32>>, SceneError> {
+            let Some(index) = attributes.get(name) else { return Ok(None) };
+            let index = index
+                .as_u64()
+                .and_then(|i| usize::try_from(i).ok())
+                .ok_or_else(|| malformed(format!("{what}: {name} is not an accessor index")))?;
+            if index >= self.root.accessors.len() {
+                return Err(malformed(format!("{what}: {name} uses accessor {index}, which does not exist")));
+            }
+            self.buffers.read_f32(index, components, &format!("{what} {name}")).map(Some)
+        };
+        let translation = read("TRANSLATION", 3)?;
+        let rotation = read("ROTATION", 4)?;
+        let scale = read("SCALE", 3)?;
+        let counts: Vec<usize> = [(&translation, 3), (&rotation, 4), (&scale, 3)]
+            .iter()
+            .filter_map(|(values, n)| values.as_ref().map(|v| v.len() / n))
+            .collect();
+        let Some(&count) = counts.first() else {
+            return Err(malformed(format!("{what}: none of TRANSLATION, ROTATION and SCALE")));
+        };
+        if counts.iter().any(|&c| c != count) {
+            return Err(malformed(format!("{what}: the attributes' counts differ ({counts:?})")));
+        }
+        if count > MAX_TRIANGLES {
+            return Err(SceneError::TooLarge(format!("{what}: {count} instances (at most {MAX_TRIANGLES})")));
+        }
+        (0..count)
+            .map(|i| {
+                let t = translation.as_ref().map_or(Vec3::ZERO, |v| Vec3::from_slice(&v[3 * i..]));
+                let s = scale.as_ref().map_or(Vec3::ONE, |v| Vec3::from_slice(&v[3 * i..]));
+                let q = rotation.as_ref().map_or(Quat::IDENTITY, |v| Quat::from_slice(&v[4 * i..]));
+                let length = q.length();
+                if length == 0.0 || !length.is_finite() {
+                    return Err(malformed(format!("{what}: instance {i}'s ROTATION is not a rotation ({q})")));
+                }
+                Ok(Mat4::from_scale_rotation_translation(s, q.normalize(), t))
+            })
+            .collect()
     }
 
     fn camera(&mut self, index: usize, world: &Mat4) -> Result<(), SceneError> {
