@@ -112,6 +112,13 @@ struct RenderArgs {
     /// unsupported feature, nothing lighting it) instead of rendering it anyway.
     #[arg(long)]
     strict: bool,
+    /// The glTF animation that poses the scene: its name or index, or `none` for the nodes'
+    /// rest transforms (default: the first animation, as viewers play it).
+    #[arg(long, value_name = "NAME|INDEX|none")]
+    animation: Option<String>,
+    /// The time, in seconds, at which the animation poses the scene (clamped to its keyframes).
+    #[arg(long, default_value_t = 0.0, value_name = "SECONDS")]
+    time: f32,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -175,7 +182,15 @@ fn render(args: &RenderArgs) -> Result<()> {
         bail!("--exposure must be a finite number of stops within ±64");
     }
     let t0 = Instant::now();
-    let options = tracer::scene::LoadOptions { strict: args.strict };
+    if !args.time.is_finite() {
+        bail!("--time must be a finite number of seconds");
+    }
+    let animation = match args.animation.as_deref() {
+        None => tracer::scene::AnimationChoice::First,
+        Some("none") => tracer::scene::AnimationChoice::Rest,
+        Some(name) => tracer::scene::AnimationChoice::Named(name.to_owned()),
+    };
+    let options = tracer::scene::LoadOptions { strict: args.strict, animation, time: args.time };
     let builtin = args.scene.as_ref().filter(|p| !p.exists()).and_then(|p| tracer::scene::builtin(p.to_str()?));
     let mut scene = match (&args.scene, builtin) {
         (_, Some(generated)) => generated,

@@ -173,9 +173,10 @@ impl Site {
                 let builtin = path.filter(|p| !p.exists()).and_then(|p| tracer::scene::builtin(p.to_str()?));
                 let mut scene = match (path, builtin) {
                     (_, Some(generated)) => generated,
-                    (Some(path), None) => {
-                        tracer::scene::load_with(path, &tracer::scene::LoadOptions { strict: args.strict })?
-                    }
+                    (Some(path), None) => tracer::scene::load_with(
+                        path,
+                        &tracer::scene::LoadOptions { strict: args.strict, ..Default::default() },
+                    )?,
                     (None, None) => tracer::scene::cornell_box(),
                 };
                 if sky.is_some() {

@@ -307,7 +307,7 @@ fn texture_paths_fall_back_to_the_file_name_and_missing_files_are_named() {
         s.warnings
     );
     assert!(s.materials.iter().all(|m| m.base_color_texture.is_none() && m.emissive_texture.is_none()));
-    let e = scene::load_with(&bare.join(fbx), &LoadOptions { strict: true }).unwrap_err();
+    let e = scene::load_with(&bare.join(fbx), &LoadOptions { strict: true, ..Default::default() }).unwrap_err();
     assert!(matches!(&e, SceneError::Io { path, .. } if path.to_string_lossy().contains("checkerboard_")), "{e}");
     let _ = std::fs::remove_dir_all(dir);
     let _ = std::fs::remove_dir_all(bare);

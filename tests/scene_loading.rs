@@ -65,7 +65,7 @@ fn vendored_scenes_load_with_their_triangle_counts() {
 }
 
 fn strict() -> LoadOptions {
-    LoadOptions { strict: true }
+    LoadOptions { strict: true, ..Default::default() }
 }
 
 /// Two textured boxes (`tests/data/scenes/missing-texture/`), the second one's base colour image
@@ -224,7 +224,8 @@ fn bad_glass_values_are_warned_with_their_defaults() {
         assert_eq!(w.len(), 1, "{name}: {:?}", scene.warnings);
         assert!(w[0].contains("bad glass") && w[0].contains(value) && w[0].contains(default), "{w:?}");
     }
-    let err = scene::load_gltf_slice(json.as_bytes(), None, &LoadOptions { strict: true }).unwrap_err();
+    let err =
+        scene::load_gltf_slice(json.as_bytes(), None, &LoadOptions { strict: true, ..Default::default() }).unwrap_err();
     assert!(err.to_string().contains("bad glass") || err.to_string().contains("material"), "{err}");
 }
 
@@ -583,6 +584,122 @@ fn gpu_instancing_places_each_instance() {
     ] {
         let err = load_str(&instanced_json(&attributes, true)).unwrap_err();
         assert!(err.to_string().contains(mentions), "{err}");
+    }
+}
+
+/// [`gltf_json`]'s triangle on node 0 (rest translation (0, 0, -5)) with `animations` (JSON)
+/// whose samplers read `accessors`: FLOAT accessors 2, 3, ... of the given type ("SCALAR",
+/// "VEC3", "VEC4") and values.
+fn animated_json(animations: &str, accessors: &[(&str, &[f32])]) -> String {
+    let mut buf = f32_bytes(&TRI);
+    buf.extend(u16_bytes(&[0, 1, 2, 0]));
+    let mut views = vec![r#"{"buffer": 0, "byteOffset": 0, "byteLength": 36}"#.to_string()];
+    views.push(r#"{"buffer": 0, "byteOffset": 36, "byteLength": 6}"#.to_string());
+    let mut list = vec![
+        r#"{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]}"#
+            .to_string(),
+        r#"{"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}"#.to_string(),
+    ];
+    for (ty, values) in accessors {
+        let n = match *ty {
+            "SCALAR" => 1,
+            "VEC3" => 3,
+            _ => 4,
+        };
+        let (offset, len) = (buf.len(), values.len() * 4);
+        buf.extend(f32_bytes(values));
+        views.push(format!(r#"{{"buffer": 0, "byteOffset": {offset}, "byteLength": {len}}}"#));
+        list.push(format!(
+            r#"{{"bufferView": {}, "componentType": 5126, "count": {}, "type": "{ty}"}}"#,
+            views.len() - 1,
+            values.len() / n
+        ));
+    }
+    format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}],
+  "nodes": [{{"mesh": 0, "translation": [0, 0, -5]}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1}}]}}],
+  "animations": {animations},
+  "buffers": [{{"byteLength": {}, "uri": "data:application/octet-stream;base64,{}"}}],
+  "bufferViews": [{}], "accessors": [{}]}}"#,
+        buf.len(),
+        base64(&buf),
+        views.join(", "),
+        list.join(", ")
+    )
+}
+
+/// glTF animations pose the scene: the first by default, another by name or index, none for
+/// the rest pose, at a time clamped to the keyframes; LINEAR (slerp for rotations), STEP and
+/// CUBICSPLINE as the specification defines them; bad animation data is a clear error.
+#[test]
+fn animations_pose_the_scene_at_a_time() {
+    use tracer::scene::AnimationChoice;
+    let channel =
+        |sampler: u32, path: &str| format!(r#"{{"sampler": {sampler}, "target": {{"node": 0, "path": "{path}"}}}}"#);
+    let animation = |name: &str, path: &str, input: u32, output: u32, interpolation: &str| {
+        format!(
+            r#"{{"name": "{name}", "channels": [{}], "samplers": [{{"input": {input}, "output": {output}, "interpolation": "{interpolation}"}}]}}"#,
+            channel(0, path)
+        )
+    };
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    let animations = format!(
+        "[{}, {}, {}, {}]",
+        animation("slide", "translation", 2, 3, "LINEAR"),
+        animation("turn", "rotation", 4, 5, "LINEAR"),
+        animation("hop", "scale", 4, 6, "STEP"),
+        animation("spline", "translation", 2, 7, "CUBICSPLINE")
+    );
+    let quarter_turn = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, h, h];
+    let accessors: Vec<(&str, &[f32])> = vec![
+        ("SCALAR", &[0.0, 2.0]),
+        ("VEC3", &[0.0, 0.0, -5.0, 4.0, 0.0, -5.0]),
+        ("SCALAR", &[0.0, 1.0]),
+        // Identity to a quarter turn about +Z.
+        ("VEC4", &quarter_turn),
+        ("VEC3", &[1.0, 1.0, 1.0, 2.0, 2.0, 2.0]),
+        // Per key: in-tangent, value, out-tangent.
+        ("VEC3", &[0.0, 0.0, 0.0, 0.0, 0.0, -5.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -5.0, 0.0, 0.0, 0.0]),
+    ];
+    let json = animated_json(&animations, &accessors);
+    let posed = |animation: AnimationChoice, time: f32| {
+        let options = LoadOptions { animation, time, ..Default::default() };
+        let s = scene::load_gltf_slice(json.as_bytes(), None, &options).unwrap();
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        (s.triangles[0].positions[0], s.triangles[0].positions[1])
+    };
+    let close = |a: Vec3, b: Vec3| (a - b).length() < 1e-5;
+    // The first animation by default: linear, clamped before and after its keyframes.
+    for (time, x) in [(-1.0, 0.0), (0.0, 0.0), (0.5, 1.0), (1.0, 2.0), (2.0, 4.0), (9.0, 4.0)] {
+        let (p0, _) = posed(AnimationChoice::First, time);
+        assert!(close(p0, Vec3::new(x, 0.0, -5.0)), "slide at {time}: {p0}");
+    }
+    // The rest pose ignores the animations.
+    assert!(close(posed(AnimationChoice::Rest, 1.0).0, Vec3::new(0.0, 0.0, -5.0)));
+    // Rotation by slerp: halfway is an eighth of a turn.
+    let (_, p1) = posed(AnimationChoice::Named("turn".into()), 0.5);
+    assert!(close(p1, Vec3::new(h, h, -5.0)), "turn at 0.5: {p1}");
+    // STEP, chosen by index: the first value until the second key.
+    assert!(close(posed(AnimationChoice::Named("2".into()), 0.99).1, Vec3::new(1.0, 0.0, -5.0)));
+    assert!(close(posed(AnimationChoice::Named("2".into()), 1.0).1, Vec3::new(2.0, 0.0, -5.0)));
+    // CUBICSPLINE over keys 2 s apart: at u = 1/2, (v0 + v1) / 2 + dt (b0 - a1) / 8 = 0.5 + 2 x 2 / 8
+    // in x (the tangents scaled by the interval, as the specification says).
+    assert!(close(posed(AnimationChoice::Named("spline".into()), 1.0).0, Vec3::new(1.0, 0.0, -5.0)));
+
+    // Errors: an unknown name lists the animations; bad keyframes.
+    let options = LoadOptions { animation: AnimationChoice::Named("dance".into()), ..Default::default() };
+    let err = scene::load_gltf_slice(json.as_bytes(), None, &options).unwrap_err().to_string();
+    assert!(err.contains("dance") && err.contains("slide, turn, hop, spline"), "{err}");
+    let nan = LoadOptions { time: f32::NAN, ..Default::default() };
+    assert!(scene::load_gltf_slice(json.as_bytes(), None, &nan).is_err());
+    for (accessors, mentions) in [
+        (vec![("SCALAR", &[2.0f32, 0.0][..]), ("VEC3", &[0.0f32; 6][..])], "decrease"),
+        (vec![("SCALAR", &[0.0f32, 1.0][..]), ("VEC3", &[0.0f32; 9][..])], "need 2 output elements"),
+    ] {
+        let json = animated_json(&format!("[{}]", animation("bad", "translation", 2, 3, "LINEAR")), &accessors);
+        let err = load_str(&json).unwrap_err().to_string();
+        assert!(err.contains(mentions), "{err}");
     }
 }
 

@@ -56,7 +56,9 @@ fn gltf(bytes: &[u8]) -> Result<(), String> {
 /// renders the material with its factors, so the refusal is seen as the error of a strict load
 /// (the allocation bound applies either way).
 fn gltf_texture(bytes: &[u8]) -> Result<(), String> {
-    scene::load_gltf_slice(bytes, None, &LoadOptions { strict: true }).map(drop).map_err(|e| e.to_string())
+    scene::load_gltf_slice(bytes, None, &LoadOptions { strict: true, ..Default::default() })
+        .map(drop)
+        .map_err(|e| e.to_string())
 }
 
 /// A triangle whose POSITION accessor has `count` elements in a buffer of `byte_length` bytes

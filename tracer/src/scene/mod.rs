@@ -21,7 +21,8 @@
 //!
 //! # What is read
 //! * glTF: the default scene (else the first; with no scene at all, every root node), node
-//!   matrices and TRS, `EXT_mesh_gpu_instancing` (each instance's TRS under its node, flattened
+//!   matrices and TRS posed by an animation (`gltf_loader/animation.rs`: the first by default, or
+//!   [`LoadOptions::animation`], at [`LoadOptions::time`]), `EXT_mesh_gpu_instancing` (each instance's TRS under its node, flattened
 //!   like every node), meshes in TRIANGLES / TRIANGLE_STRIP / TRIANGLE_FAN mode (indexed or not,
 //!   sparse accessors, `KHR_mesh_quantization`), POSITION, NORMAL (transformed by the inverse
 //!   transpose; flat normals when absent), TEXCOORD_0, materials (`baseColorFactor`,
@@ -44,7 +45,7 @@
 //! ([`SceneError::UnsupportedRequiredExtension`]), e.g. `KHR_draco_mesh_compression`,
 //! `EXT_meshopt_compression`, `KHR_texture_basisu`. Required extensions that only change the
 //! look (`KHR_materials_*`, `KHR_texture_transform`) are accepted with a warning. Everything
-//! else unsupported (listed extensions, skins, morph targets, animations, point/line
+//! else unsupported (listed extensions, skins, morph targets, point/line
 //! primitives, textures on other UV sets, vertex colours, orthographic
 //! cameras...) is reported once in [`Scene::warnings`], naming the feature.
 //!
@@ -98,7 +99,7 @@ pub fn builtin(name: &str) -> Option<Scene> {
         _ => None,
     }
 }
-pub use gltf_loader::load_gltf_slice;
+pub use gltf_loader::{load_gltf_slice, AnimationChoice};
 pub use obj_loader::load_obj_slice;
 pub use sky::{load_sky, load_sky_slice, SkyFormat};
 pub use texture::{srgb_to_linear, srgba8_to_linear, EncodedImage, TextureTexels};
@@ -445,11 +446,15 @@ pub enum SceneError {
 /// missing or unreadable, or whose data does not decode, is dropped with a warning naming the
 /// image and the materials using it, and those materials render with their factors. A
 /// malformed scene file (truncated buffers, out-of-range indices, ...) is an error either way.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct LoadOptions {
     /// Refuse the scene, with the image's own error, when a texture cannot be used, instead
     /// of warning (`lightport render --strict` also refuses scenes with any other warning).
     pub strict: bool,
+    /// The glTF animation that poses the scene (by default the first, as viewers play it).
+    pub animation: AnimationChoice,
+    /// The time in seconds at which the animation poses the scene (clamped to its keyframes).
+    pub time: f32,
 }
 
 /// Loads a scene with default [`LoadOptions`], choosing the format from the file extension:

@@ -17,8 +17,11 @@ use gltf::json::validation::Checked;
 use gltf::json::Root;
 use serde_json::{Map, Value};
 
+mod animation;
 mod materials;
 mod nodes;
+
+pub use animation::AnimationChoice;
 
 use super::accessor::Buffers;
 use super::texture::{
@@ -31,6 +34,7 @@ use super::{
     flat_normal, Camera, FoundCamera, LoadOptions, Material, PointLight, Scene, SceneError, Triangle, Warnings, Wrap,
     MAX_SCENE_TEXELS, MAX_TRIANGLES,
 };
+use animation::NodePose;
 use materials::ImageSource;
 use nodes::{semantic_name, to_vec2, LocalPrimitive};
 
@@ -91,9 +95,6 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>, options: &LoadOpti
     let (json, bin) = split_container(bytes)?;
     let (mut root, animations) = parse_json(json)?;
     let mut warnings = Warnings::default();
-    if animations > 0 {
-        warnings.once("animations", || "animations are not supported: the scene is rendered in its rest pose".into());
-    }
     check_extensions(&mut root, &mut warnings)?;
     precheck(&root)?;
     validate(&root)?;
@@ -121,8 +122,9 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>, options: &LoadOpti
         image_problems: HashMap::new(),
         material_label: String::new(),
         mesh_instances: 0,
+        pose: HashMap::new(),
     };
-    loader.run()
+    loader.run(&animations, options)
 }
 
 /// Splits a GLB container into its JSON and BIN chunks; other input is returned as JSON.
@@ -227,14 +229,15 @@ fn precheck(root: &Root) -> Result<(), SceneError> {
 /// Parses the JSON chunk into the `gltf` crate's schema types, first smoothing over two places
 /// where they are stricter than glTF: numbers written as integral floats (`1.0` for a count) are
 /// accepted, and `animations` (which Lightport does not use, and whose channel targets the crate
-/// requires to name a node) are dropped. Returns the root and the number of animations.
-fn parse_json(json: &[u8]) -> Result<(Root, usize), SceneError> {
+/// requires to name a node) are taken out and returned as JSON (`animation.rs` reads them).
+fn parse_json(json: &[u8]) -> Result<(Root, Vec<Value>), SceneError> {
     let invalid = |e: serde_json::Error| SceneError::InvalidGltf(format!("JSON: {e}"));
     let mut value: Value = serde_json::from_slice(json).map_err(invalid)?;
-    let animations = match value.as_object_mut().and_then(|o| o.remove("animations")) {
-        Some(Value::Array(a)) => a.len(),
-        _ => 0,
+    let mut animations = match value.as_object_mut().and_then(|o| o.remove("animations")) {
+        Some(Value::Array(a)) => a,
+        _ => Vec::new(),
     };
+    animations.iter_mut().for_each(integral_floats_to_integers);
     integral_floats_to_integers(&mut value);
     // Round-trip through text: some schema types (raw JSON values) only deserialize from text.
     let text = serde_json::to_vec(&value).map_err(invalid)?;
@@ -313,12 +316,15 @@ struct Loader<'a> {
     /// The material being converted, as warnings name it.
     material_label: String,
     mesh_instances: usize,
+    /// The node transforms of the chosen animation at the chosen time.
+    pose: HashMap<usize, NodePose>,
 }
 
 impl Loader<'_> {
-    fn run(mut self) -> Result<Scene, SceneError> {
+    fn run(mut self, animations: &[Value], options: &LoadOptions) -> Result<Scene, SceneError> {
         let root = self.root;
         warn_extensions(&mut self.warnings, root.extensions.as_ref().map(|e| &e.others));
+        self.pose = self.pose(animations, &options.animation, options.time)?;
         let roots = self.scene_roots()?;
         self.visit(&roots)?;
 

@@ -32,7 +32,11 @@ impl Loader<'_> {
                 )));
             }
             *seen = true;
-            let world = parent * node_matrix(node, n)?;
+            let local = match self.pose.get(&n) {
+                Some(animated) => animated.matrix(node),
+                None => node_matrix(node, n)?,
+            };
+            let world = parent * local;
             if !world.is_finite() {
                 return Err(malformed(format!("node {n} has a non-finite world transform")));
             }
