@@ -703,6 +703,79 @@ fn animations_pose_the_scene_at_a_time() {
     }
 }
 
+/// A skinned triangle: node 0 holds the mesh and skin 0 (its own translation (100, 0, 0) is
+/// ignored, as glTF says), nodes 1 (root joint, at the origin) and 2 (its child, at (0, 3, 0))
+/// are the joints. Vertex 0 follows joint 0, vertex 1 joint 1, vertex 2 both equally.
+/// `inverse_bind` gives joint 1's inverse bind translation; `animation` is spliced in as-is
+/// (its samplers may read accessor 6, times [0, 1], and 7, two VEC3s).
+fn skinned_json(inverse_bind: Option<Vec3>, animation: &str) -> String {
+    let mut buf = f32_bytes(&TRI);
+    buf.extend(u16_bytes(&[0, 1, 2, 0]));
+    buf.extend([0u8, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0]); // JOINTS_0, unsigned bytes
+    buf.extend(f32_bytes(&[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.5, 0.5, 0.0, 0.0])); // WEIGHTS_0
+    let t = inverse_bind.unwrap_or(Vec3::ZERO);
+    let identity = glam::Mat4::IDENTITY.to_cols_array();
+    buf.extend(f32_bytes(&identity));
+    buf.extend(f32_bytes(&glam::Mat4::from_translation(t).to_cols_array()));
+    buf.extend(f32_bytes(&[0.0, 1.0, 0.0, 3.0, 0.0, 0.0, 5.0, 0.0]));
+    let ibm = if inverse_bind.is_some() { r#", "inverseBindMatrices": 5"# } else { "" };
+    format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0, 1]}}],
+  "nodes": [{{"mesh": 0, "skin": 0, "translation": [100, 0, 0]}}, {{"children": [2]}}, {{"translation": [0, 3, 0]}}],
+  "skins": [{{"joints": [1, 2]{ibm}}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "JOINTS_0": 2, "WEIGHTS_0": 3}}, "indices": 1}}]}}],
+  "animations": [{animation}],
+  "buffers": [{{"byteLength": {}, "uri": "data:application/octet-stream;base64,{}"}}],
+  "bufferViews": [
+    {{"buffer": 0, "byteOffset": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 6}},
+    {{"buffer": 0, "byteOffset": 44, "byteLength": 12}}, {{"buffer": 0, "byteOffset": 56, "byteLength": 48}},
+    {{"buffer": 0, "byteOffset": 104, "byteLength": 128}}, {{"buffer": 0, "byteOffset": 232, "byteLength": 8}},
+    {{"buffer": 0, "byteOffset": 240, "byteLength": 24}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]}},
+    {{"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}},
+    {{"bufferView": 2, "componentType": 5121, "count": 3, "type": "VEC4"}},
+    {{"bufferView": 3, "componentType": 5126, "count": 3, "type": "VEC4"}},
+    {{"bufferView": 4, "componentType": 5126, "count": 2, "type": "MAT4"}},
+    {{"bufferView": 4, "componentType": 5126, "count": 2, "type": "MAT4"}},
+    {{"bufferView": 5, "componentType": 5126, "count": 2, "type": "SCALAR"}},
+    {{"bufferView": 6, "componentType": 5126, "count": 2, "type": "VEC3"}}]}}"#,
+        buf.len(),
+        base64(&buf)
+    )
+}
+
+/// Skins deform their meshes on the host: each vertex moved by its joints' world × inverse bind
+/// matrices, weighted; the skinned node's own transform ignored; joints posed by animations.
+#[test]
+fn skins_deform_their_meshes() {
+    let corners = |json: &str, time: f32| {
+        let options = LoadOptions { time, ..Default::default() };
+        let s = scene::load_gltf_slice(json.as_bytes(), None, &options).unwrap();
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        assert_eq!(s.triangles.len(), 1);
+        let mut p = s.triangles[0].positions;
+        p.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+        p
+    };
+    let close = |a: [Vec3; 3], b: [Vec3; 3]| a.iter().zip(&b).all(|(a, b)| (*a - *b).length() < 1e-5);
+    // Joint 1 at (0, 3, 0), no inverse bind matrices: vertex 1 follows it, vertex 2 half way.
+    let p = corners(&skinned_json(None, ""), 0.0);
+    assert!(close(p, [Vec3::ZERO, Vec3::new(0.0, 2.5, 0.0), Vec3::new(1.0, 3.0, 0.0)]), "{p:?}");
+    // An inverse bind matrix undoing joint 1's rest translation: the rest shape.
+    let p = corners(&skinned_json(Some(Vec3::new(0.0, -3.0, 0.0)), ""), 0.0);
+    assert!(close(p, [Vec3::ZERO, Vec3::new(0.0, 1.0, 0.0), Vec3::new(1.0, 0.0, 0.0)]), "{p:?}");
+    // An animation moving joint 1 from (0, 3, 0) to (0, 5, 0) over a second.
+    let animation = r#"{"channels": [{"sampler": 0, "target": {"node": 2, "path": "translation"}}],
+        "samplers": [{"input": 6, "output": 7}]}"#;
+    let p = corners(&skinned_json(None, animation), 1.0);
+    assert!(close(p, [Vec3::ZERO, Vec3::new(0.0, 3.5, 0.0), Vec3::new(1.0, 5.0, 0.0)]), "{p:?}");
+    // A joint index beyond the skin's joints is a clear error.
+    let bad = skinned_json(None, "").replace(r#""joints": [1, 2]"#, r#""joints": [1]"#);
+    let err = load_str(&bad).unwrap_err().to_string();
+    assert!(err.contains("joint 1 of 1 does not exist"), "{err}");
+}
+
 fn load_str(json: &str) -> Result<Scene, SceneError> {
     scene::load_gltf_slice(json.as_bytes(), None, &LoadOptions::default())
 }

@@ -146,6 +146,8 @@ impl<'a> Buffers<'a> {
             Checked::Valid(Type::Vec2) => 2,
             Checked::Valid(Type::Vec3) => 3,
             Checked::Valid(Type::Vec4) => 4,
+            // Skins' inverse bind matrices; a MAT4's columns need no padding for any component type.
+            Checked::Valid(Type::Mat4) => 16,
             Checked::Valid(t) => return Err(malformed(format!("{what}: accessor {index} has matrix type {t:?}"))),
             Checked::Invalid => return Err(malformed(format!("{what}: accessor {index} has an invalid type"))),
         };

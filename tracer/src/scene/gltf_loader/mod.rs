@@ -20,6 +20,7 @@ use serde_json::{Map, Value};
 mod animation;
 mod materials;
 mod nodes;
+mod skin;
 
 pub use animation::AnimationChoice;
 

@@ -4,17 +4,27 @@
 use super::*;
 
 /// One primitive's triangles in mesh space, decoded once per mesh and instanced per node.
+#[derive(Clone)]
 pub(super) struct LocalPrimitive {
-    positions: Vec<Vec3>,
-    normals: Option<Vec<Vec3>>,
+    pub(super) positions: Vec<Vec3>,
+    pub(super) normals: Option<Vec<Vec3>>,
     uvs: Option<Vec<Vec2>>,
     /// `TEXCOORD_1`, read only when the primitive's material samples a texture on it.
     uvs1: Option<Vec<Vec2>>,
-    triangles: Vec<[u32; 3]>,
+    pub(super) triangles: Vec<[u32; 3]>,
     /// Per corner of `triangles`: the file's `TANGENT`s, else MikkTSpace's; only for a
     /// material with a normal map.
-    tangents: Option<Vec<[Vec4; 3]>>,
+    pub(super) tangents: Option<Vec<[Vec4; 3]>>,
     material: u32,
+    /// `JOINTS_0` and `WEIGHTS_0`, per vertex, when the primitive has both (`skin.rs`).
+    pub(super) skin: Option<VertexSkin>,
+}
+
+/// Per vertex: up to four joints (indices into the skin's joint list) and their weights.
+#[derive(Clone)]
+pub(super) struct VertexSkin {
+    pub(super) joints: Vec<[u32; 4]>,
+    pub(super) weights: Vec<Vec4>,
 }
 
 impl Loader<'_> {
@@ -40,10 +50,6 @@ impl Loader<'_> {
             if !world.is_finite() {
                 return Err(malformed(format!("node {n} has a non-finite world transform")));
             }
-            if node.skin.is_some() {
-                self.warnings
-                    .once("skinning", || "skinning is not supported: skinned meshes are rendered unskinned".into());
-            }
             if let Some(ext) = &node.extensions {
                 warn_extensions(&mut self.warnings, Some(&ext.others));
                 if let Some(l) = &ext.khr_lights_punctual {
@@ -53,7 +59,10 @@ impl Loader<'_> {
             if let Some(c) = node.camera {
                 self.camera(c.value(), &world)?;
             }
-            if let Some(m) = node.mesh {
+            if let (Some(m), Some(skin)) = (node.mesh, node.skin) {
+                self.mesh_instances += 1;
+                self.instantiate_skinned(m.value(), skin.value(), n)?;
+            } else if let Some(m) = node.mesh {
                 match node.extensions.as_ref().and_then(|e| e.others.get("EXT_mesh_gpu_instancing")) {
                     Some(instancing) => {
                         for instance in self.gpu_instances(instancing, n)? {
@@ -194,6 +203,11 @@ impl Loader<'_> {
     /// Appends a mesh instance's world-space triangles.
     fn instantiate(&mut self, mesh: usize, world: &Mat4) -> Result<(), SceneError> {
         let prims = self.mesh(mesh)?;
+        self.place(mesh, &prims, world)
+    }
+
+    /// Appends `prims` (mesh `mesh`'s primitives, or their skinned copies) under `world`.
+    pub(super) fn place(&mut self, mesh: usize, prims: &[LocalPrimitive], world: &Mat4) -> Result<(), SceneError> {
         let linear = Mat3::from_mat4(*world);
         let det = linear.determinant();
         if det == 0.0 {
@@ -254,7 +268,7 @@ impl Loader<'_> {
     }
 
     /// Decodes a mesh's primitives (once per mesh).
-    fn mesh(&mut self, index: usize) -> Result<Rc<Vec<LocalPrimitive>>, SceneError> {
+    pub(super) fn mesh(&mut self, index: usize) -> Result<Rc<Vec<LocalPrimitive>>, SceneError> {
         if let Some(m) = self.meshes.get(&index) {
             return Ok(m.clone());
         }
@@ -305,6 +319,7 @@ impl Loader<'_> {
         let mut uv = None;
         let mut uv1 = None;
         let mut tangent = None;
+        let (mut joints, mut weights) = (None, None);
         for (semantic, accessor) in &prim.attributes {
             match semantic {
                 Checked::Valid(Semantic::Positions) => position = Some(accessor.value()),
@@ -312,6 +327,8 @@ impl Loader<'_> {
                 Checked::Valid(Semantic::Tangents) => tangent = Some(accessor.value()),
                 Checked::Valid(Semantic::TexCoords(0)) => uv = Some(accessor.value()),
                 Checked::Valid(Semantic::TexCoords(1)) => uv1 = Some(accessor.value()),
+                Checked::Valid(Semantic::Joints(0)) => joints = Some(accessor.value()),
+                Checked::Valid(Semantic::Weights(0)) => weights = Some(accessor.value()),
                 Checked::Valid(Semantic::Colors(0)) => self
                     .warnings
                     .once("COLOR_0", || "vertex colours (COLOR_0) are not supported: they are ignored".into()),
@@ -391,7 +408,11 @@ impl Loader<'_> {
                 None
             }
         };
-        Ok(Some(LocalPrimitive { positions, normals, uvs, uvs1, triangles, tangents, material }))
+        let skin = match (joints, weights) {
+            (Some(j), Some(w)) => self.vertex_skin(j, w, vertex_count, &what)?,
+            _ => None,
+        };
+        Ok(Some(LocalPrimitive { positions, normals, uvs, uvs1, triangles, tangents, material, skin }))
     }
 }
 
@@ -419,7 +440,7 @@ fn world_tangent(linear: &Mat3, t: Vec4, flip: bool) -> Vec4 {
 }
 
 /// A node's local transform (matrix, or TRS with the rotation normalised).
-fn node_matrix(node: &gltf::json::scene::Node, n: usize) -> Result<Mat4, SceneError> {
+pub(super) fn node_matrix(node: &gltf::json::scene::Node, n: usize) -> Result<Mat4, SceneError> {
     if let Some(m) = node.matrix {
         let m = Mat4::from_cols_array(&m);
         if !m.is_finite() {

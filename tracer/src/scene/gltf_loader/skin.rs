@@ -1,0 +1,158 @@
+//! glTF skins, applied on the host: each skinned vertex is moved by the weighted sum of its
+//! (up to four) joints' matrices, `world(joint) × inverseBindMatrix(joint)`, with the joints
+//! posed by the chosen animation (`animation.rs`); the skinned node's own transform is not used,
+//! as the specification says. Normals and tangents follow the blended matrix's linear part
+//! (renormalised: exact for rotations and uniform scales, an approximation under shear).
+
+use super::nodes::VertexSkin;
+use super::*;
+
+impl Loader<'_> {
+    /// A primitive's `JOINTS_0` / `WEIGHTS_0`, one entry per vertex; `None` (with a warning:
+    /// the primitive is then not skinned) when their counts do not match `POSITION`'s.
+    pub(super) fn vertex_skin(
+        &mut self,
+        joints: usize,
+        weights: usize,
+        vertex_count: usize,
+        what: &str,
+    ) -> Result<Option<VertexSkin>, SceneError> {
+        let j = self.buffers.read_f32(joints, 4, &format!("{what} JOINTS_0"))?;
+        let w = self.buffers.read_f32(weights, 4, &format!("{what} WEIGHTS_0"))?;
+        if j.len() != vertex_count * 4 || w.len() != vertex_count * 4 {
+            let (nj, nw) = (j.len() / 4, w.len() / 4);
+            self.warnings.once(&format!("{what} skin counts"), || {
+                format!(
+                    "{what}: JOINTS_0 has {nj} and WEIGHTS_0 {nw} elements, POSITION {vertex_count}: it is not skinned"
+                )
+            });
+            return Ok(None);
+        }
+        if let Some(bad) = j.iter().find(|&&x| !(0.0..=65535.0).contains(&x) || x.fract() != 0.0) {
+            return Err(malformed(format!("{what}: JOINTS_0 holds {bad}, not a joint index")));
+        }
+        let joints = j.chunks_exact(4).map(|c| [c[0] as u32, c[1] as u32, c[2] as u32, c[3] as u32]).collect();
+        let weights = w.chunks_exact(4).map(Vec4::from_slice).collect();
+        Ok(Some(VertexSkin { joints, weights }))
+    }
+
+    /// Appends mesh `mesh` as skin `skin` deforms it (on node `node`, whose transform the
+    /// specification ignores for skinned meshes).
+    pub(super) fn instantiate_skinned(&mut self, mesh: usize, skin: usize, node: usize) -> Result<(), SceneError> {
+        let root = self.root;
+        let what = format!("node {node} skin {skin}");
+        let s = root.skins.get(skin).ok_or_else(|| malformed(format!("{what}: the skin does not exist")))?;
+        let inverse_bind = match s.inverse_bind_matrices {
+            Some(a) => {
+                let m = self.buffers.read_f32(a.value(), 16, &format!("{what} inverseBindMatrices"))?;
+                m.chunks_exact(16).map(Mat4::from_cols_slice).collect()
+            }
+            None => vec![Mat4::IDENTITY; s.joints.len()],
+        };
+        if inverse_bind.len() < s.joints.len() {
+            return Err(malformed(format!(
+                "{what}: {} inverse bind matrices for {} joints",
+                inverse_bind.len(),
+                s.joints.len()
+            )));
+        }
+        let parents = self.parents()?;
+        let joints: Vec<Mat4> = s
+            .joints
+            .iter()
+            .zip(&inverse_bind)
+            .map(|(j, ibm)| Ok(self.world_of(j.value(), &parents)? * *ibm))
+            .collect::<Result<_, SceneError>>()?;
+        let prims = self.mesh(mesh)?;
+        let skinned: Vec<LocalPrimitive> =
+            prims.iter().map(|p| skin_primitive(p, &joints, &what)).collect::<Result<_, _>>()?;
+        self.place(mesh, &skinned, &Mat4::IDENTITY)
+    }
+
+    /// Each node's parent (nodes are a forest: a second parent is refused).
+    fn parents(&self) -> Result<Vec<Option<usize>>, SceneError> {
+        let nodes = &self.root.nodes;
+        let mut parents = vec![None; nodes.len()];
+        for (p, node) in nodes.iter().enumerate() {
+            for child in node.children.iter().flatten() {
+                let slot = parents
+                    .get_mut(child.value())
+                    .ok_or_else(|| malformed(format!("node {p}: child {} does not exist", child.value())))?;
+                if slot.replace(p).is_some() {
+                    return Err(malformed(format!("node {} has two parents", child.value())));
+                }
+            }
+        }
+        Ok(parents)
+    }
+
+    /// Node `n`'s world transform in the chosen pose (the product down from its root).
+    fn world_of(&self, n: usize, parents: &[Option<usize>]) -> Result<Mat4, SceneError> {
+        let mut chain = vec![n];
+        while let Some(p) = parents.get(*chain.last().unwrap_or(&n)).copied().flatten() {
+            if chain.len() > parents.len() {
+                return Err(malformed(format!("node {n}: its ancestors form a cycle")));
+            }
+            chain.push(p);
+        }
+        let mut world = Mat4::IDENTITY;
+        for &i in chain.iter().rev() {
+            let node = self.root.nodes.get(i).ok_or_else(|| malformed(format!("node {i} does not exist")))?;
+            let local = match self.pose.get(&i) {
+                Some(animated) => animated.matrix(node),
+                None => nodes::node_matrix(node, i)?,
+            };
+            world *= local;
+        }
+        if !world.is_finite() {
+            return Err(malformed(format!("joint node {n} has a non-finite world transform")));
+        }
+        Ok(world)
+    }
+}
+
+/// `p` with its vertices (and normals, tangents) moved by their blended joint matrices; a
+/// primitive without joints and weights is left in the skin's space.
+fn skin_primitive(p: &LocalPrimitive, joints: &[Mat4], what: &str) -> Result<LocalPrimitive, SceneError> {
+    let Some(skin) = &p.skin else { return Ok(p.clone()) };
+    let blended: Vec<Mat4> = skin
+        .joints
+        .iter()
+        .zip(&skin.weights)
+        .map(|(j, w)| {
+            let sum = w.x + w.y + w.z + w.w;
+            if sum <= 0.0 {
+                return Ok(Mat4::IDENTITY);
+            }
+            let mut m = Mat4::ZERO;
+            for k in 0..4 {
+                if w[k] != 0.0 {
+                    let joint = joints.get(j[k] as usize).ok_or_else(|| {
+                        malformed(format!("{what}: joint {} of {} does not exist", j[k], joints.len()))
+                    })?;
+                    m += *joint * (w[k] / sum);
+                }
+            }
+            Ok(m)
+        })
+        .collect::<Result<_, SceneError>>()?;
+    let mut out = p.clone();
+    for (v, m) in out.positions.iter_mut().zip(&blended) {
+        *v = m.transform_point3(*v);
+    }
+    if let Some(normals) = &mut out.normals {
+        for (n, m) in normals.iter_mut().zip(&blended) {
+            *n = Mat3::from_mat4(*m).inverse().transpose().mul_vec3(*n).normalize_or_zero();
+        }
+    }
+    if let Some(tangents) = &mut out.tangents {
+        for (corners, tri) in tangents.iter_mut().zip(&p.triangles) {
+            for (t, &v) in corners.iter_mut().zip(tri) {
+                let m = Mat3::from_mat4(blended[v as usize]);
+                *t = (m * t.truncate()).normalize_or_zero().extend(t.w);
+            }
+        }
+    }
+    out.skin = None;
+    Ok(out)
+}
