@@ -776,6 +776,45 @@ fn skins_deform_their_meshes() {
     assert!(err.contains("joint 1 of 1 does not exist"), "{err}");
 }
 
+/// Morph targets: positions displaced by the weighted targets, the weights of the animation's
+/// `weights` channel, else the node's, else the mesh's; bad weights a clear error.
+#[test]
+fn morph_targets_follow_their_weights() {
+    let animation = r#"[{"channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}],
+        "samplers": [{"input": 3, "output": 4}]}]"#;
+    // Accessor 2: one target moving vertex 2 by (0, 0, 2); 3: times; 4: a weight per key.
+    let accessors: Vec<(&str, &[f32])> = vec![
+        ("VEC3", &[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0]),
+        ("SCALAR", &[0.0, 1.0]),
+        ("SCALAR", &[0.0, 1.0]),
+    ];
+    let base = animated_json(animation, &accessors).replace(
+        r#""meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}]"#,
+        r#""meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "targets": [{"POSITION": 2}]}], "weights": [0.5]}]"#,
+    );
+    assert!(base.contains("targets"), "the mesh was rewritten");
+    let vertex_2 = |json: &str, animation: AnimationChoice, time: f32| {
+        let options = LoadOptions { animation, time, ..Default::default() };
+        let s = scene::load_gltf_slice(json.as_bytes(), None, &options).unwrap();
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        s.triangles[0].positions[2].z
+    };
+    use tracer::scene::AnimationChoice;
+    // The mesh's default weight 0.5 in the rest pose; the animation's weight at a quarter second.
+    assert!((vertex_2(&base, AnimationChoice::Rest, 0.0) - -4.0).abs() < 1e-6);
+    assert!((vertex_2(&base, AnimationChoice::First, 0.25) - -4.5).abs() < 1e-6);
+    // A node's weights override the mesh's.
+    let node_weights = base.replace(
+        r#"{"mesh": 0, "translation": [0, 0, -5]}"#,
+        r#"{"mesh": 0, "translation": [0, 0, -5], "weights": [1.0]}"#,
+    );
+    assert!((vertex_2(&node_weights, AnimationChoice::Rest, 0.0) - -3.0).abs() < 1e-6);
+    // A weights channel whose output does not hold one weight per target and key.
+    let bad = base.replace(r#""samplers": [{"input": 3, "output": 4}]"#, r#""samplers": [{"input": 3, "output": 2}]"#);
+    let err = load_str(&bad).unwrap_err().to_string();
+    assert!(err.contains("output"), "{err}");
+}
+
 fn load_str(json: &str) -> Result<Scene, SceneError> {
     scene::load_gltf_slice(json.as_bytes(), None, &LoadOptions::default())
 }

@@ -23,7 +23,8 @@
 //! * glTF: the default scene (else the first; with no scene at all, every root node), node
 //!   matrices and TRS posed by an animation (`gltf_loader/animation.rs`: the first by default, or
 //!   [`LoadOptions::animation`], at [`LoadOptions::time`]), skins (`gltf_loader/skin.rs`: each
-//!   vertex moved by its weighted joints on the host), `EXT_mesh_gpu_instancing` (each instance's TRS under its node, flattened
+//!   vertex moved by its weighted joints on the host), morph targets (`gltf_loader/morph.rs`),
+//!   `EXT_mesh_gpu_instancing` (each instance's TRS under its node, flattened
 //!   like every node), meshes in TRIANGLES / TRIANGLE_STRIP / TRIANGLE_FAN mode (indexed or not,
 //!   sparse accessors, `KHR_mesh_quantization`), POSITION, NORMAL (transformed by the inverse
 //!   transpose; flat normals when absent), TEXCOORD_0, materials (`baseColorFactor`,
@@ -46,7 +47,7 @@
 //! ([`SceneError::UnsupportedRequiredExtension`]), e.g. `KHR_draco_mesh_compression`,
 //! `EXT_meshopt_compression`, `KHR_texture_basisu`. Required extensions that only change the
 //! look (`KHR_materials_*`, `KHR_texture_transform`) are accepted with a warning. Everything
-//! else unsupported (listed extensions, morph targets, point/line
+//! else unsupported (listed extensions, point/line
 //! primitives, textures on other UV sets, vertex colours, orthographic
 //! cameras...) is reported once in [`Scene::warnings`], naming the feature.
 //!

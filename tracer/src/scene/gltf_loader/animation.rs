@@ -2,7 +2,8 @@
 //! sampled at one time, as the node transforms the scene is flattened with. Interpolation as
 //! the specification defines it: STEP, LINEAR (rotations by spherical interpolation) and
 //! CUBICSPLINE (Hermite, tangents scaled by the keyframe interval); before the first keyframe
-//! the first value, after the last the last. Morph-target weights are not animated (warned).
+//! the first value, after the last the last. A `weights` channel animates a mesh's morph
+//! target weights (`morph.rs`).
 
 use super::*;
 
@@ -19,11 +20,13 @@ pub enum AnimationChoice {
 }
 
 /// A node's animated transform components; `None` keeps the node's own.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Debug, Default)]
 pub(super) struct NodePose {
     translation: Option<Vec3>,
     rotation: Option<Quat>,
     scale: Option<Vec3>,
+    /// Morph target weights (`morph.rs`).
+    pub(super) weights: Option<Vec<f32>>,
 }
 
 impl NodePose {
@@ -151,15 +154,13 @@ impl Loader<'_> {
             let n = match path {
                 "translation" | "scale" => 3,
                 "rotation" => 4,
-                "weights" => {
-                    self.warnings.once("morph weights", || {
-                        "morph targets are not supported: animated morph weights are ignored".into()
-                    });
-                    continue;
-                }
+                "weights" => match self.morph_target_count(gltf_node)? {
+                    0 => continue,
+                    targets => targets,
+                },
                 other => return Err(malformed(format!("{what}: unknown target path \"{other}\""))),
             };
-            if gltf_node.matrix.is_some() {
+            if gltf_node.matrix.is_some() && path != "weights" {
                 self.warnings.once("animated matrix", || {
                     "an animation targets a node given by a matrix (glTF allows only TRS nodes): that channel is ignored"
                         .into()
@@ -172,6 +173,7 @@ impl Loader<'_> {
             match path {
                 "translation" => entry.translation = Some(Vec3::from_slice(&v)),
                 "scale" => entry.scale = Some(Vec3::from_slice(&v)),
+                "weights" => entry.weights = Some(v),
                 _ => entry.rotation = Some(Quat::from_slice(&v)),
             }
         }

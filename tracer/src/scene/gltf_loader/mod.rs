@@ -19,6 +19,7 @@ use serde_json::{Map, Value};
 
 mod animation;
 mod materials;
+mod morph;
 mod nodes;
 mod skin;
 

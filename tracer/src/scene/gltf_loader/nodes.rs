@@ -1,6 +1,7 @@
 //! The node hierarchy: transforms, cameras, lights and meshes, and each mesh primitive's
 //! triangles, normals, texture coordinates and tangents (decoded once per mesh, instanced per node).
 
+use super::morph::MorphTarget;
 use super::*;
 
 /// One primitive's triangles in mesh space, decoded once per mesh and instanced per node.
@@ -18,6 +19,8 @@ pub(super) struct LocalPrimitive {
     material: u32,
     /// `JOINTS_0` and `WEIGHTS_0`, per vertex, when the primitive has both (`skin.rs`).
     pub(super) skin: Option<VertexSkin>,
+    /// Morph targets (`morph.rs`), in the file's order.
+    pub(super) morph: Vec<MorphTarget>,
 }
 
 /// Per vertex: up to four joints (indices into the skin's joint list) and their weights.
@@ -59,21 +62,22 @@ impl Loader<'_> {
             if let Some(c) = node.camera {
                 self.camera(c.value(), &world)?;
             }
-            if let (Some(m), Some(skin)) = (node.mesh, node.skin) {
-                self.mesh_instances += 1;
-                self.instantiate_skinned(m.value(), skin.value(), n)?;
-            } else if let Some(m) = node.mesh {
-                match node.extensions.as_ref().and_then(|e| e.others.get("EXT_mesh_gpu_instancing")) {
-                    Some(instancing) => {
-                        for instance in self.gpu_instances(instancing, n)? {
-                            self.mesh_instances += 1;
-                            self.instantiate(m.value(), &(world * instance))?;
-                        }
-                    }
-                    None => {
+            if let Some(m) = node.mesh {
+                let mesh = m.value();
+                let prims = self.morphed(mesh, node, n)?;
+                if let Some(skin) = node.skin {
+                    self.mesh_instances += 1;
+                    self.instantiate_skinned(mesh, &prims, skin.value(), n)?;
+                } else if let Some(instancing) =
+                    node.extensions.as_ref().and_then(|e| e.others.get("EXT_mesh_gpu_instancing"))
+                {
+                    for instance in self.gpu_instances(instancing, n)? {
                         self.mesh_instances += 1;
-                        self.instantiate(m.value(), &world)?;
+                        self.place(mesh, &prims, &(world * instance))?;
                     }
+                } else {
+                    self.mesh_instances += 1;
+                    self.place(mesh, &prims, &world)?;
                 }
             }
             for child in node.children.iter().flatten().rev() {
@@ -200,12 +204,6 @@ impl Loader<'_> {
         Ok(())
     }
 
-    /// Appends a mesh instance's world-space triangles.
-    fn instantiate(&mut self, mesh: usize, world: &Mat4) -> Result<(), SceneError> {
-        let prims = self.mesh(mesh)?;
-        self.place(mesh, &prims, world)
-    }
-
     /// Appends `prims` (mesh `mesh`'s primitives, or their skinned copies) under `world`.
     pub(super) fn place(&mut self, mesh: usize, prims: &[LocalPrimitive], world: &Mat4) -> Result<(), SceneError> {
         let linear = Mat3::from_mat4(*world);
@@ -309,11 +307,6 @@ impl Loader<'_> {
                 || e.contains_key("EXT_meshopt_compression")
                 || e.contains_key("KHR_meshopt_compression")
         });
-        if prim.targets.as_ref().is_some_and(|t| !t.is_empty()) {
-            self.warnings.once("morph targets", || {
-                "morph targets are not supported: meshes are rendered in their base shape".into()
-            });
-        }
         let mut position = None;
         let mut normal = None;
         let mut uv = None;
@@ -412,7 +405,8 @@ impl Loader<'_> {
             (Some(j), Some(w)) => self.vertex_skin(j, w, vertex_count, &what)?,
             _ => None,
         };
-        Ok(Some(LocalPrimitive { positions, normals, uvs, uvs1, triangles, tangents, material, skin }))
+        let morph = self.morph_targets(prim, vertex_count, &what)?;
+        Ok(Some(LocalPrimitive { positions, normals, uvs, uvs1, triangles, tangents, material, skin, morph }))
     }
 }
 
@@ -487,7 +481,7 @@ fn assemble(mode: Mode, idx: &[u32]) -> Option<Vec<[u32; 3]>> {
     }
 }
 
-fn to_vec3(v: Vec<f32>) -> Vec<Vec3> {
+pub(super) fn to_vec3(v: Vec<f32>) -> Vec<Vec3> {
     v.chunks_exact(3).map(Vec3::from_slice).collect()
 }
 

@@ -36,9 +36,15 @@ impl Loader<'_> {
         Ok(Some(VertexSkin { joints, weights }))
     }
 
-    /// Appends mesh `mesh` as skin `skin` deforms it (on node `node`, whose transform the
-    /// specification ignores for skinned meshes).
-    pub(super) fn instantiate_skinned(&mut self, mesh: usize, skin: usize, node: usize) -> Result<(), SceneError> {
+    /// Appends mesh `mesh` (`prims`, morphed if it has morph targets) as skin `skin` deforms it
+    /// (on node `node`, whose transform the specification ignores for skinned meshes).
+    pub(super) fn instantiate_skinned(
+        &mut self,
+        mesh: usize,
+        prims: &[LocalPrimitive],
+        skin: usize,
+        node: usize,
+    ) -> Result<(), SceneError> {
         let root = self.root;
         let what = format!("node {node} skin {skin}");
         let s = root.skins.get(skin).ok_or_else(|| malformed(format!("{what}: the skin does not exist")))?;
@@ -63,7 +69,6 @@ impl Loader<'_> {
             .zip(&inverse_bind)
             .map(|(j, ibm)| Ok(self.world_of(j.value(), &parents)? * *ibm))
             .collect::<Result<_, SceneError>>()?;
-        let prims = self.mesh(mesh)?;
         let skinned: Vec<LocalPrimitive> =
             prims.iter().map(|p| skin_primitive(p, &joints, &what)).collect::<Result<_, _>>()?;
         self.place(mesh, &skinned, &Mat4::IDENTITY)
