@@ -34,7 +34,8 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use tracer::backend::{create, Renderer, RendererKind};
-use tracer::pack::{pack, Packed, RenderSettings, Strategy};
+use tracer::kernel::{RenderSettings, Strategy};
+use tracer::pack::{pack, Packed};
 
 /// Renders `frames` frames and returns samples per second; waits for the device first.
 fn samples_per_second(r: &mut dyn Renderer, frames: u32) -> Result<f64> {

@@ -18,7 +18,8 @@ use tracer::backend::Renderer;
 use tracer::kernel::camera::camera_ray;
 use tracer::kernel::intersect::MISS;
 use tracer::kernel::traverse::{occluded, trace_closest};
-use tracer::pack::{build_and_pack, pack, pack_textures, pack_with_textures, Packed, RenderSettings};
+use tracer::kernel::RenderSettings;
+use tracer::pack::{build_and_pack, pack, pack_textures, pack_with_textures, Packed};
 
 /// CPU time of every thread of this process so far, in ns (Linux `/proc/self/task/*/schedstat`).
 /// On a busy machine wall times stretch with the load; CPU time much less so.

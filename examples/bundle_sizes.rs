@@ -12,7 +12,9 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use tracer::pack::{build_and_pack, RenderSettings};
+use tracer::pack::build_and_pack;
+
+use tracer::kernel::RenderSettings;
 
 fn gzip(bytes: &[u8]) -> usize {
     let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());

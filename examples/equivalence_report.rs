@@ -10,10 +10,11 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use glam::{Vec2, Vec3};
-use tracer::backend::harness::{Backend, Equivalence, Outcome, Tolerance};
+use tracer::backend::harness::{Backend, Equivalence, GlHarness, Outcome, Tolerance, WgpuHarness};
 use tracer::kernel::intersect::{self, MISS};
-use tracer::kernel::{rng, sampling, scene_data, traverse};
-use tracer::pack::{pack, RenderSettings};
+use tracer::kernel::RenderSettings;
+use tracer::kernel::{rng, sampling, textures, traverse};
+use tracer::pack::pack;
 
 /// Test inputs: xorshift64*, independent of the kernel's RNG.
 struct Inputs(u64);
@@ -62,9 +63,9 @@ fn main() -> Result<()> {
         "creating the CPU, GL, wgpu, WebGL2 and WebGPU runtimes (the browser ones need Chromium, \
          `npm ci` in tests/web and scripts/build-web.sh)",
     )?;
-    let info = eq.gl().map(|g| g.limits()).context("the GL runtime")?;
+    let info = eq.runtime::<GlHarness>().map(|g| g.limits()).context("the GL runtime")?;
     println!("GL limits: {info:?}");
-    let adapter = eq.wgpu().map(|w| w.device().info.clone()).context("the wgpu runtime")?;
+    let adapter = eq.runtime::<WgpuHarness>().map(|w| w.device().info.clone()).context("the wgpu runtime")?;
     println!("wgpu: {} ({}, {})", adapter.adapter, adapter.driver, adapter.backend);
     for backend in [Backend::WebGl2, Backend::WebGpu] {
         println!("{backend}: {}", eq.browser(backend).map(|b| b.info().to_string()).context("a browser runtime")?);
@@ -164,7 +165,7 @@ fn main() -> Result<()> {
     row(&eq.run(
         "sample_texture",
         &lookups,
-        |s, &(i, uv)| (scene_data::sample_texture(s, i, uv),),
+        |s, &(i, uv)| (textures::sample_texture(s, i, uv),),
         Tolerance::ulps(16).flushing_subnormals(),
     )?);
 

@@ -26,8 +26,7 @@
 //! directory (`cargo build --release` first) and needs `web/pkg` (scripts/build-web.sh) and `npm
 //! ci` in tests/web; without them the column says why it is empty.
 
-#[path = "../src/serve_child.rs"]
-mod serve_child;
+use lightport::serve_child;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -39,7 +38,8 @@ use tracer::backend::gl::texture_shape;
 use tracer::backend::gl::{compile_program, GlRenderer, HeadlessContext};
 use tracer::backend::Renderer;
 use tracer::kernel::scene_data::SHADING_TEXELS;
-use tracer::pack::{pack, Features, Packed, RenderSettings, Strategy};
+use tracer::kernel::{Features, RenderSettings, Strategy};
+use tracer::pack::{pack, Packed};
 use tracer::scene::{self, Scene, Sky};
 
 /// Texture size limit used for the memory layout (llvmpipe's GL_MAX_TEXTURE_SIZE).
@@ -128,24 +128,7 @@ fn memory(packed: &Packed) -> Result<Memory> {
 }
 
 fn feature_list(f: &Features) -> String {
-    let names: Vec<&str> = [
-        (f.emissive_triangles, "emissive"),
-        (f.point_lights, "points"),
-        (f.sky, "sky"),
-        (f.textures, "textures"),
-        (f.shading, "shading"),
-        (f.metal_rough, "metal-rough"),
-        (f.normal_map, "normal-map"),
-        (f.alpha_mask, "alpha-mask"),
-        (f.texture_transform, "texture-transform"),
-        (f.texcoord1, "texcoord1"),
-        (f.transmission, "transmission"),
-        (f.volume, "volume"),
-    ]
-    .iter()
-    .filter(|(on, _)| *on)
-    .map(|(_, n)| *n)
-    .collect();
+    let names: Vec<&str> = f.flags().iter().filter(|flag| flag.on).map(|flag| flag.name).collect();
     if names.is_empty() {
         "none".into()
     } else {

@@ -15,8 +15,9 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use tracer::backend::cpu::CpuRenderer;
 use tracer::backend::{Image, Renderer};
+use tracer::kernel::{RenderSettings, Strategy};
 use tracer::output::{write_image, Display, ToneMap};
-use tracer::pack::{build_and_pack, RenderSettings, Strategy};
+use tracer::pack::build_and_pack;
 use tracer::scene::{metal_rough_spheres, Scene};
 
 fn lambert(mut scene: Scene) -> Scene {

@@ -6,9 +6,9 @@ cd "$(dirname "$0")/.."
 step() { printf '\n==> %s\n' "$*"; }
 
 # The GL backend's tests need a GL driver: Mesa's EGL, GLES and software rasteriser (llvmpipe).
-# The wgpu backend's tests (tests/render_wgpu.rs) need a Vulkan driver: Mesa lavapipe and the loader.
-# The web tests (tests/web.rs) need Chromium (WebGL2 on SwiftShader) and node + npm to drive it.
-# tests/export.rs serves an exported site with nginx.
+# The wgpu backend's tests (tests/rendering/wgpu.rs) need a Vulkan driver: Mesa lavapipe and the loader.
+# The web tests (tests/cli/web.rs) need Chromium (WebGL2 on SwiftShader) and node + npm to drive it.
+# tests/cli/export.rs serves an exported site with nginx.
 missing=()
 for package in libegl1 libegl-mesa0 libgles2 libgl1-mesa-dri mesa-vulkan-drivers libvulkan1 chromium nginx; do
     status=$(dpkg-query -W -f='${Status}' "$package" 2>/dev/null || true)
@@ -62,7 +62,7 @@ status=0
 # One invocation: libraries, binaries, integration tests and doc tests share one build (a
 # separate `--doc` run resolved other features and rebuilt half the workspace, ~1.5 min), and
 # every failing test binary is reported, not only the first. That shaders-generated/ is fresh is
-# a test (tests/codegen.rs): a separate `cargo run -- shaders --check` resolved the binary's
+# a test (tests/kernel/codegen.rs): a separate `cargo run -- shaders --check` resolved the binary's
 # features alone and built many dependencies a second time (~15 min on 2 cores, cold).
 LIGHTPORT_TEST_SESSION=$session cargo test --workspace --no-fail-fast || status=$?
 

@@ -5,7 +5,7 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:44)
+// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:43)
 uniform vec3 scene_camera_position;
 uniform vec3 scene_camera_right;
 uniform vec3 scene_camera_up;

@@ -5,7 +5,7 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// metal_rough::Surface (lightport-tracer/src/kernel/metal_rough.rs:39)
+// metal_rough::Surface (lightport-tracer/src/kernel/metal_rough.rs:40)
 struct Surface {
     vec3 diffuse;
     vec3 f0;
@@ -13,7 +13,7 @@ struct Surface {
     float specular;
 };
 
-// metal_rough::BrdfSample (lightport-tracer/src/kernel/metal_rough.rs:54)
+// metal_rough::BrdfSample (lightport-tracer/src/kernel/metal_rough.rs:55)
 struct BrdfSample {
     vec3 dir;
     float pdf;
@@ -22,9 +22,9 @@ struct BrdfSample {
 
 // sampling::PI (lightport-tracer/src/kernel/sampling.rs:8)
 const float PI = 3.1415927;
-// metal_rough::MIN_ROUGHNESS (lightport-tracer/src/kernel/metal_rough.rs:30)
+// metal_rough::MIN_ROUGHNESS (lightport-tracer/src/kernel/metal_rough.rs:31)
 const float MIN_ROUGHNESS = 0.045;
-// metal_rough::MIN_COSINE (lightport-tracer/src/kernel/metal_rough.rs:33)
+// metal_rough::MIN_COSINE (lightport-tracer/src/kernel/metal_rough.rs:34)
 const float MIN_COSINE = 1e-6;
 // dielectric::DELTA_PDF (lightport-tracer/src/kernel/dielectric.rs:47)
 const float DELTA_PDF = -1.0;
@@ -96,7 +96,7 @@ vec3 refraction_half(vec3 wo, vec3 wi, float eta) {
     return h.z < 0.0 ? h / -len : h / len;
 }
 
-// metal_rough::ggx_distribution (lightport-tracer/src/kernel/metal_rough.rs:84)
+// metal_rough::ggx_distribution (lightport-tracer/src/kernel/metal_rough.rs:85)
 float ggx_distribution(float alpha, vec3 h) {
     if (!(h.z > 0.0)) {
         return 0.0;
@@ -107,13 +107,13 @@ float ggx_distribution(float alpha, vec3 h) {
     }
 }
 
-// metal_rough::smith_root (lightport-tracer/src/kernel/metal_rough.rs:95)
+// metal_rough::smith_root (lightport-tracer/src/kernel/metal_rough.rs:96)
 float smith_root(float alpha, float c) {
     float a2 = alpha * alpha;
     return sqrt(max(a2 + c * c * (1.0 - a2), 0.0));
 }
 
-// metal_rough::smith_visibility (lightport-tracer/src/kernel/metal_rough.rs:101)
+// metal_rough::smith_visibility (lightport-tracer/src/kernel/metal_rough.rs:102)
 float smith_visibility(float alpha, float nl, float nv) {
     float denominator = nl * smith_root(alpha, nv) + nv * smith_root(alpha, nl);
     return denominator > 0.0 ? 0.5 / denominator : 0.0;
@@ -149,7 +149,7 @@ vec3 dielectric_eval(Surface s, vec3 wo, vec3 wi) {
     return s.diffuse * ft;
 }
 
-// metal_rough::vndf_reflection_pdf (lightport-tracer/src/kernel/metal_rough.rs:140)
+// metal_rough::vndf_reflection_pdf (lightport-tracer/src/kernel/metal_rough.rs:141)
 float vndf_reflection_pdf(float alpha, vec3 wo, vec3 h) {
     return ggx_distribution(alpha, h) / (2.0 * (wo.z + smith_root(alpha, wo.z)));
 }
@@ -198,7 +198,7 @@ vec2 cos_sin_turns(float t) {
     }
 }
 
-// metal_rough::sample_ggx_vndf (lightport-tracer/src/kernel/metal_rough.rs:156)
+// metal_rough::sample_ggx_vndf (lightport-tracer/src/kernel/metal_rough.rs:157)
 vec3 sample_ggx_vndf(float alpha, vec3 wo, float u1, float u2) {
     vec3 v = normalize(vec3(wo.x * alpha, wo.y * alpha, wo.z));
     vec2 cs = cos_sin_turns(u1);

@@ -5,7 +5,7 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:44)
+// resources: Scene (lightport-tracer/src/kernel/scene_data.rs:43)
 uniform highp sampler2D scene_shading;
 uniform highp usampler2D scene_texture_info;
 uniform uint scene_texture_ref_first;
@@ -13,7 +13,7 @@ uniform uint scene_texcoord1_first;
 uniform uint scene_has_texture_transform;
 uniform uint scene_has_texcoord1;
 
-// scene_data::SHADING_TEXELS (lightport-tracer/src/kernel/scene_data.rs:16)
+// scene_data::SHADING_TEXELS (lightport-tracer/src/kernel/scene_data.rs:15)
 const uint SHADING_TEXELS = 4u;
 // texture_ref::TEXTURE_REF_TEXELS (lightport-tracer/src/kernel/texture_ref.rs:22)
 const uint TEXTURE_REF_TEXELS = 2u;
@@ -48,7 +48,7 @@ vec2 transform_uv(uvec4 row0, uvec4 row1, vec2 uv) {
     return vec2(u, v);
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:176)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:175)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);

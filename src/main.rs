@@ -3,8 +3,9 @@
 mod chart;
 mod export;
 mod serve;
-mod serve_child;
 mod site;
+
+use lightport::serve_child;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -173,7 +174,7 @@ impl BackendArg {
 
 fn render(args: &RenderArgs) -> Result<()> {
     use std::time::Instant;
-    use tracer::pack::{RenderSettings, Strategy};
+    use tracer::kernel::{RenderSettings, Strategy};
 
     if args.spp == 0 {
         bail!("--spp must be at least 1");

@@ -1,7 +1,6 @@
 //! Child processes that end with their parent, and `lightport serve --port 0` as one, for what
-//! drives the web page: `lightport chart`'s web line, `examples/feature_sizes.rs`, `tests/web.rs`
-//! and `tests/export.rs`. The `lightport` package has no library, so the example and the tests
-//! include this file with `#[path]`; it needs only `std` and `anyhow`.
+//! drives the web page: `lightport chart`'s web line, `examples/feature_sizes.rs`, `tests/cli/web.rs`
+//! and `tests/cli/export.rs`, through the `lightport` package's library.
 //!
 //! # Why a stdin pipe
 //! A child started here gets a pipe as its stdin whose write end only this process holds (std
@@ -13,7 +12,7 @@
 //! was the alternative and is not used: it fires when the *thread* that spawned the child ends
 //! (each Rust test runs on its own thread, so a server shared through a `static` would die with
 //! the first test), it is Linux-only, and it is lost across a set-uid exec. A program that
-//! cannot watch a pipe (nginx in tests/export.rs) runs under a `sh` that does it for it
+//! cannot watch a pipe (nginx in tests/cli/export.rs) runs under a `sh` that does it for it
 //! ([`Killed::spawn_watched`]).
 
 // Each includer uses a different part of this file.

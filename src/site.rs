@@ -16,8 +16,8 @@
 //!       "bytes": { "raw": 5120, "gzip": 1234 },   // uncompressed and gzip-compressed sizes
 //!       "triangles": 36,
 //!       "lights": 2,
-//!       "features": { "sky": false, "textures": false, "shading": false,
-//!                     "point_lights": false, "emissive_triangles": true }
+//!       "features": { "sky": false, "textures": false, "shading": false,   // every
+//!                     "point_lights": false, "emissive_triangles": true, ... } // `Features` flag
 //!     }
 //!   ]
 //! }
@@ -184,7 +184,7 @@ impl Site {
                 }
                 crate::report_warnings(&scene, &format!("{name}: "), args.strict)?;
                 let bvh = tracer::bvh::build(&scene.triangles).context("building the BVH")?;
-                tracer::pack::pack(&scene, &bvh, &tracer::pack::RenderSettings::default()).context("packing")
+                tracer::pack::pack(&scene, &bvh, &tracer::kernel::RenderSettings::default()).context("packing")
             })();
             let packed = match packed {
                 Ok(p) => p,
@@ -215,10 +215,7 @@ impl Site {
                 "bytes": { "raw": bundle.identity.len(), "gzip": gzip_bytes },
                 "triangles": packed.triangle_count,
                 "lights": packed.light_count,
-                "features": {
-                    "sky": f.sky, "textures": f.textures, "shading": f.shading,
-                    "point_lights": f.point_lights, "emissive_triangles": f.emissive_triangles,
-                },
+                "features": f.flags().iter().map(|flag| (flag.name.to_string(), flag.on.into())).collect::<serde_json::Map<_, _>>(),
             }));
             self.reports.push(SceneReport {
                 name,

@@ -9,7 +9,8 @@
 use std::path::PathBuf;
 
 use kernel_dsl::Texels;
-use tracer::pack::{build_and_pack, Packed, RenderSettings};
+use tracer::kernel::RenderSettings;
+use tracer::pack::{build_and_pack, Packed};
 use tracer::scene::{self, Scene};
 
 use crate::Target;

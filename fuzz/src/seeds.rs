@@ -9,7 +9,8 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 use image::{DynamicImage, ImageFormat};
 use serde_json::Value;
-use tracer::pack::{build_and_pack, RenderSettings};
+use tracer::kernel::RenderSettings;
+use tracer::pack::build_and_pack;
 use tracer::scene::{self, Sky};
 
 use crate::targets::MTL_SEPARATOR;

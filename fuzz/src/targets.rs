@@ -6,7 +6,8 @@ use std::sync::OnceLock;
 use glam::Vec3;
 use tracer::backend::cpu::CpuRenderer;
 use tracer::backend::Renderer;
-use tracer::pack::{build_and_pack, RenderSettings};
+use tracer::kernel::RenderSettings;
+use tracer::pack::build_and_pack;
 use tracer::scene::{self, LoadOptions, Scene, SceneError, SkyFormat};
 
 /// Every target, the file ones and the server.

@@ -133,7 +133,7 @@ fn bundle_with_count(count: u64) -> Vec<u8> {
     // A real bundle with its first entry's element count replaced.
     let packed = tracer::pack::build_and_pack(
         &scene::cornell_box(),
-        &tracer::pack::RenderSettings { width: 4, height: 4, ..Default::default() },
+        &tracer::kernel::RenderSettings { width: 4, height: 4, ..Default::default() },
     )
     .expect("pack")
     .1;

@@ -22,8 +22,11 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
+mod resources;
+
 pub use kernel_dsl_ir as ir;
 pub use kernel_dsl_macros::kernel;
+pub use resources::{Resource, ResourceField, ResourceMut, Resources};
 
 /// A read-only array of texels, addressed by a linear index.
 ///

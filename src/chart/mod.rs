@@ -29,7 +29,8 @@ use anyhow::{bail, ensure, Context, Result};
 use glam::Vec3;
 use tracer::backend::cpu::CpuRenderer;
 use tracer::backend::{Image, Renderer, RendererKind};
-use tracer::pack::{pack, Features, Packed, RenderSettings, Strategy};
+use tracer::kernel::{Features, RenderSettings, Strategy};
+use tracer::pack::{pack, Packed};
 use tracer::scene::{self, Scene, Sky};
 
 /// Seed of reference renders: never the default seed of the charted renders, so that their

@@ -8,7 +8,7 @@ use anyhow::{Context, Result};
 use base64::Engine as _;
 use glam::Vec3;
 use tracer::backend::Image;
-use tracer::pack::Strategy;
+use tracer::kernel::Strategy;
 
 use super::{ChartBackend, Point};
 

@@ -22,7 +22,8 @@ use serde_json::Value;
 use tracer::backend::Image;
 
 use crate::serve_child::{start_serve, Killed};
-use tracer::pack::{Packed, Strategy};
+use tracer::kernel::Strategy;
+use tracer::pack::Packed;
 
 use super::{checkpoints, ChartArgs, ChartBackend, Point};
 

@@ -1,5 +1,5 @@
-//! Frames split into bands of rows, shared by the CPU (`render_cpu.rs`), GL (`web.rs`, the
-//! page's loop) and wgpu (`render_wgpu.rs`) tests, through the `Renderer` trait: whatever the
+//! Frames split into bands of rows, shared by the CPU (`tests/rendering/cpu.rs`), GL (`tests/cli/web.rs`, the
+//! page's loop) and wgpu (`tests/rendering/wgpu.rs`) tests, through the `Renderer` trait: whatever the
 //! split, a frame is the frame rendered whole, exactly.
 
 use tracer::backend::Renderer;

@@ -1,7 +1,6 @@
 //! The page in headless Chromium: one scenario of `tests/web/run.mjs` (node + npm
 //! `playwright-core`, Debian's `/usr/bin/chromium`), its JSON report back. Shared by
-//! tests/web.rs (`lightport serve`) and tests/export.rs (an export behind nginx). Include it with
-//! `#[path = "common/browser.rs"] mod browser;` next to `mod serve_child;` (src/serve_child.rs).
+//! tests/cli/web.rs (`lightport serve`) and tests/cli/export.rs (an export behind nginx).
 
 use std::path::Path;
 use std::process::Command;
@@ -29,7 +28,7 @@ pub fn browse(url: &str, scenario: &str, options: &[(&str, &str)]) -> Value {
     for (k, v) in options {
         command.arg(format!("--{k}")).arg(v);
     }
-    let status = crate::serve_child::run_tied(&mut command).expect("node runs (apt-get install nodejs npm)");
+    let status = lightport::serve_child::run_tied(&mut command).expect("node runs (apt-get install nodejs npm)");
     assert!(status.success(), "tests/web/run.mjs {scenario} failed ({status}); see its output above");
     let text = std::fs::read_to_string(&out).expect("the scenario's report");
     let _ = std::fs::remove_file(&out);

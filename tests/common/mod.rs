@@ -2,14 +2,16 @@
 //! deterministic random number generator (independent of the kernel's own RNG, so kernel tests
 //! do not test the RNG with itself) and the statistics used by the sampling tests.
 //!
-//! Include it with `mod common;` from a test file.
+//! Each test binary (`tests/<binary>/main.rs`) includes it with `#[path = "../common/mod.rs"] mod common;`.
 
 // Each test file uses a different part of this module.
 #![allow(dead_code)]
 
 pub mod agreement;
 pub mod bands;
+pub mod browser;
 pub mod sphere_grid;
+pub mod texture_quads;
 
 use std::path::{Path, PathBuf};
 

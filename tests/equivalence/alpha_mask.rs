@@ -1,9 +1,9 @@
-//! Alpha masks (`scene_data::is_hole` and the functions it uses, `traverse::visible_hit`),
+//! Alpha masks (`alpha_mask::is_hole` and the functions it uses, `traverse::visible_hit`),
 //! and the traversal and light sampling that call them, on the generated alpha-masked scene
 //! (`scene::alpha_masked_screen`): every input stated once and run on every runtime.
 
 use super::*;
-use tracer::kernel::lights;
+use tracer::kernel::{alpha_mask, lights};
 
 /// Coverage is a bilinear texture lookup times a factor: `sample_texture`'s tolerance.
 const COVERAGE: Tolerance = Tolerance::ulps(16).with_absolute(1e-6).flushing_subnormals();
@@ -15,9 +15,9 @@ fn cutoff_distance(k: &Scene, triangle: u32, u: f32, v: f32) -> f32 {
         return f32::INFINITY;
     }
     let tri = scene_data::fetch_triangle(k, triangle);
-    let mask = scene_data::fetch_alpha_mask(k, tri.material);
+    let mask = alpha_mask::fetch_alpha_mask(k, tri.material);
     let uv = scene_data::texcoord(k, triangle, u, v);
-    (scene_data::coverage(k, mask, uv) - mask.cutoff).abs()
+    (alpha_mask::coverage(k, mask, uv) - mask.cutoff).abs()
 }
 
 /// Whether the segment `o + t d`, t in (0, t_max), crosses a masked triangle near a hole's edge.
@@ -48,7 +48,7 @@ fn alpha_mask_functions_agree() {
         &mut eq,
         "fetch_alpha_mask",
         &indices,
-        |s, &(i,)| (scene_data::fetch_alpha_mask(s, i),),
+        |s, &(i,)| (alpha_mask::fetch_alpha_mask(s, i),),
         Tolerance::EXACT,
     );
     let tris: Vec<(u32,)> = (0..triangles).map(|i| (i,)).collect();
@@ -63,13 +63,13 @@ fn alpha_mask_functions_agree() {
     assert_eq!(masked_count, 4, "the screen's and the light's two triangles each");
 
     // Coverage of every material's mask over uv in and beyond [0, 1] (clamped textures).
-    let lookups: Vec<(scene_data::AlphaMaskData, Vec2)> = (0..1 << 14)
+    let lookups: Vec<(alpha_mask::AlphaMaskData, Vec2)> = (0..1 << 14)
         .map(|i| {
-            let mask = scene_data::fetch_alpha_mask(&k, i % materials);
+            let mask = alpha_mask::fetch_alpha_mask(&k, i % materials);
             (mask, Vec2::new(r.range(-0.5, 1.5), r.range(-0.5, 1.5)))
         })
         .collect();
-    assert_equivalent(&mut eq, "coverage", &lookups, |s, &(m, uv)| (scene_data::coverage(s, m, uv),), COVERAGE);
+    assert_equivalent(&mut eq, "coverage", &lookups, |s, &(m, uv)| (alpha_mask::coverage(s, m, uv),), COVERAGE);
 
     // Holes at random points of every triangle, away from the cutoff (where rounding decides).
     let points: Vec<(u32, u32, f32, f32)> = (0..1 << 15)
@@ -85,7 +85,7 @@ fn alpha_mask_functions_agree() {
         &mut eq,
         "is_hole",
         &points,
-        |s, &(i, m, u, v)| (scene_data::is_hole(s, i, m, u, v),),
+        |s, &(i, m, u, v)| (alpha_mask::is_hole(s, i, m, u, v),),
         Tolerance::EXACT,
     );
     let hole_count = holes.output(Backend::Cpu).unwrap().iter().filter(|(h,)| *h).count();

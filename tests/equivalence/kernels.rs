@@ -277,7 +277,7 @@ fn texture_and_scene_fetches_agree() {
         &mut eq,
         "wrap_coordinate",
         &wraps,
-        |_, &(i, n, m)| (scene_data::wrap_coordinate(i, n, m),),
+        |_, &(i, n, m)| (textures::wrap_coordinate(i, n, m),),
         Tolerance::EXACT,
     );
     let texels: Vec<(UVec4, i32, i32)> = (0..1 << 15)
@@ -289,7 +289,7 @@ fn texture_and_scene_fetches_agree() {
         })
         .collect();
     // Texels are 8-bit sRGB decoded in the kernel: `powf` is not correctly rounded on GPUs.
-    assert_equivalent(&mut eq, "texel", &texels, |s, &(info, x, y)| (scene_data::texel(s, info, x, y),), SRGB);
+    assert_equivalent(&mut eq, "texel", &texels, |s, &(info, x, y)| (textures::texel(s, info, x, y),), SRGB);
     let lookups: Vec<(u32, Vec2)> = (0..1 << 16)
         .map(|j| {
             let uv = match j % 64 {
@@ -306,7 +306,7 @@ fn texture_and_scene_fetches_agree() {
         &mut eq,
         "sample_texture",
         &lookups,
-        |s, &(i, uv)| (scene_data::sample_texture(s, i, uv),),
+        |s, &(i, uv)| (textures::sample_texture(s, i, uv),),
         SRGB.with_absolute(1e-6),
     );
 }
@@ -325,13 +325,13 @@ fn srgb_decoding_agrees() {
     while words.len() < 1 << 16 {
         words.push((r.next_u32(),));
     }
-    assert_equivalent(&mut eq, "decode_srgba8", &words, |_, &(w,)| (scene_data::decode_srgba8(w),), SRGB);
+    assert_equivalent(&mut eq, "decode_srgba8", &words, |_, &(w,)| (textures::decode_srgba8(w),), SRGB);
     let channels: Vec<(f32,)> = (0..=255u32)
         .map(|b| (b as f32 / 255.0,))
         .chain([(0.04045,), (0.04045f32.next_up(),), (0.0,), (1.0,)])
         .chain((0..1 << 14).map(|_| (r.f32(),)))
         .collect();
-    assert_equivalent(&mut eq, "srgb_to_linear", &channels, |_, &(c,)| (scene_data::srgb_to_linear(c),), SRGB);
+    assert_equivalent(&mut eq, "srgb_to_linear", &channels, |_, &(c,)| (textures::srgb_to_linear(c),), SRGB);
 }
 
 /// Radiance for the tone curves: log-uniform over 2^-20..2^16 per channel (greys and saturated

@@ -26,8 +26,9 @@ use tracer::backend::harness::{Backend, Equivalence, Outcome, Tolerance, Values}
 use tracer::kernel::intersect::{self, TriangleHit, MISS};
 use tracer::kernel::scene_data::{self, Scene, NONE};
 use tracer::kernel::traverse::{self, Hit};
-use tracer::kernel::{camera, metal_rough, rng, sampling};
-use tracer::pack::{pack, RenderSettings};
+use tracer::kernel::RenderSettings;
+use tracer::kernel::{camera, metal_rough, rng, sampling, textures};
+use tracer::pack::pack;
 
 /// CPU, GL, wgpu, WebGL2 and WebGPU, with the hazards module linked in. Fails (never skips)
 /// without a usable GL or Vulkan driver or browser.

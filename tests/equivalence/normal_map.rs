@@ -128,7 +128,7 @@ fn normal_map_functions_agree() {
             let mapped = {
                 let map = normal_map::fetch_normal_map(&k, tri.material);
                 let uv = scene_data::texcoord(&k, i, u, v);
-                let rgb = scene_data::sample_data_texture(&k, map.texture, uv);
+                let rgb = textures::sample_data_texture(&k, map.texture, uv);
                 let t = normal_map::interpolated_tangent(&k, i, u, v);
                 normal_map::perturb_normal(ns * flip, t, normal_map::tangent_space_normal(rgb.truncate(), map.scale))
                     * flip

@@ -3,11 +3,10 @@
 //! whose textures are transformed and read on `TEXCOORD_1`, in every slot the kernel samples.
 
 use super::*;
-use tracer::kernel::{lights, normal_map, texture_ref};
+use tracer::kernel::{lights, normal_map, texture_ref, textures};
 use tracer::scene::{Material, UvTransform};
 
-#[path = "../common/texture_quads.rs"]
-mod quads;
+use crate::common::texture_quads as quads;
 
 /// Two products and two sums per coordinate: a few ULP where drivers contract to fma, relative
 /// to the largest term (absolute near a cancelling sum).
@@ -116,7 +115,7 @@ fn texture_reference_functions_agree() {
         .iter()
         .filter(|&&(t, u, v)| {
             let uv = texture_ref::texture_uv(&k, map.texture, t, u, v);
-            let rgb = scene_data::sample_data_texture(&k, map.texture, uv);
+            let rgb = textures::sample_data_texture(&k, map.texture, uv);
             let tangent = normal_map::interpolated_tangent(&k, t, u, v);
             let mapped = normal_map::perturb_normal(
                 Vec3::Y,

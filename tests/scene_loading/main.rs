@@ -1,10 +1,14 @@
 //! Scene loading: every scene vendored in `tests/data/scenes/` (see `tests/data/README.md`),
 //! the loaders' conventions (transforms, winding, units, cameras) on small glTF files written
-//! here, and malformed input, which must give an error and never a panic.
+//! here, and malformed input, which must give an error and never a panic. Beside this file:
+//! moving scenes (`moving.rs`), FBX (`fbx.rs`) and the glTF-Validator corpus
+//! (`validator_corpus.rs`).
 
 #[path = "../common/mod.rs"]
 mod common;
+mod fbx;
 mod moving;
+mod validator_corpus;
 
 use std::path::PathBuf;
 
@@ -183,7 +187,7 @@ fn glass_vase_flowers_loads_its_glass_and_renders() {
     let glass = vase.materials.iter().find(|m| m.name == "GlassTransmission").expect("the vase's glass");
     assert!(glass.transmits() && glass.has_volume() && glass.ior == 1.5, "{glass:?}");
     vase.sky = Some(scene::Sky::uniform(Vec3::ONE));
-    let packed = common::agreement::packed(&vase, tracer::pack::Strategy::Mis, 24, 6);
+    let packed = common::agreement::packed(&vase, tracer::kernel::Strategy::Mis, 24, 6);
     assert!(packed.features.transmission, "{:?}", packed.features);
     let mut r = CpuRenderer::new(packed, 3);
     for _ in 0..8 {

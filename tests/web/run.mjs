@@ -1,6 +1,6 @@
 // Drives the Lightport page in headless Chromium (Debian's /usr/bin/chromium through
 // playwright-core) and writes what it observed as JSON. It decides nothing: the Rust side
-// (tests/web.rs, examples/bench_web.rs) does the statistics and the assertions.
+// (tests/cli/web.rs, examples/bench_web.rs) does the statistics and the assertions.
 //
 //   node run.mjs SCENARIO --url http://127.0.0.1:PORT/ --out result.json [options]
 //
@@ -353,7 +353,7 @@ async function contextLoss(o) {
 
 // The display pass: for each tone curve and exposure (the first given in the URL, the others
 // chosen through the page's controls), the canvas's pixels (top row first, RGBA) and the
-// accumulation they show, for tests/web.rs to compare with the CLI's PNG conversion.
+// accumulation they show, for tests/cli/web.rs to compare with the CLI's PNG conversion.
 async function display(o) {
   const profile = freshProfile();
   try {

@@ -136,7 +136,8 @@ impl OrbitCamera {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use tracer::pack::{pack, RenderSettings, Strategy};
+    use tracer::kernel::{RenderSettings, Strategy};
+    use tracer::pack::pack;
 
     fn packed_cornell(width: u32, height: u32) -> tracer::pack::Packed {
         let scene = tracer::scene::cornell_box();

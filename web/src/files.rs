@@ -6,7 +6,8 @@
 
 use base64::Engine;
 use serde_json::Value;
-use tracer::pack::{Packed, RenderSettings};
+use tracer::kernel::RenderSettings;
+use tracer::pack::Packed;
 use tracer::scene::{LoadOptions, Scene, SceneError};
 
 /// One dropped file: its name (a relative path when a folder was dropped) and its bytes.

@@ -18,3 +18,15 @@ pub(crate) fn set(object: &Object, key: &str, value: impl Into<JsValue>) {
 pub(crate) fn now_ms() -> f64 {
     web_sys::window().and_then(|w| w.performance()).map_or_else(js_sys::Date::now, |p| p.now())
 }
+
+/// `snake_case` as the page's `camelCase` keys (`emissive_triangles` -> `emissiveTriangles`).
+pub(crate) fn camel_case(name: &str) -> String {
+    let mut parts = name.split('_');
+    let first = parts.next().unwrap_or_default().to_string();
+    parts.fold(first, |mut out, part| {
+        let mut chars = part.chars();
+        out.extend(chars.next().map(|c| c.to_ascii_uppercase()));
+        out.extend(chars);
+        out
+    })
+}

@@ -21,8 +21,9 @@ use tracer::backend::frame_split::{Step, DEFAULT_BUDGET_MS};
 use tracer::backend::gl::GlOptions;
 use tracer::backend::wgpu::WgpuOptions;
 use tracer::backend::Image;
+use tracer::kernel::{RenderSettings, Strategy};
 use tracer::output::{Display, ToneMap};
-use tracer::pack::{Packed, RenderSettings, Strategy};
+use tracer::pack::Packed;
 use wasm_bindgen::prelude::*;
 use wasm_bindgen::JsCast;
 use wasm_bindgen_futures::future_to_promise;
@@ -30,7 +31,7 @@ use web_sys::{HtmlCanvasElement, WebGl2RenderingContext};
 
 use crate::camera::OrbitCamera;
 use crate::files::{self, DroppedFile};
-use crate::js::{js_error, now_ms, set};
+use crate::js::{camel_case, js_error, now_ms, set};
 use crate::runtime::{webgl2, Api, GlRuntime, GpuDevice, GpuRuntime, Runtime};
 
 /// The loaded scene: the master copy of its packed data (uniforms kept current) and the view.
@@ -413,16 +414,8 @@ impl Viewer {
             set(&info, "lights", loaded.packed.light_count as u32);
             set(&info, "textureChecksum", loaded.packed.texture_checksum());
             let features = Object::new();
-            for (name, on) in [
-                ("sky", f.sky),
-                ("textures", f.textures),
-                ("shading", f.shading),
-                ("pointLights", f.point_lights),
-                ("emissiveTriangles", f.emissive_triangles),
-                ("metalRough", f.metal_rough),
-                ("normalMap", f.normal_map),
-            ] {
-                set(&features, name, on);
+            for flag in f.flags() {
+                set(&features, &camel_case(flag.name), flag.on);
             }
             set(&info, "features", features);
         }

@@ -39,6 +39,7 @@ fn expand(attr: TokenStream, item: TokenStream, file: String) -> TokenStream {
     };
     let mut lowering = Lowering::default();
     let ir = lowering.module(&module, file);
+    let resource_impls = resources_impls(&module);
     strip_dsl_attributes(&mut module);
     let errors = lowering.errors.into_iter().reduce(|mut a, b| {
         a.combine(b);
@@ -59,6 +60,7 @@ fn expand(attr: TokenStream, item: TokenStream, file: String) -> TokenStream {
                 }
             };
             items.extend(generated.items);
+            items.extend(resource_impls);
             quote!(#module)
         }
         (_, Some(err)) => {
@@ -67,6 +69,34 @@ fn expand(attr: TokenStream, item: TokenStream, file: String) -> TokenStream {
         }
         (None, None) => quote!(#module),
     }
+}
+
+/// `impl kernel_dsl::Resources` for each `#[resources]` struct: its fields by name, in
+/// declaration order, so hosts walk the one declaration instead of copying its field list.
+fn resources_impls(module: &syn::ItemMod) -> Vec<syn::Item> {
+    let Some((_, items)) = &module.content else { return Vec::new() };
+    let structs = items.iter().filter_map(|item| match item {
+        syn::Item::Struct(s) if s.attrs.iter().any(|a| a.path().is_ident("resources")) => Some(s),
+        _ => None,
+    });
+    structs
+        .filter_map(|s| {
+            let ident = &s.ident;
+            let syn::Fields::Named(named) = &s.fields else { return None };
+            let fields: Vec<&syn::Ident> = named.named.iter().filter_map(|f| f.ident.as_ref()).collect();
+            let names: Vec<String> = fields.iter().map(|f| f.to_string()).collect();
+            Some(syn::parse_quote! {
+                impl ::kernel_dsl::Resources for #ident {
+                    fn fields(&self) -> ::std::vec::Vec<(&'static str, ::kernel_dsl::Resource<'_>)> {
+                        ::std::vec![#((#names, ::kernel_dsl::ResourceField::resource(&self.#fields))),*]
+                    }
+                    fn fields_mut(&mut self) -> ::std::vec::Vec<(&'static str, ::kernel_dsl::ResourceMut<'_>)> {
+                        ::std::vec![#((#names, ::kernel_dsl::ResourceField::resource_mut(&mut self.#fields))),*]
+                    }
+                }
+            })
+        })
+        .collect()
 }
 
 /// Removes the DSL's marker attributes (`#[resources]`) so rustc sees plain Rust.

@@ -3,15 +3,15 @@
 //! On a slow GPU one full frame of the kernel takes seconds (SwiftShader at 640x480: ~3 s; the
 //! thesis measured 0.37 fps on phones). Submitted as one draw, it keeps the GPU (and, in a
 //! browser, the compositor and everything queued behind it: the restarted accumulation after a
-//! camera move) busy for that long. [`GlRenderer::render_band`] draws the same fragment pass
+//! camera move) busy for that long. [`GlRenderer::render_band`](crate::backend::gl::GlRenderer::render_band) draws the same fragment pass
 //! over a scissor rectangle of rows instead; the accumulation's frame index only advances when
 //! the last band of a frame is drawn, so a split frame is the unsplit one (same pixels, same
-//! per-pixel random sequence), as `tests/web.rs` checks.
+//! per-pixel random sequence), as `tests/cli/web.rs` checks.
 //!
 //! [`BandPolicy`] (pure logic) chooses the band height from measured band times: bands aim at
 //! [`TARGET_FRACTION`] of the budget ([`DEFAULT_BUDGET_MS`], 50 ms), start small
 //! ([`FIRST_ROWS`]), at most double per band, and shrink at once when a band was slow.
-//! [`Pacer`] measures: it puts a fence (`glFenceSync`, core in WebGL2 and OpenGL ES 3.0) behind
+//! The GL runtime's `Pacer` (`backend/gl/pacing.rs`) measures: it puts a fence (`glFenceSync`, core in WebGL2 and OpenGL ES 3.0) behind
 //! each band and polls it without blocking (`glClientWaitSync` with a zero timeout, the only
 //! timeout WebGL allows); a band's time is from its submission to the poll that sees the fence
 //! signalled, so it is an upper bound, rounded up to the caller's polling interval (an animation
@@ -19,11 +19,6 @@
 //! many phones), nothing blocks the thread, and nothing is read back. The pacer submits nothing
 //! while a band is in flight: at most one band is queued, so new work (a restart) waits for at
 //! most one band.
-
-use glow::HasContext;
-
-use super::gl::GlRenderer;
-use super::{RenderError, Renderer};
 
 /// The longest a single GPU submission should take (milliseconds), by default.
 pub const DEFAULT_BUDGET_MS: f64 = 50.0;
@@ -105,110 +100,13 @@ impl BandPolicy {
     }
 }
 
-/// What [`Pacer::step`] did.
+/// What a pacer's step did (the GL runtime's `Pacer::step`, the WebGPU page's loop).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Step {
     /// The previous band is still on the GPU: nothing was submitted.
     Waiting,
     /// A band was submitted; `frame_done`: it was the frame's last (a sample per pixel was added).
     Submitted { frame_done: bool },
-}
-
-struct InFlight {
-    fence: glow::Fence,
-    submitted_ms: f64,
-    /// The last poll that found the fence unsignalled.
-    pending_at_ms: Option<f64>,
-    rows: u32,
-}
-
-/// Submits one band at a time, each behind a fence, and feeds the measured times to a
-/// [`BandPolicy`]. Call [`step`](Self::step) from the frame loop (the browser's
-/// `requestAnimationFrame`) with a clock in milliseconds; call [`forget`](Self::forget) before
-/// the renderer goes (the fence is an object of its context).
-pub struct Pacer {
-    policy: BandPolicy,
-    in_flight: Option<InFlight>,
-}
-
-impl Pacer {
-    pub fn new(height: u32, budget_ms: Option<f64>) -> Self {
-        Pacer { policy: BandPolicy::new(height, budget_ms), in_flight: None }
-    }
-
-    pub fn policy(&self) -> &BandPolicy {
-        &self.policy
-    }
-
-    /// Whether a band is on the GPU (submitted, its fence not yet seen signalled).
-    pub fn busy(&self) -> bool {
-        self.in_flight.is_some()
-    }
-
-    /// Checks, without blocking, whether the band in flight is done; records its time if so.
-    /// True when no band is in flight (any more).
-    pub fn poll(&mut self, gl: &glow::Context, now_ms: f64) -> bool {
-        let Some(band) = &mut self.in_flight else { return true };
-        // SAFETY: the fence was created on this context and is deleted once, here or in forget.
-        let status = unsafe { gl.client_wait_sync(band.fence, 0, 0) };
-        match status {
-            glow::TIMEOUT_EXPIRED => {
-                band.pending_at_ms = Some(now_ms);
-                return false;
-            }
-            glow::ALREADY_SIGNALED | glow::CONDITION_SATISFIED => {
-                // Never seen pending: the poll came late (in a browser, animation frames wait
-                // for the busy GPU), so the time to it is what the band took.
-                let at_most = now_ms - band.submitted_ms;
-                let at_least = band.pending_at_ms.map_or(at_most, |t| t - band.submitted_ms);
-                self.policy.record_between(band.rows, at_least, at_most)
-            }
-            // WAIT_FAILED (e.g. a lost context): no time to record, and nothing to wait for.
-            _ => {}
-        }
-        // SAFETY: as above.
-        unsafe { gl.delete_sync(band.fence) };
-        self.in_flight = None;
-        true
-    }
-
-    /// Submits the next band of `renderer`'s frame unless the previous one is still running.
-    /// `then` (given the renderer and whether the band completed the frame) queues what belongs
-    /// to the band's submission, e.g. a display pass; the fence and the time include it.
-    pub fn step(
-        &mut self,
-        renderer: &mut GlRenderer,
-        now_ms: f64,
-        then: impl FnOnce(&GlRenderer, bool),
-    ) -> Result<Step, RenderError> {
-        if !self.poll(renderer.gl(), now_ms) {
-            return Ok(Step::Waiting);
-        }
-        let rows = self.policy.rows().min(renderer.rows_left());
-        let frame_done = renderer.render_band(rows)?;
-        then(renderer, frame_done);
-        let gl = renderer.gl();
-        // SAFETY: a fence and a flush on the renderer's context, which render_band made current.
-        let fence = unsafe {
-            let fence = gl.fence_sync(glow::SYNC_GPU_COMMANDS_COMPLETE, 0);
-            gl.flush();
-            fence
-        };
-        // Without a fence (no sync objects) the band is simply not measured.
-        if let Ok(fence) = fence {
-            self.in_flight = Some(InFlight { fence, submitted_ms: now_ms, pending_at_ms: None, rows });
-        }
-        Ok(Step::Submitted { frame_done })
-    }
-
-    /// Drops the band in flight without measuring it (before the renderer's context goes, or
-    /// when something else submits work that the band's time would wrongly include).
-    pub fn forget(&mut self, gl: &glow::Context) {
-        if let Some(band) = self.in_flight.take() {
-            // SAFETY: the fence belongs to `gl`'s context and is deleted once.
-            unsafe { gl.delete_sync(band.fence) };
-        }
-    }
 }
 
 #[cfg(test)]

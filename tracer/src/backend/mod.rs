@@ -4,8 +4,6 @@
 //! one of any [`RendererKind`] natively.
 
 pub mod cpu;
-#[cfg(feature = "gl")]
-pub mod egl;
 pub mod frame_split;
 pub mod gl;
 pub mod harness;

@@ -33,25 +33,8 @@ pub(super) fn check_consistency(p: &Packed) -> Result<(), BundleError> {
         return fail(format!("{} light texels, light count {} / {}", s.lights.len(), s.light_count, p.light_count));
     }
     let f = &p.features;
-    let flags = [
-        ("sky", f.sky, s.has_sky),
-        ("textures", f.textures, s.has_textures),
-        ("shading", f.shading, s.has_shading),
-        ("lights", f.lights(), s.has_lights),
-        ("triangle_lights", f.emissive_triangles, s.has_triangle_lights),
-        ("point_lights", f.point_lights, s.has_point_lights),
-        ("metal_rough", f.metal_rough, s.has_metal_rough),
-        ("normal_map", f.normal_map, s.has_normal_map),
-        ("alpha_mask", f.alpha_mask, s.has_alpha_mask),
-        ("texture_transform", f.texture_transform, s.has_texture_transform),
-        ("texcoord1", f.texcoord1, s.has_texcoord1),
-        ("transmission", f.transmission, s.has_transmission),
-        ("volume", f.volume, s.has_volume),
-    ];
-    for (name, feature, flag) in flags {
-        if flag != feature as u32 {
-            return fail(format!("feature {name} is {feature} but the kernel flag has_{name} is {flag}"));
-        }
+    if let Some((uniform, feature, flag)) = f.kernel_flag_mismatches(s).first() {
+        return fail(format!("the features say {feature} but the kernel flag {uniform} is {flag}"));
     }
     // Normal maps' tangents extend `shading` at the offset the uniform gives; a reader trusting
     // a wrong offset would fetch beyond the array.

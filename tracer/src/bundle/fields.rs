@@ -1,8 +1,8 @@
 //! Each field of [`Packed`] as an entry under its path: texel arrays, uniforms, flags, counts,
-//! and [`record!`]'s one list of every struct's fields.
+//! and the kernel's `Scene` and `Features` walked through their one declaration each.
 
 use glam::{UVec4, Vec3, Vec4};
-use kernel_dsl::Texels;
+use kernel_dsl::{Resource, ResourceMut, Resources, Texels};
 
 use super::format::{f32s, u32s, ElementType, Reader, Writer};
 use super::BundleError;
@@ -163,24 +163,7 @@ fn field_name(prefix: &str, field: &str) -> String {
     }
 }
 
-/// A struct stored field by field under `<prefix>.<field>`. The destructuring pattern and the
-/// struct literal both name every field (no `..`): a field added to the struct is a compile
-/// error here until it is listed, and the list cannot name a field the struct lacks.
-macro_rules! record {
-    ($ty:ident { $($field:ident),* $(,)? }) => {
-        impl Field for $ty {
-            fn write(&self, prefix: &str, w: &mut Writer) {
-                let $ty { $($field),* } = self;
-                $( $field.write(&field_name(prefix, stringify!($field)), w); )*
-            }
-            fn read(prefix: &str, r: &mut Reader) -> Result<Self, BundleError> {
-                Ok($ty { $($field: Field::read(&field_name(prefix, stringify!($field)), r)?),* })
-            }
-        }
-    };
-}
-
-/// The packed scene, field by field as [`record!`] stores a struct, except that the texture
+/// The packed scene, field by field, except that the texture
 /// atlas travels as its images ([`super::textures`]): `scene.texture_texels` is stored empty
 /// when there are images, and decoded from them on reading.
 impl Field for Packed {
@@ -213,68 +196,50 @@ impl Field for Packed {
         Ok(Packed { scene, features, triangle_count, light_count, texture_images })
     }
 }
-record!(Features {
-    sky,
-    textures,
-    shading,
-    point_lights,
-    emissive_triangles,
-    metal_rough,
-    normal_map,
-    alpha_mask,
-    texture_transform,
-    texcoord1,
-    transmission,
-    volume,
-    traversal_stack
-});
-record!(Scene {
-    triangles,
-    shading,
-    nodes,
-    node_children,
-    materials,
-    lights,
-    texture_texels,
-    texture_info,
-    sky,
-    sky_rows,
-    metal_rough,
-    tangent_first,
-    normal_map_first,
-    alpha_mask_first,
-    texture_ref_first,
-    texcoord1_first,
-    transmission_first,
-    camera_position,
-    camera_right,
-    camera_up,
-    camera_forward,
-    lens_radius,
-    focus_distance,
-    width,
-    height,
-    frame_seed,
-    max_depth,
-    strategy,
-    light_count,
-    sky_width,
-    sky_height,
-    sky_intensity,
-    sky_rotation,
-    scene_scale,
-    leaf_stack_limit,
-    has_sky,
-    has_textures,
-    has_shading,
-    has_lights,
-    has_triangle_lights,
-    has_point_lights,
-    has_metal_rough,
-    has_normal_map,
-    has_alpha_mask,
-    has_texture_transform,
-    has_texcoord1,
-    has_transmission,
-    has_volume,
-});
+/// The feature flags, each under `<prefix>.<flag>` in declaration order, then the stack size.
+impl Field for Features {
+    fn write(&self, prefix: &str, w: &mut Writer) {
+        for flag in self.flags() {
+            flag.on.write(&field_name(prefix, flag.name), w);
+        }
+        self.traversal_stack.write(&field_name(prefix, "traversal_stack"), w);
+    }
+    fn read(prefix: &str, r: &mut Reader) -> Result<Self, BundleError> {
+        let mut features = Features::default();
+        for (flag, on) in features.flags_mut() {
+            *on = Field::read(&field_name(prefix, flag), r)?;
+        }
+        features.traversal_stack = Field::read(&field_name(prefix, "traversal_stack"), r)?;
+        Ok(features)
+    }
+}
+/// The kernel's `Scene`, each field under `<prefix>.<field>` in declaration order, walked
+/// through `kernel_dsl::Resources` (generated from `Scene`'s one declaration).
+impl Field for Scene {
+    fn write(&self, prefix: &str, w: &mut Writer) {
+        for (field, value) in self.fields() {
+            let name = field_name(prefix, field);
+            match value {
+                Resource::Vec4s(t) => t.write(&name, w),
+                Resource::UVec4s(t) => t.write(&name, w),
+                Resource::F32(x) => x.write(&name, w),
+                Resource::U32(x) => x.write(&name, w),
+                Resource::Vec3(v) => v.write(&name, w),
+            }
+        }
+    }
+    fn read(prefix: &str, r: &mut Reader) -> Result<Self, BundleError> {
+        let mut scene = Scene::default();
+        for (field, slot) in scene.fields_mut() {
+            let name = field_name(prefix, field);
+            match slot {
+                ResourceMut::Vec4s(t) => *t = Field::read(&name, r)?,
+                ResourceMut::UVec4s(t) => *t = Field::read(&name, r)?,
+                ResourceMut::F32(x) => *x = Field::read(&name, r)?,
+                ResourceMut::U32(x) => *x = Field::read(&name, r)?,
+                ResourceMut::Vec3(v) => *v = Field::read(&name, r)?,
+            }
+        }
+        Ok(scene)
+    }
+}

@@ -298,23 +298,34 @@ fn preset(options: &BuildOptions) -> obvhs::BvhBuildParams {
 /// A builder leaf may stand for more than `max_leaf` triangles (a group of coincident ones,
 /// see [`coincident`]): it becomes a balanced subtree over them, halves of its triangle range.
 fn convert(bvh2: &Bvh2, primitives: &Primitives, max_leaf: u32, traversal_cost: f32) -> Result<Bvh, BvhError> {
-    let triangle_count = primitives.aabbs.len();
-    let internal = |m: &str| BvhError::Internal(m.to_owned());
-    let src = &bvh2.nodes;
-    let prims = &bvh2.primitive_indices;
-    if src.is_empty() {
+    if bvh2.nodes.is_empty() {
         return Err(internal("the builder returned no nodes"));
     }
-    let children = |n: &Bvh2Node| -> Result<(usize, usize), BvhError> {
-        let c = n.first_index as usize;
-        if c + 1 < src.len() {
-            Ok((c, c + 1))
-        } else {
-            Err(internal("child index out of range"))
-        }
-    };
+    let preorder = preorder(&bvh2.nodes)?;
+    let collapse = collapse_by_sah(bvh2, primitives, &preorder, max_leaf, traversal_cost)?;
+    let (nodes, order) = emit(bvh2, primitives, &collapse, max_leaf)?;
+    if order.len() != primitives.aabbs.len() {
+        return Err(internal("leaves do not reference every triangle once"));
+    }
+    Ok(Bvh { nodes, triangle_order: order })
+}
 
-    // 1. Pre-order, checking that the node graph is a tree reachable from the root.
+fn internal(message: &str) -> BvhError {
+    BvhError::Internal(message.to_owned())
+}
+
+/// The two children of an inner node of the binary builder's output.
+fn children(src: &[Bvh2Node], n: &Bvh2Node) -> Result<(usize, usize), BvhError> {
+    let c = n.first_index as usize;
+    if c + 1 < src.len() {
+        Ok((c, c + 1))
+    } else {
+        Err(internal("child index out of range"))
+    }
+}
+
+/// The builder's nodes in pre-order, checking that the node graph is a tree reachable from the root.
+fn preorder(src: &[Bvh2Node]) -> Result<Vec<u32>, BvhError> {
     let mut preorder: Vec<u32> = Vec::with_capacity(src.len());
     let mut stack: Vec<u32> = vec![0];
     while let Some(s) = stack.pop() {
@@ -324,14 +335,24 @@ fn convert(bvh2: &Bvh2, primitives: &Primitives, max_leaf: u32, traversal_cost: 
         preorder.push(s);
         let node = src.get(s as usize).ok_or_else(|| internal("node index out of range"))?;
         if !node.is_leaf() {
-            let (l, r) = children(node)?;
+            let (l, r) = children(src, node)?;
             stack.push(r as u32);
             stack.push(l as u32);
         }
     }
+    Ok(preorder)
+}
 
-    // 2. Bottom-up (reverse pre-order): triangles per subtree and its best SAH cost, deciding
-    //    which subtrees become leaves.
+/// Bottom-up (reverse pre-order): triangles per subtree and its best SAH cost, deciding which
+/// subtrees become leaves (`true`: collapse the subtree into one leaf).
+fn collapse_by_sah(
+    bvh2: &Bvh2,
+    primitives: &Primitives,
+    preorder: &[u32],
+    max_leaf: u32,
+    traversal_cost: f32,
+) -> Result<Vec<bool>, BvhError> {
+    let (src, prims) = (&bvh2.nodes, &bvh2.primitive_indices);
     let mut count = vec![0u32; src.len()];
     let mut cost = vec![0f32; src.len()];
     let mut collapse = vec![false; src.len()];
@@ -348,7 +369,7 @@ fn convert(bvh2: &Bvh2, primitives: &Primitives, max_leaf: u32, traversal_cost: 
             cost[s] = area * count[s] as f32;
             continue;
         }
-        let (l, r) = children(node)?;
+        let (l, r) = children(src, node)?;
         let n = count[l].saturating_add(count[r]);
         let as_split = area * traversal_cost + cost[l] + cost[r];
         let as_leaf = area * n as f32;
@@ -360,10 +381,20 @@ fn convert(bvh2: &Bvh2, primitives: &Primitives, max_leaf: u32, traversal_cost: 
             cost[s] = as_split;
         }
     }
+    Ok(collapse)
+}
 
-    // 3. Emit depth-first: each pair of children is allocated when its parent is visited.
+/// The 2-wide tree as emitted depth-first (each pair of children allocated when its parent is
+/// visited), and the triangle order its leaves reference.
+fn emit(
+    bvh2: &Bvh2,
+    primitives: &Primitives,
+    collapse: &[bool],
+    max_leaf: u32,
+) -> Result<(Vec<BvhNode>, Vec<u32>), BvhError> {
+    let (src, prims) = (&bvh2.nodes, &bvh2.primitive_indices);
     let mut nodes: Vec<BvhNode> = Vec::with_capacity(src.len());
-    let mut order: Vec<u32> = Vec::with_capacity(triangle_count);
+    let mut order: Vec<u32> = Vec::with_capacity(primitives.aabbs.len());
     let placeholder = BvhNode { min: Vec3::ZERO, max: Vec3::ZERO, first: 0, count: 0 };
     nodes.push(placeholder);
     let mut stack: Vec<Emit> = vec![Emit::Node { source: 0, to: 0 }];
@@ -389,7 +420,7 @@ fn convert(bvh2: &Bvh2, primitives: &Primitives, max_leaf: u32, traversal_cost: 
                 continue;
             }
         };
-        let node = &src[s]; // every `s` here was reached in step 1
+        let node = &src[s]; // every `s` here was reached by `preorder`
         let (min, max) = (Vec3::from(node.aabb().min), Vec3::from(node.aabb().max));
         let out = if node.is_leaf() || collapse[s] {
             let first = order.len() as u32;
@@ -405,7 +436,7 @@ fn convert(bvh2: &Bvh2, primitives: &Primitives, max_leaf: u32, traversal_cost: 
                         primitives.extend(p, &mut order);
                     }
                 } else {
-                    let (l, r) = children(n)?;
+                    let (l, r) = children(src, n)?;
                     gather.push(r);
                     gather.push(l);
                 }
@@ -418,7 +449,7 @@ fn convert(bvh2: &Bvh2, primitives: &Primitives, max_leaf: u32, traversal_cost: 
             }
             BvhNode { min, max, first, count }
         } else {
-            let (l, r) = children(node)?;
+            let (l, r) = children(src, node)?;
             let child = nodes.len();
             nodes.push(placeholder);
             nodes.push(placeholder);
@@ -428,10 +459,7 @@ fn convert(bvh2: &Bvh2, primitives: &Primitives, max_leaf: u32, traversal_cost: 
         };
         *nodes.get_mut(d).ok_or_else(|| internal("destination out of range"))? = out;
     }
-    if order.len() != triangle_count {
-        return Err(internal("leaves do not reference every triangle once"));
-    }
-    Ok(Bvh { nodes, triangle_order: order })
+    Ok((nodes, order))
 }
 
 /// A pending step of [`convert`]'s output pass: a builder node to emit at `nodes[to]`, or a

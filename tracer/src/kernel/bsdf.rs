@@ -22,10 +22,9 @@ pub mod bsdf {
     };
     use crate::kernel::rng::random_float;
     use crate::kernel::sampling::{cosine_sample_hemisphere, INV_PI};
-    use crate::kernel::scene_data::{
-        base_color_at, fetch_glass, fetch_metal_rough, sample_data_texture, MaterialData, Scene, NONE,
-    };
+    use crate::kernel::scene_data::{fetch_glass, fetch_metal_rough, MaterialData, Scene, NONE};
     use crate::kernel::texture_ref::texture_uv;
+    use crate::kernel::textures::{base_color_at, sample_data_texture};
     use crate::kernel::traverse::Hit;
 
     /// Lambert: a diffuse albedo (`Bsdf::surface.diffuse`), the only kind of a scene without

@@ -3,95 +3,115 @@
 //! kernel modules (not kernel code): the kernel's specialisation and `pack` both read it, so
 //! the kernel does not depend on `pack`.
 
-use crate::kernel::scene_data;
+use crate::kernel::scene_data::{self, Scene};
 
-/// What a scene uses; decides what is packed and, on GPUs, which kernel variant is generated.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub struct Features {
-    pub sky: bool,
-    pub textures: bool,
+/// Declares [`Features`] once: each flag with the kernel uniform that carries it
+/// (`Scene.has_*`). Everything that lists the flags (specialisation, [`Features::all`], the
+/// kernel uniforms, the bundle's entries and its consistency check, the page's and the site's
+/// read-outs) walks [`Features::flags`] or the functions generated here.
+macro_rules! features {
+    ($($(#[doc = $doc:literal])* $flag:ident => $uniform:ident,)*) => {
+        /// What a scene uses; decides what is packed and, on GPUs, which kernel variant is generated.
+        #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+        pub struct Features {
+            $($(#[doc = $doc])* pub $flag: bool,)*
+            /// Entries the traversal stack needs for this scene's BVH (`WideBvh::stack_needed*`, at
+            /// most the kernel's `STACK_SIZE`): GPU variants size their stacks to it instead of
+            /// `STACK_SIZE` (the Cornell box needs 11, not 64). 0: not fixed, the kernel's `STACK_SIZE`.
+            pub traversal_stack: u32,
+        }
+
+        impl Features {
+            /// Each flag: its name (the field's), the kernel uniform it sets, and its value.
+            pub fn flags(&self) -> Vec<Flag> {
+                vec![$(Flag { name: stringify!($flag), uniform: stringify!($uniform), on: self.$flag }),*]
+            }
+
+            /// Each flag by name, to set (the bundle's reader).
+            pub fn flags_mut(&mut self) -> Vec<(&'static str, &mut bool)> {
+                vec![$((stringify!($flag), &mut self.$flag)),*]
+            }
+
+            /// Every feature on: the unspecialised kernel, for comparisons.
+            pub fn all() -> Features {
+                Features { $($flag: true,)* traversal_stack: 0 }
+            }
+
+            /// The kernel's `has_*` uniforms of `scene` as these flags say (and `has_lights`).
+            pub fn set_kernel_flags(&self, scene: &mut Scene) {
+                $(scene.$uniform = self.$flag as u32;)*
+                scene.has_lights = self.lights() as u32;
+            }
+
+            /// The kernel uniforms of `scene` that disagree with these flags: `(uniform, flag, uniform's value)`.
+            pub fn kernel_flag_mismatches(&self, scene: &Scene) -> Vec<(&'static str, bool, u32)> {
+                let flags = [$((stringify!($uniform), self.$flag, scene.$uniform),)* ("has_lights", self.lights(), scene.has_lights)];
+                flags.into_iter().filter(|&(_, on, value)| value != on as u32).collect()
+            }
+        }
+    };
+}
+
+features! {
+    sky => has_sky,
+    textures => has_textures,
     /// Per-vertex normals or texture coordinates are needed.
-    pub shading: bool,
-    pub point_lights: bool,
-    pub emissive_triangles: bool,
+    shading => has_shading,
+    point_lights => has_point_lights,
+    emissive_triangles => has_triangle_lights,
     /// Some material needs the glTF metal-roughness BRDF ([`crate::scene::Material::uses_metal_rough`]):
     /// the specular code and one more texel per material (`Scene::metal_rough`).
-    pub metal_rough: bool,
+    metal_rough => has_metal_rough,
     /// Some material has a normal map (glTF `normalTexture`): the tangent-frame code, per
     /// triangle three tangent texels appended to `Scene::shading` and per material one texel
     /// appended to `Scene::materials` (`kernel::normal_map`); nothing without.
-    pub normal_map: bool,
+    normal_map => has_normal_map,
     /// Some material is alpha-masked (glTF `alphaMode` MASK, [`crate::scene::Material::alpha_cutoff`]):
     /// the alpha test in traversal and light sampling, a flag in each triangle's third texel and
-    /// per material one texel appended to `Scene::materials` (`kernel::scene_data::is_hole`); nothing without.
-    pub alpha_mask: bool,
+    /// per material one texel appended to `Scene::materials` (`kernel::alpha_mask::is_hole`); nothing without.
+    alpha_mask => has_alpha_mask,
     /// Some texture is read through a `KHR_texture_transform`: materials name texture
     /// references, each with two more `texture_info` texels (`kernel::texture_ref`).
-    pub texture_transform: bool,
+    texture_transform => has_texture_transform,
     /// Some texture is read on `TEXCOORD_1`: texture references as above, and per triangle two
     /// texels of the second UV set appended to `Scene::shading`.
-    pub texcoord1: bool,
+    texcoord1 => has_texcoord1,
     /// Some material transmits (glTF `KHR_materials_transmission`, [`crate::scene::Material::transmission`]):
     /// the dielectric BSDF (`kernel::dielectric`), two-sided light sampling and refracted
     /// continuations in the integrator, and per material two texels appended to
     /// `Scene::materials` (`kernel::scene_data::fetch_glass`); nothing without. Implies
     /// `metal_rough` (the opaque rest of a transmissive material is metal-roughness).
-    pub transmission: bool,
+    transmission => has_transmission,
     /// Some transmissive material has a volume that absorbs (glTF `KHR_materials_volume` with
     /// a finite attenuation distance): Beer–Lambert absorption along segments inside it
     /// (`kernel::integrator::volume_transmittance`).
-    pub volume: bool,
-    /// Entries the traversal stack needs for this scene's BVH (`WideBvh::stack_needed*`, at
-    /// most the kernel's `STACK_SIZE`): GPU variants size their stacks to it instead of
-    /// `STACK_SIZE` (the Cornell box needs 11, not 64). 0: not fixed, the kernel's `STACK_SIZE`.
-    pub traversal_stack: u32,
+    volume => has_volume,
+}
+
+/// One feature flag of [`Features`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Flag {
+    /// The `Features` field (`emissive_triangles`).
+    pub name: &'static str,
+    /// The kernel uniform (`has_triangle_lights`).
+    pub uniform: &'static str,
+    pub on: bool,
 }
 
 impl Features {
     /// The kernel's feature flags fixed to this scene's values, for codegen's specialisation.
     pub fn specialization(&self) -> std::collections::BTreeMap<String, u32> {
-        [
-            ("has_sky", self.sky),
-            ("has_textures", self.textures),
-            ("has_shading", self.shading),
-            ("has_lights", self.lights()),
-            ("has_triangle_lights", self.emissive_triangles),
-            ("has_point_lights", self.point_lights),
-            ("has_metal_rough", self.metal_rough),
-            ("has_normal_map", self.normal_map),
-            ("has_alpha_mask", self.alpha_mask),
-            ("has_texture_transform", self.texture_transform),
-            ("has_texcoord1", self.texcoord1),
-            ("has_transmission", self.transmission),
-            ("has_volume", self.volume),
-        ]
-        .into_iter()
-        .map(|(k, v)| (format!("Scene.{k}"), v as u32))
-        .chain((self.traversal_stack > 0).then(|| ("STACK_SIZE".to_string(), self.traversal_stack)))
-        .collect()
+        self.flags()
+            .into_iter()
+            .map(|f| (f.uniform, f.on))
+            .chain([("has_lights", self.lights())])
+            .map(|(k, v)| (format!("Scene.{k}"), v as u32))
+            .chain((self.traversal_stack > 0).then(|| ("STACK_SIZE".to_string(), self.traversal_stack)))
+            .collect()
     }
 
     pub fn lights(&self) -> bool {
         self.sky || self.point_lights || self.emissive_triangles
-    }
-
-    /// Every feature on: the unspecialised kernel, for comparisons.
-    pub fn all() -> Features {
-        Features {
-            sky: true,
-            textures: true,
-            shading: true,
-            point_lights: true,
-            emissive_triangles: true,
-            metal_rough: true,
-            normal_map: true,
-            alpha_mask: true,
-            texture_transform: true,
-            texcoord1: true,
-            transmission: true,
-            volume: true,
-            traversal_stack: 0,
-        }
     }
 }
 

@@ -4,13 +4,14 @@ pub mod lights {
 
     use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
 
+    use crate::kernel::alpha_mask::is_hole;
     use crate::kernel::intersect::MISS;
     use crate::kernel::sampling::{uniform_sample_triangle, INV_PI, PI};
     use crate::kernel::scene_data::{
-        fetch_material, fetch_triangle, index_of, is_hole, sample_texture, Scene, LIGHT_POINT, LIGHT_SKY, LIGHT_TEXELS,
-        LIGHT_TRIANGLE, NONE,
+        fetch_material, fetch_triangle, index_of, Scene, LIGHT_POINT, LIGHT_SKY, LIGHT_TEXELS, LIGHT_TRIANGLE, NONE,
     };
     use crate::kernel::texture_ref::texture_uv;
+    use crate::kernel::textures::sample_texture;
 
     /// A sampled light direction as seen from a shading point.
     #[derive(Clone, Copy, Debug, PartialEq)]

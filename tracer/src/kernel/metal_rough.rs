@@ -21,8 +21,9 @@ pub mod metal_rough {
 
     use crate::kernel::lights::luminance;
     use crate::kernel::sampling::{cos_sin_turns, cosine_sample_hemisphere, INV_PI, PI};
-    use crate::kernel::scene_data::{base_color_at, fetch_metal_rough, sample_data_texture, MaterialData, Scene, NONE};
+    use crate::kernel::scene_data::{fetch_metal_rough, MaterialData, Scene, NONE};
     use crate::kernel::texture_ref::texture_uv;
+    use crate::kernel::textures::{base_color_at, sample_data_texture};
 
     /// Roughness is clamped to at least this (α ≥ 0.002025, Filament's limit for f32): below
     /// it the GGX peak (1 / (π α²)) and its pdf outgrow what f32 paths and sample weights

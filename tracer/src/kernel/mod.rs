@@ -6,6 +6,8 @@
 // every target. `RangeInclusive::contains` is not part of the DSL.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::manual_range_contains)]
 
+#[path = "alpha_mask.rs"]
+mod alpha_mask_src;
 #[path = "bsdf.rs"]
 mod bsdf_src;
 #[path = "camera.rs"]
@@ -33,6 +35,8 @@ mod sampling_src;
 mod scene_data_src;
 #[path = "texture_ref.rs"]
 mod texture_ref_src;
+#[path = "textures.rs"]
+mod textures_src;
 #[path = "tonemap.rs"]
 // The tone curves' coefficients are written as their sources print them (AgX, ACES fit),
 // digits beyond f32 included, so they can be checked against those sources by eye.
@@ -43,6 +47,7 @@ mod traverse_src;
 
 pub mod features;
 
+pub use alpha_mask_src::alpha_mask;
 pub use bsdf_src::bsdf;
 pub use camera_src::camera;
 pub use dielectric_src::dielectric;
@@ -55,6 +60,7 @@ pub use rng_src::rng;
 pub use sampling_src::sampling;
 pub use scene_data_src::scene_data;
 pub use texture_ref_src::texture_ref;
+pub use textures_src::textures;
 pub use tonemap_src::tonemap;
 pub use traverse_src::traverse;
 
@@ -68,6 +74,8 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
         intersect::kernel_ir(),
         scene_data::kernel_ir(),
         texture_ref::kernel_ir(),
+        textures::kernel_ir(),
+        alpha_mask::kernel_ir(),
         traverse::kernel_ir(),
         camera::kernel_ir(),
         lights::kernel_ir(),
@@ -82,13 +90,15 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
 
 /// Every kernel module's captured description, as the macro serialised it (what
 /// [`modules`] parses): a stable text to fingerprint the kernel with.
-pub fn ir_json() -> [&'static str; 14] {
+pub fn ir_json() -> [&'static str; 16] {
     [
         rng::KERNEL_IR_JSON,
         sampling::KERNEL_IR_JSON,
         intersect::KERNEL_IR_JSON,
         scene_data::KERNEL_IR_JSON,
         texture_ref::KERNEL_IR_JSON,
+        textures::KERNEL_IR_JSON,
+        alpha_mask::KERNEL_IR_JSON,
         traverse::KERNEL_IR_JSON,
         camera::KERNEL_IR_JSON,
         lights::KERNEL_IR_JSON,
@@ -180,7 +190,7 @@ pub fn generated_shaders() -> Result<Vec<GeneratedFile>, ShaderError> {
 const REGENERATE: &str = "regenerate with `cargo run -- shaders`";
 
 /// What the built-in Cornell box uses: emissive triangles only, and a traversal stack of
-/// `CORNELL_STACK` entries (`tests/codegen.rs` checks this against the packed scene).
+/// `CORNELL_STACK` entries (`tests/kernel/codegen.rs` checks this against the packed scene).
 #[cfg(feature = "validate")]
 fn cornell_features() -> Features {
     Features { emissive_triangles: true, traversal_stack: CORNELL_STACK, ..Default::default() }

@@ -22,8 +22,10 @@ pub mod normal_map {
 
     use glam::{Vec3, Vec4, Vec4Swizzles};
 
-    use crate::kernel::scene_data::{index_of, sample_data_texture, Scene, NONE};
+    use crate::kernel::scene_data::{index_of, Scene, NONE};
+
     use crate::kernel::texture_ref::texture_uv;
+    use crate::kernel::textures::sample_data_texture;
     use crate::kernel::traverse::Hit;
 
     /// Texels per triangle of tangents in `shading`.

@@ -1,14 +1,13 @@
 #[kernel_dsl::kernel]
 pub mod scene_data {
     //! The packed scene as the kernel reads it: one `#[resources]` struct (data textures and
-    //! uniforms) and the functions that decode its texels. `tracer::pack` writes exactly this
+    //! uniforms) and the functions that decode its texels (texture lookups: `kernel::textures`;
+    //! alpha masks: `kernel::alpha_mask`). `tracer::pack` writes exactly this
     //! layout, using the constants below. Integers stored in float texels are exact float values
     //! (< 2^24), never raw bits: bit patterns of small integers are denormals, which GPUs may flush.
 
     use glam::{UVec4, Vec2, Vec3, Vec4, Vec4Swizzles};
     use kernel_dsl::Texels;
-
-    use crate::kernel::texture_ref::texture_uv;
 
     /// Texels per triangle in `triangles`: `[v0, material]`, `[v1, light index or -1]`, `[v2, alpha-masked 1 or 0]`.
     pub const TRIANGLE_TEXELS: u32 = 3;
@@ -182,126 +181,6 @@ pub mod scene_data {
         uv0 * (1.0 - u - v) + uv1 * u + uv2 * v
     }
 
-    /// Texel coordinate `i` of an axis of `size` texels under a wrap mode.
-    pub fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
-        if mode == WRAP_CLAMP {
-            i.clamp(0, size - 1)
-        } else if mode == WRAP_MIRROR {
-            let period = 2 * size;
-            let m = ((i % period) + period) % period;
-            if m < size {
-                m
-            } else {
-                period - 1 - m
-            }
-        } else {
-            ((i % size) + size) % size
-        }
-    }
-
-    /// The sRGB transfer function's inverse (IEC 61966-2-1) for one channel in [0, 1].
-    pub fn srgb_to_linear(c: f32) -> f32 {
-        if c <= 0.04045 {
-            c / 12.92
-        } else {
-            ((c + 0.055) / 1.055).powf(2.4)
-        }
-    }
-
-    /// A packed texel (8-bit RGBA, red in the low byte, colour sRGB-encoded) as linear RGBA.
-    pub fn decode_srgba8(word: u32) -> Vec4 {
-        // Each byte is isolated as `x >> 24`: codegen knows such a value has at most 8 bits and
-        // converts it to float directly (exact), without its rounding helper for full u32s.
-        let r = ((word << 24) >> 24) as f32 / 255.0;
-        let g = ((word << 16) >> 24) as f32 / 255.0;
-        let b = ((word << 8) >> 24) as f32 / 255.0;
-        let a = (word >> 24) as f32 / 255.0;
-        Vec4::new(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a)
-    }
-
-    /// The packed word (8-bit RGBA, red in the low byte) of texel (x, y) of the texture `info`
-    /// describes, the coordinates wrapped by its modes.
-    pub fn texel_word(scene: &Scene, info: UVec4, x: i32, y: i32) -> u32 {
-        let w = info.y as i32;
-        let h = info.z as i32;
-        let tx = wrap_coordinate(x, w, info.w & 255);
-        let ty = wrap_coordinate(y, h, info.w >> 8);
-        let i = info.x + (ty * w + tx) as u32;
-        let four = scene.texture_texels.fetch(i / TEXTURE_TEXELS_PER_ELEMENT);
-        let lane = i % TEXTURE_TEXELS_PER_ELEMENT;
-        if lane == 0 {
-            four.x
-        } else if lane == 1 {
-            four.y
-        } else if lane == 2 {
-            four.z
-        } else {
-            four.w
-        }
-    }
-
-    /// A packed texel of a data texture (metal-roughness: no transfer function) as RGBA in [0, 1].
-    pub fn decode_unorm8(word: u32) -> Vec4 {
-        let r = ((word << 24) >> 24) as f32 / 255.0;
-        let g = ((word << 16) >> 24) as f32 / 255.0;
-        let b = ((word << 8) >> 24) as f32 / 255.0;
-        let a = (word >> 24) as f32 / 255.0;
-        Vec4::new(r, g, b, a)
-    }
-
-    /// Texel (x, y) of a colour texture as linear RGBA.
-    pub fn texel(scene: &Scene, info: UVec4, x: i32, y: i32) -> Vec4 {
-        decode_srgba8(texel_word(scene, info, x, y))
-    }
-
-    /// Texel (x, y) decoded as colour (sRGB) or, when `data`, as linear data.
-    pub fn texel_as(scene: &Scene, info: UVec4, x: i32, y: i32, data: bool) -> Vec4 {
-        let word = texel_word(scene, info, x, y);
-        if data {
-            decode_unorm8(word)
-        } else {
-            decode_srgba8(word)
-        }
-    }
-
-    /// The base colour of `material` (its fetched data) at barycentrics (u, v) of `triangle`:
-    /// the factor times the base colour texture, when there is one.
-    pub fn base_color_at(scene: &Scene, material: MaterialData, triangle: u32, u: f32, v: f32) -> Vec3 {
-        let mut base = material.base_color;
-        if scene.has_textures != 0 && material.base_texture != NONE {
-            let uv = texture_uv(scene, material.base_texture, triangle, u, v);
-            base *= sample_texture(scene, material.base_texture, uv).xyz();
-        }
-        base
-    }
-
-    /// Bilinear lookup of colour texture `index` at `uv` (glTF convention: v = 0 is the top row).
-    pub fn sample_texture(scene: &Scene, index: u32, uv: Vec2) -> Vec4 {
-        bilinear(scene, index, uv, false)
-    }
-
-    /// Bilinear lookup of data texture `index` (metal-roughness) at `uv`, its bytes taken as linear.
-    pub fn sample_data_texture(scene: &Scene, index: u32, uv: Vec2) -> Vec4 {
-        bilinear(scene, index, uv, true)
-    }
-
-    /// Bilinear lookup of texture `index` at `uv`, its texels decoded as colour or as `data`.
-    pub fn bilinear(scene: &Scene, index: u32, uv: Vec2, data: bool) -> Vec4 {
-        let info = scene.texture_info.fetch(index);
-        // Bounded so that the texel coordinates (and the next ones, + 1) fit an i32 for any uv;
-        // beyond 2^30 an f32 cannot tell texels apart anyway. NaN stays NaN on every target.
-        let x = bounded_coordinate(uv.x * info.y as f32 - 0.5);
-        let y = bounded_coordinate(uv.y * info.z as f32 - 0.5);
-        let fx = x - x.floor();
-        let fy = y - y.floor();
-        let x0 = x.floor() as i32;
-        let y0 = y.floor() as i32;
-        let top = texel_as(scene, info, x0, y0, data) * (1.0 - fx) + texel_as(scene, info, x0 + 1, y0, data) * fx;
-        let bottom =
-            texel_as(scene, info, x0, y0 + 1, data) * (1.0 - fx) + texel_as(scene, info, x0 + 1, y0 + 1, data) * fx;
-        top * (1.0 - fy) + bottom * fy
-    }
-
     /// A material's metal-roughness parameters (`Scene::metal_rough`).
     #[derive(Clone, Copy, Debug, PartialEq)]
     pub struct MetalRoughData {
@@ -316,79 +195,6 @@ pub mod scene_data {
     pub fn fetch_metal_rough(scene: &Scene, index: u32) -> MetalRoughData {
         let t = scene.metal_rough.fetch(index);
         MetalRoughData { metallic: t.x, roughness: t.y, texture: index_of(t.z), specular: t.w }
-    }
-
-    /// `v` within ±1e9, NaN kept as Rust's `clamp` keeps it. Not `clamp` itself, whose NaN
-    /// result is the target's (docs/dsl.md), and NaN tested first, from its bits: llvmpipe turns
-    /// the two comparisons into a clamp too, which returns a bound for NaN.
-    #[allow(clippy::manual_clamp)] // on purpose: see above
-    pub fn bounded_coordinate(v: f32) -> f32 {
-        if v.is_nan() {
-            v
-        } else if v > 1.0e9 {
-            1.0e9
-        } else if v < -1.0e9 {
-            -1.0e9
-        } else {
-            v
-        }
-    }
-
-    // ---------------------------------------------------------------------------------------
-    // Alpha masks.
-    //
-    // glTF `alphaMode` MASK (`Features::alpha_mask`): texels whose coverage (base colour
-    // alpha, `baseColorFactor.a` times the base colour texture's alpha at the hit) is below
-    // the material's `alphaCutoff` are holes for every ray. The test runs inside traversal
-    // (`traverse::intersect_leaf`, `traverse::leaf_occludes`), so a rejected hit lets the ray
-    // go on to the next candidate, and in light sampling (a point sampled in a hole of an
-    // emitter emits nothing).
-    //
-    // Layout (only packed for scenes with masked materials; `Scene::alpha_mask_first` is 0
-    // without): per triangle, the w of its third texel in `triangles` is 1 when its material is
-    // masked (else 0, as without the feature), so unmasked triangles cost one comparison of a
-    // texel traversal has already fetched; per material one texel
-    // `[base colour texture or -1, baseColorFactor.a, alphaCutoff, 0]` at
-    // `scene.alpha_mask_first + material` in `materials` (after the base texels and the normal
-    // maps: an extension of that array, not a new binding).
-
-    /// A masked material's coverage inputs (`Scene::materials` beyond the base texels).
-    #[derive(Clone, Copy, Debug, PartialEq)]
-    pub struct AlphaMaskData {
-        /// Base colour texture (its alpha multiplies `alpha`) or NONE.
-        pub texture: u32,
-        /// `baseColorFactor.a`.
-        pub alpha: f32,
-        /// Coverage below this is a hole.
-        pub cutoff: f32,
-    }
-
-    pub fn fetch_alpha_mask(scene: &Scene, material: u32) -> AlphaMaskData {
-        let t = scene.materials.fetch(scene.alpha_mask_first + material);
-        AlphaMaskData { texture: index_of(t.x), alpha: t.y, cutoff: t.z }
-    }
-
-    /// Coverage of `mask` at texture coordinates `uv`: the factor times the texture's alpha.
-    pub fn coverage(scene: &Scene, mask: AlphaMaskData, uv: Vec2) -> f32 {
-        let mut a = mask.alpha;
-        if scene.has_textures != 0 && mask.texture != NONE {
-            a *= sample_texture(scene, mask.texture, uv).w;
-        }
-        a
-    }
-
-    /// Whether the point at barycentrics (u, v) of triangle `triangle` (material `material`)
-    /// is a hole: the triangle is masked (`TriangleData::masked`, which the caller has
-    /// fetched and tests first) and its coverage there is below the cutoff (a NaN coverage is
-    /// opaque).
-    pub fn is_hole(scene: &Scene, triangle: u32, material: u32, u: f32, v: f32) -> bool {
-        let mask = fetch_alpha_mask(scene, material);
-        let mut uv = Vec2::ZERO;
-        if scene.has_shading != 0 && mask.texture != NONE {
-            // The base colour texture's UV: its UV set and transform, as shading reads it.
-            uv = texture_uv(scene, mask.texture, triangle, u, v);
-        }
-        coverage(scene, mask, uv) < mask.cutoff
     }
 
     // ---------------------------------------------------------------------------------------

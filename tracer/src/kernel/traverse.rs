@@ -7,8 +7,9 @@ pub mod traverse {
 
     use glam::{UVec3, UVec4, Vec3, Vec4};
 
+    use crate::kernel::alpha_mask::is_hole;
     use crate::kernel::intersect::{intersect_triangle, safe_inverse, MISS};
-    use crate::kernel::scene_data::{fetch_triangle, is_hole, Scene, NODE_TEXELS, NONE};
+    use crate::kernel::scene_data::{fetch_triangle, Scene, NODE_TEXELS, NONE};
 
     /// Traversal stack depth: `tracer::pack` refuses a tree whose child nodes alone could need
     /// more (`tracer::bvh::WideBvh::stack_needed`) and limits the leaves pushed on top of them
@@ -104,7 +105,7 @@ pub mod traverse {
         NodeHits { t, entries: e }
     }
 
-    // Alpha masks (`Features::alpha_mask`, `scene_data::is_hole`). The hole test (a texture
+    // Alpha masks (`Features::alpha_mask`, `alpha_mask::is_hole`). The hole test (a texture
     // lookup) is kept out of the traversal loops: SIMD drivers (llvmpipe, SwiftShader) run both
     // sides of a branch under a lane mask, so a test in the per-triangle loop cost every
     // triangle of every ray its texel fetches, masked or not (2.4x per sample on GL for

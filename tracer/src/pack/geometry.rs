@@ -5,11 +5,12 @@ use glam::{UVec4, Vec4};
 use kernel_dsl::Texels;
 use rayon::prelude::*;
 
-use super::{index_value, Features, PackError};
+use super::{index_value, PackError};
 use crate::bvh::{Bvh, WideBvh};
 use crate::kernel::normal_map::TANGENT_TEXELS;
 use crate::kernel::scene_data::{NODE_TEXELS, SHADING_TEXELS, TRIANGLE_TEXELS};
 use crate::kernel::texture_ref::TEXCOORD1_TEXELS;
+use crate::kernel::Features;
 use crate::scene::{Scene, Triangle};
 
 /// Largest integer stored exactly in an f32 texel.

@@ -5,8 +5,9 @@
 use glam::Vec4;
 use kernel_dsl::Texels;
 
-use super::{index_value, Features, PackedTextures};
+use super::{index_value, PackedTextures};
 use crate::kernel::scene_data::MATERIAL_TEXELS;
+use crate::kernel::Features;
 use crate::scene::Scene;
 
 /// The kernel's material arrays.

@@ -12,6 +12,7 @@
 
 use crate::bvh::Bvh;
 use crate::kernel::scene_data::Scene as KernelScene;
+use crate::kernel::{Features, RenderSettings};
 use crate::scene::Scene;
 
 mod camera;
@@ -24,9 +25,6 @@ mod tests;
 mod texture_refs;
 mod textures;
 
-// `Features`, `RenderSettings` and `Strategy` live in the kernel (`kernel::features`); re-exported
-// here, where the scene's features are decided, for the callers that pack scenes.
-pub use crate::kernel::features::{Features, RenderSettings, Strategy};
 pub use texture_refs::TextureRefs;
 pub use textures::{pack_textures, AtlasImage, PackedTextures};
 
@@ -179,7 +177,7 @@ fn kernel_scene(
 ) -> KernelScene {
     let Parts { geometry, materials, lights, sky, camera, scene_scale } = parts;
     let scene_sky = scene.sky.as_ref();
-    KernelScene {
+    let mut kernel_scene = KernelScene {
         triangles: geometry.triangles,
         shading: geometry.shading,
         nodes: geometry.nodes,
@@ -215,20 +213,10 @@ fn kernel_scene(
         sky_rotation: scene_sky.map_or(0.0, |s| s.rotation),
         scene_scale: if scene_scale.is_finite() { scene_scale } else { 1.0 },
         leaf_stack_limit,
-        has_sky: features.sky as u32,
-        has_textures: features.textures as u32,
-        has_shading: features.shading as u32,
-        has_lights: features.lights() as u32,
-        has_triangle_lights: features.emissive_triangles as u32,
-        has_point_lights: features.point_lights as u32,
-        has_metal_rough: features.metal_rough as u32,
-        has_normal_map: features.normal_map as u32,
-        has_alpha_mask: features.alpha_mask as u32,
-        has_texture_transform: features.texture_transform as u32,
-        has_texcoord1: features.texcoord1 as u32,
-        has_transmission: features.transmission as u32,
-        has_volume: features.volume as u32,
-    }
+        ..KernelScene::default()
+    };
+    features.set_kernel_flags(&mut kernel_scene);
+    kernel_scene
 }
 
 impl Packed {

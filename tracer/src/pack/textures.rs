@@ -1,5 +1,5 @@
 //! Textures: the atlas of every texture's sRGBA8 texels and the per-texture table
-//! (`kernel::scene_data::sample_texture`), made once per scene and shared by every packing of it.
+//! (`kernel::textures::sample_texture`), made once per scene and shared by every packing of it.
 
 use glam::UVec4;
 use kernel_dsl::Texels;

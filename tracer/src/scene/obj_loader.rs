@@ -53,6 +53,67 @@ fn load_obj_from(
     read: &dyn Fn(&Path) -> Result<Vec<u8>, SceneError>,
     options: &LoadOptions,
 ) -> Result<Scene, SceneError> {
+    let (models, mtl_materials) = parse_obj(bytes, path, read)?;
+    let mut warnings = Warnings::default();
+    let mut textures = Textures {
+        read,
+        strict: options.strict,
+        images: Vec::new(),
+        textures: Vec::new(),
+        cache: HashMap::new(),
+        problems: ImageProblems::default(),
+    };
+    let mut materials = Vec::with_capacity(mtl_materials.len() + 1);
+    for m in &mtl_materials {
+        let label = material_label(materials.len(), &m.name);
+        materials.push(convert_material(m, &label, &mut textures, &mut warnings)?);
+    }
+    let mut default_material = None;
+
+    let mut triangles = Vec::new();
+    for model in &models {
+        let mesh = &model.mesh;
+        let what = format!("object {:?}", model.name);
+        let material = match mesh.material_id {
+            Some(id) if id < materials.len() => id as u32,
+            Some(id) => return Err(SceneError::Malformed(format!("{what} uses material {id}, which does not exist"))),
+            None => *default_material.get_or_insert_with(|| {
+                materials.push(Material::diffuse("default", Vec3::splat(DEFAULT_ALBEDO)));
+                materials.len() as u32 - 1
+            }),
+        };
+        append_triangles(mesh, &what, material, &mut triangles, &mut warnings)?;
+    }
+    if triangles.is_empty() {
+        return Err(SceneError::NoTriangles(warnings.why_no_triangles(" (the OBJ has no faces)")));
+    }
+    let images: Vec<(&[u8], &ImageHeader)> = textures.images.iter().map(|(b, h)| (b.as_slice(), h)).collect();
+    let mut problems = textures.problems;
+    let textures =
+        decode_textures_forgiving(&images, textures.textures, &mut materials, &mut problems, options.strict)?;
+    problems.warn(&mut warnings);
+    let mut scene = Scene {
+        triangles,
+        materials,
+        textures,
+        point_lights: Vec::new(),
+        camera: Camera::default(),
+        sky: None,
+        warnings: Vec::new(),
+    };
+    scene.camera = Camera::framing(&scene.bounds());
+    scene.warnings = warnings.into_vec();
+    scene.validate()?;
+    Ok(scene)
+}
+
+/// The OBJ's models and its material libraries' materials, parsed by tobj (behind the checks
+/// that keep tobj from panicking); a library that cannot be read is an error.
+fn parse_obj(
+    bytes: &[u8],
+    path: &Path,
+    read: &dyn Fn(&Path) -> Result<Vec<u8>, SceneError>,
+) -> Result<(Vec<tobj::Model>, Vec<tobj::Material>), SceneError> {
     let obj_error = |message: String| SceneError::Obj { path: path.to_owned(), message };
     let mtl_failure: RefCell<Option<SceneError>> = RefCell::new(None);
     let parse_options =
@@ -78,111 +139,73 @@ fn load_obj_from(
         return Err(e);
     }
     let mtl_materials = materials.map_err(|e| obj_error(format!("material library: {e}")))?;
+    Ok((models, mtl_materials))
+}
 
-    let mut warnings = Warnings::default();
-    let mut textures = Textures {
-        read,
-        strict: options.strict,
-        images: Vec::new(),
-        textures: Vec::new(),
-        cache: HashMap::new(),
-        problems: ImageProblems::default(),
-    };
-    let mut materials = Vec::with_capacity(mtl_materials.len() + 1);
-    for m in &mtl_materials {
-        let label = material_label(materials.len(), &m.name);
-        materials.push(convert_material(m, &label, &mut textures, &mut warnings)?);
+/// Appends `mesh`'s triangles (material `material`) to `triangles`: positions checked finite
+/// and in range, degenerate triangles dropped (and counted in `warnings`), missing normals flat.
+fn append_triangles(
+    mesh: &tobj::Mesh,
+    what: &str,
+    material: u32,
+    triangles: &mut Vec<Triangle>,
+    warnings: &mut Warnings,
+) -> Result<(), SceneError> {
+    let vertex_count = mesh.positions.len() / 3;
+    let positions: Vec<Vec3> = mesh.positions.chunks_exact(3).map(Vec3::from_slice).collect();
+    if positions.iter().any(|p| !p.is_finite()) {
+        return Err(SceneError::Malformed(format!("{what}: a vertex position is not finite")));
     }
-    let mut default_material = None;
-
-    let mut triangles = Vec::new();
-    for model in &models {
-        let mesh = &model.mesh;
-        let what = format!("object {:?}", model.name);
-        let vertex_count = mesh.positions.len() / 3;
-        let positions: Vec<Vec3> = mesh.positions.chunks_exact(3).map(Vec3::from_slice).collect();
-        if positions.iter().any(|p| !p.is_finite()) {
-            return Err(SceneError::Malformed(format!("{what}: a vertex position is not finite")));
+    let normals: Option<Vec<Vec3>> = (mesh.normals.len() == mesh.positions.len())
+        .then(|| mesh.normals.chunks_exact(3).map(Vec3::from_slice).collect());
+    let uvs: Option<Vec<Vec2>> = (mesh.texcoords.len() / 2 == vertex_count && !mesh.texcoords.is_empty())
+        .then(|| mesh.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], 1.0 - c[1])).collect());
+    if normals.as_ref().is_some_and(|n| n.iter().any(|v| !v.is_finite()))
+        || uvs.as_ref().is_some_and(|t| t.iter().any(|v| !v.is_finite()))
+    {
+        return Err(SceneError::Malformed(format!("{what}: a normal or texture coordinate is not finite")));
+    }
+    if !mesh.indices.len().is_multiple_of(3) {
+        return Err(SceneError::Malformed(format!(
+            "{what}: {} indices do not form whole triangles",
+            mesh.indices.len()
+        )));
+    }
+    if triangles.len() + mesh.indices.len() / 3 > MAX_TRIANGLES {
+        return Err(SceneError::TooLarge(format!("the scene has more than {MAX_TRIANGLES} triangles")));
+    }
+    for face in mesh.indices.chunks_exact(3) {
+        let idx = [face[0], face[1], face[2]].map(|i| i as usize);
+        let mut p = [Vec3::ZERO; 3];
+        for (k, &i) in idx.iter().enumerate() {
+            p[k] = *positions.get(i).ok_or_else(|| {
+                SceneError::Malformed(format!("{what}: vertex index {i} is out of range ({vertex_count} vertices)"))
+            })?;
         }
-        let normals: Option<Vec<Vec3>> = (mesh.normals.len() == mesh.positions.len())
-            .then(|| mesh.normals.chunks_exact(3).map(Vec3::from_slice).collect());
-        let uvs: Option<Vec<Vec2>> = (mesh.texcoords.len() / 2 == vertex_count && !mesh.texcoords.is_empty())
-            .then(|| mesh.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], 1.0 - c[1])).collect());
-        if normals.as_ref().is_some_and(|n| n.iter().any(|v| !v.is_finite()))
-            || uvs.as_ref().is_some_and(|t| t.iter().any(|v| !v.is_finite()))
-        {
-            return Err(SceneError::Malformed(format!("{what}: a normal or texture coordinate is not finite")));
+        if !warnings.keep_triangle(&p) {
+            continue;
         }
-        let material = match mesh.material_id {
-            Some(id) if id < materials.len() => id as u32,
-            Some(id) => return Err(SceneError::Malformed(format!("{what} uses material {id}, which does not exist"))),
-            None => *default_material.get_or_insert_with(|| {
-                materials.push(Material::diffuse("default", Vec3::splat(DEFAULT_ALBEDO)));
-                materials.len() as u32 - 1
-            }),
+        let flat = flat_normal(&p);
+        let normals = match &normals {
+            Some(ns) => {
+                idx.map(|i| ns.get(i).map(|n| n.normalize_or_zero()).filter(|n| *n != Vec3::ZERO).unwrap_or(flat))
+            }
+            None => [flat; 3],
         };
-        if !mesh.indices.len().is_multiple_of(3) {
-            return Err(SceneError::Malformed(format!(
-                "{what}: {} indices do not form whole triangles",
-                mesh.indices.len()
-            )));
-        }
-        if triangles.len() + mesh.indices.len() / 3 > MAX_TRIANGLES {
-            return Err(SceneError::TooLarge(format!("the scene has more than {MAX_TRIANGLES} triangles")));
-        }
-        for face in mesh.indices.chunks_exact(3) {
-            let idx = [face[0], face[1], face[2]].map(|i| i as usize);
-            let mut p = [Vec3::ZERO; 3];
-            for (k, &i) in idx.iter().enumerate() {
-                p[k] = *positions.get(i).ok_or_else(|| {
-                    SceneError::Malformed(format!("{what}: vertex index {i} is out of range ({vertex_count} vertices)"))
-                })?;
-            }
-            if !warnings.keep_triangle(&p) {
-                continue;
-            }
-            let flat = flat_normal(&p);
-            let normals = match &normals {
-                Some(ns) => {
-                    idx.map(|i| ns.get(i).map(|n| n.normalize_or_zero()).filter(|n| *n != Vec3::ZERO).unwrap_or(flat))
-                }
-                None => [flat; 3],
-            };
-            let uvs = match &uvs {
-                Some(t) => idx.map(|i| t.get(i).copied().unwrap_or(Vec2::ZERO)),
-                None => [Vec2::ZERO; 3],
-            };
-            triangles.push(Triangle {
-                positions: p,
-                normals,
-                uvs,
-                uvs1: Default::default(),
-                tangents: Default::default(),
-                material,
-            });
-        }
+        let uvs = match &uvs {
+            Some(t) => idx.map(|i| t.get(i).copied().unwrap_or(Vec2::ZERO)),
+            None => [Vec2::ZERO; 3],
+        };
+        triangles.push(Triangle {
+            positions: p,
+            normals,
+            uvs,
+            uvs1: Default::default(),
+            tangents: Default::default(),
+            material,
+        });
     }
-    if triangles.is_empty() {
-        return Err(SceneError::NoTriangles(warnings.why_no_triangles(" (the OBJ has no faces)")));
-    }
-    let images: Vec<(&[u8], &ImageHeader)> = textures.images.iter().map(|(b, h)| (b.as_slice(), h)).collect();
-    let mut problems = textures.problems;
-    let textures =
-        decode_textures_forgiving(&images, textures.textures, &mut materials, &mut problems, options.strict)?;
-    problems.warn(&mut warnings);
-    let mut scene = Scene {
-        triangles,
-        materials,
-        textures,
-        point_lights: Vec::new(),
-        camera: Camera::default(),
-        sky: None,
-        warnings: Vec::new(),
-    };
-    scene.camera = Camera::framing(&scene.bounds());
-    scene.warnings = warnings.into_vec();
-    scene.validate()?;
-    Ok(scene)
+    Ok(())
 }
 
 /// Refuses MTL colour statements with fewer than three values (`Kd 0.5 0`), on which tobj

@@ -1,5 +1,5 @@
 //! Small generated scenes, each built to make one sampling method fail (or to stress one piece
-//! of numerics), for the stability suite (`tests/stability.rs`) and the charts.
+//! of numerics), for the stability suite (`tests/rendering/stability.rs`) and the charts.
 //!
 //! | scene | what it breaks |
 //! |---|---|

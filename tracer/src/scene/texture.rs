@@ -1,7 +1,7 @@
 //! Image decoding (PNG, JPEG and WebP for textures) with size limits, straight into the packed texel
 //! layout: one `u32` per texel, 8-bit RGBA as stored in the file (colour sRGB-encoded, alpha
 //! linear), red in the low byte. The kernel decodes sRGB to linear when it samples
-//! (`kernel::scene_data::decode_srgba8`), so textures cost 4 bytes per texel from the decoder
+//! (`kernel::textures::decode_srgba8`), so textures cost 4 bytes per texel from the decoder
 //! to the GPU.
 //!
 //! Loaders probe each image when a material first uses it (format, size and the texel budget
@@ -585,12 +585,12 @@ pub(crate) fn decode_limited(
 }
 
 /// The sRGB transfer function's inverse: the kernel's own function (one definition).
-pub use crate::kernel::scene_data::srgb_to_linear;
+pub use crate::kernel::textures::srgb_to_linear;
 
 /// A packed sRGBA8 texel (red in the low byte) as linear RGBA, for code outside the kernel:
 /// the kernel's `decode_srgba8`, so both decode identically.
 pub fn srgba8_to_linear(texel: u32) -> Vec4 {
-    crate::kernel::scene_data::decode_srgba8(texel)
+    crate::kernel::textures::decode_srgba8(texel)
 }
 
 impl Texture {

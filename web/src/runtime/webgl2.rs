@@ -3,7 +3,8 @@
 //! (`tracer::backend::frame_split`) that submits each frame in bands within the time budget.
 
 use glow::HasContext;
-use tracer::backend::frame_split::{Pacer, Step};
+use tracer::backend::frame_split::Step;
+use tracer::backend::gl::Pacer;
 use tracer::backend::gl::{GlDisplay, GlOptions, GlRenderer};
 use tracer::backend::Renderer;
 use tracer::output::Display;

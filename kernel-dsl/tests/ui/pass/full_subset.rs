@@ -157,6 +157,22 @@ fn main() {
     });
     assert!(scene_def.is_some_and(|s| s.resources && s.fields.len() == 4));
 
+    // `#[resources]` also implements `kernel_dsl::Resources`: the fields by name, in order, to walk and to fill.
+    use kernel_dsl::{Resource, ResourceMut, Resources};
+    let mut scene = scene;
+    let fields: Vec<(&str, &str)> = scene.fields().iter().map(|(n, r)| (*n, r.dsl_type())).collect();
+    assert_eq!(
+        fields,
+        [("vertices", "Texels<Vec4>"), ("indices", "Texels<UVec4>"), ("vertex_count", "u32"), ("exposure", "f32")]
+    );
+    assert!(matches!(scene.fields()[0].1, Resource::Vec4s(t) if t.len() == 2));
+    for (_, field) in scene.fields_mut() {
+        if let ResourceMut::U32(n) = field {
+            *n = 7;
+        }
+    }
+    assert_eq!(scene.vertex_count, 7);
+
     // `match` patterns: consts by name, alternatives, negative literals, and `_` (also
     // inside an alternative) as an arm without patterns.
     use kernel_dsl::ir::{ExprKind, Item, Stmt, UnOp};

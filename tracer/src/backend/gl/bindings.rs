@@ -1,120 +1,21 @@
 //! The kernel's `Scene` fields as the GL backend binds them: data textures and uniforms, and
 //! the check that the shader declares nothing else.
 
-use glam::{UVec4, Vec3, Vec4};
 use glow::HasContext;
-use kernel_dsl::Texels;
+use kernel_dsl::Resource;
 
 use super::{GlError, ACCUMULATION_UNIFORM, SCENE_UNIFORM_PREFIX};
-use crate::kernel::scene_data::Scene;
 
-/// One field of the kernel's `Scene` as the GL backend binds it.
-#[derive(Clone, Copy, Debug)]
-pub enum Binding<'a> {
-    /// An RGBA32F data texture (`sampler2D`).
-    Vec4s(&'a Texels<Vec4>),
-    /// An RGBA32UI data texture (`usampler2D`).
-    UVec4s(&'a Texels<UVec4>),
-    F32(&'a f32),
-    U32(&'a u32),
-    Vec3(&'a Vec3),
-}
-
-impl Binding<'_> {
-    /// The GL type of the uniform the shader declares for this binding (`glGetActiveUniform`).
-    pub fn gl_type(&self) -> u32 {
-        match self {
-            Binding::Vec4s(_) => glow::SAMPLER_2D,
-            Binding::UVec4s(_) => glow::UNSIGNED_INT_SAMPLER_2D,
-            Binding::F32(_) => glow::FLOAT,
-            Binding::U32(_) => glow::UNSIGNED_INT,
-            Binding::Vec3(_) => glow::FLOAT_VEC3,
-        }
+/// The GL type of the uniform the shader declares for a `Scene` field (`glGetActiveUniform`):
+/// texel arrays are data textures (`sampler2D`, `usampler2D`), the rest plain uniforms.
+pub fn gl_type(field: &Resource<'_>) -> u32 {
+    match field {
+        Resource::Vec4s(_) => glow::SAMPLER_2D,
+        Resource::UVec4s(_) => glow::UNSIGNED_INT_SAMPLER_2D,
+        Resource::F32(_) => glow::FLOAT,
+        Resource::U32(_) => glow::UNSIGNED_INT,
+        Resource::Vec3(_) => glow::FLOAT_VEC3,
     }
-
-    /// The kernel DSL type of the field (as the IR spells it).
-    pub fn dsl_type(&self) -> &'static str {
-        match self {
-            Binding::Vec4s(_) => "Texels<Vec4>",
-            Binding::UVec4s(_) => "Texels<UVec4>",
-            Binding::F32(_) => "f32",
-            Binding::U32(_) => "u32",
-            Binding::Vec3(_) => "Vec3",
-        }
-    }
-
-    /// Texel count of a data texture; `None` for a uniform.
-    pub fn texels(&self) -> Option<usize> {
-        match self {
-            Binding::Vec4s(t) => Some(t.len()),
-            Binding::UVec4s(t) => Some(t.len()),
-            _ => None,
-        }
-    }
-}
-
-/// Lists every field of `Scene` with its binding kind. The struct pattern names each field
-/// (no `..`) and the kind must match the field's type: a new `Scene` field is a compile error
-/// here until it is listed, and the name is the field's own (`stringify!`).
-macro_rules! bind_scene_fields {
-    ($scene:expr; $($field:ident: $kind:ident),* $(,)?) => {{
-        let Scene { $($field),* } = $scene;
-        vec![$((stringify!($field), Binding::$kind($field))),*]
-    }};
-}
-
-/// Every field of the kernel's `Scene`, named as in Rust (the GLSL uniform is `scene_<name>`).
-pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
-    bind_scene_fields!(scene;
-        triangles: Vec4s,
-        shading: Vec4s,
-        nodes: Vec4s,
-        node_children: UVec4s,
-        materials: Vec4s,
-        lights: Vec4s,
-        texture_texels: UVec4s,
-        texture_info: UVec4s,
-        sky: Vec4s,
-        sky_rows: Vec4s,
-        metal_rough: Vec4s,
-        tangent_first: U32,
-        normal_map_first: U32,
-        alpha_mask_first: U32,
-        texture_ref_first: U32,
-        texcoord1_first: U32,
-        transmission_first: U32,
-        camera_position: Vec3,
-        camera_right: Vec3,
-        camera_up: Vec3,
-        camera_forward: Vec3,
-        lens_radius: F32,
-        focus_distance: F32,
-        width: U32,
-        height: U32,
-        frame_seed: U32,
-        max_depth: U32,
-        strategy: U32,
-        light_count: U32,
-        sky_width: U32,
-        sky_height: U32,
-        sky_intensity: F32,
-        sky_rotation: F32,
-        scene_scale: F32,
-        leaf_stack_limit: U32,
-        has_sky: U32,
-        has_textures: U32,
-        has_shading: U32,
-        has_lights: U32,
-        has_triangle_lights: U32,
-        has_point_lights: U32,
-        has_metal_rough: U32,
-        has_normal_map: U32,
-        has_alpha_mask: U32,
-        has_texture_transform: U32,
-        has_texcoord1: U32,
-        has_transmission: U32,
-        has_volume: U32,
-    )
 }
 
 /// Every active uniform of `program` must be one the renderer binds, with the GL type of its
@@ -122,7 +23,7 @@ pub fn scene_bindings(scene: &Scene) -> Vec<(&'static str, Binding<'_>)> {
 pub(super) fn check_active_uniforms(
     gl: &glow::Context,
     program: glow::Program,
-    bindings: &[(&'static str, Binding<'_>)],
+    bindings: &[(&'static str, Resource<'_>)],
 ) -> Result<(), GlError> {
     // SAFETY: queries on a linked program of the current context.
     let active: Vec<glow::ActiveUniform> =
@@ -134,7 +35,7 @@ pub(super) fn check_active_uniforms(
         let field = u.name.strip_prefix(SCENE_UNIFORM_PREFIX);
         let binding = field.and_then(|f| bindings.iter().find(|(n, _)| *n == f)).map(|(_, b)| b);
         match binding {
-            Some(b) if b.gl_type() == u.utype => {}
+            Some(b) if gl_type(b) == u.utype => {}
             Some(b) => {
                 return Err(GlError::UnboundUniform {
                     name: u.name,
@@ -142,7 +43,7 @@ pub(super) fn check_active_uniforms(
                     expected: format!(
                         " as that type (the Scene field is {}, GL type {:#06x})",
                         b.dsl_type(),
-                        b.gl_type()
+                        gl_type(b)
                     ),
                 })
             }
@@ -154,8 +55,9 @@ pub(super) fn check_active_uniforms(
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use crate::kernel::scene_data::Scene;
     use kernel_dsl::ir::{Item, Type};
+    use kernel_dsl::Resources;
 
     fn type_name(t: &Type) -> String {
         match t {
@@ -167,12 +69,12 @@ mod tests {
         }
     }
 
-    /// Every field of every `#[resources]` struct of the kernel is bound, under its own name
-    /// and with the right kind; nothing else is.
+    /// `Resources::fields` (generated by `#[kernel]`) lists every field of every `#[resources]`
+    /// struct of the kernel, under its own name and with its own type; nothing else.
     #[test]
     fn every_resource_field_is_bound() {
         let scene = Scene::default();
-        let bindings = scene_bindings(&scene);
+        let bindings = scene.fields();
         let mut resources = 0;
         for module in crate::kernel::modules() {
             for item in &module.items {

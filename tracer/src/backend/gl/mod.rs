@@ -17,20 +17,26 @@
 //!   textures ping-pong.
 //!
 //! Fields and arrays that specialisation removed from the shader have no uniform location and
-//! are skipped. [`scene_bindings`] is the one list of `Scene` fields: it destructures the struct
-//! without `..`, so a new field does not compile until it is bound here.//!
+//! are skipped. The fields come from `Scene`'s one declaration (`kernel_dsl::Resources`, generated
+//! by `#[kernel]`), and [`bindings::check_active_uniforms`] refuses a uniform bound as another type.
+//!
 //! One file per role: `renderer.rs` (the [`GlRenderer`] and the pipeline it builds),
 //! `bindings.rs` (the `Scene` fields as uniforms and data textures), `texture.rs` (the data
 //! textures' shape and upload), `compile.rs`, `display.rs`.
 
 mod bindings;
 mod compile;
+#[cfg(feature = "gl")]
+mod context;
 mod display;
+pub mod harness;
+mod pacing;
 mod renderer;
 mod texture;
-pub use bindings::{scene_bindings, Binding};
+pub use bindings::gl_type;
 pub use compile::{annotate_log, compile_program, log_line_number};
 pub use display::{display_fragment_shader, GlDisplay};
+pub use pacing::Pacer;
 pub use renderer::GlRenderer;
 pub(crate) use texture::{set_nearest, upload_texels, words_as_bytes, words_as_bytes_mut};
 pub use texture::{texture_shape, ArrayStats};
@@ -39,7 +45,7 @@ use crate::kernel::ShaderError;
 use crate::pack::PackError;
 
 #[cfg(feature = "gl")]
-pub use super::egl::{EglError, HeadlessContext};
+pub use context::{EglError, HeadlessContext};
 
 /// The sampler uniform holding the previous accumulation (written by codegen's entry point).
 pub const ACCUMULATION_UNIFORM: &str = "lp_accumulation";

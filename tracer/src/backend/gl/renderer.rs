@@ -5,14 +5,15 @@ use std::marker::PhantomData;
 
 use glam::Vec4;
 use glow::HasContext;
+use kernel_dsl::{Resource, Resources};
 use lightport_codegen::Target;
 
 use super::bindings::check_active_uniforms;
 #[cfg(feature = "gl")]
 use super::HeadlessContext;
 use super::{
-    compile_program, gl_failed, scene_bindings, set_nearest, upload_texels, words_as_bytes, words_as_bytes_mut,
-    Binding, GlError, GlInfo, GlOptions, ACCUMULATION_UNIFORM, SCENE_UNIFORM_PREFIX,
+    compile_program, gl_failed, set_nearest, upload_texels, words_as_bytes, words_as_bytes_mut, GlError, GlInfo,
+    GlOptions, ACCUMULATION_UNIFORM, SCENE_UNIFORM_PREFIX,
 };
 use crate::backend::{frame_seed, ms_since, update_uniforms, BuildTimes, RenderError, Renderer, RendererInfo};
 use crate::kernel::scene_data::Scene;
@@ -289,13 +290,13 @@ impl Renderer for GlRenderer {
         // SAFETY: uniform updates on this context's linked program, which is current.
         unsafe {
             gl.use_program(Some(program));
-            for (name, binding) in scene_bindings(&self.packed.scene) {
+            for (name, binding) in self.packed.scene.fields() {
                 let location = gl.get_uniform_location(program, &format!("{SCENE_UNIFORM_PREFIX}{name}"));
                 match binding {
-                    Binding::F32(x) => gl.uniform_1_f32(location.as_ref(), *x),
-                    Binding::U32(x) => gl.uniform_1_u32(location.as_ref(), *x),
-                    Binding::Vec3(v) => gl.uniform_3_f32(location.as_ref(), v.x, v.y, v.z),
-                    Binding::Vec4s(_) | Binding::UVec4s(_) => {}
+                    Resource::F32(x) => gl.uniform_1_f32(location.as_ref(), *x),
+                    Resource::U32(x) => gl.uniform_1_u32(location.as_ref(), *x),
+                    Resource::Vec3(v) => gl.uniform_3_f32(location.as_ref(), v.x, v.y, v.z),
+                    Resource::Vec4s(_) | Resource::UVec4s(_) => {}
                 }
             }
             gl.use_program(None);
@@ -348,11 +349,10 @@ fn float_render_targets(gl: &glow::Context) -> bool {
         || extensions.contains("EXT_color_buffer_float")
 }
 
-/// Creates the program, textures and framebuffers for `packed`, recording each object in
-/// `objects` (deleted by the caller on error).
-fn build(gl: &glow::Context, packed: &Packed, options: &GlOptions, objects: &mut Objects) -> Result<Pipeline, GlError> {
-    // SAFETY (every block below): plain queries and object creation on the current context;
-    // uploads pass slices of exactly width x height texels of the declared format.
+/// The context's version, renderer and texture limit (the smaller option's, if given), or why
+/// the kernel cannot run on it; also its largest viewport side.
+fn context_info(gl: &glow::Context, options: &GlOptions) -> Result<(GlInfo, u32), GlError> {
+    // SAFETY: plain queries on the current context.
     let (version, renderer, device_max, viewport) = unsafe {
         let mut viewport = [0i32; 2];
         gl.get_parameter_i32_slice(glow::MAX_VIEWPORT_DIMS, &mut viewport);
@@ -375,16 +375,20 @@ fn build(gl: &glow::Context, packed: &Packed, options: &GlOptions, objects: &mut
         )));
     }
     let max_texture_size = options.max_texture_size.map_or(device_max, |m| m.min(device_max));
-    let info = GlInfo { version, renderer, max_texture_size };
+    let max_viewport = viewport[0].min(viewport[1]).max(0) as u32;
+    Ok((GlInfo { version, renderer, max_texture_size }, max_viewport))
+}
 
+/// Creates the program, textures and framebuffers for `packed`, recording each object in
+/// `objects` (deleted by the caller on error).
+fn build(gl: &glow::Context, packed: &Packed, options: &GlOptions, objects: &mut Objects) -> Result<Pipeline, GlError> {
+    let (info, max_viewport) = context_info(gl, options)?;
+    let max_texture_size = info.max_texture_size;
     // Limits: every packed array and the image must fit.
     packed.arrays(max_texture_size).map_err(|reason| GlError::SceneTooLarge { max_texture_size, reason })?;
     let scene = &packed.scene;
     let (width, height) = (scene.width, scene.height);
-    for (limit, max) in [
-        ("GL_MAX_TEXTURE_SIZE", max_texture_size),
-        ("GL_MAX_VIEWPORT_DIMS", viewport[0].min(viewport[1]).max(0) as u32),
-    ] {
+    for (limit, max) in [("GL_MAX_TEXTURE_SIZE", max_texture_size), ("GL_MAX_VIEWPORT_DIMS", max_viewport)] {
         if width > max || height > max {
             return Err(GlError::ImageTooLarge { width, height, limit, max });
         }
@@ -396,39 +400,18 @@ fn build(gl: &glow::Context, packed: &Packed, options: &GlOptions, objects: &mut
     let compiling = web_time::Instant::now();
     let program = compile_program(gl, &fragment)?;
     objects.programs.push(program);
-
-    let bindings = scene_bindings(scene);
+    let bindings = scene.fields();
     check_active_uniforms(gl, program, &bindings)?;
     let compile_ms = ms_since(compiling);
-    let uploading = web_time::Instant::now();
 
-    let mut data_textures = Vec::new();
-    let mut frame_seed_location = None;
-    // SAFETY: see above.
+    let uploading = web_time::Instant::now();
+    // SAFETY: the program was linked on the current context.
+    unsafe { gl.use_program(Some(program)) };
+    let SceneBindings { data_textures, frame_seed_location } =
+        bind_scene(gl, program, &bindings, max_texture_size, objects)?;
+    let accumulation_unit = data_textures.len() as u32;
+    // SAFETY: plain queries and uniform setting on the program in use.
     unsafe {
-        gl.use_program(Some(program));
-        for (name, binding) in &bindings {
-            let Some(location) = gl.get_uniform_location(program, &format!("{SCENE_UNIFORM_PREFIX}{name}")) else {
-                continue; // removed by specialisation
-            };
-            let location = Some(&location);
-            match binding {
-                Binding::Vec4s(_) | Binding::UVec4s(_) => {
-                    let unit = data_textures.len() as u32;
-                    let texture = upload_texels(gl, binding, max_texture_size, name)?;
-                    objects.textures.push(texture);
-                    gl.uniform_1_i32(location, unit as i32);
-                    data_textures.push((unit, texture));
-                }
-                Binding::F32(x) => gl.uniform_1_f32(location, **x),
-                Binding::U32(x) => gl.uniform_1_u32(location, **x),
-                Binding::Vec3(v) => gl.uniform_3_f32(location, v.x, v.y, v.z),
-            }
-            if *name == "frame_seed" {
-                frame_seed_location = location.cloned();
-            }
-        }
-        let accumulation_unit = data_textures.len() as u32;
         let units = gl.get_parameter_i32(glow::MAX_TEXTURE_IMAGE_UNITS).max(0) as u32;
         if accumulation_unit + 1 > units {
             return Err(GlError::Unsupported(format!(
@@ -440,11 +423,90 @@ fn build(gl: &glow::Context, packed: &Packed, options: &GlOptions, objects: &mut
             GlError::Unsupported(format!("the generated entry point has no `{ACCUMULATION_UNIFORM}` sampler"))
         })?;
         gl.uniform_1_i32(Some(&accumulation_location), accumulation_unit as i32);
+    }
+    let (accumulation, framebuffers) = accumulation_targets(gl, width, height, objects)?;
+    // SAFETY: object creation and queries on the current context.
+    unsafe {
+        let vertex_array = gl.create_vertex_array().map_err(gl_failed("glCreateVertexArray"))?;
+        objects.vertex_arrays.push(vertex_array);
+        gl.use_program(None);
+        let error = gl.get_error();
+        if error != glow::NO_ERROR {
+            return Err(GlError::Gl { what: "setting up the renderer", detail: format!("error {error:#06x}") });
+        }
+        Ok(Pipeline {
+            program,
+            vertex_array,
+            data_textures,
+            accumulation_unit,
+            accumulation,
+            framebuffers,
+            frame_seed_location,
+            info,
+            times: BuildTimes { codegen_ms, compile_ms, upload_ms: ms_since(uploading) },
+        })
+    }
+}
 
-        let zeros = vec![0u32; width as usize * height as usize * 4];
-        let mut accumulation = Vec::new();
-        let mut framebuffers = Vec::new();
-        for _ in 0..2 {
+/// Uploads the `Scene` fields the program (in use) reads: each texel array as a data texture on
+/// the next texture unit, each scalar as its uniform.
+fn bind_scene(
+    gl: &glow::Context,
+    program: glow::Program,
+    bindings: &[(&'static str, Resource<'_>)],
+    max_texture_size: u32,
+    objects: &mut Objects,
+) -> Result<SceneBindings, GlError> {
+    let mut data_textures = Vec::new();
+    let mut frame_seed_location = None;
+    for (name, binding) in bindings {
+        // SAFETY: queries and uniform setting on the program in use; uploads pass slices of
+        // exactly the texture's texels.
+        unsafe {
+            let Some(location) = gl.get_uniform_location(program, &format!("{SCENE_UNIFORM_PREFIX}{name}")) else {
+                continue; // removed by specialisation
+            };
+            let location = Some(&location);
+            match binding {
+                Resource::Vec4s(_) | Resource::UVec4s(_) => {
+                    let unit = data_textures.len() as u32;
+                    let texture = upload_texels(gl, binding, max_texture_size, name)?;
+                    objects.textures.push(texture);
+                    gl.uniform_1_i32(location, unit as i32);
+                    data_textures.push((unit, texture));
+                }
+                Resource::F32(x) => gl.uniform_1_f32(location, **x),
+                Resource::U32(x) => gl.uniform_1_u32(location, **x),
+                Resource::Vec3(v) => gl.uniform_3_f32(location, v.x, v.y, v.z),
+            }
+            if *name == "frame_seed" {
+                frame_seed_location = location.cloned();
+            }
+        }
+    }
+    Ok(SceneBindings { data_textures, frame_seed_location })
+}
+
+/// What [`bind_scene`] bound: the data textures by unit, and where `frame_seed` is set.
+struct SceneBindings {
+    data_textures: Vec<(u32, glow::Texture)>,
+    frame_seed_location: Option<glow::UniformLocation>,
+}
+
+/// The two RGBA32F accumulation textures (ping-pong), zeroed, each with its framebuffer.
+fn accumulation_targets(
+    gl: &glow::Context,
+    width: u32,
+    height: u32,
+    objects: &mut Objects,
+) -> Result<([glow::Texture; 2], [glow::Framebuffer; 2]), GlError> {
+    let zeros = vec![0u32; width as usize * height as usize * 4];
+    let mut textures = Vec::new();
+    let mut framebuffers = Vec::new();
+    for _ in 0..2 {
+        // SAFETY: object creation on the current context; the upload passes exactly
+        // width x height RGBA32F texels.
+        unsafe {
             let texture = gl.create_texture().map_err(gl_failed("glCreateTexture (accumulation)"))?;
             objects.textures.push(texture);
             gl.bind_texture(glow::TEXTURE_2D, Some(texture));
@@ -472,27 +534,11 @@ fn build(gl: &glow::Context, packed: &Packed, options: &GlOptions, objects: &mut
                     "an RGBA32F {width}x{height} framebuffer is incomplete (status {status:#06x})"
                 )));
             }
-            accumulation.push(texture);
+            textures.push(texture);
             framebuffers.push(framebuffer);
         }
-        gl.bind_texture(glow::TEXTURE_2D, None);
-        let vertex_array = gl.create_vertex_array().map_err(gl_failed("glCreateVertexArray"))?;
-        objects.vertex_arrays.push(vertex_array);
-        gl.use_program(None);
-        let error = gl.get_error();
-        if error != glow::NO_ERROR {
-            return Err(GlError::Gl { what: "setting up the renderer", detail: format!("error {error:#06x}") });
-        }
-        Ok(Pipeline {
-            program,
-            vertex_array,
-            data_textures,
-            accumulation_unit,
-            accumulation: [accumulation[0], accumulation[1]],
-            framebuffers: [framebuffers[0], framebuffers[1]],
-            frame_seed_location,
-            info,
-            times: BuildTimes { codegen_ms, compile_ms, upload_ms: ms_since(uploading) },
-        })
     }
+    // SAFETY: unbinding on the current context.
+    unsafe { gl.bind_texture(glow::TEXTURE_2D, None) };
+    Ok(([textures[0], textures[1]], [framebuffers[0], framebuffers[1]]))
 }

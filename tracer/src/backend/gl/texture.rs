@@ -3,7 +3,9 @@
 
 use glow::HasContext;
 
-use super::{gl_failed, Binding, GlError};
+use kernel_dsl::Resource;
+
+use super::{gl_failed, GlError};
 use crate::pack::{PackError, Packed};
 
 /// Lays out `texels` as a 2D texture of power-of-two width no larger than `max_size`:
@@ -94,7 +96,7 @@ pub(crate) unsafe fn set_nearest(gl: &glow::Context) {
 /// (an empty array the shader still declares becomes one zero texel).
 pub(crate) unsafe fn upload_texels(
     gl: &glow::Context,
-    binding: &Binding<'_>,
+    binding: &Resource<'_>,
     max_texture_size: u32,
     name: &'static str,
 ) -> Result<glow::Texture, GlError> {
@@ -105,11 +107,11 @@ pub(crate) unsafe fn upload_texels(
     })?;
     let mut words = Vec::with_capacity(w as usize * h as usize * 4);
     let (internal, format, ty) = match binding {
-        Binding::UVec4s(t) => {
+        Resource::UVec4s(t) => {
             words.extend(t.as_slice().iter().flat_map(|texel| texel.to_array()));
             (glow::RGBA32UI, glow::RGBA_INTEGER, glow::UNSIGNED_INT)
         }
-        Binding::Vec4s(t) => {
+        Resource::Vec4s(t) => {
             words.extend(t.as_slice().iter().flat_map(|texel| texel.to_array().map(f32::to_bits)));
             (glow::RGBA32F, glow::RGBA, glow::FLOAT)
         }

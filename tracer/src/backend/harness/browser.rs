@@ -306,6 +306,10 @@ impl BrowserRuntime {
 }
 
 impl Runtime for BrowserRuntime {
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+        self
+    }
+
     fn backend(&self) -> Backend {
         self.backend
     }

@@ -6,8 +6,8 @@
 //! Rust call that is the reference. The CPU backend calls it; each GPU runtime runs codegen's
 //! generated harness shader (`Selection::harness`) around the same kernel function, which
 //! reads each invocation's arguments as raw 32-bit words and writes its results as raw words
-//! (layout in [`lightport_codegen::Harness`]): GL ([`gl`]) through an RGBA32UI texture and
-//! RGBA32UI colour attachments, wgpu ([`wgpu`]) through storage buffers of a compute shader.
+//! (layout in [`lightport_codegen::Harness`]): GL (`backend/gl/harness.rs`) through an RGBA32UI texture and
+//! RGBA32UI colour attachments, wgpu (`backend/wgpu/harness.rs`) through storage buffers of a compute shader.
 //! Values cross as their bits ([`Words`]), so NaN payloads, -0.0 and integer bit patterns
 //! survive both ways.
 //!
@@ -24,10 +24,7 @@
 #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
 pub mod browser;
 mod compare;
-pub mod gl;
 mod scene_words;
-#[cfg(feature = "wgpu")]
-pub mod wgpu;
 mod words;
 
 use std::collections::{BTreeMap, HashMap};
@@ -37,13 +34,13 @@ use std::time::Instant;
 use lightport_codegen::{Program, Selection, Target};
 use rayon::prelude::*;
 
+pub use super::gl::harness::{GlHarness, GlHarnessOptions, GlLimits, ARGS_UNIFORM};
+#[cfg(feature = "wgpu")]
+pub use super::wgpu::harness::WgpuHarness;
 #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
 pub use browser::{BrowserOptions, BrowserRuntime, BrowserSession, Corruption};
 pub use compare::{compare_words, ulp_distance, Comparison, Mismatch, Tolerance};
-pub use gl::{GlHarness, GlHarnessOptions, GlLimits, ARGS_UNIFORM};
 pub use scene_words::{decode_scene, encode_scene};
-#[cfg(feature = "wgpu")]
-pub use wgpu::WgpuHarness;
 pub use words::{check_layout, field_layout, join, HarnessWord, Values, Words};
 
 use super::gl::GlError;
@@ -110,8 +107,10 @@ pub enum HarnessError {
 }
 
 /// A GPU runtime of the harness: what [`Equivalence`] asks of GL and of wgpu alike.
-pub trait Runtime {
+pub trait Runtime: std::any::Any {
     fn backend(&self) -> Backend;
+    /// This runtime as its own type (e.g. to inject a fault into the browser's pipe).
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any;
     /// Uploads `scene`'s data (replacing a previous scene's) for functions taking `&Scene`.
     fn set_scene(&mut self, scene: &Scene) -> Result<(), HarnessError>;
     /// Specialises the harness shaders from now on as `Selection::specialize` does the
@@ -125,12 +124,12 @@ pub trait Runtime {
 }
 
 /// The selection that emits `function`'s harness specialised by `specialize`.
-fn harness_selection(function: &str, specialize: &BTreeMap<String, u32>) -> Selection {
+pub(crate) fn harness_selection(function: &str, specialize: &BTreeMap<String, u32>) -> Selection {
     Selection { specialize: specialize.clone(), ..Selection::harness(function) }
 }
 
 /// The harness layout from a generated shader, or the error that codegen gave none.
-fn generated_layout(
+pub(crate) fn generated_layout(
     function: &str,
     generated: &lightport_codegen::Generated,
 ) -> Result<lightport_codegen::Harness, HarnessError> {
@@ -186,12 +185,8 @@ impl<O> fmt::Display for Outcome<O> {
 pub struct Equivalence {
     program: Program,
     scene: Scene,
-    gl: Option<GlHarness>,
-    #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
-    wgpu: Option<WgpuHarness>,
-    /// WebGL2 and WebGPU, in that order.
-    #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
-    browsers: Vec<BrowserRuntime>,
+    /// The GPU runtimes, in [`Backend::GPU`] order: each behind the one [`Runtime`] interface.
+    runtimes: Vec<Box<dyn Runtime>>,
     /// Harness layouts by function, for the CPU-only case.
     layouts: HashMap<String, lightport_codegen::Harness>,
 }
@@ -212,7 +207,9 @@ impl Equivalence {
             match backend {
                 Backend::Cpu => {}
                 #[cfg(feature = "gl")]
-                Backend::Gl => e.gl = Some(GlHarness::headless(e.program.clone(), GlHarnessOptions::default())?),
+                Backend::Gl => {
+                    e.runtimes.push(Box::new(GlHarness::headless(e.program.clone(), GlHarnessOptions::default())?))
+                }
                 #[cfg(not(feature = "gl"))]
                 Backend::Gl => {
                     return Err(HarnessError::NotBuilt {
@@ -221,7 +218,7 @@ impl Equivalence {
                     })
                 }
                 #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
-                Backend::Wgpu => e.wgpu = Some(WgpuHarness::headless(e.program.clone())?),
+                Backend::Wgpu => e.runtimes.push(Box::new(WgpuHarness::headless(e.program.clone())?)),
                 #[cfg(not(all(feature = "wgpu", not(target_arch = "wasm32"))))]
                 Backend::Wgpu => {
                     return Err(HarnessError::NotBuilt {
@@ -232,8 +229,7 @@ impl Equivalence {
                 #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
                 Backend::WebGl2 | Backend::WebGpu => {
                     let session = BrowserSession::shared()?;
-                    e.browsers.push(BrowserRuntime::new(session, *backend, e.program.clone(), &modules)?);
-                    e.browsers.sort_by_key(|b| b.backend() == Backend::WebGpu);
+                    e.runtimes.push(Box::new(BrowserRuntime::new(session, *backend, e.program.clone(), &modules)?));
                 }
                 #[cfg(not(all(feature = "wgpu", not(target_arch = "wasm32"))))]
                 Backend::WebGl2 | Backend::WebGpu => {
@@ -244,79 +240,35 @@ impl Equivalence {
                 }
             }
         }
+        e.runtimes.sort_by_key(|r| Backend::GPU.iter().position(|&b| b == r.backend()));
         Ok(e)
     }
 
     fn cpu_only(program: Program) -> Equivalence {
-        Equivalence {
-            program,
-            scene: Scene::default(),
-            gl: None,
-            #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
-            wgpu: None,
-            #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
-            browsers: Vec::new(),
-            layouts: HashMap::new(),
-        }
-    }
-
-    /// The CPU and an existing GL harness (e.g. on a WebGL2 context).
-    pub fn with_gl(gl: GlHarness) -> Equivalence {
-        let mut e = Equivalence::cpu_only(gl.program().clone());
-        e.gl = Some(gl);
-        e
-    }
-
-    /// The CPU and an existing wgpu harness.
-    #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
-    pub fn with_wgpu(wgpu: WgpuHarness) -> Equivalence {
-        let mut e = Equivalence::cpu_only(wgpu.program().clone());
-        e.wgpu = Some(wgpu);
-        e
+        Equivalence { program, scene: Scene::default(), runtimes: Vec::new(), layouts: HashMap::new() }
     }
 
     pub fn backends(&self) -> Vec<Backend> {
         let mut b = vec![Backend::Cpu];
-        b.extend(self.runtimes_ref().map(|r| r.backend()));
+        b.extend(self.runtimes.iter().map(|r| r.backend()));
         b
     }
 
-    pub fn gl(&mut self) -> Option<&mut GlHarness> {
-        self.gl.as_mut()
-    }
-
-    #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
-    pub fn wgpu(&mut self) -> Option<&mut WgpuHarness> {
-        self.wgpu.as_mut()
+    /// The first runtime of type `R` this was created with (e.g. `GlHarness`, for its limits).
+    pub fn runtime<R: Runtime>(&mut self) -> Option<&mut R> {
+        self.runtimes.iter_mut().find_map(|r| r.as_any_mut().downcast_mut::<R>())
     }
 
     /// A browser runtime (WebGL2 or WebGPU) this was created with.
     #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
     pub fn browser(&mut self, backend: Backend) -> Option<&mut BrowserRuntime> {
-        self.browsers.iter_mut().find(|b| b.backend() == backend)
+        let runtime = self.runtimes.iter_mut().find(|r| r.backend() == backend)?;
+        runtime.as_any_mut().downcast_mut::<BrowserRuntime>()
     }
 
     /// Every GPU runtime this was created with, in [`Backend::GPU`] order.
     fn runtimes(&mut self) -> impl Iterator<Item = &mut dyn Runtime> {
-        let gl = self.gl.as_mut().map(|r| r as &mut dyn Runtime);
-        #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
-        let (wgpu, browsers) = (
-            self.wgpu.as_mut().map(|r| r as &mut dyn Runtime),
-            self.browsers.iter_mut().map(|r| r as &mut dyn Runtime),
-        );
-        #[cfg(not(all(feature = "wgpu", not(target_arch = "wasm32"))))]
-        let (wgpu, browsers) = (None, std::iter::empty());
-        gl.into_iter().chain(wgpu).chain(browsers)
-    }
-
-    fn runtimes_ref(&self) -> impl Iterator<Item = &dyn Runtime> {
-        let gl = self.gl.as_ref().map(|r| r as &dyn Runtime);
-        #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
-        let (wgpu, browsers) =
-            (self.wgpu.as_ref().map(|r| r as &dyn Runtime), self.browsers.iter().map(|r| r as &dyn Runtime));
-        #[cfg(not(all(feature = "wgpu", not(target_arch = "wasm32"))))]
-        let (wgpu, browsers) = (None, std::iter::empty());
-        gl.into_iter().chain(wgpu).chain(browsers)
+        self.runtimes.iter_mut().map(|r| r.as_mut() as &mut dyn Runtime)
     }
 
     /// The scene that functions taking `&Scene` read, on every backend.
@@ -498,7 +450,7 @@ mod tests {
             ("Bsdf", top_fields::<crate::kernel::bsdf::Bsdf>()),
             ("Shading", top_fields::<crate::kernel::integrator::Shading>()),
             ("NormalMapData", top_fields::<crate::kernel::normal_map::NormalMapData>()),
-            ("AlphaMaskData", top_fields::<crate::kernel::scene_data::AlphaMaskData>()),
+            ("AlphaMaskData", top_fields::<crate::kernel::alpha_mask::AlphaMaskData>()),
             ("GlassData", top_fields::<crate::kernel::scene_data::GlassData>()),
         ];
         let structs: Vec<kernel_dsl::ir::StructDef> = crate::kernel::modules()

@@ -1,11 +1,11 @@
 //! The kernel's `Scene` as 32-bit words, to hand it to a runtime in another process (the
 //! browser runtimes: the page decodes it with the same code). Every field in declaration
 //! order: an array as its texel count then its texels' words, a scalar as its bits, a `Vec3`
-//! as three words. The struct pattern names every field: a new `Scene` field does not compile
-//! here until it is listed.
+//! as three words. The fields are walked through `kernel_dsl::Resources` (generated from
+//! `Scene`'s declaration), so a new field needs no edit here.
 
 use glam::{UVec4, Vec3, Vec4};
-use kernel_dsl::Texels;
+use kernel_dsl::{Resource, ResourceMut, Resources, Texels};
 
 use crate::kernel::scene_data::Scene;
 
@@ -92,38 +92,42 @@ impl SceneField for Texels<UVec4> {
     }
 }
 
-macro_rules! scene_codec {
-    ($($field:ident),* $(,)?) => {
-        /// `scene` as words (see the module docs).
-        pub fn encode_scene(scene: &Scene) -> Vec<u32> {
-            let Scene { $($field),* } = scene;
-            let mut out = vec![MAGIC, VERSION];
-            $(SceneField::put($field, &mut out);)*
-            out
+/// `scene` as words (see the module docs).
+pub fn encode_scene(scene: &Scene) -> Vec<u32> {
+    let mut out = vec![MAGIC, VERSION];
+    for (_, field) in scene.fields() {
+        match field {
+            Resource::Vec4s(t) => t.put(&mut out),
+            Resource::UVec4s(t) => t.put(&mut out),
+            Resource::F32(x) => x.put(&mut out),
+            Resource::U32(x) => x.put(&mut out),
+            Resource::Vec3(v) => v.put(&mut out),
         }
-
-        /// The scene [`encode_scene`] encoded, or why `words` is not one.
-        pub fn decode_scene(words: &[u32]) -> Result<Scene, String> {
-            if words.get(..2) != Some(&[MAGIC, VERSION][..]) {
-                return Err(format!("not an encoded scene of version {VERSION} (starts {:x?})", &words[..words.len().min(2)]));
-            }
-            let mut reader = Reader(&words[2..]);
-            let scene = Scene { $($field: SceneField::get(&mut reader, stringify!($field))?),* };
-            if !reader.0.is_empty() {
-                return Err(format!("{} words after the encoded scene", reader.0.len()));
-            }
-            Ok(scene)
-        }
-    };
+    }
+    out
 }
 
-scene_codec! {
-    triangles, shading, nodes, node_children, materials, lights, texture_texels, texture_info, sky, sky_rows,
-    metal_rough, tangent_first, normal_map_first, alpha_mask_first, texture_ref_first, texcoord1_first, transmission_first, camera_position, camera_right, camera_up, camera_forward,
-    lens_radius, focus_distance, width, height, frame_seed, max_depth, strategy, light_count, sky_width,
-    sky_height, sky_intensity, sky_rotation, scene_scale, leaf_stack_limit, has_sky, has_textures, has_shading,
-    has_lights, has_triangle_lights, has_point_lights, has_metal_rough, has_normal_map, has_alpha_mask,
-    has_texture_transform, has_texcoord1, has_transmission, has_volume,
+/// The scene [`encode_scene`] encoded, or why `words` is not one.
+pub fn decode_scene(words: &[u32]) -> Result<Scene, String> {
+    if words.get(..2) != Some(&[MAGIC, VERSION][..]) {
+        return Err(format!("not an encoded scene of version {VERSION} (starts {:x?})", &words[..words.len().min(2)]));
+    }
+    let mut reader = Reader(&words[2..]);
+    let mut scene = Scene::default();
+    for (name, field) in scene.fields_mut() {
+        let r = &mut reader;
+        match field {
+            ResourceMut::Vec4s(t) => *t = SceneField::get(r, name)?,
+            ResourceMut::UVec4s(t) => *t = SceneField::get(r, name)?,
+            ResourceMut::F32(x) => *x = SceneField::get(r, name)?,
+            ResourceMut::U32(x) => *x = SceneField::get(r, name)?,
+            ResourceMut::Vec3(v) => *v = SceneField::get(r, name)?,
+        }
+    }
+    if !reader.0.is_empty() {
+        return Err(format!("{} words after the encoded scene", reader.0.len()));
+    }
+    Ok(scene)
 }
 
 #[cfg(test)]

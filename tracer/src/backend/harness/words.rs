@@ -140,6 +140,7 @@ macro_rules! harness_struct_words {
 pub use lightport_codegen::HarnessWord;
 
 mod kernel_structs {
+    use crate::kernel::alpha_mask::AlphaMaskData;
     use crate::kernel::bsdf::Bsdf;
     use crate::kernel::camera::Ray;
     use crate::kernel::integrator::Shading;
@@ -148,7 +149,7 @@ mod kernel_structs {
     use crate::kernel::metal_rough::{BrdfSample, Surface};
     use crate::kernel::normal_map::NormalMapData;
     use crate::kernel::sampling::Onb;
-    use crate::kernel::scene_data::{AlphaMaskData, GlassData, MaterialData, MetalRoughData, TriangleData};
+    use crate::kernel::scene_data::{GlassData, MaterialData, MetalRoughData, TriangleData};
     use crate::kernel::traverse::{Hit, NodeHits};
 
     harness_struct_words! {

@@ -1,17 +1,16 @@
 //! What every wgpu entry point of the kernel shares: the generated shader's resource layout
 //! (read back with naga), the scene uploaded as a uniform and storage buffers, bind groups,
-//! limit checks, and compiling with errors at the kernel's Rust lines. The renderer
+//! and limit checks (compiling, with errors at the kernel's Rust lines, is `compile.rs`). The renderer
 //! ([`super::WgpuRenderer`]) and the equivalence harness
 //! ([`crate::backend::harness::WgpuHarness`]) are two entry points over them.
-
-use std::borrow::Cow;
 
 use lightport_codegen::Generated;
 use wgpu::util::DeviceExt;
 
-use super::{WgpuError, WgpuOptions, ENTRY_POINT, SCENE_UNIFORM};
-use crate::backend::gl::{scene_bindings, Binding};
+use super::compile::{annotate_messages, Message};
+use super::{WgpuError, WgpuOptions, SCENE_UNIFORM};
 use crate::kernel::scene_data::Scene;
+use kernel_dsl::{Resource, Resources};
 
 /// Where each resource of the generated shader is bound, as the shader declares it: the
 /// scene's (shared by every kernel entry point) and the entry point's own.
@@ -60,14 +59,14 @@ pub(crate) fn place_arrays<'a>(
     uniform: Option<&UniformLayout>,
     scene: &'a Scene,
 ) -> Result<Vec<PlacedArray<'a>>, WgpuError> {
-    let bindings = scene_bindings(scene);
+    let bindings = scene.fields();
     let mut ends = [0u64; 2];
     let mut placed = Vec::new();
     for (member, _) in uniform.map_or(&[][..], |u| &u.members) {
         let Some(field) = member.strip_prefix(START_PREFIX) else { continue };
         let (name, bytes, unsigned): (&'static str, &[u8], bool) = match bindings.iter().find(|(n, _)| *n == field) {
-            Some((n, Binding::Vec4s(t))) => (n, bytemuck::cast_slice(t.as_slice()), false),
-            Some((n, Binding::UVec4s(t))) => (n, bytemuck::cast_slice(t.as_slice()), true),
+            Some((n, Resource::Vec4s(t))) => (n, bytemuck::cast_slice(t.as_slice()), false),
+            Some((n, Resource::UVec4s(t))) => (n, bytemuck::cast_slice(t.as_slice()), true),
             other => {
                 return Err(WgpuError::UnboundResource {
                     name: format!("{SCENE_UNIFORM}.{member}"),
@@ -180,7 +179,7 @@ pub(crate) fn reflect(generated: &Generated, own: &[&str]) -> Result<ShaderLayou
 
 /// The bytes of the `scene` uniform struct: each member's value at its WGSL offset.
 pub(crate) fn scene_uniform_bytes(layout: &UniformLayout, scene: &Scene) -> Result<Vec<u8>, WgpuError> {
-    let bindings = scene_bindings(scene);
+    let bindings = scene.fields();
     let placed = place_arrays(Some(layout), scene)?;
     let mut bytes = vec![0u8; layout.size as usize];
     for (member, offset) in &layout.members {
@@ -198,9 +197,9 @@ pub(crate) fn scene_uniform_bytes(layout: &UniformLayout, scene: &Scene) -> Resu
                 })?;
                 vec![start]
             }
-            Some(Binding::F32(x)) => vec![x.to_bits()],
-            Some(Binding::U32(x)) => vec![**x],
-            Some(Binding::Vec3(v)) => v.to_array().map(f32::to_bits).to_vec(),
+            Some(Resource::F32(x)) => vec![x.to_bits()],
+            Some(Resource::U32(x)) => vec![**x],
+            Some(Resource::Vec3(v)) => v.to_array().map(f32::to_bits).to_vec(),
             Some(other) => {
                 return Err(WgpuError::UnboundResource {
                     name: format!("{SCENE_UNIFORM}.{member}"),
@@ -220,94 +219,6 @@ pub(crate) fn scene_uniform_bytes(layout: &UniformLayout, scene: &Scene) -> Resu
         }
     }
     Ok(bytes)
-}
-
-/// One message of the shader compiler, at a generated line when it names one.
-pub(crate) struct Message {
-    text: String,
-    line: Option<u32>,
-}
-
-/// The messages with, under each that names a generated line, that line and the Rust location
-/// it was generated from.
-pub(crate) fn annotate_messages(messages: &[Message], generated: &Generated) -> String {
-    let mut out = String::new();
-    for m in messages {
-        out.push_str(m.text.trim_end());
-        out.push('\n');
-        let Some(n) = m.line else { continue };
-        if let Some(text) = generated.source.lines().nth((n as usize).saturating_sub(1)) {
-            out.push_str(&format!("    generated line {n}: {}\n", text.trim()));
-        }
-        if let Some(at) = generated.rust_location(n) {
-            out.push_str(&format!("    from {}:{}:{} (in {})\n", at.file, at.span.line, at.span.column, at.function));
-        }
-    }
-    out
-}
-
-/// The outcome of compiling a pipeline, known only once the device answers: WebGPU reports
-/// shader errors asynchronously (a promise in the browser).
-pub type PipelineCheck = std::pin::Pin<Box<dyn std::future::Future<Output = Result<(), WgpuError>>>>;
-
-/// Compiles the generated WGSL into a compute pipeline on `device` with `layout`. Errors carry
-/// wgpu's messages (naga's front end and validator, then the driver's pipeline creation), each
-/// with its generated line mapped back to the kernel's Rust source.
-pub async fn compile_pipeline(
-    device: &wgpu::Device,
-    generated: &Generated,
-    layout: Option<&wgpu::PipelineLayout>,
-) -> Result<wgpu::ComputePipeline, WgpuError> {
-    let (pipeline, check) = start_pipeline(device, generated, layout);
-    check.await?;
-    Ok(pipeline)
-}
-
-/// [`compile_pipeline`] without waiting: the pipeline at once (usable as soon as the device has
-/// compiled it: commands are queued behind that), and the check that reports whether it
-/// compiled. The browser's viewer creates renderers from synchronous calls and awaits the check
-/// separately.
-pub fn start_pipeline(
-    device: &wgpu::Device,
-    generated: &Generated,
-    layout: Option<&wgpu::PipelineLayout>,
-) -> (wgpu::ComputePipeline, PipelineCheck) {
-    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("lightport path tracer"),
-        source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(&generated.source)),
-    });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some("lightport path tracer"),
-        layout,
-        module: &module,
-        entry_point: Some(ENTRY_POINT),
-        compilation_options: Default::default(),
-        cache: None,
-    });
-    let scope = scope.pop();
-    let info = module.get_compilation_info();
-    let generated = generated.clone();
-    let check = async move {
-        let info = info.await;
-        let scope = scope.await;
-        let errors: Vec<Message> = info
-            .messages
-            .iter()
-            .filter(|m| m.message_type == wgpu::CompilationMessageType::Error)
-            .map(|m| Message { text: m.message.clone(), line: m.location.map(|l| l.line_number) })
-            .collect();
-        if !errors.is_empty() {
-            return Err(WgpuError::Compile { log: annotate_messages(&errors, &generated) });
-        }
-        if let Some(e) = scope {
-            return Err(WgpuError::Compile {
-                log: format!("creating the compute pipeline (entry point `{ENTRY_POINT}`): {e}"),
-            });
-        }
-        Ok(())
-    };
-    (pipeline, Box::pin(check))
 }
 
 /// The storage-buffer binding size the renderer works under.

@@ -1,0 +1,690 @@
+//! The web path tracer end to end: `lightport serve`, the page and its wasm build (`web/`,
+//! built by `scripts/build-web.sh`) in headless Chromium (Debian's `chromium`, driven by
+//! `tests/web/run.mjs` through npm `playwright-core`). The node script only drives the page and
+//! reports what it saw; the statistics and assertions are here.
+//!
+//! Never skipped: without `web/pkg/`, `node`, `tests/web/node_modules` or `/usr/bin/chromium`
+//! these tests fail and say which command installs the missing piece (`scripts/test.sh` runs
+//! them all).
+
+use crate::common;
+use crate::common::browser;
+use lightport::serve_child;
+
+use std::path::Path;
+use std::time::Duration;
+
+use browser::{browse, no_page_error};
+use glam::{DVec3, Vec3};
+use serde_json::Value;
+use tracer::backend::cpu::CpuRenderer;
+use tracer::backend::Renderer;
+use tracer::kernel::{RenderSettings, Strategy};
+use tracer::pack::{pack, Packed};
+use tracer::scene::{self, Scene};
+use tracer::stats::Estimate;
+
+/// |CPU - browser| within 5 combined standard errors per region and channel, as for the native
+/// GL backend (tests/rendering/gl.rs).
+const Z_BOUND: f64 = 5.0;
+/// Regions per side: the image's 4 x 4 blocks, plus the whole image.
+const BLOCKS: u32 = 4;
+/// The render size of the browser tests (SwiftShader is slow; the statistics need many frames).
+const SIZE: u32 = 32;
+/// `lightport serve` packs bundles with the default settings; the page keeps their depth.
+const SERVED_MAX_DEPTH: u32 = 8;
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `lightport serve` on a free port, killed when dropped.
+struct Server {
+    _process: serve_child::Killed,
+    url: String,
+}
+
+impl Server {
+    fn start(args: &[&str]) -> Server {
+        assert!(
+            root().join("web/pkg/lightport_web_bg.wasm").is_file(),
+            "web/pkg/ is missing: run scripts/build-web.sh (it builds the wasm module the page loads)"
+        );
+        let exe = Path::new(env!("CARGO_BIN_EXE_lightport"));
+        let (process, url) = serve_child::start_serve(exe, args, Duration::from_secs(120), true)
+            .unwrap_or_else(|e| panic!("lightport serve {args:?}: {e}"));
+        Server { _process: process, url }
+    }
+}
+
+/// Batch means per region and channel: for each batch, the mean of the samples it added over
+/// each 4 x 4 block and (last) the whole image. `sums` are running sums after each batch.
+fn batch_regions(sums: &[Vec<DVec3>], frames_per_batch: f64) -> Vec<Vec<DVec3>> {
+    let mut previous = vec![DVec3::ZERO; (SIZE * SIZE) as usize];
+    let mut out = Vec::new();
+    for batch in sums {
+        out.push(common::region_means(SIZE, BLOCKS, |i| (batch[i] - previous[i]) / frames_per_batch));
+        previous.clone_from(batch);
+    }
+    out
+}
+
+fn estimate(batches: &[Vec<DVec3>], region: usize, channel: usize) -> Estimate {
+    Estimate::from_samples(&batches.iter().map(|b| b[region][channel]).collect::<Vec<_>>())
+}
+
+fn packed(scene: &Scene, strategy: Strategy) -> Packed {
+    let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
+    let settings = RenderSettings { width: SIZE, height: SIZE, strategy, max_depth: SERVED_MAX_DEPTH };
+    pack(scene, &bvh, &settings).expect("pack")
+}
+
+/// Renders `scene_name` in the browser (on `api`: "webgl2" or "webgpu") and `scene` on the CPU
+/// in `batches` x `frames` frames and asserts that every region agrees within the bound.
+fn assert_browser_agrees_with_cpu(server: &Server, scene_name: &str, scene: &Scene, strategy: Strategy, api: &str) {
+    let (batches, frames) = (16usize, 16u32);
+    let size = format!("{SIZE}x{SIZE}");
+    let (batch_text, frame_text) = (batches.to_string(), frames.to_string());
+    let report = browse(
+        &server.url,
+        "accumulate",
+        &[
+            ("scene", scene_name),
+            ("size", &size),
+            ("strategy", strategy.name()),
+            ("batches", &batch_text),
+            ("frames", &frame_text),
+            ("api", api),
+        ],
+    );
+    no_page_error(&report);
+    let info = &report["info"];
+    eprintln!("{scene_name}: {} on {} ({})", info["name"], info["api"], info["adapter"]);
+    assert_eq!(info["strategy"], strategy.name());
+    let shown = if api == "webgpu" { "WebGPU" } else { "WebGL2" };
+    assert_eq!(info["api"], shown, "the page runs the API asked for: {info}");
+    let mut browser_sums = Vec::new();
+    for (b, batch) in report["batches"].as_array().expect("batches").iter().enumerate() {
+        let spp = batch["spp"].as_u64().expect("spp");
+        assert_eq!(spp, (b as u64 + 1) * frames as u64, "frames rendered by batch {b}");
+        assert_eq!((batch["width"].as_u64(), batch["height"].as_u64()), (Some(SIZE as u64), Some(SIZE as u64)));
+        let data: Vec<f64> =
+            batch["data"].as_array().expect("data").iter().map(|v| v.as_f64().unwrap_or(f64::NAN)).collect();
+        assert_eq!(data.len(), (SIZE * SIZE * 4) as usize);
+        // w counts the finite samples: none may have been dropped.
+        let rejected = data.chunks_exact(4).filter(|t| t[3] != spp as f64).count();
+        assert_eq!(rejected, 0, "{scene_name}: pixels with non-finite samples in the browser");
+        browser_sums.push(data.chunks_exact(4).map(|t| DVec3::new(t[0], t[1], t[2])).collect::<Vec<_>>());
+    }
+    assert_eq!(browser_sums.len(), batches);
+
+    let mut cpu = CpuRenderer::new(packed(scene, strategy), 7);
+    let mut cpu_sums = Vec::new();
+    for _ in 0..batches {
+        for _ in 0..frames {
+            cpu.render_frame().expect("frame");
+        }
+        let n = cpu.frames() as f64;
+        cpu_sums.push(cpu.image().expect("image").pixels.iter().map(|p| p.as_dvec3() * n).collect::<Vec<_>>());
+    }
+    assert_eq!(cpu.rejected_samples().expect("accumulation"), 0);
+
+    let browser = batch_regions(&browser_sums, frames as f64);
+    let cpu = batch_regions(&cpu_sums, frames as f64);
+    let mut worst = 0.0f64;
+    for region in 0..(BLOCKS * BLOCKS) as usize + 1 {
+        for c in 0..3 {
+            let (a, b) = (estimate(&cpu, region, c), estimate(&browser, region, c));
+            let z = a.z_score(&b);
+            assert!(
+                z < Z_BOUND,
+                "{scene_name} region {region} channel {c}: CPU {} ± {} vs browser {} ± {} (z = {z:.2})",
+                a.mean,
+                a.std_err,
+                b.mean,
+                b.std_err
+            );
+            worst = worst.max(z);
+        }
+    }
+    let whole = estimate(&browser, (BLOCKS * BLOCKS) as usize, 1);
+    assert!(whole.mean > 0.0, "{scene_name}: the browser's image is black");
+    eprintln!(
+        "{scene_name} {strategy:?} {SIZE}x{SIZE} x {} frames: max z {worst:.2}; whole-image green {:.4} ± {:.4}",
+        batches as u32 * frames,
+        whole.mean,
+        whole.std_err
+    );
+}
+
+const STRATEGIES: [Strategy; 3] = [Strategy::Bsdf, Strategy::Nee, Strategy::Mis];
+
+#[test]
+fn the_browser_agrees_with_the_cpu_on_the_cornell_box() {
+    let server = Server::start(&[]);
+    assert_browser_agrees_with_cpu(&server, "cornell-box", &scene::cornell_box(), Strategy::Mis, "webgl2");
+}
+
+/// The same statistics on the page's WebGPU runtime (the wgpu backend's WGSL compute kernel on
+/// Chromium's WebGPU, SwiftShader), for each strategy.
+#[test]
+fn the_browser_agrees_with_the_cpu_on_the_cornell_box_on_webgpu() {
+    let server = Server::start(&[]);
+    for strategy in STRATEGIES {
+        assert_browser_agrees_with_cpu(&server, "cornell-box", &scene::cornell_box(), strategy, "webgpu");
+    }
+}
+
+/// BoxTextured under venice_sunset, served as the page gets it, and loaded here for the CPU.
+fn textured_scene() -> (Server, Scene) {
+    let gltf = common::test_data("scenes/khronos/BoxTextured/glTF/BoxTextured.gltf");
+    let sky = common::test_data("scenes/hdri/venice_sunset_1k.hdr");
+    let server = Server::start(&[gltf.to_str().unwrap(), "--sky", sky.to_str().unwrap()]);
+    let mut scene = scene::load(&gltf).expect("BoxTextured");
+    scene.sky = Some(scene::load_sky(&sky, 1.0, 0.0).expect("sky"));
+    (server, scene)
+}
+
+#[test]
+fn the_browser_agrees_with_the_cpu_on_a_textured_scene() {
+    let (server, scene) = textured_scene();
+    assert_browser_agrees_with_cpu(&server, "BoxTextured", &scene, Strategy::Mis, "webgl2");
+}
+
+#[test]
+fn the_browser_agrees_with_the_cpu_on_a_textured_scene_on_webgpu() {
+    let (server, scene) = textured_scene();
+    for strategy in STRATEGIES {
+        assert_browser_agrees_with_cpu(&server, "BoxTextured", &scene, strategy, "webgpu");
+    }
+}
+
+/// Glass (the glass Cornell box, served by its built-in name): the delta and rough lobes,
+/// refraction in and out of volumes and absorption, on WebGL2 and WebGPU, each strategy.
+#[test]
+fn the_browser_agrees_with_the_cpu_on_glass() {
+    let server = Server::start(&["glass-cornell"]);
+    let scene = scene::glass_cornell();
+    for api in ["webgl2", "webgpu"] {
+        for strategy in STRATEGIES {
+            assert_browser_agrees_with_cpu(&server, "glass-cornell", &scene, strategy, api);
+        }
+    }
+}
+
+/// A grey plane (an OBJ written here: the page loads files) under venice_sunset: only the sky
+/// lights it, so NEE and MIS sample the sky's importance table.
+fn sky_lit_plane() -> (Server, Scene) {
+    let dir = std::env::temp_dir().join(format!("lightport-web-plane-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    std::fs::write(dir.join("plane.mtl"), "newmtl grey\nKd 0.6 0.6 0.6\n").expect("mtl");
+    let obj = "mtllib plane.mtl\nv -10 0 10\nv 10 0 10\nv 10 0 -10\nv -10 0 -10\nusemtl grey\nf 1 2 3\nf 1 3 4\n";
+    let path = dir.join("plane.obj");
+    std::fs::write(&path, obj).expect("obj");
+    let sky = common::test_data("scenes/hdri/venice_sunset_1k.hdr");
+    let server = Server::start(&[path.to_str().unwrap(), "--sky", sky.to_str().unwrap()]);
+    let mut scene = scene::load(&path).expect("plane");
+    scene.sky = Some(scene::load_sky(&sky, 1.0, 0.0).expect("sky"));
+    (server, scene)
+}
+
+#[test]
+fn the_browser_agrees_with_the_cpu_under_an_hdr_sky() {
+    let (server, scene) = sky_lit_plane();
+    for (strategy, api) in [(Strategy::Mis, "webgl2")].into_iter().chain(STRATEGIES.map(|s| (s, "webgpu"))) {
+        assert_browser_agrees_with_cpu(&server, "plane", &scene, strategy, api);
+    }
+}
+
+/// Runs the `api` scenario: which API the page chose, its read-out and message.
+fn api_report(server: &Server, api: &str, extra: &[(&str, &str)]) -> Value {
+    let mut options = vec![("scene", "cornell-box"), ("size", "16x16"), ("api", api)];
+    options.extend_from_slice(extra);
+    browse(&server.url, "api", &options)
+}
+
+/// A bundle's textures travel as the files they were loaded from (DamagedHelmet: JPEGs) and the
+/// page decodes them in wasm: to the very texels the native loader made, or the browser and
+/// the CPU reference would render different scenes.
+#[test]
+fn the_page_decodes_a_bundles_images_to_the_native_texels() {
+    let helmet = common::test_data("scenes/khronos/DamagedHelmet/glTF-Binary/DamagedHelmet.glb");
+    let server = Server::start(&[helmet.to_str().unwrap()]);
+    let report = api_report(&server, "webgl2", &[("scene", "DamagedHelmet")]);
+    no_page_error(&report);
+    let native = packed(&scene::load(&helmet).expect("DamagedHelmet"), Strategy::Mis);
+    assert!(native.texture_images.len() >= 4, "the scene has JPEG textures");
+    assert_eq!(report["info"]["name"], "DamagedHelmet");
+    assert_eq!(report["info"]["textureChecksum"], native.texture_checksum(), "the page's texels differ");
+}
+
+/// The page runs WebGPU when asked, and by default (auto) where the browser offers it, WebGL2
+/// when asked; the read-out names the API and the adapter, and both render the scene.
+#[test]
+fn the_page_runs_and_shows_the_api_asked_for() {
+    let server = Server::start(&[]);
+    for (api, shown) in [("webgpu", "WebGPU"), ("auto", "WebGPU"), ("webgl2", "WebGL2")] {
+        let report = api_report(&server, api, &[]);
+        no_page_error(&report);
+        let info = &report["info"];
+        assert_eq!(info["api"], shown, "api={api}: {info}");
+        assert_eq!(info["apiRequested"], api, "{info}");
+        assert!(info["notice"].is_null(), "api={api}: nothing to explain: {info}");
+        let adapter = info["adapter"].as_str().unwrap_or("");
+        assert!(!adapter.is_empty(), "api={api}: the adapter is named: {info}");
+        if shown == "WebGPU" {
+            assert!(adapter.to_lowercase().contains("swiftshader"), "Chromium's WebGPU adapter here: {adapter:?}");
+        }
+        let readout = report["readout"].as_str().unwrap_or("");
+        assert_eq!(readout, format!("{shown} ({adapter})"), "api={api}: the read-out");
+        let rendered = &report["rendered"];
+        assert_eq!(rendered["spp"], 2, "{report}");
+        assert!(rendered["sum"].as_f64().unwrap_or(0.0) > 0.0, "api={api}: it draws the scene: {rendered}");
+    }
+}
+
+/// The page accounts for its first frame on either API: the time from navigation to the first
+/// finished frame splits into download, decode, upload, compile and the first frame's GPU time,
+/// each measured (non-zero), none overlapping another (their sum is within the total), and the
+/// read-out shows the split.
+#[test]
+fn the_page_splits_the_time_to_its_first_frame() {
+    let server = Server::start(&[]);
+    for api in ["webgl2", "webgpu"] {
+        let report = api_report(&server, api, &[]);
+        no_page_error(&report);
+        let split = &report["firstFrame"];
+        assert!(split.is_object(), "api={api}: the page reports no first-frame split: {report}");
+        let ms = |key: &str| split[key].as_f64().unwrap_or_else(|| panic!("api={api}: no {key} in {split}"));
+        let parts = ["downloadMs", "decodeMs", "uploadMs", "compileMs", "gpuMs"];
+        for key in parts {
+            assert!(ms(key) > 0.0, "api={api}: {key} is measured: {split}");
+        }
+        let total = ms("totalMs");
+        let sum: f64 = parts.iter().map(|k| ms(k)).sum();
+        assert!(
+            sum <= total + 1.0,
+            "api={api}: the parts ({sum} ms) overlap: more than the total ({total} ms): {split}"
+        );
+        assert!((ms("otherMs") - (total - sum)).abs() < 1e-6, "{split}");
+        // The page's first scene counts from navigation start, as firstFrameMs does.
+        let first = report["firstFrameMs"].as_f64().unwrap_or(f64::NAN);
+        assert!((total - first).abs() < 100.0, "api={api}: total {total} ms, first frame at {first} ms: {split}");
+        let readout = report["firstFrameReadout"].as_str().unwrap_or("");
+        for word in ["download", "decode", "upload", "compile", "GPU"] {
+            assert!(readout.contains(word), "api={api}: the read-out shows {word}: {readout:?}");
+        }
+        assert!(readout.starts_with(&format!("{:.2} s", total / 1000.0)), "api={api}: {readout:?} vs {total} ms");
+    }
+}
+
+/// A scene that needs more storage buffers than the WebGPU device allows (a test override of
+/// the device's limit): auto falls back to WebGL2 and says why, naming the limit and the
+/// numbers; an explicit `api=webgpu` shows that error instead.
+#[test]
+fn a_scene_beyond_a_webgpu_limit_falls_back_to_webgl2() {
+    let server = Server::start(&[]);
+    let limit = [("maxStorageBuffers", "2")];
+    let auto = api_report(&server, "auto", &limit);
+    no_page_error(&auto);
+    assert_eq!(auto["info"]["api"], "WebGL2", "auto falls back: {}", auto["info"]);
+    let notice = auto["notice"].as_str().unwrap_or("");
+    assert!(
+        notice.contains("max_storage_buffers_per_shader_stage")
+            && notice.contains("allows 2")
+            && notice.contains("WebGL2"),
+        "the notice names the limit and the sizes: {notice:?}"
+    );
+    assert!(auto["messageText"].as_str().unwrap_or("").contains("max_storage_buffers_per_shader_stage"), "{auto}");
+    assert_eq!(auto["rendered"]["spp"], 2, "WebGL2 renders it: {auto}");
+
+    let explicit = api_report(&server, "webgpu", &limit);
+    let error = explicit["error"].as_str().unwrap_or("");
+    assert!(error.contains("max_storage_buffers_per_shader_stage") && error.contains("allows 2"), "{explicit}");
+    assert!(explicit["rendered"].is_null(), "nothing renders: {explicit}");
+}
+
+/// WebGPU device loss (the hook destroys the device): the page requests a new device,
+/// recreates the renderer from the scene in memory and keeps rendering.
+#[test]
+fn the_page_survives_webgpu_device_loss() {
+    let server = Server::start(&[]);
+    let report = browse(&server.url, "deviceloss", &[("scene", "cornell-box"), ("size", "16x16"), ("api", "webgpu")]);
+    no_page_error(&report);
+    assert_eq!(report["info"]["api"], "WebGPU", "{report}");
+    assert_eq!(report["before"], 4);
+    let restored = &report["restored"];
+    assert_eq!(restored["recoveries"], 1, "one new device: {restored}");
+    assert_eq!(restored["sppAfterLoss"], 0, "the renderer was recreated: {restored}");
+    assert_eq!(restored["spp"], 3, "rendering continues on the new device: {restored}");
+    assert_eq!(restored["info"]["api"], "WebGPU", "{restored}");
+    assert!(restored["info"]["webGpuLost"].is_null(), "{restored}");
+    assert!(restored["sum"].as_f64().unwrap_or(0.0) > 0.0, "the new renderer draws the scene: {restored}");
+}
+
+#[test]
+fn the_second_visit_takes_the_scene_from_the_client_cache() {
+    let server = Server::start(&[]);
+    let report = browse(&server.url, "cache", &[("scene", "cornell-box"), ("size", "16x16")]);
+    let visit = |name: &str| {
+        let v = &report[name];
+        no_page_error(v);
+        (v["bundleRequests"].as_array().expect("requests").len(), v["bytesFetched"].as_u64().expect("bytes"))
+    };
+    let (requests, bytes) = visit("first");
+    assert_eq!(requests, 1, "the first visit downloads the bundle once: {}", report["first"]);
+    assert!(bytes > 0);
+    let first = &report["first"];
+    assert_eq!(first["usage"]["scenes"], 1, "{first}");
+    assert_eq!(first["usage"]["bytes"].as_u64(), Some(bytes), "the cache holds the bundle: {first}");
+
+    let (requests, bytes) = visit("second");
+    assert_eq!((requests, bytes), (0, 0), "the second visit fetches no scene bytes: {}", report["second"]);
+    assert_eq!(report["second"]["sources"][0]["fromCache"], true);
+    let readout = report["second"]["readout"].as_str().unwrap_or("");
+    assert!(readout.contains("1 scene"), "the page shows the cache use: {readout:?}");
+
+    assert_eq!(report["cleared"]["usage"]["scenes"], 0, "clear cache empties it");
+    let (requests, bytes) = visit("third");
+    assert!(requests == 1 && bytes > 0, "after clearing, the scene is downloaded again: {}", report["third"]);
+}
+
+#[test]
+fn camera_input_restarts_the_accumulation() {
+    let server = Server::start(&[]);
+    let report = browse(&server.url, "camera", &[("scene", "cornell-box"), ("size", "32x32")]);
+    no_page_error(&report);
+    let steps = &report["steps"];
+    let step = |name: &str| steps[name].as_u64().unwrap_or_else(|| panic!("{name} in {steps}"));
+    assert_eq!(step("beforeDrag"), 8);
+    assert_eq!(step("afterDrag"), 0, "a mouse drag restarts the accumulation: {steps}");
+    assert_eq!(step("afterDragRendered"), 8);
+    assert_eq!(step("afterWheel"), 0, "the wheel restarts the accumulation: {steps}");
+    assert_eq!(step("afterWheelRendered"), 3);
+    assert_eq!(step("afterStrategy"), 0, "a strategy change restarts the accumulation: {steps}");
+    // The drag turned the view: the image changed (the box's walls moved across the pixels).
+    let image =
+        |name: &str| -> Vec<f64> { report[name].as_array().expect("image").iter().filter_map(Value::as_f64).collect() };
+    let (before, after) = (image("before"), image("after"));
+    assert_eq!(before.len(), after.len());
+    let changed = before
+        .chunks_exact(4)
+        .zip(after.chunks_exact(4))
+        .filter(|(a, b)| (a[0] - b[0]).abs() > 0.5 * (a[0].abs() + 1.0))
+        .count();
+    assert!(changed > before.len() / 4 / 20, "the drag must move the view: {changed} pixels changed");
+}
+
+#[test]
+fn a_bad_dropped_file_shows_an_error_and_the_page_keeps_working() {
+    let server = Server::start(&[]);
+    let dir = common::test_data("scenes/khronos/BoxTextured/glTF");
+    let files: Vec<String> = ["BoxTextured.gltf", "BoxTextured0.bin", "CesiumLogoFlat.png"]
+        .iter()
+        .map(|f| dir.join(f).to_string_lossy().into_owned())
+        .collect();
+    let files = files.join(",");
+    let report = browse(&server.url, "drop", &[("scene", "cornell-box"), ("size", "16x16"), ("files", &files)]);
+    no_page_error(&report);
+    let bad = report["badError"].as_str().expect("an error for the broken file");
+    assert!(bad.contains("broken.glb"), "the error names the file: {bad}");
+    assert_eq!(report["messageVisible"], true, "the error is shown on the page");
+    let after = &report["afterBad"];
+    assert_eq!(after["name"], "cornell-box", "the previous scene stays: {after}");
+    assert_eq!(after["after"].as_u64(), after["before"].as_u64().map(|n| n + 2), "it keeps rendering: {after}");
+    let good = &report["good"];
+    assert!(good["error"].is_null(), "{good}");
+    assert_eq!(good["info"]["name"], "BoxTextured.gltf", "{good}");
+    assert_eq!(good["info"]["triangles"], 12);
+    assert_eq!(good["info"]["features"]["textures"], true, "the dropped PNG was found: {good}");
+    assert_eq!(good["spp"], 2);
+}
+
+#[test]
+fn a_scene_beyond_the_texture_limit_is_reported_on_the_page() {
+    let server = Server::start(&[]);
+    let report = browse(&server.url, "limits", &[("scene", "cornell-box"), ("size", "16x16"), ("limit", "4")]);
+    let error = report["error"].as_str().expect("an error");
+    assert!(error.contains("GL_MAX_TEXTURE_SIZE 4"), "{error}");
+    assert!(report["messageText"].as_str().unwrap_or("").contains("does not fit"), "{report}");
+}
+
+#[test]
+fn the_page_survives_webgl_context_loss() {
+    let server = Server::start(&[]);
+    let report = browse(&server.url, "context", &[("scene", "cornell-box"), ("size", "16x16")]);
+    no_page_error(&report);
+    let message = report["whileLost"]["message"].as_str().unwrap_or("");
+    assert!(message.contains("lost"), "the loss is shown: {message:?}");
+    let restored = &report["restored"];
+    assert!(restored["error"].is_null(), "{restored}");
+    assert_eq!(restored["spp"], 3, "rendering continues after the restore: {restored}");
+    assert!(restored["sum"].as_f64().unwrap_or(0.0) > 0.0, "the restored renderer draws the scene");
+}
+
+/// The page shows what the CLI's PNG output stores with the same `--tonemap` and `--exposure`:
+/// for a setting given in the URL and three chosen through the page's controls, the canvas's
+/// pixels are within 2 8-bit steps of `to_display_srgb8` of the accumulation they show
+/// (SwiftShader's pow and the CPU's differ in the last bits), and the settings differ.
+#[test]
+fn the_page_shows_the_tone_mapped_image_the_cli_writes() {
+    use tracer::backend::Image;
+    use tracer::output::{to_display_srgb8, Display, ToneMap};
+
+    let server = Server::start(&[]);
+    let report = browse(&server.url, "display", &[("scene", "cornell-box"), ("size", "16x16")]);
+    no_page_error(&report);
+    let expected = [("aces", 1.5), ("agx", -1.0), ("none", 0.0), ("neutral", 0.0)];
+    let shots = report["shots"].as_array().expect("the display scenario's shots");
+    assert_eq!(shots.len(), expected.len(), "{report}");
+    let mut shown: Vec<Vec<u8>> = Vec::new();
+    for (shot, (name, exposure)) in shots.iter().zip(expected) {
+        assert_eq!(shot["toneMap"], name, "the page reports the tone map it was given");
+        assert_eq!(shot["exposure"].as_f64(), Some(exposure), "the page reports the exposure it was given");
+        let accumulation = &shot["accumulation"];
+        let number = |v: &Value| v.as_f64().expect("a number");
+        let (width, height) = (number(&accumulation["width"]) as u32, number(&accumulation["height"]) as u32);
+        let spp = number(&accumulation["spp"]) as f32;
+        let data: Vec<f32> = accumulation["data"].as_array().expect("data").iter().map(|v| number(v) as f32).collect();
+        let pixels = data.chunks(4).map(|t| Vec3::new(t[0], t[1], t[2]) / spp).collect();
+        let image = Image { width, height, pixels };
+        let tone_map = ToneMap::from_name(name).expect("a tone map");
+        let png = to_display_srgb8(&image, &Display { tone_map, exposure: exposure as f32 });
+        let canvas: Vec<u8> = shot["pixels"].as_array().expect("pixels").iter().map(|v| number(v) as u8).collect();
+        assert_eq!(canvas.len(), (width * height * 4) as usize, "one RGBA pixel per image pixel");
+        let worst = (0..(width * height) as usize)
+            .flat_map(|p| (0..3).map(move |c| (p, c)))
+            .map(|(p, c)| canvas[p * 4 + c].abs_diff(png[p * 3 + c]))
+            .max()
+            .unwrap_or(0);
+        assert!(worst <= 2, "{name} at {exposure} EV: the canvas is {worst} 8-bit steps from the PNG");
+        shown.push(png);
+    }
+    for (i, a) in shown.iter().enumerate() {
+        assert!(shown[i + 1..].iter().all(|b| a != b), "two display settings gave the same image: nothing is tested");
+    }
+}
+
+/// The viewer's camera changes go through `GlRenderer::set_uniforms`, which must restart the
+/// accumulation and render exactly what a renderer created at the new camera renders (same
+/// seed, same device). Native GL (EGL), no browser.
+#[test]
+fn set_uniforms_renders_like_a_fresh_renderer() {
+    use tracer::backend::gl::GlRenderer;
+    let base = packed(&scene::cornell_box(), Strategy::Mis);
+    let mut moved = base.clone();
+    moved.scene.camera_position += Vec3::new(0.2, -0.1, 0.3);
+    moved.scene.strategy = Strategy::Nee.uniform_value();
+    let camera = (moved.scene.camera_position, moved.scene.strategy);
+
+    let mut reused = GlRenderer::headless(base, 5).expect("GL");
+    for _ in 0..3 {
+        reused.render_frame().expect("frame");
+    }
+    reused
+        .set_uniforms(&mut |s| {
+            s.camera_position = camera.0;
+            s.strategy = camera.1;
+        })
+        .expect("set_uniforms");
+    assert_eq!(reused.frames(), 0);
+    let mut fresh = GlRenderer::headless(moved, 5).expect("GL");
+    for _ in 0..4 {
+        reused.render_frame().expect("frame");
+        fresh.render_frame().expect("frame");
+    }
+    let (a, b) = (reused.accumulation().expect("readback"), fresh.accumulation().expect("readback"));
+    assert!(a.iter().zip(&b).all(|(x, y)| x == y), "same uniforms and seed must give the same accumulation");
+
+    let err = reused.set_uniforms(&mut |s| s.width += 1).expect_err("the size is fixed");
+    assert!(err.to_string().contains("fixed"), "{err}");
+    assert_eq!(reused.packed().scene.width, SIZE, "a refused change leaves the size as it was");
+}
+
+/// The page's frame budget: no single GPU submission (a band of a frame) should take longer.
+const BAND_BUDGET_MS: f64 = tracer::backend::frame_split::DEFAULT_BUDGET_MS;
+
+/// Input-to-restart times (ms) of the `slow` scenario. `at_once`: each input reset the sample
+/// counter before the driver's input call returned (unsplit, a pointer move waits for the
+/// frame in flight before it is handled at all).
+fn restart_latencies(report: &Value, at_once: bool) -> Vec<f64> {
+    let restarts = report["restarts"].as_array().expect("restarts");
+    restarts
+        .iter()
+        .map(|r| {
+            let t = |k: &str| r[k].as_f64().unwrap_or_else(|| panic!("{k} in {r}"));
+            if at_once {
+                assert_eq!(r["sppAfterInput"], 0, "the input reset the sample counter at once: {r}");
+            }
+            assert!(t("inputAt") <= t("handledAt") && t("handledAt") <= t("submittedAt"), "{r}");
+            assert!(t("submittedAt") <= t("doneAt"), "{r}");
+            t("doneAt") - t("inputAt")
+        })
+        .collect()
+}
+
+fn median(values: &[f64]) -> f64 {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// A slow device (SwiftShader: seconds per 640x480 frame of the Cornell box) stays responsive:
+/// the page splits each frame into bands of at most the budget, one on the GPU at a time, so a
+/// camera drag during a frame restarts the accumulation within a small multiple of the budget
+/// (from the event to the restarted accumulation's first band done on the GPU), not after the
+/// frame in flight. Unsplit (`bandBudget=0`), the same input waits for the whole frame.
+#[test]
+fn camera_input_during_a_slow_frame_restarts_within_the_budget() {
+    assert_input_restarts_within_the_budget("webgl2");
+}
+
+/// The same on WebGPU: bands are dispatches over fewer rows, each timed by the queue's
+/// `onSubmittedWorkDone`.
+#[test]
+fn camera_input_during_a_slow_frame_restarts_within_the_budget_on_webgpu() {
+    assert_input_restarts_within_the_budget("webgpu");
+}
+
+fn assert_input_restarts_within_the_budget(api: &str) {
+    let server = Server::start(&[]);
+    let budget = BAND_BUDGET_MS.to_string();
+    let split = browse(
+        &server.url,
+        "slow",
+        &[("scene", "cornell-box"), ("size", "640x480"), ("bandBudget", &budget), ("inputs", "7"), ("api", api)],
+    );
+    no_page_error(&split);
+    let info = &split["info"];
+    let shown = if api == "webgpu" { "WebGPU" } else { "WebGL2" };
+    assert_eq!(info["api"], shown, "the page runs the API asked for: {info}");
+    let frame_ms = split["frameMs"].as_f64().expect("frameMs");
+    let bands = info["bands"].as_u64().expect("bands");
+    let band_ms = info["bandMs"].as_f64().expect("a measured band time");
+    let latencies = restart_latencies(&split, true);
+    eprintln!(
+        "split ({api}): {} on {}: whole frame {frame_ms:.0} ms; {bands} bands of {} rows, ~{band_ms:.0} ms; input to \
+         restarted band done (ms): {latencies:.0?}; read-out {:?}",
+        info["name"], info["adapter"], info["bandRows"], split["readout"]
+    );
+    assert!(frame_ms > 4.0 * BAND_BUDGET_MS, "a slow device: a whole frame takes {frame_ms} ms");
+    assert!(bands > 1, "the frame is split: {info}");
+    // A band's share of a whole frame's GPU time fits the budget (one band's own measured time
+    // is an upper bound that includes the fence's round trip, noisy on a loaded machine).
+    let band_rows = info["bandRows"].as_f64().expect("bandRows");
+    let share = band_rows * frame_ms / info["height"].as_f64().expect("height");
+    assert!(share <= BAND_BUDGET_MS, "bands fit the budget: {band_rows} rows of a {frame_ms:.0} ms frame: {info}");
+    let readout = split["readout"].as_str().unwrap_or("");
+    // Read a moment before `info`: the band count may have moved since.
+    let shown = readout
+        .strip_prefix("frame split into ")
+        .and_then(|r| r.split_once(&format!(" bands of ≤{budget} ms")))
+        .and_then(|(n, _)| n.parse::<u32>().ok());
+    assert!(shown.is_some_and(|n| n > 1), "the read-out says so: {readout:?}");
+    let m = median(&latencies);
+    assert!(
+        m <= 4.0 * BAND_BUDGET_MS,
+        "median input-to-restart {m:.0} ms must be within 4 budgets of {BAND_BUDGET_MS} ms (whole frame {frame_ms:.0} ms): \
+         {latencies:.0?}"
+    );
+
+    let unsplit = browse(
+        &server.url,
+        "slow",
+        &[
+            ("scene", "cornell-box"),
+            ("size", "640x480"),
+            ("bandBudget", "0"),
+            ("inputs", "2"),
+            ("settle", "2"),
+            ("api", api),
+        ],
+    );
+    no_page_error(&unsplit);
+    let unsplit_latencies = restart_latencies(&unsplit, false);
+    assert_eq!(unsplit["info"]["bands"], 1);
+    assert!(unsplit["readout"].as_str().unwrap_or("").contains("not split"), "{}", unsplit["readout"]);
+    eprintln!(
+        "unsplit: whole frame {:.0} ms; input to restarted frame done (ms): {unsplit_latencies:.0?}; split/unsplit median \
+         {:.3}",
+        unsplit["frameMs"].as_f64().unwrap_or(f64::NAN),
+        m / median(&unsplit_latencies)
+    );
+    assert!(m * 4.0 < median(&unsplit_latencies), "splitting shortens the restart: {m} vs {unsplit_latencies:?}");
+}
+
+/// A frame drawn in bands of rows (scissor rectangles of the same pass, as the page's frame
+/// loop submits them) is the frame drawn whole, exactly: the per-pixel random sequence depends
+/// on the pixel and the frame, not on the submission. Bands of uneven heights that change
+/// within and across frames, through `GlRenderer::render_band` and through the fenced
+/// `Pacer`; and a restart in the middle of a split frame leaves nothing of it behind. Native GL.
+#[test]
+fn a_frame_split_into_bands_is_the_unsplit_frame() {
+    use tracer::backend::frame_split::Step;
+    use tracer::backend::gl::GlRenderer;
+    use tracer::backend::gl::Pacer;
+    let scene = scene::cornell_box();
+    let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
+    let settings = RenderSettings { width: 40, height: 36, strategy: Strategy::Mis, max_depth: SERVED_MAX_DEPTH };
+    let base = pack(&scene, &bvh, &settings).expect("pack");
+    let renderer = || GlRenderer::headless(base.clone(), 3).expect("GL");
+    common::bands::assert_bands_make_the_whole_frame(&mut renderer(), &mut renderer(), 36);
+
+    // The page's loop: fenced bands, one in flight, heights from the measured (here: a
+    // simulated 30 ms per step) times.
+    let mut paced = GlRenderer::headless(base.clone(), 3).expect("GL");
+    let mut pacer = Pacer::new(36, Some(BAND_BUDGET_MS));
+    let (mut now, mut submitted) = (0.0, 0);
+    while paced.frames() < 2 {
+        now += 30.0;
+        if let Step::Submitted { .. } = pacer.step(&mut paced, now, |_, _| {}).expect("step") {
+            submitted += 1;
+        }
+    }
+    pacer.forget(paced.gl());
+    let mut two = GlRenderer::headless(base, 3).expect("GL");
+    two.render_frame().expect("frame");
+    two.render_frame().expect("frame");
+    assert!(submitted > 2, "the pacer split the frames: {submitted} bands");
+    common::bands::assert_same(&two, &paced, "paced bands");
+}

@@ -1,0 +1,460 @@
+//! Code generation: snapshots of every generated file, validation of every output, mapping
+//! of validation errors back to the Rust source, determinism, naming, and the divergence
+//! rules of DESIGN.md principle 2 as they appear in the emitted code.
+
+// The `#[kernel]` modules here are read as IR and generated, not called as Rust.
+#![allow(dead_code)]
+
+use lightport_codegen::{validate, Program, Selection, Target};
+
+#[kernel_dsl::kernel]
+pub mod subset {
+    //! A kernel module touching every construct of the subset.
+    use glam::{UVec4, Vec2, Vec3, Vec4, Vec4Swizzles};
+    use kernel_dsl::Texels;
+
+    pub const N: usize = 4;
+    pub const SCALE: f32 = 2.0 * 0.25;
+
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct Inner {
+        pub a: f32,
+        pub b: u32,
+    }
+
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct Outer {
+        pub inner: Inner,
+        pub v: Vec3,
+        pub values: [f32; N],
+    }
+
+    #[resources]
+    pub struct Data {
+        pub texels: Texels<Vec4>,
+        pub words: Texels<UVec4>,
+        pub gain: f32,
+        pub count: u32,
+    }
+
+    pub fn bump(state: &mut u32, by: u32) {
+        *state = state.wrapping_add(by);
+    }
+
+    /// `if` values of struct type: in a `let`, an assignment, a `return` and a tail. WGSL's
+    /// `select` takes scalars and vectors only, so these become statements there.
+    pub fn pick(a: Inner, b: Inner, first: bool) -> Inner {
+        let chosen = if first { a } else { b };
+        let mut other = a;
+        if chosen.b > 3 {
+            other = if chosen.a > 1.0 { b } else { a };
+        }
+        if other.b > chosen.b {
+            return if first { other } else { chosen };
+        }
+        if first {
+            b
+        } else {
+            a
+        }
+    }
+
+    pub fn set_field(o: &mut Outer, x: f32) {
+        o.inner.a = x;
+        o.values[1] = x * 2.0;
+    }
+
+    /// Shadowing, reserved names, control flow and every cast.
+    pub fn everything(data: &Data, input: f32, sample: i32) -> Vec4 {
+        let texture = input * SCALE;
+        let texture = texture + 1.0;
+        let mut acc = 0.0;
+        for i in 0..N {
+            acc += i as f32;
+        }
+        for i in 1..=3u32 {
+            acc += (i * 2) as f32;
+        }
+        let mut k = 0;
+        while k < 10 {
+            k += 3;
+        }
+        let mut state = 7u32;
+        loop {
+            bump(&mut state, 5);
+            if state > 20 {
+                break;
+            }
+            if state == 12 {
+                continue;
+            }
+        }
+        let kind = match sample {
+            0 => 1.0,
+            1 | 2 => 2.0,
+            _ => 3.0,
+        };
+        let sign = if input < 0.0 { -1.0 } else { 1.0 };
+        let mut o = Outer { inner: Inner { a: 0.0, b: 3 }, v: Vec3::new(1.0, 2.0, 3.0), values: [0.0; N] };
+        set_field(&mut o, texture);
+        let q = sample / 2 + sample % 3;
+        let bits = input.to_bits() ^ (state << 3);
+        let t = data.texels.fetch(data.count).xyz() * data.gain;
+        let w = data.words.fetch(0).x;
+        let u = (input * 1000.0) as u32;
+        let iv = input as i32;
+        let fu = w as f32 + u as f32;
+        let fi = q as f32 + iv as f32;
+        let r = input.round() + input.fract() + input.signum() + (input % 1.5);
+        let n = Vec2::new(acc, kind).normalize().extend(sign).extend(o.values[1]);
+        if input.is_nan() || !input.is_finite() {
+            return Vec4::ZERO;
+        }
+        n + Vec4::new(t.x + fu, fi + r, (bits & 255) as f32 + k as f32, o.inner.a + o.inner.b as f32)
+    }
+}
+
+fn tracer_program() -> Program {
+    Program::link(&tracer::kernel::modules()).expect("the tracer's kernel links")
+}
+
+/// The committed `shaders-generated/` is the one stored copy of each generated file (its git
+/// diff is the review a snapshot tool would give): it must be what the kernel generates now.
+#[test]
+fn every_generated_file_matches_the_committed_file() {
+    let files = tracer::kernel::generated_shaders().expect("generation and validation succeed");
+    assert!(files.len() >= 16, "one GLSL and one WGSL file per kernel module");
+    for f in &files {
+        let committed =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders-generated/").to_string() + &f.name)
+                .unwrap_or_default();
+        assert!(committed == f.source, "shaders-generated/{} is stale: run `cargo run -- shaders`", f.name);
+    }
+    // And nothing else: a file no kernel module generates any more is stale too (CI's only
+    // freshness check, as `lightport shaders --check` is; this one shares the test build).
+    let dir = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders-generated")).expect("shaders-generated/");
+    for entry in dir {
+        let name = entry.expect("directory entry").file_name().to_string_lossy().into_owned();
+        let shader = name.ends_with(".glsl") || name.ends_with(".wgsl");
+        assert!(
+            !shader || files.iter().any(|f| f.name == name),
+            "shaders-generated/{name}: no kernel module generates it any more: run `cargo run -- shaders`"
+        );
+    }
+}
+
+#[test]
+fn the_subset_module_generates_valid_glsl_and_wgsl() {
+    let program = Program::link(&[subset::kernel_ir()]).expect("links");
+    for target in [Target::GlslEs300, Target::Wgsl] {
+        let g = program.emit(target, &Selection::default()).expect("emits");
+        validate::validate(&g).unwrap_or_else(|e| panic!("{e}\n{}", g.source));
+        insta::assert_snapshot!(format!("subset.{}", target.extension()), g.source);
+    }
+}
+
+#[test]
+fn the_header_says_how_to_regenerate_only_when_the_caller_says_so() {
+    let program = Program::link(&[subset::kernel_ir()]).unwrap();
+    for target in [Target::GlslEs300, Target::Wgsl] {
+        let plain = program.emit(target, &Selection::default()).unwrap().source;
+        let header = plain.lines().find(|l| l.starts_with("// Generated")).expect("a header line");
+        assert!(header.ends_with("(modules: subset). Do not edit."), "{header}");
+        assert!(!plain.contains("cargo run"), "a user's shader names no command of this repository");
+        let selection = Selection { regenerate: Some("run `make shaders`".into()), ..Selection::default() };
+        let noted = program.emit(target, &selection).unwrap().source;
+        assert!(noted.contains("(modules: subset). Do not edit: run `make shaders`.\n"), "{noted}");
+    }
+}
+
+#[test]
+fn the_subset_module_runs_on_the_cpu() {
+    let data = subset::Data {
+        texels: kernel_dsl::Texels::new(vec![glam::Vec4::ONE; 4]),
+        words: kernel_dsl::Texels::new(vec![glam::UVec4::splat(9)]),
+        gain: 2.0,
+        count: 3,
+    };
+    let v = subset::everything(&data, 0.75, 2);
+    assert!(v.is_finite());
+    assert_eq!(subset::everything(&data, f32::NAN, 0), glam::Vec4::ZERO);
+}
+
+#[test]
+fn output_is_deterministic() {
+    for target in [Target::GlslEs300, Target::Wgsl] {
+        let a = tracer_program().emit(target, &Selection::default()).unwrap().source;
+        let b = tracer_program().emit(target, &Selection::default()).unwrap().source;
+        assert_eq!(a, b);
+    }
+}
+
+#[test]
+fn each_function_names_its_rust_source() {
+    let g = tracer_program()
+        .emit(Target::GlslEs300, &Selection { roots: vec!["wang_hash".into()], ..Default::default() })
+        .unwrap();
+    assert!(g.source.contains("// rng::wang_hash (lightport-tracer/src/kernel/rng.rs:7)"), "{}", g.source);
+    // Only what the root needs is emitted.
+    assert!(!g.source.contains("random_float"));
+}
+
+#[test]
+fn generated_identifiers_avoid_reserved_words_and_double_underscores() {
+    let program = Program::link(&[subset::kernel_ir()]).unwrap();
+    let g = program.emit(Target::GlslEs300, &Selection::default()).unwrap();
+    assert!(g.source.contains("float texture_ = input_ * SCALE;"), "{}", g.source);
+    assert!(!g.source.contains("__"), "{}", g.source);
+    assert!(g.source.contains("sample_"));
+}
+
+#[test]
+fn divergent_semantics_use_the_helpers() {
+    let program = Program::link(&[subset::kernel_ir()]).unwrap();
+    let glsl = program.emit(Target::GlslEs300, &Selection::default()).unwrap().source;
+    let wgsl = program.emit(Target::Wgsl, &Selection::default()).unwrap().source;
+    for helper in [
+        "lp_f32_to_u32(",
+        "lp_f32_to_i32(",
+        "lp_u32_to_f32(",
+        "lp_i32_to_f32(",
+        "lp_round(",
+        "lp_signum(",
+        "lp_is_nan(",
+    ] {
+        assert!(glsl.contains(helper), "GLSL lacks {helper}");
+        assert!(wgsl.contains(helper), "WGSL lacks {helper}");
+    }
+    // GLSL ES leaves negative integer division undefined and floors `mod`; WGSL matches Rust.
+    assert!(glsl.contains("lp_div_i32(") && glsl.contains("lp_rem_i32(") && glsl.contains("lp_fmod_f32("));
+    assert!(!wgsl.contains("lp_div_i32"));
+    // Shift amounts: WGSL needs u32; `x << 3` stays a shift.
+    assert!(wgsl.contains("<< 3u"));
+}
+
+#[test]
+fn wgsl_validation_errors_point_at_the_rust_function() {
+    let program = tracer_program();
+    let mut g =
+        program.emit(Target::Wgsl, &Selection { roots: vec!["pixel_seed".into()], ..Default::default() }).unwrap();
+    // Break the body of `pixel_seed` the way a codegen bug would: a type error.
+    g.source = g.source.replace("    let s: u32 = wang_hash(", "    let bad: u32 = 1.5;\n    let s: u32 = wang_hash(");
+    assert!(g.source.contains("let bad"), "the corruption must apply:\n{}", g.source);
+    let err = validate::validate(&g).expect_err("naga must reject a f32 returned as u32");
+    let text = err.to_string();
+    assert!(text.contains("lightport-tracer/src/kernel/rng.rs:") && text.contains("rng::pixel_seed"), "{text}");
+}
+
+#[test]
+fn glsl_parse_errors_point_at_the_rust_function() {
+    let program = tracer_program();
+    let mut g =
+        program.emit(Target::GlslEs300, &Selection { roots: vec!["random_u32".into()], ..Default::default() }).unwrap();
+    g.source = g.source.replace("state ^= state << 13;", "state ^= state << ;");
+    let err = validate::validate(&g).expect_err("glsl-lang must reject a syntax error");
+    assert!(err.to_string().contains("rng::random_u32"), "{err}");
+}
+
+#[test]
+fn link_errors_name_the_rust_location() {
+    let m = subset::kernel_ir();
+    let err = Program::link(&[m.clone(), m]).expect_err("duplicate names are refused");
+    let text = err.to_string();
+    assert!(text.contains("tests/kernel/codegen.rs:") && text.contains("also defined"), "{text}");
+}
+
+#[test]
+fn every_supported_method_is_implemented_for_some_type() {
+    use lightport_codegen::types::{method_result, Ty, F32, I32, U32};
+    let vec3 = Ty::builtin("Vec3").unwrap();
+    let vec4 = Ty::builtin("Vec4").unwrap();
+    let texels = Ty::Texels(Box::new(vec4.clone()));
+    for m in kernel_dsl::ir::SUPPORTED_METHODS {
+        let found = [F32, I32, U32, vec3.clone(), vec4.clone(), texels.clone()].iter().any(|t| {
+            (0..3).any(|arity| method_result(t, m, &vec![t.clone(); arity]).is_some())
+                || method_result(t, m, &[U32]).is_some()
+                || method_result(t, m, &[F32]).is_some()
+                || method_result(t, m, &[vec3.clone(), F32]).is_some()
+        });
+        assert!(found, "`{m}` is accepted by the macro but no type implements it in codegen");
+    }
+}
+
+#[test]
+fn specialisation_removes_unused_features_code_and_data() {
+    use tracer::kernel::Features;
+    let all = tracer::kernel::path_tracer_shader(&Features::all(), Target::GlslEs300).unwrap().source;
+    let cornell = Features { emissive_triangles: true, ..Default::default() };
+    let small = tracer::kernel::path_tracer_shader(&cornell, Target::GlslEs300).unwrap().source;
+    assert!(small.len() < all.len() * 9 / 10, "{} vs {} bytes", small.len(), all.len());
+    for gone in ["scene_sky", "sky_radiance", "sample_texture", "scene_texture_texels", "scene_shading", "LIGHT_POINT"]
+    {
+        assert!(all.contains(gone), "the full kernel has {gone}");
+        assert!(!small.contains(gone), "a scene without it must not carry {gone}");
+    }
+    assert!(small.contains("void main()") && small.contains("render_sample(pixel.x, pixel.y)"));
+}
+
+#[test]
+fn every_kernel_function_has_a_valid_equivalence_harness() {
+    let program = tracer_program();
+    let mut checked = 0;
+    for module in tracer::kernel::modules() {
+        for item in &module.items {
+            let kernel_dsl::ir::Item::Fn(f) = item else { continue };
+            for target in [Target::GlslEs300, Target::Wgsl] {
+                let g = program.emit(target, &Selection::harness(&f.name)).expect("harness emits");
+                validate::validate(&g).unwrap_or_else(|e| panic!("harness of {}: {e}\n{}", f.name, g.source));
+                let h = g.harness.expect("layout");
+                assert!(h.output_words <= 16, "{}: at most 4 RGBA32UI attachments", f.name);
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked > 30, "{checked} functions");
+    // The layout of a known function: intersect_triangle(origin, dir, v0, v1, v2) -> TriangleHit.
+    let g = program.emit(Target::GlslEs300, &Selection::harness("intersect_triangle")).unwrap();
+    let h = g.harness.unwrap();
+    assert_eq!((h.input_words, h.output_words), (15, 3));
+    // random_float(&mut u32) -> f32: one word in, the result and the new state out.
+    let g = program.emit(Target::Wgsl, &Selection::harness("random_float")).unwrap();
+    let h = g.harness.unwrap();
+    assert_eq!((h.input_words, h.output_words), (1, 2));
+}
+
+/// A user's kernel that imports one of the tracer's, as a crate depending on `lightport-tracer` would.
+#[kernel_dsl::kernel]
+pub mod user_noise {
+    use tracer::kernel::rng::random_float;
+
+    /// A uniform value in [-1, 1).
+    pub fn signed_noise(state: &mut u32) -> f32 {
+        random_float(state) * 2.0 - 1.0
+    }
+}
+
+#[test]
+fn source_tags_name_the_package_not_the_machine() {
+    // Every tag is `<package>/<path in the package>`, whatever directory the crate was built in.
+    let program = Program::link(&[user_noise::kernel_ir(), tracer::kernel::rng::kernel_ir()]).unwrap();
+    let source = program.emit(Target::Wgsl, &Selection::module(&program, "user_noise")).unwrap().source;
+    assert!(source.contains("// user_noise::signed_noise (lightport/tests/kernel/codegen.rs:"), "{source}");
+    assert!(source.contains("// rng::random_float (lightport-tracer/src/kernel/rng.rs:"), "{source}");
+    for module in tracer::kernel::modules() {
+        assert!(module.file.starts_with("lightport-tracer/src/kernel/"), "{}", module.file);
+    }
+    // The header names no repository command.
+    assert!(!source.contains("cargo run"), "{source}");
+}
+
+mod build_script {
+    use super::*;
+    use lightport_codegen::build::{self, BuildError, Shaders};
+
+    fn temp_dir(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("lightport-build-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        dir
+    }
+
+    #[test]
+    fn write_shaders_writes_each_module_in_each_language_validated() {
+        let dir = temp_dir("modules");
+        let modules = [user_noise::kernel_ir(), tracer::kernel::rng::kernel_ir()];
+        let written = build::write_shaders(&modules, &dir).expect("generates, validates and writes");
+        let names: Vec<String> =
+            written.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+        assert_eq!(names, ["user_noise.glsl", "user_noise.wgsl", "rng.glsl", "rng.wgsl"]);
+        let program = Program::link(&modules).unwrap();
+        let wgsl = std::fs::read_to_string(dir.join("user_noise.wgsl")).unwrap();
+        let expected = Selection { regenerate: None, ..Selection::module(&program, "user_noise") };
+        let plain = program.emit(Target::Wgsl, &expected).unwrap().source;
+        // The same code as `emit`; only the header says how the file is regenerated.
+        assert_eq!(wgsl.lines().skip(1).collect::<Vec<_>>(), plain.lines().skip(1).collect::<Vec<_>>());
+        assert!(wgsl.lines().next().unwrap().contains("regenerated by the build script"), "{wgsl}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn an_unchanged_file_is_not_rewritten_and_a_stale_one_is() {
+        let dir = temp_dir("fresh");
+        let shaders = Shaders::new(&[user_noise::kernel_ir(), tracer::kernel::rng::kernel_ir()])
+            .module("user_noise")
+            .targets(&[Target::Wgsl]);
+        let written = shaders.clone().write(&dir).unwrap();
+        assert_eq!(written, [dir.join("user_noise.wgsl")], "only the file asked for");
+        let path = &written[0];
+        let old = std::time::SystemTime::UNIX_EPOCH + std::time::Duration::from_secs(1_000_000_000);
+        std::fs::File::options().write(true).open(path).unwrap().set_modified(old).unwrap();
+        shaders.clone().write(&dir).unwrap();
+        assert_eq!(std::fs::metadata(path).unwrap().modified().unwrap(), old, "an unchanged file keeps its time");
+        std::fs::write(path, "stale").unwrap();
+        shaders.write(&dir).unwrap();
+        assert!(std::fs::read_to_string(path).unwrap().contains("fn signed_noise("), "a stale file is rewritten");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn an_entry_point_selection_writes_a_fragment_shader_and_a_compute_shader() {
+        let shaders = Shaders::new(&tracer::kernel::modules())
+            .selection("cornell", Selection::entry("render_sample", Default::default()));
+        let names: Vec<String> = shaders.generate().unwrap().into_iter().map(|(name, _)| name).collect();
+        assert_eq!(names, ["cornell.frag.glsl", "cornell.wgsl"]);
+    }
+
+    #[test]
+    fn errors_name_the_kernel_source_and_nothing_is_written() {
+        let dir = temp_dir("errors");
+        // The same module twice: its items are defined twice, a link error at the Rust source.
+        let twice = [user_noise::kernel_ir(), user_noise::kernel_ir()];
+        let err = build::write_shaders(&twice, &dir).unwrap_err();
+        assert!(matches!(err, BuildError::Codegen(_)), "{err}");
+        // A build script's `main` prints the error's Debug: the located message, not a struct.
+        assert!(format!("{err:?}").starts_with("lightport/tests/kernel/codegen.rs:"), "{err:?}");
+        assert!(!dir.exists(), "nothing is written when anything fails");
+
+        let modules = [user_noise::kernel_ir(), tracer::kernel::rng::kernel_ir()];
+        let err = Shaders::new(&modules).module("blur").write(&dir).unwrap_err();
+        assert_eq!(err.to_string(), "no kernel module `blur` among those linked (user_noise, rng)");
+        assert!(!dir.exists());
+    }
+}
+
+#[test]
+fn the_scene_decides_the_traversal_stack_on_every_gpu_target() {
+    use tracer::kernel::{Features, RenderSettings};
+    use tracer::pack::pack;
+    let cornell = tracer::scene::cornell_box();
+    let bvh = tracer::bvh::build(&cornell.triangles).unwrap();
+    let packed = pack(&cornell, &bvh, &RenderSettings::default()).unwrap();
+    let stack = packed.features.traversal_stack;
+    assert!((1..16).contains(&stack), "the Cornell box needs a few entries: {stack}");
+    for target in [Target::GlslEs300, Target::Wgsl] {
+        let sized = tracer::kernel::path_tracer_shader(&packed.features, target).unwrap().source;
+        let full = tracer::kernel::path_tracer_shader(&Features { traversal_stack: 0, ..packed.features }, target)
+            .unwrap()
+            .source;
+        let (decl_sized, decl_full) = match target {
+            Target::GlslEs300 => (format!("const uint STACK_SIZE = {stack}u;"), "const uint STACK_SIZE = 64u;".into()),
+            Target::Wgsl => (format!("const STACK_SIZE: u32 = {stack}u;"), "const STACK_SIZE: u32 = 64u;".to_string()),
+        };
+        assert!(sized.contains(&decl_sized) && full.contains(&decl_full), "{target:?}:\n{sized}");
+        // The arrays themselves are sized to it, not only the bound checks.
+        let array = match target {
+            Target::GlslEs300 => format!("uint stack[{stack}]"),
+            Target::Wgsl => format!("var stack: array<u32, {stack}>;"),
+        };
+        assert!(sized.contains(&array) && !full.contains(&array), "{target:?}: {array}\n{sized}");
+        // The committed Cornell variant is this scene's kernel.
+        let name = match target {
+            Target::GlslEs300 => "path_tracer_cornell.frag.glsl",
+            Target::Wgsl => "path_tracer_cornell.wgsl",
+        };
+        let committed =
+            std::fs::read_to_string(format!("{}/shaders-generated/{name}", env!("CARGO_MANIFEST_DIR"))).unwrap();
+        // Everything but the header, which says how the committed file is regenerated.
+        let body =
+            |s: &str| s.lines().filter(|l| !l.starts_with("// Generated by")).map(str::to_string).collect::<Vec<_>>();
+        assert_eq!(body(&committed), body(&sized), "shaders-generated/{name} is not the packed Cornell box's kernel");
+    }
+}

@@ -1,0 +1,191 @@
+//! The kernel's BVH traversal (DSL code, run on the CPU over the packed arrays) finds the
+//! same closest hits as brute force over the packed triangles.
+
+use crate::common;
+
+use common::node_child_box;
+use glam::Vec3;
+use tracer::kernel::intersect::{intersect_aabb, intersect_triangle, safe_inverse, MISS};
+use tracer::kernel::scene_data::{fetch_triangle, NODE_TEXELS, NONE};
+use tracer::kernel::traverse::{intersect_node, near_planes, occluded, trace_closest, STACK_SIZE};
+use tracer::kernel::RenderSettings;
+use tracer::pack::pack;
+use tracer::scene::{self, Scene};
+
+struct XorShift(u32);
+impl XorShift {
+    fn next(&mut self) -> f32 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 17;
+        self.0 ^= self.0 << 5;
+        (self.0 >> 8) as f32 / 16_777_216.0
+    }
+    fn in_box(&mut self, lo: Vec3, hi: Vec3) -> Vec3 {
+        lo + (hi - lo) * Vec3::new(self.next(), self.next(), self.next())
+    }
+}
+
+fn check(scene: &Scene, rays: usize) {
+    let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
+    let packed = pack(scene, &bvh, &RenderSettings::default()).expect("pack");
+    let k = &packed.scene;
+    // The same traversal with every leaf intersected as soon as its node is visited (the path
+    // taken beyond `leaf_stack_limit`) must meet the same standard.
+    let mut leaves_at_once = k.clone();
+    leaves_at_once.leaf_stack_limit = 0;
+    let n = packed.triangle_count as u32;
+    let b = scene.bounds();
+    let (lo, hi) = (b.min - b.diagonal() * 0.25, b.max + b.diagonal() * 0.25);
+    let mut rng = XorShift(12345);
+    let (mut hits, mut ties) = (0, 0);
+    for _ in 0..rays {
+        let origin = rng.in_box(lo, hi);
+        let dir = (rng.in_box(b.min, b.max) - origin).normalize();
+        let mut best = (NONE, MISS);
+        for i in 0..n {
+            let t = fetch_triangle(k, i);
+            let h = intersect_triangle(origin, dir, t.v0, t.v1, t.v2);
+            if h.t < best.1 {
+                best = (i, h.t);
+            }
+        }
+        if best.0 != NONE {
+            hits += 1;
+        }
+        for traversal in [k, &leaves_at_once] {
+            let got = trace_closest(traversal, origin, dir, MISS);
+            if got.triangle != best.0 {
+                // Only a near-tie (two triangles at the same distance, e.g. a shared edge) may
+                // differ.
+                assert!(
+                    got.triangle != NONE && (got.t - best.1).abs() <= 1e-5 * best.1.max(1.0),
+                    "ray {origin:?} {dir:?} (leaf stack limit {}): BVH {:?} vs brute force {best:?}",
+                    traversal.leaf_stack_limit,
+                    (got.triangle, got.t)
+                );
+                // Exact ties (another triangle at the very same distance, as in a stack of
+                // identical triangles) are not counted: only rounding near-misses are.
+                if got.t != best.1 {
+                    ties += 1;
+                }
+            } else {
+                assert_eq!(got.t, best.1);
+            }
+        }
+        // The shadow test agrees with the closest hit.
+        assert_eq!(occluded(k, origin, dir, MISS), best.0 != NONE);
+        if best.0 != NONE {
+            assert!(!occluded(k, origin, dir, best.1 * 0.999));
+        }
+    }
+    assert!(hits > rays / 10, "too few rays hit ({hits} of {rays}): the test would prove little");
+    check_node_tests(k, &mut rng);
+    assert!(ties < 2 * rays / 100, "{ties} near-ties out of {rays} rays, two traversals each");
+}
+
+/// The four-lane node test gives, lane by lane, exactly `intersect_aabb` on each child's box
+/// (and a miss for unused slots), for rays through every node, axis-parallel ones from face
+/// planes included.
+fn check_node_tests(k: &tracer::kernel::scene_data::Scene, rng: &mut XorShift) {
+    let nodes = k.nodes.as_slice();
+    let mut rare = 0;
+    for node in 0..(nodes.len() as u32 / NODE_TEXELS) {
+        for ray in 0..24 {
+            let c = ray % 4;
+            let (lo, hi) = node_child_box(k, node, c);
+            let used = lo.cmple(hi).all();
+            let target = if used { rng.in_box(lo, hi) } else { Vec3::ZERO };
+            let (origin, dir) = if ray % 3 == 0 {
+                // Axis-parallel, starting on one of the child's face planes.
+                let axis = (ray / 3) % 3;
+                let mut dir = Vec3::ZERO;
+                dir[axis] = if rng.next() < 0.5 { 1.0 } else { -1.0 };
+                let mut origin = target - dir * 10.0;
+                let face = (axis + 1) % 3;
+                origin[face] = if rng.next() < 0.5 { lo[face] } else { hi[face] };
+                rare += 1;
+                (origin, dir)
+            } else {
+                let origin = target + (Vec3::new(rng.next(), rng.next(), rng.next()) - 0.5) * 20.0;
+                (origin, (target - origin).normalize_or(Vec3::Y))
+            };
+            let t_max = if ray % 5 == 0 { 2.0 * rng.next() } else { MISS };
+            let inv = safe_inverse(dir);
+            let got = intersect_node(k, node, origin, inv, near_planes(inv), t_max).t.to_array();
+            for (lane, got) in got.into_iter().enumerate() {
+                let (lo, hi) = node_child_box(k, node, lane);
+                let want = if lo.cmple(hi).all() { intersect_aabb(origin, inv, lo, hi, t_max) } else { MISS };
+                assert_eq!(
+                    got.to_bits(),
+                    want.to_bits(),
+                    "node {node} lane {lane}, ray {origin:?} {dir:?} t_max {t_max}"
+                );
+            }
+        }
+    }
+    assert!(rare > 0);
+}
+
+#[test]
+fn cornell_box() {
+    check(&scene::cornell_box(), 20_000);
+}
+
+#[test]
+fn duck() {
+    let path = common::test_data("scenes/khronos/Duck/glTF/Duck.gltf");
+    check(&scene::load(&path).expect("Duck loads"), 3_000);
+}
+
+#[test]
+fn random_triangle_soup() {
+    let mut rng = XorShift(777);
+    let mut s = scene::cornell_box();
+    s.triangles.clear();
+    for _ in 0..2000 {
+        let c = rng.in_box(Vec3::splat(-1.0), Vec3::splat(1.0));
+        let mut t = scene::cornell_box().triangles[0];
+        t.positions = [
+            c,
+            c + rng.in_box(Vec3::splat(-0.1), Vec3::splat(0.1)),
+            c + rng.in_box(Vec3::splat(-0.1), Vec3::splat(0.1)),
+        ];
+        s.triangles.push(t);
+    }
+    check(&s, 5_000);
+}
+
+/// A chain of leaves (nested triangles, each a little larger than the last, build one;
+/// identical ones did too before `tracer::bvh` split them evenly) is too deep to push every
+/// leaf: packing lowers `leaf_stack_limit`, and traversal still finds every hit.
+#[test]
+fn chain_of_nested_triangles() {
+    let mut s = scene::cornell_box();
+    let template = s.triangles[0];
+    let centre = Vec3::new(0.0, 0.7, 0.0);
+    s.triangles.extend((0..1500).map(|i| {
+        let r = 0.002 * 1.004f32.powi(i);
+        let mut t = template;
+        t.positions = [Vec3::new(-r, -r, -r), Vec3::new(r, -r, -r), Vec3::new(0.0, r, r)].map(|p| centre + p);
+        t
+    }));
+    let bvh = tracer::bvh::build(&s.triangles).expect("BVH");
+    let wide = bvh.widen().expect("wide BVH");
+    let stack = STACK_SIZE as u32;
+    assert!(wide.stack_needed_with_leaves > stack, "the chain should not fit with leaves pushed: {wide:?}");
+    let packed = pack(&s, &bvh, &RenderSettings::default()).expect("pack");
+    assert_eq!(packed.scene.leaf_stack_limit, stack - wide.stack_needed);
+    assert_eq!(packed.features.traversal_stack, stack, "a tree this deep keeps the whole stack");
+    check(&s, 2_000);
+}
+
+#[test]
+fn trees_that_fit_push_every_leaf() {
+    let s = scene::cornell_box();
+    let bvh = tracer::bvh::build(&s.triangles).expect("BVH");
+    let packed = pack(&s, &bvh, &RenderSettings::default()).expect("pack");
+    // The GPU kernel's stack is sized to the tree, and the limit never stops a push.
+    let need = bvh.widen().expect("wide BVH").stack_needed_with_leaves;
+    assert!(need < STACK_SIZE as u32);
+    assert_eq!((packed.features.traversal_stack, packed.scene.leaf_stack_limit), (need, need));
+}

@@ -1,0 +1,379 @@
+//! [`WgpuRenderer`]: the kernel's compute pipeline on a [`WgpuDevice`], one dispatch per frame
+//! (or per band of rows) into the accumulation buffer.
+
+use std::sync::{Arc, Mutex};
+
+use glam::Vec4;
+use lightport_codegen::Target;
+use wgpu::util::DeviceExt;
+
+use super::{
+    bind_groups, check_scene_limits, oneshot, reflect, scene_uniform_bytes, start_pipeline, storage_limit,
+    u32_uniform_bytes, upload_scene, BufferEntry, OwnResource, PipelineCheck, UniformLayout, WgpuDevice, WgpuError,
+    WgpuInfo, WgpuOptions, ACCUMULATION_BUFFER, TARGET_UNIFORM, WORKGROUP_SIZE,
+};
+use crate::backend::{
+    frame_seed, ms_since, update_uniforms, BuildTimes, PendingAccumulation, RenderError, Renderer, RendererInfo,
+};
+use crate::kernel::scene_data::Scene;
+use crate::pack::Packed;
+
+/// The GPU objects a renderer draws with.
+struct Pipeline {
+    pipeline: wgpu::ComputePipeline,
+    bind_groups: Vec<wgpu::BindGroup>,
+    scene_uniform: Option<(wgpu::Buffer, UniformLayout)>,
+    accumulation: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    /// `lp_target` (the image width and the band of rows a dispatch covers) and its layout.
+    target: (wgpu::Buffer, OwnResource),
+    /// Workgroups across the image.
+    workgroups_x: u32,
+    /// What creating the pipeline took on this thread.
+    times: BuildTimes,
+}
+
+/// The kernel on a wgpu device. Create it from a [`Packed`] scene;
+/// [`render_frame`](Self::render_frame) adds one sample per pixel; [`image`](Self::image) reads
+/// the mean back, as [`CpuRenderer`](super::cpu::CpuRenderer) does.
+pub struct WgpuRenderer {
+    device: WgpuDevice,
+    packed: Packed,
+    seed: u32,
+    frames: u32,
+    /// The first row of the current frame not rendered yet (0 between frames).
+    band_row: u32,
+    pipeline: Pipeline,
+    /// The first error wgpu reported outside an error scope (e.g. a lost device).
+    uncaptured: Arc<Mutex<Option<String>>>,
+}
+
+impl WgpuRenderer {
+    /// A renderer on `device` for `packed`; `seed` selects the random sequence, as for the CPU
+    /// backend.
+    pub async fn new(device: WgpuDevice, packed: Packed, seed: u32, options: &WgpuOptions) -> Result<Self, WgpuError> {
+        let (renderer, check) = Self::create(device, packed, seed, options)?;
+        check.await?;
+        Ok(renderer)
+    }
+
+    /// [`new`](Self::new) without waiting for the shader compiler's verdict: the renderer at
+    /// once (its frames queue behind the compilation) and the check that reports whether the
+    /// pipeline compiled. Limits are checked before anything is created. For callers that
+    /// cannot await here (the browser's viewer).
+    pub fn create(
+        device: WgpuDevice,
+        packed: Packed,
+        seed: u32,
+        options: &WgpuOptions,
+    ) -> Result<(Self, PipelineCheck), WgpuError> {
+        let uncaptured = Arc::new(Mutex::new(None));
+        let sink = uncaptured.clone();
+        device.device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            let mut slot = sink.lock().unwrap_or_else(|p| p.into_inner());
+            slot.get_or_insert_with(|| e.to_string());
+        }));
+        let (pipeline, check) = build(&device, &packed, options)?;
+        let mut device = device;
+        device.info.max_storage_buffer_binding_size = storage_limit(&device.limits, options);
+        Ok((WgpuRenderer { device, packed, seed, frames: 0, band_row: 0, pipeline, uncaptured }, check))
+    }
+
+    /// A renderer on its own native device (Vulkan, Metal or DX12).
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn headless(packed: Packed, seed: u32) -> Result<Self, WgpuError> {
+        Self::headless_with_options(packed, seed, &WgpuOptions::default())
+    }
+
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn headless_with_options(packed: Packed, seed: u32, options: &WgpuOptions) -> Result<Self, WgpuError> {
+        let device = WgpuDevice::native()?;
+        pollster::block_on(Self::new(device, packed, seed, options))
+    }
+
+    /// What creating the renderer took on this thread: generating (and reflecting) the shader,
+    /// creating and filling the buffers, and the pipeline creation calls. WebGPU compiles
+    /// asynchronously: the compile itself ends when the creation's check resolves.
+    pub fn build_times(&self) -> BuildTimes {
+        self.pipeline.times
+    }
+
+    pub fn info(&self) -> &WgpuInfo {
+        &self.device.info
+    }
+
+    pub fn device(&self) -> &WgpuDevice {
+        &self.device
+    }
+
+    /// The first error wgpu reported outside an error scope since the renderer was created.
+    pub fn check_uncaptured(&self) -> Result<(), WgpuError> {
+        let slot = self.uncaptured.lock().unwrap_or_else(|p| p.into_inner());
+        match &*slot {
+            Some(detail) => Err(WgpuError::Wgpu { what: "the device", detail: detail.clone() }),
+            None => Ok(()),
+        }
+    }
+
+    /// Resolves when everything submitted so far has run on the device (never blocks; in the
+    /// browser, `onSubmittedWorkDone`).
+    pub fn done(&self) -> impl std::future::Future<Output = ()> + 'static {
+        let (sender, receiver) = oneshot::channel();
+        self.device.queue.on_submitted_work_done(move || sender.send(()));
+        async move {
+            let _ = receiver.await;
+        }
+    }
+
+    /// The running-sum buffer (rgb: sum of samples, w: finite samples; row-major, row 0 at
+    /// the top), e.g. for a display pass.
+    pub fn accumulation_buffer(&self) -> &wgpu::Buffer {
+        &self.pipeline.accumulation
+    }
+
+    /// Queues the copy of the accumulation into the readback buffer and returns the future
+    /// that resolves once the device has mapped it. One read at a time: a second before the
+    /// first resolved is an error.
+    fn read_back(&self) -> impl std::future::Future<Output = Result<Vec<Vec4>, WgpuError>> + 'static {
+        let p = &self.pipeline;
+        let mut encoder = self.device.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&p.accumulation, 0, &p.readback, 0, p.accumulation.size());
+        self.device.queue.submit([encoder.finish()]);
+        let readback = p.readback.clone();
+        let (sender, receiver) = oneshot::channel();
+        readback.slice(..).map_async(wgpu::MapMode::Read, move |result| sender.send(result));
+        let failed = |detail: String| WgpuError::Wgpu { what: "mapping the readback buffer", detail };
+        let uncaptured = self.check_uncaptured();
+        async move {
+            uncaptured?;
+            receiver
+                .await
+                .ok_or_else(|| failed("the device dropped the request".into()))?
+                .map_err(|e| failed(e.to_string()))?;
+            let texels: Vec<Vec4> = {
+                let view = readback
+                    .slice(..)
+                    .get_mapped_range()
+                    .map_err(|e| WgpuError::Wgpu { what: "reading the readback buffer", detail: e.to_string() })?;
+                bytemuck::pod_collect_to_vec(&view)
+            };
+            readback.unmap();
+            Ok(texels)
+        }
+    }
+}
+
+impl Renderer for WgpuRenderer {
+    fn describe(&self) -> RendererInfo {
+        let info = &self.device.info;
+        let limits = &self.device.limits;
+        RendererInfo {
+            runtime: "wgpu",
+            device: format!("{} ({})", info.adapter, info.backend),
+            limits: vec![
+                ("max_storage_buffer_binding_size", info.max_storage_buffer_binding_size),
+                ("max_buffer_size", info.max_buffer_size),
+                ("max_storage_buffers_per_shader_stage", limits.max_storage_buffers_per_shader_stage as u64),
+            ],
+        }
+    }
+
+    fn frames(&self) -> u32 {
+        self.frames
+    }
+
+    fn packed(&self) -> &Packed {
+        &self.packed
+    }
+
+    fn rows_left(&self) -> u32 {
+        self.packed.scene.height - self.band_row
+    }
+
+    /// The same dispatch as a whole frame over fewer rows, so the pixels and their random
+    /// sequence are the unsplit frame's; each invocation adds its sample in place. See
+    /// [`frame_split`](super::frame_split).
+    fn render_band(&mut self, rows: u32) -> Result<bool, RenderError> {
+        self.check_uncaptured()?;
+        let p = &self.pipeline;
+        let queue = &self.device.queue;
+        let rows = rows.clamp(1, self.rows_left());
+        let (first_row, end_row) = (self.band_row, self.band_row + rows);
+        if let Some((buffer, layout)) = &p.scene_uniform {
+            if let Some((_, offset)) = layout.members.iter().find(|(n, _)| n == "frame_seed") {
+                queue.write_buffer(buffer, *offset as u64, &frame_seed(self.frames, self.seed).to_le_bytes());
+            }
+        }
+        let (target, target_layout) = &p.target;
+        queue.write_buffer(target, 0, &target_bytes(target_layout, self.packed.scene.width, first_row, end_row)?);
+        let mut encoder = self.device.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("lightport frame"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&p.pipeline);
+            for (i, group) in p.bind_groups.iter().enumerate() {
+                pass.set_bind_group(i as u32, group, &[]);
+            }
+            pass.dispatch_workgroups(p.workgroups_x, rows.div_ceil(WORKGROUP_SIZE[1]), 1);
+        }
+        queue.submit([encoder.finish()]);
+        self.band_row = end_row;
+        let frame_done = self.band_row == self.packed.scene.height;
+        if frame_done {
+            self.band_row = 0;
+            self.frames += 1;
+        }
+        Ok(frame_done)
+    }
+
+    /// Waits until the queue is idle. In the browser nothing blocks: it reports the device's
+    /// errors only (await [`WgpuRenderer::done`] instead).
+    fn finish(&self) -> Result<(), RenderError> {
+        #[cfg(not(target_arch = "wasm32"))]
+        self.device
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| WgpuError::Wgpu { what: "waiting for the queue", detail: e.to_string() })?;
+        Ok(self.check_uncaptured()?)
+    }
+
+    /// Natively, [`read_accumulation`](Renderer::read_accumulation) waited for by polling the
+    /// device. In the browser a read-back cannot block: an error.
+    fn accumulation(&self) -> Result<Vec<Vec4>, RenderError> {
+        #[cfg(not(target_arch = "wasm32"))]
+        {
+            let read = self.read_back();
+            self.finish()?;
+            Ok(pollster::block_on(read)?)
+        }
+        #[cfg(target_arch = "wasm32")]
+        Err(RenderError::Unsupported { runtime: "wgpu", what: "cannot block for a read-back in the browser" })
+    }
+
+    fn read_accumulation(&self) -> PendingAccumulation {
+        let read = self.read_back();
+        Box::pin(async move { Ok(read.await?) })
+    }
+
+    /// Rewrites the `scene` uniform; the storage buffers stay as uploaded.
+    fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
+        update_uniforms(&mut self.packed.scene, update)?;
+        if let Some((buffer, layout)) = &self.pipeline.scene_uniform {
+            self.device.queue.write_buffer(buffer, 0, &scene_uniform_bytes(layout, &self.packed.scene)?);
+        }
+        self.restart()
+    }
+
+    fn restart(&mut self) -> Result<(), RenderError> {
+        self.check_uncaptured()?;
+        let mut encoder = self.device.device.create_command_encoder(&Default::default());
+        encoder.clear_buffer(&self.pipeline.accumulation, 0, None);
+        self.device.queue.submit([encoder.finish()]);
+        self.frames = 0;
+        self.band_row = 0;
+        Ok(())
+    }
+}
+
+/// The bytes of `lp_target`: the image's width and the band of rows `[first_row, end_row)`.
+fn target_bytes(target: &OwnResource, width: u32, first_row: u32, end_row: u32) -> Result<Vec<u8>, WgpuError> {
+    u32_uniform_bytes(target, |member| match member {
+        "width" => Some(width),
+        "first_row" => Some(first_row),
+        "end_row" => Some(end_row),
+        _ => None,
+    })
+}
+
+/// Checks the renderer's workgroups and image against the device's limits; returns the
+/// dispatch size of a whole frame.
+fn check_image_limits(limits: &wgpu::Limits, options: &WgpuOptions, scene: &Scene) -> Result<[u32; 2], WgpuError> {
+    for (limit, needed, max) in [
+        ("max_compute_workgroup_size_x", WORKGROUP_SIZE[0] as u64, limits.max_compute_workgroup_size_x as u64),
+        ("max_compute_workgroup_size_y", WORKGROUP_SIZE[1] as u64, limits.max_compute_workgroup_size_y as u64),
+        (
+            "max_compute_invocations_per_workgroup",
+            (WORKGROUP_SIZE[0] * WORKGROUP_SIZE[1]) as u64,
+            limits.max_compute_invocations_per_workgroup as u64,
+        ),
+    ] {
+        if needed > max {
+            return Err(WgpuError::Unsupported { limit, needed, max });
+        }
+    }
+    let (width, height) = (scene.width, scene.height);
+    let pixels_bytes = width as u64 * height as u64 * 16;
+    let binding_max = storage_limit(limits, options);
+    for (limit, max) in [("max_storage_buffer_binding_size", binding_max), ("max_buffer_size", limits.max_buffer_size)]
+    {
+        if pixels_bytes > max {
+            return Err(WgpuError::ImageTooLarge {
+                width,
+                height,
+                what: "the accumulation buffer",
+                needed: pixels_bytes,
+                limit,
+                max,
+            });
+        }
+    }
+    let workgroups = [width.div_ceil(WORKGROUP_SIZE[0]), height.div_ceil(WORKGROUP_SIZE[1])];
+    let max = limits.max_compute_workgroups_per_dimension;
+    if workgroups[0] > max || workgroups[1] > max {
+        return Err(WgpuError::ImageTooLarge {
+            width,
+            height,
+            what: "the dispatch",
+            needed: workgroups[0].max(workgroups[1]) as u64,
+            limit: "max_compute_workgroups_per_dimension",
+            max: max as u64,
+        });
+    }
+    Ok(workgroups)
+}
+
+/// Generates and compiles the shader, uploads the scene and creates the bind groups.
+fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<(Pipeline, PipelineCheck), WgpuError> {
+    let started = web_time::Instant::now();
+    let generated = crate::kernel::path_tracer_shader(&packed.features, Target::Wgsl)?;
+    let layout = reflect(&generated, &[ACCUMULATION_BUFFER, TARGET_UNIFORM])?;
+    let codegen_ms = ms_since(started);
+    let scene = &packed.scene;
+    check_scene_limits(&device.limits, options, scene, &layout)?;
+    let workgroups = check_image_limits(&device.limits, options, scene)?;
+    let d = &device.device;
+    let uploading = web_time::Instant::now();
+    let (mut entries, scene_uniform) = upload_scene(d, &layout, scene)?;
+
+    let (width, height) = (scene.width as u64, scene.height as u64);
+    let accumulation = d.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(ACCUMULATION_BUFFER),
+        size: width * height * 16,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let readback = d.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("accumulation readback"),
+        size: width * height * 16,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    entries.push(BufferEntry::storage(layout.own(ACCUMULATION_BUFFER), accumulation.clone(), false));
+    let target = layout.own(TARGET_UNIFORM).clone();
+    let target_buffer = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(TARGET_UNIFORM),
+        contents: &target_bytes(&target, scene.width, 0, scene.height)?,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+    });
+    entries.push(BufferEntry::uniform(&target, target_buffer.clone()));
+    let (bind_groups, pipeline_layout) = bind_groups(d, &entries);
+    let upload_ms = ms_since(uploading);
+    let compiling = web_time::Instant::now();
+    let (pipeline, check) = start_pipeline(d, &generated, Some(&pipeline_layout));
+    let times = BuildTimes { codegen_ms, compile_ms: ms_since(compiling), upload_ms };
+    let target = (target_buffer, target);
+    let workgroups_x = workgroups[0];
+    Ok((Pipeline { pipeline, bind_groups, scene_uniform, accumulation, readback, target, workgroups_x, times }, check))
+}
