@@ -120,6 +120,13 @@ struct RenderArgs {
     /// The time, in seconds, at which the animation poses the scene (clamped to its keyframes).
     #[arg(long, default_value_t = 0.0, value_name = "SECONDS")]
     time: f32,
+    /// Denoise the image written to --out: an edge-avoiding à-trous filter guided by the first
+    /// hit's albedo, normal and depth, whose strength falls as the noise falls (`tracer::denoise`).
+    #[arg(long)]
+    denoise: bool,
+    /// With --denoise, also write the noisy image here.
+    #[arg(long, value_name = "PATH", requires = "denoise")]
+    noisy: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -174,6 +181,7 @@ impl BackendArg {
 
 fn render(args: &RenderArgs) -> Result<()> {
     use std::time::Instant;
+    use tracer::kernel::denoise::ATROUS_ITERATIONS as ATROUS_PASSES;
     use tracer::kernel::{RenderSettings, Strategy};
 
     if args.spp == 0 {
@@ -233,17 +241,27 @@ fn render(args: &RenderArgs) -> Result<()> {
     let t3 = Instant::now();
     let mut r = tracer::backend::create(args.backend.kind(), packed, args.seed)
         .with_context(|| format!("starting the {} backend", args.backend.kind().name()))?;
+    // With --denoise, each pixel's luminance moments, from each frame's accumulation.
+    let mut moments = args.denoise.then(|| tracer::denoise::SampleMoments::new((args.width * args.height) as usize));
     for _ in 0..args.spp {
         r.render_frame()?;
         // Wait for each frame so that the progress bar tells the truth.
         r.finish()?;
+        if let Some(m) = &mut moments {
+            m.add_frame(&r.accumulation()?);
+        }
         bar.inc(1);
     }
     let (image, rejected) = (r.image()?, r.rejected_samples()?);
     let render_time = t3.elapsed();
     bar.finish_and_clear();
     let display = tracer::output::Display { tone_map: args.tonemap.into(), exposure: args.exposure };
-    tracer::output::write_image(&args.out, &image, &display)?;
+    let denoised = moments.as_ref().map(|m| denoise(r.as_ref(), &image, m)).transpose()?;
+    if let (Some(noisy), Some(_)) = (&args.noisy, &denoised) {
+        tracer::output::write_image(noisy, &image, &display)?;
+    }
+    let written = denoised.as_ref().map_or(&image, |(d, _)| &d.image);
+    tracer::output::write_image(&args.out, written, &display)?;
 
     let samples = args.spp as f64 * args.width as f64 * args.height as f64;
     println!("scene        {}", args.scene.as_ref().map_or("built-in Cornell box".into(), |p| p.display().to_string()));
@@ -264,8 +282,30 @@ fn render(args: &RenderArgs) -> Result<()> {
     if rejected > 0 {
         println!("warning      {rejected} non-finite samples were dropped");
     }
+    if let Some((d, time)) = &denoised {
+        println!("denoise      {:.1} ms (CPU, {} à-trous passes)", time.as_secs_f64() * 1e3, ATROUS_PASSES);
+        if d.replaced > 0 {
+            println!("warning      {} non-finite pixels were replaced before denoising", d.replaced);
+        }
+        if let Some(noisy) = &args.noisy {
+            println!("wrote        {} (noisy)", noisy.display());
+        }
+    }
     println!("wrote        {}", args.out.display());
     Ok(())
+}
+
+/// `image` denoised (`tracer::denoise`) with the guide of `renderer`'s scene and the moments of
+/// its frames, and how long that took.
+fn denoise(
+    renderer: &dyn tracer::backend::Renderer,
+    image: &tracer::output::Image,
+    moments: &tracer::denoise::SampleMoments,
+) -> Result<(tracer::denoise::Denoised, std::time::Duration)> {
+    let start = std::time::Instant::now();
+    let aovs = tracer::denoise::first_hit_aovs(&renderer.packed().scene);
+    let denoised = tracer::denoise::denoise(image, &moments.variance_of_mean(), &aovs)?;
+    Ok((denoised, start.elapsed()))
 }
 
 /// Prints a loaded scene's warnings (its loader's, and [`tracer::scene::Scene::unlit_warning`]

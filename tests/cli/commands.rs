@@ -77,3 +77,41 @@ fn an_unlit_scene_is_warned_about_and_a_sky_lights_it() {
     assert!(cornell.status.success() && !stderr(&cornell).contains("warning"), "{}", stderr(&cornell));
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// `render --denoise` writes the denoised image to `--out` and, with `--noisy`, the noisy one
+/// too, on every native runtime (the moments come from each frame's accumulation); the two
+/// differ and the denoised one is smoother. `--noisy` alone is refused.
+#[test]
+fn render_denoise_writes_the_denoised_and_the_noisy_image() {
+    let dir = scratch("denoise");
+    for backend in ["cpu", "gl", "wgpu"] {
+        let (out, noisy) = (dir.join(format!("{backend}.exr")), dir.join(format!("{backend}-noisy.exr")));
+        let o = Command::new(env!("CARGO_BIN_EXE_lightport"))
+            .args(["render", "--backend", backend, "--width", "24", "--height", "24", "--spp", "8", "--denoise"])
+            .arg("--out")
+            .arg(&out)
+            .arg("--noisy")
+            .arg(&noisy)
+            .output()
+            .expect("run lightport");
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success(), "{backend}: {}{stdout}", stderr(&o));
+        assert!(stdout.contains("denoise ") && stdout.contains("(noisy)"), "{backend}: {stdout}");
+        let read = |p: &Path| image::open(p).expect("an EXR").into_rgb32f().into_raw();
+        let (denoised, noisy) = (read(&out), read(&noisy));
+        // Roughness: the mean squared difference between horizontal neighbours.
+        let roughness = |v: &[f32]| -> f64 {
+            let row = 24 * 3;
+            let pairs = v.chunks(row).flat_map(|r| r.windows(4).map(|w| (w[3] - w[0]) as f64));
+            pairs.map(|d| d * d).sum::<f64>() / v.len() as f64
+        };
+        assert_ne!(denoised, noisy, "{backend}");
+        assert!(roughness(&denoised) < roughness(&noisy), "{backend}: the denoised image is not smoother");
+    }
+    let o = Command::new(env!("CARGO_BIN_EXE_lightport"))
+        .args(["render", "--width", "8", "--height", "8", "--spp", "1", "--noisy"])
+        .arg(dir.join("alone.png"))
+        .output()
+        .expect("run lightport");
+    assert!(!o.status.success() && stderr(&o).contains("--denoise"), "{}", stderr(&o));
+}

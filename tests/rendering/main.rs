@@ -7,6 +7,7 @@ mod alpha_mask;
 #[path = "../common/mod.rs"]
 mod common;
 mod cpu;
+mod denoise;
 mod gl;
 mod glass;
 mod metal_rough;

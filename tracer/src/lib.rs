@@ -4,6 +4,7 @@
 pub mod backend;
 pub mod bundle;
 pub mod bvh;
+pub mod denoise;
 pub mod kernel;
 pub mod output;
 pub mod pack;

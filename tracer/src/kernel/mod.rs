@@ -12,6 +12,8 @@ mod alpha_mask_src;
 mod bsdf_src;
 #[path = "camera.rs"]
 mod camera_src;
+#[path = "denoise.rs"]
+mod denoise_src;
 #[path = "dielectric.rs"]
 mod dielectric_src;
 #[path = "integrator.rs"]
@@ -50,6 +52,7 @@ pub mod features;
 pub use alpha_mask_src::alpha_mask;
 pub use bsdf_src::bsdf;
 pub use camera_src::camera;
+pub use denoise_src::denoise;
 pub use dielectric_src::dielectric;
 pub use integrator_src::integrator;
 pub use intersect_src::intersect;
@@ -85,12 +88,13 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
         bsdf::kernel_ir(),
         integrator::kernel_ir(),
         tonemap::kernel_ir(),
+        denoise::kernel_ir(),
     ]
 }
 
 /// Every kernel module's captured description, as the macro serialised it (what
 /// [`modules`] parses): a stable text to fingerprint the kernel with.
-pub fn ir_json() -> [&'static str; 16] {
+pub fn ir_json() -> [&'static str; 17] {
     [
         rng::KERNEL_IR_JSON,
         sampling::KERNEL_IR_JSON,
@@ -108,6 +112,7 @@ pub fn ir_json() -> [&'static str; 16] {
         bsdf::KERNEL_IR_JSON,
         integrator::KERNEL_IR_JSON,
         tonemap::KERNEL_IR_JSON,
+        denoise::KERNEL_IR_JSON,
     ]
 }
 

@@ -143,6 +143,7 @@ mod kernel_structs {
     use crate::kernel::alpha_mask::AlphaMaskData;
     use crate::kernel::bsdf::Bsdf;
     use crate::kernel::camera::Ray;
+    use crate::kernel::denoise::Aov;
     use crate::kernel::integrator::Shading;
     use crate::kernel::intersect::TriangleHit;
     use crate::kernel::lights::LightSample;
@@ -169,6 +170,7 @@ mod kernel_structs {
         NormalMapData { texture, scale }
         AlphaMaskData { texture, alpha, cutoff }
         GlassData { transmission, ior, texture, thin, sigma_a }
+        Aov { albedo, normal, depth, emission }
     }
 }
 
