@@ -307,27 +307,7 @@ impl Loader<'_> {
                 || e.contains_key("EXT_meshopt_compression")
                 || e.contains_key("KHR_meshopt_compression")
         });
-        let mut position = None;
-        let mut normal = None;
-        let mut uv = None;
-        let mut uv1 = None;
-        let mut tangent = None;
-        let (mut joints, mut weights) = (None, None);
-        for (semantic, accessor) in &prim.attributes {
-            match semantic {
-                Checked::Valid(Semantic::Positions) => position = Some(accessor.value()),
-                Checked::Valid(Semantic::Normals) => normal = Some(accessor.value()),
-                Checked::Valid(Semantic::Tangents) => tangent = Some(accessor.value()),
-                Checked::Valid(Semantic::TexCoords(0)) => uv = Some(accessor.value()),
-                Checked::Valid(Semantic::TexCoords(1)) => uv1 = Some(accessor.value()),
-                Checked::Valid(Semantic::Joints(0)) => joints = Some(accessor.value()),
-                Checked::Valid(Semantic::Weights(0)) => weights = Some(accessor.value()),
-                Checked::Valid(Semantic::Colors(0)) => self
-                    .warnings
-                    .once("COLOR_0", || "vertex colours (COLOR_0) are not supported: they are ignored".into()),
-                _ => {}
-            }
-        }
+        let Attributes { position, normal, uv, uv1, tangent, joints, weights } = self.attributes(prim);
         let Some(position) = position else {
             self.warnings.once("no POSITION", || "primitives without POSITION are skipped".into());
             return Ok(None);
@@ -377,7 +357,53 @@ impl Loader<'_> {
         // MikkTSpace follows the UV set the normal map is read on.
         let normal_set = self.materials.get(material as usize).map_or(0, |m| m.texture_uvs[3].texcoord);
         let map_uvs = if normal_set == 1 { &uvs1 } else { &uvs };
-        let tangents = match (normal_mapped, tangent, map_uvs) {
+        let tangents =
+            self.tangents(normal_mapped, tangent, map_uvs, &positions, normals.as_deref(), &triangles, &what)?;
+        let skin = match (joints, weights) {
+            (Some(j), Some(w)) => self.vertex_skin(j, w, vertex_count, &what)?,
+            _ => None,
+        };
+        let morph = self.morph_targets(prim, vertex_count, &what)?;
+        Ok(Some(LocalPrimitive { positions, normals, uvs, uvs1, triangles, tangents, material, skin, morph }))
+    }
+
+    /// The accessors of the attributes a primitive is rendered with (set 0, and TEXCOORD_1);
+    /// vertex colours are warned about once.
+    fn attributes(&mut self, prim: &gltf::json::mesh::Primitive) -> Attributes {
+        let mut a = Attributes::default();
+        for (semantic, accessor) in &prim.attributes {
+            match semantic {
+                Checked::Valid(Semantic::Positions) => a.position = Some(accessor.value()),
+                Checked::Valid(Semantic::Normals) => a.normal = Some(accessor.value()),
+                Checked::Valid(Semantic::Tangents) => a.tangent = Some(accessor.value()),
+                Checked::Valid(Semantic::TexCoords(0)) => a.uv = Some(accessor.value()),
+                Checked::Valid(Semantic::TexCoords(1)) => a.uv1 = Some(accessor.value()),
+                Checked::Valid(Semantic::Joints(0)) => a.joints = Some(accessor.value()),
+                Checked::Valid(Semantic::Weights(0)) => a.weights = Some(accessor.value()),
+                Checked::Valid(Semantic::Colors(0)) => self
+                    .warnings
+                    .once("COLOR_0", || "vertex colours (COLOR_0) are not supported: they are ignored".into()),
+                _ => {}
+            }
+        }
+        a
+    }
+
+    /// Per-triangle tangents for a normal-mapped primitive: the file's TANGENT, else MikkTSpace
+    /// over the UV set the normal map is read on (none without one, with a warning).
+    #[allow(clippy::too_many_arguments)]
+    fn tangents(
+        &mut self,
+        normal_mapped: bool,
+        tangent: Option<usize>,
+        map_uvs: &Option<Vec<Vec2>>,
+        positions: &[Vec3],
+        normals: Option<&[Vec3]>,
+        triangles: &[[u32; 3]],
+        what: &str,
+    ) -> Result<Option<Vec<[Vec4; 3]>>, SceneError> {
+        let vertex_count = positions.len();
+        Ok(match (normal_mapped, tangent, map_uvs) {
             (false, _, _) => None,
             (true, Some(a), _) => {
                 let t = self.buffers.read_f32(a, 4, &format!("{what} TANGENT"))?;
@@ -391,23 +417,27 @@ impl Loader<'_> {
                     t.chunks_exact(4).map(|c| super::super::tangents::unit_tangent(Vec4::from_slice(c))).collect();
                 Some(triangles.iter().map(|tri| tri.map(|i| t[i as usize])).collect())
             }
-            (true, None, Some(uvs)) => {
-                super::super::tangents::mikktspace_tangents(&positions, normals.as_deref(), uvs, &triangles)
-            }
+            (true, None, Some(uvs)) => super::super::tangents::mikktspace_tangents(positions, normals, uvs, triangles),
             (true, None, None) => {
                 self.warnings.once("normal map without TEXCOORD_0", || {
                     format!("{what}: a normal-mapped primitive has no TEXCOORD_0, so no tangents: its normal map is ignored")
                 });
                 None
             }
-        };
-        let skin = match (joints, weights) {
-            (Some(j), Some(w)) => self.vertex_skin(j, w, vertex_count, &what)?,
-            _ => None,
-        };
-        let morph = self.morph_targets(prim, vertex_count, &what)?;
-        Ok(Some(LocalPrimitive { positions, normals, uvs, uvs1, triangles, tangents, material, skin, morph }))
+        })
     }
+}
+
+/// The accessors of a primitive's attributes ([`Loader::attributes`]).
+#[derive(Default)]
+struct Attributes {
+    position: Option<usize>,
+    normal: Option<usize>,
+    uv: Option<usize>,
+    uv1: Option<usize>,
+    tangent: Option<usize>,
+    joints: Option<usize>,
+    weights: Option<usize>,
 }
 
 pub(super) fn semantic_name(s: &Checked<Semantic>) -> String {

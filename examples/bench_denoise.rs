@@ -1,0 +1,103 @@
+//! The denoiser (`tracer::denoise`): what it costs and what it buys. Prints
+//! - the filter's time per image (AOVs and the à-trous passes, on the CPU) at 640x480 and
+//!   1920x1080 on the Cornell box, median of `--rounds`, as a ratio to rendering one sample per
+//!   pixel of the same image in the same run;
+//! - the equal-quality speed-up on the Cornell box at 64x64: the relative MSE of the denoised
+//!   16-spp image against a 4096-spp reference, and how many samples per pixel the noisy image
+//!   needs to reach it (doubling until it does, interpolated in log-log).
+//!
+//! `cargo run --release --example bench_denoise [-- --rounds 5]`
+
+use std::time::Instant;
+
+use tracer::backend::cpu::CpuRenderer;
+use tracer::backend::Renderer;
+use tracer::denoise::{denoise, first_hit_aovs, SampleMoments};
+use tracer::kernel::{RenderSettings, Strategy};
+use tracer::output::Image;
+use tracer::pack::{build_and_pack, Packed};
+
+fn packed(size: (u32, u32)) -> Packed {
+    let settings = RenderSettings { width: size.0, height: size.1, strategy: Strategy::Mis, max_depth: 6 };
+    build_and_pack(&tracer::scene::cornell_box(), &settings).expect("pack").1
+}
+
+/// `spp` frames: the image and each pixel's variance of the mean luminance.
+fn render(p: &Packed, spp: u32, seed: u32) -> (Image, Vec<f32>) {
+    let mut r = CpuRenderer::new(p.clone(), seed);
+    let mut moments = SampleMoments::new((p.scene.width * p.scene.height) as usize);
+    for _ in 0..spp {
+        r.render_frame().expect("frame");
+        moments.add_frame(&r.accumulation().expect("accumulation"));
+    }
+    (r.image().expect("image"), moments.variance_of_mean())
+}
+
+fn rel_mse(a: &Image, reference: &Image) -> f64 {
+    let sum: f64 = a
+        .pixels
+        .iter()
+        .zip(&reference.pixels)
+        .map(|(x, r)| (0..3).map(|c| ((x[c] - r[c]) as f64).powi(2) / ((r[c] as f64).powi(2) + 0.01)).sum::<f64>())
+        .sum();
+    sum / (3 * a.pixels.len()) as f64
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let rounds: usize =
+        args.iter().position(|a| a == "--rounds").and_then(|i| args.get(i + 1)?.parse().ok()).unwrap_or(5);
+    println!("threads: {}", rayon::current_num_threads());
+    println!("\n| image | 1 spp render (ms) | AOVs (ms) | filter (ms) | denoise / 1 spp |");
+    println!("|---|---|---|---|---|");
+    for size in [(640, 480), (1920, 1080)] {
+        let p = packed(size);
+        let (mut frame, mut aov, mut filter) = (Vec::new(), Vec::new(), Vec::new());
+        let (image, variance) = render(&p, 2, 1);
+        // Alternate the three measurements, round after round.
+        for _ in 0..rounds {
+            let t = Instant::now();
+            let mut r = CpuRenderer::new(p.clone(), 3);
+            r.render_frame().expect("frame");
+            frame.push(t.elapsed().as_secs_f64() * 1e3);
+            let t = Instant::now();
+            let aovs = first_hit_aovs(&p.scene);
+            aov.push(t.elapsed().as_secs_f64() * 1e3);
+            let t = Instant::now();
+            let out = denoise(&image, &variance, &aovs).expect("denoise");
+            filter.push(t.elapsed().as_secs_f64() * 1e3);
+            assert!(out.image.pixels.iter().all(|p| p.is_finite()));
+        }
+        let (frame, aov, filter) = (median(frame), median(aov), median(filter));
+        println!("| {}x{} | {frame:.1} | {aov:.1} | {filter:.1} | {:.2}x |", size.0, size.1, (aov + filter) / frame);
+    }
+
+    let p = packed((64, 64));
+    let (reference, _) = render(&p, 4096, 99);
+    let (noisy, variance) = render(&p, 16, 7);
+    let denoised = denoise(&noisy, &variance, &first_hit_aovs(&p.scene)).expect("denoise").image;
+    let target = rel_mse(&denoised, &reference);
+    println!("\nCornell box 64x64: relMSE 16 spp noisy {:.5}, denoised {target:.5}", rel_mse(&noisy, &reference));
+    let mut previous = (16.0f64, rel_mse(&noisy, &reference));
+    let mut spp = 32;
+    while spp <= 4096 {
+        let e = rel_mse(&render(&p, spp, 7).0, &reference);
+        println!("  noisy at {spp:>4} spp: relMSE {e:.5}");
+        if e <= target {
+            // Log-log interpolation between the last two sample counts.
+            let (s0, e0) = previous;
+            let f = (target.ln() - e0.ln()) / (e.ln() - e0.ln());
+            let needed = (s0.ln() + f * ((spp as f64).ln() - s0.ln())).exp();
+            println!("equal quality: {needed:.0} spp without the filter = {:.1}x the samples", needed / 16.0);
+            return;
+        }
+        previous = (spp as f64, e);
+        spp *= 2;
+    }
+    println!("equal quality: beyond 4096 spp");
+}
