@@ -154,7 +154,15 @@ struct Bsdf {
     Surface surface;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:171)
+// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:65)
+struct SurfaceNormals {
+    vec3 ng;
+    vec3 ns;
+    float flip;
+    float area2;
+};
+
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:197)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -413,6 +421,59 @@ bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
 }
 
+// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:224)
+NodeHits sort_children(NodeHits n) {
+    float t0 = n.t.x;
+    float t1 = n.t.y;
+    float t2 = n.t.z;
+    float t3 = n.t.w;
+    uint e0 = n.entries.x;
+    uint e1 = n.entries.y;
+    uint e2 = n.entries.z;
+    uint e3 = n.entries.w;
+    if (t1 < t0) {
+        float t = t0;
+        t0 = t1;
+        t1 = t;
+        uint e = e0;
+        e0 = e1;
+        e1 = e;
+    }
+    if (t3 < t2) {
+        float t_1 = t2;
+        t2 = t3;
+        t3 = t_1;
+        uint e_1 = e2;
+        e2 = e3;
+        e3 = e_1;
+    }
+    if (t2 < t0) {
+        float t_2 = t0;
+        t0 = t2;
+        t2 = t_2;
+        uint e_2 = e0;
+        e0 = e2;
+        e2 = e_2;
+    }
+    if (t3 < t1) {
+        float t_3 = t1;
+        t1 = t3;
+        t3 = t_3;
+        uint e_3 = e1;
+        e1 = e3;
+        e3 = e_3;
+    }
+    if (t2 < t1) {
+        float t_4 = t1;
+        t1 = t2;
+        t2 = t_4;
+        uint e_4 = e1;
+        e1 = e2;
+        e2 = e_4;
+    }
+    return NodeHits(vec4(t0, t1, t2, t3), uvec4(e0, e1, e2, e3));
+}
+
 // traverse::zero_to_miss (lightport-tracer/src/kernel/traverse.rs:59)
 vec4 zero_to_miss(vec4 v) {
     return vec4(v.x == 0.0 ? MISS : v.x, v.y == 0.0 ? MISS : v.y, v.z == 0.0 ? MISS : v.z, v.w == 0.0 ? MISS : v.w);
@@ -498,7 +559,7 @@ void intersect_leaf(uint entry, vec3 origin, vec3 dir, Hit after, bool only_mask
     }
 }
 
-// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:234)
+// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:290)
 Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_masked) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -520,55 +581,15 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
             leaves[0u] = entry;
             leaf_count = 1u;
         } else {
-            NodeHits n = intersect_node(entry >> 8, origin, inv_dir, near, hit.t);
-            float t0 = n.t.x;
-            float t1 = n.t.y;
-            float t2 = n.t.z;
-            float t3 = n.t.w;
-            uint e0 = n.entries.x;
-            uint e1 = n.entries.y;
-            uint e2 = n.entries.z;
-            uint e3 = n.entries.w;
-            if (t1 < t0) {
-                float t = t0;
-                t0 = t1;
-                t1 = t;
-                uint e = e0;
-                e0 = e1;
-                e1 = e;
-            }
-            if (t3 < t2) {
-                float t_1 = t2;
-                t2 = t3;
-                t3 = t_1;
-                uint e_1 = e2;
-                e2 = e3;
-                e3 = e_1;
-            }
-            if (t2 < t0) {
-                float t_2 = t0;
-                t0 = t2;
-                t2 = t_2;
-                uint e_2 = e0;
-                e0 = e2;
-                e2 = e_2;
-            }
-            if (t3 < t1) {
-                float t_3 = t1;
-                t1 = t3;
-                t3 = t_3;
-                uint e_3 = e1;
-                e1 = e3;
-                e3 = e_3;
-            }
-            if (t2 < t1) {
-                float t_4 = t1;
-                t1 = t2;
-                t2 = t_4;
-                uint e_4 = e1;
-                e1 = e2;
-                e2 = e_4;
-            }
+            NodeHits sorted = sort_children(intersect_node(entry >> 8, origin, inv_dir, near, hit.t));
+            float t0 = sorted.t.x;
+            float t1 = sorted.t.y;
+            float t2 = sorted.t.z;
+            float t3 = sorted.t.w;
+            uint e0 = sorted.entries.x;
+            uint e1 = sorted.entries.y;
+            uint e2 = sorted.entries.z;
+            uint e3 = sorted.entries.w;
             if (t3 < MISS) {
                 if (sp >= leaf_limit && is_leaf(e3)) {
                     leaves[leaf_count] = e3;
@@ -947,6 +968,29 @@ vec3 normal_mapped(Hit hit, uint material, vec3 ns, float flip, vec3 ng, vec3 wo
     return n;
 }
 
+// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:73)
+SurfaceNormals surface_normals(TriangleData tri, Hit hit, vec3 dir) {
+    vec3 face = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
+    float area2 = length(face);
+    float flip = dot(face, dir) > 0.0 ? -1.0 : 1.0;
+    vec3 ng = -dir;
+    if (area2 > 0.0) {
+        ng = face * (flip / area2);
+    }
+    vec3 ns = ng;
+    if ((1u != 0u) && area2 > 0.0) {
+        vec3 n = shading_normal(hit.triangle, hit.u, hit.v) * flip;
+        float len = length(n);
+        if (len > 0.0 && dot(n, ng) > 0.0) {
+            ns = n / len;
+        }
+    }
+    if ((1u != 0u) && area2 > 0.0) {
+        ns = normal_mapped(hit, tri.material, ns, flip, ng, -dir);
+    }
+    return SurfaceNormals(ng, ns, flip, area2);
+}
+
 // scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:154)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
@@ -961,7 +1005,7 @@ GlassData fetch_glass(uint material) {
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:230)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:256)
 vec3 volume_transmittance(uint material, float t) {
     vec3 sigma = fetch_glass(material).sigma_a;
     return vec3(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -1317,7 +1361,7 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:378)
+// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:393)
 bool any_hit(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -1377,7 +1421,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:366)
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:381)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     bool blocked = any_hit(origin, dir, t_max);
     if ((1u != 0u) && !blocked) {
@@ -1446,7 +1490,7 @@ vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:183)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:209)
 vec3 sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     vec3 direct = vec3(0.0);
@@ -1585,7 +1629,7 @@ vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }
 
-// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:62)
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:98)
 vec4 render_sample(uint x, uint y) {
     uint rng = pixel_seed(y * scene_width + x, scene_frame_seed);
     vec2 film = vec2(lp_u32_to_f32(x) + random_float(rng), lp_u32_to_f32(y) + random_float(rng));
@@ -1609,20 +1653,14 @@ vec4 render_sample(uint x, uint y) {
         }
         TriangleData tri = fetch_triangle(hit.triangle);
         vec3 p = origin + dir * hit.t;
-        vec3 face = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
-        float area2 = length(face);
-        if (!(area2 > 0.0)) {
+        SurfaceNormals normals = surface_normals(tri, hit, dir);
+        if (!(normals.area2 > 0.0)) {
             break;
         }
-        float flip = dot(face, dir) > 0.0 ? -1.0 : 1.0;
-        vec3 ng = face * (flip / area2);
-        vec3 ns = ng;
-        vec3 n = shading_normal(hit.triangle, hit.u, hit.v) * flip;
-        float len = length(n);
-        if (len > 0.0 && dot(n, ng) > 0.0) {
-            ns = n / len;
-        }
-        ns = normal_mapped(hit, tri.material, ns, flip, ng, -dir);
+        float flip = normals.flip;
+        vec3 ng = normals.ng;
+        vec3 ns = normals.ns;
+        float area2 = normals.area2;
         MaterialData material = fetch_material(tri.material);
         if ((1u != 0u) && flip < 0.0) {
             throughput *= volume_transmittance(tri.material, hit.t);

@@ -108,7 +108,15 @@ struct Bsdf {
     Surface surface;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:171)
+// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:65)
+struct SurfaceNormals {
+    vec3 ng;
+    vec3 ns;
+    float flip;
+    float area2;
+};
+
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:197)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -299,6 +307,59 @@ bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
 }
 
+// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:224)
+NodeHits sort_children(NodeHits n) {
+    float t0 = n.t.x;
+    float t1 = n.t.y;
+    float t2 = n.t.z;
+    float t3 = n.t.w;
+    uint e0 = n.entries.x;
+    uint e1 = n.entries.y;
+    uint e2 = n.entries.z;
+    uint e3 = n.entries.w;
+    if (t1 < t0) {
+        float t = t0;
+        t0 = t1;
+        t1 = t;
+        uint e = e0;
+        e0 = e1;
+        e1 = e;
+    }
+    if (t3 < t2) {
+        float t_1 = t2;
+        t2 = t3;
+        t3 = t_1;
+        uint e_1 = e2;
+        e2 = e3;
+        e3 = e_1;
+    }
+    if (t2 < t0) {
+        float t_2 = t0;
+        t0 = t2;
+        t2 = t_2;
+        uint e_2 = e0;
+        e0 = e2;
+        e2 = e_2;
+    }
+    if (t3 < t1) {
+        float t_3 = t1;
+        t1 = t3;
+        t3 = t_3;
+        uint e_3 = e1;
+        e1 = e3;
+        e3 = e_3;
+    }
+    if (t2 < t1) {
+        float t_4 = t1;
+        t1 = t2;
+        t2 = t_4;
+        uint e_4 = e1;
+        e1 = e2;
+        e2 = e_4;
+    }
+    return NodeHits(vec4(t0, t1, t2, t3), uvec4(e0, e1, e2, e3));
+}
+
 // traverse::zero_to_miss (lightport-tracer/src/kernel/traverse.rs:59)
 vec4 zero_to_miss(vec4 v) {
     return vec4(v.x == 0.0 ? MISS : v.x, v.y == 0.0 ? MISS : v.y, v.z == 0.0 ? MISS : v.z, v.w == 0.0 ? MISS : v.w);
@@ -377,7 +438,7 @@ void intersect_leaf(uint entry, vec3 origin, vec3 dir, Hit after, bool only_mask
     }
 }
 
-// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:234)
+// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:290)
 Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_masked) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -399,55 +460,15 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
             leaves[0u] = entry;
             leaf_count = 1u;
         } else {
-            NodeHits n = intersect_node(entry >> 8, origin, inv_dir, near, hit.t);
-            float t0 = n.t.x;
-            float t1 = n.t.y;
-            float t2 = n.t.z;
-            float t3 = n.t.w;
-            uint e0 = n.entries.x;
-            uint e1 = n.entries.y;
-            uint e2 = n.entries.z;
-            uint e3 = n.entries.w;
-            if (t1 < t0) {
-                float t = t0;
-                t0 = t1;
-                t1 = t;
-                uint e = e0;
-                e0 = e1;
-                e1 = e;
-            }
-            if (t3 < t2) {
-                float t_1 = t2;
-                t2 = t3;
-                t3 = t_1;
-                uint e_1 = e2;
-                e2 = e3;
-                e3 = e_1;
-            }
-            if (t2 < t0) {
-                float t_2 = t0;
-                t0 = t2;
-                t2 = t_2;
-                uint e_2 = e0;
-                e0 = e2;
-                e2 = e_2;
-            }
-            if (t3 < t1) {
-                float t_3 = t1;
-                t1 = t3;
-                t3 = t_3;
-                uint e_3 = e1;
-                e1 = e3;
-                e3 = e_3;
-            }
-            if (t2 < t1) {
-                float t_4 = t1;
-                t1 = t2;
-                t2 = t_4;
-                uint e_4 = e1;
-                e1 = e2;
-                e2 = e_4;
-            }
+            NodeHits sorted = sort_children(intersect_node(entry >> 8, origin, inv_dir, near, hit.t));
+            float t0 = sorted.t.x;
+            float t1 = sorted.t.y;
+            float t2 = sorted.t.z;
+            float t3 = sorted.t.w;
+            uint e0 = sorted.entries.x;
+            uint e1 = sorted.entries.y;
+            uint e2 = sorted.entries.z;
+            uint e3 = sorted.entries.w;
             if (t3 < MISS) {
                 if (sp >= leaf_limit && is_leaf(e3)) {
                     leaves[leaf_count] = e3;
@@ -529,6 +550,19 @@ float hit_emission_weight(float scatter_pdf, float light_pdf) {
     } else {
         return power_heuristic(scatter_pdf, light_pdf);
     }
+}
+
+// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:73)
+SurfaceNormals surface_normals(TriangleData tri, Hit hit, vec3 dir) {
+    vec3 face = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
+    float area2 = length(face);
+    float flip = dot(face, dir) > 0.0 ? -1.0 : 1.0;
+    vec3 ng = -dir;
+    if (area2 > 0.0) {
+        ng = face * (flip / area2);
+    }
+    vec3 ns = ng;
+    return SurfaceNormals(ng, ns, flip, area2);
 }
 
 // scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:154)
@@ -665,7 +699,7 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:378)
+// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:393)
 bool any_hit(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -725,7 +759,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:366)
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:381)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     bool blocked = any_hit(origin, dir, t_max);
     return blocked;
@@ -736,7 +770,7 @@ vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     return wi.z > 0.0 ? b.surface.diffuse * INV_PI : vec3(0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:183)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:209)
 vec3 sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     vec3 direct = vec3(0.0);
@@ -785,7 +819,7 @@ vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }
 
-// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:62)
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:98)
 vec4 render_sample(uint x, uint y) {
     uint rng = pixel_seed(y * scene_width + x, scene_frame_seed);
     vec2 film = vec2(lp_u32_to_f32(x) + random_float(rng), lp_u32_to_f32(y) + random_float(rng));
@@ -804,14 +838,14 @@ vec4 render_sample(uint x, uint y) {
         }
         TriangleData tri = fetch_triangle(hit.triangle);
         vec3 p = origin + dir * hit.t;
-        vec3 face = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
-        float area2 = length(face);
-        if (!(area2 > 0.0)) {
+        SurfaceNormals normals = surface_normals(tri, hit, dir);
+        if (!(normals.area2 > 0.0)) {
             break;
         }
-        float flip = dot(face, dir) > 0.0 ? -1.0 : 1.0;
-        vec3 ng = face * (flip / area2);
-        vec3 ns = ng;
+        float flip = normals.flip;
+        vec3 ng = normals.ng;
+        vec3 ns = normals.ns;
+        float area2 = normals.area2;
         MaterialData material = fetch_material(tri.material);
         if (lp_max_element_vec3(material.emission) > 0.0 && flip > 0.0) {
             float light_pdf_1 = 0.0;

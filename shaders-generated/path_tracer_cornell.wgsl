@@ -109,7 +109,15 @@ struct Bsdf {
     surface: Surface,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:171)
+// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:65)
+struct SurfaceNormals {
+    ng: vec3<f32>,
+    ns: vec3<f32>,
+    flip: f32,
+    area2: f32,
+}
+
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:197)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -288,6 +296,59 @@ fn is_leaf(entry: u32) -> bool {
     return (entry & 255u) > 0u;
 }
 
+// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:224)
+fn sort_children(n: NodeHits) -> NodeHits {
+    var t0: f32 = n.t.x;
+    var t1: f32 = n.t.y;
+    var t2: f32 = n.t.z;
+    var t3: f32 = n.t.w;
+    var e0: u32 = n.entries.x;
+    var e1: u32 = n.entries.y;
+    var e2: u32 = n.entries.z;
+    var e3: u32 = n.entries.w;
+    if t1 < t0 {
+        let t: f32 = t0;
+        t0 = t1;
+        t1 = t;
+        let e: u32 = e0;
+        e0 = e1;
+        e1 = e;
+    }
+    if t3 < t2 {
+        let t_1: f32 = t2;
+        t2 = t3;
+        t3 = t_1;
+        let e_1: u32 = e2;
+        e2 = e3;
+        e3 = e_1;
+    }
+    if t2 < t0 {
+        let t_2: f32 = t0;
+        t0 = t2;
+        t2 = t_2;
+        let e_2: u32 = e0;
+        e0 = e2;
+        e2 = e_2;
+    }
+    if t3 < t1 {
+        let t_3: f32 = t1;
+        t1 = t3;
+        t3 = t_3;
+        let e_3: u32 = e1;
+        e1 = e3;
+        e3 = e_3;
+    }
+    if t2 < t1 {
+        let t_4: f32 = t1;
+        t1 = t2;
+        t2 = t_4;
+        let e_4: u32 = e1;
+        e1 = e2;
+        e2 = e_4;
+    }
+    return NodeHits(vec4<f32>(t0, t1, t2, t3), vec4<u32>(e0, e1, e2, e3));
+}
+
 // traverse::zero_to_miss (lightport-tracer/src/kernel/traverse.rs:59)
 fn zero_to_miss(v: vec4<f32>) -> vec4<f32> {
     return vec4<f32>(select(v.x, MISS, v.x == 0.0), select(v.y, MISS, v.y == 0.0), select(v.z, MISS, v.z == 0.0), select(v.w, MISS, v.w == 0.0));
@@ -366,7 +427,7 @@ fn intersect_leaf(entry: u32, origin: vec3<f32>, dir: vec3<f32>, after: Hit, onl
     }
 }
 
-// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:234)
+// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:290)
 fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, only_masked: bool) -> Hit {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -385,55 +446,15 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
             leaves[0u] = entry;
             leaf_count = 1u;
         } else {
-            let n: NodeHits = intersect_node(entry >> 8u, origin, inv_dir, near, hit.t);
-            var t0: f32 = n.t.x;
-            var t1: f32 = n.t.y;
-            var t2: f32 = n.t.z;
-            var t3: f32 = n.t.w;
-            var e0: u32 = n.entries.x;
-            var e1: u32 = n.entries.y;
-            var e2: u32 = n.entries.z;
-            var e3: u32 = n.entries.w;
-            if t1 < t0 {
-                let t: f32 = t0;
-                t0 = t1;
-                t1 = t;
-                let e: u32 = e0;
-                e0 = e1;
-                e1 = e;
-            }
-            if t3 < t2 {
-                let t_1: f32 = t2;
-                t2 = t3;
-                t3 = t_1;
-                let e_1: u32 = e2;
-                e2 = e3;
-                e3 = e_1;
-            }
-            if t2 < t0 {
-                let t_2: f32 = t0;
-                t0 = t2;
-                t2 = t_2;
-                let e_2: u32 = e0;
-                e0 = e2;
-                e2 = e_2;
-            }
-            if t3 < t1 {
-                let t_3: f32 = t1;
-                t1 = t3;
-                t3 = t_3;
-                let e_3: u32 = e1;
-                e1 = e3;
-                e3 = e_3;
-            }
-            if t2 < t1 {
-                let t_4: f32 = t1;
-                t1 = t2;
-                t2 = t_4;
-                let e_4: u32 = e1;
-                e1 = e2;
-                e2 = e_4;
-            }
+            let sorted: NodeHits = sort_children(intersect_node(entry >> 8u, origin, inv_dir, near, hit.t));
+            let t0: f32 = sorted.t.x;
+            let t1: f32 = sorted.t.y;
+            let t2: f32 = sorted.t.z;
+            let t3: f32 = sorted.t.w;
+            let e0: u32 = sorted.entries.x;
+            let e1: u32 = sorted.entries.y;
+            let e2: u32 = sorted.entries.z;
+            let e3: u32 = sorted.entries.w;
             if t3 < MISS {
                 if sp >= leaf_limit && is_leaf(e3) {
                     leaves[leaf_count] = e3;
@@ -515,6 +536,19 @@ fn hit_emission_weight(scatter_pdf: f32, light_pdf: f32) -> f32 {
     } else {
         return power_heuristic(scatter_pdf, light_pdf);
     }
+}
+
+// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:73)
+fn surface_normals(tri: TriangleData, hit: Hit, dir: vec3<f32>) -> SurfaceNormals {
+    let face: vec3<f32> = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
+    let area2: f32 = length(face);
+    let flip: f32 = select(1.0, -1.0, dot(face, dir) > 0.0);
+    var ng: vec3<f32> = -dir;
+    if area2 > 0.0 {
+        ng = face * (flip / area2);
+    }
+    var ns: vec3<f32> = ng;
+    return SurfaceNormals(ng, ns, flip, area2);
 }
 
 // scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:154)
@@ -651,7 +685,7 @@ fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> b
     return blocked;
 }
 
-// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:378)
+// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:393)
 fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -709,7 +743,7 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:366)
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:381)
 fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     var blocked: bool = any_hit(origin, dir, t_max);
     return blocked;
@@ -720,7 +754,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     return select(vec3<f32>(0.0), b.surface.diffuse * INV_PI, wi.z > 0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:183)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:209)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> vec3<f32> {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var direct: vec3<f32> = vec3<f32>(0.0);
@@ -769,7 +803,7 @@ fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }
 
-// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:62)
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:98)
 fn render_sample(x: u32, y: u32) -> vec4<f32> {
     var rng: u32 = pixel_seed(y * scene.width + x, scene.frame_seed);
     let film: vec2<f32> = vec2<f32>(lp_u32_to_f32(x) + random_float(&rng), lp_u32_to_f32(y) + random_float(&rng));
@@ -788,14 +822,14 @@ fn render_sample(x: u32, y: u32) -> vec4<f32> {
         }
         let tri: TriangleData = fetch_triangle(hit.triangle);
         let p: vec3<f32> = origin + dir * hit.t;
-        let face: vec3<f32> = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
-        let area2: f32 = length(face);
-        if !(area2 > 0.0) {
+        let normals: SurfaceNormals = surface_normals(tri, hit, dir);
+        if !(normals.area2 > 0.0) {
             break;
         }
-        let flip: f32 = select(1.0, -1.0, dot(face, dir) > 0.0);
-        let ng: vec3<f32> = face * (flip / area2);
-        var ns: vec3<f32> = ng;
+        let flip: f32 = normals.flip;
+        let ng: vec3<f32> = normals.ng;
+        let ns: vec3<f32> = normals.ns;
+        let area2: f32 = normals.area2;
         let material: MaterialData = fetch_material(tri.material);
         if lp_max_element_vec3(material.emission) > 0.0 && flip > 0.0 {
             var light_pdf_1: f32 = 0.0;

@@ -281,7 +281,60 @@ bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
 }
 
-// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:234)
+// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:224)
+NodeHits sort_children(NodeHits n) {
+    float t0 = n.t.x;
+    float t1 = n.t.y;
+    float t2 = n.t.z;
+    float t3 = n.t.w;
+    uint e0 = n.entries.x;
+    uint e1 = n.entries.y;
+    uint e2 = n.entries.z;
+    uint e3 = n.entries.w;
+    if (t1 < t0) {
+        float t = t0;
+        t0 = t1;
+        t1 = t;
+        uint e = e0;
+        e0 = e1;
+        e1 = e;
+    }
+    if (t3 < t2) {
+        float t_1 = t2;
+        t2 = t3;
+        t3 = t_1;
+        uint e_1 = e2;
+        e2 = e3;
+        e3 = e_1;
+    }
+    if (t2 < t0) {
+        float t_2 = t0;
+        t0 = t2;
+        t2 = t_2;
+        uint e_2 = e0;
+        e0 = e2;
+        e2 = e_2;
+    }
+    if (t3 < t1) {
+        float t_3 = t1;
+        t1 = t3;
+        t3 = t_3;
+        uint e_3 = e1;
+        e1 = e3;
+        e3 = e_3;
+    }
+    if (t2 < t1) {
+        float t_4 = t1;
+        t1 = t2;
+        t2 = t_4;
+        uint e_4 = e1;
+        e1 = e2;
+        e2 = e_4;
+    }
+    return NodeHits(vec4(t0, t1, t2, t3), uvec4(e0, e1, e2, e3));
+}
+
+// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:290)
 Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_masked) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -303,55 +356,15 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
             leaves[0u] = entry;
             leaf_count = 1u;
         } else {
-            NodeHits n = intersect_node(entry >> 8, origin, inv_dir, near, hit.t);
-            float t0 = n.t.x;
-            float t1 = n.t.y;
-            float t2 = n.t.z;
-            float t3 = n.t.w;
-            uint e0 = n.entries.x;
-            uint e1 = n.entries.y;
-            uint e2 = n.entries.z;
-            uint e3 = n.entries.w;
-            if (t1 < t0) {
-                float t = t0;
-                t0 = t1;
-                t1 = t;
-                uint e = e0;
-                e0 = e1;
-                e1 = e;
-            }
-            if (t3 < t2) {
-                float t_1 = t2;
-                t2 = t3;
-                t3 = t_1;
-                uint e_1 = e2;
-                e2 = e3;
-                e3 = e_1;
-            }
-            if (t2 < t0) {
-                float t_2 = t0;
-                t0 = t2;
-                t2 = t_2;
-                uint e_2 = e0;
-                e0 = e2;
-                e2 = e_2;
-            }
-            if (t3 < t1) {
-                float t_3 = t1;
-                t1 = t3;
-                t3 = t_3;
-                uint e_3 = e1;
-                e1 = e3;
-                e3 = e_3;
-            }
-            if (t2 < t1) {
-                float t_4 = t1;
-                t1 = t2;
-                t2 = t_4;
-                uint e_4 = e1;
-                e1 = e2;
-                e2 = e_4;
-            }
+            NodeHits sorted = sort_children(intersect_node(entry >> 8, origin, inv_dir, near, hit.t));
+            float t0 = sorted.t.x;
+            float t1 = sorted.t.y;
+            float t2 = sorted.t.z;
+            float t3 = sorted.t.w;
+            uint e0 = sorted.entries.x;
+            uint e1 = sorted.entries.y;
+            uint e2 = sorted.entries.z;
+            uint e3 = sorted.entries.w;
             if (t3 < MISS) {
                 if (sp >= leaf_limit && is_leaf(e3)) {
                     leaves[leaf_count] = e3;
@@ -592,7 +605,7 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     }
 }
 
-// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:378)
+// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:393)
 bool any_hit(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -652,7 +665,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:366)
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:381)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     bool blocked = any_hit(origin, dir, t_max);
     if ((scene_has_alpha_mask != 0u) && !blocked) {

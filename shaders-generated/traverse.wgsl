@@ -257,7 +257,60 @@ fn is_leaf(entry: u32) -> bool {
     return (entry & 255u) > 0u;
 }
 
-// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:234)
+// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:224)
+fn sort_children(n: NodeHits) -> NodeHits {
+    var t0: f32 = n.t.x;
+    var t1: f32 = n.t.y;
+    var t2: f32 = n.t.z;
+    var t3: f32 = n.t.w;
+    var e0: u32 = n.entries.x;
+    var e1: u32 = n.entries.y;
+    var e2: u32 = n.entries.z;
+    var e3: u32 = n.entries.w;
+    if t1 < t0 {
+        let t: f32 = t0;
+        t0 = t1;
+        t1 = t;
+        let e: u32 = e0;
+        e0 = e1;
+        e1 = e;
+    }
+    if t3 < t2 {
+        let t_1: f32 = t2;
+        t2 = t3;
+        t3 = t_1;
+        let e_1: u32 = e2;
+        e2 = e3;
+        e3 = e_1;
+    }
+    if t2 < t0 {
+        let t_2: f32 = t0;
+        t0 = t2;
+        t2 = t_2;
+        let e_2: u32 = e0;
+        e0 = e2;
+        e2 = e_2;
+    }
+    if t3 < t1 {
+        let t_3: f32 = t1;
+        t1 = t3;
+        t3 = t_3;
+        let e_3: u32 = e1;
+        e1 = e3;
+        e3 = e_3;
+    }
+    if t2 < t1 {
+        let t_4: f32 = t1;
+        t1 = t2;
+        t2 = t_4;
+        let e_4: u32 = e1;
+        e1 = e2;
+        e2 = e_4;
+    }
+    return NodeHits(vec4<f32>(t0, t1, t2, t3), vec4<u32>(e0, e1, e2, e3));
+}
+
+// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:290)
 fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, only_masked: bool) -> Hit {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -276,55 +329,15 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
             leaves[0u] = entry;
             leaf_count = 1u;
         } else {
-            let n: NodeHits = intersect_node(entry >> 8u, origin, inv_dir, near, hit.t);
-            var t0: f32 = n.t.x;
-            var t1: f32 = n.t.y;
-            var t2: f32 = n.t.z;
-            var t3: f32 = n.t.w;
-            var e0: u32 = n.entries.x;
-            var e1: u32 = n.entries.y;
-            var e2: u32 = n.entries.z;
-            var e3: u32 = n.entries.w;
-            if t1 < t0 {
-                let t: f32 = t0;
-                t0 = t1;
-                t1 = t;
-                let e: u32 = e0;
-                e0 = e1;
-                e1 = e;
-            }
-            if t3 < t2 {
-                let t_1: f32 = t2;
-                t2 = t3;
-                t3 = t_1;
-                let e_1: u32 = e2;
-                e2 = e3;
-                e3 = e_1;
-            }
-            if t2 < t0 {
-                let t_2: f32 = t0;
-                t0 = t2;
-                t2 = t_2;
-                let e_2: u32 = e0;
-                e0 = e2;
-                e2 = e_2;
-            }
-            if t3 < t1 {
-                let t_3: f32 = t1;
-                t1 = t3;
-                t3 = t_3;
-                let e_3: u32 = e1;
-                e1 = e3;
-                e3 = e_3;
-            }
-            if t2 < t1 {
-                let t_4: f32 = t1;
-                t1 = t2;
-                t2 = t_4;
-                let e_4: u32 = e1;
-                e1 = e2;
-                e2 = e_4;
-            }
+            let sorted: NodeHits = sort_children(intersect_node(entry >> 8u, origin, inv_dir, near, hit.t));
+            let t0: f32 = sorted.t.x;
+            let t1: f32 = sorted.t.y;
+            let t2: f32 = sorted.t.z;
+            let t3: f32 = sorted.t.w;
+            let e0: u32 = sorted.entries.x;
+            let e1: u32 = sorted.entries.y;
+            let e2: u32 = sorted.entries.z;
+            let e3: u32 = sorted.entries.w;
             if t3 < MISS {
                 if sp >= leaf_limit && is_leaf(e3) {
                     leaves[leaf_count] = e3;
@@ -565,7 +578,7 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     }
 }
 
-// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:378)
+// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:393)
 fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -623,7 +636,7 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:366)
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:381)
 fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     var blocked: bool = any_hit(origin, dir, t_max);
     if (scene.has_alpha_mask != 0u) && !blocked {

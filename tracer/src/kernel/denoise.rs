@@ -16,10 +16,10 @@ pub mod denoise {
     use kernel_dsl::Texels;
 
     use crate::kernel::camera::camera_ray;
+    use crate::kernel::integrator::surface_normals;
     use crate::kernel::intersect::MISS;
     use crate::kernel::lights::{luminance, triangle_emission};
-    use crate::kernel::normal_map::normal_mapped;
-    use crate::kernel::scene_data::{fetch_material, fetch_triangle, shading_normal, Scene, NONE};
+    use crate::kernel::scene_data::{fetch_material, fetch_triangle, Scene, NONE};
     use crate::kernel::textures::base_color_at;
     use crate::kernel::traverse::trace_closest;
 
@@ -60,24 +60,8 @@ pub mod denoise {
         let mut aov = Aov { albedo: Vec3::ONE, normal: -ray.dir, depth: MISS, emission: Vec3::ZERO };
         if hit.triangle != NONE {
             let tri = fetch_triangle(scene, hit.triangle);
-            let face = (tri.v1 - tri.v0).cross(tri.v2 - tri.v0);
-            let area2 = face.length();
-            let flip = if face.dot(ray.dir) > 0.0 { -1.0 } else { 1.0 };
-            let mut ng = -ray.dir;
-            if area2 > 0.0 {
-                ng = face * (flip / area2);
-            }
-            let mut ns = ng;
-            if scene.has_shading != 0 {
-                let n = shading_normal(scene, hit.triangle, hit.u, hit.v) * flip;
-                let len = n.length();
-                if len > 0.0 && n.dot(ng) > 0.0 {
-                    ns = n / len;
-                }
-            }
-            if scene.has_normal_map != 0 {
-                ns = normal_mapped(scene, hit, tri.material, ns, flip, ng, -ray.dir);
-            }
+            let normals = surface_normals(scene, tri, hit, ray.dir);
+            let flip = normals.flip;
             let material = fetch_material(scene, tri.material);
             let mut emission = Vec3::ZERO;
             // As the integrator counts it: one-sided, only the front face emits.
@@ -85,7 +69,7 @@ pub mod denoise {
                 emission = triangle_emission(scene, hit.triangle, tri.material, hit.u, hit.v);
             }
             let albedo = base_color_at(scene, material, hit.triangle, hit.u, hit.v);
-            aov = Aov { albedo, normal: ns, depth: hit.t, emission };
+            aov = Aov { albedo, normal: normals.ns, depth: hit.t, emission };
         }
         aov
     }

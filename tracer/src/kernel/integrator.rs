@@ -20,10 +20,10 @@ pub mod integrator {
     use crate::kernel::rng::{pixel_seed, random_float};
     use crate::kernel::sampling::{onb_from_normal, onb_to_local, onb_to_world, Onb};
     use crate::kernel::scene_data::{
-        fetch_glass, fetch_material, fetch_triangle, shading_normal, Scene, NONE, STRATEGY_BSDF, STRATEGY_MIS,
-        STRATEGY_NEE,
+        fetch_glass, fetch_material, fetch_triangle, shading_normal, Scene, TriangleData, NONE, STRATEGY_BSDF,
+        STRATEGY_MIS, STRATEGY_NEE,
     };
-    use crate::kernel::traverse::{occluded, trace_closest};
+    use crate::kernel::traverse::{occluded, trace_closest, Hit};
 
     /// Russian roulette starts after this many path segments.
     pub const RR_START_DEPTH: u32 = 3;
@@ -56,6 +56,42 @@ pub mod integrator {
         }
     }
 
+    /// The normals at `hit` (of triangle `tri`, found along `dir`): `flip` 1 on the front face
+    /// and -1 on the back, `ng` the unit geometric normal facing the ray's origin, `ns` the
+    /// shading normal (interpolated where the scene has vertex normals, normal-mapped where it has
+    /// normal maps) on `ng`'s side, `area2` twice the triangle's area. A degenerate triangle
+    /// (`area2` not > 0) gets `-dir` for both normals.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct SurfaceNormals {
+        pub ng: Vec3,
+        pub ns: Vec3,
+        pub flip: f32,
+        pub area2: f32,
+    }
+
+    #[inline(always)]
+    pub fn surface_normals(scene: &Scene, tri: TriangleData, hit: Hit, dir: Vec3) -> SurfaceNormals {
+        let face = (tri.v1 - tri.v0).cross(tri.v2 - tri.v0);
+        let area2 = face.length();
+        let flip = if face.dot(dir) > 0.0 { -1.0 } else { 1.0 };
+        let mut ng = -dir;
+        if area2 > 0.0 {
+            ng = face * (flip / area2);
+        }
+        let mut ns = ng;
+        if scene.has_shading != 0 && area2 > 0.0 {
+            let n = shading_normal(scene, hit.triangle, hit.u, hit.v) * flip;
+            let len = n.length();
+            if len > 0.0 && n.dot(ng) > 0.0 {
+                ns = n / len;
+            }
+        }
+        if scene.has_normal_map != 0 && area2 > 0.0 {
+            ns = normal_mapped(scene, hit, tri.material, ns, flip, ng, -dir);
+        }
+        SurfaceNormals { ng, ns, flip, area2 }
+    }
+
     /// One path sample through pixel (x, y): (radiance, 1), or zero when it was not finite.
     // Inlined into the CPU backend's row loop, which is also compiled for AVX2 (backend/cpu.rs).
     #[inline(always)]
@@ -85,24 +121,14 @@ pub mod integrator {
             }
             let tri = fetch_triangle(scene, hit.triangle);
             let p = origin + dir * hit.t;
-            let face = (tri.v1 - tri.v0).cross(tri.v2 - tri.v0);
-            let area2 = face.length();
-            if !(area2 > 0.0) {
+            let normals = surface_normals(scene, tri, hit, dir);
+            if !(normals.area2 > 0.0) {
                 break;
             }
-            let flip = if face.dot(dir) > 0.0 { -1.0 } else { 1.0 };
-            let ng = face * (flip / area2);
-            let mut ns = ng;
-            if scene.has_shading != 0 {
-                let n = shading_normal(scene, hit.triangle, hit.u, hit.v) * flip;
-                let len = n.length();
-                if len > 0.0 && n.dot(ng) > 0.0 {
-                    ns = n / len;
-                }
-            }
-            if scene.has_normal_map != 0 {
-                ns = normal_mapped(scene, hit, tri.material, ns, flip, ng, -dir);
-            }
+            let flip = normals.flip;
+            let ng = normals.ng;
+            let ns = normals.ns;
+            let area2 = normals.area2;
             let material = fetch_material(scene, tri.material);
             if scene.has_volume != 0 && flip < 0.0 {
                 // The segment that ends here, at a back face, ran inside this material's volume.

@@ -216,6 +216,63 @@ pub mod traverse {
         }
     }
 
+    /// A node's children sorted by entry distance: a five-exchange sorting network, misses (at
+    /// `MISS`) last.
+    // The DSL has no `std::mem::swap`: the network swaps through temporaries.
+    #[allow(clippy::manual_swap)]
+    #[inline(always)]
+    pub fn sort_children(n: NodeHits) -> NodeHits {
+        let mut t0 = n.t.x;
+        let mut t1 = n.t.y;
+        let mut t2 = n.t.z;
+        let mut t3 = n.t.w;
+        let mut e0 = n.entries.x;
+        let mut e1 = n.entries.y;
+        let mut e2 = n.entries.z;
+        let mut e3 = n.entries.w;
+        if t1 < t0 {
+            let t = t0;
+            t0 = t1;
+            t1 = t;
+            let e = e0;
+            e0 = e1;
+            e1 = e;
+        }
+        if t3 < t2 {
+            let t = t2;
+            t2 = t3;
+            t3 = t;
+            let e = e2;
+            e2 = e3;
+            e3 = e;
+        }
+        if t2 < t0 {
+            let t = t0;
+            t0 = t2;
+            t2 = t;
+            let e = e0;
+            e0 = e2;
+            e2 = e;
+        }
+        if t3 < t1 {
+            let t = t1;
+            t1 = t3;
+            t3 = t;
+            let e = e1;
+            e1 = e3;
+            e3 = e;
+        }
+        if t2 < t1 {
+            let t = t1;
+            t1 = t2;
+            t2 = t;
+            let e = e1;
+            e1 = e2;
+            e2 = e;
+        }
+        NodeHits { t: Vec4::new(t0, t1, t2, t3), entries: UVec4::new(e0, e1, e2, e3) }
+    }
+
     /// Closest intersection along `origin + t * dir` for t in (0, t_max); with alpha masks, the
     /// closest candidate after `after` in (t, triangle) order, holes included (`intersect_leaf`).
     ///
@@ -227,9 +284,8 @@ pub mod traverse {
     /// leaves are pushed only below `scene.leaf_stack_limit` entries and intersected at once
     /// beyond it (see `tracer::pack`, which sets the limit so that the stack cannot overflow).
     /// Either way the leaves of an iteration are intersected at one place, after the node.
-    // The DSL has no `std::mem::swap` and no iterators: the sorting network swaps through
-    // temporaries, and the leaves are visited by index.
-    #[allow(clippy::manual_swap, clippy::needless_range_loop)]
+    // The DSL has no iterators: the leaves are visited by index.
+    #[allow(clippy::needless_range_loop)]
     #[inline(always)]
     pub fn closest_candidate(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32, after: Hit, only_masked: bool) -> Hit {
         let inv_dir = safe_inverse(dir);
@@ -253,56 +309,15 @@ pub mod traverse {
                 leaves[0] = entry;
                 leaf_count = 1;
             } else {
-                let n = intersect_node(scene, entry >> 8, origin, inv_dir, near, hit.t);
-                let mut t0 = n.t.x;
-                let mut t1 = n.t.y;
-                let mut t2 = n.t.z;
-                let mut t3 = n.t.w;
-                let mut e0 = n.entries.x;
-                let mut e1 = n.entries.y;
-                let mut e2 = n.entries.z;
-                let mut e3 = n.entries.w;
-                // Sort the children by distance (a five-exchange sorting network; misses last).
-                if t1 < t0 {
-                    let t = t0;
-                    t0 = t1;
-                    t1 = t;
-                    let e = e0;
-                    e0 = e1;
-                    e1 = e;
-                }
-                if t3 < t2 {
-                    let t = t2;
-                    t2 = t3;
-                    t3 = t;
-                    let e = e2;
-                    e2 = e3;
-                    e3 = e;
-                }
-                if t2 < t0 {
-                    let t = t0;
-                    t0 = t2;
-                    t2 = t;
-                    let e = e0;
-                    e0 = e2;
-                    e2 = e;
-                }
-                if t3 < t1 {
-                    let t = t1;
-                    t1 = t3;
-                    t3 = t;
-                    let e = e1;
-                    e1 = e3;
-                    e3 = e;
-                }
-                if t2 < t1 {
-                    let t = t1;
-                    t1 = t2;
-                    t2 = t;
-                    let e = e1;
-                    e1 = e2;
-                    e2 = e;
-                }
+                let sorted = sort_children(intersect_node(scene, entry >> 8, origin, inv_dir, near, hit.t));
+                let t0 = sorted.t.x;
+                let t1 = sorted.t.y;
+                let t2 = sorted.t.z;
+                let t3 = sorted.t.w;
+                let e0 = sorted.entries.x;
+                let e1 = sorted.entries.y;
+                let e2 = sorted.entries.z;
+                let e3 = sorted.entries.w;
                 // Farthest first, the nearest visited next without a round trip through the
                 // stack. (The box tests were clipped to the closest hit, so every hit child is
                 // worth visiting; the pop test below catches hits found meanwhile.)

@@ -381,28 +381,7 @@ impl GlHarness {
                 let args = gl.create_texture().map_err(gl_failed("glCreateTexture (harness arguments)"))?;
                 textures.push(args);
                 upload_uint_texture(gl, args, (columns * texels) as i32, rows as i32, Some(input));
-                let mut outputs = Vec::new();
-                for _ in 0..attachments {
-                    let t = gl.create_texture().map_err(gl_failed("glCreateTexture (harness results)"))?;
-                    textures.push(t);
-                    upload_uint_texture(gl, t, columns as i32, rows as i32, None);
-                    outputs.push(t);
-                }
-                let fb = gl.create_framebuffer().map_err(gl_failed("glCreateFramebuffer (harness)"))?;
-                framebuffer = Some(fb);
-                gl.bind_framebuffer(glow::FRAMEBUFFER, Some(fb));
-                let buffers: Vec<u32> = (0..attachments as u32).map(|j| glow::COLOR_ATTACHMENT0 + j).collect();
-                for (j, t) in outputs.iter().enumerate() {
-                    gl.framebuffer_texture_2d(glow::FRAMEBUFFER, buffers[j], glow::TEXTURE_2D, Some(*t), 0);
-                }
-                gl.draw_buffers(&buffers);
-                let status = gl.check_framebuffer_status(glow::FRAMEBUFFER);
-                if status != glow::FRAMEBUFFER_COMPLETE {
-                    return Err(GlError::Unsupported(format!(
-                        "{attachments} RGBA32UI attachments of {columns}x{rows} are incomplete (status {status:#06x})"
-                    ))
-                    .into());
-                }
+                let buffers = attach_results(gl, columns, rows, attachments, &mut textures, &mut framebuffer)?;
                 gl.use_program(Some(p.program));
                 for (unit, (location, texture)) in p.scene_textures.iter().enumerate() {
                     gl.active_texture(glow::TEXTURE0 + unit as u32);
@@ -421,22 +400,7 @@ impl GlHarness {
                 gl.draw_arrays(glow::TRIANGLES, 0, 3);
                 gl.bind_vertex_array(None);
                 gl.use_program(None);
-                let mut results = Vec::new();
-                gl.pixel_store_i32(glow::PACK_ALIGNMENT, 4);
-                for buffer in &buffers {
-                    let mut words = vec![0u32; columns * rows * 4];
-                    gl.read_buffer(*buffer);
-                    gl.read_pixels(
-                        0,
-                        0,
-                        columns as i32,
-                        rows as i32,
-                        glow::RGBA_INTEGER,
-                        glow::UNSIGNED_INT,
-                        glow::PixelPackData::Slice(Some(words_as_bytes_mut(&mut words))),
-                    );
-                    results.push(words);
-                }
+                let results = read_results(gl, &buffers, columns, rows);
                 let error = gl.get_error();
                 if error != glow::NO_ERROR {
                     return Err(GlError::Gl {
@@ -520,4 +484,66 @@ impl Runtime for GlHarness {
     fn run_words(&mut self, function: &str, invocations: usize, input: &[u32]) -> Result<Vec<u32>, HarnessError> {
         GlHarness::run_words(self, function, invocations, input)
     }
+}
+
+/// `attachments` RGBA32UI result textures of `columns` x `rows` on a new framebuffer (bound),
+/// recorded in `textures` and `framebuffer` for the caller to delete; their draw buffers.
+///
+/// # Safety
+/// `gl`'s context is current.
+unsafe fn attach_results(
+    gl: &glow::Context,
+    columns: usize,
+    rows: usize,
+    attachments: usize,
+    textures: &mut Vec<glow::Texture>,
+    framebuffer: &mut Option<glow::Framebuffer>,
+) -> Result<Vec<u32>, HarnessError> {
+    let mut outputs = Vec::new();
+    for _ in 0..attachments {
+        let t = gl.create_texture().map_err(gl_failed("glCreateTexture (harness results)"))?;
+        textures.push(t);
+        upload_uint_texture(gl, t, columns as i32, rows as i32, None);
+        outputs.push(t);
+    }
+    let fb = gl.create_framebuffer().map_err(gl_failed("glCreateFramebuffer (harness)"))?;
+    *framebuffer = Some(fb);
+    gl.bind_framebuffer(glow::FRAMEBUFFER, Some(fb));
+    let buffers: Vec<u32> = (0..attachments as u32).map(|j| glow::COLOR_ATTACHMENT0 + j).collect();
+    for (j, t) in outputs.iter().enumerate() {
+        gl.framebuffer_texture_2d(glow::FRAMEBUFFER, buffers[j], glow::TEXTURE_2D, Some(*t), 0);
+    }
+    gl.draw_buffers(&buffers);
+    let status = gl.check_framebuffer_status(glow::FRAMEBUFFER);
+    if status != glow::FRAMEBUFFER_COMPLETE {
+        return Err(GlError::Unsupported(format!(
+            "{attachments} RGBA32UI attachments of {columns}x{rows} are incomplete (status {status:#06x})"
+        ))
+        .into());
+    }
+    Ok(buffers)
+}
+
+/// The words of each draw buffer of the bound framebuffer (`columns` x `rows` RGBA32UI).
+///
+/// # Safety
+/// `gl`'s context is current, with the framebuffer [`attach_results`] made bound.
+unsafe fn read_results(gl: &glow::Context, buffers: &[u32], columns: usize, rows: usize) -> Vec<Vec<u32>> {
+    let mut results = Vec::new();
+    gl.pixel_store_i32(glow::PACK_ALIGNMENT, 4);
+    for buffer in buffers {
+        let mut words = vec![0u32; columns * rows * 4];
+        gl.read_buffer(*buffer);
+        gl.read_pixels(
+            0,
+            0,
+            columns as i32,
+            rows as i32,
+            glow::RGBA_INTEGER,
+            glow::UNSIGNED_INT,
+            glow::PixelPackData::Slice(Some(words_as_bytes_mut(&mut words))),
+        );
+        results.push(words);
+    }
+    results
 }

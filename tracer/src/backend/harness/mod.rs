@@ -453,6 +453,7 @@ mod tests {
             ("AlphaMaskData", top_fields::<crate::kernel::alpha_mask::AlphaMaskData>()),
             ("GlassData", top_fields::<crate::kernel::scene_data::GlassData>()),
             ("Aov", top_fields::<crate::kernel::denoise::Aov>()),
+            ("SurfaceNormals", top_fields::<crate::kernel::integrator::SurfaceNormals>()),
         ];
         let structs: Vec<kernel_dsl::ir::StructDef> = crate::kernel::modules()
             .into_iter()

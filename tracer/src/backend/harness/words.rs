@@ -144,7 +144,7 @@ mod kernel_structs {
     use crate::kernel::bsdf::Bsdf;
     use crate::kernel::camera::Ray;
     use crate::kernel::denoise::Aov;
-    use crate::kernel::integrator::Shading;
+    use crate::kernel::integrator::{Shading, SurfaceNormals};
     use crate::kernel::intersect::TriangleHit;
     use crate::kernel::lights::LightSample;
     use crate::kernel::metal_rough::{BrdfSample, Surface};
@@ -171,6 +171,7 @@ mod kernel_structs {
         AlphaMaskData { texture, alpha, cutoff }
         GlassData { transmission, ior, texture, thin, sigma_a }
         Aov { albedo, normal, depth, emission }
+        SurfaceNormals { ng, ns, flip, area2 }
     }
 }
 
