@@ -1,7 +1,8 @@
 //! The denoiser (`tracer::denoise`, its filter in `kernel::denoise`) against the project's own
 //! high-sample references: at 16 spp it must be at least 6 dB (PSNR) closer to the reference
 //! than the noisy image, at 256 spp never further, and keep the image's mean, on the Cornell
-//! box, a textured box under a sky and a scene of alpha-masked holes. And bad input: NaN and
+//! box, a textured box under a sky and a scene of alpha-masked holes (glossy metal-roughness
+//! surfaces, e.g. DamagedHelmet, are not helped yet: see the README). And bad input: NaN and
 //! infinite pixels never spread, black and constant images stay as they are, single rows and
 //! single pixels work.
 
