@@ -242,7 +242,8 @@ fn render(args: &RenderArgs) -> Result<()> {
     let mut r = tracer::backend::create(args.backend.kind(), packed, args.seed)
         .with_context(|| format!("starting the {} backend", args.backend.kind().name()))?;
     // With --denoise, each pixel's luminance moments, from each frame's accumulation.
-    let mut moments = args.denoise.then(|| tracer::denoise::SampleMoments::new((args.width * args.height) as usize));
+    let mut moments =
+        args.denoise.then(|| tracer::denoise::SampleMoments::new(args.width as usize * args.height as usize));
     for _ in 0..args.spp {
         r.render_frame()?;
         // Wait for each frame so that the progress bar tells the truth.
