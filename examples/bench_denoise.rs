@@ -34,13 +34,7 @@ fn render(p: &Packed, spp: u32, seed: u32) -> (Image, Vec<f32>) {
 }
 
 fn rel_mse(a: &Image, reference: &Image) -> f64 {
-    let sum: f64 = a
-        .pixels
-        .iter()
-        .zip(&reference.pixels)
-        .map(|(x, r)| (0..3).map(|c| ((x[c] - r[c]) as f64).powi(2) / ((r[c] as f64).powi(2) + 0.01)).sum::<f64>())
-        .sum();
-    sum / (3 * a.pixels.len()) as f64
+    tracer::stats::rel_mse(&a.pixels, &reference.pixels).expect("same size")
 }
 
 fn median(mut v: Vec<f64>) -> f64 {

@@ -14,6 +14,7 @@ use tracer::kernel::denoise::Aov;
 use tracer::kernel::Strategy;
 use tracer::output::Image;
 use tracer::scene::{self, Scene};
+use tracer::stats::{mse, rel_mse};
 
 use crate::common::agreement::{packed, textured_box};
 
@@ -31,20 +32,13 @@ fn render(scene: &Scene, size: u32, spp: u32, seed: u32) -> (Image, Vec<f32>, Ve
     (r.image().expect("image"), moments.variance_of_mean(), aovs)
 }
 
-/// Relative MSE against `reference` (per channel, (x - r)^2 / (r^2 + 0.01)) and the PSNR of
-/// the absolute MSE with a peak of the reference's largest value.
+/// Relative MSE against `reference` (`tracer::stats::rel_mse`) and the PSNR of the MSE with a
+/// peak of the reference's largest value.
 fn error(image: &Image, reference: &Image) -> (f64, f64) {
-    let (mut rel, mut abs, mut peak) = (0.0, 0.0, 0.0f64);
-    for (x, r) in image.pixels.iter().zip(&reference.pixels) {
-        for c in 0..3 {
-            let (x, r) = (x[c] as f64, r[c] as f64);
-            rel += (x - r) * (x - r) / (r * r + 0.01);
-            abs += (x - r) * (x - r);
-            peak = peak.max(r);
-        }
-    }
-    let n = 3.0 * image.pixels.len() as f64;
-    (rel / n, 10.0 * (peak * peak / (abs / n)).log10())
+    let rel = rel_mse(&image.pixels, &reference.pixels).expect("same size");
+    let mse = mse(&image.pixels, &reference.pixels).expect("same size");
+    let peak = reference.pixels.iter().map(|p| p.max_element() as f64).fold(0.0, f64::max);
+    (rel, 10.0 * (peak * peak / mse).log10())
 }
 
 /// Denoises `scene` at 16 and 256 spp and compares both with the noisy images against a
