@@ -38,6 +38,9 @@ if ! command -v npm >/dev/null; then
     "${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends nodejs npm
 fi
 
+# A fresh clone builds once: incremental state would only double the disk the build takes.
+export CARGO_INCREMENTAL=0
+
 step "browser test driver (npm ci in tests/web)"
 (cd tests/web && npm ci --no-audit --no-fund)
 
