@@ -1,7 +1,8 @@
 //! The denoiser (`tracer::denoise`): what it costs and what it buys. Prints
-//! - the filter's time per image (AOVs and the à-trous passes, on the CPU) at 640x480 and
-//!   1920x1080 on the Cornell box, median of `--rounds`, as a ratio to rendering one sample per
-//!   pixel of the same image in the same run;
+//! - the guide's time per image (the first hits' AOVs, on the CPU) and the filter passes' time
+//!   on each runtime (CPU, GL, wgpu: `Renderer::denoise_passes`, read-back included) at 640x480
+//!   and 1920x1080 on the Cornell box, median of `--rounds`, as a ratio to rendering one sample
+//!   per pixel of the same image on the same runtime in the same run;
 //! - the equal-quality speed-up on the Cornell box at 64x64: the relative MSE of the denoised
 //!   16-spp image against a 4096-spp reference, and how many samples per pixel the noisy image
 //!   needs to reach it (doubling until it does, interpolated in log-log).
@@ -11,8 +12,8 @@
 use std::time::Instant;
 
 use tracer::backend::cpu::CpuRenderer;
-use tracer::backend::Renderer;
-use tracer::denoise::{denoise, first_hit_aovs, SampleMoments};
+use tracer::backend::{Renderer, RendererKind};
+use tracer::denoise::{denoise, filter_input, first_hit_aovs, SampleMoments};
 use tracer::kernel::{RenderSettings, Strategy};
 use tracer::output::Image;
 use tracer::pack::{build_and_pack, Packed};
@@ -47,28 +48,52 @@ fn main() {
     let rounds: usize =
         args.iter().position(|a| a == "--rounds").and_then(|i| args.get(i + 1)?.parse().ok()).unwrap_or(5);
     println!("threads: {}", rayon::current_num_threads());
-    println!("\n| image | 1 spp render (ms) | AOVs (ms) | filter (ms) | denoise / 1 spp |");
-    println!("|---|---|---|---|---|");
+    println!(
+        "\n| image | runtime | 1 spp frame (ms) | guide: AOVs on the CPU (ms) | filter passes (ms) | filter / frame |"
+    );
+    println!("|---|---|---|---|---|---|");
     for size in [(640, 480), (1920, 1080)] {
         let p = packed(size);
-        let (mut frame, mut aov, mut filter) = (Vec::new(), Vec::new(), Vec::new());
         let (image, variance) = render(&p, 2, 1);
-        // Alternate the three measurements, round after round.
+        let aovs = first_hit_aovs(&p.scene);
+        let input = filter_input(&image, &variance, &aovs).expect("filter input");
+        let mut runtimes: Vec<Box<dyn Renderer>> = RendererKind::ALL
+            .iter()
+            .filter_map(|kind| match tracer::backend::create(*kind, p.clone(), 3) {
+                Ok(r) => Some(r),
+                Err(e) => {
+                    println!("| {}x{} | {} | unavailable: {e} | | | |", size.0, size.1, kind.name());
+                    None
+                }
+            })
+            .collect();
+        let mut times = vec![(Vec::new(), Vec::new(), Vec::new()); runtimes.len()];
+        // Alternate the runtimes and the measurements, round after round.
         for _ in 0..rounds {
-            let t = Instant::now();
-            let mut r = CpuRenderer::new(p.clone(), 3);
-            r.render_frame().expect("frame");
-            frame.push(t.elapsed().as_secs_f64() * 1e3);
-            let t = Instant::now();
-            let aovs = first_hit_aovs(&p.scene);
-            aov.push(t.elapsed().as_secs_f64() * 1e3);
-            let t = Instant::now();
-            let out = denoise(&image, &variance, &aovs).expect("denoise");
-            filter.push(t.elapsed().as_secs_f64() * 1e3);
-            assert!(out.image.pixels.iter().all(|p| p.is_finite()));
+            for (r, (frame, aov, filter)) in runtimes.iter_mut().zip(&mut times) {
+                let t = Instant::now();
+                r.render_frame().expect("frame");
+                r.finish().expect("finish");
+                frame.push(t.elapsed().as_secs_f64() * 1e3);
+                let t = Instant::now();
+                let _ = first_hit_aovs(&p.scene);
+                aov.push(t.elapsed().as_secs_f64() * 1e3);
+                let t = Instant::now();
+                let out = r.denoise_passes(input.clone()).expect("filter passes");
+                filter.push(t.elapsed().as_secs_f64() * 1e3);
+                assert!(out.iter().all(|p| p.is_finite()));
+            }
         }
-        let (frame, aov, filter) = (median(frame), median(aov), median(filter));
-        println!("| {}x{} | {frame:.1} | {aov:.1} | {filter:.1} | {:.2}x |", size.0, size.1, (aov + filter) / frame);
+        for (r, (frame, aov, filter)) in runtimes.iter().zip(times) {
+            let (frame, aov, filter) = (median(frame), median(aov), median(filter));
+            let name = r.describe().runtime;
+            println!(
+                "| {}x{} | {name} | {frame:.1} | {aov:.1} | {filter:.1} | {:.2}x |",
+                size.0,
+                size.1,
+                filter / frame
+            );
+        }
     }
 
     let p = packed((64, 64));

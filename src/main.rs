@@ -257,7 +257,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     let render_time = t3.elapsed();
     bar.finish_and_clear();
     let display = tracer::output::Display { tone_map: args.tonemap.into(), exposure: args.exposure };
-    let denoised = moments.as_ref().map(|m| denoise(r.as_ref(), &image, m)).transpose()?;
+    let denoised = moments.as_ref().map(|m| denoise(r.as_mut(), &image, m)).transpose()?;
     if let (Some(noisy), Some(_)) = (&args.noisy, &denoised) {
         tracer::output::write_image(noisy, &image, &display)?;
     }
@@ -283,8 +283,15 @@ fn render(args: &RenderArgs) -> Result<()> {
     if rejected > 0 {
         println!("warning      {rejected} non-finite samples were dropped");
     }
-    if let Some((d, time)) = &denoised {
-        println!("denoise      {:.1} ms (CPU, {} à-trous passes)", time.as_secs_f64() * 1e3, ATROUS_PASSES);
+    if let Some((d, times)) = &denoised {
+        println!(
+            "denoise      {:.1} ms: guide {:.1} ms (CPU), filter {:.1} ms ({} backend, {} à-trous passes)",
+            (times.guide + times.filter).as_secs_f64() * 1e3,
+            times.guide.as_secs_f64() * 1e3,
+            times.filter.as_secs_f64() * 1e3,
+            r.describe().runtime,
+            ATROUS_PASSES
+        );
         if d.replaced > 0 {
             println!("warning      {} non-finite pixels were replaced before denoising", d.replaced);
         }
@@ -296,17 +303,26 @@ fn render(args: &RenderArgs) -> Result<()> {
     Ok(())
 }
 
+/// Where `render --denoise` spent its time: the guide (the first hits' AOVs, on the CPU) and
+/// the filter passes (on the renderer's runtime, read-back included).
+struct DenoiseTimes {
+    guide: std::time::Duration,
+    filter: std::time::Duration,
+}
+
 /// `image` denoised (`tracer::denoise`) with the guide of `renderer`'s scene and the moments of
-/// its frames, and how long that took.
+/// its frames, the filter passes on `renderer`'s runtime, and how long that took.
 fn denoise(
-    renderer: &dyn tracer::backend::Renderer,
+    renderer: &mut dyn tracer::backend::Renderer,
     image: &tracer::output::Image,
     moments: &tracer::denoise::SampleMoments,
-) -> Result<(tracer::denoise::Denoised, std::time::Duration)> {
+) -> Result<(tracer::denoise::Denoised, DenoiseTimes)> {
     let start = std::time::Instant::now();
     let aovs = tracer::denoise::first_hit_aovs(&renderer.packed().scene);
-    let denoised = tracer::denoise::denoise(image, &moments.variance_of_mean(), &aovs)?;
-    Ok((denoised, start.elapsed()))
+    let guide = start.elapsed();
+    let start = std::time::Instant::now();
+    let denoised = tracer::denoise::denoise_on(renderer, image, &moments.variance_of_mean(), &aovs)?;
+    Ok((denoised, DenoiseTimes { guide, filter: start.elapsed() }))
 }
 
 /// Prints a loaded scene's warnings (its loader's, and [`tracer::scene::Scene::unlit_warning`]

@@ -266,9 +266,9 @@ pub(crate) trait Language {
     fn preamble(&self, header: &str) -> String;
     fn resources(&self, blocks: &[ResourceBlock]) -> String;
     fn helper(&self, h: &Helper) -> String;
-    /// The entry point around `fn(&Resources, x: u32, y: u32) -> Vec4` named `function` (see
-    /// [`crate::EntryPoint`]).
-    fn pixel_entry(&self, function: &str) -> String;
+    /// The entry point around `fn(&Resources, x: u32, y: u32) -> Vec4` named `function`, doing
+    /// `output` with its value (see [`crate::EntryPoint`]).
+    fn pixel_entry(&self, function: &str, output: crate::PixelOutput) -> String;
 
     // ------------------------------------------------------------ the equivalence harness
 

@@ -166,16 +166,29 @@ impl Harness {
 }
 
 /// A shader entry point wrapped around a kernel function `fn(&Resources, x: u32, y: u32) -> Vec4`
-/// that computes one sample of pixel (x, y).
+/// that computes pixel (x, y)'s value: one sample added to a running sum
+/// ([`PixelOutput::Accumulate`]), or the pixel of an image pass ([`PixelOutput::Write`]).
 ///
 /// GLSL: a fragment shader; pixel = `gl_FragCoord.xy` (row 0 is the framebuffer's first row),
-/// the output `lp_out` = texel of `lp_accumulation` + the sample (a running sum, w counting
-/// accepted samples). A matching vertex shader is [`fullscreen_vertex_shader`].
-/// WGSL: a compute shader (8 x 8 workgroups) adding the sample to the storage buffer
-/// `lp_accumulation` (row-major, `lp_target.width` wide).
+/// the output `lp_out` = the value, plus the texel of `lp_accumulation` when accumulating (w
+/// counting accepted samples). A matching vertex shader is [`fullscreen_vertex_shader`].
+/// WGSL: a compute shader (8 x 8 workgroups) over the rows `[lp_target.first_row,
+/// lp_target.end_row)`, adding the value to the storage buffer `lp_accumulation` or storing it
+/// in `lp_output` (row-major, `lp_target.width` wide; group 1, binding 0; `lp_target` binding 1).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct EntryPoint {
     pub function: String,
+    pub output: PixelOutput,
+}
+
+/// What an [`EntryPoint`] does with the value its function returns for a pixel.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PixelOutput {
+    /// Add it to the pixel's running sum (a path tracer's sample).
+    #[default]
+    Accumulate,
+    /// Store it as the pixel (an image pass, e.g. one of the denoiser's filter passes).
+    Write,
 }
 
 impl Selection {
@@ -187,12 +200,22 @@ impl Selection {
         }
     }
 
-    /// A complete shader: `entry` and everything it reaches, specialised.
+    /// A complete shader: `entry` and everything it reaches, specialised, adding each pixel's
+    /// value to a running sum.
     pub fn entry(function: &str, specialize: BTreeMap<String, u32>) -> Selection {
+        Selection::entry_with(function, specialize, PixelOutput::Accumulate)
+    }
+
+    /// A complete shader of one image pass: `function`'s value stored as each pixel.
+    pub fn image_pass(function: &str, specialize: BTreeMap<String, u32>) -> Selection {
+        Selection::entry_with(function, specialize, PixelOutput::Write)
+    }
+
+    fn entry_with(function: &str, specialize: BTreeMap<String, u32>, output: PixelOutput) -> Selection {
         Selection {
             roots: vec![function.to_string()],
             specialize,
-            entry: Some(EntryPoint { function: function.to_string() }),
+            entry: Some(EntryPoint { function: function.to_string(), output }),
             harness: None,
             regenerate: None,
         }
@@ -202,6 +225,13 @@ impl Selection {
     pub fn harness(function: &str) -> Selection {
         Selection { roots: vec![function.to_string()], harness: Some(function.to_string()), ..Selection::default() }
     }
+}
+
+/// A kernel (Rust) identifier as it appears in generated code: unchanged unless some target
+/// reserves it (then `_` is appended, e.g. `step` → `step_`): what a host looks up, e.g. a
+/// resources struct's uniform members in WGSL.
+pub fn identifier(name: &str) -> String {
+    names::safe(name)
 }
 
 /// The GLSL ES 3.00 vertex shader that pairs with a fragment entry point: one triangle

@@ -52,7 +52,9 @@ pub(super) fn equal_time_strip(
     std::fs::write(svg, text).with_context(|| format!("writing {}", svg.display()))?;
     Ok(picks
         .iter()
-        .map(|p| format!("{} {} ({} spp, {:.3} s)", p.backend.name(), p.strategy.name(), p.spp, p.seconds))
+        .map(|p| {
+            format!("{} {}{} ({} spp, {:.3} s)", p.backend.name(), p.strategy.name(), p.suffix(), p.spp, p.seconds)
+        })
         .collect::<Vec<_>>()
         .join(", "))
 }
@@ -109,7 +111,7 @@ fn equal_time_svg(
     cell(&mut out, 0, 0, "reference", reference_label, reference)?;
     for (r, (_, row)) in rows.iter().enumerate() {
         for (c, p) in row.iter().enumerate() {
-            let heading = format!("{} · {}", p.strategy.name(), p.backend.name());
+            let heading = format!("{} · {}{}", p.strategy.name(), p.backend.name(), p.suffix());
             let detail = format!("{} spp · {}", p.spp, seconds(p.seconds));
             cell(&mut out, r, c + 1, &heading, &detail, &p.image.pixels)?;
         }
@@ -191,9 +193,11 @@ pub(super) fn draw_chart(path: &Path, title: &str, lines: &[Vec<Point>]) -> Resu
                 Strategy::Nee => RGBColor(31, 119, 180),
                 Strategy::Mis => RGBColor(44, 160, 44),
             };
+            // A denoised line: its line's colour, darker (and labelled so).
+            let color = if first.denoised { RGBColor(color.0 / 2, color.1 / 2, color.2 / 2) } else { color };
             let points: Vec<(f64, f64)> =
                 line.iter().map(|p| (p.seconds, metric(p))).filter(|(t, e)| positive(*t) && positive(*e)).collect();
-            let label = format!("{} {}", first.strategy.name(), first.backend.name());
+            let label = format!("{} {}{}", first.strategy.name(), first.backend.name(), first.suffix());
             let style = ShapeStyle { color: color.to_rgba(), filled: true, stroke_width: 2 };
             match first.backend {
                 ChartBackend::Cpu => {

@@ -184,6 +184,7 @@ pub(super) fn from_report(
             points.push(Point {
                 backend: ChartBackend::Web,
                 strategy,
+                denoised: false,
                 spp,
                 seconds: ms / 1e3,
                 rmse: tracer::stats::rmse(&image.pixels, reference)?,

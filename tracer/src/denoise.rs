@@ -4,13 +4,16 @@
 //! accumulation (so any runtime's image can be denoised), and [`denoise`] demodulates the image
 //! by the albedo, runs the à-trous passes and remodulates.
 //!
-//! Here the passes run on the CPU (rayon) for every runtime; the same `atrous_pixel` becomes a
-//! fragment pass on GL/WebGL2 and a compute pass on wgpu/WebGPU next.
+//! [`denoise`] runs the passes on the CPU ([`filter_on_cpu`]: `atrous_pixel` as plain Rust, rayon);
+//! [`denoise_on`] on a renderer's runtime ([`Renderer::denoise_passes`]), which runs the same
+//! function generated as an image pass (`shaders-generated/denoise_pass.*`): a
+//! fragment pass on GL/WebGL2, a compute pass on wgpu/WebGPU.
 
 use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
 use kernel_dsl::Texels;
 use rayon::prelude::*;
 
+use crate::backend::{RenderError, Renderer};
 use crate::kernel::denoise::{atrous_pixel, first_hit_aov, Aov, FilterImage, ATROUS_ITERATIONS, MIN_ALBEDO};
 use crate::kernel::intersect::MISS;
 use crate::kernel::lights::luminance;
@@ -22,6 +25,10 @@ use crate::output::Image;
 pub enum DenoiseError {
     #[error("the image is {width}x{height} ({pixels} pixels) but {what} has {len} values")]
     SizeMismatch { width: u32, height: u32, pixels: usize, what: &'static str, len: usize },
+    #[error("the filter passes failed: {0}")]
+    Passes(Box<RenderError>),
+    #[error("the filter passes returned {len} pixels for a {width}x{height} image")]
+    PassOutput { width: u32, height: u32, len: usize },
 }
 
 /// A denoised image.
@@ -132,8 +139,75 @@ fn demodulation(albedo: Vec3) -> Vec3 {
 }
 
 /// `image` denoised, given each pixel's variance of the mean luminance (`variance`, e.g.
-/// [`SampleMoments::variance_of_mean`]) and its first hit's auxiliary values (`aovs`).
+/// [`SampleMoments::variance_of_mean`]) and its first hit's auxiliary values (`aovs`), the
+/// filter passes on the CPU.
 pub fn denoise(image: &Image, variance: &[f32], aovs: &[Aov]) -> Result<Denoised, DenoiseError> {
+    let Demodulated { filter, modulation, replaced } = demodulate(image, variance, aovs)?;
+    remodulate(image, filter_on_cpu(filter), &modulation, replaced)
+}
+
+/// [`denoise`] with the filter passes on `renderer`'s runtime
+/// ([`Renderer::denoise_passes`]: fragment passes on GL, compute passes on wgpu).
+pub fn denoise_on(
+    renderer: &mut dyn Renderer,
+    image: &Image,
+    variance: &[f32],
+    aovs: &[Aov],
+) -> Result<Denoised, DenoiseError> {
+    let Demodulated { filter, modulation, replaced } = demodulate(image, variance, aovs)?;
+    // An empty image has nothing to filter (and no runtime draws into a 0x0 target).
+    let filtered = if modulation.is_empty() {
+        Vec::new()
+    } else {
+        renderer.denoise_passes(filter).map_err(|e| DenoiseError::Passes(Box::new(e)))?
+    };
+    remodulate(image, filtered, &modulation, replaced)
+}
+
+/// The à-trous passes on the CPU: `ATROUS_ITERATIONS` passes of `atrous_pixel` at steps 1, 2,
+/// 4, ... over `image`; the last pass's output per pixel (rgb filtered, w its variance).
+pub fn filter_on_cpu(mut image: FilterImage) -> Vec<Vec4> {
+    let width = image.width;
+    for pass in 0..ATROUS_ITERATIONS {
+        image.step = 1 << pass;
+        let output: Vec<Vec4> =
+            (0..width * image.height).into_par_iter().map(|i| atrous_pixel(&image, i % width, i / width)).collect();
+        image.color = Texels::new(output);
+    }
+    image.color.as_slice().to_vec()
+}
+
+/// The filtered illumination times the albedo, plus the emission: the denoised image.
+fn remodulate(
+    image: &Image,
+    filtered: Vec<Vec4>,
+    modulation: &[(Vec3, Vec3)],
+    replaced: usize,
+) -> Result<Denoised, DenoiseError> {
+    let (width, height) = (image.width, image.height);
+    if filtered.len() != modulation.len() {
+        return Err(DenoiseError::PassOutput { width, height, len: filtered.len() });
+    }
+    let pixels = filtered.iter().zip(modulation).map(|(f, (d, e))| f.xyz() * *d + *e).collect();
+    Ok(Denoised { image: Image { width, height, pixels }, replaced })
+}
+
+/// What the filter passes are given for `image` (see [`denoise`]): its illumination and
+/// variance, and the guide, e.g. to run the passes on several runtimes and compare them.
+pub fn filter_input(image: &Image, variance: &[f32], aovs: &[Aov]) -> Result<FilterImage, DenoiseError> {
+    Ok(demodulate(image, variance, aovs)?.filter)
+}
+
+/// An image made ready for the filter passes.
+struct Demodulated {
+    filter: FilterImage,
+    /// Per pixel, what divided the colour (the albedo) and what was taken out (the emission).
+    modulation: Vec<(Vec3, Vec3)>,
+    /// Pixels with a non-finite colour, variance or guide, replaced.
+    replaced: usize,
+}
+
+fn demodulate(image: &Image, variance: &[f32], aovs: &[Aov]) -> Result<Demodulated, DenoiseError> {
     let (width, height) = (image.width, image.height);
     let pixels = image.pixels.len();
     for (what, len) in [("the variance", variance.len()), ("the AOVs", aovs.len())] {
@@ -161,13 +235,6 @@ pub fn denoise(image: &Image, variance: &[f32], aovs: &[Aov]) -> Result<Denoised
         guide.push(normal.extend(depth));
         modulation.push((d, emission));
     }
-    let mut filtered = FilterImage { color: Texels::new(color), guide: Texels::new(guide), width, height, step: 1 };
-    for pass in 0..ATROUS_ITERATIONS {
-        filtered.step = 1 << pass;
-        let pass_output: Vec<Vec4> =
-            (0..width * height).into_par_iter().map(|i| atrous_pixel(&filtered, i % width, i / width)).collect();
-        filtered.color = Texels::new(pass_output);
-    }
-    let pixels = filtered.color.as_slice().iter().zip(&modulation).map(|(f, (d, e))| f.xyz() * *d + *e).collect();
-    Ok(Denoised { image: Image { width, height, pixels }, replaced })
+    let filter = FilterImage { color: Texels::new(color), guide: Texels::new(guide), width, height, step: 1 };
+    Ok(Demodulated { filter, modulation, replaced })
 }

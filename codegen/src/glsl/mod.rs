@@ -235,8 +235,8 @@ impl Language for Glsl {
         helpers::text(h)
     }
 
-    fn pixel_entry(&self, function: &str) -> String {
-        shaders::pixel_entry(function)
+    fn pixel_entry(&self, function: &str, output: crate::PixelOutput) -> String {
+        shaders::pixel_entry(function, output)
     }
 
     fn harness_word(&self, k: u32) -> String {

@@ -4,6 +4,7 @@
 use std::fmt::Write as _;
 
 use crate::language::{HarnessShader, ResourceBlock, ResourceKind};
+use crate::PixelOutput;
 
 pub(super) fn preamble(header: &str) -> String {
     format!("#version 300 es\n{header}\nprecision highp float;\nprecision highp int;\nprecision highp sampler2D;\nprecision highp usampler2D;\n")
@@ -31,11 +32,17 @@ pub(super) fn resources(blocks: &[ResourceBlock]) -> String {
     out
 }
 
-/// A fragment shader: pixel = `gl_FragCoord.xy`, output = accumulation texel + one sample.
-pub(super) fn pixel_entry(function: &str) -> String {
-    format!(
-        "// Entry point: one sample of pixel gl_FragCoord.xy added to the running sum.\nuniform highp sampler2D lp_accumulation;\nout vec4 lp_out;\n\nvoid main() {{\n    uvec2 pixel = uvec2(gl_FragCoord.xy);\n    lp_out = texelFetch(lp_accumulation, ivec2(pixel), 0) + {function}(pixel.x, pixel.y);\n}}\n"
-    )
+/// A fragment shader: pixel = `gl_FragCoord.xy`, output = accumulation texel + one sample, or
+/// the pixel's value.
+pub(super) fn pixel_entry(function: &str, output: PixelOutput) -> String {
+    match output {
+        PixelOutput::Accumulate => format!(
+            "// Entry point: one sample of pixel gl_FragCoord.xy added to the running sum.\nuniform highp sampler2D lp_accumulation;\nout vec4 lp_out;\n\nvoid main() {{\n    uvec2 pixel = uvec2(gl_FragCoord.xy);\n    lp_out = texelFetch(lp_accumulation, ivec2(pixel), 0) + {function}(pixel.x, pixel.y);\n}}\n"
+        ),
+        PixelOutput::Write => format!(
+            "// Entry point: pixel gl_FragCoord.xy of an image pass.\nout vec4 lp_out;\n\nvoid main() {{\n    uvec2 pixel = uvec2(gl_FragCoord.xy);\n    lp_out = {function}(pixel.x, pixel.y);\n}}\n"
+        ),
+    }
 }
 
 /// A fragment shader: invocation (x, y) reads its words from the RGBA32UI texture `lp_args`

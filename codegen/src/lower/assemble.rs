@@ -189,7 +189,7 @@ impl Lowerer<'_> {
                 message: "an entry point takes (resources, x: u32, y: u32) and returns Vec4".into(),
             });
         }
-        Ok(self.lang.pixel_entry(&names::safe(&entry.function)))
+        Ok(self.lang.pixel_entry(&names::safe(&entry.function), entry.output))
     }
 
     /// A const's value: literals, or simple expressions of literals and other consts.

@@ -5,6 +5,7 @@ use std::fmt::Write as _;
 
 use crate::language::{HarnessShader, ResourceBlock, ResourceKind};
 use crate::names;
+use crate::PixelOutput;
 
 /// The storage buffer holding every texel array of resource struct global `global` whose
 /// element is `vec4<u32>` (`unsigned`) or `vec4<f32>`, one array after another.
@@ -70,16 +71,29 @@ pub(super) fn resources(blocks: &[ResourceBlock]) -> String {
 /// A compute shader (8 x 8 workgroups) adding one sample per pixel of a band of rows,
 /// `lp_target.first_row` up to (not including) `lp_target.end_row`, to the storage buffer
 /// `lp_accumulation` (row-major, `lp_target.width` wide): a whole frame is one band, a slow
-/// device's frame several (`tracer::backend::frame_split`).
-pub(super) fn pixel_entry(function: &str) -> String {
+/// device's frame several (`tracer::backend::frame_split`). Or, for an image pass, storing each
+/// pixel's value in `lp_output`.
+pub(super) fn pixel_entry(function: &str, output: PixelOutput) -> String {
+    let (comment, buffer, store) = match output {
+        PixelOutput::Accumulate => (
+            "one sample per pixel of the band of rows [first_row, end_row) added to the running sum in lp_accumulation",
+            "lp_accumulation",
+            format!("lp_accumulation[i] = lp_accumulation[i] + {function}(id.x, y);"),
+        ),
+        PixelOutput::Write => (
+            "each pixel of the band of rows [first_row, end_row) of an image pass, stored in lp_output",
+            "lp_output",
+            format!("lp_output[i] = {function}(id.x, y);"),
+        ),
+    };
     format!(
-        "// Entry point: one sample per pixel of the band of rows [first_row, end_row) added to the running sum in lp_accumulation.
+        "// Entry point: {comment}.
 struct LpTarget {{
     width: u32,
     first_row: u32,
     end_row: u32,
 }}
-@group(1) @binding(0) var<storage, read_write> lp_accumulation: array<vec4<f32>>;
+@group(1) @binding(0) var<storage, read_write> {buffer}: array<vec4<f32>>;
 @group(1) @binding(1) var<uniform> lp_target: LpTarget;
 
 @compute @workgroup_size(8, 8)
@@ -89,7 +103,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {{
         return;
     }}
     let i = y * lp_target.width + id.x;
-    lp_accumulation[i] = lp_accumulation[i] + {function}(id.x, y);
+    {store}
 }}
 "
     )

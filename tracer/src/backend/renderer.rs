@@ -14,6 +14,7 @@ use super::gl::GlError;
 #[cfg(feature = "wgpu")]
 use super::wgpu::WgpuError;
 use super::Image;
+use crate::kernel::denoise::FilterImage;
 use crate::kernel::scene_data::Scene;
 use crate::pack::Packed;
 
@@ -112,6 +113,15 @@ pub trait Renderer {
     /// Samples that were not finite and were dropped, over the whole image.
     fn rejected_samples(&self) -> Result<u64, RenderError> {
         Ok(rejected_samples(self.frames(), &self.accumulation()?))
+    }
+
+    /// The denoiser's à-trous passes over `image` on this runtime (the kernel's
+    /// `denoise::atrous_pixel` at steps 1, 2, 4, ...): the last pass's output per pixel, as
+    /// [`filter_on_cpu`](crate::denoise::filter_on_cpu) computes it. GL runs them as fragment
+    /// passes and wgpu as compute passes on the renderer's own context or device; the CPU
+    /// runtime (this default) in Rust.
+    fn denoise_passes(&mut self, image: FilterImage) -> Result<Vec<Vec4>, RenderError> {
+        Ok(crate::denoise::filter_on_cpu(image))
     }
 }
 

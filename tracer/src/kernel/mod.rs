@@ -143,6 +143,29 @@ fn path_tracer_shader_for(
     Ok(generated)
 }
 
+/// One pass of the denoiser's à-trous filter for `target`: a GLSL ES 3.00 fragment shader or a
+/// WGSL compute shader storing `denoise::atrous_pixel` as each pixel (over the `FilterImage`
+/// resources), validated.
+pub fn denoise_pass_shader(target: lightport_codegen::Target) -> Result<lightport_codegen::Generated, ShaderError> {
+    denoise_pass_shader_for(target, None)
+}
+
+fn denoise_pass_shader_for(
+    target: lightport_codegen::Target,
+    regenerate: Option<&str>,
+) -> Result<lightport_codegen::Generated, ShaderError> {
+    use lightport_codegen::{Program, Selection};
+    let program = Program::link(&modules())?;
+    let selection = Selection {
+        regenerate: regenerate.map(str::to_string),
+        ..Selection::image_pass("atrous_pixel", Default::default())
+    };
+    let generated = program.emit(target, &selection)?;
+    #[cfg(feature = "validate")]
+    lightport_codegen::validate::validate(&generated)?;
+    Ok(generated)
+}
+
 /// The display transform (`tonemap::display_srgb` and what it calls) in `target`'s language:
 /// what each runtime's display pass wraps its own entry point around, so that the screen shows
 /// what the CLI's PNG output stores.
@@ -186,6 +209,12 @@ pub fn generated_shaders() -> Result<Vec<GeneratedFile>, ShaderError> {
             let ext = if target == Target::GlslEs300 { "frag.glsl" } else { "wgsl" };
             files.push(GeneratedFile { name: format!("{name}.{ext}"), source: generated.source });
         }
+    }
+    // The denoiser's filter pass.
+    for target in [Target::GlslEs300, Target::Wgsl] {
+        let generated = denoise_pass_shader_for(target, Some(REGENERATE))?;
+        let ext = if target == Target::GlslEs300 { "frag.glsl" } else { "wgsl" };
+        files.push(GeneratedFile { name: format!("denoise_pass.{ext}"), source: generated.source });
     }
     Ok(files)
 }

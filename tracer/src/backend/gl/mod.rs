@@ -22,13 +22,14 @@
 //!
 //! One file per role: `renderer.rs` (the [`GlRenderer`] and the pipeline it builds),
 //! `bindings.rs` (the `Scene` fields as uniforms and data textures), `texture.rs` (the data
-//! textures' shape and upload), `compile.rs`, `display.rs`.
+//! textures' shape and upload), `compile.rs`, `display.rs`, `filter.rs` (the denoiser's passes).
 
 mod bindings;
 mod compile;
 #[cfg(feature = "gl")]
 mod context;
 mod display;
+mod filter;
 pub mod harness;
 mod pacing;
 mod renderer;
@@ -36,6 +37,7 @@ mod texture;
 pub use bindings::gl_type;
 pub use compile::{annotate_log, compile_program, log_line_number};
 pub use display::{display_fragment_shader, GlDisplay};
+pub use filter::GlFilter;
 pub use pacing::Pacer;
 pub use renderer::GlRenderer;
 pub(crate) use texture::{set_nearest, upload_texels, words_as_bytes, words_as_bytes_mut};

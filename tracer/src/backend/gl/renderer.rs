@@ -12,10 +12,11 @@ use super::bindings::check_active_uniforms;
 #[cfg(feature = "gl")]
 use super::HeadlessContext;
 use super::{
-    compile_program, gl_failed, set_nearest, upload_texels, words_as_bytes, words_as_bytes_mut, GlError, GlInfo,
-    GlOptions, ACCUMULATION_UNIFORM, SCENE_UNIFORM_PREFIX,
+    compile_program, gl_failed, set_nearest, upload_texels, words_as_bytes, words_as_bytes_mut, GlError, GlFilter,
+    GlInfo, GlOptions, ACCUMULATION_UNIFORM, SCENE_UNIFORM_PREFIX,
 };
 use crate::backend::{frame_seed, ms_since, update_uniforms, BuildTimes, RenderError, Renderer, RendererInfo};
+use crate::kernel::denoise::FilterImage;
 use crate::kernel::scene_data::Scene;
 use crate::pack::Packed;
 
@@ -79,6 +80,8 @@ pub struct GlRenderer {
     current: usize,
     /// Rows of the frame in progress already drawn ([`render_band`](Self::render_band)).
     band_row: u32,
+    /// The denoiser's pass, compiled when first asked for.
+    filter: Option<GlFilter>,
     /// The EGL context this renderer created ([`headless`](Self::headless)); dropped last.
     #[cfg(feature = "gl")]
     headless: Option<HeadlessContext>,
@@ -104,6 +107,7 @@ impl GlRenderer {
                 pipeline,
                 current: 0,
                 band_row: 0,
+                filter: None,
                 #[cfg(feature = "gl")]
                 headless: None,
                 _not_send: PhantomData,
@@ -304,6 +308,16 @@ impl Renderer for GlRenderer {
         self.restart()
     }
 
+    /// Fragment passes of the kernel's `atrous_pixel` on this renderer's context ([`GlFilter`]).
+    fn denoise_passes(&mut self, image: FilterImage) -> Result<Vec<Vec4>, RenderError> {
+        self.activate()?;
+        if self.filter.is_none() {
+            self.filter = Some(GlFilter::new(&self.gl)?);
+        }
+        let filter = self.filter.as_ref().expect("created above");
+        Ok(filter.run(&self.gl, &image)?)
+    }
+
     fn restart(&mut self) -> Result<(), RenderError> {
         self.activate()?;
         let gl = &self.gl;
@@ -333,6 +347,9 @@ impl Drop for GlRenderer {
     fn drop(&mut self) {
         if self.activate().is_ok() {
             self.objects.delete(&self.gl);
+            if let Some(filter) = self.filter.take() {
+                filter.delete(&self.gl);
+            }
         }
         // `headless` (declared after `gl`) is dropped after this, destroying the context.
     }

@@ -122,7 +122,7 @@ impl WgpuHarness {
         #[cfg(feature = "validate")]
         lightport_codegen::validate::validate(&generated).map_err(ShaderError::from)?;
         let layout = generated_layout(function, &generated)?;
-        let resources = reflect(&generated, &[ARGS_BUFFER, RESULTS_BUFFER, COUNT_UNIFORM])?;
+        let resources = reflect(&generated, SCENE_UNIFORM, &[ARGS_BUFFER, RESULTS_BUFFER, COUNT_UNIFORM])?;
         // Borrowed, not cloned: a scene's arrays can be hundreds of megabytes.
         let no_scene = Scene::default();
         let scene = self.scene.as_ref().unwrap_or(&no_scene);

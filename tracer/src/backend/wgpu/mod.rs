@@ -29,6 +29,7 @@
 mod compile;
 mod device;
 mod display;
+mod filter;
 pub mod harness;
 mod oneshot;
 mod renderer;
@@ -37,10 +38,11 @@ mod resources;
 pub use compile::{compile_pipeline, start_pipeline, PipelineCheck};
 pub use device::{WgpuDevice, WgpuInfo};
 pub use display::{display_shader, DisplayPass};
+pub use filter::WgpuFilter;
 pub use renderer::WgpuRenderer;
 pub(crate) use resources::{
-    bind_groups, check_scene_limits, reflect, scene_uniform_bytes, storage_limit, u32_uniform_bytes, upload_scene,
-    BufferEntry, OwnResource, ShaderLayout, UniformLayout,
+    bind_groups, check_scene_limits, place_arrays, reflect, scene_uniform_bytes, storage_limit, u32_uniform_bytes,
+    upload_scene, BufferEntry, OwnResource, ShaderLayout, UniformLayout,
 };
 
 use crate::kernel::ShaderError;
@@ -111,13 +113,14 @@ mod tests {
         let scene = Scene::default();
         for features in [Features::all(), Features { emissive_triangles: true, ..Default::default() }] {
             let generated = crate::kernel::path_tracer_shader(&features, Target::Wgsl).expect("kernel");
-            let layout = reflect(&generated, &[ACCUMULATION_BUFFER, TARGET_UNIFORM]).expect("reflect");
+            let layout = reflect(&generated, SCENE_UNIFORM, &[ACCUMULATION_BUFFER, TARGET_UNIFORM]).expect("reflect");
             let uniform = layout.scene_uniform.as_ref().expect("scene uniform");
-            scene_uniform_bytes(uniform, &scene).expect("every uniform member has a value");
+            scene_uniform_bytes(uniform, SCENE_UNIFORM, &scene).expect("every uniform member has a value");
             assert!(uniform.members.iter().any(|(n, _)| n == "frame_seed"));
         }
         let all = reflect(
             &crate::kernel::path_tracer_shader(&Features::all(), Target::Wgsl).unwrap(),
+            SCENE_UNIFORM,
             &[ACCUMULATION_BUFFER, TARGET_UNIFORM],
         )
         .unwrap();
@@ -131,7 +134,7 @@ mod tests {
     #[test]
     fn uniform_members_sit_at_wgsl_offsets() {
         let generated = crate::kernel::path_tracer_shader(&Features::all(), Target::Wgsl).unwrap();
-        let layout = reflect(&generated, &[ACCUMULATION_BUFFER, TARGET_UNIFORM]).unwrap();
+        let layout = reflect(&generated, SCENE_UNIFORM, &[ACCUMULATION_BUFFER, TARGET_UNIFORM]).unwrap();
         let u = layout.scene_uniform.unwrap();
         let offset = |name: &str| u.members.iter().find(|(n, _)| n == name).map(|(_, o)| *o).expect(name);
         // Five u32s (the normal-map, alpha-mask and texture-reference offsets) before the camera:

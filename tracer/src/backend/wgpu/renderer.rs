@@ -10,11 +10,12 @@ use wgpu::util::DeviceExt;
 use super::{
     bind_groups, check_scene_limits, oneshot, reflect, scene_uniform_bytes, start_pipeline, storage_limit,
     u32_uniform_bytes, upload_scene, BufferEntry, OwnResource, PipelineCheck, UniformLayout, WgpuDevice, WgpuError,
-    WgpuInfo, WgpuOptions, ACCUMULATION_BUFFER, TARGET_UNIFORM, WORKGROUP_SIZE,
+    WgpuFilter, WgpuInfo, WgpuOptions, ACCUMULATION_BUFFER, SCENE_UNIFORM, TARGET_UNIFORM, WORKGROUP_SIZE,
 };
 use crate::backend::{
     frame_seed, ms_since, update_uniforms, BuildTimes, PendingAccumulation, RenderError, Renderer, RendererInfo,
 };
+use crate::kernel::denoise::FilterImage;
 use crate::kernel::scene_data::Scene;
 use crate::pack::Packed;
 
@@ -44,6 +45,10 @@ pub struct WgpuRenderer {
     /// The first row of the current frame not rendered yet (0 between frames).
     band_row: u32,
     pipeline: Pipeline,
+    /// The denoiser's pass, compiled when first asked for (natively: in the browser
+    /// `denoise_passes` cannot block for its read-back, so nothing creates it there yet).
+    #[cfg_attr(target_arch = "wasm32", allow(dead_code))]
+    filter: Option<WgpuFilter>,
     /// The first error wgpu reported outside an error scope (e.g. a lost device).
     uncaptured: Arc<Mutex<Option<String>>>,
 }
@@ -76,7 +81,7 @@ impl WgpuRenderer {
         let (pipeline, check) = build(&device, &packed, options)?;
         let mut device = device;
         device.info.max_storage_buffer_binding_size = storage_limit(&device.limits, options);
-        Ok((WgpuRenderer { device, packed, seed, frames: 0, band_row: 0, pipeline, uncaptured }, check))
+        Ok((WgpuRenderer { device, packed, seed, frames: 0, band_row: 0, pipeline, filter: None, uncaptured }, check))
     }
 
     /// A renderer on its own native device (Vulkan, Metal or DX12).
@@ -261,9 +266,34 @@ impl Renderer for WgpuRenderer {
     fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
         update_uniforms(&mut self.packed.scene, update)?;
         if let Some((buffer, layout)) = &self.pipeline.scene_uniform {
-            self.device.queue.write_buffer(buffer, 0, &scene_uniform_bytes(layout, &self.packed.scene)?);
+            self.device.queue.write_buffer(buffer, 0, &scene_uniform_bytes(layout, SCENE_UNIFORM, &self.packed.scene)?);
         }
         self.restart()
+    }
+
+    /// Compute passes of the kernel's `atrous_pixel` on this renderer's device ([`WgpuFilter`]).
+    /// Natively the device is polled until they are read back; in the browser a read-back
+    /// cannot block: an error.
+    fn denoise_passes(&mut self, image: FilterImage) -> Result<Vec<Vec4>, RenderError> {
+        self.check_uncaptured()?;
+        #[cfg(not(target_arch = "wasm32"))]
+        {
+            if self.filter.is_none() {
+                self.filter = Some(pollster::block_on(WgpuFilter::new(&self.device))?);
+            }
+            let filter = self.filter.as_ref().expect("created above");
+            let read = filter.run(&self.device, &image)?;
+            self.finish()?;
+            Ok(pollster::block_on(read)?)
+        }
+        #[cfg(target_arch = "wasm32")]
+        {
+            let _ = image;
+            Err(RenderError::Unsupported {
+                runtime: "wgpu",
+                what: "cannot block for the filter's read-back in the browser",
+            })
+        }
     }
 
     fn restart(&mut self) -> Result<(), RenderError> {
@@ -338,7 +368,7 @@ fn check_image_limits(limits: &wgpu::Limits, options: &WgpuOptions, scene: &Scen
 fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<(Pipeline, PipelineCheck), WgpuError> {
     let started = web_time::Instant::now();
     let generated = crate::kernel::path_tracer_shader(&packed.features, Target::Wgsl)?;
-    let layout = reflect(&generated, &[ACCUMULATION_BUFFER, TARGET_UNIFORM])?;
+    let layout = reflect(&generated, SCENE_UNIFORM, &[ACCUMULATION_BUFFER, TARGET_UNIFORM])?;
     let codegen_ms = ms_since(started);
     let scene = &packed.scene;
     check_scene_limits(&device.limits, options, scene, &layout)?;

@@ -1,21 +1,27 @@
 //! What every wgpu entry point of the kernel shares: the generated shader's resource layout
-//! (read back with naga), the scene uploaded as a uniform and storage buffers, bind groups,
-//! and limit checks (compiling, with errors at the kernel's Rust lines, is `compile.rs`). The renderer
-//! ([`super::WgpuRenderer`]) and the equivalence harness
-//! ([`crate::backend::harness::WgpuHarness`]) are two entry points over them.
+//! (read back with naga), a `#[resources]` struct (the path tracer's `Scene`, the denoiser's
+//! `FilterImage`) uploaded as a uniform and storage buffers, bind groups, and limit checks
+//! (compiling, with errors at the kernel's Rust lines, is `compile.rs`). The renderer
+//! ([`super::WgpuRenderer`]), the denoiser's passes ([`super::WgpuFilter`]) and the equivalence
+//! harness ([`crate::backend::harness::WgpuHarness`]) are entry points over them.
+//!
+//! "Scene" below names whichever `#[resources]` struct the shader reads: codegen declares its
+//! scalars as the uniform struct named after it (`scene`, `filter_image`) and its texel arrays
+//! in `lp_{name}_vec4f` / `lp_{name}_vec4u`.
 
 use lightport_codegen::Generated;
 use wgpu::util::DeviceExt;
 
 use super::compile::{annotate_messages, Message};
-use super::{WgpuError, WgpuOptions, SCENE_UNIFORM};
-use crate::kernel::scene_data::Scene;
+use super::{WgpuError, WgpuOptions};
 use kernel_dsl::{Resource, Resources};
 
 /// Where each resource of the generated shader is bound, as the shader declares it: the
 /// scene's (shared by every kernel entry point) and the entry point's own.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct ShaderLayout {
+    /// The resources struct's global name (`scene`, `filter_image`): its uniform's name.
+    pub(crate) global: String,
     /// The `scene` uniform: binding, size, and each member's (name, offset).
     pub(crate) scene_uniform: Option<UniformLayout>,
     /// The storage buffers holding the scene's texel arrays (one per element type).
@@ -34,14 +40,13 @@ pub(crate) struct TexelBuffer {
     pub(crate) binding: u32,
 }
 
-/// The names codegen gives the texel buffers (`codegen/src/wgsl/shaders.rs`), and whether
-/// each holds `vec4<u32>`.
-pub(crate) const TEXEL_BUFFERS: [(&str, bool); 2] = [("lp_scene_vec4f", false), ("lp_scene_vec4u", true)];
 /// The prefix of the `scene` uniform's members that hold where each texel array starts.
 pub(crate) const START_PREFIX: &str = "lp_start_";
 
-fn texel_buffer_name(unsigned: bool) -> &'static str {
-    TEXEL_BUFFERS[unsigned as usize].0
+/// The name codegen gives the texel buffer of resources `global` whose texels are `vec4<u32>`
+/// (`unsigned`) or `vec4<f32>` (`codegen/src/wgsl/shaders.rs`).
+fn texel_buffer_name(global: &str, unsigned: bool) -> String {
+    format!("lp_{global}_{}", if unsigned { "vec4u" } else { "vec4f" })
 }
 
 /// One texel array the shader reads, placed in its element type's buffer.
@@ -57,7 +62,8 @@ pub(crate) struct PlacedArray<'a> {
 /// order), each placed after the previous array of its element type.
 pub(crate) fn place_arrays<'a>(
     uniform: Option<&UniformLayout>,
-    scene: &'a Scene,
+    global: &str,
+    scene: &'a dyn Resources,
 ) -> Result<Vec<PlacedArray<'a>>, WgpuError> {
     let bindings = scene.fields();
     let mut ends = [0u64; 2];
@@ -69,9 +75,9 @@ pub(crate) fn place_arrays<'a>(
             Some((n, Resource::UVec4s(t))) => (n, bytemuck::cast_slice(t.as_slice()), true),
             other => {
                 return Err(WgpuError::UnboundResource {
-                    name: format!("{SCENE_UNIFORM}.{member}"),
+                    name: format!("{global}.{member}"),
                     detail: other.map_or(String::new(), |(_, b)| {
-                        format!(" as a texel array's start (the Scene field is {})", b.dsl_type())
+                        format!(" as a texel array's start (the field is {})", b.dsl_type())
                     }),
                 })
             }
@@ -90,9 +96,9 @@ fn texel_buffer_bytes(placed: &[PlacedArray], unsigned: bool) -> u64 {
 }
 
 /// "lp_scene_vec4f (triangles + shading + ...)": a texel buffer and the arrays in it.
-fn describe_texel_buffer(placed: &[PlacedArray], unsigned: bool) -> String {
+fn describe_texel_buffer(global: &str, placed: &[PlacedArray], unsigned: bool) -> String {
     let fields: Vec<&str> = placed.iter().filter(|a| a.unsigned == unsigned).map(|a| a.field).collect();
-    format!("{} ({})", texel_buffer_name(unsigned), fields.join(" + "))
+    format!("{} ({})", texel_buffer_name(global, unsigned), fields.join(" + "))
 }
 
 /// A resource of the entry point rather than of the scene.
@@ -121,9 +127,10 @@ pub(crate) struct UniformLayout {
 }
 
 /// Reads the resource layout of the generated shader with naga (the WGSL front end wgpu uses).
-/// `own` names the entry point's resources: each must be declared, and anything that is
-/// neither one of them nor scene data is an error.
-pub(crate) fn reflect(generated: &Generated, own: &[&str]) -> Result<ShaderLayout, WgpuError> {
+/// `global` names the resources struct the shader reads (`scene`, `filter_image`); `own` the
+/// entry point's resources: each must be declared, and anything that is neither one of them
+/// nor the struct's data is an error.
+pub(crate) fn reflect(generated: &Generated, global: &str, own: &[&str]) -> Result<ShaderLayout, WgpuError> {
     let module = naga::front::wgsl::parse_str(&generated.source).map_err(|e| WgpuError::Compile {
         log: annotate_messages(
             &[Message {
@@ -133,10 +140,11 @@ pub(crate) fn reflect(generated: &Generated, own: &[&str]) -> Result<ShaderLayou
             generated,
         ),
     })?;
-    let mut layout = ShaderLayout::default();
-    for (_, global) in module.global_variables.iter() {
-        let (Some(name), Some(binding)) = (&global.name, &global.binding) else { continue };
-        let uniform = || match &module.types[global.ty].inner {
+    let mut layout = ShaderLayout { global: global.to_string(), ..ShaderLayout::default() };
+    let texel_buffers = [false, true].map(|unsigned| (texel_buffer_name(global, unsigned), unsigned));
+    for (_, variable) in module.global_variables.iter() {
+        let (Some(name), Some(binding)) = (&variable.name, &variable.binding) else { continue };
+        let uniform = || match &module.types[variable.ty].inner {
             naga::TypeInner::Struct { members, span } => Some(UniformLayout {
                 group: binding.group,
                 binding: binding.binding,
@@ -145,22 +153,22 @@ pub(crate) fn reflect(generated: &Generated, own: &[&str]) -> Result<ShaderLayou
             }),
             _ => None,
         };
-        match (name.as_str(), global.space) {
-            (SCENE_UNIFORM, naga::AddressSpace::Uniform) => layout.scene_uniform = uniform(),
+        match (name.as_str(), variable.space) {
+            (n, naga::AddressSpace::Uniform) if n == global => layout.scene_uniform = uniform(),
             (n, space) if own.contains(&n) => layout.own.push(OwnResource {
                 name: n.to_string(),
                 group: binding.group,
                 binding: binding.binding,
                 uniform: if space == naga::AddressSpace::Uniform { uniform() } else { None },
             }),
-            (n, naga::AddressSpace::Storage { access }) if TEXEL_BUFFERS.iter().any(|(b, _)| *b == n) => {
+            (n, naga::AddressSpace::Storage { access }) if texel_buffers.iter().any(|(b, _)| b == n) => {
                 if access.contains(naga::StorageAccess::STORE) {
                     return Err(WgpuError::UnboundResource {
                         name: n.to_string(),
                         detail: " as a writable buffer (scene data is read-only)".into(),
                     });
                 }
-                let unsigned = TEXEL_BUFFERS.iter().any(|(b, u)| *b == n && *u);
+                let unsigned = texel_buffers.iter().any(|(b, u)| b == n && *u);
                 layout.texel_buffers.push(TexelBuffer { unsigned, group: binding.group, binding: binding.binding });
             }
             (n, space) => {
@@ -177,20 +185,25 @@ pub(crate) fn reflect(generated: &Generated, own: &[&str]) -> Result<ShaderLayou
     Ok(layout)
 }
 
-/// The bytes of the `scene` uniform struct: each member's value at its WGSL offset.
-pub(crate) fn scene_uniform_bytes(layout: &UniformLayout, scene: &Scene) -> Result<Vec<u8>, WgpuError> {
+/// The bytes of the `scene` uniform struct (resources `global`): each member's value at its WGSL offset.
+pub(crate) fn scene_uniform_bytes(
+    layout: &UniformLayout,
+    global: &str,
+    scene: &dyn Resources,
+) -> Result<Vec<u8>, WgpuError> {
     let bindings = scene.fields();
-    let placed = place_arrays(Some(layout), scene)?;
+    let placed = place_arrays(Some(layout), global, scene)?;
     let mut bytes = vec![0u8; layout.size as usize];
     for (member, offset) in &layout.members {
-        let value = bindings.iter().find(|(n, _)| n == member).map(|(_, b)| b);
+        // Members carry the field's name as generated code spells it (`step` is `step_`).
+        let value = bindings.iter().find(|(n, _)| lightport_codegen::identifier(n) == *member).map(|(_, b)| b);
         let start = member.strip_prefix(START_PREFIX).and_then(|f| placed.iter().find(|a| a.field == f));
         let words: Vec<u32> = match value {
             _ if start.is_some() => {
                 let a = start.expect("checked");
                 // Indices are u32 in the shader: a start beyond them cannot be reached.
                 let start = u32::try_from(a.start).map_err(|_| WgpuError::SceneTooLarge {
-                    array: describe_texel_buffer(&placed, a.unsigned),
+                    array: describe_texel_buffer(global, &placed, a.unsigned),
                     bytes: texel_buffer_bytes(&placed, a.unsigned),
                     limit: "u32 texel indices",
                     max: (u32::MAX as u64 + 1) * 16,
@@ -202,15 +215,12 @@ pub(crate) fn scene_uniform_bytes(layout: &UniformLayout, scene: &Scene) -> Resu
             Some(Resource::Vec3(v)) => v.to_array().map(f32::to_bits).to_vec(),
             Some(other) => {
                 return Err(WgpuError::UnboundResource {
-                    name: format!("{SCENE_UNIFORM}.{member}"),
-                    detail: format!(" as a uniform member (the Scene field is {})", other.dsl_type()),
+                    name: format!("{global}.{member}"),
+                    detail: format!(" as a uniform member (the field is {})", other.dsl_type()),
                 })
             }
             None => {
-                return Err(WgpuError::UnboundResource {
-                    name: format!("{SCENE_UNIFORM}.{member}"),
-                    detail: String::new(),
-                })
+                return Err(WgpuError::UnboundResource { name: format!("{global}.{member}"), detail: String::new() })
             }
         };
         let start = *offset as usize;
@@ -238,18 +248,18 @@ pub(crate) fn storage_buffers_limit(limits: &wgpu::Limits, options: &WgpuOptions
 pub(crate) fn check_scene_limits(
     limits: &wgpu::Limits,
     options: &WgpuOptions,
-    scene: &Scene,
+    scene: &dyn Resources,
     layout: &ShaderLayout,
 ) -> Result<(), WgpuError> {
     let binding_max = storage_limit(limits, options);
     let buffer_max = limits.max_buffer_size;
-    let placed = place_arrays(layout.scene_uniform.as_ref(), scene)?;
+    let placed = place_arrays(layout.scene_uniform.as_ref(), &layout.global, scene)?;
     for buffer in &layout.texel_buffers {
         let bytes = texel_buffer_bytes(&placed, buffer.unsigned);
         for (limit, max) in [("max_storage_buffer_binding_size", binding_max), ("max_buffer_size", buffer_max)] {
             if bytes > max {
                 return Err(WgpuError::SceneTooLarge {
-                    array: describe_texel_buffer(&placed, buffer.unsigned),
+                    array: describe_texel_buffer(&layout.global, &placed, buffer.unsigned),
                     bytes,
                     limit,
                     max,
@@ -303,26 +313,27 @@ pub(crate) type SceneUniform = (wgpu::Buffer, UniformLayout);
 pub(crate) fn upload_scene(
     d: &wgpu::Device,
     layout: &ShaderLayout,
-    scene: &Scene,
+    scene: &dyn Resources,
 ) -> Result<(Vec<BufferEntry>, Option<SceneUniform>), WgpuError> {
     let mut entries = Vec::new();
     let mut scene_uniform = None;
     if let Some(u) = &layout.scene_uniform {
         let buffer = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("scene uniforms"),
-            contents: &scene_uniform_bytes(u, scene)?,
+            contents: &scene_uniform_bytes(u, &layout.global, scene)?,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         });
         let ty = wgpu::BufferBindingType::Uniform;
         entries.push(BufferEntry { group: u.group, binding: u.binding, buffer: buffer.clone(), ty });
         scene_uniform = Some((buffer, u.clone()));
     }
-    let placed = place_arrays(layout.scene_uniform.as_ref(), scene)?;
+    let placed = place_arrays(layout.scene_uniform.as_ref(), &layout.global, scene)?;
     for texels in &layout.texel_buffers {
         let buffer = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(texel_buffer_name(texels.unsigned)),
+            label: Some(&texel_buffer_name(&layout.global, texels.unsigned)),
             size: texel_buffer_bytes(&placed, texels.unsigned),
-            usage: wgpu::BufferUsages::STORAGE,
+            // COPY_DST: an image pass's output becomes the next pass's input in place.
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: true,
         });
         {
