@@ -7,6 +7,8 @@ use std::time::Instant;
 use glam::{DVec3, Vec3, Vec4, Vec4Swizzles};
 use tracer::backend::cpu::CpuRenderer;
 use tracer::backend::{create, Renderer, RendererKind};
+use tracer::denoise::{filter_input, first_hit_aovs, SampleMoments};
+use tracer::kernel::denoise::FilterImage;
 use tracer::kernel::{RenderSettings, Strategy};
 use tracer::pack::{pack, Packed};
 use tracer::scene::{self, Scene, Sky};
@@ -25,6 +27,30 @@ pub fn packed(scene: &Scene, strategy: Strategy, size: u32, max_depth: u32) -> P
     let bvh = tracer::bvh::build(&scene.triangles).expect("BVH");
     let settings = RenderSettings { width: size, height: size, strategy, max_depth };
     pack(scene, &bvh, &settings).expect("pack")
+}
+
+/// The demodulated image `denoise` hands to the filter passes for `scene` at `spp`.
+pub fn noisy_filter_input(scene: &Scene, width: u32, height: u32, spp: u32) -> FilterImage {
+    let mut p = packed(scene, Strategy::Mis, width.max(height), 6);
+    p.scene.width = width;
+    p.scene.height = height;
+    let aovs = first_hit_aovs(&p.scene);
+    let mut r = CpuRenderer::new(p, 3);
+    let mut moments = SampleMoments::new((width * height) as usize);
+    for _ in 0..spp {
+        r.render_frame().expect("frame");
+        moments.add_frame(&r.accumulation().expect("accumulation"));
+    }
+    filter_input(&r.image().expect("image"), &moments.variance_of_mean(), &aovs).expect("filter input")
+}
+
+/// The largest difference between two filtered images (colour and variance), relative to the
+/// larger value (absolute below 1).
+pub fn largest_difference(a: &[Vec4], b: &[Vec4]) -> f32 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| ((*x - *y).abs() / x.abs().max(y.abs()).max(Vec4::ONE)).max_element())
+        .fold(0.0, f32::max)
 }
 
 /// BoxTextured under a uniform white sky.

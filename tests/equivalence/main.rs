@@ -15,6 +15,7 @@ mod browser;
 #[path = "../common/mod.rs"]
 mod common;
 mod dielectric;
+mod filter_passes;
 mod hazards;
 mod intersection;
 mod kernels;

@@ -6,17 +6,17 @@
 //! infinite pixels never spread, black and constant images stay as they are, single rows and
 //! single pixels work.
 
-use glam::{Vec3, Vec4};
+use glam::Vec3;
 use tracer::backend::cpu::CpuRenderer;
 use tracer::backend::{Renderer, RendererKind};
-use tracer::denoise::{denoise, denoise_on, filter_input, filter_on_cpu, first_hit_aovs, SampleMoments};
-use tracer::kernel::denoise::{Aov, FilterImage};
+use tracer::denoise::{denoise, denoise_on, filter_on_cpu, first_hit_aovs, SampleMoments};
+use tracer::kernel::denoise::Aov;
 use tracer::kernel::Strategy;
 use tracer::output::Image;
 use tracer::scene::{self, Scene};
 use tracer::stats::{mse, rel_mse};
 
-use crate::common::agreement::{packed, textured_box};
+use crate::common::agreement::{largest_difference, noisy_filter_input, packed, textured_box};
 
 /// `spp` frames of `scene` on the CPU with `seed`: the image, and the variance of each pixel's
 /// mean luminance.
@@ -154,31 +154,6 @@ fn runtimes() -> Vec<Box<dyn Renderer>> {
             tracer::backend::create(*kind, p, 1).unwrap_or_else(|e| panic!("the {} runtime: {e}", kind.name()))
         })
         .collect()
-}
-
-/// The demodulated image `denoise` hands to the filter passes for `scene` at `spp`.
-fn noisy_filter_input(scene: &Scene, width: u32, height: u32, spp: u32) -> FilterImage {
-    let p = packed(scene, Strategy::Mis, width.max(height), 6);
-    let mut p = p;
-    p.scene.width = width;
-    p.scene.height = height;
-    let aovs = first_hit_aovs(&p.scene);
-    let mut r = CpuRenderer::new(p, 3);
-    let mut moments = SampleMoments::new((width * height) as usize);
-    for _ in 0..spp {
-        r.render_frame().expect("frame");
-        moments.add_frame(&r.accumulation().expect("accumulation"));
-    }
-    filter_input(&r.image().expect("image"), &moments.variance_of_mean(), &aovs).expect("filter input")
-}
-
-/// The largest difference between two filtered images, relative to the larger value (and
-/// absolute below 1): colour and variance.
-fn largest_difference(a: &[Vec4], b: &[Vec4]) -> f32 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| ((*x - *y).abs() / x.abs().max(y.abs()).max(Vec4::ONE)).max_element())
-        .fold(0.0, f32::max)
 }
 
 /// CPU ≡ GL ≡ wgpu on the filter passes: the same `atrous_pixel`, generated as a fragment pass

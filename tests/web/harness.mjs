@@ -12,6 +12,7 @@
 // Requests: { op: 'create', runtime: 'webgl2'|'webgpu', modules } -> { id, info };
 // { op: 'scene', id, words }; { op: 'layout', id, function, specialize } -> { inputWords,
 // outputWords }; { op: 'run', id, function, invocations, specialize, words, corrupt } -> { words };
+// { op: 'filter', id, words } -> { words } (the denoiser's passes over an encoded FilterImage);
 // { op: 'drop', id }. `corrupt` (tests): { flip: K } (the page flips a bit of word K),
 // 'truncate', 'garbage' or 'hang'.
 //
@@ -116,6 +117,8 @@ const ops = {
     }
     return out;
   },
+  filter: (r) => page.evaluate(([id, words]) => window.lightportHarness.filter(id, words),
+    [r.id, blob(Buffer.from(r.words, 'base64'))]),
   drop: (r) => page.evaluate((id) => window.lightportHarness.drop(id), r.id),
 };
 

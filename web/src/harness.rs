@@ -10,9 +10,14 @@ use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::rc::Rc;
 
+use glam::Vec4;
 use lightport_codegen::{ir, Program};
-use tracer::backend::harness::{decode_scene, GlHarness, GlHarnessOptions, HarnessError, WgpuHarness};
-use tracer::backend::wgpu::WgpuDevice;
+use tracer::backend::gl::GlFilter;
+use tracer::backend::harness::{
+    decode_resources, decode_scene, GlHarness, GlHarnessOptions, HarnessError, WgpuHarness,
+};
+use tracer::backend::wgpu::{WgpuDevice, WgpuFilter};
+use tracer::kernel::denoise::FilterImage;
 use wasm_bindgen::prelude::*;
 use wasm_bindgen::JsCast;
 use web_sys::{HtmlCanvasElement, WebGl2RenderingContext};
@@ -168,4 +173,36 @@ impl HarnessRuntime {
             Ok(js_sys::Uint32Array::from(words.as_slice()).into())
         })
     }
+
+    /// The denoiser's filter passes over a `FilterImage` (as `encode_resources` words) on this
+    /// runtime's context or device: `GlFilter` on WebGL2, `WgpuFilter` on WebGPU (what
+    /// `Renderer::denoise_passes` runs natively); resolves to the last pass's output as words.
+    #[wasm_bindgen(js_name = runFilter)]
+    pub fn run_filter(&self, input: Vec<u32>) -> js_sys::Promise {
+        let cell = self.harness.clone();
+        wasm_bindgen_futures::future_to_promise(async move {
+            let image: FilterImage = decode_resources(&input).map_err(|e| JsValue::from(js_error(e)))?;
+            let harness = take(&cell).map_err(|e| JsValue::from(js_error(e)))?;
+            let output = match &harness {
+                Harness::Gl(h) => gl_filter(h.gl(), &image),
+                Harness::Wgpu(h) => wgpu_filter(h.device(), &image).await,
+            };
+            *cell.borrow_mut() = Some(harness);
+            let output = output.map_err(|e| JsValue::from(js_error(e)))?;
+            let words: Vec<u32> = output.iter().flat_map(|t| t.to_array().map(f32::to_bits)).collect();
+            Ok(js_sys::Uint32Array::from(words.as_slice()).into())
+        })
+    }
+}
+
+fn gl_filter(gl: &glow::Context, image: &FilterImage) -> Result<Vec<Vec4>, String> {
+    let filter = GlFilter::new(gl).map_err(|e| e.to_string())?;
+    let output = filter.run(gl, image).map_err(|e| e.to_string());
+    filter.delete(gl);
+    output
+}
+
+async fn wgpu_filter(device: &WgpuDevice, image: &FilterImage) -> Result<Vec<Vec4>, String> {
+    let filter = WgpuFilter::new(device).await.map_err(|e| e.to_string())?;
+    filter.run(device, image).map_err(|e| e.to_string())?.await.map_err(|e| e.to_string())
 }

@@ -63,6 +63,10 @@ window.lightportHarness = {
     if (flip >= 0 && flip < out.length) out[flip] ^= 1;
     return { words: base64(out) };
   },
+  async filter(id, wordsUrl) {
+    const out = await runtime(id).runFilter(wordsOf(await fetchBytes(wordsUrl)));
+    return { words: base64(out) };
+  },
   drop(id) {
     const r = runtimes.get(id);
     if (r) {

@@ -34,9 +34,11 @@ use base64::Engine;
 use lightport_codegen::{Program, Target};
 use serde_json::{json, Value};
 
-use super::{encode_scene, generated_layout, harness_selection, Backend, HarnessError, Runtime};
+use super::{encode_resources, encode_scene, generated_layout, harness_selection, Backend, HarnessError, Runtime};
+use crate::kernel::denoise::FilterImage;
 use crate::kernel::scene_data::Scene;
 use crate::kernel::ShaderError;
+use glam::Vec4;
 
 /// Where the driver, the page and the browser are, and how long to wait for them.
 #[derive(Clone, Debug)]
@@ -297,6 +299,21 @@ impl BrowserRuntime {
 
     fn error(&self, detail: String) -> HarnessError {
         HarnessError::Browser { backend: self.backend, detail }
+    }
+
+    /// The denoiser's filter passes over `image` in the page (`GlFilter` on WebGL2,
+    /// `WgpuFilter` on WebGPU, as `Renderer::denoise_passes` runs them natively): the last
+    /// pass's output per pixel.
+    pub fn run_filter(&mut self, image: &FilterImage) -> Result<Vec<Vec4>, HarnessError> {
+        let words = words_base64(&encode_resources(image));
+        let reply = self.request(json!({ "op": "filter", "words": words }))?;
+        let text = reply["words"].as_str().ok_or_else(|| self.error("`filter`: no words".into()))?;
+        let words = base64_words(text).map_err(|e| self.error(format!("`filter`: {e}")))?;
+        let pixels = image.width as usize * image.height as usize;
+        if words.len() != pixels * 4 {
+            return Err(self.error(format!("`filter`: {} words for {pixels} pixels", words.len())));
+        }
+        Ok(words.chunks_exact(4).map(|t| Vec4::from_array([t[0], t[1], t[2], t[3]].map(f32::from_bits))).collect())
     }
 
     fn request(&self, mut request: Value) -> Result<Value, HarnessError> {

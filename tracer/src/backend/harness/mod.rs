@@ -40,7 +40,7 @@ pub use super::wgpu::harness::WgpuHarness;
 #[cfg(all(feature = "wgpu", not(target_arch = "wasm32")))]
 pub use browser::{BrowserOptions, BrowserRuntime, BrowserSession, Corruption};
 pub use compare::{compare_words, ulp_distance, Comparison, Mismatch, Tolerance};
-pub use scene_words::{decode_scene, encode_scene};
+pub use scene_words::{decode_resources, decode_scene, encode_resources, encode_scene};
 pub use words::{check_layout, field_layout, join, HarnessWord, Values, Words};
 
 use super::gl::GlError;

@@ -94,8 +94,19 @@ impl SceneField for Texels<UVec4> {
 
 /// `scene` as words (see the module docs).
 pub fn encode_scene(scene: &Scene) -> Vec<u32> {
+    encode_resources(scene)
+}
+
+/// The scene [`encode_scene`] encoded, or why `words` is not one.
+pub fn decode_scene(words: &[u32]) -> Result<Scene, String> {
+    decode_resources(words)
+}
+
+/// Any `#[resources]` struct as words, as [`encode_scene`] encodes the `Scene` (e.g. the
+/// denoiser's `FilterImage`, for the browser's filter passes).
+pub fn encode_resources(resources: &dyn Resources) -> Vec<u32> {
     let mut out = vec![MAGIC, VERSION];
-    for (_, field) in scene.fields() {
+    for (_, field) in resources.fields() {
         match field {
             Resource::Vec4s(t) => t.put(&mut out),
             Resource::UVec4s(t) => t.put(&mut out),
@@ -107,13 +118,13 @@ pub fn encode_scene(scene: &Scene) -> Vec<u32> {
     out
 }
 
-/// The scene [`encode_scene`] encoded, or why `words` is not one.
-pub fn decode_scene(words: &[u32]) -> Result<Scene, String> {
+/// The struct [`encode_resources`] encoded, or why `words` is not one.
+pub fn decode_resources<R: Resources + Default>(words: &[u32]) -> Result<R, String> {
     if words.get(..2) != Some(&[MAGIC, VERSION][..]) {
         return Err(format!("not an encoded scene of version {VERSION} (starts {:x?})", &words[..words.len().min(2)]));
     }
     let mut reader = Reader(&words[2..]);
-    let mut scene = Scene::default();
+    let mut scene = R::default();
     for (name, field) in scene.fields_mut() {
         let r = &mut reader;
         match field {
