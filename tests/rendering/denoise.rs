@@ -11,6 +11,7 @@ use tracer::backend::cpu::CpuRenderer;
 use tracer::backend::{Renderer, RendererKind};
 use tracer::denoise::{denoise, denoise_on, filter_on_cpu, first_hit_aovs, SampleMoments};
 use tracer::kernel::denoise::Aov;
+use tracer::kernel::lights::luminance;
 use tracer::kernel::Strategy;
 use tracer::output::Image;
 use tracer::scene::{self, Scene};
@@ -41,13 +42,14 @@ fn error(image: &Image, reference: &Image) -> (f64, f64) {
     (rel, 10.0 * (peak * peak / mse).log10())
 }
 
-/// Denoises `scene` at 16 and 256 spp and compares both with the noisy images against a
+/// Denoises `scene` at 1, 4, 16 and 256 spp and compares each with the noisy image against a
 /// 4096-spp reference (another seed): at 16 spp at least 6 dB of PSNR and 3 dB of relative MSE
-/// gained, at 256 spp nothing lost.
+/// gained, at 1, 4 and 256 spp nothing lost (at 1 spp the variance is unknown: the filter
+/// leans on its guide alone); the mean within 1 % (or the noisy image's own error) from 16 spp on.
 fn assert_denoising_helps(what: &str, scene: &Scene, size: u32) {
     let (reference, _, _) = render(scene, size, 4096, 99);
     let mut gains = Vec::new();
-    for spp in [16, 256] {
+    for spp in [1, 4, 16, 256] {
         let (noisy, variance, aovs) = render(scene, size, spp, 7);
         let denoised = denoise(&noisy, &variance, &aovs).expect("denoise");
         assert_eq!(denoised.replaced, 0, "{what}: finite input");
@@ -62,21 +64,25 @@ fn assert_denoising_helps(what: &str, scene: &Scene, size: u32) {
         // The mean stays within 1 % of the reference's, or no further than the noisy image's
         // own mean is (16 spp of a 48x48 image is itself up to ~2 % off).
         let off = |m: Vec3| ((m - reference_mean).abs() / reference_mean.max(Vec3::splat(1e-3))).max_element();
+        // Below 16 spp the filter is not mean-preserving where a few samples carry the light
+        // (the masked screen's mean falls 7 % at 1 spp, 3 % at 4): printed above, held from 16 on.
         assert!(
-            off(mean) <= off(noisy_mean).max(0.01) + 0.002,
+            spp < 16 || off(mean) <= off(noisy_mean).max(0.01) + 0.002,
             "{what} {spp} spp: the denoised mean {mean} is {:.4} from the reference's (the noisy image's {:.4})",
             off(mean),
             off(noisy_mean)
         );
         gains.push((gain, psnr_denoised - psnr_noisy));
     }
-    let [(rel16, psnr16), (rel256, psnr256)] = [gains[0], gains[1]];
+    let (rel16, psnr16) = gains[2];
     assert!(psnr16 >= 6.0, "{what}: denoising gains {psnr16:.2} dB of PSNR at 16 spp (at least 6 wanted)");
     assert!(rel16 >= 3.0, "{what}: denoising gains {rel16:.2} dB of relative MSE at 16 spp (at least 3 wanted)");
-    assert!(
-        psnr256 >= 0.0 && rel256 >= 0.0,
-        "{what}: denoising loses at 256 spp: {psnr256:.2} dB PSNR, {rel256:.2} dB relMSE"
-    );
+    for (spp, (rel, psnr)) in [(1, gains[0]), (4, gains[1]), (256, gains[3])] {
+        assert!(
+            psnr >= 0.0 && rel >= 0.0,
+            "{what}: denoising loses at {spp} spp: {psnr:.2} dB PSNR, {rel:.2} dB relMSE"
+        );
+    }
 }
 
 #[test]
@@ -94,6 +100,56 @@ fn denoising_a_textured_box_keeps_its_texture_and_gains_at_least_6_db() {
 #[test]
 fn denoising_alpha_masked_holes_gains_at_least_6_db() {
     assert_denoising_helps("alpha-masked screen", &scene::alpha_masked_screen(), 48);
+}
+
+/// The mean luminance of the pixels whose guide is in class `a` over that of class `b`.
+fn contrast(image: &Image, aovs: &[Aov], a: fn(&Aov) -> bool, b: fn(&Aov) -> bool) -> f64 {
+    let mean = |class: fn(&Aov) -> bool| {
+        let values: Vec<f64> =
+            image.pixels.iter().zip(aovs).filter(|(_, aov)| class(aov)).map(|(p, _)| luminance(*p) as f64).collect();
+        assert!(values.len() >= 20, "a class of only {} pixels", values.len());
+        values.iter().sum::<f64>() / values.len() as f64
+    };
+    mean(a) / mean(b)
+}
+
+/// Stability: edges the guide knows are kept. A checker texture's squares and an alpha-masked
+/// screen (the bare floor against the screen and the floor through its holes) keep their
+/// contrast within 10 % of the reference's at 4 and 16 spp; a filter that blurred across them
+/// would not.
+#[test]
+fn textures_and_cut_outs_keep_their_contrast() {
+    let size = 48;
+    let cases: [(&str, Scene, fn(&Aov) -> bool, fn(&Aov) -> bool); 2] = [
+        // Light squares (albedo 0.60) against dark ones (0.033); pixels on an edge are in neither.
+        ("checker floor", scene::checker_floor(), |a| a.albedo.x > 0.4, |a| a.albedo.x < 0.05),
+        // The bare floor against the screen (green, its holes a pixel or two wide at this size,
+        // so most of its pixels mix the floor seen through them).
+        (
+            "alpha-masked screen",
+            scene::alpha_masked_screen(),
+            |a| a.albedo.x > 0.75,
+            |a| a.albedo.y - a.albedo.x > 0.04,
+        ),
+    ];
+    for (what, scene, a, b) in cases {
+        let (reference, _, aovs) = render(&scene, size, 4096, 99);
+        let expected = contrast(&reference, &aovs, a, b);
+        for spp in [1, 4, 16] {
+            let (noisy, variance, aovs) = render(&scene, size, spp, 7);
+            let denoised = denoise(&noisy, &variance, &aovs).expect("denoise").image;
+            let (got, noisy_contrast) = (contrast(&denoised, &aovs, a, b), contrast(&noisy, &aovs, a, b));
+            eprintln!(
+                "{what} {spp:>2} spp: contrast {got:.3} denoised, {noisy_contrast:.3} noisy, {expected:.3} reference"
+            );
+            // At 1 spp the masked screen's noisy image is itself 11 % off (light through
+            // pixel-wide holes): printed, held from 4 spp on.
+            assert!(
+                spp == 1 || (got / expected - 1.0).abs() <= 0.1,
+                "{what} at {spp} spp: contrast {got:.3} denoised against {expected:.3} in the reference"
+            );
+        }
+    }
 }
 
 fn flat_aovs(n: usize) -> Vec<Aov> {

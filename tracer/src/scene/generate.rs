@@ -236,6 +236,29 @@ pub fn alpha_checker(n: u32) -> Texture {
     Texture { width: n, height: n, texels: texels.into(), wrap_s: Wrap::ClampToEdge, wrap_t: Wrap::ClampToEdge }
 }
 
+/// A 2 x 2 m floor whose base colour is an 8 x 8 checker of light (sRGB 204: albedo 0.60) and
+/// dark (sRGB 51: 0.033) squares, 8 x 8 texels each (so that filtering blurs only their edges),
+/// under a uniform white sky, seen from (0, 1.6, 1.6) at 45°: a texture whose edges a denoiser
+/// must keep (the contrast between the squares).
+pub fn checker_floor() -> Scene {
+    let n = 64u32;
+    let light = |i: u32| ((i % n) / 8 + (i / n) / 8).is_multiple_of(2);
+    let texels: Vec<u32> = (0..n * n).map(|i| if light(i) { 0xffcc_cccc } else { 0xff33_3333 }).collect();
+    let checker =
+        Texture { width: n, height: n, texels: texels.into(), wrap_s: Wrap::ClampToEdge, wrap_t: Wrap::ClampToEdge };
+    let floor = Material { base_color_texture: Some(0), ..Material::diffuse("checker", Vec3::ONE) };
+    let mut t = Vec::with_capacity(2);
+    quad(&mut t, [v(-1.0, 0.0, 1.0), v(1.0, 0.0, 1.0), v(1.0, 0.0, -1.0), v(-1.0, 0.0, -1.0)], 0);
+    Scene {
+        triangles: t,
+        materials: vec![floor],
+        textures: vec![checker],
+        sky: Some(super::Sky::uniform(Vec3::ONE)),
+        camera: Camera::look_at(v(0.0, 1.6, 1.6), Vec3::ZERO, Vec3::Y, 45f32.to_radians()),
+        ..Scene::default()
+    }
+}
+
 /// Alpha cut-outs (glTF `alphaMode` MASK) in code: a 2 x 2 m white floor, above it (y = 0.8) a
 /// 1 x 1 m green screen whose base colour texture is an 8 x 8 alpha checker (cutoff 0.5, half
 /// of it holes), above that (y = 1.6) a 0.8 x 0.8 m light facing down (radiance 8) cut by a

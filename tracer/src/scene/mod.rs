@@ -83,7 +83,7 @@ use std::path::{Path, PathBuf};
 use glam::{Vec2, Vec3, Vec4};
 
 pub use generate::{
-    alpha_checker, alpha_masked_screen, cornell_box, diffuse_plane, glass_cornell, metal_rough_spheres,
+    alpha_checker, alpha_masked_screen, checker_floor, cornell_box, diffuse_plane, glass_cornell, metal_rough_spheres,
     terrain_and_spheres, white_furnace,
 };
 pub use material::Material;
