@@ -102,9 +102,12 @@ fn denoising_alpha_masked_holes_gains_at_least_6_db() {
     assert_denoising_helps("alpha-masked screen", &scene::alpha_masked_screen(), 48);
 }
 
+/// Which pixels belong to a class, by their guide.
+type PixelClass = fn(&Aov) -> bool;
+
 /// The mean luminance of the pixels whose guide is in class `a` over that of class `b`.
-fn contrast(image: &Image, aovs: &[Aov], a: fn(&Aov) -> bool, b: fn(&Aov) -> bool) -> f64 {
-    let mean = |class: fn(&Aov) -> bool| {
+fn contrast(image: &Image, aovs: &[Aov], a: PixelClass, b: PixelClass) -> f64 {
+    let mean = |class: PixelClass| {
         let values: Vec<f64> =
             image.pixels.iter().zip(aovs).filter(|(_, aov)| class(aov)).map(|(p, _)| luminance(*p) as f64).collect();
         assert!(values.len() >= 20, "a class of only {} pixels", values.len());
@@ -120,7 +123,7 @@ fn contrast(image: &Image, aovs: &[Aov], a: fn(&Aov) -> bool, b: fn(&Aov) -> boo
 #[test]
 fn textures_and_cut_outs_keep_their_contrast() {
     let size = 48;
-    let cases: [(&str, Scene, fn(&Aov) -> bool, fn(&Aov) -> bool); 2] = [
+    let cases: [(&str, Scene, PixelClass, PixelClass); 2] = [
         // Light squares (albedo 0.60) against dark ones (0.033); pixels on an edge are in neither.
         ("checker floor", scene::checker_floor(), |a| a.albedo.x > 0.4, |a| a.albedo.x < 0.05),
         // The bare floor against the screen (green, its holes a pixel or two wide at this size,
