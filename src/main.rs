@@ -127,6 +127,11 @@ struct RenderArgs {
     /// With --denoise, also write the noisy image here.
     #[arg(long, value_name = "PATH", requires = "denoise")]
     noisy: Option<PathBuf>,
+    /// With --denoise, also write the filter's guide into this folder as linear EXR images:
+    /// albedo.exr, normal.exr (xyz as rgb), depth.exr (distance along the ray; the sky 1e30)
+    /// and emission.exr, e.g. for another denoiser.
+    #[arg(long, value_name = "DIR", requires = "denoise")]
+    aovs: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -261,6 +266,9 @@ fn render(args: &RenderArgs) -> Result<()> {
     if let (Some(noisy), Some(_)) = (&args.noisy, &denoised) {
         tracer::output::write_image(noisy, &image, &display)?;
     }
+    if let (Some(dir), Some((_, times))) = (&args.aovs, &denoised) {
+        write_aovs(dir, args.width, args.height, &times.aovs)?;
+    }
     let written = denoised.as_ref().map_or(&image, |(d, _)| &d.image);
     tracer::output::write_image(&args.out, written, &display)?;
 
@@ -298,16 +306,37 @@ fn render(args: &RenderArgs) -> Result<()> {
         if let Some(noisy) = &args.noisy {
             println!("wrote        {} (noisy)", noisy.display());
         }
+        if let Some(dir) = &args.aovs {
+            println!("wrote        {}/{{albedo,normal,depth,emission}}.exr (the guide)", dir.display());
+        }
     }
     println!("wrote        {}", args.out.display());
     Ok(())
 }
 
 /// Where `render --denoise` spent its time: the guide (the first hits' AOVs, on the CPU) and
-/// the filter passes (on the renderer's runtime, read-back included).
+/// the filter passes (on the renderer's runtime, read-back included); and the guide itself.
 struct DenoiseTimes {
     guide: std::time::Duration,
     filter: std::time::Duration,
+    aovs: Vec<tracer::kernel::denoise::Aov>,
+}
+
+/// `render --aovs`: the guide's four images as linear EXR files in `dir`.
+fn write_aovs(dir: &Path, width: u32, height: u32, aovs: &[tracer::kernel::denoise::Aov]) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    type Plane = fn(&tracer::kernel::denoise::Aov) -> glam::Vec3;
+    let planes: [(&str, Plane); 4] = [
+        ("albedo", |a| a.albedo),
+        ("normal", |a| a.normal),
+        ("depth", |a| glam::Vec3::splat(a.depth)),
+        ("emission", |a| a.emission),
+    ];
+    for (name, plane) in planes {
+        let image = tracer::output::Image { width, height, pixels: aovs.iter().map(plane).collect() };
+        tracer::output::write_image(&dir.join(format!("{name}.exr")), &image, &tracer::output::Display::CLAMP)?;
+    }
+    Ok(())
 }
 
 /// `image` denoised (`tracer::denoise`) with the guide of `renderer`'s scene and the moments of
@@ -322,7 +351,7 @@ fn denoise(
     let guide = start.elapsed();
     let start = std::time::Instant::now();
     let denoised = tracer::denoise::denoise_on(renderer, image, &moments.variance_of_mean(), &aovs)?;
-    Ok((denoised, DenoiseTimes { guide, filter: start.elapsed() }))
+    Ok((denoised, DenoiseTimes { guide, filter: start.elapsed(), aovs }))
 }
 
 /// Prints a loaded scene's warnings (its loader's, and [`tracer::scene::Scene::unlit_warning`]

@@ -80,7 +80,8 @@ fn an_unlit_scene_is_warned_about_and_a_sky_lights_it() {
 
 /// `render --denoise` writes the denoised image to `--out` and, with `--noisy`, the noisy one
 /// too, on every native runtime (the moments come from each frame's accumulation); the two
-/// differ and the denoised one is smoother. `--noisy` alone is refused.
+/// differ and the denoised one is smoother. With `--aovs`, the guide as four EXR images (the
+/// Cornell box's albedos within [0, 1], unit normals). `--noisy` and `--aovs` alone are refused.
 #[test]
 fn render_denoise_writes_the_denoised_and_the_noisy_image() {
     let dir = scratch("denoise");
@@ -92,12 +93,23 @@ fn render_denoise_writes_the_denoised_and_the_noisy_image() {
             .arg(&out)
             .arg("--noisy")
             .arg(&noisy)
+            .arg("--aovs")
+            .arg(dir.join(format!("{backend}-aovs")))
             .output()
             .expect("run lightport");
         let stdout = String::from_utf8_lossy(&o.stdout);
         assert!(o.status.success(), "{backend}: {}{stdout}", stderr(&o));
         assert!(stdout.contains("denoise ") && stdout.contains("(noisy)"), "{backend}: {stdout}");
         let read = |p: &Path| image::open(p).expect("an EXR").into_rgb32f().into_raw();
+        let aov = |name: &str| read(&dir.join(format!("{backend}-aovs/{name}.exr")));
+        let (albedo, normal, depth) = (aov("albedo"), aov("normal"), aov("depth"));
+        assert_eq!((albedo.len(), normal.len(), depth.len(), aov("emission").len()), (24 * 24 * 3, 1728, 1728, 1728));
+        assert!(albedo.iter().all(|a| (0.0..=1.0).contains(a)), "{backend}: albedo out of [0, 1]");
+        assert!(
+            normal.chunks(3).all(|n| (n[0] * n[0] + n[1] * n[1] + n[2] * n[2] - 1.0).abs() < 1e-3),
+            "{backend}: normals are not unit"
+        );
+        assert!(depth.iter().all(|d| *d > 0.0), "{backend}: the box is in front of the camera");
         let (denoised, noisy) = (read(&out), read(&noisy));
         // Roughness: the mean squared difference between horizontal neighbours.
         let roughness = |v: &[f32]| -> f64 {
@@ -111,6 +123,12 @@ fn render_denoise_writes_the_denoised_and_the_noisy_image() {
     let o = Command::new(env!("CARGO_BIN_EXE_lightport"))
         .args(["render", "--width", "8", "--height", "8", "--spp", "1", "--noisy"])
         .arg(dir.join("alone.png"))
+        .output()
+        .expect("run lightport");
+    assert!(!o.status.success() && stderr(&o).contains("--denoise"), "{}", stderr(&o));
+    let o = Command::new(env!("CARGO_BIN_EXE_lightport"))
+        .args(["render", "--width", "8", "--height", "8", "--spp", "1", "--aovs"])
+        .arg(dir.join("aovs-alone"))
         .output()
         .expect("run lightport");
     assert!(!o.status.success() && stderr(&o).contains("--denoise"), "{}", stderr(&o));
