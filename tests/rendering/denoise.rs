@@ -65,7 +65,7 @@ fn assert_denoising_helps(what: &str, scene: &Scene, size: u32) {
         // own mean is (16 spp of a 48x48 image is itself up to ~2 % off).
         let off = |m: Vec3| ((m - reference_mean).abs() / reference_mean.max(Vec3::splat(1e-3))).max_element();
         // Below 16 spp the filter is not mean-preserving where a few samples carry the light
-        // (the masked screen's mean falls 7 % at 1 spp, 3 % at 4): printed above, held from 16 on.
+        // (the masked screen's mean is 3 % off at 1 and 4 spp): printed above, held from 16 on.
         assert!(
             spp < 16 || off(mean) <= off(noisy_mean).max(0.01) + 0.002,
             "{what} {spp} spp: the denoised mean {mean} is {:.4} from the reference's (the noisy image's {:.4})",

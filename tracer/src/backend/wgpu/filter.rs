@@ -9,8 +9,8 @@ use lightport_codegen::Target;
 use wgpu::util::DeviceExt;
 
 use super::{
-    compile_pipeline, place_arrays, reflect, storage_limit, u32_uniform_bytes, upload_scene, BufferEntry, ShaderLayout,
-    WgpuDevice, WgpuError, WgpuOptions, TARGET_UNIFORM, WORKGROUP_SIZE,
+    compile_pipeline, map_texels, place_arrays, reflect, storage_limit, u32_uniform_bytes, upload_scene, BufferEntry,
+    ShaderLayout, WgpuDevice, WgpuError, WgpuOptions, TARGET_UNIFORM, WORKGROUP_SIZE,
 };
 use crate::kernel::denoise::{FilterImage, ATROUS_ITERATIONS};
 
@@ -18,6 +18,21 @@ use crate::kernel::denoise::{FilterImage, ATROUS_ITERATIONS};
 const FILTER_UNIFORM: &str = "filter_image";
 /// The read-write storage buffer an image pass stores its pixels in (codegen's entry point).
 const OUTPUT_BUFFER: &str = "lp_output";
+
+/// One run's buffers ([`WgpuFilter::upload`]).
+struct PassBuffers {
+    groups: Vec<wgpu::BindGroup>,
+    /// The `FilterImage` uniform, and where its `step` sits in it.
+    uniform: wgpu::Buffer,
+    step_offset: Option<u64>,
+    /// The texel buffer holding the colour (at `color_start` bytes) and the guide.
+    texels: wgpu::Buffer,
+    color_start: u64,
+    output: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    /// Bytes of one image (colour, output and read-back alike).
+    bytes: u64,
+}
 
 /// The filter pass's pipeline on a device.
 pub struct WgpuFilter {
@@ -54,41 +69,46 @@ impl WgpuFilter {
             });
         }
         let workgroups = check_limits(&device.limits, width, height)?;
+        let buffers = self.upload(device, image)?;
+        self.dispatch(device, &buffers, workgroups);
+        Ok(map_texels(buffers.readback))
+    }
+
+    /// The image's buffers and bind groups: the `FilterImage` uniform and texel buffer, the
+    /// pass's output, `lp_target` and the read-back buffer.
+    fn upload(&self, device: &WgpuDevice, image: &FilterImage) -> Result<PassBuffers, WgpuError> {
+        let (width, height) = (image.width, image.height);
         let d = &device.device;
         let mut image = image.clone();
         image.step = 1;
         let (mut entries, uniform) = upload_scene(d, &self.layout, &image)?;
-        let (uniform_buffer, uniform_layout) = uniform.ok_or_else(|| WgpuError::UnboundResource {
-            name: FILTER_UNIFORM.into(),
+        let lacks = |name: &str| WgpuError::UnboundResource {
+            name: name.to_string(),
             detail: ": the generated filter pass lacks it".into(),
-        })?;
+        };
+        let (uniform, uniform_layout) = uniform.ok_or_else(|| lacks(FILTER_UNIFORM))?;
         let step = lightport_codegen::identifier("step");
         let step_offset = uniform_layout.members.iter().find(|(n, _)| *n == step).map(|(_, o)| *o as u64);
         let color_start = place_arrays(Some(&uniform_layout), FILTER_UNIFORM, &image)?
             .iter()
             .find(|a| a.field == "color")
             .map(|a| a.start * 16)
-            .ok_or_else(|| WgpuError::UnboundResource { name: "filter_image.color".into(), detail: String::new() })?;
+            .ok_or_else(|| lacks("filter_image.color"))?;
         let texels = self.layout.texel_buffers.iter().find(|b| !b.unsigned).and_then(|b| {
             entries.iter().find(|e| e.group == b.group && e.binding == b.binding).map(|e| e.buffer.clone())
         });
-        let texels = texels.ok_or_else(|| WgpuError::UnboundResource {
-            name: "lp_filter_image_vec4f".into(),
-            detail: ": the generated filter pass lacks it".into(),
-        })?;
-        let bytes = pixels * 16;
-        let output = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(OUTPUT_BUFFER),
-            size: bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let readback = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("filter readback"),
-            size: bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let texels = texels.ok_or_else(|| lacks("lp_filter_image_vec4f"))?;
+        let bytes = width as u64 * height as u64 * 16;
+        let buffer = |label, usage| {
+            d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let output = buffer(OUTPUT_BUFFER, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
+        let readback = buffer("filter readback", wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
         entries.push(BufferEntry::storage(self.layout.own(OUTPUT_BUFFER), output.clone(), false));
         let target = self.layout.own(TARGET_UNIFORM);
         let target_bytes = u32_uniform_bytes(target, |member| match member {
@@ -104,48 +124,35 @@ impl WgpuFilter {
         });
         entries.push(BufferEntry::uniform(target, target_buffer));
         let groups = self.bind_groups(d, &entries);
+        Ok(PassBuffers { groups, uniform, step_offset, texels, color_start, output, readback, bytes })
+    }
+
+    /// Queues the passes, one submission each (each step write lands before the pass submitted
+    /// after it); the last copies its output into the read-back buffer.
+    fn dispatch(&self, device: &WgpuDevice, b: &PassBuffers, workgroups: [u32; 2]) {
         for pass in 0..ATROUS_ITERATIONS {
-            // Queue order: each step write lands before the pass submitted after it.
-            if let Some(offset) = step_offset {
-                device.queue.write_buffer(&uniform_buffer, offset, &(1u32 << pass).to_le_bytes());
+            if let Some(offset) = b.step_offset {
+                device.queue.write_buffer(&b.uniform, offset, &(1u32 << pass).to_le_bytes());
             }
-            let mut encoder = d.create_command_encoder(&Default::default());
+            let mut encoder = device.device.create_command_encoder(&Default::default());
             {
                 let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("lightport filter pass"),
                     timestamp_writes: None,
                 });
                 compute.set_pipeline(&self.pipeline);
-                for (i, group) in groups.iter().enumerate() {
+                for (i, group) in b.groups.iter().enumerate() {
                     compute.set_bind_group(i as u32, group, &[]);
                 }
                 compute.dispatch_workgroups(workgroups[0], workgroups[1], 1);
             }
             if pass + 1 < ATROUS_ITERATIONS {
-                encoder.copy_buffer_to_buffer(&output, 0, &texels, color_start, bytes);
+                encoder.copy_buffer_to_buffer(&b.output, 0, &b.texels, b.color_start, b.bytes);
             } else {
-                encoder.copy_buffer_to_buffer(&output, 0, &readback, 0, bytes);
+                encoder.copy_buffer_to_buffer(&b.output, 0, &b.readback, 0, b.bytes);
             }
             device.queue.submit([encoder.finish()]);
         }
-        let (sender, receiver) = super::oneshot::channel();
-        readback.slice(..).map_async(wgpu::MapMode::Read, move |result| sender.send(result));
-        let failed = |detail: String| WgpuError::Wgpu { what: "mapping the filter's readback buffer", detail };
-        Ok(async move {
-            receiver
-                .await
-                .ok_or_else(|| failed("the device dropped the request".into()))?
-                .map_err(|e| failed(e.to_string()))?;
-            let texels: Vec<Vec4> = {
-                let view = readback.slice(..).get_mapped_range().map_err(|e| WgpuError::Wgpu {
-                    what: "reading the filter's readback buffer",
-                    detail: e.to_string(),
-                })?;
-                bytemuck::pod_collect_to_vec(&view)
-            };
-            readback.unmap();
-            Ok(texels)
-        })
     }
 
     /// The bind groups of `entries` on the layouts the pipeline derived from the shader.

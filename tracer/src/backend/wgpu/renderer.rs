@@ -8,7 +8,7 @@ use lightport_codegen::Target;
 use wgpu::util::DeviceExt;
 
 use super::{
-    bind_groups, check_scene_limits, oneshot, reflect, scene_uniform_bytes, start_pipeline, storage_limit,
+    bind_groups, check_scene_limits, map_texels, oneshot, reflect, scene_uniform_bytes, start_pipeline, storage_limit,
     u32_uniform_bytes, upload_scene, BufferEntry, OwnResource, PipelineCheck, UniformLayout, WgpuDevice, WgpuError,
     WgpuFilter, WgpuInfo, WgpuOptions, ACCUMULATION_BUFFER, SCENE_UNIFORM, TARGET_UNIFORM, WORKGROUP_SIZE,
 };
@@ -144,26 +144,11 @@ impl WgpuRenderer {
         let mut encoder = self.device.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(&p.accumulation, 0, &p.readback, 0, p.accumulation.size());
         self.device.queue.submit([encoder.finish()]);
-        let readback = p.readback.clone();
-        let (sender, receiver) = oneshot::channel();
-        readback.slice(..).map_async(wgpu::MapMode::Read, move |result| sender.send(result));
-        let failed = |detail: String| WgpuError::Wgpu { what: "mapping the readback buffer", detail };
+        let read = map_texels(p.readback.clone());
         let uncaptured = self.check_uncaptured();
         async move {
             uncaptured?;
-            receiver
-                .await
-                .ok_or_else(|| failed("the device dropped the request".into()))?
-                .map_err(|e| failed(e.to_string()))?;
-            let texels: Vec<Vec4> = {
-                let view = readback
-                    .slice(..)
-                    .get_mapped_range()
-                    .map_err(|e| WgpuError::Wgpu { what: "reading the readback buffer", detail: e.to_string() })?;
-                bytemuck::pod_collect_to_vec(&view)
-            };
-            readback.unmap();
-            Ok(texels)
+            read.await
         }
     }
 }

@@ -413,3 +413,29 @@ pub(crate) fn u32_uniform_bytes(
     }
     Ok(bytes)
 }
+
+/// The texels of `readback` once the device has mapped it for reading (the copy into it must be
+/// submitted already); the buffer is unmapped again. Resolves when the device is polled
+/// (natively) or by the browser.
+pub(crate) fn map_texels(
+    readback: wgpu::Buffer,
+) -> impl std::future::Future<Output = Result<Vec<glam::Vec4>, WgpuError>> + 'static {
+    let (sender, receiver) = super::oneshot::channel();
+    readback.slice(..).map_async(wgpu::MapMode::Read, move |result| sender.send(result));
+    let failed = |detail: String| WgpuError::Wgpu { what: "mapping a read-back buffer", detail };
+    async move {
+        receiver
+            .await
+            .ok_or_else(|| failed("the device dropped the request".into()))?
+            .map_err(|e| failed(e.to_string()))?;
+        let texels: Vec<glam::Vec4> = {
+            let view = readback
+                .slice(..)
+                .get_mapped_range()
+                .map_err(|e| WgpuError::Wgpu { what: "reading a read-back buffer", detail: e.to_string() })?;
+            bytemuck::pod_collect_to_vec(&view)
+        };
+        readback.unmap();
+        Ok(texels)
+    }
+}
