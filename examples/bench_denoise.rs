@@ -2,7 +2,10 @@
 //! - the guide's time per image (the first hits' AOVs, on the CPU) and the filter passes' time
 //!   on each runtime (CPU, GL, wgpu: `Renderer::denoise_passes`, read-back included) at 640x480
 //!   and 1920x1080 on the Cornell box, median of `--rounds`, as a ratio to rendering one sample
-//!   per pixel of the same image on the same runtime in the same run;
+//!   per pixel of the same image on the same runtime in the same run; and the passes' time in
+//!   headless Chromium on WebGL2 and WebGPU (the equivalence harness's page: `GlFilter` and
+//!   `WgpuFilter` compiled to wasm, timed in the page, read-back included), where
+//!   node, Chromium and `web/pkg` are there;
 //! - the equal-quality speed-up on the Cornell box at 64x64: the relative MSE of the denoised
 //!   16-spp image against a 4096-spp reference, and how many samples per pixel the noisy image
 //!   needs to reach it (doubling until it does, interpolated in log-log).
@@ -14,6 +17,7 @@ use std::time::Instant;
 use tracer::backend::cpu::CpuRenderer;
 use tracer::backend::{Renderer, RendererKind};
 use tracer::denoise::{denoise, filter_input, first_hit_aovs, SampleMoments};
+use tracer::kernel::denoise::FilterImage;
 use tracer::kernel::{RenderSettings, Strategy};
 use tracer::output::Image;
 use tracer::pack::{build_and_pack, Packed};
@@ -36,6 +40,29 @@ fn render(p: &Packed, spp: u32, seed: u32) -> (Image, Vec<f32>) {
 
 fn rel_mse(a: &Image, reference: &Image) -> f64 {
     tracer::stats::rel_mse(&a.pixels, &reference.pixels).expect("same size")
+}
+
+/// The filter passes in the page (WebGL2 and WebGPU on SwiftShader here): medians of the
+/// page's own timings; a missing browser piece is a row saying so.
+fn page_rows(size: (u32, u32), input: &FilterImage, rounds: usize) {
+    use tracer::backend::harness::{Backend, BrowserOptions, BrowserRuntime, BrowserSession};
+    let modules = tracer::kernel::modules();
+    let session = match BrowserSession::start(&BrowserOptions::default()) {
+        Ok(s) => std::sync::Arc::new(s),
+        Err(e) => return println!("| {}x{} | page | unavailable: {e} | | | |", size.0, size.1),
+    };
+    for backend in [Backend::WebGl2, Backend::WebGpu] {
+        let program = lightport_codegen::Program::link(&modules).expect("the kernel links");
+        let mut runtime = match BrowserRuntime::new(session.clone(), backend, program, &modules) {
+            Ok(r) => r,
+            Err(e) => {
+                println!("| {}x{} | {backend} | unavailable: {e} | | | |", size.0, size.1);
+                continue;
+            }
+        };
+        let times: Vec<f64> = (0..rounds).map(|_| runtime.run_filter(input).expect("the page's passes").1).collect();
+        println!("| {}x{} | {backend} (page) | | | {:.1} | |", size.0, size.1, median(times));
+    }
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -94,6 +121,7 @@ fn main() {
                 filter / frame
             );
         }
+        page_rows(size, &input, rounds);
     }
 
     let p = packed((64, 64));

@@ -12,7 +12,8 @@
 // Requests: { op: 'create', runtime: 'webgl2'|'webgpu', modules } -> { id, info };
 // { op: 'scene', id, words }; { op: 'layout', id, function, specialize } -> { inputWords,
 // outputWords }; { op: 'run', id, function, invocations, specialize, words, corrupt } -> { words };
-// { op: 'filter', id, words } -> { words } (the denoiser's passes over an encoded FilterImage);
+// { op: 'filter', id, words } -> { words, ms } (the denoiser's passes over an encoded FilterImage,
+// and their time in the page);
 // { op: 'drop', id }. `corrupt` (tests): { flip: K } (the page flips a bit of word K),
 // 'truncate', 'garbage' or 'hang'.
 //

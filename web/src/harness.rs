@@ -176,7 +176,9 @@ impl HarnessRuntime {
 
     /// The denoiser's filter passes over a `FilterImage` (as `encode_resources` words) on this
     /// runtime's context or device: `GlFilter` on WebGL2, `WgpuFilter` on WebGPU (what
-    /// `Renderer::denoise_passes` runs natively); resolves to the last pass's output as words.
+    /// `Renderer::denoise_passes` runs natively); resolves to `{ words, ms }`: the last pass's
+    /// output as words, and the passes' time in the page (the passes and reading their output
+    /// back; not compiling the pass, which a renderer does once).
     #[wasm_bindgen(js_name = runFilter)]
     pub fn run_filter(&self, input: Vec<u32>) -> js_sys::Promise {
         let cell = self.harness.clone();
@@ -188,21 +190,30 @@ impl HarnessRuntime {
                 Harness::Wgpu(h) => wgpu_filter(h.device(), &image).await,
             };
             *cell.borrow_mut() = Some(harness);
-            let output = output.map_err(|e| JsValue::from(js_error(e)))?;
+            let (output, ms) = output.map_err(|e| JsValue::from(js_error(e)))?;
             let words: Vec<u32> = output.iter().flat_map(|t| t.to_array().map(f32::to_bits)).collect();
-            Ok(js_sys::Uint32Array::from(words.as_slice()).into())
+            let reply = js_sys::Object::new();
+            crate::js::set(&reply, "words", js_sys::Uint32Array::from(words.as_slice()));
+            crate::js::set(&reply, "ms", ms);
+            Ok(reply.into())
         })
     }
 }
 
-fn gl_filter(gl: &glow::Context, image: &FilterImage) -> Result<Vec<Vec4>, String> {
+/// The passes' output and their time in milliseconds (the compile not counted).
+fn gl_filter(gl: &glow::Context, image: &FilterImage) -> Result<(Vec<Vec4>, f64), String> {
     let filter = GlFilter::new(gl).map_err(|e| e.to_string())?;
+    let started = crate::js::now_ms();
     let output = filter.run(gl, image).map_err(|e| e.to_string());
+    let ms = crate::js::now_ms() - started;
     filter.delete(gl);
-    output
+    Ok((output?, ms))
 }
 
-async fn wgpu_filter(device: &WgpuDevice, image: &FilterImage) -> Result<Vec<Vec4>, String> {
+/// The passes' output and their time in milliseconds (the compile not counted).
+async fn wgpu_filter(device: &WgpuDevice, image: &FilterImage) -> Result<(Vec<Vec4>, f64), String> {
     let filter = WgpuFilter::new(device).await.map_err(|e| e.to_string())?;
-    filter.run(device, image).map_err(|e| e.to_string())?.await.map_err(|e| e.to_string())
+    let started = crate::js::now_ms();
+    let output = filter.run(device, image).map_err(|e| e.to_string())?.await.map_err(|e| e.to_string())?;
+    Ok((output, crate::js::now_ms() - started))
 }

@@ -65,7 +65,7 @@ window.lightportHarness = {
   },
   async filter(id, wordsUrl) {
     const out = await runtime(id).runFilter(wordsOf(await fetchBytes(wordsUrl)));
-    return { words: base64(out) };
+    return { words: base64(out.words), ms: out.ms };
   },
   drop(id) {
     const r = runtimes.get(id);

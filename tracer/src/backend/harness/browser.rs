@@ -303,8 +303,9 @@ impl BrowserRuntime {
 
     /// The denoiser's filter passes over `image` in the page (`GlFilter` on WebGL2,
     /// `WgpuFilter` on WebGPU, as `Renderer::denoise_passes` runs them natively): the last
-    /// pass's output per pixel.
-    pub fn run_filter(&mut self, image: &FilterImage) -> Result<Vec<Vec4>, HarnessError> {
+    /// pass's output per pixel, and the milliseconds the page measured around them (the passes
+    /// and their read-back; not the pass's compile, nor the transfer to and from the page).
+    pub fn run_filter(&mut self, image: &FilterImage) -> Result<(Vec<Vec4>, f64), HarnessError> {
         let words = words_base64(&encode_resources(image));
         let reply = self.request(json!({ "op": "filter", "words": words }))?;
         let text = reply["words"].as_str().ok_or_else(|| self.error("`filter`: no words".into()))?;
@@ -313,7 +314,11 @@ impl BrowserRuntime {
         if words.len() != pixels * 4 {
             return Err(self.error(format!("`filter`: {} words for {pixels} pixels", words.len())));
         }
-        Ok(words.chunks_exact(4).map(|t| Vec4::from_array([t[0], t[1], t[2], t[3]].map(f32::from_bits))).collect())
+        let ms = reply["ms"].as_f64().ok_or_else(|| self.error("`filter`: no time".into()))?;
+        Ok((
+            words.chunks_exact(4).map(|t| Vec4::from_array([t[0], t[1], t[2], t[3]].map(f32::from_bits))).collect(),
+            ms,
+        ))
     }
 
     fn request(&self, mut request: Value) -> Result<Value, HarnessError> {
