@@ -258,7 +258,10 @@ fn render(args: &RenderArgs) -> Result<()> {
         }
         bar.inc(1);
     }
-    let (image, rejected) = (r.image()?, r.rejected_samples()?);
+    // One read-back for both the image and the count of dropped samples.
+    let accumulation = r.accumulation()?;
+    let image = tracer::backend::mean_image(args.width, args.height, r.frames(), &accumulation);
+    let rejected = tracer::backend::rejected_samples(r.frames(), &accumulation);
     let render_time = t3.elapsed();
     bar.finish_and_clear();
     let display = tracer::output::Display { tone_map: args.tonemap.into(), exposure: args.exposure };

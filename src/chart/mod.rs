@@ -408,7 +408,11 @@ fn run_line(
                 d.spent += start.elapsed();
             }
         }
-        let (image, rejected) = (r.image()?, r.rejected_samples()?);
+        // One read-back for the image and the dropped samples (not timed).
+        let accumulation = r.accumulation()?;
+        let (width, height) = (packed.scene.width, packed.scene.height);
+        let image = tracer::backend::mean_image(width, height, r.frames(), &accumulation);
+        let rejected = tracer::backend::rejected_samples(r.frames(), &accumulation);
         if let Some(d) = &mut denoising {
             let start = Instant::now();
             let aovs = d.aovs.get_or_insert_with(|| tracer::denoise::first_hit_aovs(&packed.scene));

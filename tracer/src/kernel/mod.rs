@@ -131,16 +131,8 @@ fn path_tracer_shader_for(
     target: lightport_codegen::Target,
     regenerate: Option<&str>,
 ) -> Result<lightport_codegen::Generated, ShaderError> {
-    use lightport_codegen::{Program, Selection};
-    let program = Program::link(&modules())?;
-    let selection = Selection {
-        regenerate: regenerate.map(str::to_string),
-        ..Selection::entry("render_sample", features.specialization())
-    };
-    let generated = program.emit(target, &selection)?;
-    #[cfg(feature = "validate")]
-    lightport_codegen::validate::validate(&generated)?;
-    Ok(generated)
+    let selection = lightport_codegen::Selection::entry("render_sample", features.specialization());
+    emit_validated(target, selection, regenerate)
 }
 
 /// One pass of the denoiser's à-trous filter for `target`: a GLSL ES 3.00 fragment shader or a
@@ -154,12 +146,18 @@ fn denoise_pass_shader_for(
     target: lightport_codegen::Target,
     regenerate: Option<&str>,
 ) -> Result<lightport_codegen::Generated, ShaderError> {
-    use lightport_codegen::{Program, Selection};
-    let program = Program::link(&modules())?;
-    let selection = Selection {
-        regenerate: regenerate.map(str::to_string),
-        ..Selection::image_pass("atrous_pixel", Default::default())
-    };
+    emit_validated(target, lightport_codegen::Selection::image_pass("atrous_pixel", Default::default()), regenerate)
+}
+
+/// `selection` of the linked kernel for `target`, with `regenerate` in its header, validated
+/// (with the `validate` feature).
+fn emit_validated(
+    target: lightport_codegen::Target,
+    selection: lightport_codegen::Selection,
+    regenerate: Option<&str>,
+) -> Result<lightport_codegen::Generated, ShaderError> {
+    let program = lightport_codegen::Program::link(&modules())?;
+    let selection = lightport_codegen::Selection { regenerate: regenerate.map(str::to_string), ..selection };
     let generated = program.emit(target, &selection)?;
     #[cfg(feature = "validate")]
     lightport_codegen::validate::validate(&generated)?;

@@ -13,7 +13,8 @@ use glow::HasContext;
 use kernel_dsl::{Resource, Resources};
 use lightport_codegen::Target;
 
-use super::{compile_program, gl_failed, set_nearest, words_as_bytes, words_as_bytes_mut, GlError};
+use super::targets::{image_texture, read_image, render_target, Objects};
+use super::{compile_program, gl_failed, GlError};
 use crate::kernel::denoise::{FilterImage, ATROUS_ITERATIONS};
 
 /// Prefix of every `FilterImage` field's uniform in the generated GLSL.
@@ -79,20 +80,21 @@ impl GlFilter {
                 return Err(GlError::ImageTooLarge { width, height, limit, max });
             }
         }
-        let mut objects = PassObjects::default();
+        let mut objects = Objects::default();
         let result = self.passes(gl, image, &mut objects);
         objects.delete(gl);
         result
     }
 
-    fn passes(&self, gl: &glow::Context, image: &FilterImage, objects: &mut PassObjects) -> Result<Vec<Vec4>, GlError> {
+    fn passes(&self, gl: &glow::Context, image: &FilterImage, objects: &mut Objects) -> Result<Vec<Vec4>, GlError> {
         let (width, height) = (image.width as i32, image.height as i32);
-        let guide = image_texture(gl, image.width, image.height, Some(image.guide.as_slice()), objects)?;
-        let colors = [
-            image_texture(gl, image.width, image.height, Some(image.color.as_slice()), objects)?,
-            image_texture(gl, image.width, image.height, None, objects)?,
+        let guide = image_texture(gl, image.width, image.height, image.guide.as_slice(), objects)?;
+        let blank = vec![Vec4::ZERO; image.color.len()];
+        let targets = [
+            render_target(gl, image.width, image.height, image.color.as_slice(), objects)?,
+            render_target(gl, image.width, image.height, &blank, objects)?,
         ];
-        let framebuffers = [framebuffer(gl, colors[0], objects)?, framebuffer(gl, colors[1], objects)?];
+        let (colors, framebuffers) = ([targets[0].0, targets[1].0], [targets[0].1, targets[1].1]);
         let location = |name: &str| {
             // SAFETY: a query on the linked program.
             unsafe { gl.get_uniform_location(self.program, &format!("{FILTER_UNIFORM_PREFIX}{name}")) }
@@ -148,114 +150,4 @@ impl GlFilter {
             gl.delete_vertex_array(self.vertex_array);
         }
     }
-}
-
-/// The textures and framebuffers of one filter run, deleted together.
-#[derive(Default)]
-struct PassObjects {
-    textures: Vec<glow::Texture>,
-    framebuffers: Vec<glow::Framebuffer>,
-}
-
-impl PassObjects {
-    fn delete(&mut self, gl: &glow::Context) {
-        // SAFETY: each object was created on `gl` and is deleted once (the lists are drained).
-        unsafe {
-            for f in self.framebuffers.drain(..) {
-                gl.delete_framebuffer(f);
-            }
-            for t in self.textures.drain(..) {
-                gl.delete_texture(t);
-            }
-        }
-    }
-}
-
-/// An RGBA32F texture of `width` x `height` texels, filled from `texels` (row-major) or left
-/// undefined (a render target).
-fn image_texture(
-    gl: &glow::Context,
-    width: u32,
-    height: u32,
-    texels: Option<&[Vec4]>,
-    objects: &mut PassObjects,
-) -> Result<glow::Texture, GlError> {
-    let words: Option<Vec<u32>> =
-        texels.map(|t| t.iter().flat_map(|texel| texel.to_array().map(f32::to_bits)).collect());
-    // SAFETY: texture creation and upload on the current context; the slice holds width x
-    // height RGBA floats.
-    unsafe {
-        let texture = gl.create_texture().map_err(gl_failed("glCreateTexture (filter image)"))?;
-        objects.textures.push(texture);
-        gl.bind_texture(glow::TEXTURE_2D, Some(texture));
-        set_nearest(gl);
-        gl.pixel_store_i32(glow::UNPACK_ALIGNMENT, 4);
-        let data = glow::PixelUnpackData::Slice(words.as_deref().map(words_as_bytes));
-        gl.tex_image_2d(
-            glow::TEXTURE_2D,
-            0,
-            glow::RGBA32F as i32,
-            width as i32,
-            height as i32,
-            0,
-            glow::RGBA,
-            glow::FLOAT,
-            data,
-        );
-        let error = gl.get_error();
-        gl.bind_texture(glow::TEXTURE_2D, None);
-        if error != glow::NO_ERROR {
-            let detail = format!("{width}x{height} RGBA32F: error {error:#06x}");
-            return Err(GlError::Gl { what: "creating a filter texture", detail });
-        }
-        Ok(texture)
-    }
-}
-
-/// A framebuffer rendering into `texture`.
-fn framebuffer(
-    gl: &glow::Context,
-    texture: glow::Texture,
-    objects: &mut PassObjects,
-) -> Result<glow::Framebuffer, GlError> {
-    // SAFETY: framebuffer creation on the current context, attaching one of its textures.
-    unsafe {
-        let framebuffer = gl.create_framebuffer().map_err(gl_failed("glCreateFramebuffer (filter)"))?;
-        objects.framebuffers.push(framebuffer);
-        gl.bind_framebuffer(glow::FRAMEBUFFER, Some(framebuffer));
-        gl.framebuffer_texture_2d(glow::FRAMEBUFFER, glow::COLOR_ATTACHMENT0, glow::TEXTURE_2D, Some(texture), 0);
-        let status = gl.check_framebuffer_status(glow::FRAMEBUFFER);
-        gl.bind_framebuffer(glow::FRAMEBUFFER, None);
-        if status != glow::FRAMEBUFFER_COMPLETE {
-            let detail = format!("status {status:#06x}");
-            return Err(GlError::Gl { what: "the filter framebuffer (RGBA32F)", detail });
-        }
-        Ok(framebuffer)
-    }
-}
-
-/// The RGBA32F pixels of `framebuffer`, row-major.
-fn read_image(
-    gl: &glow::Context,
-    framebuffer: glow::Framebuffer,
-    width: u32,
-    height: u32,
-) -> Result<Vec<Vec4>, GlError> {
-    let mut words = vec![0u32; width as usize * height as usize * 4];
-    // SAFETY: the framebuffer belongs to the current context; the slice holds width x height
-    // RGBA floats, the size glReadPixels writes with PACK_ALIGNMENT 4.
-    let error = unsafe {
-        gl.bind_framebuffer(glow::READ_FRAMEBUFFER, Some(framebuffer));
-        gl.read_buffer(glow::COLOR_ATTACHMENT0);
-        gl.pixel_store_i32(glow::PACK_ALIGNMENT, 4);
-        let data = glow::PixelPackData::Slice(Some(words_as_bytes_mut(&mut words)));
-        gl.read_pixels(0, 0, width as i32, height as i32, glow::RGBA, glow::FLOAT, data);
-        gl.bind_framebuffer(glow::READ_FRAMEBUFFER, None);
-        gl.get_error()
-    };
-    if error != glow::NO_ERROR {
-        let detail = format!("error {error:#06x}");
-        return Err(GlError::Gl { what: "glReadPixels (the filtered image)", detail });
-    }
-    Ok(words.chunks_exact(4).map(|t| Vec4::from_array([t[0], t[1], t[2], t[3]].map(f32::from_bits))).collect())
 }

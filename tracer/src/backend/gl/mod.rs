@@ -22,7 +22,8 @@
 //!
 //! One file per role: `renderer.rs` (the [`GlRenderer`] and the pipeline it builds),
 //! `bindings.rs` (the `Scene` fields as uniforms and data textures), `texture.rs` (the data
-//! textures' shape and upload), `compile.rs`, `display.rs`, `filter.rs` (the denoiser's passes).
+//! textures' shape and upload), `compile.rs`, `display.rs`, `filter.rs` (the denoiser's passes), `targets.rs` (RGBA32F images,
+//! their framebuffers and read-back, shared by the renderer and the filter).
 
 mod bindings;
 mod compile;
@@ -33,6 +34,7 @@ mod filter;
 pub mod harness;
 mod pacing;
 mod renderer;
+mod targets;
 mod texture;
 pub use bindings::gl_type;
 pub use compile::{annotate_log, compile_program, log_line_number};

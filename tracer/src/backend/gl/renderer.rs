@@ -9,45 +9,17 @@ use kernel_dsl::{Resource, Resources};
 use lightport_codegen::Target;
 
 use super::bindings::check_active_uniforms;
+use super::targets::{read_image, render_target, Objects};
 #[cfg(feature = "gl")]
 use super::HeadlessContext;
 use super::{
-    compile_program, gl_failed, set_nearest, upload_texels, words_as_bytes, words_as_bytes_mut, GlError, GlFilter,
-    GlInfo, GlOptions, ACCUMULATION_UNIFORM, SCENE_UNIFORM_PREFIX,
+    compile_program, gl_failed, upload_texels, GlError, GlFilter, GlInfo, GlOptions, ACCUMULATION_UNIFORM,
+    SCENE_UNIFORM_PREFIX,
 };
 use crate::backend::{frame_seed, ms_since, update_uniforms, BuildTimes, RenderError, Renderer, RendererInfo};
 use crate::kernel::denoise::FilterImage;
 use crate::kernel::scene_data::Scene;
 use crate::pack::Packed;
-
-/// Every GL object a renderer created, deleted together.
-#[derive(Default)]
-struct Objects {
-    textures: Vec<glow::Texture>,
-    framebuffers: Vec<glow::Framebuffer>,
-    programs: Vec<glow::Program>,
-    vertex_arrays: Vec<glow::VertexArray>,
-}
-
-impl Objects {
-    fn delete(&mut self, gl: &glow::Context) {
-        // SAFETY: each object was created on `gl` and is deleted once (the lists are drained).
-        unsafe {
-            for t in self.textures.drain(..) {
-                gl.delete_texture(t);
-            }
-            for f in self.framebuffers.drain(..) {
-                gl.delete_framebuffer(f);
-            }
-            for p in self.programs.drain(..) {
-                gl.delete_program(p);
-            }
-            for v in self.vertex_arrays.drain(..) {
-                gl.delete_vertex_array(v);
-            }
-        }
-    }
-}
 
 /// The state [`GlRenderer`] keeps besides its objects.
 struct Pipeline {
@@ -252,34 +224,8 @@ impl Renderer for GlRenderer {
 
     fn accumulation(&self) -> Result<Vec<Vec4>, RenderError> {
         self.activate()?;
-        let (width, height) = (self.packed.scene.width as usize, self.packed.scene.height as usize);
-        let mut words = vec![0u32; width * height * 4];
-        let gl = &self.gl;
-        // SAFETY: the framebuffer belongs to this context; the slice holds width x height RGBA
-        // floats, the size glReadPixels writes with PACK_ALIGNMENT 4.
-        let error = unsafe {
-            gl.bind_framebuffer(glow::READ_FRAMEBUFFER, Some(self.pipeline.framebuffers[self.current]));
-            gl.read_buffer(glow::COLOR_ATTACHMENT0);
-            gl.pixel_store_i32(glow::PACK_ALIGNMENT, 4);
-            gl.read_pixels(
-                0,
-                0,
-                width as i32,
-                height as i32,
-                glow::RGBA,
-                glow::FLOAT,
-                glow::PixelPackData::Slice(Some(words_as_bytes_mut(&mut words))),
-            );
-            gl.bind_framebuffer(glow::READ_FRAMEBUFFER, None);
-            gl.get_error()
-        };
-        if error != glow::NO_ERROR {
-            return Err(RenderError::Gl(GlError::Gl {
-                what: "glReadPixels (RGBA, FLOAT)",
-                detail: format!("error {error:#06x}"),
-            }));
-        }
-        Ok(words.chunks_exact(4).map(|t| Vec4::from_array([t[0], t[1], t[2], t[3]].map(f32::from_bits))).collect())
+        let scene = &self.packed.scene;
+        Ok(read_image(&self.gl, self.pipeline.framebuffers[self.current], scene.width, scene.height)?)
     }
 
     /// Changes the scene's uniforms (camera, strategy, depth...) and restarts the accumulation,
@@ -517,45 +463,8 @@ fn accumulation_targets(
     height: u32,
     objects: &mut Objects,
 ) -> Result<([glow::Texture; 2], [glow::Framebuffer; 2]), GlError> {
-    let zeros = vec![0u32; width as usize * height as usize * 4];
-    let mut textures = Vec::new();
-    let mut framebuffers = Vec::new();
-    for _ in 0..2 {
-        // SAFETY: object creation on the current context; the upload passes exactly
-        // width x height RGBA32F texels.
-        unsafe {
-            let texture = gl.create_texture().map_err(gl_failed("glCreateTexture (accumulation)"))?;
-            objects.textures.push(texture);
-            gl.bind_texture(glow::TEXTURE_2D, Some(texture));
-            set_nearest(gl);
-            gl.tex_image_2d(
-                glow::TEXTURE_2D,
-                0,
-                glow::RGBA32F as i32,
-                width as i32,
-                height as i32,
-                0,
-                glow::RGBA,
-                glow::FLOAT,
-                glow::PixelUnpackData::Slice(Some(words_as_bytes(&zeros))),
-            );
-            let framebuffer = gl.create_framebuffer().map_err(gl_failed("glCreateFramebuffer"))?;
-            objects.framebuffers.push(framebuffer);
-            gl.bind_framebuffer(glow::FRAMEBUFFER, Some(framebuffer));
-            gl.framebuffer_texture_2d(glow::FRAMEBUFFER, glow::COLOR_ATTACHMENT0, glow::TEXTURE_2D, Some(texture), 0);
-            gl.draw_buffers(&[glow::COLOR_ATTACHMENT0]);
-            let status = gl.check_framebuffer_status(glow::FRAMEBUFFER);
-            gl.bind_framebuffer(glow::FRAMEBUFFER, None);
-            if status != glow::FRAMEBUFFER_COMPLETE {
-                return Err(GlError::Unsupported(format!(
-                    "an RGBA32F {width}x{height} framebuffer is incomplete (status {status:#06x})"
-                )));
-            }
-            textures.push(texture);
-            framebuffers.push(framebuffer);
-        }
-    }
-    // SAFETY: unbinding on the current context.
-    unsafe { gl.bind_texture(glow::TEXTURE_2D, None) };
-    Ok(([textures[0], textures[1]], [framebuffers[0], framebuffers[1]]))
+    let zeros = vec![Vec4::ZERO; width as usize * height as usize];
+    let (a, b) =
+        (render_target(gl, width, height, &zeros, objects)?, render_target(gl, width, height, &zeros, objects)?);
+    Ok(([a.0, b.0], [a.1, b.1]))
 }

@@ -9,8 +9,8 @@ use lightport_codegen::Target;
 use wgpu::util::DeviceExt;
 
 use super::{
-    compile_pipeline, map_texels, place_arrays, reflect, storage_limit, u32_uniform_bytes, upload_scene, BufferEntry,
-    ShaderLayout, WgpuDevice, WgpuError, WgpuOptions, TARGET_UNIFORM, WORKGROUP_SIZE,
+    compile_pipeline, map_texels, pipeline_bind_groups, place_arrays, reflect, storage_limit, u32_uniform_bytes,
+    upload_scene, BufferEntry, ShaderLayout, WgpuDevice, WgpuError, WgpuOptions, TARGET_UNIFORM, WORKGROUP_SIZE,
 };
 use crate::kernel::denoise::{FilterImage, ATROUS_ITERATIONS};
 
@@ -123,7 +123,7 @@ impl WgpuFilter {
             usage: wgpu::BufferUsages::UNIFORM,
         });
         entries.push(BufferEntry::uniform(target, target_buffer));
-        let groups = self.bind_groups(d, &entries);
+        let groups = pipeline_bind_groups(d, &self.pipeline, &entries.iter().collect::<Vec<_>>(), "lightport filter");
         Ok(PassBuffers { groups, uniform, step_offset, texels, color_start, output, readback, bytes })
     }
 
@@ -153,25 +153,6 @@ impl WgpuFilter {
             }
             device.queue.submit([encoder.finish()]);
         }
-    }
-
-    /// The bind groups of `entries` on the layouts the pipeline derived from the shader.
-    fn bind_groups(&self, d: &wgpu::Device, entries: &[BufferEntry]) -> Vec<wgpu::BindGroup> {
-        let count = entries.iter().map(|e| e.group).max().map_or(0, |g| g + 1);
-        (0..count)
-            .map(|group| {
-                let members: Vec<wgpu::BindGroupEntry> = entries
-                    .iter()
-                    .filter(|e| e.group == group)
-                    .map(|e| wgpu::BindGroupEntry { binding: e.binding, resource: e.buffer.as_entire_binding() })
-                    .collect();
-                d.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("lightport filter"),
-                    layout: &self.pipeline.get_bind_group_layout(group),
-                    entries: &members,
-                })
-            })
-            .collect()
     }
 }
 

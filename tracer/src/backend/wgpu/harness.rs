@@ -21,8 +21,8 @@ use crate::backend::harness::{generated_layout, harness_selection, HarnessError}
 #[cfg(not(target_arch = "wasm32"))]
 use crate::backend::harness::{Backend, Runtime};
 use crate::backend::wgpu::{
-    check_scene_limits, compile_pipeline, reflect, u32_uniform_bytes, upload_scene, BufferEntry, ShaderLayout,
-    WgpuDevice, WgpuError, WgpuOptions, SCENE_UNIFORM,
+    check_scene_limits, compile_pipeline, pipeline_bind_groups, reflect, u32_uniform_bytes, upload_scene, BufferEntry,
+    ShaderLayout, WgpuDevice, WgpuError, WgpuOptions, SCENE_UNIFORM,
 };
 use crate::kernel::scene_data::Scene;
 use crate::kernel::ShaderError;
@@ -234,21 +234,7 @@ impl WgpuHarness {
             BufferEntry::uniform(r.own(COUNT_UNIFORM), count_buffer),
         ];
         let entries: Vec<&BufferEntry> = scene_entries.iter().chain(&own).collect();
-        let groups = entries.iter().map(|e| e.group).max().map_or(0, |g| g + 1);
-        let bind_groups: Vec<wgpu::BindGroup> = (0..groups)
-            .map(|group| {
-                let members: Vec<wgpu::BindGroupEntry> = entries
-                    .iter()
-                    .filter(|e| e.group == group)
-                    .map(|e| wgpu::BindGroupEntry { binding: e.binding, resource: e.buffer.as_entire_binding() })
-                    .collect();
-                d.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("lightport harness"),
-                    layout: &shader.pipeline.get_bind_group_layout(group),
-                    entries: &members,
-                })
-            })
-            .collect();
+        let bind_groups = pipeline_bind_groups(d, &shader.pipeline, &entries, "lightport harness");
         let mut encoder = d.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {

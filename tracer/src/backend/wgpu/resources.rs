@@ -394,6 +394,31 @@ pub(crate) fn bind_groups(d: &wgpu::Device, entries: &[BufferEntry]) -> (Vec<wgp
     (groups, pipeline_layout)
 }
 
+/// The bind groups of `entries` (groups 0, 1, ...) on the layouts `pipeline` derived from its
+/// shader (a pipeline created without an explicit layout).
+pub(crate) fn pipeline_bind_groups(
+    d: &wgpu::Device,
+    pipeline: &wgpu::ComputePipeline,
+    entries: &[&BufferEntry],
+    label: &str,
+) -> Vec<wgpu::BindGroup> {
+    let count = entries.iter().map(|e| e.group).max().map_or(0, |g| g + 1);
+    (0..count)
+        .map(|group| {
+            let members: Vec<wgpu::BindGroupEntry> = entries
+                .iter()
+                .filter(|e| e.group == group)
+                .map(|e| wgpu::BindGroupEntry { binding: e.binding, resource: e.buffer.as_entire_binding() })
+                .collect();
+            d.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout: &pipeline.get_bind_group_layout(group),
+                entries: &members,
+            })
+        })
+        .collect()
+}
+
 /// The bytes of a uniform struct whose members are all `u32`, from `value` per member name.
 pub(crate) fn u32_uniform_bytes(
     uniform: &OwnResource,
