@@ -139,7 +139,7 @@ impl GlFilter {
             gl.bind_framebuffer(glow::FRAMEBUFFER, None);
             gl.use_program(None);
         }
-        read_image(gl, framebuffers[current], image.width, image.height)
+        read_image(gl, framebuffers[current], 0, image.width, image.height)
     }
 
     /// Deletes the program on `gl` (the context it was created on, current).
