@@ -46,15 +46,15 @@ fn error(image: &Image, reference: &Image) -> (f64, f64, f64) {
     (rel, -10.0 * display_mse.log10(), 10.0 * (peak * peak / hdr_mse).log10())
 }
 
-/// Denoises `scene` at 1, 4, 16 and 256 spp and compares each with the noisy image against a
+/// Denoises `scene` at 1, 4, 16, 64 and 256 spp and compares each with the noisy image against a
 /// 4096-spp reference (another seed): at 16 spp at least `psnr_gain` dB of PSNR and 3 dB of
-/// relative MSE gained, at 1, 4 and 256 spp nothing lost (at 1 spp the variance is unknown: the
+/// relative MSE gained, at 1, 4, 64 and 256 spp nothing lost (at 1 spp the variance is unknown: the
 /// filter leans on its guide alone); the mean within 1 % (or the noisy image's own error) from
 /// 16 spp on.
 fn assert_denoising_helps(what: &str, scene: &Scene, size: u32, psnr_gain: f64) {
     let (reference, _) = render(scene, size, 4096, 99);
     let mut gains = Vec::new();
-    for spp in [1, 4, 16, 256] {
+    for spp in [1, 4, 16, 64, 256] {
         let (noisy, guide) = render(scene, size, spp, 7);
         let denoised = denoise(&noisy, &guide).expect("denoise");
         assert_eq!(denoised.replaced, 0, "{what}: finite input");
@@ -86,7 +86,7 @@ fn assert_denoising_helps(what: &str, scene: &Scene, size: u32, psnr_gain: f64) 
         "{what}: denoising gains {psnr16:.2} dB of PSNR at 16 spp (at least {psnr_gain} wanted)"
     );
     assert!(rel16 >= 3.0, "{what}: denoising gains {rel16:.2} dB of relative MSE at 16 spp (at least 3 wanted)");
-    for (spp, (rel, psnr)) in [(1, gains[0]), (4, gains[1]), (256, gains[3])] {
+    for (spp, (rel, psnr)) in [(1, gains[0]), (4, gains[1]), (64, gains[3]), (256, gains[4])] {
         assert!(
             psnr >= 0.0 && rel >= 0.0,
             "{what}: denoising loses at {spp} spp: {psnr:.2} dB PSNR, {rel:.2} dB relMSE"
@@ -114,6 +114,32 @@ fn denoising_a_textured_box_keeps_its_texture_and_gains_at_least_6_db() {
 #[test]
 fn denoising_alpha_masked_holes_gains_at_least_6_db() {
     assert_denoising_helps("alpha-masked screen", &scene::alpha_masked_screen(), 48, 6.0);
+}
+
+/// DamagedHelmet under a sky (glossy metal-roughness, normal maps, emissive textures): the issue's
+/// third scene, where the filter does not yet help (measured 2026-12-04: +0.1 dB at 16 spp, -1.7
+/// dB of PSNR at 1 and 256 spp; the roughness and metalness textures are not in its guide and the
+/// specular part is not demodulated: see the README). Held to that as a regression bound: no
+/// sample count loses more than 2 dB.
+#[test]
+fn denoising_damaged_helmet_under_a_sky_is_measured() {
+    let mut helmet =
+        scene::load(&crate::common::test_data("scenes/khronos/DamagedHelmet/glTF-Binary/DamagedHelmet.glb"))
+            .expect("DamagedHelmet");
+    helmet.sky = Some(scene::Sky::uniform(Vec3::splat(0.8)));
+    let size = 48;
+    let (reference, _) = render(&helmet, size, 2048, 99);
+    for spp in [1, 4, 16, 64, 256] {
+        let (noisy, guide) = render(&helmet, size, spp, 7);
+        let denoised = denoise(&noisy, &guide).expect("denoise").image;
+        let ((rel_n, psnr_n, _), (rel_d, psnr_d, _)) = (error(&noisy, &reference), error(&denoised, &reference));
+        let (rel_gain, psnr_gain) = (10.0 * (rel_n / rel_d).log10(), psnr_d - psnr_n);
+        eprintln!("DamagedHelmet {spp:>3} spp: relMSE {rel_n:.5} -> {rel_d:.5} ({rel_gain:+.2} dB); PSNR {psnr_n:.2} -> {psnr_d:.2} dB ({psnr_gain:+.2})");
+        assert!(
+            psnr_gain >= -2.0 && rel_gain >= -2.0,
+            "DamagedHelmet loses {psnr_gain:.2} dB of PSNR, {rel_gain:.2} dB of relMSE at {spp} spp"
+        );
+    }
 }
 
 /// Which pixels belong to a class, by their guide.
