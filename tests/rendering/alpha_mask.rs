@@ -637,3 +637,80 @@ fn cutoffs_out_of_range_warn_and_never_panic() {
         assert!(err.to_string().contains("alpha"), "{err}");
     }
 }
+
+/// Each of `triangles` split into four at its edges' midpoints (positions, normals and texture
+/// coordinates interpolated), `times` times over.
+fn subdivide(triangles: Vec<Triangle>, times: u32) -> Vec<Triangle> {
+    (0..times).fold(triangles, |triangles, _| {
+        triangles
+            .iter()
+            .flat_map(|t| {
+                let mid = |a: usize, b: usize| Triangle {
+                    positions: [(t.positions[a] + t.positions[b]) * 0.5; 3],
+                    normals: [(t.normals[a] + t.normals[b]).normalize(); 3],
+                    uvs: [(t.uvs[a] + t.uvs[b]) * 0.5; 3],
+                    ..*t
+                };
+                let (m01, m12, m20) = (mid(0, 1), mid(1, 2), mid(2, 0));
+                let corner = |v: usize, a: &Triangle, b: &Triangle| Triangle {
+                    positions: [t.positions[v], a.positions[0], b.positions[0]],
+                    normals: [t.normals[v], a.normals[0], b.normals[0]],
+                    uvs: [t.uvs[v], a.uvs[0], b.uvs[0]],
+                    ..*t
+                };
+                let centre = Triangle {
+                    positions: [m01.positions[0], m12.positions[0], m20.positions[0]],
+                    normals: [m01.normals[0], m12.normals[0], m20.normals[0]],
+                    uvs: [m01.uvs[0], m12.uvs[0], m20.uvs[0]],
+                    ..*t
+                };
+                [corner(0, &m01, &m20), corner(1, &m12, &m01), corner(2, &m20, &m12), centre]
+            })
+            .collect()
+    })
+}
+
+/// Masks cost only where they are (issue #31): a masked triangle whose texels are opaque
+/// throughout is not alpha-tested (its flag is left clear at pack time), one over holes is, and
+/// the image is the same bit for bit as when every masked triangle is tested. The screen of
+/// `alpha_masked_screen`, subdivided into 128 triangles, over a texture opaque on its left half
+/// and a checker of holes on its right half.
+#[test]
+fn only_triangles_that_can_have_holes_are_alpha_tested() {
+    let mut scene = tracer::scene::alpha_masked_screen();
+    let n = 16u32;
+    let texels: Vec<u32> =
+        (0..n * n).map(|i| if i % n < n / 2 || (i % n + i / n) % 2 == 0 { 0xffff_ffff } else { 0x00ff_ffff }).collect();
+    scene.textures[0] =
+        Texture { width: n, height: n, texels: texels.into(), wrap_s: Wrap::ClampToEdge, wrap_t: Wrap::ClampToEdge };
+    let (screen, rest): (Vec<Triangle>, Vec<Triangle>) = scene.triangles.iter().partition(|t| t.material == 1);
+    scene.triangles = rest.into_iter().chain(subdivide(screen, 3)).collect();
+    let p = common::agreement::packed(&scene, Strategy::Mis, 32, 4);
+    assert!(p.features.alpha_mask);
+    // Per triangle texel 0's w is its material, texel 2's w its mask flag.
+    let triangles = p.scene.triangles.as_slice();
+    let flags: Vec<(u32, f32)> = triangles.chunks(3).map(|t| (t[0].w as u32, t[2].w)).collect();
+    let screen_flags: Vec<f32> = flags.iter().filter(|(m, _)| *m == 1).map(|(_, f)| *f).collect();
+    let tested = screen_flags.iter().filter(|f| **f == 1.0).count();
+    eprintln!("{tested} of {} screen triangles are alpha-tested", screen_flags.len());
+    assert_eq!(screen_flags.len(), 128);
+    assert!(tested >= 64 && tested < 112, "{tested} of 128 tested: the opaque half should mostly be left untested");
+    // The same scene with every triangle of a masked material tested renders the same image.
+    let mut all_tested = p.clone();
+    let mut data = all_tested.scene.triangles.as_slice().to_vec();
+    for t in data.chunks_mut(3) {
+        if matches!(t[0].w as u32, 1 | 2) {
+            t[2].w = 1.0;
+        }
+    }
+    all_tested.scene.triangles = kernel_dsl::Texels::new(data);
+    let render = |p: &Packed| {
+        let mut r = tracer::backend::cpu::CpuRenderer::new(p.clone(), 3);
+        for _ in 0..4 {
+            tracer::backend::Renderer::render_frame(&mut r).expect("frame");
+        }
+        tracer::backend::Renderer::accumulation(&r).expect("accumulation")
+    };
+    let bits = |v: Vec<glam::Vec4>| v.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
+    assert_eq!(bits(render(&p)), bits(render(&all_tested)), "skipping the test changed the image");
+}

@@ -89,16 +89,15 @@ pub(super) fn pack_geometry(
     ordered: &Ordered,
     features: &Features,
     emissive: &super::lights::Emissive,
-    masked_material: &[bool],
+    alpha_tested: &[bool],
 ) -> PackedGeometry {
     let tri_count = ordered.triangles.len();
-    let masked = |t: &Triangle| masked_material.get(t.material as usize).copied().unwrap_or(false);
     let triangles = Texels::par_from_groups::<{ TRIANGLE_TEXELS as usize }>(tri_count, |i| {
         let t = ordered.triangles[i];
         [
             t.positions[0].extend(t.material as f32),
             t.positions[1].extend(index_value(emissive.light_of(i, t))),
-            t.positions[2].extend(if features.alpha_mask && masked(t) { 1.0 } else { 0.0 }),
+            t.positions[2].extend(if features.alpha_mask && alpha_tested[i] { 1.0 } else { 0.0 }),
         ]
     });
     let shading = if features.shading { pack_shading(&ordered.triangles, features) } else { Texels::default() };

@@ -15,6 +15,7 @@ use crate::kernel::scene_data::Scene as KernelScene;
 use crate::kernel::{Features, RenderSettings};
 use crate::scene::Scene;
 
+mod alpha_mask;
 mod camera;
 mod geometry;
 mod lights;
@@ -111,14 +112,17 @@ pub fn pack_with_textures(
     }
     let ordered = geometry::Ordered::new(scene, bvh)?;
     let emissive = lights::Emissive::new(scene, bvh);
-    // Which materials the kernel alpha-tests ([`crate::scene::Material::is_masked`]).
+    // Which materials are alpha-masked ([`crate::scene::Material::is_masked`]), and which of
+    // their triangles can have a hole (in BVH order): only those are alpha-tested.
     let masked_material: Vec<bool> = scene.materials.iter().map(|m| m.is_masked(textures.used)).collect();
-    let features = scene_features(scene, textures, &ordered, &emissive, &masked_material);
+    let alpha_tested =
+        alpha_mask::needs_alpha_test(&ordered.triangles, &scene.materials, &scene.textures, &masked_material);
+    let features = scene_features(scene, textures, &ordered, &emissive, &alpha_tested);
 
     let bounds = scene.bounds();
     let sky = sky::pack_sky(scene.sky.as_ref());
     let lights = lights::pack_lights(scene, &ordered.triangles, &emissive, textures, bounds, sky.mean_radiance);
-    let geometry = geometry::pack_geometry(&ordered, &features, &emissive, &masked_material);
+    let geometry = geometry::pack_geometry(&ordered, &features, &emissive, &alpha_tested);
     let materials = materials::pack_materials(scene, textures, &features);
     let camera = camera::PackedCamera::new(&scene.camera, width, height);
     let scene_scale = bounds.min.abs().max(bounds.max.abs()).max_element();
@@ -129,14 +133,14 @@ pub fn pack_with_textures(
     Ok(Packed { scene: kernel_scene, features, triangle_count: ordered.triangles.len(), light_count, texture_images })
 }
 
-/// What `scene` uses, once its triangles are in BVH order and its emitters and masked
-/// materials known.
+/// What `scene` uses, once its triangles are in BVH order and its emitters and alpha-tested
+/// triangles known.
 fn scene_features(
     scene: &Scene,
     textures: &PackedTextures,
     ordered: &geometry::Ordered,
     emissive: &lights::Emissive,
-    masked_material: &[bool],
+    alpha_tested: &[bool],
 ) -> Features {
     let textures_used = textures.used;
     Features {
@@ -149,7 +153,7 @@ fn scene_features(
         transmission: scene.materials.iter().any(|m| m.transmits()),
         volume: scene.materials.iter().any(|m| m.absorption().max_element() > 0.0),
         normal_map: textures_used && scene.materials.iter().any(|m| m.normal_texture.is_some()),
-        alpha_mask: masked_material.contains(&true),
+        alpha_mask: alpha_tested.contains(&true),
         texture_transform: textures_used && textures.refs.as_ref().is_some_and(|r| r.transform),
         texcoord1: textures_used && textures.refs.as_ref().is_some_and(|r| r.texcoord1),
         traversal_stack: ordered.traversal_stack,

@@ -111,7 +111,7 @@ pub fn pack_textures(scene: &Scene) -> PackedTextures {
     PackedTextures { used, texels, info: Texels::new(info), refs, emissive_mean_luminance, images }
 }
 
-fn wrap_code(w: Wrap) -> u32 {
+pub(super) fn wrap_code(w: Wrap) -> u32 {
     match w {
         Wrap::Repeat => scene_data::WRAP_REPEAT,
         Wrap::ClampToEdge => scene_data::WRAP_CLAMP,

@@ -453,6 +453,7 @@ mod tests {
             ("AlphaMaskData", top_fields::<crate::kernel::alpha_mask::AlphaMaskData>()),
             ("GlassData", top_fields::<crate::kernel::scene_data::GlassData>()),
             ("GuidedSample", top_fields::<crate::kernel::integrator::GuidedSample>()),
+            ("FirstHit", top_fields::<crate::kernel::integrator::FirstHit>()),
             ("SurfaceNormals", top_fields::<crate::kernel::integrator::SurfaceNormals>()),
         ];
         let structs: Vec<kernel_dsl::ir::StructDef> = crate::kernel::modules()

@@ -143,7 +143,7 @@ mod kernel_structs {
     use crate::kernel::alpha_mask::AlphaMaskData;
     use crate::kernel::bsdf::Bsdf;
     use crate::kernel::camera::Ray;
-    use crate::kernel::integrator::{GuidedSample, Shading, SurfaceNormals};
+    use crate::kernel::integrator::{FirstHit, GuidedSample, Shading, SurfaceNormals};
     use crate::kernel::intersect::TriangleHit;
     use crate::kernel::lights::LightSample;
     use crate::kernel::metal_rough::{BrdfSample, Surface};
@@ -170,6 +170,7 @@ mod kernel_structs {
         AlphaMaskData { texture, alpha, cutoff }
         GlassData { transmission, ior, texture, thin, sigma_a }
         GuidedSample { color, albedo, normal, emission }
+        FirstHit { albedo, normal, depth, emission }
         SurfaceNormals { ng, ns, flip, area2 }
     }
 }
