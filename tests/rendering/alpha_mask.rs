@@ -679,8 +679,9 @@ fn subdivide(triangles: Vec<Triangle>, times: u32) -> Vec<Triangle> {
 fn only_triangles_that_can_have_holes_are_alpha_tested() {
     let mut scene = tracer::scene::alpha_masked_screen();
     let n = 16u32;
-    let texels: Vec<u32> =
-        (0..n * n).map(|i| if i % n < n / 2 || (i % n + i / n) % 2 == 0 { 0xffff_ffff } else { 0x00ff_ffff }).collect();
+    let texels: Vec<u32> = (0..n * n)
+        .map(|i| if i % n < n / 2 || (i % n + i / n).is_multiple_of(2) { 0xffff_ffff } else { 0x00ff_ffff })
+        .collect();
     scene.textures[0] =
         Texture { width: n, height: n, texels: texels.into(), wrap_s: Wrap::ClampToEdge, wrap_t: Wrap::ClampToEdge };
     let (screen, rest): (Vec<Triangle>, Vec<Triangle>) = scene.triangles.iter().partition(|t| t.material == 1);
@@ -694,7 +695,7 @@ fn only_triangles_that_can_have_holes_are_alpha_tested() {
     let tested = screen_flags.iter().filter(|f| **f == 1.0).count();
     eprintln!("{tested} of {} screen triangles are alpha-tested", screen_flags.len());
     assert_eq!(screen_flags.len(), 128);
-    assert!(tested >= 64 && tested < 112, "{tested} of 128 tested: the opaque half should mostly be left untested");
+    assert!((64..112).contains(&tested), "{tested} of 128 tested: the opaque half should mostly be left untested");
     // The same scene with every triangle of a masked material tested renders the same image.
     let mut all_tested = p.clone();
     let mut data = all_tested.scene.triangles.as_slice().to_vec();
