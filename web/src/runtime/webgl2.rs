@@ -6,13 +6,14 @@ use glow::HasContext;
 use tracer::backend::frame_split::Step;
 use tracer::backend::gl::Pacer;
 use tracer::backend::gl::{GlDisplay, GlOptions, GlRenderer};
-use tracer::backend::Renderer;
+use tracer::backend::{Image, Renderer};
 use tracer::output::Display;
 use tracer::pack::Packed;
 use wasm_bindgen::JsCast;
 use web_sys::{HtmlCanvasElement, WebGl2RenderingContext, WebGlContextAttributes};
 
 use super::Startup;
+use crate::denoise::show::GlImageDisplay;
 use crate::js::now_ms;
 
 /// The WebGL2 context of `canvas` (which must not hold another kind of context).
@@ -44,6 +45,8 @@ pub struct GlRuntime {
     /// Bands of the frame loop (`step`), one on the GPU at a time.
     pacer: Pacer,
     startup: Startup,
+    /// The denoised image's display pass, created at the first denoised image.
+    image_display: Option<GlImageDisplay>,
 }
 
 impl GlRuntime {
@@ -74,7 +77,14 @@ impl GlRuntime {
             compiled_at: Some(created_at),
         };
         let pacer = Pacer::new(packed.scene.height, band_budget_ms);
-        Ok(GlRuntime { context: context.clone(), renderer, display: Some(display), pacer, startup })
+        Ok(GlRuntime {
+            context: context.clone(),
+            renderer,
+            display: Some(display),
+            pacer,
+            startup,
+            image_display: None,
+        })
     }
 
     pub fn renderer(&self) -> &GlRenderer {
@@ -108,6 +118,17 @@ impl GlRuntime {
         if let Some(display) = &self.display {
             display.draw(&self.renderer, None, [w, h], settings);
         }
+    }
+
+    /// Draws `image` (a denoised image of the renderer's size, known as `id`) through `settings`.
+    pub fn draw_image(&mut self, image: &Image, id: u64, settings: &Display) -> Result<(), String> {
+        if self.image_display.is_none() {
+            self.image_display = Some(GlImageDisplay::new(self.renderer.gl())?);
+        }
+        if let Some(display) = &mut self.image_display {
+            display.draw(self.renderer.gl(), image, id, settings);
+        }
+        Ok(())
     }
 
     /// One whole frame in one submission, then the display pass.
@@ -154,6 +175,9 @@ impl Drop for GlRuntime {
     fn drop(&mut self) {
         self.pacer.forget(self.renderer.gl());
         if let Some(display) = self.display.take() {
+            display.delete(self.renderer.gl());
+        }
+        if let Some(display) = self.image_display.take() {
             display.delete(self.renderer.gl());
         }
     }
