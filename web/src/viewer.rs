@@ -461,7 +461,13 @@ impl Viewer {
         set(&info, "contextLost", self.context_lost);
         set(&info, "toneMap", self.display.tone_map.name());
         set(&info, "exposure", self.display.exposure);
-        set(&info, "denoise", self.denoiser.describe(self.running.as_ref()));
+        let rendering = match &self.running {
+            _ if self.context_lost => Err("the WebGL context is lost"),
+            _ if self.web_gpu_lost().is_some() => Err("the WebGPU device is lost"),
+            Some(running) => Ok(running),
+            None => Err("no scene"),
+        };
+        set(&info, "denoise", self.denoiser.describe(rendering));
         if let Some(loaded) = &self.loaded {
             let f = &loaded.packed.features;
             set(&info, "name", loaded.name.as_str());

@@ -363,12 +363,16 @@ impl PageDenoiser {
         self.guide_ms = Some(guide_ms);
     }
 
-    /// What the read-out says of the image on the canvas.
-    pub fn readout(&self, running: Option<&Runtime>) -> String {
+    /// What the read-out says of the image on the canvas; `running`: the runtime that renders,
+    /// or why none does.
+    pub fn readout(&self, running: Result<&Runtime, &str>) -> String {
         if !self.enabled {
             return "raw (denoise off)".into();
         }
-        let Some(running) = running else { return "raw (no scene)".into() };
+        let running = match running {
+            Ok(r) => r,
+            Err(why) => return format!("raw ({why})"),
+        };
         let pending = self.job.as_ref().filter(|j| j.generation == self.generation).map(|j| j.spp);
         let mut text = match (self.current(), &self.shown) {
             (Some(_), Some(shown)) => format!("denoised at {} spp", shown.spp),
@@ -389,7 +393,7 @@ impl PageDenoiser {
     }
 
     /// The read-outs of `sceneInfo().denoise`.
-    pub fn describe(&self, running: Option<&Runtime>) -> Object {
+    pub fn describe(&self, running: Result<&Runtime, &str>) -> Object {
         let o = Object::new();
         set(&o, "enabled", self.enabled);
         let shown = self.current().and(self.shown.as_ref()).map(|s| s.spp);
