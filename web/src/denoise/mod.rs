@@ -9,7 +9,9 @@
 //! accumulation has reached [`FIRST_SPP`] samples per pixel and then whenever the sample count
 //! has doubled since the image shown was denoised (4, 8, 16, ... spp: the filter's share of the
 //! time falls as the image converges), and never sooner than [`SPACING`] times the last filter
-//! time after the last one ended (at most about a third of the time goes to the filter). In
+//! time after the last one ended (at most about a third of the time goes to the filter); the
+//! first waits until the accumulation has run [`SETTLE_MS`] without a restart (the camera has
+//! stopped: the guide's AOVs are traced on the CPU once per view). In
 //! between, the latest denoised image stays on the canvas while the raw accumulation goes on.
 //! A restart (camera move, strategy, depth, size, seed, API) shows the raw image until the next
 //! denoise of the new accumulation; a denoise of an older accumulation that finishes late is
@@ -46,6 +48,10 @@ use crate::runtime::Runtime;
 pub const FIRST_SPP: u32 = 4;
 /// A denoise starts no sooner than this many times the last filter time after the last ended.
 pub const SPACING: f64 = 2.0;
+/// The first denoise of an accumulation also waits until it has run this long without a
+/// restart: while the camera moves (restarts every few frames on a fast GPU), the guide's
+/// AOVs, traced on the CPU, would stall the input.
+pub const SETTLE_MS: f64 = 300.0;
 /// WebGPU accumulation reads queued and not yet mapped beyond which the oldest are dropped
 /// (and the variance becomes unknown until the next restart).
 const MAX_PENDING_READS: usize = 32;
@@ -126,6 +132,8 @@ pub struct PageDenoiser {
     guide_ms: Option<f64>,
     /// Why the current accumulation is not denoised (cleared at the next restart).
     error: Option<String>,
+    /// When the current accumulation began (`performance.now()`).
+    restarted_ms: f64,
 }
 
 impl PageDenoiser {
@@ -146,6 +154,7 @@ impl PageDenoiser {
             filter_ms: None,
             guide_ms: None,
             error: None,
+            restarted_ms: now_ms(),
         }
     }
 
@@ -178,6 +187,7 @@ impl PageDenoiser {
         self.latest = None;
         self.frames_seen = 0;
         self.error = None;
+        self.restarted_ms = now_ms();
         self.moments = self.enabled.then(|| SampleMoments::new(pixels));
         if view_changed {
             self.aovs = None;
@@ -272,7 +282,7 @@ impl PageDenoiser {
         let spaced = match (self.last_end_ms, self.filter_ms) {
             (Some(end), Some(ms)) => now - end >= SPACING * ms,
             _ => true,
-        };
+        } && (shown > 0 || now - self.restarted_ms >= SETTLE_MS);
         self.job.is_none() && self.error.is_none() && *spp >= FIRST_SPP.max(2 * shown) && spaced
     }
 
