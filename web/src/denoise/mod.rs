@@ -288,6 +288,21 @@ impl PageDenoiser {
 
     /// Starts denoising the latest accumulation read: done at once on WebGL2, queued on WebGPU.
     fn start(&mut self, running: &mut Runtime) -> bool {
+        // WebGPU: the filter pass compiles first (a promise; the next polls see it done).
+        let gpu_filter = match running {
+            Runtime::WebGl2(_) => None,
+            Runtime::WebGpu(r) => {
+                let device = r.renderer().device();
+                match self.gpu_filter.get_or_insert_with(|| GpuFilter::compile(device)).ready() {
+                    Ok(Some(f)) => Some(f),
+                    Ok(None) => return false,
+                    Err(e) => {
+                        self.fail(e);
+                        return false;
+                    }
+                }
+            }
+        };
         let Some((spp, sums)) = &self.latest else { return false };
         let spp = *spp;
         let (image, guide, guide_ms) = {
@@ -314,14 +329,7 @@ impl PageDenoiser {
             }
             Runtime::WebGpu(r) => {
                 let device = r.renderer().device();
-                let filter = match self.gpu_filter.get_or_insert_with(|| GpuFilter::compile(device)).ready() {
-                    Ok(Some(f)) => f,
-                    Ok(None) => return false,
-                    Err(e) => {
-                        self.fail(e);
-                        return false;
-                    }
-                };
+                let Some(filter) = gpu_filter else { return false };
                 let began = now_ms();
                 let queued = filter_input(&image, &guide.variance, &guide.aovs)
                     .map_err(|e| e.to_string())
