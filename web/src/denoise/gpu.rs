@@ -1,8 +1,8 @@
 //! What the page's denoiser needs on WebGPU, where nothing may block: read-backs of the
 //! accumulation that resolve later (one staging buffer per read, so several can be in flight
 //! and each holds the sum of the frame it was queued after), the filter pass compiled and run
-//! as promises, and the filter's remodulation done by `tracer::denoise` itself over the output
-//! the device returned ([`Replay`]).
+//! as promises; and, for both runtimes, the filter's remodulation done by `tracer::denoise`
+//! itself over the output the device returned ([`Replay`]).
 
 use std::cell::RefCell;
 use std::rc::Rc;

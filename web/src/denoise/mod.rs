@@ -1,11 +1,14 @@
 //! The denoiser in the page (`Viewer::setDenoise`, the page's Denoise control, `?denoise=0|1`):
 //! `tracer::denoise` over the accumulation, the à-trous passes on the runtime that renders
-//! (fragment passes on WebGL2 through `Renderer::denoise_passes`; compute passes on WebGPU,
-//! run as promises since WebGPU cannot block on a read-back), and the denoised image drawn
-//! through the same display transform as the raw one ([`show`]).
+//! (`GlFilter`'s fragment passes on WebGL2, queued behind a fence the frame loop polls;
+//! `WgpuFilter`'s compute passes on WebGPU, run as promises), neither blocking the page, the
+//! remodulation by `tracer::denoise::denoise_on` itself over the passes' output
+//! ([`gpu::Replay`]), and the denoised image drawn through the same display transform as the
+//! raw one ([`show`]).
 //!
 //! **When it denoises.** The passes cost about 800 ms at 640x480 on SwiftShader (a few ms on a
-//! real GPU), and on WebGL2 they block the page while they run. So the page denoises when the
+//! real GPU); while they run the GPU renders nothing else (on WebGL2 no band is submitted
+//! until their fence is signalled). So the page denoises when the
 //! accumulation has reached [`FIRST_SPP`] samples per pixel and then whenever the sample count
 //! has doubled since the image shown was denoised (4, 8, 16, ... spp: the filter's share of the
 //! time falls as the image converges), and never sooner than [`SPACING`] times the last filter
@@ -73,7 +76,8 @@ struct Job {
     image: Image,
     variance: Vec<f32>,
     aovs: Rc<Vec<Aov>>,
-    output: Slot<Vec<Vec4>>,
+    /// WebGPU: where the output arrives; WebGL2: `None`, the runtime holds the queued passes.
+    output: Option<Slot<Vec<Vec4>>>,
     started_ms: f64,
     guide_ms: f64,
 }
@@ -313,45 +317,34 @@ impl PageDenoiser {
             let guide = page_guide(scene, &mut self.aovs, moments, spp);
             (image, guide, now_ms() - started)
         };
-        match running {
-            Runtime::WebGl2(r) => {
-                let began = now_ms();
-                match denoise_on(r.renderer_mut(), &image, &guide.variance, &guide.aovs) {
-                    Ok(d) => {
-                        self.show(spp, d.image, now_ms() - began, guide_ms);
-                        true
-                    }
-                    Err(e) => {
-                        self.fail(e.to_string());
-                        false
-                    }
-                }
+        let began = now_ms();
+        let queued = filter_input(&image, &guide.variance, &guide.aovs).map_err(|e| e.to_string()).and_then(|input| {
+            match (running, gpu_filter) {
+                (Runtime::WebGl2(r), _) => r.queue_filter(&input).map(|()| None),
+                (Runtime::WebGpu(r), Some(filter)) => gpu::run_filter(&filter, r.renderer().device(), &input).map(Some),
+                (Runtime::WebGpu(_), None) => Err("the WebGPU filter pass is not compiled".to_string()),
             }
-            Runtime::WebGpu(r) => {
-                let device = r.renderer().device();
-                let Some(filter) = gpu_filter else { return false };
-                let began = now_ms();
-                let queued = filter_input(&image, &guide.variance, &guide.aovs)
-                    .map_err(|e| e.to_string())
-                    .and_then(|input| gpu::run_filter(&filter, device, &input));
-                match queued {
-                    Ok(output) => {
-                        let (generation, variance, aovs) = (self.generation, guide.variance, guide.aovs);
-                        self.job =
-                            Some(Job { generation, spp, image, variance, aovs, output, started_ms: began, guide_ms });
-                    }
-                    Err(e) => self.fail(e),
-                }
-                false
+        });
+        match queued {
+            Ok(output) => {
+                let (generation, variance, aovs) = (self.generation, guide.variance, guide.aovs);
+                self.job = Some(Job { generation, spp, image, variance, aovs, output, started_ms: began, guide_ms });
             }
+            Err(e) => self.fail(e),
         }
+        false
     }
 
-    /// A WebGPU denoise whose output arrived: remodulated (by `tracer::denoise` itself) and
-    /// shown, unless the accumulation restarted meanwhile.
-    fn finish_job(&mut self, running: &Runtime) -> bool {
+    /// A denoise whose passes are done: remodulated (by `tracer::denoise` itself) and shown,
+    /// unless the accumulation restarted meanwhile.
+    fn finish_job(&mut self, running: &mut Runtime) -> bool {
         let Some(job) = &self.job else { return false };
-        let Some(output) = job.output.borrow_mut().take() else { return false };
+        let output = match (&job.output, &mut *running) {
+            (Some(slot), _) => slot.borrow_mut().take(),
+            (None, Runtime::WebGl2(r)) => r.filter_output(),
+            (None, Runtime::WebGpu(_)) => Some(Err("the filter's output was lost".to_string())),
+        };
+        let Some(output) = output else { return false };
         let job = self.job.take().expect("checked above");
         if job.generation != self.generation {
             return false;
