@@ -253,7 +253,7 @@ impl PageDenoiser {
         self.error = Some(error);
     }
 
-    /// Collects what WebGPU finished (mapped reads, the filter's output), then starts a denoise
+    /// Collects what the GPU finished (WebGPU's mapped reads; the filter's output), then starts a denoise
     /// if one is due. Call it from the frame loop also while no frame is rendered. Returns
     /// whether a new denoised image is ready to show.
     pub fn poll(&mut self, running: &mut Runtime) -> bool {
@@ -290,7 +290,9 @@ impl PageDenoiser {
         self.job.is_none() && self.error.is_none() && *spp >= FIRST_SPP.max(2 * shown) && spaced
     }
 
-    /// Starts denoising the latest accumulation read: done at once on WebGL2, queued on WebGPU.
+    /// Starts denoising the latest accumulation read: the passes are queued (WebGL2: behind a
+    /// fence the runtime polls; WebGPU: as promises) and finished by a later [`poll`](Self::poll).
+    /// Returns false (nothing to show yet).
     fn start(&mut self, running: &mut Runtime) -> bool {
         // WebGPU: the filter pass compiles first (a promise; the next polls see it done).
         let gpu_filter = match running {
