@@ -272,9 +272,9 @@ impl PageDenoiser {
                 }
             }
         }
-        let mut ready = self.finish_job(running);
+        let ready = self.finish_job(running);
         if self.due(now_ms()) {
-            ready |= self.start(running);
+            self.start(running);
         }
         ready
     }
@@ -292,8 +292,7 @@ impl PageDenoiser {
 
     /// Starts denoising the latest accumulation read: the passes are queued (WebGL2: behind a
     /// fence the runtime polls; WebGPU: as promises) and finished by a later [`poll`](Self::poll).
-    /// Returns false (nothing to show yet).
-    fn start(&mut self, running: &mut Runtime) -> bool {
+    fn start(&mut self, running: &mut Runtime) {
         // WebGPU: the filter pass compiles first (a promise; the next polls see it done).
         let gpu_filter = match running {
             Runtime::WebGl2(_) => None,
@@ -301,15 +300,15 @@ impl PageDenoiser {
                 let device = r.renderer().device();
                 match self.gpu_filter.get_or_insert_with(|| GpuFilter::compile(device)).ready() {
                     Ok(Some(f)) => Some(f),
-                    Ok(None) => return false,
+                    Ok(None) => return,
                     Err(e) => {
                         self.fail(e);
-                        return false;
+                        return;
                     }
                 }
             }
         };
-        let Some((spp, sums)) = &self.latest else { return false };
+        let Some((spp, sums)) = &self.latest else { return };
         let spp = *spp;
         let (image, guide, guide_ms) = {
             let scene = &running.packed().scene;
@@ -334,7 +333,6 @@ impl PageDenoiser {
             }
             Err(e) => self.fail(e),
         }
-        false
     }
 
     /// A denoise whose passes are done: remodulated (by `tracer::denoise` itself) and shown,
