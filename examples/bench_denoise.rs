@@ -1,5 +1,6 @@
 //! The denoiser (`tracer::denoise`): what it costs and what it buys. Prints
-//! - the guide's time per image (the first hits' AOVs, on the CPU) and the filter passes' time
+//! - what the guide costs (a frame of a renderer that accumulates it, `Features::denoise_guide`,
+//!   against a plain frame, and reading it back) and the filter passes' time
 //!   on each runtime (CPU, GL, wgpu: `Renderer::denoise_passes`, read-back included) at 640x480
 //!   and 1920x1080 on the Cornell box, median of `--rounds`, as a ratio to rendering one sample
 //!   per pixel of the same image on the same runtime in the same run; and the passes' time in
@@ -16,7 +17,7 @@ use std::time::Instant;
 
 use tracer::backend::cpu::CpuRenderer;
 use tracer::backend::{Renderer, RendererKind};
-use tracer::denoise::{denoise, filter_input, first_hit_aovs, SampleMoments};
+use tracer::denoise::{denoise, filter_input, Guide};
 use tracer::kernel::denoise::FilterImage;
 use tracer::kernel::{RenderSettings, Strategy};
 use tracer::output::Image;
@@ -27,15 +28,15 @@ fn packed(size: (u32, u32)) -> Packed {
     build_and_pack(&tracer::scene::cornell_box(), &settings).expect("pack").1
 }
 
-/// `spp` frames: the image and each pixel's variance of the mean luminance.
-fn render(p: &Packed, spp: u32, seed: u32) -> (Image, Vec<f32>) {
-    let mut r = CpuRenderer::new(p.clone(), seed);
-    let mut moments = SampleMoments::new((p.scene.width * p.scene.height) as usize);
+/// `spp` frames on the CPU, accumulating the guide: the image and its guide.
+fn render(p: &Packed, spp: u32, seed: u32) -> (Image, Guide) {
+    let mut guided = p.clone();
+    guided.set_denoise_guide(true);
+    let mut r = CpuRenderer::new(guided, seed);
     for _ in 0..spp {
         r.render_frame().expect("frame");
-        moments.add_frame(&r.accumulation().expect("accumulation"));
     }
-    (r.image().expect("image"), moments.variance_of_mean())
+    (r.image().expect("image"), Guide::read(&r).expect("guide"))
 }
 
 fn rel_mse(a: &Image, reference: &Image) -> f64 {
@@ -49,19 +50,19 @@ fn page_rows(size: (u32, u32), input: &FilterImage, rounds: usize) {
     let modules = tracer::kernel::modules();
     let session = match BrowserSession::start(&BrowserOptions::default()) {
         Ok(s) => std::sync::Arc::new(s),
-        Err(e) => return println!("| {}x{} | page | unavailable: {e} | | | |", size.0, size.1),
+        Err(e) => return println!("| {}x{} | page | unavailable: {e} | | | | | |", size.0, size.1),
     };
     for backend in [Backend::WebGl2, Backend::WebGpu] {
         let program = lightport_codegen::Program::link(&modules).expect("the kernel links");
         let mut runtime = match BrowserRuntime::new(session.clone(), backend, program, &modules) {
             Ok(r) => r,
             Err(e) => {
-                println!("| {}x{} | {backend} | unavailable: {e} | | | |", size.0, size.1);
+                println!("| {}x{} | {backend} | unavailable: {e} | | | | | |", size.0, size.1);
                 continue;
             }
         };
         let times: Vec<f64> = (0..rounds).map(|_| runtime.run_filter(input).expect("the page's passes").1).collect();
-        println!("| {}x{} | {backend} (page) | | | {:.1} | |", size.0, size.1, median(times));
+        println!("| {}x{} | {backend} (page) | | | | | {:.1} | |", size.0, size.1, median(times));
     }
 }
 
@@ -76,48 +77,59 @@ fn main() {
         args.iter().position(|a| a == "--rounds").and_then(|i| args.get(i + 1)?.parse().ok()).unwrap_or(5);
     println!("threads: {}", rayon::current_num_threads());
     println!(
-        "\n| image | runtime | 1 spp frame (ms) | guide: AOVs on the CPU (ms) | filter passes (ms) | filter / frame |"
+        "\n| image | runtime | 1 spp frame (ms) | with the guide (ms) | guided / plain | guide read-back (ms) | filter passes (ms) | filter / frame |"
     );
-    println!("|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|");
     for size in [(640, 480), (1920, 1080)] {
         let p = packed(size);
-        let (image, variance) = render(&p, 2, 1);
-        let aovs = first_hit_aovs(&p.scene);
-        let input = filter_input(&image, &variance, &aovs).expect("filter input");
-        let mut runtimes: Vec<Box<dyn Renderer>> = RendererKind::ALL
+        let (image, guide) = render(&p, 2, 1);
+        let input = filter_input(&image, &guide).expect("filter input");
+        let mut guided = p.clone();
+        guided.set_denoise_guide(true);
+        // Per runtime, a plain renderer and one that accumulates the guide.
+        let mut runtimes: Vec<(Box<dyn Renderer>, Box<dyn Renderer>)> = RendererKind::ALL
             .iter()
-            .filter_map(|kind| match tracer::backend::create(*kind, p.clone(), 3) {
-                Ok(r) => Some(r),
-                Err(e) => {
-                    println!("| {}x{} | {} | unavailable: {e} | | | |", size.0, size.1, kind.name());
-                    None
-                }
+            .filter_map(|kind| {
+                let create = |packed: &Packed| {
+                    tracer::backend::create(*kind, packed.clone(), 3)
+                        .map_err(|e| {
+                            println!("| {}x{} | {} | unavailable: {e} | | | | | |", size.0, size.1, kind.name())
+                        })
+                        .ok()
+                };
+                Some((create(&p)?, create(&guided)?))
             })
             .collect();
-        let mut times = vec![(Vec::new(), Vec::new(), Vec::new()); runtimes.len()];
+        let timed = |f: &mut dyn FnMut()| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64() * 1e3
+        };
+        let mut times = vec![[Vec::new(), Vec::new(), Vec::new(), Vec::new()]; runtimes.len()];
         // Alternate the runtimes and the measurements, round after round.
         for _ in 0..rounds {
-            for (r, (frame, aov, filter)) in runtimes.iter_mut().zip(&mut times) {
-                let t = Instant::now();
-                r.render_frame().expect("frame");
-                r.finish().expect("finish");
-                frame.push(t.elapsed().as_secs_f64() * 1e3);
-                let t = Instant::now();
-                let _ = first_hit_aovs(&p.scene);
-                aov.push(t.elapsed().as_secs_f64() * 1e3);
-                let t = Instant::now();
-                let out = r.denoise_passes(input.clone()).expect("filter passes");
-                filter.push(t.elapsed().as_secs_f64() * 1e3);
-                assert!(out.iter().all(|p| p.is_finite()));
+            for ((plain, with_guide), [frame, guided_frame, read, filter]) in runtimes.iter_mut().zip(&mut times) {
+                for (r, column) in [(&mut *plain, &mut *frame), (&mut *with_guide, &mut *guided_frame)] {
+                    column.push(timed(&mut || {
+                        r.render_frame().expect("frame");
+                        r.finish().expect("finish");
+                    }));
+                }
+                read.push(timed(&mut || drop(Guide::read(with_guide.as_ref()).expect("guide"))));
+                filter.push(timed(&mut || {
+                    let out = plain.denoise_passes(input.clone()).expect("filter passes");
+                    assert!(out.iter().all(|p| p.is_finite()));
+                }));
             }
         }
-        for (r, (frame, aov, filter)) in runtimes.iter().zip(times) {
-            let (frame, aov, filter) = (median(frame), median(aov), median(filter));
+        for ((r, _), columns) in runtimes.iter().zip(times) {
+            let [frame, guided_frame, read, filter] = columns.map(median);
             let name = r.describe().runtime;
             println!(
-                "| {}x{} | {name} | {frame:.1} | {aov:.1} | {filter:.1} | {:.2}x |",
+                "| {}x{} | {name} | {frame:.1} | {guided_frame:.1} | {:.2}x | {read:.1} | {filter:.1} | {:.2}x |",
                 size.0,
                 size.1,
+                guided_frame / frame,
                 filter / frame
             );
         }
@@ -126,8 +138,8 @@ fn main() {
 
     let p = packed((64, 64));
     let (reference, _) = render(&p, 4096, 99);
-    let (noisy, variance) = render(&p, 16, 7);
-    let denoised = denoise(&noisy, &variance, &first_hit_aovs(&p.scene)).expect("denoise").image;
+    let (noisy, guide) = render(&p, 16, 7);
+    let denoised = denoise(&noisy, &guide).expect("denoise").image;
     let target = rel_mse(&denoised, &reference);
     println!("\nCornell box 64x64: relMSE 16 spp noisy {:.5}, denoised {target:.5}", rel_mse(&noisy, &reference));
     let mut previous = (16.0f64, rel_mse(&noisy, &reference));

@@ -20,7 +20,7 @@ uniform uint scene_has_texture_transform;
 uniform uint scene_has_texcoord1;
 uniform uint scene_has_transmission;
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:123)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:126)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -28,7 +28,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:186)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:189)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -36,7 +36,7 @@ struct MetalRoughData {
     float specular;
 };
 
-// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:216)
+// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:219)
 struct GlassData {
     float transmission;
     float ior;
@@ -88,7 +88,7 @@ const uint NONE = 0xffffffffu;
 const uint WRAP_CLAMP = 1u;
 // scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:37)
 const uint WRAP_MIRROR = 2u;
-// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:212)
+// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:215)
 const uint GLASS_TEXELS = 2u;
 // texture_ref::TEXTURE_REF_TEXELS (lightport-tracer/src/kernel/texture_ref.rs:22)
 const uint TEXTURE_REF_TEXELS = 2u;
@@ -181,12 +181,12 @@ uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:131)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:134)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:195)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:198)
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
@@ -200,7 +200,7 @@ vec2 texcoord1(uint triangle, float u, float v) {
     return vec2(a.x, a.y) * (1.0 - u - v) + vec2(a.z, a.w) * u + vec2(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:175)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:178)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -553,7 +553,7 @@ float bsdf_pdf(Bsdf b, vec3 wo, vec3 wi) {
     }
 }
 
-// rng::random_u32 (lightport-tracer/src/kernel/rng.rs:17)
+// rng::random_u32 (lightport-tracer/src/kernel/rng.rs:19)
 uint random_u32(inout uint state) {
     state ^= state << 13;
     state ^= state >> 17;
@@ -561,7 +561,7 @@ uint random_u32(inout uint state) {
     return state;
 }
 
-// rng::random_float (lightport-tracer/src/kernel/rng.rs:26)
+// rng::random_float (lightport-tracer/src/kernel/rng.rs:28)
 float random_float(inout uint state) {
     return float(random_u32(state) >> 8) * (1.0 / 16777216.0);
 }
@@ -693,7 +693,7 @@ BrdfSample bsdf_sample(Bsdf b, vec3 wo, inout uint rng) {
     }
 }
 
-// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:228)
+// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:231)
 GlassData fetch_glass(uint material) {
     vec4 a = lp_fetch_vec4(scene_materials, scene_transmission_first + material * GLASS_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, scene_transmission_first + material * GLASS_TEXELS + 1u);

@@ -17,6 +17,7 @@ struct SceneUniforms {
     width: u32,
     height: u32,
     frame_seed: u32,
+    frame_index: u32,
     max_depth: u32,
     strategy: u32,
     light_count: u32,
@@ -39,6 +40,7 @@ struct SceneUniforms {
     has_texcoord1: u32,
     has_transmission: u32,
     has_volume: u32,
+    has_denoise_guide: u32,
     // Where each texel array starts in lp_scene_vec4f / lp_scene_vec4u (in texels).
     lp_start_triangles: u32,
     lp_start_shading: u32,
@@ -70,7 +72,7 @@ struct TriangleHit {
     v: f32,
 }
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:111)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:114)
 struct TriangleData {
     v0: vec3<f32>,
     v1: vec3<f32>,
@@ -80,7 +82,7 @@ struct TriangleData {
     masked: bool,
 }
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:123)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:126)
 struct MaterialData {
     base_color: vec3<f32>,
     base_texture: u32,
@@ -88,7 +90,7 @@ struct MaterialData {
     emissive_texture: u32,
 }
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:186)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:189)
 struct MetalRoughData {
     metallic: f32,
     roughness: f32,
@@ -96,7 +98,7 @@ struct MetalRoughData {
     specular: f32,
 }
 
-// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:216)
+// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:219)
 struct GlassData {
     transmission: f32,
     ior: f32,
@@ -168,7 +170,7 @@ struct Bsdf {
     surface: Surface,
 }
 
-// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:65)
+// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:66)
 struct SurfaceNormals {
     ng: vec3<f32>,
     ns: vec3<f32>,
@@ -176,7 +178,23 @@ struct SurfaceNormals {
     area2: f32,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:197)
+// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:104)
+struct FirstHit {
+    albedo: vec3<f32>,
+    normal: vec3<f32>,
+    depth: f32,
+    emission: vec3<f32>,
+}
+
+// integrator::GuidedSample (lightport-tracer/src/kernel/integrator.rs:117)
+struct GuidedSample {
+    color: vec4<f32>,
+    albedo: vec4<f32>,
+    normal: vec4<f32>,
+    emission: vec4<f32>,
+}
+
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:267)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -185,6 +203,12 @@ struct Shading {
     bsdf: Bsdf,
 }
 
+// rng::R2_X (lightport-tracer/src/kernel/rng.rs:33)
+const R2_X: u32 = 3242174889u;
+// rng::R2_Y (lightport-tracer/src/kernel/rng.rs:34)
+const R2_Y: u32 = 2447445413u;
+// rng::FRAME_MIX (lightport-tracer/src/kernel/rng.rs:37)
+const FRAME_MIX: u32 = 0x9e3779b9u;
 // sampling::PI (lightport-tracer/src/kernel/sampling.rs:8)
 const PI: f32 = 3.1415927;
 // sampling::INV_PI (lightport-tracer/src/kernel/sampling.rs:9)
@@ -215,13 +239,13 @@ const NONE: u32 = 0xffffffffu;
 const WRAP_CLAMP: u32 = 1u;
 // scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:37)
 const WRAP_MIRROR: u32 = 2u;
-// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:105)
+// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:108)
 const STRATEGY_BSDF: u32 = 0u;
-// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:106)
+// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:109)
 const STRATEGY_NEE: u32 = 1u;
-// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:107)
+// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:110)
 const STRATEGY_MIS: u32 = 2u;
-// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:212)
+// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:215)
 const GLASS_TEXELS: u32 = 2u;
 // texture_ref::TEXTURE_REF_TEXELS (lightport-tracer/src/kernel/texture_ref.rs:22)
 const TEXTURE_REF_TEXELS: u32 = 2u;
@@ -251,14 +275,16 @@ const BSDF_LAMBERT: u32 = 0u;
 const BSDF_METAL_ROUGH: u32 = 1u;
 // bsdf::BSDF_DIELECTRIC (lightport-tracer/src/kernel/bsdf.rs:38)
 const BSDF_DIELECTRIC: u32 = 2u;
-// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:29)
+// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:30)
 const RR_START_DEPTH: u32 = 3u;
-// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:32)
+// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:33)
 const RR_MAX_SURVIVAL: f32 = 0.95;
-// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:35)
+// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:36)
 const ORIGIN_OFFSET: f32 = 4e-6;
-// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:38)
+// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:39)
 const SHADOW_RAY_SHORTENING: f32 = 1.0 - 0.0001;
+// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:98)
+const SKY_DEPTH: f32 = 1e20;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
 // u32 as f32, rounded to nearest even like Rust: both halves convert exactly, the sum rounds once.
@@ -313,7 +339,7 @@ fn lp_max_element_vec3(v: vec3<f32>) -> f32 {
     return max(max(v.x, v.y), v.z);
 }
 
-// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:42)
+// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:43)
 fn offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let eps: f32 = (lp_max_element_vec3(abs(p)) + scene.scene_scale) * ORIGIN_OFFSET;
     return p + n * eps;
@@ -326,7 +352,7 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     return select(0.0, a2 / (a2 + b2), a2 + b2 > 0.0);
 }
 
-// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:49)
+// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:50)
 fn hit_emission_weight(scatter_pdf: f32, light_pdf: f32) -> f32 {
     if scatter_pdf <= 0.0 || (scene.strategy == STRATEGY_BSDF) {
         return 1.0;
@@ -337,7 +363,7 @@ fn hit_emission_weight(scatter_pdf: f32, light_pdf: f32) -> f32 {
     }
 }
 
-// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:166)
+// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:169)
 fn shading_normal(index: u32, u: f32, v: f32) -> vec3<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let n0: vec3<f32> = lp_scene_vec4f[scene.lp_start_shading + base].xyz;
@@ -346,7 +372,7 @@ fn shading_normal(index: u32, u: f32, v: f32) -> vec3<f32> {
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:131)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:134)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
@@ -374,7 +400,7 @@ fn texcoord1(triangle: u32, u: f32, v: f32) -> vec2<f32> {
     return vec2<f32>(a.x, a.y) * (1.0 - u - v) + vec2<f32>(a.z, a.w) * u + vec2<f32>(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:175)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:178)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + base].w, lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].w);
@@ -558,7 +584,7 @@ fn normal_mapped(hit: Hit, material: u32, ns: vec3<f32>, flip: f32, ng: vec3<f32
     return n;
 }
 
-// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:73)
+// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:74)
 fn surface_normals(tri: TriangleData, hit: Hit, dir: vec3<f32>) -> SurfaceNormals {
     let face: vec3<f32> = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
     let area2: f32 = length(face);
@@ -581,7 +607,7 @@ fn surface_normals(tri: TriangleData, hit: Hit, dir: vec3<f32>) -> SurfaceNormal
     return SurfaceNormals(ng, ns, flip, area2);
 }
 
-// rng::wang_hash (lightport-tracer/src/kernel/rng.rs:7)
+// rng::wang_hash (lightport-tracer/src/kernel/rng.rs:9)
 fn wang_hash(seed: u32) -> u32 {
     var s: u32 = seed ^ 61u ^ (seed >> 16u);
     s = s * 9u;
@@ -591,13 +617,13 @@ fn wang_hash(seed: u32) -> u32 {
     return s;
 }
 
-// rng::pixel_seed (lightport-tracer/src/kernel/rng.rs:32)
+// rng::pixel_seed (lightport-tracer/src/kernel/rng.rs:55)
 fn pixel_seed(pixel_index: u32, frame_seed: u32) -> u32 {
     let s: u32 = wang_hash(pixel_index + frame_seed);
     return select(s, 0x9e3779b9u, s == 0u);
 }
 
-// rng::random_u32 (lightport-tracer/src/kernel/rng.rs:17)
+// rng::random_u32 (lightport-tracer/src/kernel/rng.rs:19)
 fn random_u32(state: ptr<function, u32>) -> u32 {
     *state ^= *state << 13u;
     *state ^= *state >> 17u;
@@ -605,7 +631,16 @@ fn random_u32(state: ptr<function, u32>) -> u32 {
     return *state;
 }
 
-// rng::random_float (lightport-tracer/src/kernel/rng.rs:26)
+// rng::pixel_jitter (lightport-tracer/src/kernel/rng.rs:45)
+fn pixel_jitter(pixel_index: u32, frame_seed: u32, frame_index: u32) -> vec2<f32> {
+    let render_seed: u32 = frame_seed ^ (frame_index * FRAME_MIX);
+    var state: u32 = pixel_seed(pixel_index, render_seed ^ 0x5bd1e995u);
+    let x: u32 = random_u32(&state) + frame_index * R2_X;
+    let y: u32 = random_u32(&state) + frame_index * R2_Y;
+    return vec2<f32>(f32(x >> 8u) * (1.0 / 16777216.0), f32(y >> 8u) * (1.0 / 16777216.0));
+}
+
+// rng::random_float (lightport-tracer/src/kernel/rng.rs:28)
 fn random_float(state: ptr<function, u32>) -> f32 {
     return f32(random_u32(state) >> 8u) * (1.0 / 16777216.0);
 }
@@ -761,7 +796,7 @@ fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u
     return NodeHits(t, e);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:139)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:142)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];
@@ -999,21 +1034,31 @@ fn sky_radiance(dir: vec3<f32>) -> vec3<f32> {
     return lp_scene_vec4f[scene.lp_start_sky + i].xyz * scene.sky_intensity;
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:154)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:157)
 fn fetch_material(index: u32) -> MaterialData {
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + index * MATERIAL_TEXELS];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (index * MATERIAL_TEXELS + 1u)];
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:228)
+// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:96)
+fn base_color_at(material: MaterialData, triangle: u32, u: f32, v: f32) -> vec3<f32> {
+    var base: vec3<f32> = material.base_color;
+    if (scene.has_textures != 0u) && (material.base_texture != NONE) {
+        let uv: vec2<f32> = texture_uv(material.base_texture, triangle, u, v);
+        base *= sample_texture(material.base_texture, uv).xyz;
+    }
+    return base;
+}
+
+// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:231)
 fn fetch_glass(material: u32) -> GlassData {
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.transmission_first + material * GLASS_TEXELS)];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.transmission_first + material * GLASS_TEXELS + 1u)];
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:256)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:326)
 fn volume_transmittance(material: u32, t: f32) -> vec3<f32> {
     let sigma: vec3<f32> = fetch_glass(material).sigma_a;
     return vec3<f32>(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -1034,20 +1079,10 @@ fn triangle_emission(triangle: u32, material: u32, u: f32, v: f32) -> vec3<f32> 
     return e;
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:195)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:198)
 fn fetch_metal_rough(index: u32) -> MetalRoughData {
     let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_metal_rough + index];
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
-}
-
-// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:96)
-fn base_color_at(material: MaterialData, triangle: u32, u: f32, v: f32) -> vec3<f32> {
-    var base: vec3<f32> = material.base_color;
-    if (scene.has_textures != 0u) && (material.base_texture != NONE) {
-        let uv: vec2<f32> = texture_uv(material.base_texture, triangle, u, v);
-        base *= sample_texture(material.base_texture, uv).xyz;
-    }
-    return base;
 }
 
 // dielectric::glass_surface (lightport-tracer/src/kernel/dielectric.rs:61)
@@ -1516,7 +1551,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:209)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:279)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> vec3<f32> {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var direct: vec3<f32> = vec3<f32>(0.0);
@@ -1655,10 +1690,13 @@ fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }
 
-// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:98)
-fn render_sample(x: u32, y: u32) -> vec4<f32> {
-    var rng: u32 = pixel_seed(y * scene.width + x, scene.frame_seed);
-    let film: vec2<f32> = vec2<f32>(lp_u32_to_f32(x) + random_float(&rng), lp_u32_to_f32(y) + random_float(&rng));
+// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:149)
+fn trace_path(x: u32, y: u32, first: ptr<function, FirstHit>) -> vec4<f32> {
+    let pixel: u32 = y * scene.width + x;
+    var rng: u32 = pixel_seed(pixel, scene.frame_seed);
+    let film: vec2<f32> = vec2<f32>(lp_u32_to_f32(x), lp_u32_to_f32(y)) + pixel_jitter(pixel, scene.frame_seed, scene.frame_index);
+    random_u32(&rng);
+    random_u32(&rng);
     let lens: vec2<f32> = vec2<f32>(random_float(&rng), random_float(&rng));
     let ray: Ray = camera_ray(film, lens);
     var origin: vec3<f32> = ray.origin;
@@ -1669,6 +1707,12 @@ fn render_sample(x: u32, y: u32) -> vec4<f32> {
     var depth: u32 = 0u;
     loop {
         let hit: Hit = trace_closest(origin, dir, MISS);
+        if (scene.has_denoise_guide != 0u) && (depth == 0u) {
+            (*first).normal = -dir;
+            if hit.triangle != NONE {
+                (*first).depth = hit.t;
+            }
+        }
         if hit.triangle == NONE {
             if scene.has_sky != 0u {
                 var light_pdf: f32 = 0.0;
@@ -1690,6 +1734,10 @@ fn render_sample(x: u32, y: u32) -> vec4<f32> {
         let ns: vec3<f32> = normals.ns;
         let area2: f32 = normals.area2;
         let material: MaterialData = fetch_material(tri.material);
+        if (scene.has_denoise_guide != 0u) && (depth == 0u) {
+            (*first).albedo = base_color_at(material, hit.triangle, hit.u, hit.v);
+            (*first).normal = ns;
+        }
         if (scene.has_volume != 0u) && flip < 0.0 {
             throughput *= volume_transmittance(tri.material, hit.t);
         }
@@ -1701,6 +1749,9 @@ fn render_sample(x: u32, y: u32) -> vec4<f32> {
             }
             let e: vec3<f32> = triangle_emission(hit.triangle, tri.material, hit.u, hit.v);
             radiance += throughput * e * hit_emission_weight(scatter_pdf, light_pdf_1);
+            if (scene.has_denoise_guide != 0u) && (depth == 0u) {
+                (*first).emission = e;
+            }
         }
         if depth + 1u >= scene.max_depth {
             break;
@@ -1736,4 +1787,18 @@ fn render_sample(x: u32, y: u32) -> vec4<f32> {
         dir = next;
     }
     return finite_or_zero(radiance);
+}
+
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:127)
+fn render_sample(x: u32, y: u32) -> vec4<f32> {
+    var first: FirstHit = FirstHit(vec3<f32>(1.0), vec3<f32>(0.0, 0.0, 1.0), SKY_DEPTH, vec3<f32>(0.0));
+    return trace_path(x, y, &first);
+}
+
+// integrator::render_guided_sample (lightport-tracer/src/kernel/integrator.rs:134)
+fn render_guided_sample(x: u32, y: u32) -> GuidedSample {
+    var first: FirstHit = FirstHit(vec3<f32>(1.0), vec3<f32>(0.0, 0.0, 1.0), SKY_DEPTH, vec3<f32>(0.0));
+    let color: vec4<f32> = trace_path(x, y, &first);
+    let l: f32 = luminance(color.xyz);
+    return GuidedSample(color, vec4<f32>(first.albedo, l), vec4<f32>(first.normal, first.depth), vec4<f32>(first.emission, l * l));
 }

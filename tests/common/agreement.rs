@@ -7,7 +7,7 @@ use std::time::Instant;
 use glam::{DVec3, Vec3, Vec4, Vec4Swizzles};
 use tracer::backend::cpu::CpuRenderer;
 use tracer::backend::{create, Renderer, RendererKind};
-use tracer::denoise::{filter_input, first_hit_aovs, SampleMoments};
+use tracer::denoise::{filter_input, Guide};
 use tracer::kernel::denoise::FilterImage;
 use tracer::kernel::{RenderSettings, Strategy};
 use tracer::pack::{pack, Packed};
@@ -34,14 +34,13 @@ pub fn noisy_filter_input(scene: &Scene, width: u32, height: u32, spp: u32) -> F
     let mut p = packed(scene, Strategy::Mis, width.max(height), 6);
     p.scene.width = width;
     p.scene.height = height;
-    let aovs = first_hit_aovs(&p.scene);
+    p.set_denoise_guide(true);
     let mut r = CpuRenderer::new(p, 3);
-    let mut moments = SampleMoments::new((width * height) as usize);
     for _ in 0..spp {
         r.render_frame().expect("frame");
-        moments.add_frame(&r.accumulation().expect("accumulation"));
     }
-    filter_input(&r.image().expect("image"), &moments.variance_of_mean(), &aovs).expect("filter input")
+    let guide = Guide::read(&r).expect("the guide");
+    filter_input(&r.image().expect("image"), &guide).expect("filter input")
 }
 
 /// The largest difference between two filtered images (colour and variance), relative to the

@@ -29,7 +29,7 @@ use tracer::kernel::intersect::{self, TriangleHit, MISS};
 use tracer::kernel::scene_data::{self, Scene, NONE};
 use tracer::kernel::traverse::{self, Hit};
 use tracer::kernel::RenderSettings;
-use tracer::kernel::{camera, denoise, metal_rough, rng, sampling, textures};
+use tracer::kernel::{camera, integrator, metal_rough, rng, sampling, textures};
 use tracer::pack::pack;
 
 /// CPU, GL, wgpu, WebGL2 and WebGPU, with the hazards module linked in. Fails (never skips)

@@ -194,7 +194,7 @@ fn each_function_names_its_rust_source() {
     let g = tracer_program()
         .emit(Target::GlslEs300, &Selection { roots: vec!["wang_hash".into()], ..Default::default() })
         .unwrap();
-    assert!(g.source.contains("// rng::wang_hash (lightport-tracer/src/kernel/rng.rs:7)"), "{}", g.source);
+    assert!(g.source.contains("// rng::wang_hash (lightport-tracer/src/kernel/rng.rs:9)"), "{}", g.source);
     // Only what the root needs is emitted.
     assert!(!g.source.contains("random_float"));
 }
@@ -293,6 +293,29 @@ fn specialisation_removes_unused_features_code_and_data() {
         assert!(!small.contains(gone), "a scene without it must not carry {gone}");
     }
     assert!(small.contains("void main()") && small.contains("render_sample(pixel.x, pixel.y)"));
+}
+
+/// The denoiser's guide costs nothing unless asked for: without `Features::denoise_guide` the
+/// kernel has one output and none of the guide's code (the first hit's albedo is never looked
+/// up, the `has_denoise_guide` branches are folded away); with it, the entry point accumulates
+/// the four fields of `GuidedSample` into four targets, in GLSL and WGSL.
+#[test]
+fn the_denoisers_guide_is_in_the_kernel_only_when_asked_for() {
+    use tracer::kernel::Features;
+    let plain = Features { emissive_triangles: true, ..Default::default() };
+    let guided = Features { denoise_guide: true, ..plain };
+    for target in [Target::GlslEs300, Target::Wgsl] {
+        let without = tracer::kernel::path_tracer_shader(&plain, target).unwrap().source;
+        let with = tracer::kernel::path_tracer_shader(&guided, target).unwrap().source;
+        for extra in
+            ["lp_accumulation1", "lp_accumulation3", "render_guided_sample", ".albedo = base_color_at", "GuidedSample"]
+        {
+            assert!(with.contains(extra), "{target:?}: the guided kernel has {extra}");
+            assert!(!without.contains(extra), "{target:?}: a kernel without the guide must not carry {extra}");
+        }
+        assert!(!without.contains("has_denoise_guide") && !with.contains("has_denoise_guide"), "{target:?}: folded");
+        assert!(!with.contains("lp_accumulation4"), "{target:?}: exactly four outputs");
+    }
 }
 
 #[test]

@@ -62,6 +62,7 @@ fn pixel_means(packed: &Packed, frames: u32) -> Vec<f64> {
     let mut sums = vec![0.0f64; (k.width * k.height) as usize];
     for f in 0..frames {
         k.frame_seed = f.wrapping_mul(0x9e37_79b9).wrapping_add(7);
+        k.frame_index = f;
         for y in 0..k.height {
             for x in 0..k.width {
                 let s = render_sample(&k, x, y);

@@ -418,6 +418,7 @@ fn render(packed: &Packed, frames: u32) -> Vec<Vec<Vec4>> {
     let mut out = vec![Vec::new(); (k.width * k.height) as usize];
     for f in 0..frames {
         k.frame_seed = f.wrapping_mul(0x9e37_79b9);
+        k.frame_index = f;
         for y in 0..k.height {
             for x in 0..k.width {
                 out[(y * k.width + x) as usize].push(render_sample(&k, x, y));

@@ -27,6 +27,7 @@ fn render(scene: &Scene) -> Vec<Vec4> {
     let mut out = Vec::new();
     for f in 0..2u32 {
         k.frame_seed = f.wrapping_mul(0x9e37_79b9);
+        k.frame_index = f;
         for y in 0..k.height {
             for x in 0..k.width {
                 out.push(render_sample(&k, x, y));

@@ -1,23 +1,23 @@
 //! The denoiser on the host: the kernel's filter (`kernel::denoise`, written once in the DSL)
-//! driven over an accumulated image. [`first_hit_aovs`] runs the kernel's `first_hit_aov` per
-//! pixel, [`SampleMoments`] tracks each pixel's luminance moments from any runtime's
-//! accumulation (so any runtime's image can be denoised), and [`denoise`] demodulates the image
-//! by the albedo, runs the à-trous passes and remodulates.
+//! driven over an accumulated image. Its [`Guide`] comes from the path tracer itself: a
+//! renderer created with `Features::denoise_guide` sums each path's first hit (albedo, normal,
+//! depth, emission) and the samples' luminance moments beside the colour, in the same pass, on
+//! every runtime ([`Renderer::guide_sums`]). [`denoise`] demodulates the image by the albedo,
+//! runs the à-trous passes and remodulates.
 //!
 //! [`denoise`] runs the passes on the CPU ([`filter_on_cpu`]: `atrous_pixel` as plain Rust, rayon);
 //! [`denoise_on`] on a renderer's runtime ([`Renderer::denoise_passes`]), which runs the same
 //! function generated as an image pass (`shaders-generated/denoise_pass.*`): a
 //! fragment pass on GL/WebGL2, a compute pass on wgpu/WebGPU.
 
-use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
+use glam::{Vec3, Vec4, Vec4Swizzles};
 use kernel_dsl::Texels;
 use rayon::prelude::*;
 
-use crate::backend::{RenderError, Renderer};
-use crate::kernel::denoise::{atrous_pixel, first_hit_aov, Aov, FilterImage, ATROUS_ITERATIONS, MIN_ALBEDO};
+use crate::backend::{GuideSums, RenderError, Renderer};
+use crate::kernel::denoise::{atrous_pixel, FilterImage, ATROUS_ITERATIONS, MIN_ALBEDO};
 use crate::kernel::intersect::MISS;
 use crate::kernel::lights::luminance;
-use crate::kernel::scene_data::Scene;
 use crate::output::Image;
 
 /// Why an image cannot be denoised.
@@ -40,90 +40,67 @@ pub struct Denoised {
     pub replaced: usize,
 }
 
-/// Guide samples per pixel side: the auxiliary values are averaged over a 4x4 grid of film
-/// positions in the pixel, as the colour is over its jittered samples. A pixel that straddles
-/// texture detail is then demodulated by that detail's mean (not by one texel of it), and one
-/// that straddles an edge gets an in-between normal and depth, so the filter leaves it mostly
-/// alone rather than pulling it to one side.
-const AOV_GRID: u32 = 4;
-
-/// The first hit's auxiliary values of every pixel of `scene`'s image, row by row, each the
-/// mean over the pixel (the normal renormalised).
-pub fn first_hit_aovs(scene: &Scene) -> Vec<Aov> {
-    let width = scene.width.max(1);
-    (0..scene.width * scene.height)
-        .into_par_iter()
-        .map(|i| {
-            let corner = Vec2::new((i % width) as f32, (i / width) as f32);
-            let cell = 1.0 / AOV_GRID as f32;
-            let (mut albedo, mut emission, mut normal, mut depth) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, 0.0f64);
-            for j in 0..AOV_GRID * AOV_GRID {
-                let offset = Vec2::new((j % AOV_GRID) as f32 + 0.5, (j / AOV_GRID) as f32 + 0.5) * cell;
-                let sample = first_hit_aov(scene, corner + offset);
-                albedo += sample.albedo;
-                emission += sample.emission;
-                normal += sample.normal;
-                depth += sample.depth as f64;
-            }
-            let n = (AOV_GRID * AOV_GRID) as f32;
-            Aov {
-                albedo: albedo / n,
-                emission: emission / n,
-                normal: normal.normalize_or(Vec3::Z),
-                depth: (depth / n as f64).min(MISS as f64) as f32,
-            }
-        })
-        .collect()
+/// What the filter's weights read at a pixel: the mean over its samples of the paths' first hits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aov {
+    /// Base colour (factor times texture) at the hit; 1 where the ray sees the sky.
+    pub albedo: Vec3,
+    /// Shading normal facing the viewer (normal-mapped where the scene has normal maps); the
+    /// reversed ray direction for the sky. Unit length (the mean renormalised).
+    pub normal: Vec3,
+    /// Distance along the ray; at least `SKY_DEPTH` where the sky is seen.
+    pub depth: f32,
+    /// Radiance the hit emits towards the camera (front faces of emitters): the same for every
+    /// path through the pixel, not noise, so it is taken out before filtering and added back.
+    pub emission: Vec3,
 }
 
-/// Per-pixel sums of the samples' luminance and its square, fed frame by frame from a
-/// runtime's accumulation (running sums: rgb, and the finite samples' count in w).
-#[derive(Clone, Debug)]
-pub struct SampleMoments {
-    previous: Vec<Vec3>,
-    sum: Vec<f64>,
-    squares: Vec<f64>,
-    frames: u32,
+/// The denoiser's guide for an image: per pixel its first hits' mean [`Aov`] and the variance of
+/// its mean luminance, from the sums the path tracer accumulated beside the colour
+/// (`Features::denoise_guide`, [`Renderer::guide_sums`]) on any runtime.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Guide {
+    pub aovs: Vec<Aov>,
+    /// Each pixel's variance of the mean luminance (the sample variance over the sample count);
+    /// with fewer than two samples, unknown: infinite (the filter then leans on the AOVs alone).
+    pub variance: Vec<f32>,
 }
 
-impl SampleMoments {
-    pub fn new(pixels: usize) -> Self {
-        SampleMoments {
-            previous: vec![Vec3::ZERO; pixels],
-            sum: vec![0.0; pixels],
-            squares: vec![0.0; pixels],
-            frames: 0,
-        }
-    }
-
-    /// Adds the frame that took the accumulation to `accumulation` (one sample per pixel).
-    pub fn add_frame(&mut self, accumulation: &[Vec4]) {
-        for (i, a) in accumulation.iter().enumerate().take(self.previous.len()) {
-            let sample = luminance(a.xyz() - self.previous[i]) as f64;
-            self.previous[i] = a.xyz();
-            if sample.is_finite() {
-                self.sum[i] += sample;
-                self.squares[i] += sample * sample;
-            }
-        }
-        self.frames += 1;
-    }
-
-    /// Each pixel's variance of the mean luminance (the sample variance over the frame count);
-    /// with fewer than two frames, unknown: infinite (the filter then leans on its guide alone).
-    pub fn variance_of_mean(&self) -> Vec<f32> {
-        let n = self.frames as f64;
-        if n < 2.0 {
-            return vec![f32::INFINITY; self.sum.len()];
-        }
-        self.sum
+impl Guide {
+    /// The guide from a renderer's [`GuideSums`] after `samples` samples per pixel.
+    pub fn from_sums(samples: u32, sums: &GuideSums) -> Guide {
+        let n = samples.max(1) as f64;
+        let [albedo, normal, emission] = sums;
+        let aovs = albedo
             .iter()
-            .zip(&self.squares)
-            .map(|(s, q)| {
-                let mean = s / n;
-                (((q / n - mean * mean) * n / (n - 1.0)).max(0.0) / n) as f32
+            .zip(normal)
+            .zip(emission)
+            .map(|((a, nd), e)| Aov {
+                albedo: a.xyz() / n as f32,
+                normal: nd.xyz().normalize_or(Vec3::Z),
+                depth: (nd.w as f64 / n).min(MISS as f64) as f32,
+                emission: e.xyz() / n as f32,
             })
-            .collect()
+            .collect();
+        let variance = albedo
+            .iter()
+            .zip(emission)
+            .map(|(a, e)| {
+                if samples < 2 {
+                    return f32::INFINITY;
+                }
+                let (sum, squares) = (a.w as f64, e.w as f64);
+                let mean = sum / n;
+                (((squares / n - mean * mean) * n / (n - 1.0)).max(0.0) / n) as f32
+            })
+            .collect();
+        Guide { aovs, variance }
+    }
+
+    /// The guide `renderer` accumulated (it must have been created with the guide: see
+    /// [`Renderer::guide_sums`]). Blocks for the read-back, as `accumulation` does.
+    pub fn read(renderer: &dyn Renderer) -> Result<Guide, RenderError> {
+        Ok(Guide::from_sums(renderer.frames(), &renderer.guide_sums()?))
     }
 }
 
@@ -138,23 +115,16 @@ fn demodulation(albedo: Vec3) -> Vec3 {
     Vec3::select(albedo.cmpge(Vec3::splat(MIN_ALBEDO)), albedo, Vec3::ONE)
 }
 
-/// `image` denoised, given each pixel's variance of the mean luminance (`variance`, e.g.
-/// [`SampleMoments::variance_of_mean`]) and its first hit's auxiliary values (`aovs`), the
-/// filter passes on the CPU.
-pub fn denoise(image: &Image, variance: &[f32], aovs: &[Aov]) -> Result<Denoised, DenoiseError> {
-    let Demodulated { filter, modulation, replaced } = demodulate(image, variance, aovs)?;
+/// `image` denoised with its `guide`, the filter passes on the CPU.
+pub fn denoise(image: &Image, guide: &Guide) -> Result<Denoised, DenoiseError> {
+    let Demodulated { filter, modulation, replaced } = demodulate(image, guide)?;
     remodulate(image, filter_on_cpu(filter), &modulation, replaced)
 }
 
 /// [`denoise`] with the filter passes on `renderer`'s runtime
 /// ([`Renderer::denoise_passes`]: fragment passes on GL, compute passes on wgpu).
-pub fn denoise_on(
-    renderer: &mut dyn Renderer,
-    image: &Image,
-    variance: &[f32],
-    aovs: &[Aov],
-) -> Result<Denoised, DenoiseError> {
-    let Demodulated { filter, modulation, replaced } = demodulate(image, variance, aovs)?;
+pub fn denoise_on(renderer: &mut dyn Renderer, image: &Image, guide: &Guide) -> Result<Denoised, DenoiseError> {
+    let Demodulated { filter, modulation, replaced } = demodulate(image, guide)?;
     // An empty image has nothing to filter (and no runtime draws into a 0x0 target).
     let filtered = if modulation.is_empty() {
         Vec::new()
@@ -194,8 +164,8 @@ fn remodulate(
 
 /// What the filter passes are given for `image` (see [`denoise`]): its illumination and
 /// variance, and the guide, e.g. to run the passes on several runtimes and compare them.
-pub fn filter_input(image: &Image, variance: &[f32], aovs: &[Aov]) -> Result<FilterImage, DenoiseError> {
-    Ok(demodulate(image, variance, aovs)?.filter)
+pub fn filter_input(image: &Image, guide: &Guide) -> Result<FilterImage, DenoiseError> {
+    Ok(demodulate(image, guide)?.filter)
 }
 
 /// An image made ready for the filter passes.
@@ -207,8 +177,9 @@ struct Demodulated {
     replaced: usize,
 }
 
-fn demodulate(image: &Image, variance: &[f32], aovs: &[Aov]) -> Result<Demodulated, DenoiseError> {
+fn demodulate(image: &Image, guide: &Guide) -> Result<Demodulated, DenoiseError> {
     let (width, height) = (image.width, image.height);
+    let (variance, aovs) = (&guide.variance, &guide.aovs);
     let pixels = image.pixels.len();
     for (what, len) in [("the variance", variance.len()), ("the AOVs", aovs.len())] {
         if len != pixels || pixels != width as usize * height as usize {

@@ -216,13 +216,15 @@ impl Viewer {
     /// renderer refuses it (too large for the device...), the previous scene stays.
     fn install(&mut self, name: String, mut packed: Packed, decode_ms: f64) -> Result<JsValue, JsError> {
         let bundle_depth = packed.scene.max_depth;
+        // The path tracer accumulates the denoiser's guide while the denoiser is on.
+        packed.set_denoise_guide(self.denoiser.enabled());
         packed.apply(&RenderSettings { max_depth: bundle_depth, ..self.settings });
         let camera = OrbitCamera::from_uniforms(&packed.scene);
         let running = self.start(&packed)?;
         self.gpu_recoveries = 0;
         self.settings.max_depth = bundle_depth;
         self.running = Some(running);
-        self.denoiser.new_runtime(self.settings.width as usize * self.settings.height as usize);
+        self.denoiser.new_runtime();
         self.loaded = Some(Loaded { name, packed, camera, home: camera, decode_ms });
         Ok(self.scene_info())
     }
@@ -339,7 +341,7 @@ impl Viewer {
         let Some(running) = &mut self.running else { return Ok(()) };
         match running.frame(&self.display) {
             Ok(()) => {
-                self.denoiser.after_frame(running);
+                self.denoiser.poll(running);
                 self.show_denoised();
                 Ok(())
             }
@@ -360,13 +362,20 @@ impl Viewer {
 
     /// Turns the denoiser on (the default) or off: on, the canvas shows the accumulation
     /// denoised (at 4 spp, then each time the samples per pixel double: see
-    /// `web/src/denoise/mod.rs`); off, the raw accumulation, redrawn now. Works with no scene
-    /// loaded or a lost context (it applies to what renders next).
+    /// `web/src/denoise/mod.rs`); off, the raw accumulation, redrawn now. The path tracer must
+    /// accumulate the denoiser's guide: switched on over a renderer created without it, the
+    /// renderer is recreated (the accumulation restarts); switched off, it keeps the guide (and
+    /// its samples) until it is next recreated. Works with no scene loaded or a lost context
+    /// (it applies to the renderer created next).
     #[wasm_bindgen(js_name = setDenoise)]
-    pub fn set_denoise(&mut self, on: bool) {
-        let pixels = self.settings.width as usize * self.settings.height as usize;
-        self.denoiser.set_enabled(on, self.spp(), pixels);
+    pub fn set_denoise(&mut self, on: bool) -> Result<(), JsError> {
+        self.denoiser.set_enabled(on);
+        let lacks_guide = self.running.as_ref().is_some_and(|r| !r.packed().features.denoise_guide);
+        if on && lacks_guide && !self.halted() {
+            self.rebuild()?;
+        }
         self.redraw();
+        Ok(())
     }
 
     /// Call once per animation frame, also while no frame is rendered: collects what WebGPU
@@ -407,7 +416,7 @@ impl Viewer {
             }
         };
         if step == (Step::Submitted { frame_done: true }) {
-            self.denoiser.after_frame(running);
+            self.denoiser.poll(running);
             self.show_denoised();
         }
         Ok(match step {
@@ -528,11 +537,12 @@ impl Viewer {
             return Ok(());
         };
         loaded.packed.apply(&self.settings);
+        loaded.packed.set_denoise_guide(self.denoiser.enabled());
         loaded.camera.apply(&mut loaded.packed.scene);
         let packed = loaded.packed.clone();
         let running = self.start(&packed)?;
         self.running = Some(running);
-        self.denoiser.new_runtime(self.settings.width as usize * self.settings.height as usize);
+        self.denoiser.new_runtime();
         Ok(())
     }
 
@@ -635,7 +645,7 @@ impl Viewer {
                 running.set_uniforms(update).map_err(|e| JsError::new(&e))?;
             }
         }
-        self.denoiser.restart(self.settings.width as usize * self.settings.height as usize, true);
+        self.denoiser.restart();
         Ok(())
     }
 
@@ -732,7 +742,7 @@ impl Viewer {
         self.context_lost = true;
         // Deleting objects of a lost context is a no-op in WebGL.
         self.running = None;
-        self.denoiser.new_runtime(0);
+        self.denoiser.new_runtime();
     }
 
     /// The context is back (`webglcontextrestored`): recreate the renderer and continue with the

@@ -14,7 +14,7 @@ mod reserved;
 mod shaders;
 
 use crate::ir::BinOp;
-use crate::language::{prec, Bitcast, Helper, Helpers, Language, Text};
+use crate::language::{prec, Bitcast, Helper, Helpers, Language, SampleFields, Text};
 use crate::types::{Scalar, Ty, I32};
 
 pub(crate) use shaders::fullscreen_vertex_shader;
@@ -235,8 +235,8 @@ impl Language for Glsl {
         helpers::text(h)
     }
 
-    fn pixel_entry(&self, function: &str, output: crate::PixelOutput) -> String {
-        shaders::pixel_entry(function, output)
+    fn pixel_entry(&self, function: &str, output: crate::PixelOutput, fields: Option<&SampleFields>) -> String {
+        shaders::pixel_entry(function, output, fields)
     }
 
     fn harness_word(&self, k: u32) -> String {

@@ -3,7 +3,7 @@
 
 use std::fmt::Write as _;
 
-use crate::language::{HarnessShader, ResourceBlock, ResourceKind};
+use crate::language::{HarnessShader, ResourceBlock, ResourceKind, SampleFields};
 use crate::PixelOutput;
 
 pub(super) fn preamble(header: &str) -> String {
@@ -33,13 +33,31 @@ pub(super) fn resources(blocks: &[ResourceBlock]) -> String {
 }
 
 /// A fragment shader: pixel = `gl_FragCoord.xy`, output = accumulation texel + one sample, or
-/// the pixel's value.
-pub(super) fn pixel_entry(function: &str, output: PixelOutput) -> String {
-    match output {
-        PixelOutput::Accumulate => format!(
+/// the pixel's value. A function returning a struct of Vec4s (`fields`) accumulates field k
+/// into colour attachment k: `lp_out`/`lp_accumulation` for the first, `lp_out{k}` and
+/// `lp_accumulation{k}` for the others.
+pub(super) fn pixel_entry(function: &str, output: PixelOutput, fields: Option<&SampleFields>) -> String {
+    match (output, fields) {
+        (PixelOutput::Accumulate, None) => format!(
             "// Entry point: one sample of pixel gl_FragCoord.xy added to the running sum.\nuniform highp sampler2D lp_accumulation;\nout vec4 lp_out;\n\nvoid main() {{\n    uvec2 pixel = uvec2(gl_FragCoord.xy);\n    lp_out = texelFetch(lp_accumulation, ivec2(pixel), 0) + {function}(pixel.x, pixel.y);\n}}\n"
         ),
-        PixelOutput::Write => format!(
+        (PixelOutput::Accumulate, Some(sample)) => {
+            let mut out = String::from(
+                "// Entry point: one sample of pixel gl_FragCoord.xy, each of its fields added to its own running sum.\n",
+            );
+            let mut body = format!("    uvec2 pixel = uvec2(gl_FragCoord.xy);\n    {} s = {function}(pixel.x, pixel.y);\n", sample.type_name);
+            for (k, field) in sample.fields.iter().enumerate() {
+                let suffix = if k == 0 { String::new() } else { k.to_string() };
+                let _ = writeln!(out, "uniform highp sampler2D lp_accumulation{suffix};");
+                let _ = writeln!(out, "layout(location = {k}) out vec4 lp_out{suffix};");
+                let _ = writeln!(
+                    body,
+                    "    lp_out{suffix} = texelFetch(lp_accumulation{suffix}, ivec2(pixel), 0) + s.{field};"
+                );
+            }
+            format!("{out}\nvoid main() {{\n{body}}}\n")
+        }
+        (PixelOutput::Write, _) => format!(
             "// Entry point: pixel gl_FragCoord.xy of an image pass.\nout vec4 lp_out;\n\nvoid main() {{\n    uvec2 pixel = uvec2(gl_FragCoord.xy);\n    lp_out = {function}(pixel.x, pixel.y);\n}}\n"
         ),
     }

@@ -8,7 +8,7 @@ use std::fmt::Write as _;
 use super::{snake, Lowerer, R};
 use crate::infer;
 use crate::ir::{self, Expr, ExprKind as K, UnOp};
-use crate::language::{prec, prec::wrap, Helper, ResourceBlock, ResourceField, ResourceKind, Text};
+use crate::language::{prec, prec::wrap, Helper, ResourceBlock, ResourceField, ResourceKind, SampleFields, Text};
 use crate::names;
 use crate::types::{self, Scalar, Ty, U32};
 use crate::{CodegenError, Harness, Located, Program, SourceMapEntry};
@@ -181,15 +181,36 @@ impl Lowerer<'_> {
         let types = infer::infer_fn(self.program, f)?;
         let params: Vec<&Ty> =
             types.params.iter().map(|i| &types.bindings[*i].ty).filter(|t| !matches!(t, Ty::Resource(_))).collect();
-        if params != [&U32, &U32] || types.ret != Ty::Vector(Scalar::F32, 4) {
-            return Err(CodegenError {
-                file: f.file.clone(),
-                span: f.item.span,
-                function: Some(format!("{}::{}", f.module, f.item.name)),
-                message: "an entry point takes (resources, x: u32, y: u32) and returns Vec4".into(),
-            });
+        let error = |message: &str| CodegenError {
+            file: f.file.clone(),
+            span: f.item.span,
+            function: Some(format!("{}::{}", f.module, f.item.name)),
+            message: message.into(),
+        };
+        if params != [&U32, &U32] {
+            return Err(error("an entry point takes (resources, x: u32, y: u32)"));
         }
-        Ok(self.lang.pixel_entry(&names::safe(&entry.function), entry.output))
+        // A Vec4: one output. A struct of Vec4 fields: one output per field, in field order.
+        let outputs = match &types.ret {
+            Ty::Vector(Scalar::F32, 4) => None,
+            Ty::Struct(name) => {
+                let def = &self.program.structs[name].item;
+                let vec4s = def.fields.iter().all(|field| {
+                    infer::resolve_type(self.program, &field.ty).is_ok_and(|t| t == Ty::Vector(Scalar::F32, 4))
+                });
+                if !vec4s || def.fields.is_empty() || entry.output == crate::PixelOutput::Write {
+                    return Err(error(
+                        "an entry point returns Vec4, or (accumulating) a struct whose fields are all Vec4",
+                    ));
+                }
+                let fields = def.fields.iter().map(|field| names::safe(&field.name)).collect();
+                Some(SampleFields { type_name: names::safe(&def.name), fields })
+            }
+            _ => {
+                return Err(error("an entry point returns Vec4, or (accumulating) a struct whose fields are all Vec4"))
+            }
+        };
+        Ok(self.lang.pixel_entry(&names::safe(&entry.function), entry.output, outputs.as_ref()))
     }
 
     /// A const's value: literals, or simple expressions of literals and other consts.

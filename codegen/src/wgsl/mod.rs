@@ -15,7 +15,7 @@ mod reserved;
 mod shaders;
 
 use crate::ir::BinOp;
-use crate::language::{prec, Bitcast, Helper, Helpers, Language, Text};
+use crate::language::{prec, Bitcast, Helper, Helpers, Language, SampleFields, Text};
 use crate::types::{Scalar, Ty, U32};
 
 /// The WGSL language.
@@ -209,8 +209,8 @@ impl Language for Wgsl {
         helpers::text(h)
     }
 
-    fn pixel_entry(&self, function: &str, output: crate::PixelOutput) -> String {
-        shaders::pixel_entry(function, output)
+    fn pixel_entry(&self, function: &str, output: crate::PixelOutput, fields: Option<&SampleFields>) -> String {
+        shaders::pixel_entry(function, output, fields)
     }
 
     fn harness_word(&self, k: u32) -> String {

@@ -3,7 +3,7 @@
 
 use std::fmt::Write as _;
 
-use crate::language::{HarnessShader, ResourceBlock, ResourceKind};
+use crate::language::{HarnessShader, ResourceBlock, ResourceKind, SampleFields};
 use crate::names;
 use crate::PixelOutput;
 
@@ -72,8 +72,10 @@ pub(super) fn resources(blocks: &[ResourceBlock]) -> String {
 /// `lp_target.first_row` up to (not including) `lp_target.end_row`, to the storage buffer
 /// `lp_accumulation` (row-major, `lp_target.width` wide): a whole frame is one band, a slow
 /// device's frame several (`tracer::backend::frame_split`). Or, for an image pass, storing each
-/// pixel's value in `lp_output`.
-pub(super) fn pixel_entry(function: &str, output: PixelOutput) -> String {
+/// pixel's value in `lp_output`. A function returning a struct of Vec4s (`fields`) accumulates
+/// field k into its own buffer: `lp_accumulation` (binding 0) for the first, `lp_accumulation{k}`
+/// (binding k + 1) for the others.
+pub(super) fn pixel_entry(function: &str, output: PixelOutput, fields: Option<&SampleFields>) -> String {
     let (comment, buffer, store) = match output {
         PixelOutput::Accumulate => (
             "one sample per pixel of the band of rows [first_row, end_row) added to the running sum in lp_accumulation",
@@ -86,6 +88,25 @@ pub(super) fn pixel_entry(function: &str, output: PixelOutput) -> String {
             format!("lp_output[i] = {function}(id.x, y);"),
         ),
     };
+    let (comment, store, extra) = match fields {
+        Some(sample) if output == PixelOutput::Accumulate => {
+            let mut store = format!("let s = {function}(id.x, y);");
+            let mut extra = String::new();
+            for (k, field) in sample.fields.iter().enumerate() {
+                let name = if k == 0 { buffer.to_string() } else { format!("{buffer}{k}") };
+                let _ = write!(store, "\n    {name}[i] = {name}[i] + s.{field};");
+                if k > 0 {
+                    let _ = writeln!(
+                        extra,
+                        "@group(1) @binding({}) var<storage, read_write> {name}: array<vec4<f32>>;",
+                        k + 1
+                    );
+                }
+            }
+            ("one sample per pixel of the band of rows [first_row, end_row), each of its fields added to its own running sum (lp_accumulation, lp_accumulation1, ...)", store, extra)
+        }
+        _ => (comment, store, String::new()),
+    };
     format!(
         "// Entry point: {comment}.
 struct LpTarget {{
@@ -95,7 +116,7 @@ struct LpTarget {{
 }}
 @group(1) @binding(0) var<storage, read_write> {buffer}: array<vec4<f32>>;
 @group(1) @binding(1) var<uniform> lp_target: LpTarget;
-
+{extra}
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {{
     let y = lp_target.first_row + id.y;

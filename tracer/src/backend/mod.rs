@@ -17,7 +17,8 @@ pub(crate) use renderer::update_uniforms;
 // The image a renderer reads back lives with what writes and displays it (`output`).
 pub use crate::output::Image;
 pub use renderer::{
-    mean_image, rejected_samples, PendingAccumulation, RenderError, Renderer, RendererInfo, RendererKind,
+    mean_image, rejected_samples, GuideSums, PendingAccumulation, PendingGuideSums, RenderError, Renderer,
+    RendererInfo, RendererKind,
 };
 
 /// Where a GPU renderer's creation went, in milliseconds of the calling thread: generating the
@@ -40,5 +41,7 @@ pub(crate) fn ms_since(start: web_time::Instant) -> f64 {
 
 /// Seed of frame `frame`: spreads consecutive frames over the hash's input space.
 pub fn frame_seed(frame: u32, seed: u32) -> u32 {
-    frame.wrapping_mul(0x9e37_79b9) ^ seed.wrapping_mul(0x85eb_ca6b)
+    // The kernel xors `frame * FRAME_MIX` back out for the part of the seed common to a
+    // render's frames (`rng::pixel_jitter`).
+    frame.wrapping_mul(crate::kernel::rng::FRAME_MIX) ^ seed.wrapping_mul(0x85eb_ca6b)
 }

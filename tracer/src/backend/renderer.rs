@@ -29,6 +29,11 @@ pub enum RenderError {
     /// [`Renderer::set_uniforms`] changed the image size, which every runtime fixes at creation.
     #[error("the image size is fixed at {width}x{height} when the renderer is created; create one for {wanted}")]
     SizeChanged { width: u32, height: u32, wanted: String },
+    /// [`Renderer::guide_sums`] of a renderer created without the denoiser's guide.
+    #[error(
+        "the renderer was created without the denoiser's guide (pack the scene with `Packed::set_denoise_guide(true)`)"
+    )]
+    NoGuide,
     /// The runtime cannot do this here (not built in, or not on this platform).
     #[error("the {runtime} renderer {what}")]
     Unsupported { runtime: &'static str, what: &'static str },
@@ -36,6 +41,15 @@ pub enum RenderError {
 
 /// A running sum read without blocking (see [`Renderer::read_accumulation`]).
 pub type PendingAccumulation = Pin<Box<dyn Future<Output = Result<Vec<Vec4>, RenderError>>>>;
+
+/// The running sums of the denoiser's guide per pixel, as a renderer created with
+/// `Features::denoise_guide` accumulates them beside the colour: the fields of
+/// `integrator::GuidedSample` after `color` (albedo and luminance, normal and depth, emission
+/// and squared luminance). `tracer::denoise::Guide::from_sums` turns them into the filter's guide.
+pub type GuideSums = [Vec<Vec4>; 3];
+
+/// [`GuideSums`] read without blocking (see [`Renderer::read_guide_sums`]).
+pub type PendingGuideSums = Pin<Box<dyn Future<Output = Result<GuideSums, RenderError>>>>;
 
 /// What a renderer runs on, for read-outs and benchmark tables.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -92,6 +106,17 @@ pub trait Renderer {
     /// has mapped it (in the browser a promise; natively someone must poll the device).
     fn read_accumulation(&self) -> PendingAccumulation {
         Box::pin(std::future::ready(self.accumulation()))
+    }
+
+    /// The denoiser's guide accumulated with the image (row y = kernel row y, as
+    /// [`accumulation`](Self::accumulation)); [`RenderError::NoGuide`] unless the renderer was
+    /// created from a scene packed with `Packed::set_denoise_guide(true)`. Blocks, as
+    /// `accumulation` does (WebGPU: [`read_guide_sums`](Self::read_guide_sums)).
+    fn guide_sums(&self) -> Result<GuideSums, RenderError>;
+
+    /// [`guide_sums`](Self::guide_sums) as a future, as [`read_accumulation`](Self::read_accumulation).
+    fn read_guide_sums(&self) -> PendingGuideSums {
+        Box::pin(std::future::ready(self.guide_sums()))
     }
 
     /// Changes the scene's uniforms (camera, strategy, depth...) through `update` and restarts

@@ -1,7 +1,7 @@
 #[kernel_dsl::kernel]
 pub mod denoise {
-    //! The denoiser's kernel functions, written once for every runtime: the first hit's
-    //! auxiliary values (albedo, normal, depth) that guide the filter, and one pass of an
+    //! The denoiser's filter, written once for every runtime (its guide, each path's first hit,
+    //! comes from the path tracer: `integrator::render_guided_sample`): one pass of an
     //! edge-avoiding à-trous wavelet filter (Dammertz et al. 2010) with SVGF's edge-stopping
     //! functions (Schied et al. 2017): a 5x5 B3-spline kernel at a growing step, weighted by
     //! normal, depth and luminance, where the luminance weight is scaled by the pixel's noise
@@ -15,13 +15,7 @@ pub mod denoise {
     use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
     use kernel_dsl::Texels;
 
-    use crate::kernel::camera::camera_ray;
-    use crate::kernel::integrator::surface_normals;
-    use crate::kernel::intersect::MISS;
-    use crate::kernel::lights::{luminance, triangle_emission};
-    use crate::kernel::scene_data::{fetch_material, fetch_triangle, Scene, NONE};
-    use crate::kernel::textures::base_color_at;
-    use crate::kernel::traverse::trace_closest;
+    use crate::kernel::lights::luminance;
 
     /// À-trous passes: steps 1, 2, 4, 8 (a 61-pixel footprint). A fifth pass (step 16) measured
     /// 0.4 dB worse at 256 spp on the Cornell box (relative MSE) and barely better at 16.
@@ -35,44 +29,6 @@ pub mod denoise {
     /// Albedo channels below this are not divided out (a black surface keeps its colour as its
     /// illumination), so demodulation never divides by zero.
     pub const MIN_ALBEDO: f32 = 0.01;
-
-    /// What the filter's weights read at a pixel: the first hit of the ray through its centre.
-    #[derive(Clone, Copy, Debug, PartialEq)]
-    pub struct Aov {
-        /// Base colour (factor times texture) at the hit; 1 where the ray sees the sky.
-        pub albedo: Vec3,
-        /// Shading normal facing the viewer (normal-mapped where the scene has normal maps); the
-        /// reversed ray direction for the sky.
-        pub normal: Vec3,
-        /// Distance along the ray; `MISS` for the sky.
-        pub depth: f32,
-        /// Radiance the hit emits towards the camera (front faces of emitters): exact, not
-        /// noise, so the host takes it out before filtering and adds it back after.
-        pub emission: Vec3,
-    }
-
-    /// The auxiliary values at film position `film` (pixel units, as `camera_ray` takes them),
-    /// through the lens centre. The host takes the normal and depth at each pixel's centre and
-    /// averages the albedo over the pixel (`tracer::denoise::first_hit_aovs`), as the colour is.
-    pub fn first_hit_aov(scene: &Scene, film: Vec2) -> Aov {
-        let ray = camera_ray(scene, film, Vec2::ZERO);
-        let hit = trace_closest(scene, ray.origin, ray.dir, MISS);
-        let mut aov = Aov { albedo: Vec3::ONE, normal: -ray.dir, depth: MISS, emission: Vec3::ZERO };
-        if hit.triangle != NONE {
-            let tri = fetch_triangle(scene, hit.triangle);
-            let normals = surface_normals(scene, tri, hit, ray.dir);
-            let flip = normals.flip;
-            let material = fetch_material(scene, tri.material);
-            let mut emission = Vec3::ZERO;
-            // As the integrator counts it: one-sided, only the front face emits.
-            if material.emission.max_element() > 0.0 && flip > 0.0 {
-                emission = triangle_emission(scene, hit.triangle, tri.material, hit.u, hit.v);
-            }
-            let albedo = base_color_at(scene, material, hit.triangle, hit.u, hit.v);
-            aov = Aov { albedo, normal: normals.ns, depth: hit.t, emission };
-        }
-        aov
-    }
 
     /// The image one à-trous pass reads, per pixel: `color` the demodulated illumination (rgb)
     /// and its variance (w); `guide` the normal (xyz) and depth (w).

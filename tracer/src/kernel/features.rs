@@ -19,6 +19,13 @@ macro_rules! features {
             /// most the kernel's `STACK_SIZE`): GPU variants size their stacks to it instead of
             /// `STACK_SIZE` (the Cornell box needs 11, not 64). 0: not fixed, the kernel's `STACK_SIZE`.
             pub traversal_stack: u32,
+            /// The denoiser's guide is wanted (`render --denoise`, the page's denoiser): the path
+            /// tracer's entry point is `integrator::render_guided_sample`, which also sums each
+            /// path's first hit (albedo, normal, depth, emission) and its luminance moments into
+            /// three more targets (`tracer::denoise::Guide`); nothing without. A render setting,
+            /// not something a scene uses, so not one of the [`flags`](Self::flags) (bundles and
+            /// the read-outs of what a scene uses leave it out); uniform `has_denoise_guide`.
+            pub denoise_guide: bool,
         }
 
         impl Features {
@@ -32,20 +39,21 @@ macro_rules! features {
                 vec![$((stringify!($flag), &mut self.$flag)),*]
             }
 
-            /// Every feature on: the unspecialised kernel, for comparisons.
+            /// Every feature a scene can use on (not the denoiser's guide): the unspecialised kernel, for comparisons.
             pub fn all() -> Features {
-                Features { $($flag: true,)* traversal_stack: 0 }
+                Features { $($flag: true,)* traversal_stack: 0, denoise_guide: false }
             }
 
             /// The kernel's `has_*` uniforms of `scene` as these flags say (and `has_lights`).
             pub fn set_kernel_flags(&self, scene: &mut Scene) {
                 $(scene.$uniform = self.$flag as u32;)*
                 scene.has_lights = self.lights() as u32;
+                scene.has_denoise_guide = self.denoise_guide as u32;
             }
 
             /// The kernel uniforms of `scene` that disagree with these flags: `(uniform, flag, uniform's value)`.
             pub fn kernel_flag_mismatches(&self, scene: &Scene) -> Vec<(&'static str, bool, u32)> {
-                let flags = [$((stringify!($uniform), self.$flag, scene.$uniform),)* ("has_lights", self.lights(), scene.has_lights)];
+                let flags = [$((stringify!($uniform), self.$flag, scene.$uniform),)* ("has_lights", self.lights(), scene.has_lights), ("has_denoise_guide", self.denoise_guide, scene.has_denoise_guide)];
                 flags.into_iter().filter(|&(_, on, value)| value != on as u32).collect()
             }
         }
@@ -104,7 +112,7 @@ impl Features {
         self.flags()
             .into_iter()
             .map(|f| (f.uniform, f.on))
-            .chain([("has_lights", self.lights())])
+            .chain([("has_lights", self.lights()), ("has_denoise_guide", self.denoise_guide)])
             .map(|(k, v)| (format!("Scene.{k}"), v as u32))
             .chain((self.traversal_stack > 0).then(|| ("STACK_SIZE".to_string(), self.traversal_stack)))
             .collect()

@@ -4,7 +4,7 @@ pub mod integrator {
     //! At each hit: emission found by the ray (MIS-weighted), a shading record ([`Shading`]),
     //! next event estimation over every light with MIS ([`sample_ld`]), one BSDF sample for the
     //! continuation, Russian roulette.
-    use glam::{Vec2, Vec3, Vec4};
+    use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
 
     use crate::kernel::bsdf::{
         bsdf_at, bsdf_eval, bsdf_normal, bsdf_pdf, bsdf_sample, glass_at, Bsdf, BSDF_DIELECTRIC,
@@ -13,16 +13,17 @@ pub mod integrator {
     use crate::kernel::dielectric::DELTA_PDF;
     use crate::kernel::intersect::MISS;
     use crate::kernel::lights::{
-        area_pdf_to_solid_angle, finite_or_zero, light_pmf, power_heuristic, sample_light, sky_pdf, sky_radiance,
-        triangle_emission,
+        area_pdf_to_solid_angle, finite_or_zero, light_pmf, luminance, power_heuristic, sample_light, sky_pdf,
+        sky_radiance, triangle_emission,
     };
     use crate::kernel::normal_map::normal_mapped;
-    use crate::kernel::rng::{pixel_seed, random_float};
+    use crate::kernel::rng::{pixel_jitter, pixel_seed, random_float, random_u32};
     use crate::kernel::sampling::{onb_from_normal, onb_to_local, onb_to_world, Onb};
     use crate::kernel::scene_data::{
         fetch_glass, fetch_material, fetch_triangle, shading_normal, Scene, TriangleData, NONE, STRATEGY_BSDF,
         STRATEGY_MIS, STRATEGY_NEE,
     };
+    use crate::kernel::textures::base_color_at;
     use crate::kernel::traverse::{occluded, trace_closest, Hit};
 
     /// Russian roulette starts after this many path segments.
@@ -92,12 +93,68 @@ pub mod integrator {
         SurfaceNormals { ng, ns, flip, area2 }
     }
 
+    /// Distance the denoiser's guide gives a path that leaves to the sky: finite (sums of it
+    /// stay finite), far beyond any surface.
+    pub const SKY_DEPTH: f32 = 1.0e20;
+
+    /// What the denoiser's guide reads from a path's first hit (`kernel::denoise`): its base
+    /// colour (1 for the sky), shading normal (the reversed ray for the sky), distance
+    /// (`SKY_DEPTH` for the sky) and the emission it sends to the camera.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct FirstHit {
+        pub albedo: Vec3,
+        pub normal: Vec3,
+        pub depth: f32,
+        pub emission: Vec3,
+    }
+
+    /// One sample and its share of the denoiser's guide, each field added to its own running
+    /// sum by the entry point of a kernel built with `Features::denoise_guide`: `color` as
+    /// [`render_sample`]'s; `albedo` the first hit's base colour and the sample's luminance;
+    /// `normal` its shading normal and distance; `emission` its emission towards the camera and
+    /// the sample's luminance squared (the two moments give the variance the filter scales with).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct GuidedSample {
+        pub color: Vec4,
+        pub albedo: Vec4,
+        pub normal: Vec4,
+        pub emission: Vec4,
+    }
+
     /// One path sample through pixel (x, y): (radiance, 1), or zero when it was not finite.
     // Inlined into the CPU backend's row loop, which is also compiled for AVX2 (backend/cpu.rs).
     #[inline(always)]
     pub fn render_sample(scene: &Scene, x: u32, y: u32) -> Vec4 {
-        let mut rng = pixel_seed(y * scene.width + x, scene.frame_seed);
-        let film = Vec2::new(x as f32 + random_float(&mut rng), y as f32 + random_float(&mut rng));
+        let mut first = FirstHit { albedo: Vec3::ONE, normal: Vec3::Z, depth: SKY_DEPTH, emission: Vec3::ZERO };
+        trace_path(scene, x, y, &mut first)
+    }
+
+    /// [`render_sample`] with the path's first hit for the denoiser's guide.
+    #[inline(always)]
+    pub fn render_guided_sample(scene: &Scene, x: u32, y: u32) -> GuidedSample {
+        let mut first = FirstHit { albedo: Vec3::ONE, normal: Vec3::Z, depth: SKY_DEPTH, emission: Vec3::ZERO };
+        let color = trace_path(scene, x, y, &mut first);
+        let l = luminance(color.xyz());
+        GuidedSample {
+            color,
+            albedo: first.albedo.extend(l),
+            normal: first.normal.extend(first.depth),
+            emission: first.emission.extend(l * l),
+        }
+    }
+
+    /// One path sample through pixel (x, y), as [`render_sample`] returns it; where the scene
+    /// asks for the denoiser's guide (`has_denoise_guide`), the path's first hit in `first`.
+    #[inline(always)]
+    pub fn trace_path(scene: &Scene, x: u32, y: u32, first: &mut FirstHit) -> Vec4 {
+        let pixel = y * scene.width + x;
+        let mut rng = pixel_seed(pixel, scene.frame_seed);
+        let film = Vec2::new(x as f32, y as f32) + pixel_jitter(pixel, scene.frame_seed, scene.frame_index);
+        // The stream's first two numbers stay unused (they were the film position's): xorshift's
+        // first outputs after seeding are correlated from frame to frame, and a path that used
+        // them stopped converging (the furnace chart's NEE line plateaued at 16 spp).
+        random_u32(&mut rng);
+        random_u32(&mut rng);
         let lens = Vec2::new(random_float(&mut rng), random_float(&mut rng));
         let ray = camera_ray(scene, film, lens);
         let mut origin = ray.origin;
@@ -108,6 +165,12 @@ pub mod integrator {
         let mut depth = 0u32;
         loop {
             let hit = trace_closest(scene, origin, dir, MISS);
+            if scene.has_denoise_guide != 0 && depth == 0 {
+                first.normal = -dir;
+                if hit.triangle != NONE {
+                    first.depth = hit.t;
+                }
+            }
             if hit.triangle == NONE {
                 if scene.has_sky != 0 {
                     let mut light_pdf = 0.0;
@@ -130,6 +193,10 @@ pub mod integrator {
             let ns = normals.ns;
             let area2 = normals.area2;
             let material = fetch_material(scene, tri.material);
+            if scene.has_denoise_guide != 0 && depth == 0 {
+                first.albedo = base_color_at(scene, material, hit.triangle, hit.u, hit.v);
+                first.normal = ns;
+            }
             if scene.has_volume != 0 && flip < 0.0 {
                 // The segment that ends here, at a back face, ran inside this material's volume.
                 throughput *= volume_transmittance(scene, tri.material, hit.t);
@@ -144,6 +211,9 @@ pub mod integrator {
                 }
                 let e = triangle_emission(scene, hit.triangle, tri.material, hit.u, hit.v);
                 radiance += throughput * e * hit_emission_weight(scene, scatter_pdf, light_pdf);
+                if scene.has_denoise_guide != 0 && depth == 0 {
+                    first.emission = e;
+                }
             }
             if depth + 1 >= scene.max_depth {
                 break;

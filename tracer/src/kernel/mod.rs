@@ -117,7 +117,8 @@ pub fn ir_json() -> [&'static str; 17] {
 }
 
 /// The path tracer's complete shader for `target`, specialised to `features`: a GLSL ES 3.00
-/// fragment shader or a WGSL compute shader around `integrator::render_sample`, validated.
+/// fragment shader or a WGSL compute shader around `integrator::render_sample` (with the
+/// denoiser's guide, `render_guided_sample`: four outputs), validated.
 pub fn path_tracer_shader(
     features: &Features,
     target: lightport_codegen::Target,
@@ -131,7 +132,8 @@ fn path_tracer_shader_for(
     target: lightport_codegen::Target,
     regenerate: Option<&str>,
 ) -> Result<lightport_codegen::Generated, ShaderError> {
-    let selection = lightport_codegen::Selection::entry("render_sample", features.specialization());
+    let entry = if features.denoise_guide { "render_guided_sample" } else { "render_sample" };
+    let selection = lightport_codegen::Selection::entry(entry, features.specialization());
     emit_validated(target, selection, regenerate)
 }
 

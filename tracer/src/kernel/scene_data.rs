@@ -74,6 +74,8 @@ pub mod scene_data {
         pub width: u32,
         pub height: u32,
         pub frame_seed: u32,
+        /// Frames rendered before this one since the accumulation restarted (`rng::pixel_jitter`).
+        pub frame_index: u32,
         pub max_depth: u32,
         /// 0: BSDF sampling only, 1: next event estimation only, 2: MIS (power heuristic).
         pub strategy: u32,
@@ -100,6 +102,7 @@ pub mod scene_data {
         pub has_texcoord1: u32,
         pub has_transmission: u32,
         pub has_volume: u32,
+        pub has_denoise_guide: u32,
     }
 
     pub const STRATEGY_BSDF: u32 = 0;

@@ -153,6 +153,7 @@ fn scene_features(
         texture_transform: textures_used && textures.refs.as_ref().is_some_and(|r| r.transform),
         texcoord1: textures_used && textures.refs.as_ref().is_some_and(|r| r.texcoord1),
         traversal_stack: ordered.traversal_stack,
+        denoise_guide: false,
     }
 }
 
@@ -225,6 +226,14 @@ impl Packed {
     pub fn texture_checksum(&self) -> u32 {
         let words: &[u32] = bytemuck::cast_slice(self.scene.texture_texels.as_slice());
         words.iter().flat_map(|w| w.to_le_bytes()).fold(0x811c_9dc5, |h, b| (h ^ b as u32).wrapping_mul(0x0100_0193))
+    }
+
+    /// Asks for the denoiser's guide (`Features::denoise_guide`) or not: a renderer created
+    /// from this accumulates it besides the image (`Renderer::guide`). No repacking: a flag
+    /// and its uniform.
+    pub fn set_denoise_guide(&mut self, on: bool) {
+        self.features.denoise_guide = on;
+        self.scene.has_denoise_guide = on as u32;
     }
 
     /// Sets the render settings that are uniforms (no repacking needed).

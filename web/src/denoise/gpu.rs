@@ -1,71 +1,19 @@
-//! What the page's denoiser needs on WebGPU, where nothing may block: read-backs of the
-//! accumulation that resolve later (one staging buffer per read, so several can be in flight
-//! and each holds the sum of the frame it was queued after), the filter pass compiled and run
-//! as promises; and, for both runtimes, the filter's remodulation done by `tracer::denoise`
-//! itself over the output the device returned ([`Replay`]).
+//! What the page's denoiser needs on WebGPU, where nothing may block: the filter pass compiled
+//! and run as promises; and, for both runtimes, the filter's remodulation done by
+//! `tracer::denoise` itself over the output the device returned ([`Replay`]).
 
 use std::cell::RefCell;
 use std::rc::Rc;
 
 use glam::Vec4;
-use tracer::backend::wgpu::{WgpuDevice, WgpuFilter, WgpuRenderer};
-use tracer::backend::{RenderError, Renderer, RendererInfo};
+use tracer::backend::wgpu::{WgpuDevice, WgpuFilter};
+use tracer::backend::{GuideSums, RenderError, Renderer, RendererInfo};
 use tracer::kernel::denoise::FilterImage;
 use tracer::kernel::scene_data::Scene;
 use tracer::pack::Packed;
 
 /// A result that a promise fills in; the page's frame loop polls it.
 pub type Slot<T> = Rc<RefCell<Option<Result<T, String>>>>;
-
-/// An accumulation read queued after a frame: the copy into `buffer` is on the queue, the map
-/// requested; `mapped` is filled when the device has it.
-pub struct StagedRead {
-    /// The samples per pixel the copy holds.
-    pub spp: u32,
-    buffer: wgpu::Buffer,
-    mapped: Slot<()>,
-}
-
-impl StagedRead {
-    /// Queues the copy of `renderer`'s accumulation (now `spp` samples) and its map.
-    pub fn queue(renderer: &WgpuRenderer, spp: u32) -> StagedRead {
-        let device = renderer.device();
-        let source = renderer.accumulation_buffer();
-        let buffer = device.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("lightport denoiser read-back"),
-            size: source.size(),
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut encoder = device.device.create_command_encoder(&Default::default());
-        encoder.copy_buffer_to_buffer(source, 0, &buffer, 0, source.size());
-        device.queue.submit([encoder.finish()]);
-        let mapped: Slot<()> = Rc::new(RefCell::new(None));
-        let slot = mapped.clone();
-        buffer.slice(..).map_async(wgpu::MapMode::Read, move |result| {
-            *slot.borrow_mut() = Some(result.map_err(|e| format!("mapping the accumulation failed: {e}")));
-        });
-        StagedRead { spp, buffer, mapped }
-    }
-
-    /// The accumulation, once mapped (`None`: not yet).
-    pub fn take(&self) -> Option<Result<Vec<Vec4>, String>> {
-        let mapped = self.mapped.borrow_mut().take()?;
-        Some(mapped.and_then(|()| {
-            let texels = {
-                let view = self.buffer.slice(..).get_mapped_range().map_err(|e| format!("reading the map: {e}"))?;
-                view.chunks_exact(16)
-                    .map(|t| {
-                        let f = |i: usize| f32::from_le_bytes([t[i], t[i + 1], t[i + 2], t[i + 3]]);
-                        Vec4::new(f(0), f(4), f(8), f(12))
-                    })
-                    .collect()
-            };
-            self.buffer.unmap();
-            Ok(texels)
-        }))
-    }
-}
 
 /// The filter pass on a device: compiling (a promise), then compiled, or failed.
 pub enum GpuFilter {
@@ -145,6 +93,9 @@ impl Renderer for Replay<'_> {
     }
     fn accumulation(&self) -> Result<Vec<Vec4>, RenderError> {
         Err(Self::refuse("has no accumulation"))
+    }
+    fn guide_sums(&self) -> Result<GuideSums, RenderError> {
+        Err(Self::refuse("has no guide"))
     }
     fn set_uniforms(&mut self, _update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
         Err(Self::refuse("has no uniforms"))

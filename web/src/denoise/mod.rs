@@ -1,63 +1,53 @@
 //! The denoiser in the page (`Viewer::setDenoise`, the page's Denoise control, `?denoise=0|1`):
-//! `tracer::denoise` over the accumulation, the à-trous passes on the runtime that renders
-//! (`GlFilter`'s fragment passes on WebGL2, queued behind a fence the frame loop polls;
-//! `WgpuFilter`'s compute passes on WebGPU, run as promises), neither blocking the page, the
-//! remodulation by `tracer::denoise::denoise_on` itself over the passes' output
-//! ([`gpu::Replay`]), and the denoised image drawn through the same display transform as the
-//! raw one ([`show`]).
+//! `tracer::denoise` over the accumulation with the guide the path tracer accumulated beside
+//! it, the à-trous passes on the runtime that renders (`GlFilter`'s fragment passes on WebGL2,
+//! queued behind a fence the frame loop polls; `WgpuFilter`'s compute passes on WebGPU, run as
+//! promises), neither blocking the page, the remodulation by `tracer::denoise::denoise_on`
+//! itself over the passes' output ([`gpu::Replay`]), and the denoised image drawn through the
+//! same display transform as the raw one ([`show`]).
 //!
 //! **When it denoises.** The passes cost about 800 ms at 640x480 on SwiftShader (a few ms on a
 //! real GPU); while they run the GPU renders nothing else (on WebGL2 no band is submitted
-//! until their fence is signalled). So the page denoises when the
-//! accumulation has reached [`FIRST_SPP`] samples per pixel and then whenever the sample count
-//! has doubled since the image shown was denoised (4, 8, 16, ... spp: the filter's share of the
-//! time falls as the image converges), and never sooner than [`SPACING`] times the last filter
-//! time after the last one ended (at most about a third of the time goes to the filter); the
-//! first waits until the accumulation has run [`SETTLE_MS`] without a restart (the camera has
-//! stopped: the guide's AOVs are traced on the CPU once per view). In
-//! between, the latest denoised image stays on the canvas while the raw accumulation goes on.
-//! A restart (camera move, strategy, depth, size, seed, API) shows the raw image until the next
-//! denoise of the new accumulation; a denoise of an older accumulation that finishes late is
-//! dropped. On WebGPU one denoise is in flight at a time: a due one waits for it.
+//! until their fence is signalled). So the page denoises when the accumulation has reached
+//! [`FIRST_SPP`] samples per pixel and then whenever the sample count has doubled since the
+//! image shown was denoised (4, 8, 16, ... spp: the filter's share of the time falls as the
+//! image converges), and never sooner than [`SPACING`] times the last denoise's time after it
+//! ended (at most about a third of the time goes to the filter); the first waits until the
+//! accumulation has run [`SETTLE_MS`] without a restart (the camera has stopped). In between,
+//! the latest denoised image stays on the canvas while the raw accumulation goes on. A restart
+//! (camera move, strategy, depth, size, seed, API) shows the raw image until the next denoise
+//! of the new accumulation; a denoise of an older accumulation that finishes late is dropped.
+//! One denoise is in flight at a time: a due one waits for it.
 //!
-//! **The guide** comes from one function, [`page_guide`]: until the path tracer accumulates
-//! the guide itself, the first hits' AOVs (`tracer::denoise::first_hit_aovs`, on the CPU, once
-//! per view) and each pixel's variance from `SampleMoments`, fed by a read-back of the
-//! accumulation after every frame (synchronous on WebGL2; on WebGPU one staging copy per frame,
-//! mapped later and fed in order). Frames it missed (denoise switched on after the
-//! accumulation began, read-backs piling up) make the variance unknown (infinite) until the
-//! next restart, as `SampleMoments` reports below two frames.
+//! **The guide** comes from one function, [`page_guide`]: the sums the path tracer accumulates
+//! beside the colour (`Features::denoise_guide`: the renderer is created with it while the
+//! denoiser is on), read back with the accumulation at the same sample count.
 
 pub mod gpu;
 pub mod show;
 
-use std::collections::VecDeque;
+use std::cell::RefCell;
 use std::rc::Rc;
 
 use glam::Vec4;
 use js_sys::Object;
-use tracer::backend::{mean_image, Image, Renderer};
-use tracer::denoise::{denoise_on, filter_input, first_hit_aovs, SampleMoments};
-use tracer::kernel::denoise::Aov;
-use tracer::kernel::scene_data::Scene;
+use tracer::backend::{mean_image, Image};
+use tracer::denoise::{denoise_on, filter_input, Guide};
 use wasm_bindgen::JsValue;
 
-use self::gpu::{GpuFilter, Replay, Slot, StagedRead};
+use self::gpu::{GpuFilter, Replay, Slot};
 use crate::js::{now_ms, set};
 use crate::runtime::Runtime;
 
 /// The first denoise of an accumulation waits for this many samples per pixel (below, the
 /// variance says little and the filter spreads light: see the README's "Where it is weak").
 pub const FIRST_SPP: u32 = 4;
-/// A denoise starts no sooner than this many times the last filter time after the last ended.
+/// A denoise starts no sooner than this many times the last one's time after the last ended.
 pub const SPACING: f64 = 2.0;
 /// The first denoise of an accumulation also waits until it has run this long without a
-/// restart: while the camera moves (restarts every few frames on a fast GPU), the guide's
-/// AOVs, traced on the CPU, would stall the input.
+/// restart: while the camera moves (restarts every few frames on a fast GPU), the read-backs
+/// and the filter would only compete with the frames that follow the input.
 pub const SETTLE_MS: f64 = 300.0;
-/// WebGPU accumulation reads queued and not yet mapped beyond which the oldest are dropped
-/// (and the variance becomes unknown until the next restart).
-const MAX_PENDING_READS: usize = 32;
 
 /// The denoised image on show.
 struct Shown {
@@ -69,68 +59,59 @@ struct Shown {
     id: u64,
 }
 
-/// A WebGPU denoise in flight.
+/// What a denoise in flight waits for.
+enum Stage {
+    /// The accumulation and the guide being read back ([`page_guide`]).
+    Reading(Slot<(Vec<Vec4>, Guide)>),
+    /// The passes on the GPU. WebGPU: where the output arrives; WebGL2: `None`, the runtime
+    /// holds the queued passes.
+    Filtering { image: Image, guide: Guide, output: Option<Slot<Vec<Vec4>>> },
+}
+
+/// A denoise in flight.
 struct Job {
     generation: u64,
     spp: u32,
-    image: Image,
-    variance: Vec<f32>,
-    aovs: Rc<Vec<Aov>>,
-    /// WebGPU: where the output arrives; WebGL2: `None`, the runtime holds the queued passes.
-    output: Option<Slot<Vec<Vec4>>>,
+    stage: Stage,
     started_ms: f64,
-    guide_ms: f64,
+    /// Milliseconds from the start to the guide and accumulation read back.
+    read_ms: f64,
 }
 
-/// The guide the filter is given: per pixel the first hit's AOVs and the variance of the mean
-/// luminance.
-pub struct PageGuide {
-    pub aovs: Rc<Vec<Aov>>,
-    pub variance: Vec<f32>,
-}
-
-/// THE source of the page's guide (the only one: swap this for the path tracer's accumulated
-/// guide when it lands). Now: `first_hit_aovs` of `scene` (kept in `aovs` while the view
-/// stays) and `SampleMoments`' variance when the moments hold every one of the `spp` frames,
-/// else an unknown (infinite) variance.
-fn page_guide(scene: &Scene, aovs: &mut Option<Rc<Vec<Aov>>>, moments: Option<&SampleMoments>, spp: u32) -> PageGuide {
-    let pixels = scene.width as usize * scene.height as usize;
-    let cached = aovs.as_ref().filter(|a| a.len() == pixels).cloned();
-    let aovs = cached.unwrap_or_else(|| {
-        let fresh = Rc::new(first_hit_aovs(scene));
-        *aovs = Some(fresh.clone());
-        fresh
+/// THE source of the page's guide (the only one): the guide `running`'s path tracer
+/// accumulated beside the image, read back with the accumulation, both at the current sample
+/// count (between frames). Resolves into the slot: WebGL2 reads synchronously (resolved at the
+/// next poll), WebGPU's read-backs are promises.
+fn page_guide(running: &Runtime) -> Slot<(Vec<Vec4>, Guide)> {
+    let spp = running.frames();
+    let renderer = running.renderer();
+    let sums = renderer.read_accumulation();
+    let guide = renderer.read_guide_sums();
+    let slot: Slot<(Vec<Vec4>, Guide)> = Rc::new(RefCell::new(None));
+    let filled = slot.clone();
+    wasm_bindgen_futures::spawn_local(async move {
+        let read = async {
+            let sums = sums.await.map_err(|e| format!("reading the accumulation failed: {e}"))?;
+            let guide = guide.await.map_err(|e| format!("reading the denoiser's guide failed: {e}"))?;
+            Ok((sums, Guide::from_sums(spp, &guide)))
+        };
+        *filled.borrow_mut() = Some(read.await);
     });
-    let variance = match moments {
-        Some(m) if spp >= 1 => m.variance_of_mean(),
-        _ => vec![f32::INFINITY; pixels],
-    };
-    PageGuide { aovs, variance }
+    slot
 }
 
-/// The page's denoiser state: whether it is on, what it has read of the accumulation, the
-/// denoise in flight and the image on show.
+/// The page's denoiser state: whether it is on, the denoise in flight and the image on show.
 pub struct PageDenoiser {
     enabled: bool,
     /// Bumped at every restart of the accumulation (and new renderer): older results are dropped.
     generation: u64,
-    /// The first hits' AOVs of the current view (`None` after the view changed).
-    aovs: Option<Rc<Vec<Aov>>>,
-    /// Luminance moments of every frame since the restart (`None`: one was missed).
-    moments: Option<SampleMoments>,
-    /// Frames fed to the moments (the spp of the last accumulation read).
-    frames_seen: u32,
-    /// The last accumulation read: its spp and running sums.
-    latest: Option<(u32, Vec<Vec4>)>,
-    /// WebGPU: reads queued after each frame, oldest first.
-    reads: VecDeque<StagedRead>,
     /// WebGPU: the filter pass on the current renderer's device.
     gpu_filter: Option<GpuFilter>,
     job: Option<Job>,
     shown: Option<Shown>,
     next_id: u64,
-    /// The last denoise: when it ended, the filter's time (demodulation, passes, read-back,
-    /// remodulation) and the guide's, in milliseconds.
+    /// The last denoise: when it ended, its whole time (read-backs, demodulation, passes,
+    /// remodulation) and the read-backs' share, in milliseconds.
     last_end_ms: Option<f64>,
     filter_ms: Option<f64>,
     guide_ms: Option<f64>,
@@ -145,11 +126,6 @@ impl PageDenoiser {
         PageDenoiser {
             enabled,
             generation: 0,
-            aovs: None,
-            moments: None,
-            frames_seen: 0,
-            latest: None,
-            reads: VecDeque::new(),
             gpu_filter: None,
             job: None,
             shown: None,
@@ -166,42 +142,25 @@ impl PageDenoiser {
         self.enabled
     }
 
-    /// Switches the denoiser on or off. Off: the raw image shows (what was read is dropped).
-    /// On while an accumulation of `frames` > 0 samples runs: its earlier frames were not read,
-    /// so its variance is unknown until the next restart.
-    pub fn set_enabled(&mut self, on: bool, frames: u32, pixels: usize) {
-        if on == self.enabled {
-            return;
-        }
+    /// Switches the denoiser on or off. Off: the raw image shows. (The renderer needs the
+    /// guide while it is on: the viewer recreates it when it lacks it.)
+    pub fn set_enabled(&mut self, on: bool) {
         self.enabled = on;
         self.shown = None;
-        self.job = None;
-        self.reads.clear();
-        self.latest = None;
-        self.frames_seen = frames;
-        self.moments = (on && frames == 0).then(|| SampleMoments::new(pixels));
     }
 
-    /// The accumulation restarted (`pixels` per image): the raw image shows until the next
-    /// denoise. `view_changed`: the camera moved, the guide's AOVs are stale.
-    pub fn restart(&mut self, pixels: usize, view_changed: bool) {
+    /// The accumulation restarted: the raw image shows until the next denoise.
+    pub fn restart(&mut self) {
         self.generation += 1;
         self.shown = None;
-        self.reads.clear();
-        self.latest = None;
-        self.frames_seen = 0;
         self.error = None;
         self.restarted_ms = now_ms();
-        self.moments = self.enabled.then(|| SampleMoments::new(pixels));
-        if view_changed {
-            self.aovs = None;
-        }
     }
 
-    /// A new renderer (size, seed, API, context or device): as a restart with a new view, and
-    /// the WebGPU filter pass is compiled again on the new device.
-    pub fn new_runtime(&mut self, pixels: usize) {
-        self.restart(pixels, true);
+    /// A new renderer (size, seed, API, guide, context or device): as a restart, and the
+    /// WebGPU filter pass is compiled again on the new device.
+    pub fn new_runtime(&mut self) {
+        self.restart();
         self.gpu_filter = None;
         self.job = None;
     }
@@ -213,39 +172,8 @@ impl PageDenoiser {
         Some((&shown.image, shown.id))
     }
 
-    /// A frame completed on `running` (now `running.frames()` samples): reads the accumulation
-    /// for the moments, then denoises if due (see [`poll`](Self::poll)). Returns whether a new
-    /// denoised image is ready to show.
-    pub fn after_frame(&mut self, running: &mut Runtime) -> bool {
-        if !self.enabled {
-            return false;
-        }
-        let spp = running.frames();
-        match running {
-            Runtime::WebGl2(r) => match r.renderer().accumulation() {
-                Ok(sums) => self.feed(spp, sums),
-                Err(e) => self.fail(format!("reading the accumulation failed: {e}")),
-            },
-            Runtime::WebGpu(r) => {
-                if self.reads.len() >= MAX_PENDING_READS {
-                    self.reads.pop_front();
-                }
-                self.reads.push_back(StagedRead::queue(r.renderer(), spp));
-            }
-        }
-        self.poll(running)
-    }
-
-    fn feed(&mut self, spp: u32, sums: Vec<Vec4>) {
-        if spp == 0 || spp < self.frames_seen {
-            return;
-        }
-        match &mut self.moments {
-            Some(m) if spp == self.frames_seen + 1 => m.add_frame(&sums),
-            _ => self.moments = None,
-        }
-        self.frames_seen = spp;
-        self.latest = Some((spp, sums));
+    fn pending(&self) -> Option<u32> {
+        self.job.as_ref().filter(|j| j.generation == self.generation).map(|j| j.spp)
     }
 
     pub fn fail(&mut self, error: String) {
@@ -253,114 +181,113 @@ impl PageDenoiser {
         self.error = Some(error);
     }
 
-    /// Collects what the GPU finished (WebGPU's mapped reads; the filter's output), then starts a denoise
-    /// if one is due. Call it from the frame loop also while no frame is rendered. Returns
-    /// whether a new denoised image is ready to show.
+    /// Advances the denoise in flight (read-backs arrived: queue the passes; passes done:
+    /// remodulate and show), then starts a denoise if one is due. Call it after each frame
+    /// and from the frame loop also while no frame is rendered. Returns whether a new denoised
+    /// image is ready to show.
     pub fn poll(&mut self, running: &mut Runtime) -> bool {
         if !self.enabled {
             return false;
         }
-        while let Some(read) = self.reads.front() {
-            let Some(result) = read.take() else { break };
-            let spp = read.spp;
-            self.reads.pop_front();
-            match result {
-                Ok(sums) => self.feed(spp, sums),
-                Err(e) => {
-                    self.moments = None;
-                    self.fail(e);
-                }
-            }
-        }
-        let ready = self.finish_job(running);
-        if self.due(now_ms()) {
+        let ready = self.advance(running);
+        if self.due(running, now_ms()) {
             self.start(running);
         }
         ready
     }
 
-    /// Whether the latest read accumulation should be denoised now (see the module's rule).
-    fn due(&self, now: f64) -> bool {
-        let Some((spp, _)) = &self.latest else { return false };
+    /// Whether the accumulation should be denoised now (see the module's rule).
+    fn due(&self, running: &Runtime, now: f64) -> bool {
+        let spp = running.frames();
+        let scene = &running.packed().scene;
+        let between_frames = running.renderer().rows_left() == scene.height;
         let shown = self.shown.as_ref().filter(|s| s.generation == self.generation).map_or(0, |s| s.spp);
         let spaced = match (self.last_end_ms, self.filter_ms) {
             (Some(end), Some(ms)) => now - end >= SPACING * ms,
             _ => true,
         } && (shown > 0 || now - self.restarted_ms >= SETTLE_MS);
-        self.job.is_none() && self.error.is_none() && *spp >= FIRST_SPP.max(2 * shown) && spaced
+        let has_guide = running.packed().features.denoise_guide;
+        self.job.is_none()
+            && self.error.is_none()
+            && has_guide
+            && between_frames
+            && spp >= FIRST_SPP.max(2 * shown)
+            && spaced
     }
 
-    /// Starts denoising the latest accumulation read: the passes are queued (WebGL2: behind a
-    /// fence the runtime polls; WebGPU: as promises) and finished by a later [`poll`](Self::poll).
+    /// Starts a denoise of the accumulation as it is: its read-back and the guide's
+    /// ([`page_guide`]); later polls queue the passes and show the result. On WebGPU the filter
+    /// pass is compiled first (a promise; a later poll starts the denoise).
     fn start(&mut self, running: &mut Runtime) {
-        // WebGPU: the filter pass compiles first (a promise; the next polls see it done).
-        let gpu_filter = match running {
-            Runtime::WebGl2(_) => None,
-            Runtime::WebGpu(r) => {
-                let device = r.renderer().device();
-                match self.gpu_filter.get_or_insert_with(|| GpuFilter::compile(device)).ready() {
-                    Ok(Some(f)) => Some(f),
-                    Ok(None) => return,
-                    Err(e) => {
-                        self.fail(e);
-                        return;
-                    }
-                }
+        if let Runtime::WebGpu(r) = running {
+            let device = r.renderer().device();
+            match self.gpu_filter.get_or_insert_with(|| GpuFilter::compile(device)).ready() {
+                Ok(Some(_)) => {}
+                Ok(None) => return,
+                Err(e) => return self.fail(e),
             }
-        };
-        let Some((spp, sums)) = &self.latest else { return };
-        let spp = *spp;
-        let (image, guide, guide_ms) = {
-            let scene = &running.packed().scene;
-            let image = mean_image(scene.width, scene.height, spp, sums);
-            let started = now_ms();
-            let moments = self.moments.as_ref().filter(|_| self.frames_seen == spp);
-            let guide = page_guide(scene, &mut self.aovs, moments, spp);
-            (image, guide, now_ms() - started)
-        };
-        let began = now_ms();
-        let queued = filter_input(&image, &guide.variance, &guide.aovs).map_err(|e| e.to_string()).and_then(|input| {
-            match (running, gpu_filter) {
-                (Runtime::WebGl2(r), _) => r.queue_filter(&input).map(|()| None),
-                (Runtime::WebGpu(r), Some(filter)) => gpu::run_filter(&filter, r.renderer().device(), &input).map(Some),
-                (Runtime::WebGpu(_), None) => Err("the WebGPU filter pass is not compiled".to_string()),
-            }
-        });
-        match queued {
-            Ok(output) => {
-                let (generation, variance, aovs) = (self.generation, guide.variance, guide.aovs);
-                self.job = Some(Job { generation, spp, image, variance, aovs, output, started_ms: began, guide_ms });
-            }
-            Err(e) => self.fail(e),
         }
+        let stage = Stage::Reading(page_guide(running));
+        self.job =
+            Some(Job { generation: self.generation, spp: running.frames(), stage, started_ms: now_ms(), read_ms: 0.0 });
     }
 
-    /// A denoise whose passes are done: remodulated (by `tracer::denoise` itself) and shown,
-    /// unless the accumulation restarted meanwhile.
-    fn finish_job(&mut self, running: &mut Runtime) -> bool {
-        let Some(job) = &self.job else { return false };
-        let output = match (&job.output, &mut *running) {
-            (Some(slot), _) => slot.borrow_mut().take(),
-            (None, Runtime::WebGl2(r)) => r.filter_output(),
-            (None, Runtime::WebGpu(_)) => Some(Err("the filter's output was lost".to_string())),
+    /// Moves the job in flight on; true when it finished with an image to show.
+    fn advance(&mut self, running: &mut Runtime) -> bool {
+        let Some(job) = &mut self.job else { return false };
+        let result = match &mut job.stage {
+            Stage::Reading(slot) => {
+                let Some(read) = slot.borrow_mut().take() else { return false };
+                job.read_ms = now_ms() - job.started_ms;
+                read.and_then(|(sums, guide)| {
+                    let scene = &running.packed().scene;
+                    let image = mean_image(scene.width, scene.height, job.spp, &sums);
+                    let input = filter_input(&image, &guide).map_err(|e| e.to_string())?;
+                    let output = match &mut *running {
+                        Runtime::WebGl2(r) => r.queue_filter(&input).map(|()| None)?,
+                        Runtime::WebGpu(r) => {
+                            let filter = match self.gpu_filter.as_mut().map(GpuFilter::ready) {
+                                Some(Ok(Some(f))) => f,
+                                _ => return Err("the WebGPU filter pass is not ready".to_string()),
+                            };
+                            Some(gpu::run_filter(&filter, r.renderer().device(), &input)?)
+                        }
+                    };
+                    job.stage = Stage::Filtering { image, guide, output };
+                    Ok(None)
+                })
+            }
+            Stage::Filtering { image, guide, output } => {
+                let done = match (output, &mut *running) {
+                    (Some(slot), _) => slot.borrow_mut().take(),
+                    (None, Runtime::WebGl2(r)) => r.filter_output(),
+                    (None, Runtime::WebGpu(_)) => Some(Err("the filter's output was lost".to_string())),
+                };
+                let Some(done) = done else { return false };
+                let mut replay = Replay { packed: running.packed(), output: None };
+                done.and_then(|filtered| {
+                    replay.output = Some(filtered);
+                    let d = denoise_on(&mut replay, image, guide).map_err(|e| e.to_string())?;
+                    Ok(Some(d.image))
+                })
+            }
         };
-        let Some(output) = output else { return false };
-        let job = self.job.take().expect("checked above");
-        if job.generation != self.generation {
-            return false;
-        }
-        let mut replay = Replay { packed: running.packed(), output: None };
-        let denoised = output.and_then(|output| {
-            replay.output = Some(output);
-            denoise_on(&mut replay, &job.image, &job.variance, &job.aovs).map_err(|e| e.to_string())
-        });
-        match denoised {
-            Ok(d) => {
-                self.show(job.spp, d.image, now_ms() - job.started_ms, job.guide_ms);
-                true
+        let (generation, spp, started, read_ms) = (job.generation, job.spp, job.started_ms, job.read_ms);
+        let current = generation == self.generation;
+        match result {
+            Ok(None) => false,
+            Ok(Some(image)) => {
+                self.job = None;
+                if current {
+                    self.show(spp, image, now_ms() - started, read_ms);
+                }
+                current
             }
             Err(e) => {
-                self.fail(e);
+                self.job = None;
+                if current {
+                    self.fail(e);
+                }
                 false
             }
         }
@@ -384,7 +311,7 @@ impl PageDenoiser {
             Ok(r) => r,
             Err(why) => return format!("raw ({why})"),
         };
-        let pending = self.job.as_ref().filter(|j| j.generation == self.generation).map(|j| j.spp);
+        let pending = self.pending();
         let mut text = match (self.current(), &self.shown) {
             (Some(_), Some(shown)) => format!("denoised at {} spp", shown.spp),
             _ if self.error.is_some() => "raw".to_string(),
@@ -393,9 +320,6 @@ impl PageDenoiser {
         };
         if let Some(spp) = pending {
             text.push_str(&format!(", denoising {spp} spp…"));
-        }
-        if self.current().is_some() && self.moments.is_none() {
-            text.push_str(" (variance unknown: frames were not read)");
         }
         if let Some(e) = &self.error {
             text.push_str(&format!(": the denoiser failed: {e}"));
@@ -409,11 +333,10 @@ impl PageDenoiser {
         set(&o, "enabled", self.enabled);
         let shown = self.current().and(self.shown.as_ref()).map(|s| s.spp);
         set(&o, "shownSpp", shown.map_or(JsValue::NULL, JsValue::from));
-        let pending = self.job.as_ref().filter(|j| j.generation == self.generation).map(|j| j.spp);
+        let pending = self.pending();
         set(&o, "pendingSpp", pending.map_or(JsValue::NULL, JsValue::from));
         set(&o, "filterMs", self.filter_ms.map_or(JsValue::NULL, JsValue::from));
         set(&o, "guideMs", self.guide_ms.map_or(JsValue::NULL, JsValue::from));
-        set(&o, "varianceKnown", self.moments.is_some());
         set(&o, "error", self.error.as_deref().map_or(JsValue::NULL, JsValue::from));
         set(&o, "readout", self.readout(running));
         o

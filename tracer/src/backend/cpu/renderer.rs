@@ -1,8 +1,8 @@
 use glam::{Vec3, Vec4, Vec4Swizzles};
 use rayon::prelude::*;
 
-use crate::backend::{frame_seed, update_uniforms, RenderError, Renderer, RendererInfo};
-use crate::kernel::integrator::render_sample;
+use crate::backend::{frame_seed, update_uniforms, GuideSums, RenderError, Renderer, RendererInfo};
+use crate::kernel::integrator::{render_guided_sample, render_sample};
 use crate::kernel::scene_data::Scene;
 use crate::pack::Packed;
 
@@ -16,17 +16,22 @@ pub struct CpuRenderer {
     accumulation: Vec<Vec4>,
     /// Sum of squared samples per pixel, for variance estimates.
     squares: Vec<Vec3>,
+    /// With the denoiser's guide (`Features::denoise_guide`), its three sums per pixel
+    /// (`integrator::GuidedSample`'s fields after the colour); empty without.
+    guide: Vec<[Vec4; 3]>,
 }
 
 impl CpuRenderer {
     /// A renderer for `packed`; `seed` selects the random sequence (same seed, same image).
     pub fn new(packed: Packed, seed: u32) -> Self {
         let n = packed.scene.width as usize * packed.scene.height as usize;
+        let guide = if packed.features.denoise_guide { vec![[Vec4::ZERO; 3]; n] } else { Vec::new() };
         CpuRenderer {
             packed,
             seed,
             frames: 0,
             band_row: 0,
+            guide,
             accumulation: vec![Vec4::ZERO; n],
             squares: vec![Vec3::ZERO; n],
         }
@@ -73,15 +78,22 @@ impl Renderer for CpuRenderer {
         // At least one row, at most those left (none of an empty image).
         let rows = rows.max(1).min(self.rows_left());
         self.packed.scene.frame_seed = frame_seed(self.frames, self.seed);
+        self.packed.scene.frame_index = self.frames;
         let scene = &self.packed.scene;
         let width = scene.width as usize;
         let (first, end) = (self.band_row as usize * width, (self.band_row + rows) as usize * width);
         let first_row = self.band_row;
-        self.accumulation[first..end]
-            .par_chunks_mut(width)
-            .zip(self.squares[first..end].par_chunks_mut(width))
-            .enumerate()
-            .for_each(|(y, (row, squares))| render_row_fastest(scene, first_row + y as u32, row, squares));
+        let rows_of_sums =
+            self.accumulation[first..end].par_chunks_mut(width).zip(self.squares[first..end].par_chunks_mut(width));
+        if self.guide.is_empty() {
+            rows_of_sums
+                .enumerate()
+                .for_each(|(y, (row, squares))| render_row_fastest(scene, first_row + y as u32, row, squares));
+        } else {
+            rows_of_sums.zip(self.guide[first..end].par_chunks_mut(width)).enumerate().for_each(
+                |(y, ((row, squares), guide))| render_guided_row(scene, first_row + y as u32, row, squares, guide),
+            );
+        }
         self.band_row += rows;
         if self.band_row < scene.height {
             return Ok(false);
@@ -99,6 +111,13 @@ impl Renderer for CpuRenderer {
         Ok(self.accumulation.clone())
     }
 
+    fn guide_sums(&self) -> Result<GuideSums, RenderError> {
+        if self.guide.is_empty() {
+            return Err(RenderError::NoGuide);
+        }
+        Ok(std::array::from_fn(|k| self.guide.iter().map(|g| g[k]).collect()))
+    }
+
     fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
         update_uniforms(&mut self.packed.scene, update)?;
         self.restart()
@@ -107,6 +126,7 @@ impl Renderer for CpuRenderer {
     fn restart(&mut self) -> Result<(), RenderError> {
         self.accumulation.fill(Vec4::ZERO);
         self.squares.fill(Vec3::ZERO);
+        self.guide.fill([Vec4::ZERO; 3]);
         self.frames = 0;
         self.band_row = 0;
         Ok(())
@@ -120,6 +140,18 @@ fn render_row(scene: &Scene, y: u32, row: &mut [Vec4], squares: &mut [Vec3]) {
         let sample = render_sample(scene, x as u32, y);
         *acc += sample;
         *sq += sample.xyz() * sample.xyz();
+    }
+}
+
+/// [`render_row`] with the denoiser's guide: each pixel's sample and its guide sums.
+fn render_guided_row(scene: &Scene, y: u32, row: &mut [Vec4], squares: &mut [Vec3], guide: &mut [[Vec4; 3]]) {
+    for (x, ((acc, sq), g)) in row.iter_mut().zip(squares).zip(guide).enumerate() {
+        let sample = render_guided_sample(scene, x as u32, y);
+        *acc += sample.color;
+        *sq += sample.color.xyz() * sample.color.xyz();
+        g[0] += sample.albedo;
+        g[1] += sample.normal;
+        g[2] += sample.emission;
     }
 }
 
@@ -161,6 +193,7 @@ mod tests {
             let mut packed = pack(&scene, &bvh, &settings).unwrap();
             for frame in 0..2 {
                 packed.scene.frame_seed = frame_seed(frame, 7);
+                packed.scene.frame_index = frame;
                 for y in 0..settings.height {
                     let w = settings.width as usize;
                     let (mut base, mut base_sq) = (vec![Vec4::ZERO; w], vec![Vec3::ZERO; w]);

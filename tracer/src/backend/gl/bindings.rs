@@ -29,7 +29,10 @@ pub(super) fn check_active_uniforms(
     let active: Vec<glow::ActiveUniform> =
         unsafe { (0..gl.get_active_uniforms(program)).filter_map(|i| gl.get_active_uniform(program, i)).collect() };
     for u in active {
-        if u.name == ACCUMULATION_UNIFORM && u.utype == glow::SAMPLER_2D {
+        // The running sums: `lp_accumulation`, and `lp_accumulation1..3` with the denoiser's guide.
+        let sum =
+            u.name.strip_prefix(ACCUMULATION_UNIFORM).is_some_and(|k| k.is_empty() || matches!(k, "1" | "2" | "3"));
+        if sum && u.utype == glow::SAMPLER_2D {
             continue;
         }
         let field = u.name.strip_prefix(SCENE_UNIFORM_PREFIX);

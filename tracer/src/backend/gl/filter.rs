@@ -202,7 +202,7 @@ impl QueuedFilter {
     /// The last pass's output per pixel (waiting for the passes if they are not done); the
     /// objects are deleted.
     pub fn read(mut self, gl: &glow::Context) -> Result<Vec<Vec4>, GlError> {
-        let output = read_image(gl, self.framebuffer, self.width, self.height);
+        let output = read_image(gl, self.framebuffer, 0, self.width, self.height);
         self.release(gl);
         output
     }

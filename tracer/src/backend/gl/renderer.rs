@@ -9,14 +9,16 @@ use kernel_dsl::{Resource, Resources};
 use lightport_codegen::Target;
 
 use super::bindings::check_active_uniforms;
-use super::targets::{read_image, render_target, Objects};
+use super::targets::{read_image, render_targets, Objects};
 #[cfg(feature = "gl")]
 use super::HeadlessContext;
 use super::{
     compile_program, gl_failed, upload_texels, GlError, GlFilter, GlInfo, GlOptions, ACCUMULATION_UNIFORM,
     SCENE_UNIFORM_PREFIX,
 };
-use crate::backend::{frame_seed, ms_since, update_uniforms, BuildTimes, RenderError, Renderer, RendererInfo};
+use crate::backend::{
+    frame_seed, ms_since, update_uniforms, BuildTimes, GuideSums, RenderError, Renderer, RendererInfo,
+};
 use crate::kernel::denoise::FilterImage;
 use crate::kernel::scene_data::Scene;
 use crate::pack::Packed;
@@ -27,10 +29,14 @@ struct Pipeline {
     vertex_array: glow::VertexArray,
     /// (texture unit, texture) of every data texture the shader samples.
     data_textures: Vec<(u32, glow::Texture)>,
+    /// The first of the texture units the accumulation textures are read on (one per output).
     accumulation_unit: u32,
-    accumulation: [glow::Texture; 2],
+    /// The running sums, ping-ponged: per side, the colour and, with the denoiser's guide, its
+    /// three sums (the kernel's outputs 0..4, attachments of that side's framebuffer).
+    accumulation: [Vec<glow::Texture>; 2],
     framebuffers: [glow::Framebuffer; 2],
     frame_seed_location: Option<glow::UniformLocation>,
+    frame_index_location: Option<glow::UniformLocation>,
     info: GlInfo,
     /// What creating the pipeline took.
     times: BuildTimes,
@@ -135,14 +141,14 @@ impl GlRenderer {
     /// The texture holding the running sum (what [`accumulation`](Self::accumulation) reads),
     /// for a display pass that draws the converging image (the web viewer).
     pub fn accumulation_texture(&self) -> glow::Texture {
-        self.pipeline.accumulation[self.current]
+        self.pipeline.accumulation[self.current][0]
     }
 
     /// During the first frame after a (re)start, split into bands: the texture its bands are
     /// drawn into (the rows drawn hold one sample, the others zero), for a display pass that
     /// shows the new view band by band instead of the old one for a whole slow frame.
     pub fn first_frame_in_progress(&self) -> Option<glow::Texture> {
-        (self.frames == 0 && self.band_row > 0).then_some(self.pipeline.accumulation[1 - self.current])
+        (self.frames == 0 && self.band_row > 0).then_some(self.pipeline.accumulation[1 - self.current][0])
     }
 }
 
@@ -188,9 +194,12 @@ impl Renderer for GlRenderer {
                 gl.active_texture(glow::TEXTURE0 + unit);
                 gl.bind_texture(glow::TEXTURE_2D, Some(texture));
             }
-            gl.active_texture(glow::TEXTURE0 + p.accumulation_unit);
-            gl.bind_texture(glow::TEXTURE_2D, Some(p.accumulation[self.current]));
+            for (k, &texture) in p.accumulation[self.current].iter().enumerate() {
+                gl.active_texture(glow::TEXTURE0 + p.accumulation_unit + k as u32);
+                gl.bind_texture(glow::TEXTURE_2D, Some(texture));
+            }
             gl.uniform_1_u32(p.frame_seed_location.as_ref(), frame_seed(self.frames, self.seed));
+            gl.uniform_1_u32(p.frame_index_location.as_ref(), self.frames);
             gl.bind_framebuffer(glow::FRAMEBUFFER, Some(p.framebuffers[1 - self.current]));
             gl.viewport(0, 0, width, height);
             gl.disable(glow::BLEND);
@@ -225,7 +234,18 @@ impl Renderer for GlRenderer {
     fn accumulation(&self) -> Result<Vec<Vec4>, RenderError> {
         self.activate()?;
         let scene = &self.packed.scene;
-        Ok(read_image(&self.gl, self.pipeline.framebuffers[self.current], scene.width, scene.height)?)
+        Ok(read_image(&self.gl, self.pipeline.framebuffers[self.current], 0, scene.width, scene.height)?)
+    }
+
+    fn guide_sums(&self) -> Result<GuideSums, RenderError> {
+        if self.pipeline.accumulation[0].len() < 4 {
+            return Err(RenderError::NoGuide);
+        }
+        self.activate()?;
+        let scene = &self.packed.scene;
+        let framebuffer = self.pipeline.framebuffers[self.current];
+        let read = |k| read_image(&self.gl, framebuffer, k, scene.width, scene.height);
+        Ok([read(1)?, read(2)?, read(3)?])
     }
 
     /// Changes the scene's uniforms (camera, strategy, depth...) and restarts the accumulation,
@@ -274,7 +294,9 @@ impl Renderer for GlRenderer {
             gl.disable(glow::SCISSOR_TEST);
             for framebuffer in self.pipeline.framebuffers {
                 gl.bind_framebuffer(glow::FRAMEBUFFER, Some(framebuffer));
-                gl.clear_buffer_f32_slice(glow::COLOR, 0, &[0.0; 4]);
+                for k in 0..self.pipeline.accumulation[0].len() as u32 {
+                    gl.clear_buffer_f32_slice(glow::COLOR, k, &[0.0; 4]);
+                }
             }
             gl.bind_framebuffer(glow::FRAMEBUFFER, None);
             gl.get_error()
@@ -370,24 +392,31 @@ fn build(gl: &glow::Context, packed: &Packed, options: &GlOptions, objects: &mut
     let uploading = web_time::Instant::now();
     // SAFETY: the program was linked on the current context.
     unsafe { gl.use_program(Some(program)) };
-    let SceneBindings { data_textures, frame_seed_location } =
+    let SceneBindings { data_textures, frame_seed_location, frame_index_location } =
         bind_scene(gl, program, &bindings, max_texture_size, objects)?;
     let accumulation_unit = data_textures.len() as u32;
+    // The kernel's outputs: the colour, and with the denoiser's guide its three sums.
+    let outputs = if packed.features.denoise_guide { 4 } else { 1 };
     // SAFETY: plain queries and uniform setting on the program in use.
     unsafe {
         let units = gl.get_parameter_i32(glow::MAX_TEXTURE_IMAGE_UNITS).max(0) as u32;
-        if accumulation_unit + 1 > units {
+        if accumulation_unit + outputs > units {
             return Err(GlError::Unsupported(format!(
                 "the shader samples {} textures but GL_MAX_TEXTURE_IMAGE_UNITS is {units}",
-                accumulation_unit + 1
+                accumulation_unit + outputs
             )));
         }
-        let accumulation_location = gl.get_uniform_location(program, ACCUMULATION_UNIFORM).ok_or_else(|| {
-            GlError::Unsupported(format!("the generated entry point has no `{ACCUMULATION_UNIFORM}` sampler"))
-        })?;
-        gl.uniform_1_i32(Some(&accumulation_location), accumulation_unit as i32);
+        for k in 0..outputs {
+            let name = if k == 0 { ACCUMULATION_UNIFORM.to_string() } else { format!("{ACCUMULATION_UNIFORM}{k}") };
+            let location = gl
+                .get_uniform_location(program, &name)
+                .ok_or_else(|| GlError::Unsupported(format!("the generated entry point has no `{name}` sampler")))?;
+            gl.uniform_1_i32(Some(&location), (accumulation_unit + k) as i32);
+        }
     }
-    let (accumulation, framebuffers) = accumulation_targets(gl, width, height, objects)?;
+    let (side_a, framebuffer_a) = render_targets(gl, width, height, outputs as usize, objects)?;
+    let (side_b, framebuffer_b) = render_targets(gl, width, height, outputs as usize, objects)?;
+    let (accumulation, framebuffers) = ([side_a, side_b], [framebuffer_a, framebuffer_b]);
     // SAFETY: object creation and queries on the current context.
     unsafe {
         let vertex_array = gl.create_vertex_array().map_err(gl_failed("glCreateVertexArray"))?;
@@ -405,6 +434,7 @@ fn build(gl: &glow::Context, packed: &Packed, options: &GlOptions, objects: &mut
             accumulation,
             framebuffers,
             frame_seed_location,
+            frame_index_location,
             info,
             times: BuildTimes { codegen_ms, compile_ms, upload_ms: ms_since(uploading) },
         })
@@ -421,7 +451,7 @@ fn bind_scene(
     objects: &mut Objects,
 ) -> Result<SceneBindings, GlError> {
     let mut data_textures = Vec::new();
-    let mut frame_seed_location = None;
+    let (mut frame_seed_location, mut frame_index_location) = (None, None);
     for (name, binding) in bindings {
         // SAFETY: queries and uniform setting on the program in use; uploads pass slices of
         // exactly the texture's texels.
@@ -442,29 +472,19 @@ fn bind_scene(
                 Resource::U32(x) => gl.uniform_1_u32(location, **x),
                 Resource::Vec3(v) => gl.uniform_3_f32(location, v.x, v.y, v.z),
             }
-            if *name == "frame_seed" {
-                frame_seed_location = location.cloned();
+            match *name {
+                "frame_seed" => frame_seed_location = location.cloned(),
+                "frame_index" => frame_index_location = location.cloned(),
+                _ => {}
             }
         }
     }
-    Ok(SceneBindings { data_textures, frame_seed_location })
+    Ok(SceneBindings { data_textures, frame_seed_location, frame_index_location })
 }
 
 /// What [`bind_scene`] bound: the data textures by unit, and where `frame_seed` is set.
 struct SceneBindings {
     data_textures: Vec<(u32, glow::Texture)>,
     frame_seed_location: Option<glow::UniformLocation>,
-}
-
-/// The two RGBA32F accumulation textures (ping-pong), zeroed, each with its framebuffer.
-fn accumulation_targets(
-    gl: &glow::Context,
-    width: u32,
-    height: u32,
-    objects: &mut Objects,
-) -> Result<([glow::Texture; 2], [glow::Framebuffer; 2]), GlError> {
-    let zeros = vec![Vec4::ZERO; width as usize * height as usize];
-    let (a, b) =
-        (render_target(gl, width, height, &zeros, objects)?, render_target(gl, width, height, &zeros, objects)?);
-    Ok(([a.0, b.0], [a.1, b.1]))
+    frame_index_location: Option<glow::UniformLocation>,
 }

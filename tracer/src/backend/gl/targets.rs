@@ -77,28 +77,69 @@ pub(super) fn render_target(
     objects: &mut Objects,
 ) -> Result<(glow::Texture, glow::Framebuffer), GlError> {
     let texture = image_texture(gl, width, height, texels, objects)?;
-    // SAFETY: framebuffer creation on the current context, attaching one of its textures.
+    Ok((texture, framebuffer_for(gl, &[texture], width, height, objects)?))
+}
+
+/// `attachments` images of `width` x `height` texels, zeroed, and one framebuffer that renders
+/// into all of them: image k is colour attachment k, the fragment shader's output at location k.
+pub(super) fn render_targets(
+    gl: &glow::Context,
+    width: u32,
+    height: u32,
+    attachments: usize,
+    objects: &mut Objects,
+) -> Result<(Vec<glow::Texture>, glow::Framebuffer), GlError> {
+    let zeros = vec![Vec4::ZERO; width as usize * height as usize];
+    let textures =
+        (0..attachments).map(|_| image_texture(gl, width, height, &zeros, objects)).collect::<Result<Vec<_>, _>>()?;
+    let framebuffer = framebuffer_for(gl, &textures, width, height, objects)?;
+    Ok((textures, framebuffer))
+}
+
+/// A framebuffer drawing into `textures` (colour attachments 0, 1, ...).
+fn framebuffer_for(
+    gl: &glow::Context,
+    textures: &[glow::Texture],
+    width: u32,
+    height: u32,
+    objects: &mut Objects,
+) -> Result<glow::Framebuffer, GlError> {
+    // SAFETY: framebuffer creation on the current context, attaching its own textures.
     unsafe {
+        let max = gl.get_parameter_i32(glow::MAX_DRAW_BUFFERS).max(1) as usize;
+        if textures.len() > max {
+            return Err(GlError::Unsupported(format!(
+                "a pass writes {} images but GL_MAX_DRAW_BUFFERS is {max}",
+                textures.len()
+            )));
+        }
         let framebuffer = gl.create_framebuffer().map_err(gl_failed("glCreateFramebuffer"))?;
         objects.framebuffers.push(framebuffer);
         gl.bind_framebuffer(glow::FRAMEBUFFER, Some(framebuffer));
-        gl.framebuffer_texture_2d(glow::FRAMEBUFFER, glow::COLOR_ATTACHMENT0, glow::TEXTURE_2D, Some(texture), 0);
-        gl.draw_buffers(&[glow::COLOR_ATTACHMENT0]);
+        let mut buffers = Vec::new();
+        for (k, texture) in textures.iter().enumerate() {
+            let attachment = glow::COLOR_ATTACHMENT0 + k as u32;
+            gl.framebuffer_texture_2d(glow::FRAMEBUFFER, attachment, glow::TEXTURE_2D, Some(*texture), 0);
+            buffers.push(attachment);
+        }
+        gl.draw_buffers(&buffers);
         let status = gl.check_framebuffer_status(glow::FRAMEBUFFER);
         gl.bind_framebuffer(glow::FRAMEBUFFER, None);
         if status != glow::FRAMEBUFFER_COMPLETE {
             return Err(GlError::Unsupported(format!(
-                "an RGBA32F {width}x{height} framebuffer is incomplete (status {status:#06x})"
+                "an RGBA32F {width}x{height} framebuffer with {} attachments is incomplete (status {status:#06x})",
+                textures.len()
             )));
         }
-        Ok((texture, framebuffer))
+        Ok(framebuffer)
     }
 }
 
-/// The RGBA32F pixels of `framebuffer`'s colour attachment, row-major.
+/// The RGBA32F pixels of `framebuffer`'s colour attachment `attachment`, row-major.
 pub(super) fn read_image(
     gl: &glow::Context,
     framebuffer: glow::Framebuffer,
+    attachment: u32,
     width: u32,
     height: u32,
 ) -> Result<Vec<Vec4>, GlError> {
@@ -107,7 +148,7 @@ pub(super) fn read_image(
     // RGBA floats, the size glReadPixels writes with PACK_ALIGNMENT 4.
     let error = unsafe {
         gl.bind_framebuffer(glow::READ_FRAMEBUFFER, Some(framebuffer));
-        gl.read_buffer(glow::COLOR_ATTACHMENT0);
+        gl.read_buffer(glow::COLOR_ATTACHMENT0 + attachment);
         gl.pixel_store_i32(glow::PACK_ALIGNMENT, 4);
         let data = glow::PixelPackData::Slice(Some(words_as_bytes_mut(&mut words)));
         gl.read_pixels(0, 0, width as i32, height as i32, glow::RGBA, glow::FLOAT, data);

@@ -452,7 +452,7 @@ mod tests {
             ("NormalMapData", top_fields::<crate::kernel::normal_map::NormalMapData>()),
             ("AlphaMaskData", top_fields::<crate::kernel::alpha_mask::AlphaMaskData>()),
             ("GlassData", top_fields::<crate::kernel::scene_data::GlassData>()),
-            ("Aov", top_fields::<crate::kernel::denoise::Aov>()),
+            ("GuidedSample", top_fields::<crate::kernel::integrator::GuidedSample>()),
             ("SurfaceNormals", top_fields::<crate::kernel::integrator::SurfaceNormals>()),
         ];
         let structs: Vec<kernel_dsl::ir::StructDef> = crate::kernel::modules()

@@ -143,8 +143,7 @@ mod kernel_structs {
     use crate::kernel::alpha_mask::AlphaMaskData;
     use crate::kernel::bsdf::Bsdf;
     use crate::kernel::camera::Ray;
-    use crate::kernel::denoise::Aov;
-    use crate::kernel::integrator::{Shading, SurfaceNormals};
+    use crate::kernel::integrator::{GuidedSample, Shading, SurfaceNormals};
     use crate::kernel::intersect::TriangleHit;
     use crate::kernel::lights::LightSample;
     use crate::kernel::metal_rough::{BrdfSample, Surface};
@@ -170,7 +169,7 @@ mod kernel_structs {
         NormalMapData { texture, scale }
         AlphaMaskData { texture, alpha, cutoff }
         GlassData { transmission, ior, texture, thin, sigma_a }
-        Aov { albedo, normal, depth, emission }
+        GuidedSample { color, albedo, normal, emission }
         SurfaceNormals { ng, ns, flip, area2 }
     }
 }

@@ -13,7 +13,8 @@ use super::{
     WgpuFilter, WgpuInfo, WgpuOptions, ACCUMULATION_BUFFER, SCENE_UNIFORM, TARGET_UNIFORM, WORKGROUP_SIZE,
 };
 use crate::backend::{
-    frame_seed, ms_since, update_uniforms, BuildTimes, PendingAccumulation, RenderError, Renderer, RendererInfo,
+    frame_seed, ms_since, update_uniforms, BuildTimes, GuideSums, PendingAccumulation, PendingGuideSums, RenderError,
+    Renderer, RendererInfo,
 };
 use crate::kernel::denoise::FilterImage;
 use crate::kernel::scene_data::Scene;
@@ -26,6 +27,10 @@ struct Pipeline {
     scene_uniform: Option<(wgpu::Buffer, UniformLayout)>,
     accumulation: wgpu::Buffer,
     readback: wgpu::Buffer,
+    /// With the denoiser's guide, its three running sums (`lp_accumulation1..3`) and one
+    /// read-back buffer for all three; empty and `None` without.
+    guide: Vec<wgpu::Buffer>,
+    guide_readback: Option<wgpu::Buffer>,
     /// `lp_target` (the image width and the band of rows a dispatch covers) and its layout.
     target: (wgpu::Buffer, OwnResource),
     /// Workgroups across the image.
@@ -190,8 +195,10 @@ impl Renderer for WgpuRenderer {
         let rows = rows.clamp(1, self.rows_left());
         let (first_row, end_row) = (self.band_row, self.band_row + rows);
         if let Some((buffer, layout)) = &p.scene_uniform {
-            if let Some((_, offset)) = layout.members.iter().find(|(n, _)| n == "frame_seed") {
-                queue.write_buffer(buffer, *offset as u64, &frame_seed(self.frames, self.seed).to_le_bytes());
+            for (member, value) in [("frame_seed", frame_seed(self.frames, self.seed)), ("frame_index", self.frames)] {
+                if let Some((_, offset)) = layout.members.iter().find(|(n, _)| n == member) {
+                    queue.write_buffer(buffer, *offset as u64, &value.to_le_bytes());
+                }
             }
         }
         let (target, target_layout) = &p.target;
@@ -247,6 +254,40 @@ impl Renderer for WgpuRenderer {
         Box::pin(async move { Ok(read.await?) })
     }
 
+    /// Natively, [`read_guide_sums`](Renderer::read_guide_sums) waited for by polling the
+    /// device. In the browser a read-back cannot block: an error.
+    fn guide_sums(&self) -> Result<GuideSums, RenderError> {
+        #[cfg(not(target_arch = "wasm32"))]
+        {
+            let read = self.read_guide_sums();
+            self.finish()?;
+            pollster::block_on(read)
+        }
+        #[cfg(target_arch = "wasm32")]
+        Err(RenderError::Unsupported { runtime: "wgpu", what: "cannot block for a read-back in the browser" })
+    }
+
+    /// The three guide buffers copied into one read-back buffer, mapped, split.
+    fn read_guide_sums(&self) -> PendingGuideSums {
+        let p = &self.pipeline;
+        let Some(readback) = &p.guide_readback else {
+            return Box::pin(std::future::ready(Err(RenderError::NoGuide)));
+        };
+        let mut encoder = self.device.device.create_command_encoder(&Default::default());
+        for (k, buffer) in p.guide.iter().enumerate() {
+            encoder.copy_buffer_to_buffer(buffer, 0, readback, k as u64 * buffer.size(), buffer.size());
+        }
+        self.device.queue.submit([encoder.finish()]);
+        let read = map_texels(readback.clone());
+        let uncaptured = self.check_uncaptured();
+        let pixels = self.packed.scene.width as usize * self.packed.scene.height as usize;
+        Box::pin(async move {
+            uncaptured?;
+            let texels = read.await?;
+            Ok(std::array::from_fn(|k| texels[k * pixels..(k + 1) * pixels].to_vec()))
+        })
+    }
+
     /// Rewrites the `scene` uniform; the storage buffers stay as uploaded.
     fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
         update_uniforms(&mut self.packed.scene, update)?;
@@ -284,7 +325,9 @@ impl Renderer for WgpuRenderer {
     fn restart(&mut self) -> Result<(), RenderError> {
         self.check_uncaptured()?;
         let mut encoder = self.device.device.create_command_encoder(&Default::default());
-        encoder.clear_buffer(&self.pipeline.accumulation, 0, None);
+        for buffer in std::iter::once(&self.pipeline.accumulation).chain(&self.pipeline.guide) {
+            encoder.clear_buffer(buffer, 0, None);
+        }
         self.device.queue.submit([encoder.finish()]);
         self.frames = 0;
         self.band_row = 0;
@@ -353,7 +396,15 @@ fn check_image_limits(limits: &wgpu::Limits, options: &WgpuOptions, scene: &Scen
 fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<(Pipeline, PipelineCheck), WgpuError> {
     let started = web_time::Instant::now();
     let generated = crate::kernel::path_tracer_shader(&packed.features, Target::Wgsl)?;
-    let layout = reflect(&generated, SCENE_UNIFORM, &[ACCUMULATION_BUFFER, TARGET_UNIFORM])?;
+    // The kernel's outputs after the colour: the denoiser's guide sums, if asked for.
+    let guide_names: Vec<String> = if packed.features.denoise_guide {
+        (1..4).map(|k| format!("{ACCUMULATION_BUFFER}{k}")).collect()
+    } else {
+        Vec::new()
+    };
+    let own: Vec<&str> =
+        [ACCUMULATION_BUFFER, TARGET_UNIFORM].into_iter().chain(guide_names.iter().map(String::as_str)).collect();
+    let layout = reflect(&generated, SCENE_UNIFORM, &own)?;
     let codegen_ms = ms_since(started);
     let scene = &packed.scene;
     check_scene_limits(&device.limits, options, scene, &layout)?;
@@ -376,6 +427,25 @@ fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<
         mapped_at_creation: false,
     });
     entries.push(BufferEntry::storage(layout.own(ACCUMULATION_BUFFER), accumulation.clone(), false));
+    let mut guide = Vec::new();
+    for name in &guide_names {
+        let buffer = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(name),
+            size: width * height * 16,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        entries.push(BufferEntry::storage(layout.own(name), buffer.clone(), false));
+        guide.push(buffer);
+    }
+    let guide_readback = (!guide.is_empty()).then(|| {
+        d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("guide readback"),
+            size: width * height * 16 * guide.len() as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    });
     let target = layout.own(TARGET_UNIFORM).clone();
     let target_buffer = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(TARGET_UNIFORM),
@@ -390,5 +460,17 @@ fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<
     let times = BuildTimes { codegen_ms, compile_ms: ms_since(compiling), upload_ms };
     let target = (target_buffer, target);
     let workgroups_x = workgroups[0];
-    Ok((Pipeline { pipeline, bind_groups, scene_uniform, accumulation, readback, target, workgroups_x, times }, check))
+    let pipeline = Pipeline {
+        pipeline,
+        bind_groups,
+        scene_uniform,
+        accumulation,
+        readback,
+        guide,
+        guide_readback,
+        target,
+        workgroups_x,
+        times,
+    };
+    Ok((pipeline, check))
 }
