@@ -6,7 +6,7 @@ use std::cell::RefCell;
 use std::rc::Rc;
 
 use glam::Vec4;
-use tracer::backend::wgpu::{WgpuDevice, WgpuFilter};
+use tracer::backend::wgpu::{WgpuDevice, WgpuFilter, WgpuRenderer};
 use tracer::backend::{GuideSums, RenderError, Renderer, RendererInfo};
 use tracer::kernel::denoise::FilterImage;
 use tracer::kernel::scene_data::Scene;
@@ -14,6 +14,56 @@ use tracer::pack::Packed;
 
 /// A result that a promise fills in; the page's frame loop polls it.
 pub type Slot<T> = Rc<RefCell<Option<Result<T, String>>>>;
+
+/// A read of the accumulation into a staging buffer of its own (not the renderer's one
+/// read-back buffer, which the page's `readAccumulation` and screenshots use: a second read
+/// while one is mapped is an error): the copy is on the queue, the map requested; `mapped` is
+/// filled when the device has it.
+pub struct StagedRead {
+    buffer: wgpu::Buffer,
+    mapped: Slot<()>,
+}
+
+impl StagedRead {
+    /// Queues the copy of `renderer`'s accumulation and its map.
+    pub fn queue(renderer: &WgpuRenderer) -> StagedRead {
+        let device = renderer.device();
+        let source = renderer.accumulation_buffer();
+        let buffer = device.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("lightport denoiser read-back"),
+            size: source.size(),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = device.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(source, 0, &buffer, 0, source.size());
+        device.queue.submit([encoder.finish()]);
+        let mapped: Slot<()> = Rc::new(RefCell::new(None));
+        let slot = mapped.clone();
+        buffer.slice(..).map_async(wgpu::MapMode::Read, move |result| {
+            *slot.borrow_mut() = Some(result.map_err(|e| format!("mapping the accumulation failed: {e}")));
+        });
+        StagedRead { buffer, mapped }
+    }
+
+    /// The accumulation, once mapped (`None`: not yet).
+    pub fn take(&self) -> Option<Result<Vec<Vec4>, String>> {
+        let mapped = self.mapped.borrow_mut().take()?;
+        Some(mapped.and_then(|()| {
+            let texels = {
+                let view = self.buffer.slice(..).get_mapped_range().map_err(|e| format!("reading the map: {e}"))?;
+                view.chunks_exact(16)
+                    .map(|t| {
+                        let f = |i: usize| f32::from_le_bytes([t[i], t[i + 1], t[i + 2], t[i + 3]]);
+                        Vec4::new(f(0), f(4), f(8), f(12))
+                    })
+                    .collect()
+            };
+            self.buffer.unmap();
+            Ok(texels)
+        }))
+    }
+}
 
 /// The filter pass on a device: compiling (a promise), then compiled, or failed.
 pub enum GpuFilter {

@@ -31,11 +31,11 @@ use std::rc::Rc;
 
 use glam::Vec4;
 use js_sys::Object;
-use tracer::backend::{mean_image, Image};
+use tracer::backend::{mean_image, Image, Renderer};
 use tracer::denoise::{denoise_on, filter_input, Guide};
 use wasm_bindgen::JsValue;
 
-use self::gpu::{GpuFilter, Replay, Slot};
+use self::gpu::{GpuFilter, Replay, Slot, StagedRead};
 use crate::js::{now_ms, set};
 use crate::runtime::Runtime;
 
@@ -62,7 +62,7 @@ struct Shown {
 /// What a denoise in flight waits for.
 enum Stage {
     /// The accumulation and the guide being read back ([`page_guide`]).
-    Reading(Slot<(Vec<Vec4>, Guide)>),
+    Reading(PageRead),
     /// The passes on the GPU. WebGPU: where the output arrives; WebGL2: `None`, the runtime
     /// holds the queued passes.
     Filtering { image: Image, guide: Guide, output: Option<Slot<Vec<Vec4>>> },
@@ -78,26 +78,51 @@ struct Job {
     read_ms: f64,
 }
 
+/// The accumulation and the guide being read back at one sample count ([`page_guide`]).
+struct PageRead {
+    sums: Sums,
+    guide: Slot<Guide>,
+}
+
+/// The accumulation's read: done (WebGL2 reads synchronously) or a staging copy (WebGPU).
+enum Sums {
+    Now(Option<Result<Vec<Vec4>, String>>),
+    Staged(StagedRead),
+}
+
+impl PageRead {
+    /// Both reads, once both arrived.
+    fn take(&mut self) -> Option<Result<(Vec<Vec4>, Guide), String>> {
+        self.guide.borrow().as_ref()?;
+        let sums = match &mut self.sums {
+            Sums::Now(sums) => sums.take()?,
+            Sums::Staged(read) => read.take()?,
+        };
+        let guide = self.guide.borrow_mut().take()?;
+        Some(sums.and_then(|sums| guide.map(|guide| (sums, guide))))
+    }
+}
+
 /// THE source of the page's guide (the only one): the guide `running`'s path tracer
 /// accumulated beside the image, read back with the accumulation, both at the current sample
-/// count (between frames). Resolves into the slot: WebGL2 reads synchronously (resolved at the
-/// next poll), WebGPU's read-backs are promises.
-fn page_guide(running: &Runtime) -> Slot<(Vec<Vec4>, Guide)> {
+/// count (between frames). WebGL2 reads synchronously; on WebGPU both are promises (the
+/// accumulation through a staging buffer of the page's own).
+fn page_guide(running: &Runtime) -> PageRead {
     let spp = running.frames();
-    let renderer = running.renderer();
-    let sums = renderer.read_accumulation();
-    let guide = renderer.read_guide_sums();
-    let slot: Slot<(Vec<Vec4>, Guide)> = Rc::new(RefCell::new(None));
-    let filled = slot.clone();
+    let sums = match running {
+        Runtime::WebGl2(r) => {
+            Sums::Now(Some(r.renderer().accumulation().map_err(|e| format!("reading the accumulation failed: {e}"))))
+        }
+        Runtime::WebGpu(r) => Sums::Staged(StagedRead::queue(r.renderer())),
+    };
+    let read = running.renderer().read_guide_sums();
+    let guide: Slot<Guide> = Rc::new(RefCell::new(None));
+    let filled = guide.clone();
     wasm_bindgen_futures::spawn_local(async move {
-        let read = async {
-            let sums = sums.await.map_err(|e| format!("reading the accumulation failed: {e}"))?;
-            let guide = guide.await.map_err(|e| format!("reading the denoiser's guide failed: {e}"))?;
-            Ok((sums, Guide::from_sums(spp, &guide)))
-        };
-        *filled.borrow_mut() = Some(read.await);
+        let sums = read.await.map_err(|e| format!("reading the denoiser's guide failed: {e}"));
+        *filled.borrow_mut() = Some(sums.map(|s| Guide::from_sums(spp, &s)));
     });
-    slot
+    PageRead { sums, guide }
 }
 
 /// The page's denoiser state: whether it is on, the denoise in flight and the image on show.
@@ -236,8 +261,8 @@ impl PageDenoiser {
     fn advance(&mut self, running: &mut Runtime) -> bool {
         let Some(job) = &mut self.job else { return false };
         let result = match &mut job.stage {
-            Stage::Reading(slot) => {
-                let Some(read) = slot.borrow_mut().take() else { return false };
+            Stage::Reading(reading) => {
+                let Some(read) = reading.take() else { return false };
                 job.read_ms = now_ms() - job.started_ms;
                 read.and_then(|(sums, guide)| {
                     let scene = &running.packed().scene;
