@@ -108,7 +108,7 @@ const hook = {
   }),
   orbit: (yaw, pitch) => guarded(() => viewer.orbit(yaw, pitch)),
   // The denoiser on or off (the Denoise control); `denoise()`: sceneInfo().denoise, what it
-  // shows ({ enabled, shownSpp, pendingSpp, filterMs, guideMs, varianceKnown, error, readout }).
+  // shows ({ enabled, shownSpp, pendingSpp, filterMs, guideMs, error, readout }).
   setDenoise: (on) => guarded(() => { viewer.setDenoise(on); $('denoise').checked = on; }),
   denoise: () => (viewer ? viewer.sceneInfo().denoise : null),
   // Draws the image again (the denoised one where shown): copy the canvas in the same task.

@@ -1,5 +1,6 @@
-//! What the page's denoiser needs on WebGPU, where nothing may block: the filter pass compiled
-//! and run as promises; and, for both runtimes, the filter's remodulation done by
+//! What the page's denoiser needs on WebGPU, where nothing may block: the accumulation read
+//! into a staging buffer of its own ([`StagedRead`]), the filter pass compiled and run as
+//! promises; and, for both runtimes, the filter's remodulation done by
 //! `tracer::denoise` itself over the output the device returned ([`Replay`]).
 
 use std::cell::RefCell;
