@@ -7,6 +7,8 @@
 //! these tests fail and say which command installs the missing piece (`scripts/test.sh` runs
 //! them all).
 
+mod denoise;
+
 use crate::common;
 use crate::common::browser;
 use lightport::serve_child;

@@ -5,7 +5,7 @@
 //   node run.mjs SCENARIO --url http://127.0.0.1:PORT/ --out result.json [options]
 //
 // Scenarios: accumulate, cache, camera, slow, drop, limits, context, display, api, deviceloss, bench,
-// chart, compile (see each function); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
+// chart, compile, denoise, denoiseedges (see each function); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
 // long, so that a hung page never hangs the caller. `--exit-on-stdin-eof` (no value): exit 4,
 // closing the browser, when stdin reaches its end: the caller holds the pipe's other end, which
 // the kernel closes when the caller ends however it ends (src/serve_child.rs), so neither this
@@ -358,7 +358,8 @@ async function display(o) {
   const profile = freshProfile();
   try {
     return await withBrowser(profile, async (context) => {
-      const query = { scene: o.scene, size: o.size, paused: '1', tonemap: 'aces', exposure: '1.5' };
+      // Denoise off: the raw accumulation's display is what is compared here.
+      const query = { scene: o.scene, size: o.size, paused: '1', tonemap: 'aces', exposure: '1.5', denoise: '0' };
       const { page, error, consoleErrors } = await open(context, o.url, query);
       if (error) return { error, consoleErrors };
       const shots = [];
@@ -384,6 +385,118 @@ async function display(o) {
         }));
       }
       return { shots, consoleErrors, error: await page.evaluate(() => window.lightport.error) };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
+// The canvas copied in one task with a redraw (the drawing buffer, WebGL2's or WebGPU's, is
+// intact until it is composited): RGBA, top row first; and the read-outs it goes with.
+async function canvasShot(page) {
+  return page.evaluate(() => {
+    window.lightport.draw();
+    const view = window.lightport.viewer.canvas;
+    const copy = document.createElement('canvas');
+    copy.width = view.width;
+    copy.height = view.height;
+    const context2d = copy.getContext('2d');
+    context2d.drawImage(view, 0, 0);
+    const pixels = Array.from(context2d.getImageData(0, 0, view.width, view.height).data);
+    return { pixels, spp: window.lightport.spp(), denoise: window.lightport.denoise() };
+  });
+}
+
+// The read-outs are written by the frame loop: wait for two animation frames.
+async function readoutText(page) {
+  await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+  return page.textContent('#denoise-info');
+}
+
+// The denoiser: with `denoise=1` (or the page's default, `--default 1`) the page renders `--spp`
+// frames (paused: through the test hook), waits until the canvas shows them denoised, and
+// copies the canvas; then the Denoise control is switched off: the raw image, and its
+// accumulation. With the read-out's text at each step and the denoiser's times.
+async function denoise(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const query = { scene: o.scene, size: o.size, paused: '1', seed: o.seed || '1' };
+      if (!o.default) query.denoise = '1';
+      const { page, error, consoleErrors } = await open(context, o.url, query);
+      if (error) return { error, consoleErrors };
+      const spp = Number(o.spp);
+      await page.evaluate((n) => window.lightport.renderFrames(n), spp);
+      await page.waitForFunction((n) => {
+        const d = window.lightport.denoise();
+        return window.lightport.error || (d && (d.shownSpp === n || d.error));
+      }, spp, { timeout: 180000 });
+      const readoutOn = await readoutText(page);
+      const on = await canvasShot(page);
+      const checked = await page.isChecked('#denoise');
+      await page.click('#denoise');
+      const readoutOff = await readoutText(page);
+      const off = await canvasShot(page);
+      const accumulation = await page.evaluate(() => window.lightport.readAccumulation());
+      return {
+        checked, readoutOn, readoutOff, on, off, accumulation, consoleErrors,
+        info: await page.evaluate(() => window.lightport.info()),
+        error: await page.evaluate(() => window.lightport.error),
+      };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
+// The denoiser given bad input: switched with no scene, a 1xN image, and (WebGL2) switched
+// while the context is lost, then rendering after the restore. What the page said each time.
+async function denoiseEdges(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const { page, error } = await open(context, o.url, { scene: '', paused: '1', size: o.size });
+      if (error) return { error };
+      const steps = {};
+      const state = async () => page.evaluate(() => ({
+        error: window.lightport.error,
+        denoise: window.lightport.denoise(),
+        spp: window.lightport.spp(),
+        message: document.querySelector('#message').hidden ? null : document.querySelector('#message').textContent,
+      }));
+      await page.evaluate(() => { window.lightport.setDenoise(false); window.lightport.setDenoise(true); });
+      steps.noScene = { ...(await state()), readout: await readoutText(page) };
+      await page.evaluate((name) => window.lightport.loadScene(name), o.scene);
+      await page.evaluate(() => window.lightport.renderFrames(8));
+      await page.waitForFunction(() => {
+        const d = window.lightport.denoise();
+        return window.lightport.error || (d && (d.shownSpp === 8 || d.error));
+      }, null, { timeout: 120000 });
+      steps.thin = { ...(await state()), readout: await readoutText(page), shot: await canvasShot(page) };
+      if (pageApi === 'webgl2') {
+        await page.evaluate(() => {
+          const gl = window.lightport.viewer.canvas.getContext('webgl2');
+          window.__loseContext = gl.getExtension('WEBGL_lose_context');
+          window.__loseContext.loseContext();
+        });
+        await page.waitForFunction(() => window.lightport.info().contextLost, null, { timeout: 10000 });
+        await page.evaluate(async () => {
+          window.lightport.setDenoise(false);
+          window.lightport.setDenoise(true);
+          window.lightport.draw();
+          await window.lightport.renderFrames(4);
+        });
+        steps.lost = { ...(await state()), readout: await readoutText(page) };
+        await page.evaluate(() => window.__loseContext.restoreContext());
+        await page.waitForFunction(() => !window.lightport.info().contextLost, null, { timeout: 30000 });
+        await page.evaluate(() => window.lightport.renderFrames(4));
+        await page.waitForFunction(() => {
+          const d = window.lightport.denoise();
+          return window.lightport.error || (d && (d.shownSpp === 4 || d.error));
+        }, null, { timeout: 120000 });
+        steps.restored = { ...(await state()), readout: await readoutText(page) };
+      }
+      return { steps };
     });
   } finally {
     rmSync(profile, { recursive: true, force: true });
@@ -470,7 +583,9 @@ async function bench(o) {
       const row = { scene };
       for (const visit of ['cold', 'warm']) {
         await withBrowser(profile, async (context) => {
-          const { page, error, navigationStart } = await open(context, o.url, { scene, size: o.size, paused: '1' });
+          // Frame times without the denoiser (its time is measured by the denoise scenario).
+          const { page, error, navigationStart } =
+            await open(context, o.url, { scene, size: o.size, paused: '1', denoise: '0' });
           if (error) throw new Error(`${scene}: ${error}`);
           await page.evaluate(() => window.lightport.renderFrames(1));
           // The page splits the first frame's time once the frame is finished on the GPU.
@@ -540,6 +655,7 @@ async function chart(o) {
         route.fulfill({ status: 200, contentType: 'application/octet-stream', body: bundleBytes }));
       const { page, error, info, consoleErrors } = await open(context, o.url, {
         bundle: '/lightport-chart/scene.lpb', size: o.size, seed: o.seed || '1', strategy: strategies[0], paused: '1',
+        denoise: '0', // the chart times the renderer alone
       });
       if (error) return { error, consoleErrors };
       const pageError = () => page.evaluate(() => window.lightport.error);
@@ -605,7 +721,7 @@ async function compile(o) {
 
 const SCENARIOS = {
   accumulate, cache, camera, slow, drop, limits, context: contextLoss, display, api: apiChoice, deviceloss: deviceLoss,
-  bench, chart, compile,
+  bench, chart, compile, denoise, denoiseedges: denoiseEdges,
 };
 
 const options = parseArgs(process.argv.slice(2));

@@ -7,6 +7,8 @@
 //! needs a browser.
 
 pub mod camera;
+#[cfg(target_arch = "wasm32")]
+pub mod denoise;
 pub mod files;
 #[cfg(target_arch = "wasm32")]
 pub mod harness;

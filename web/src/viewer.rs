@@ -30,6 +30,7 @@ use wasm_bindgen_futures::future_to_promise;
 use web_sys::{HtmlCanvasElement, WebGl2RenderingContext};
 
 use crate::camera::OrbitCamera;
+use crate::denoise::PageDenoiser;
 use crate::files::{self, DroppedFile};
 use crate::js::{camel_case, js_error, now_ms, set};
 use crate::runtime::{webgl2, Api, GlRuntime, GpuDevice, GpuRuntime, Runtime};
@@ -77,6 +78,8 @@ pub struct Viewer {
     /// How the accumulation is shown and screenshot: tone curve and exposure (`setToneMap`,
     /// `setExposure`), the CLI's `--tonemap` and `--exposure`.
     display: Display,
+    /// The denoiser (`setDenoise`; on by default): see `crate::denoise`.
+    denoiser: PageDenoiser,
 }
 
 /// Renderers recreated after uncaptured WebGPU errors before the error is shown instead.
@@ -109,6 +112,7 @@ impl Viewer {
             band_budget_ms: Some(DEFAULT_BUDGET_MS),
             gpu_recoveries: 0,
             display: Display::default(),
+            denoiser: PageDenoiser::new(true),
         }
     }
 
@@ -212,12 +216,15 @@ impl Viewer {
     /// renderer refuses it (too large for the device...), the previous scene stays.
     fn install(&mut self, name: String, mut packed: Packed, decode_ms: f64) -> Result<JsValue, JsError> {
         let bundle_depth = packed.scene.max_depth;
+        // The path tracer accumulates the denoiser's guide while the denoiser is on.
+        packed.set_denoise_guide(self.denoiser.enabled());
         packed.apply(&RenderSettings { max_depth: bundle_depth, ..self.settings });
         let camera = OrbitCamera::from_uniforms(&packed.scene);
         let running = self.start(&packed)?;
         self.gpu_recoveries = 0;
         self.settings.max_depth = bundle_depth;
         self.running = Some(running);
+        self.denoiser.new_runtime();
         self.loaded = Some(Loaded { name, packed, camera, home: camera, decode_ms });
         Ok(self.scene_info())
     }
@@ -333,9 +340,61 @@ impl Viewer {
         }
         let Some(running) = &mut self.running else { return Ok(()) };
         match running.frame(&self.display) {
-            Ok(()) => Ok(()),
+            Ok(()) => {
+                self.denoiser.poll(running);
+                self.show_denoised();
+                Ok(())
+            }
             Err(e) => self.recover(e),
         }
+    }
+
+    /// Draws the denoised image over the raw one, when the current accumulation has one.
+    fn show_denoised(&mut self) {
+        if self.halted() {
+            return;
+        }
+        let (Some(running), Some((image, id))) = (&mut self.running, self.denoiser.current()) else { return };
+        if let Err(e) = running.draw_image(image, id, &self.display) {
+            self.denoiser.fail(format!("drawing the denoised image failed: {e}"));
+        }
+    }
+
+    /// Turns the denoiser on (the default) or off: on, the canvas shows the accumulation
+    /// denoised (at 4 spp, then each time the samples per pixel double: see
+    /// `web/src/denoise/mod.rs`); off, the raw accumulation, redrawn now. The path tracer must
+    /// accumulate the denoiser's guide: switched on over a renderer created without it, the
+    /// renderer is recreated (the accumulation restarts); switched off, it keeps the guide (and
+    /// its samples) until it is next recreated. Works with no scene loaded or a lost context
+    /// (it applies to the renderer created next).
+    #[wasm_bindgen(js_name = setDenoise)]
+    pub fn set_denoise(&mut self, on: bool) -> Result<(), JsError> {
+        self.denoiser.set_enabled(on);
+        let lacks_guide = self.running.as_ref().is_some_and(|r| !r.packed().features.denoise_guide);
+        if on && lacks_guide && !self.halted() {
+            self.rebuild()?;
+        }
+        self.redraw();
+        Ok(())
+    }
+
+    /// Call once per animation frame, also while no frame is rendered: collects what WebGPU
+    /// finished for the denoiser, starts a denoise that is due and shows a new denoised image.
+    #[wasm_bindgen(js_name = pollDenoise)]
+    pub fn poll_denoise(&mut self) {
+        if self.halted() {
+            return;
+        }
+        let Some(running) = &mut self.running else { return };
+        if self.denoiser.poll(running) {
+            self.show_denoised();
+        }
+    }
+
+    /// Draws the image again (the denoised one where there is one), e.g. before copying the
+    /// canvas in the same task.
+    pub fn draw(&mut self) {
+        self.redraw();
     }
 
     /// The frame loop's step (call it once per animation frame with `performance.now()`):
@@ -356,6 +415,10 @@ impl Viewer {
                 return Ok(0);
             }
         };
+        if step == (Step::Submitted { frame_done: true }) {
+            self.denoiser.poll(running);
+            self.show_denoised();
+        }
         Ok(match step {
             Step::Waiting => 0,
             Step::Submitted { frame_done: false } => 1,
@@ -407,6 +470,13 @@ impl Viewer {
         set(&info, "contextLost", self.context_lost);
         set(&info, "toneMap", self.display.tone_map.name());
         set(&info, "exposure", self.display.exposure);
+        let rendering = match &self.running {
+            _ if self.context_lost => Err("the WebGL context is lost"),
+            _ if self.web_gpu_lost().is_some() => Err("the WebGPU device is lost"),
+            Some(running) => Ok(running),
+            None => Err("no scene"),
+        };
+        set(&info, "denoise", self.denoiser.describe(rendering));
         if let Some(loaded) = &self.loaded {
             let f = &loaded.packed.features;
             set(&info, "name", loaded.name.as_str());
@@ -467,10 +537,12 @@ impl Viewer {
             return Ok(());
         };
         loaded.packed.apply(&self.settings);
+        loaded.packed.set_denoise_guide(self.denoiser.enabled());
         loaded.camera.apply(&mut loaded.packed.scene);
         let packed = loaded.packed.clone();
         let running = self.start(&packed)?;
         self.running = Some(running);
+        self.denoiser.new_runtime();
         Ok(())
     }
 
@@ -573,6 +645,7 @@ impl Viewer {
                 running.set_uniforms(update).map_err(|e| JsError::new(&e))?;
             }
         }
+        self.denoiser.restart();
         Ok(())
     }
 
@@ -613,28 +686,36 @@ impl Viewer {
     }
 
     /// Draws the image again (a display setting changed; no sample is added).
-    fn redraw(&self) {
+    fn redraw(&mut self) {
         if self.halted() {
             return;
         }
         if let Some(running) = &self.running {
             running.draw(&self.display);
         }
+        self.show_denoised();
     }
 
-    /// Resolves to the current image as PNG bytes, through the display's tone curve and
-    /// exposure (as the CLI's PNG output with the same `--tonemap` and `--exposure`).
+    /// Resolves to the current image (the denoised one while it shows) as PNG bytes, through
+    /// the display's tone curve and exposure (as the CLI's PNG output with the same
+    /// `--tonemap` and `--exposure`).
     #[wasm_bindgen(js_name = screenshotPng)]
     pub fn screenshot_png(&self) -> Result<js_sys::Promise, JsError> {
         let running = self.running.as_ref().ok_or_else(|| JsError::new("no scene is loaded"))?;
         let (width, height) = (running.packed().scene.width, running.packed().scene.height);
         let n = running.frames().max(1) as f32;
+        let denoised = self.denoiser.current().map(|(image, _)| image.clone());
         let read = running.read_accumulation();
         let display = self.display;
         Ok(future_to_promise(async move {
             let fail = |e: String| JsValue::from(JsError::new(&e));
-            let texels = read.await.map_err(fail)?;
-            let image = Image { width, height, pixels: texels.iter().map(|t| t.truncate() / n).collect() };
+            let image = match denoised {
+                Some(image) => image,
+                None => {
+                    let texels = read.await.map_err(fail)?;
+                    Image { width, height, pixels: texels.iter().map(|t| t.truncate() / n).collect() }
+                }
+            };
             let pixels = tracer::output::to_display_srgb8(&image, &display);
             let mut png = Vec::new();
             let encoder = image::codecs::png::PngEncoder::new(&mut png);
@@ -661,6 +742,7 @@ impl Viewer {
         self.context_lost = true;
         // Deleting objects of a lost context is a no-op in WebGL.
         self.running = None;
+        self.denoiser.new_runtime();
     }
 
     /// The context is back (`webglcontextrestored`): recreate the renderer and continue with the

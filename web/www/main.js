@@ -8,6 +8,8 @@
 //   strategy=mis|nee|bsdf, seed=N (the random sequence; default 1),
 //   tonemap=neutral|aces|agx|none, exposure=EV (the display, as the CLI's --tonemap and
 //                     --exposure; default neutral at 0 EV),
+//   denoise=0|1       the denoiser (default 1: the canvas shows the accumulation denoised at 4
+//                     spp, then each time the spp double; web/src/denoise/mod.rs),
 //   paused=1          no frame loop: frames only through the test hook,
 //   budget=BYTES      the cache budget,
 //   bandBudget=MS     the longest one GPU submission (a band of a frame) should take, default
@@ -105,6 +107,12 @@ const hook = {
     $('exposure-value').textContent = `${stops} EV`;
   }),
   orbit: (yaw, pitch) => guarded(() => viewer.orbit(yaw, pitch)),
+  // The denoiser on or off (the Denoise control); `denoise()`: sceneInfo().denoise, what it
+  // shows ({ enabled, shownSpp, pendingSpp, filterMs, guideMs, error, readout }).
+  setDenoise: (on) => guarded(() => { viewer.setDenoise(on); $('denoise').checked = on; }),
+  denoise: () => (viewer ? viewer.sceneInfo().denoise : null),
+  // Draws the image again (the denoised one where shown): copy the canvas in the same task.
+  draw: () => viewer && viewer.draw(),
   clearCache: () => clearCache(),
   get viewer() { return viewer; },
 };
@@ -247,6 +255,14 @@ function frame() {
 // one band, not a whole frame.
 function tick(now) {
   if (viewer && !recovering && viewer.webGpuLost()) recoverWebGpu(viewer.webGpuLost());
+  // The denoiser's WebGPU promises and due denoises, also while paused (test hook frames).
+  if (!busy && viewer && !lost && !recovering && hasScene) {
+    try {
+      viewer.pollDenoise();
+    } catch (e) {
+      showMessage(String(e.message || e));
+    }
+  }
   if (!paused && !busy && viewer && !lost && !recovering && hasScene) {
     applyHeldKeys(now);
     let status = 0;
@@ -291,6 +307,7 @@ function updateReadouts() {
   const info = viewer.sceneInfo();
   $('api-info').textContent = info.api ? `${info.api} (${info.adapter})` : '–';
   $('spp').textContent = info.spp;
+  $('denoise-info').textContent = info.denoise.readout;
   $('size').textContent = `${info.width}×${info.height}`;
   if (frameMs !== null) {
     const samples = (info.width * info.height * 1000) / frameMs;
@@ -604,6 +621,7 @@ $('scene').addEventListener('change', (e) => { if (e.target.value) loadServedSce
 $('strategy').addEventListener('change', (e) => cameraAction(() => viewer.setStrategy(e.target.value)));
 $('tonemap').addEventListener('change', (e) => hook.setToneMap(e.target.value));
 $('exposure').addEventListener('input', (e) => hook.setExposure(Number(e.target.value)));
+$('denoise').addEventListener('change', (e) => hook.setDenoise(e.target.checked));
 $('scale').addEventListener('change', applySize);
 $('reset-camera').addEventListener('click', () => cameraAction(() => viewer.resetCamera()));
 $('clear-cache').addEventListener('click', clearCache);
@@ -714,6 +732,11 @@ async function main() {
   if (params.get('strategy')) hook.setStrategy(params.get('strategy'));
   if (params.get('tonemap')) hook.setToneMap(params.get('tonemap'));
   if (params.has('exposure')) hook.setExposure(Number(params.get('exposure')));
+  if (params.has('denoise')) {
+    const on = params.get('denoise');
+    if (on === '0' || on === '1') hook.setDenoise(on === '1');
+    else showMessage(`invalid denoise=${on} (0: off, 1: on, the default)`);
+  }
   if (params.get('seed')) {
     const seed = Number(params.get('seed'));
     if (Number.isInteger(seed) && seed >= 0 && seed <= 0xffffffff) guarded(() => viewer.setSeed(seed));

@@ -156,6 +156,15 @@ impl Runtime {
         }
     }
 
+    /// Draws a denoised image of the renderer's size (named `id`: uploaded once) through
+    /// `display`, in place of the accumulation's mean.
+    pub fn draw_image(&mut self, image: &tracer::backend::Image, id: u64, display: &Display) -> Result<(), String> {
+        match self {
+            Runtime::WebGl2(r) => r.draw_image(image, id, display),
+            Runtime::WebGpu(r) => r.draw_image(image, id, display),
+        }
+    }
+
     /// The frame loop's step: a band, unless one is on the GPU.
     pub fn step(&mut self, now_ms: f64, display: &Display) -> Result<Step, String> {
         match self {

@@ -5,14 +5,16 @@
 use glow::HasContext;
 use tracer::backend::frame_split::Step;
 use tracer::backend::gl::Pacer;
-use tracer::backend::gl::{GlDisplay, GlOptions, GlRenderer};
-use tracer::backend::Renderer;
+use tracer::backend::gl::{GlDisplay, GlFilter, GlOptions, GlRenderer, QueuedFilter};
+use tracer::backend::{Image, Renderer};
+use tracer::kernel::denoise::FilterImage;
 use tracer::output::Display;
 use tracer::pack::Packed;
 use wasm_bindgen::JsCast;
 use web_sys::{HtmlCanvasElement, WebGl2RenderingContext, WebGlContextAttributes};
 
 use super::Startup;
+use crate::denoise::show::GlImageDisplay;
 use crate::js::now_ms;
 
 /// The WebGL2 context of `canvas` (which must not hold another kind of context).
@@ -44,6 +46,12 @@ pub struct GlRuntime {
     /// Bands of the frame loop (`step`), one on the GPU at a time.
     pacer: Pacer,
     startup: Startup,
+    /// The denoised image's display pass, created at the first denoised image.
+    image_display: Option<GlImageDisplay>,
+    /// The denoiser's filter pass (compiled at the first denoise) and its passes on the GPU:
+    /// while they run, no band is submitted (one job on the GPU at a time, as bands are).
+    filter: Option<GlFilter>,
+    queued: Option<QueuedFilter>,
 }
 
 impl GlRuntime {
@@ -74,7 +82,16 @@ impl GlRuntime {
             compiled_at: Some(created_at),
         };
         let pacer = Pacer::new(packed.scene.height, band_budget_ms);
-        Ok(GlRuntime { context: context.clone(), renderer, display: Some(display), pacer, startup })
+        Ok(GlRuntime {
+            context: context.clone(),
+            renderer,
+            display: Some(display),
+            pacer,
+            startup,
+            image_display: None,
+            filter: None,
+            queued: None,
+        })
     }
 
     pub fn renderer(&self) -> &GlRenderer {
@@ -110,6 +127,42 @@ impl GlRuntime {
         }
     }
 
+    /// Draws `image` (a denoised image of the renderer's size, known as `id`) through `settings`.
+    pub fn draw_image(&mut self, image: &Image, id: u64, settings: &Display) -> Result<(), String> {
+        if self.image_display.is_none() {
+            self.image_display = Some(GlImageDisplay::new(self.renderer.gl())?);
+        }
+        if let Some(display) = &mut self.image_display {
+            display.draw(self.renderer.gl(), image, id, settings);
+        }
+        Ok(())
+    }
+
+    /// Queues the denoiser's passes over `image` (the previous queued ones, if any, dropped);
+    /// [`filter_output`](Self::filter_output) has their output once they are done.
+    pub fn queue_filter(&mut self, image: &FilterImage) -> Result<(), String> {
+        let gl = self.renderer.gl();
+        if let Some(old) = self.queued.take() {
+            old.delete(gl);
+        }
+        if self.filter.is_none() {
+            self.filter = Some(GlFilter::new(gl).map_err(|e| e.to_string())?);
+        }
+        let filter = self.filter.as_ref().expect("created above");
+        self.queued = Some(filter.queue(gl, image).map_err(|e| e.to_string())?);
+        Ok(())
+    }
+
+    /// The queued passes' output once they are done (`None`: none queued, or not done yet).
+    pub fn filter_output(&mut self) -> Option<Result<Vec<glam::Vec4>, String>> {
+        let gl = self.renderer.gl();
+        if !self.queued.as_ref()?.done(gl) {
+            return None;
+        }
+        let queued = self.queued.take()?;
+        Some(queued.read(gl).map_err(|e| e.to_string()))
+    }
+
     /// One whole frame in one submission, then the display pass.
     pub fn frame(&mut self, settings: &Display) -> Result<(), String> {
         // The band in flight would be timed with this whole frame.
@@ -121,6 +174,9 @@ impl GlRuntime {
 
     /// The frame loop's step (see `Viewer::step`).
     pub fn step(&mut self, now_ms: f64, settings: &Display) -> Result<Step, String> {
+        if self.queued.as_ref().is_some_and(|q| !q.done(self.renderer.gl())) {
+            return Ok(Step::Waiting);
+        }
         let (w, h) = self.size();
         let display = self.display.as_ref();
         self.pacer
@@ -155,6 +211,15 @@ impl Drop for GlRuntime {
         self.pacer.forget(self.renderer.gl());
         if let Some(display) = self.display.take() {
             display.delete(self.renderer.gl());
+        }
+        if let Some(display) = self.image_display.take() {
+            display.delete(self.renderer.gl());
+        }
+        if let Some(queued) = self.queued.take() {
+            queued.delete(self.renderer.gl());
+        }
+        if let Some(filter) = self.filter.take() {
+            filter.delete(self.renderer.gl());
         }
     }
 }

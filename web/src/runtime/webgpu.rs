@@ -16,7 +16,7 @@ use std::sync::{Arc, Mutex};
 
 use tracer::backend::frame_split::{BandPolicy, Step};
 use tracer::backend::wgpu::{DisplayPass, PipelineCheck, WgpuDevice, WgpuOptions, WgpuRenderer};
-use tracer::backend::Renderer;
+use tracer::backend::{Image, Renderer};
 use tracer::output::Display;
 use tracer::pack::Packed;
 use wasm_bindgen::prelude::*;
@@ -24,6 +24,7 @@ use wasm_bindgen::JsCast;
 use web_sys::HtmlCanvasElement;
 
 use super::Startup;
+use crate::denoise::show::GpuImageDisplay;
 use crate::js::now_ms;
 
 /// A WebGPU device for the viewer (what `requestWebGpu()` resolves to), and whether it was lost.
@@ -112,6 +113,9 @@ pub struct GpuRuntime {
     /// What creating it took; `compiled_at` once the verdict arrived.
     startup: Startup,
     compiled_at: Rc<Cell<Option<f64>>>,
+    /// The canvas's format, and the denoised image's display pass (created at the first one).
+    format: wgpu::TextureFormat,
+    image_display: Option<GpuImageDisplay>,
 }
 
 /// A band submitted to the queue and not yet seen done.
@@ -192,7 +196,19 @@ impl GpuRuntime {
             compiled_at: None,
         };
         let policy = BandPolicy::new(height, band_budget_ms);
-        Ok(GpuRuntime { renderer, surface, display, policy, in_flight: None, compile_error, startup, compiled_at })
+        let format = config.format;
+        Ok(GpuRuntime {
+            renderer,
+            surface,
+            display,
+            policy,
+            in_flight: None,
+            compile_error,
+            startup,
+            compiled_at,
+            format,
+            image_display: None,
+        })
     }
 
     pub fn renderer(&self) -> &WgpuRenderer {
@@ -239,6 +255,25 @@ impl GpuRuntime {
         let view = texture.texture.create_view(&Default::default());
         self.display.draw(&self.renderer, &view, settings);
         self.renderer.device().queue.present(texture);
+    }
+
+    /// Draws `image` (a denoised image of the renderer's size, known as `id`) through
+    /// `settings` (skipped when the surface has no texture now).
+    pub fn draw_image(&mut self, image: &Image, id: u64, settings: &Display) -> Result<(), String> {
+        let device = self.renderer.device();
+        if self.image_display.is_none() {
+            self.image_display = Some(GpuImageDisplay::new(&device.device, self.format)?);
+        }
+        let texture = match self.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            _ => return Ok(()),
+        };
+        let view = texture.texture.create_view(&Default::default());
+        if let Some(display) = &mut self.image_display {
+            display.draw(&device.device, &device.queue, &view, image, id, settings);
+        }
+        device.queue.present(texture);
+        Ok(())
     }
 
     /// The rest of the frame in one submission, then the display pass.

@@ -7,6 +7,10 @@
 //! The filter's texel arrays are bound as image-sized textures (width = the image's width):
 //! the shader's `lp_fetch_vec4` divides the texel index `y * width + x` by the texture's width,
 //! so texel (x, y) is pixel (x, y), and a framebuffer the pass wrote is read as an array.
+//!
+//! [`GlFilter::run`] waits for the output; [`GlFilter::queue`] only queues the passes behind a
+//! fence ([`QueuedFilter`]), for a caller that must not block (the browser page polls the fence
+//! from its frame loop and reads the output once it is signalled).
 
 use glam::Vec4;
 use glow::HasContext;
@@ -60,6 +64,11 @@ impl GlFilter {
     /// `ATROUS_ITERATIONS` passes over `image` at steps 1, 2, 4, ...; the last pass's output.
     /// The image must fit the context's texture and viewport limits.
     pub fn run(&self, gl: &glow::Context, image: &FilterImage) -> Result<Vec<Vec4>, GlError> {
+        self.queue(gl, image)?.read(gl)
+    }
+
+    /// [`run`](Self::run)'s passes queued and flushed behind a fence, without waiting for them.
+    pub fn queue(&self, gl: &glow::Context, image: &FilterImage) -> Result<QueuedFilter, GlError> {
         let (width, height) = (image.width, image.height);
         let pixels = width as usize * height as usize;
         if image.color.len() != pixels || image.guide.len() != pixels || pixels == 0 {
@@ -81,12 +90,30 @@ impl GlFilter {
             }
         }
         let mut objects = Objects::default();
-        let result = self.passes(gl, image, &mut objects);
-        objects.delete(gl);
-        result
+        let framebuffer = match self.passes(gl, image, &mut objects) {
+            Ok(f) => f,
+            Err(e) => {
+                objects.delete(gl);
+                return Err(e);
+            }
+        };
+        // SAFETY: a fence and a flush on the current context. Without sync objects, no fence:
+        // the read then simply waits.
+        let fence = unsafe {
+            let fence = gl.fence_sync(glow::SYNC_GPU_COMMANDS_COMPLETE, 0).ok();
+            gl.flush();
+            fence
+        };
+        Ok(QueuedFilter { objects, framebuffer, width, height, fence })
     }
 
-    fn passes(&self, gl: &glow::Context, image: &FilterImage, objects: &mut Objects) -> Result<Vec<Vec4>, GlError> {
+    /// Queues the passes; the framebuffer holding the last pass's output.
+    fn passes(
+        &self,
+        gl: &glow::Context,
+        image: &FilterImage,
+        objects: &mut Objects,
+    ) -> Result<glow::Framebuffer, GlError> {
         let (width, height) = (image.width as i32, image.height as i32);
         let guide = image_texture(gl, image.width, image.height, image.guide.as_slice(), objects)?;
         let blank = vec![Vec4::ZERO; image.color.len()];
@@ -139,7 +166,7 @@ impl GlFilter {
             gl.bind_framebuffer(glow::FRAMEBUFFER, None);
             gl.use_program(None);
         }
-        read_image(gl, framebuffers[current], 0, image.width, image.height)
+        Ok(framebuffers[current])
     }
 
     /// Deletes the program on `gl` (the context it was created on, current).
@@ -149,5 +176,47 @@ impl GlFilter {
             gl.delete_program(self.program);
             gl.delete_vertex_array(self.vertex_array);
         }
+    }
+}
+
+/// Filter passes queued on a context ([`GlFilter::queue`]): their images and the fence behind
+/// them. [`read`](Self::read) or [`delete`](Self::delete) it on the same context.
+pub struct QueuedFilter {
+    objects: Objects,
+    framebuffer: glow::Framebuffer,
+    width: u32,
+    height: u32,
+    fence: Option<glow::Fence>,
+}
+
+impl QueuedFilter {
+    /// Whether the passes are done, without blocking (no fence, or a lost context: true, and
+    /// [`read`](Self::read) then waits or fails).
+    pub fn done(&self, gl: &glow::Context) -> bool {
+        let Some(fence) = self.fence else { return true };
+        // SAFETY: a zero-timeout poll of a fence of this context.
+        let status = unsafe { gl.client_wait_sync(fence, 0, 0) };
+        status != glow::TIMEOUT_EXPIRED
+    }
+
+    /// The last pass's output per pixel (waiting for the passes if they are not done); the
+    /// objects are deleted.
+    pub fn read(mut self, gl: &glow::Context) -> Result<Vec<Vec4>, GlError> {
+        let output = read_image(gl, self.framebuffer, 0, self.width, self.height);
+        self.release(gl);
+        output
+    }
+
+    /// Deletes the objects without reading (the output is no longer wanted).
+    pub fn delete(mut self, gl: &glow::Context) {
+        self.release(gl);
+    }
+
+    fn release(&mut self, gl: &glow::Context) {
+        if let Some(fence) = self.fence.take() {
+            // SAFETY: the fence belongs to this context and is deleted once.
+            unsafe { gl.delete_sync(fence) };
+        }
+        self.objects.delete(gl);
     }
 }
