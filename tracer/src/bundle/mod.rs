@@ -59,8 +59,9 @@ pub const MAGIC: [u8; 8] = *b"LPBUNDLE";
 /// `scene.has_texcoord1`, `scene.texture_ref_first`, `scene.texcoord1_first`. 7: textures as
 /// image files, `textures.images`, `textures.image_ends`, `textures.image_of`; LZMA2-compressed
 /// entries. 8: `features.transmission`, `features.volume`, `scene.has_transmission`,
-/// `scene.has_volume`, `scene.transmission_first`.)
-pub const VERSION: u32 = 8;
+/// `scene.has_volume`, `scene.transmission_first`. 9: `scene.frame_index` (stratified pixel
+/// samples) and `scene.has_denoise_guide`.)
+pub const VERSION: u32 = 9;
 /// The largest bundle accepted (and produced): well within wasm32's 4 GiB address space.
 pub const MAX_BUNDLE_BYTES: u64 = 1 << 30;
 /// File extension used for bundles (the server serves `/bundles/<hash>.lpb`).
