@@ -129,11 +129,12 @@ impl GlRuntime {
 
     /// Draws `image` (a denoised image of the renderer's size, known as `id`) through `settings`.
     pub fn draw_image(&mut self, image: &Image, id: u64, settings: &Display) -> Result<(), String> {
+        let Some(pass) = &self.display else { return Ok(()) };
         if self.image_display.is_none() {
             self.image_display = Some(GlImageDisplay::new(self.renderer.gl())?);
         }
         if let Some(display) = &mut self.image_display {
-            display.draw(self.renderer.gl(), image, id, settings);
+            display.draw(self.renderer.gl(), pass, image, id, settings);
         }
         Ok(())
     }

@@ -113,9 +113,8 @@ pub struct GpuRuntime {
     /// What creating it took; `compiled_at` once the verdict arrived.
     startup: Startup,
     compiled_at: Rc<Cell<Option<f64>>>,
-    /// The canvas's format, and the denoised image's display pass (created at the first one).
-    format: wgpu::TextureFormat,
-    image_display: Option<GpuImageDisplay>,
+    /// The denoised image, as the display pass reads it.
+    image_display: GpuImageDisplay,
 }
 
 /// A band submitted to the queue and not yet seen done.
@@ -196,7 +195,6 @@ impl GpuRuntime {
             compiled_at: None,
         };
         let policy = BandPolicy::new(height, band_budget_ms);
-        let format = config.format;
         Ok(GpuRuntime {
             renderer,
             surface,
@@ -206,8 +204,7 @@ impl GpuRuntime {
             compile_error,
             startup,
             compiled_at,
-            format,
-            image_display: None,
+            image_display: GpuImageDisplay::default(),
         })
     }
 
@@ -261,17 +258,12 @@ impl GpuRuntime {
     /// `settings` (skipped when the surface has no texture now).
     pub fn draw_image(&mut self, image: &Image, id: u64, settings: &Display) -> Result<(), String> {
         let device = self.renderer.device();
-        if self.image_display.is_none() {
-            self.image_display = Some(GpuImageDisplay::new(&device.device, self.format)?);
-        }
         let texture = match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
             _ => return Ok(()),
         };
         let view = texture.texture.create_view(&Default::default());
-        if let Some(display) = &mut self.image_display {
-            display.draw(&device.device, &device.queue, &view, image, id, settings);
-        }
+        self.image_display.draw(&device.device, &device.queue, &self.display, &view, image, id, settings);
         device.queue.present(texture);
         Ok(())
     }

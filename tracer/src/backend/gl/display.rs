@@ -77,21 +77,36 @@ impl GlDisplay {
         &self,
         renderer: &GlRenderer,
         framebuffer: Option<glow::Framebuffer>,
-        [width, height]: [i32; 2],
+        size: [i32; 2],
         display: &Display,
     ) {
-        let gl = renderer.gl();
-        // SAFETY: draws with objects of this context into `framebuffer`; the accumulation
-        // texture is only read, and every binding is reset afterwards.
+        let texture = renderer.first_frame_in_progress().unwrap_or(renderer.accumulation_texture());
+        let inverse_frames = 1.0 / renderer.frames().max(1) as f32;
+        self.draw_texture(renderer.gl(), texture, framebuffer, size, inverse_frames, display);
+    }
+
+    /// Draws the RGBA32F `texture` (a running sum, or an image with `inverse_frames` 1, row y
+    /// = image row y from the top) through `display` into `framebuffer` over a `width` x
+    /// `height` viewport, on `gl` (the context the pass was created on).
+    pub fn draw_texture(
+        &self,
+        gl: &glow::Context,
+        texture: glow::Texture,
+        framebuffer: Option<glow::Framebuffer>,
+        [width, height]: [i32; 2],
+        inverse_frames: f32,
+        display: &Display,
+    ) {
+        // SAFETY: draws with objects of this context into `framebuffer`; the texture is only
+        // read, and every binding is reset afterwards.
         unsafe {
             gl.bind_framebuffer(glow::FRAMEBUFFER, framebuffer);
             gl.viewport(0, 0, width, height);
             gl.use_program(Some(self.program));
             gl.active_texture(glow::TEXTURE0);
-            let texture = renderer.first_frame_in_progress().unwrap_or(renderer.accumulation_texture());
             gl.bind_texture(glow::TEXTURE_2D, Some(texture));
             gl.uniform_1_i32(self.accumulation.as_ref(), 0);
-            gl.uniform_1_f32(self.inverse_frames.as_ref(), 1.0 / renderer.frames().max(1) as f32);
+            gl.uniform_1_f32(self.inverse_frames.as_ref(), inverse_frames);
             gl.uniform_1_u32(self.operator.as_ref(), display.tone_map.kernel_id());
             gl.uniform_1_f32(self.exposure_scale.as_ref(), display.exposure.exp2());
             gl.bind_vertex_array(Some(self.vertex_array));

@@ -115,21 +115,34 @@ impl DisplayPass {
     /// Draws `renderer`'s current mean through `settings` into `target` (the renderer's image
     /// size).
     pub fn draw(&self, renderer: &WgpuRenderer, target: &wgpu::TextureView, settings: &Display) {
-        let device = &renderer.device().device;
-        let queue = &renderer.device().queue;
-        let scene = &renderer.packed().scene;
-        let words: [u32; 4] = [
-            scene.width,
-            (1.0 / renderer.frames().max(1) as f32).to_bits(),
-            settings.tone_map.kernel_id(),
-            settings.exposure.exp2().to_bits(),
-        ];
+        let device = renderer.device();
+        let width = renderer.packed().scene.width;
+        let inverse_frames = 1.0 / renderer.frames().max(1) as f32;
+        let sums = renderer.accumulation_buffer();
+        self.draw_buffer(&device.device, &device.queue, target, sums, width, inverse_frames, settings);
+    }
+
+    /// Draws `pixels` (a storage buffer of `vec4<f32>`, `width` per row, row 0 at the top: a
+    /// running sum, or an image with `inverse_frames` 1) through `settings` into `target`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn draw_buffer(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        target: &wgpu::TextureView,
+        pixels: &wgpu::Buffer,
+        width: u32,
+        inverse_frames: f32,
+        settings: &Display,
+    ) {
+        let words: [u32; 4] =
+            [width, inverse_frames.to_bits(), settings.tone_map.kernel_id(), settings.exposure.exp2().to_bits()];
         queue.write_buffer(&self.uniform, 0, bytemuck::cast_slice(&words));
         let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("lightport display"),
             layout: &self.layout,
             entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: renderer.accumulation_buffer().as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 0, resource: pixels.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 1, resource: self.uniform.as_entire_binding() },
             ],
         });
