@@ -31,7 +31,7 @@ uniform uint scene_has_alpha_mask;
 uniform uint scene_has_texture_transform;
 uniform uint scene_has_texcoord1;
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:114)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:118)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -41,7 +41,7 @@ struct TriangleData {
     bool masked;
 };
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:126)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:130)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -168,7 +168,7 @@ float luminance(vec3 c) {
     return dot(c, vec3(0.2126, 0.7152, 0.0722));
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:134)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
@@ -191,7 +191,7 @@ float light_pmf(uint index) {
     return lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS).z;
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:157)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:161)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
@@ -288,7 +288,7 @@ vec2 texcoord1(uint triangle, float u, float v) {
     return vec2(a.x, a.y) * (1.0 - u - v) + vec2(a.z, a.w) * u + vec2(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:178)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:182)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -420,7 +420,7 @@ uint search_sky_column(uint row, float u) {
     return lo;
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:142)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:146)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);

@@ -32,7 +32,7 @@ struct SceneUniforms {
 @group(0) @binding(1) var<storage, read> lp_scene_vec4f: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> lp_scene_vec4u: array<vec4<u32>>;
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:114)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:118)
 struct TriangleData {
     v0: vec3<f32>,
     v1: vec3<f32>,
@@ -42,7 +42,7 @@ struct TriangleData {
     masked: bool,
 }
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:126)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:130)
 struct MaterialData {
     base_color: vec3<f32>,
     base_texture: u32,
@@ -144,7 +144,7 @@ fn luminance(c: vec3<f32>) -> f32 {
     return dot(c, vec3<f32>(0.2126, 0.7152, 0.0722));
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:134)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
@@ -167,7 +167,7 @@ fn light_pmf(index: u32) -> f32 {
     return lp_scene_vec4f[scene.lp_start_lights + index * LIGHT_TEXELS].z;
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:157)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:161)
 fn fetch_material(index: u32) -> MaterialData {
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + index * MATERIAL_TEXELS];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (index * MATERIAL_TEXELS + 1u)];
@@ -264,7 +264,7 @@ fn texcoord1(triangle: u32, u: f32, v: f32) -> vec2<f32> {
     return vec2<f32>(a.x, a.y) * (1.0 - u - v) + vec2<f32>(a.z, a.w) * u + vec2<f32>(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:178)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:182)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + base].w, lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].w);
@@ -396,7 +396,7 @@ fn search_sky_column(row: u32, u: f32) -> u32 {
     return lo;
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:142)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:146)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];

@@ -17,7 +17,7 @@ struct SceneUniforms {
 @group(0) @binding(1) var<storage, read> lp_scene_vec4f: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> lp_scene_vec4u: array<vec4<u32>>;
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:126)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:130)
 struct MaterialData {
     base_color: vec3<f32>,
     base_texture: u32,
@@ -25,7 +25,7 @@ struct MaterialData {
     emissive_texture: u32,
 }
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:189)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:193)
 struct MetalRoughData {
     metallic: f32,
     roughness: f32,
@@ -253,12 +253,12 @@ fn metal_rough_sample(s: Surface, wo: vec3<f32>, u: vec3<f32>) -> BrdfSample {
     return BrdfSample(wi, pdf, weight);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:134)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:198)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:202)
 fn fetch_metal_rough(index: u32) -> MetalRoughData {
     let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_metal_rough + index];
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
@@ -272,7 +272,7 @@ fn texcoord1(triangle: u32, u: f32, v: f32) -> vec2<f32> {
     return vec2<f32>(a.x, a.y) * (1.0 - u - v) + vec2<f32>(a.z, a.w) * u + vec2<f32>(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:178)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:182)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + base].w, lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].w);

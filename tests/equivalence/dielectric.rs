@@ -233,7 +233,7 @@ fn glass_scene_functions_agree() {
             let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
             let triangle = r.next_u32() % triangles;
             let m = scene_data::fetch_triangle(&k, triangle).material;
-            let hit = Hit { triangle, t: 1.0, u, v };
+            let hit = Hit { triangle, t: 1.0, u, v, instance: 0 };
             let flip = if i % 2 == 0 { 1.0 } else { -1.0 };
             let lobe = r.f32();
             let material = scene_data::fetch_material(&k, m);

@@ -123,7 +123,7 @@ fn normal_map_functions_agree() {
             let wo = ((side - ng * side.dot(ng)).normalize_or_zero() + ng * 10f32.powf(-r.range(0.0, 4.0)))
                 .normalize_or_zero();
             let ns = if n.dot(ng) > 0.0 { n } else { ng };
-            let hit = Hit { triangle: i, t: 1.0, u, v };
+            let hit = Hit { triangle: i, t: 1.0, u, v, instance: 0 };
             // Skip cases near the bend's decision for the mapped normal as the CPU computes it.
             let mapped = {
                 let map = normal_map::fetch_normal_map(&k, tri.material);

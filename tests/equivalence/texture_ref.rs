@@ -125,7 +125,7 @@ fn texture_reference_functions_agree() {
             let r = mapped * (2.0 * mapped.dot(wo)) - wo;
             mapped.dot(wo) > 1e-2 && r.y > normal_map::MIN_REFLECTION_COSINE + 1e-2
         })
-        .map(|&(t, u, v)| (Hit { triangle: t, t: 1.0, u, v }, 0, Vec3::Y, 1.0, Vec3::Y, wo))
+        .map(|&(t, u, v)| (Hit { triangle: t, t: 1.0, u, v, instance: 0 }, 0, Vec3::Y, 1.0, Vec3::Y, wo))
         .collect();
     // This map (the colour texture read as normals) tilts most normals far enough to be bent:
     // some 185 of 4096 points are left, spread over the square.

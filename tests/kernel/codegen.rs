@@ -318,6 +318,26 @@ fn the_denoisers_guide_is_in_the_kernel_only_when_asked_for() {
     }
 }
 
+/// Two levels cost a one-level scene nothing: without `Features::instances` the kernel has no
+/// instance code (left: the traversal's few locals for the instance state, which are never
+/// read and which shader compilers drop), with it the loop enters placements and hits are
+/// brought back to world space, in GLSL and WGSL.
+#[test]
+fn two_level_traversal_is_in_the_kernel_only_for_scenes_with_instances() {
+    use tracer::kernel::Features;
+    let plain = Features { emissive_triangles: true, ..Default::default() };
+    let two_level = Features { instances: true, ..plain };
+    for target in [Target::GlslEs300, Target::Wgsl] {
+        let without = tracer::kernel::path_tracer_shader(&plain, target).unwrap().source;
+        let with = tracer::kernel::path_tracer_shader(&two_level, target).unwrap().source;
+        for extra in ["instance_ray", "instance_texel", "instance_handedness", "affine_point"] {
+            assert!(with.contains(extra), "{target:?}: the two-level kernel has {extra}");
+            assert!(!without.contains(extra), "{target:?}: a one-level kernel must not carry {extra}");
+        }
+        assert!(!without.contains("has_instances") && !with.contains("has_instances"), "{target:?}: folded");
+    }
+}
+
 #[test]
 fn every_kernel_function_has_a_valid_equivalence_harness() {
     let program = tracer_program();

@@ -189,3 +189,64 @@ fn trees_that_fit_push_every_leaf() {
     assert!(need < STACK_SIZE as u32);
     assert_eq!((packed.features.traversal_stack, packed.scene.leaf_stack_limit), (need, need));
 }
+
+/// Two levels (`kernel::instances`): traversal of the top level and the placed meshes in one
+/// loop finds, for every ray, the closest hit that brute force finds over the same scene
+/// flattened (`Scene::bake_instances`), at the same distance; mirrored and non-uniformly
+/// scaled placements included, with leaves pushed or intersected at once, and the shadow test
+/// agrees.
+fn check_two_level(scene: &Scene, rays: usize) {
+    let packed = tracer::pack::build_and_pack(scene, &RenderSettings::default()).expect("pack").1;
+    assert!(packed.features.instances, "{:?}", packed.features);
+    let k = &packed.scene;
+    let mut leaves_at_once = k.clone();
+    leaves_at_once.leaf_stack_limit = 0;
+    let mut flat = scene.clone();
+    flat.bake_instances();
+    let b = scene.bounds();
+    let (lo, hi) = (b.min - b.diagonal() * 0.25, b.max + b.diagonal() * 0.25);
+    let mut rng = XorShift(4242);
+    let (mut hits, mut ties) = (0, 0);
+    for _ in 0..rays {
+        let origin = rng.in_box(lo, hi);
+        let dir = (rng.in_box(b.min, b.max) - origin).normalize();
+        let best = tracer::bvh::intersect_brute_force(&flat.triangles, origin, dir, MISS);
+        hits += best.is_some() as usize;
+        for traversal in [k, &leaves_at_once] {
+            let got = trace_closest(traversal, origin, dir, MISS);
+            match best {
+                None => assert_eq!(got.triangle, NONE, "ray {origin:?} {dir:?}: a hit where brute force finds none"),
+                Some(want) => {
+                    assert!(got.triangle != NONE, "ray {origin:?} {dir:?}: missed {want:?}");
+                    let gap = (got.t - want.t).abs() / want.t.max(1.0);
+                    // Hits in a placement's space are computed there: distances agree to rounding.
+                    assert!(gap <= 1e-4, "ray {origin:?} {dir:?}: t {} vs brute force {}", got.t, want.t);
+                    ties += (gap > 1e-6) as usize;
+                }
+            }
+        }
+        assert_eq!(occluded(k, origin, dir, MISS), best.is_some());
+        if let Some(want) = best {
+            assert!(!occluded(k, origin, dir, want.t * 0.999), "ray {origin:?} {dir:?}: occluded before {want:?}");
+        }
+    }
+    assert!(hits > rays / 10, "too few rays hit ({hits} of {rays}): the test would prove little");
+    assert!(ties < rays / 100, "{ties} hits whose distance differs beyond 1e-6");
+}
+
+#[test]
+fn two_level_instanced_shapes() {
+    check_two_level(&scene::instanced_shapes(6), 20_000);
+}
+
+/// A placement-only scene (no static triangles), several placements with the same bounds (a
+/// top-level leaf of several is entered one placement after the other).
+#[test]
+fn two_level_coincident_placements_without_static_triangles() {
+    let mut s = scene::instanced_shapes(3);
+    s.triangles.retain(|t| t.material != 2);
+    s.triangles.clear();
+    let first = s.instances[0];
+    s.instances.extend(std::iter::repeat_n(first, 40));
+    check_two_level(&s, 5_000);
+}

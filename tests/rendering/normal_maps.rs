@@ -371,7 +371,7 @@ fn adversarial_maps_stay_finite_and_on_the_viewer_side() {
         let ng = face * flip;
         let side = Vec3::new(r.range(-1.0, 1.0), 0.0, r.range(-1.0, 1.0)).normalize_or(Vec3::X);
         let wo = (side + ng * 10f32.powf(-r.range(0.0, 6.0))).normalize();
-        let hit = Hit { triangle, t: 1.0, u, v };
+        let hit = Hit { triangle, t: 1.0, u, v, instance: 0 };
         let n = normal_mapped(k, hit, tri.material, ng, flip, ng, wo);
         assert!(n.is_finite() && (n.length() - 1.0).abs() < 1e-4, "{n}");
         assert!(n.dot(ng) > 0.0 && n.dot(wo) > 0.0, "{n} with ng {ng}, wo {wo}");

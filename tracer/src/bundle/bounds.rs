@@ -11,6 +11,7 @@
 //! texel arithmetic within `i32`/`u32`.
 
 use super::BundleError;
+use crate::kernel::instances::INSTANCE_TEXELS;
 use crate::kernel::scene_data::{
     Scene, GLASS_TEXELS, LIGHT_SKY, LIGHT_TEXELS, LIGHT_TRIANGLE, MATERIAL_TEXELS, NODE_TEXELS, SHADING_TEXELS,
     TEXTURE_TEXELS_PER_ELEMENT, TRIANGLE_TEXELS, WRAP_MIRROR,
@@ -38,7 +39,11 @@ fn float_index(x: f32, count: usize) -> Option<Option<usize>> {
 /// `check_consistency`).
 pub(super) fn check_indices(p: &Packed) -> Result<(), BundleError> {
     let s = &p.scene;
-    check_nodes(s, p.triangle_count)?;
+    if s.has_instances != 0 {
+        check_two_level_nodes(s, p.triangle_count)?;
+    } else {
+        check_nodes(s, p.triangle_count)?;
+    }
     let textures = check_textures(s)?;
     let materials = check_materials(s, textures)?;
     check_triangles(s, p.triangle_count, materials, p.light_count)?;
@@ -58,9 +63,18 @@ fn check_nodes(s: &Scene, triangle_count: usize) -> Result<(), BundleError> {
     if count == 0 || Some(s.nodes.len()) != count.checked_mul(NODE_TEXELS as usize) {
         return fail(format!("{} node plane texels for {count} nodes (at least the root)", s.nodes.len()));
     }
+    check_tree(s, &|_| (triangle_count, true))
+}
+
+/// The node tree's structure (see [`check_nodes`]), with `leaf_items(node)` the number of
+/// items a leaf of `node` may name, and whether they are triangles (each in one leaf at most)
+/// or a two-level scene's top-level placements.
+fn check_tree(s: &Scene, leaf_items: &dyn Fn(usize) -> (usize, bool)) -> Result<(), BundleError> {
+    let count = s.node_children.len();
     let mut has_parent = vec![false; count];
     let mut leaves = Vec::new();
     for (i, children) in s.node_children.as_slice().iter().enumerate() {
+        let (triangle_count, triangles) = leaf_items(i);
         for (slot, entry) in children.to_array().into_iter().enumerate() {
             let (first, leaf) = ((entry >> 8) as usize, (entry & 255) as usize);
             if leaf > 0 {
@@ -70,7 +84,9 @@ fn check_nodes(s: &Scene, triangle_count: usize) -> Result<(), BundleError> {
                         first + leaf
                     ));
                 }
-                leaves.push((first, first + leaf));
+                if triangles {
+                    leaves.push((first, first + leaf));
+                }
             } else if first != 0 {
                 if first <= i || first >= count {
                     return fail(format!(
@@ -87,6 +103,50 @@ fn check_nodes(s: &Scene, triangle_count: usize) -> Result<(), BundleError> {
     leaves.sort_unstable();
     if let Some(w) = leaves.windows(2).find(|w| w[1].0 < w[0].1) {
         return fail(format!("leaves of triangles {}..{} and {}..{} overlap", w[0].0, w[0].1, w[1].0, w[1].1));
+    }
+    Ok(())
+}
+
+/// A two-level scene (`kernel::instances`): the nodes' planes then the placements' texels in
+/// `nodes`; the top level (the nodes reachable from the root) has leaves of placements, every
+/// other node leaves of triangles; each placement's root is a node outside the top level (so
+/// that a placement's traversal never reaches top-level leaves), its transforms are finite, its
+/// handedness ±1 and its identity flag 0 or 1.
+fn check_two_level_nodes(s: &Scene, triangle_count: usize) -> Result<(), BundleError> {
+    let count = s.node_children.len();
+    let first = s.instance_first as usize;
+    let texels = s.nodes.len();
+    if count == 0 || Some(first) != count.checked_mul(NODE_TEXELS as usize) || texels < first {
+        return fail(format!("{texels} node texels, placements from {first}, for {count} nodes"));
+    }
+    let placements = (texels - first) / INSTANCE_TEXELS as usize;
+    if placements == 0 || !(texels - first).is_multiple_of(INSTANCE_TEXELS as usize) {
+        return fail(format!("{} placement texels: not a whole number of placements", texels - first));
+    }
+    // The top level: node 0 and the child nodes below it (children come after their parent,
+    // which `check_tree` checks, so one pass in order finds them).
+    let mut top = vec![false; count];
+    top[0] = true;
+    for (i, children) in s.node_children.as_slice().iter().enumerate() {
+        if top[i] {
+            for entry in children.to_array() {
+                let (child, leaf) = ((entry >> 8) as usize, entry & 255);
+                if leaf == 0 && child != 0 && child < count {
+                    top[child] = true;
+                }
+            }
+        }
+    }
+    check_tree(s, &|node| if top[node] { (placements, false) } else { (triangle_count, true) })?;
+    for (p, texel) in s.nodes.as_slice()[first..].chunks_exact(INSTANCE_TEXELS as usize).enumerate() {
+        let info = texel[INSTANCE_TEXELS as usize - 1];
+        let root = float_index(info.x, count).flatten();
+        if root.is_none_or(|r| top[r]) {
+            return fail(format!("placement {p}: root node {} (of {count}, outside the top level)", info.x));
+        }
+        if !texel.iter().all(|t| t.is_finite()) || info.y.abs() != 1.0 || !(info.z == 0.0 || info.z == 1.0) {
+            return fail(format!("placement {p}: transform or flags not valid ({texel:?})"));
+        }
     }
     Ok(())
 }

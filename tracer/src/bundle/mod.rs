@@ -60,8 +60,9 @@ pub const MAGIC: [u8; 8] = *b"LPBUNDLE";
 /// image files, `textures.images`, `textures.image_ends`, `textures.image_of`; LZMA2-compressed
 /// entries. 8: `features.transmission`, `features.volume`, `scene.has_transmission`,
 /// `scene.has_volume`, `scene.transmission_first`. 9: `scene.frame_index` (stratified pixel
-/// samples) and `scene.has_denoise_guide`.)
-pub const VERSION: u32 = 9;
+/// samples) and `scene.has_denoise_guide`. 10: two-level scenes: `features.instances`,
+/// `scene.has_instances`, `scene.instance_first`, placements appended to `scene.nodes`.)
+pub const VERSION: u32 = 10;
 /// The largest bundle accepted (and produced): well within wasm32's 4 GiB address space.
 pub const MAX_BUNDLE_BYTES: u64 = 1 << 30;
 /// File extension used for bundles (the server serves `/bundles/<hash>.lpb`).
@@ -401,6 +402,46 @@ mod tests {
         let mut q = p.clone();
         q.features.sky = true;
         assert!(matches!(decode(&encode(&q)).unwrap_err(), BundleError::Inconsistent(_)));
+    }
+
+    /// A two-level scene (meshes once, placements) round-trips to the same image; placements
+    /// whose root, transform or flags the kernel could not follow are refused.
+    #[test]
+    fn two_level_scenes_round_trip_and_bad_placements_are_refused() {
+        let scene = crate::scene::instanced_shapes(4);
+        let p = crate::pack::build_and_pack(&scene, &RenderSettings { width: 24, height: 16, ..Default::default() })
+            .expect("pack")
+            .1;
+        assert!(p.features.instances);
+        let bytes = encode_named("instanced", &p);
+        let back = Bundle::decode(&bytes).expect("decodes").packed;
+        let (a, b) = (render(p.clone()), render(back));
+        assert!(a
+            .pixels
+            .iter()
+            .zip(&b.pixels)
+            .all(|(x, y)| x.to_array().map(f32::to_bits) == y.to_array().map(f32::to_bits)));
+        let first = p.scene.instance_first as usize;
+        let info = first + crate::kernel::instances::INSTANCE_TEXELS as usize - 1;
+        let corrupt = |f: &dyn Fn(&mut Packed)| {
+            let mut q = p.clone();
+            f(&mut q);
+            decode(&encode(&q)).unwrap_err()
+        };
+        let set = |q: &mut Packed, i: usize, v: glam::Vec4| {
+            let mut texels = q.scene.nodes.as_slice().to_vec();
+            texels[i] = v;
+            q.scene.nodes = kernel_dsl::Texels::new(texels);
+        };
+        // A root in the top level (node 0) would treat placements as triangles.
+        let e = corrupt(&|q| set(q, info, glam::Vec4::new(0.0, 1.0, 0.0, 0.0)));
+        assert!(matches!(&e, BundleError::Inconsistent(m) if m.contains("root node")), "{e}");
+        let e = corrupt(&|q| set(q, info, glam::Vec4::new(1e9, 1.0, 0.0, 0.0)));
+        assert!(matches!(&e, BundleError::Inconsistent(m) if m.contains("root node")), "{e}");
+        let e = corrupt(&|q| set(q, first, glam::Vec4::splat(f32::NAN)));
+        assert!(matches!(&e, BundleError::Inconsistent(m) if m.contains("transform")), "{e}");
+        let e = corrupt(&|q| q.scene.instance_first += 1);
+        assert!(matches!(&e, BundleError::Inconsistent(_)), "{e}");
     }
 
     /// Random corruption: every outcome is a value (Ok when only data bytes changed), never a panic.

@@ -208,6 +208,29 @@ pub fn build_with(triangles: &[Triangle], options: &BuildOptions) -> Result<Bvh,
         }
         aabbs.push(triangle_aabb(t));
     }
+    build_over(aabbs, options)
+}
+
+/// Builds a BVH over boxes (`(min, max)` each; the top level of a two-level scene, over its
+/// instances' world bounds): leaves name boxes as they name triangles in [`build_with`].
+pub fn build_over_boxes(boxes: &[(Vec3, Vec3)], options: &BuildOptions) -> Result<Bvh, BvhError> {
+    if boxes.is_empty() {
+        return Err(BvhError::Empty);
+    }
+    if boxes.len() > MAX_TRIANGLES {
+        return Err(BvhError::TooMany(boxes.len()));
+    }
+    let mut aabbs = Vec::with_capacity(boxes.len());
+    for (i, (min, max)) in boxes.iter().enumerate() {
+        if !(min.is_finite() && max.is_finite()) {
+            return Err(BvhError::NonFinite(i));
+        }
+        aabbs.push(ObAabb::new(Vec3A::from(*min), Vec3A::from(*max)));
+    }
+    build_over(aabbs, options)
+}
+
+fn build_over(aabbs: Vec<ObAabb>, options: &BuildOptions) -> Result<Bvh, BvhError> {
     let p = preset(options);
     let coincident = Coincident::find(&aabbs);
     let primitives = coincident.as_ref().map_or(&aabbs[..], |c| &c.boxes[..]);

@@ -94,6 +94,11 @@ features! {
     /// a finite attenuation distance): Beer–Lambert absorption along segments inside it
     /// (`kernel::integrator::volume_transmittance`).
     volume => has_volume,
+    /// The scene has instances (meshes placed more than once, `tracer::scene::Instance`): a
+    /// two-level BVH, traversed in one loop (`kernel::traverse`), hits carried back to world
+    /// space (`kernel::instances`), and per instance `INSTANCE_TEXELS` texels appended to
+    /// `Scene::nodes`; scenes without keep the one-level kernel.
+    instances => has_instances,
 }
 
 /// One feature flag of [`Features`].

@@ -11,6 +11,7 @@ pub mod integrator {
     };
     use crate::kernel::camera::camera_ray;
     use crate::kernel::dielectric::DELTA_PDF;
+    use crate::kernel::instances::{instance_handedness, normal_to_world, world_triangle};
     use crate::kernel::intersect::MISS;
     use crate::kernel::lights::{
         area_pdf_to_solid_angle, finite_or_zero, light_pmf, luminance, power_heuristic, sample_light, sky_pdf,
@@ -20,8 +21,8 @@ pub mod integrator {
     use crate::kernel::rng::{pixel_jitter, pixel_seed, random_float, random_u32};
     use crate::kernel::sampling::{onb_from_normal, onb_to_local, onb_to_world, Onb};
     use crate::kernel::scene_data::{
-        fetch_glass, fetch_material, fetch_triangle, shading_normal, Scene, TriangleData, NONE, STRATEGY_BSDF,
-        STRATEGY_MIS, STRATEGY_NEE,
+        fetch_glass, fetch_material, shading_normal, Scene, TriangleData, NONE, STRATEGY_BSDF, STRATEGY_MIS,
+        STRATEGY_NEE,
     };
     use crate::kernel::textures::base_color_at;
     use crate::kernel::traverse::{occluded, trace_closest, Hit};
@@ -72,7 +73,11 @@ pub mod integrator {
 
     #[inline(always)]
     pub fn surface_normals(scene: &Scene, tri: TriangleData, hit: Hit, dir: Vec3) -> SurfaceNormals {
-        let face = (tri.v1 - tri.v0).cross(tri.v2 - tri.v0);
+        let mut face = (tri.v1 - tri.v0).cross(tri.v2 - tri.v0);
+        if scene.has_instances != 0 {
+            // A mirroring instance reverses the winding of its triangles in world space.
+            face *= instance_handedness(scene, hit.instance);
+        }
         let area2 = face.length();
         let flip = if face.dot(dir) > 0.0 { -1.0 } else { 1.0 };
         let mut ng = -dir;
@@ -81,7 +86,7 @@ pub mod integrator {
         }
         let mut ns = ng;
         if scene.has_shading != 0 && area2 > 0.0 {
-            let n = shading_normal(scene, hit.triangle, hit.u, hit.v) * flip;
+            let n = normal_to_world(scene, hit.instance, shading_normal(scene, hit.triangle, hit.u, hit.v)) * flip;
             let len = n.length();
             if len > 0.0 && n.dot(ng) > 0.0 {
                 ns = n / len;
@@ -182,7 +187,7 @@ pub mod integrator {
                 }
                 break;
             }
-            let tri = fetch_triangle(scene, hit.triangle);
+            let tri = world_triangle(scene, hit.triangle, hit.instance);
             let p = origin + dir * hit.t;
             let normals = surface_normals(scene, tri, hit, dir);
             if !(normals.area2 > 0.0) {

@@ -16,6 +16,8 @@ mod camera_src;
 mod denoise_src;
 #[path = "dielectric.rs"]
 mod dielectric_src;
+#[path = "instances.rs"]
+mod instances_src;
 #[path = "integrator.rs"]
 // Conditions that specialisation decides are written `if (if scene.has_x != 0 { a } else { b })`:
 // the folded kernel keeps the text it had without the feature.
@@ -54,6 +56,7 @@ pub use bsdf_src::bsdf;
 pub use camera_src::camera;
 pub use denoise_src::denoise;
 pub use dielectric_src::dielectric;
+pub use instances_src::instances;
 pub use integrator_src::integrator;
 pub use intersect_src::intersect;
 pub use lights_src::lights;
@@ -76,6 +79,7 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
         sampling::kernel_ir(),
         intersect::kernel_ir(),
         scene_data::kernel_ir(),
+        instances::kernel_ir(),
         texture_ref::kernel_ir(),
         textures::kernel_ir(),
         alpha_mask::kernel_ir(),

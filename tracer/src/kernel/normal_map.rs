@@ -22,6 +22,7 @@ pub mod normal_map {
 
     use glam::{Vec3, Vec4, Vec4Swizzles};
 
+    use crate::kernel::instances::{instance_handedness, vector_to_world};
     use crate::kernel::scene_data::{index_of, Scene, NONE};
 
     use crate::kernel::texture_ref::texture_uv;
@@ -116,7 +117,11 @@ pub mod normal_map {
         let map = fetch_normal_map(scene, material);
         let mut n = ns;
         if map.texture != NONE {
-            let tangent = interpolated_tangent(scene, hit.triangle, hit.u, hit.v);
+            let mut tangent = interpolated_tangent(scene, hit.triangle, hit.u, hit.v);
+            if scene.has_instances != 0 {
+                let handedness = instance_handedness(scene, hit.instance);
+                tangent = vector_to_world(scene, hit.instance, tangent.xyz()).extend(tangent.w * handedness);
+            }
             let uv = texture_uv(scene, map.texture, hit.triangle, hit.u, hit.v);
             let rgb = sample_data_texture(scene, map.texture, uv).xyz();
             // The map is in the front face's frame; the facing normal flips with it.

@@ -43,6 +43,7 @@ pub mod scene_data {
     pub struct Scene {
         pub triangles: Texels<Vec4>,
         pub shading: Texels<Vec4>,
+        /// Two-level scenes (`Features::instances`) append their instances (`kernel::instances`).
         pub nodes: Texels<Vec4>,
         /// Per node, its four children's stack entries (`traverse::stack_entry`): integers, not floats.
         pub node_children: Texels<UVec4>,
@@ -64,6 +65,8 @@ pub mod scene_data {
         pub texcoord1_first: u32,
         /// Where the glass section of `materials` starts (`Features::transmission`; 0 without).
         pub transmission_first: u32,
+        /// Where the instances start in `nodes` (`Features::instances`, `kernel::instances`; 0 without).
+        pub instance_first: u32,
         /// The camera: `camera_right` scaled by tan(fov/2) * aspect, `camera_up` by tan(fov/2).
         pub camera_position: Vec3,
         pub camera_right: Vec3,
@@ -103,6 +106,7 @@ pub mod scene_data {
         pub has_transmission: u32,
         pub has_volume: u32,
         pub has_denoise_guide: u32,
+        pub has_instances: u32,
     }
 
     pub const STRATEGY_BSDF: u32 = 0;

@@ -8,6 +8,7 @@ pub mod traverse {
     use glam::{UVec3, UVec4, Vec3, Vec4};
 
     use crate::kernel::alpha_mask::is_hole;
+    use crate::kernel::instances::instance_ray;
     use crate::kernel::intersect::{intersect_triangle, safe_inverse, MISS};
     use crate::kernel::scene_data::{fetch_triangle, Scene, NODE_TEXELS, NONE};
 
@@ -17,13 +18,15 @@ pub mod traverse {
     /// bounds.
     pub const STACK_SIZE: usize = 64;
 
-    /// The closest hit: triangle index (in BVH order) or NONE, distance and barycentrics.
+    /// The closest hit: triangle index (in BVH order) or NONE, distance and barycentrics, and
+    /// the instance whose triangle it is (`kernel::instances`; 0 in scenes without instances).
     #[derive(Clone, Copy, Debug, PartialEq)]
     pub struct Hit {
         pub triangle: u32,
         pub t: f32,
         pub u: f32,
         pub v: f32,
+        pub instance: u32,
     }
 
     /// The slab tests of a node's four children: entry distance per child (`MISS` for a miss
@@ -121,25 +124,35 @@ pub mod traverse {
 
     /// No candidate yet: the start of the (t, triangle) order (every hit has t > 0).
     pub fn before_any_hit() -> Hit {
-        Hit { triangle: NONE, t: -1.0, u: 0.0, v: 0.0 }
+        Hit { triangle: NONE, t: -1.0, u: 0.0, v: 0.0, instance: 0 }
     }
 
     /// Whether a hit on triangle `triangle` at `t` comes after `after` and before `best` in
     /// (t, triangle) order: a total order, so that searching behind a hole neither skips a
     /// triangle at the same distance nor finds the hole again. `best` is the closest so far
-    /// (triangle NONE: none yet, its t the exclusive `t_max`).
-    pub fn is_next_candidate(t: f32, triangle: u32, after: Hit, best: Hit) -> bool {
-        let before_best = t < best.t || (t == best.t && triangle < best.triangle && best.triangle != NONE);
-        let past_after = t > after.t || (t == after.t && triangle > after.triangle);
+    /// (triangle NONE: none yet, its t the exclusive `t_max`). In two-level scenes, where one
+    /// triangle is placed by several instances, the order is (t, instance, triangle).
+    pub fn is_next_candidate(scene: &Scene, t: f32, triangle: u32, instance: u32, after: Hit, best: Hit) -> bool {
+        let mut before_best_tie = triangle < best.triangle;
+        let mut past_after_tie = triangle > after.triangle;
+        if scene.has_instances != 0 {
+            before_best_tie = instance < best.instance || (instance == best.instance && triangle < best.triangle);
+            past_after_tie = instance > after.instance || (instance == after.instance && triangle > after.triangle);
+        }
+        let before_best = t < best.t || (t == best.t && before_best_tie && best.triangle != NONE);
+        let past_after = t > after.t || (t == after.t && past_after_tie);
         before_best && past_after
     }
 
-    /// Intersects the triangles of the leaf `entry` (a stack entry with count > 0), keeping
-    /// the closest hit in `hit`; with alpha masks, the closest candidate after `after` (of the
-    /// masked triangles only, when `only_masked`), holes included.
+    /// Intersects the triangles of the leaf `entry` (a stack entry with count > 0) of
+    /// `instance` (0 without instances; the ray in its space), keeping the closest hit in `hit`;
+    /// with alpha masks, the closest candidate after `after` (of the masked triangles only,
+    /// when `only_masked`), holes included.
+    #[allow(clippy::too_many_arguments)]
     pub fn intersect_leaf(
         scene: &Scene,
         entry: u32,
+        instance: u32,
         origin: Vec3,
         dir: Vec3,
         after: Hit,
@@ -151,11 +164,11 @@ pub mod traverse {
             let tri = fetch_triangle(scene, i);
             let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
             if scene.has_alpha_mask != 0 {
-                if (tri.masked || !only_masked) && is_next_candidate(h.t, i, after, *hit) {
-                    *hit = Hit { triangle: i, t: h.t, u: h.u, v: h.v };
+                if (tri.masked || !only_masked) && is_next_candidate(scene, h.t, i, instance, after, *hit) {
+                    *hit = Hit { triangle: i, t: h.t, u: h.u, v: h.v, instance };
                 }
             } else if h.t < hit.t {
-                *hit = Hit { triangle: i, t: h.t, u: h.u, v: h.v };
+                *hit = Hit { triangle: i, t: h.t, u: h.u, v: h.v, instance };
             }
         }
     }
@@ -284,13 +297,27 @@ pub mod traverse {
     /// leaves are pushed only below `scene.leaf_stack_limit` entries and intersected at once
     /// beyond it (see `tracer::pack`, which sets the limit so that the stack cannot overflow).
     /// Either way the leaves of an iteration are intersected at one place, after the node.
+    ///
+    /// Two-level scenes (`kernel::instances`) run the same loop: a top-level leaf (always
+    /// pushed, never intersected at once) is entered by moving the ray into its instance's space
+    /// and visiting the instance's root; the stack depth at that moment is kept, and popping
+    /// back to it restores the world ray. A leaf of several instances enters the first and
+    /// pushes the rest.
     // The DSL has no iterators: the leaves are visited by index.
     #[allow(clippy::needless_range_loop)]
     #[inline(always)]
     pub fn closest_candidate(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32, after: Hit, only_masked: bool) -> Hit {
-        let inv_dir = safe_inverse(dir);
-        let near = near_planes(inv_dir);
-        let mut hit = Hit { triangle: NONE, t: t_max, u: 0.0, v: 0.0 };
+        let world_inv_dir = safe_inverse(dir);
+        let world_near = near_planes(world_inv_dir);
+        // The ray in the space being traversed: the world's, or an instance's.
+        let mut o = origin;
+        let mut d = dir;
+        let mut inv_dir = world_inv_dir;
+        let mut near = world_near;
+        let mut instance = 0u32;
+        let mut in_instance = false;
+        let mut instance_sp: usize = 0;
+        let mut hit = Hit { triangle: NONE, t: t_max, u: 0.0, v: 0.0, instance: 0 };
         let mut stack = [0u32; STACK_SIZE];
         let mut stack_t = [0.0f32; STACK_SIZE];
         let leaf_limit = scene.leaf_stack_limit as usize;
@@ -298,18 +325,38 @@ pub mod traverse {
         // The entry being visited: the root (entered unconditionally: its children's boxes are
         // the first test), then the nearest hit child of each node, else the next one popped.
         let mut entry = stack_entry(0, 0);
+        let mut entry_t = 0.0f32;
         let mut visiting = true;
         // The leaves to intersect in this iteration: the one visited, or a node's hit leaves
         // that do not go on the stack (at most three: the nearest child is visited next).
         let mut leaves = [0u32; 3];
         while visiting {
+            if scene.has_instances != 0 && !in_instance && is_leaf(entry) {
+                let first = entry >> 8;
+                if (entry & 255) > 1 && sp < STACK_SIZE {
+                    stack[sp] = stack_entry(first + 1, (entry & 255) - 1);
+                    stack_t[sp] = entry_t;
+                    sp += 1;
+                }
+                let r = instance_ray(scene, first, origin, dir);
+                o = r.origin;
+                d = r.dir;
+                inv_dir = safe_inverse(d);
+                near = near_planes(inv_dir);
+                instance = first;
+                in_instance = true;
+                instance_sp = sp;
+                entry = stack_entry(r.root, 0);
+            }
+            // Leaves are intersected at once only at the bottom level (or in one-level scenes).
+            let may_batch = scene.has_instances == 0 || in_instance;
             let mut descend = false;
             let mut leaf_count: usize = 0;
             if is_leaf(entry) {
                 leaves[0] = entry;
                 leaf_count = 1;
             } else {
-                let sorted = sort_children(intersect_node(scene, entry >> 8, origin, inv_dir, near, hit.t));
+                let sorted = sort_children(intersect_node(scene, entry >> 8, o, inv_dir, near, hit.t));
                 let t0 = sorted.t.x;
                 let t1 = sorted.t.y;
                 let t2 = sorted.t.z;
@@ -322,7 +369,7 @@ pub mod traverse {
                 // stack. (The box tests were clipped to the closest hit, so every hit child is
                 // worth visiting; the pop test below catches hits found meanwhile.)
                 if t3 < MISS {
-                    if sp >= leaf_limit && is_leaf(e3) {
+                    if sp >= leaf_limit && is_leaf(e3) && may_batch {
                         leaves[leaf_count] = e3;
                         leaf_count += 1;
                     } else if sp < STACK_SIZE {
@@ -332,7 +379,7 @@ pub mod traverse {
                     }
                 }
                 if t2 < MISS {
-                    if sp >= leaf_limit && is_leaf(e2) {
+                    if sp >= leaf_limit && is_leaf(e2) && may_batch {
                         leaves[leaf_count] = e2;
                         leaf_count += 1;
                     } else if sp < STACK_SIZE {
@@ -342,7 +389,7 @@ pub mod traverse {
                     }
                 }
                 if t1 < MISS {
-                    if sp >= leaf_limit && is_leaf(e1) {
+                    if sp >= leaf_limit && is_leaf(e1) && may_batch {
                         leaves[leaf_count] = e1;
                         leaf_count += 1;
                     } else if sp < STACK_SIZE {
@@ -353,19 +400,29 @@ pub mod traverse {
                 }
                 if t0 < MISS {
                     entry = e0;
+                    entry_t = t0;
                     descend = true;
                 }
             }
             for k in 0..leaf_count {
-                intersect_leaf(scene, leaves[k], origin, dir, after, only_masked, &mut hit);
+                intersect_leaf(scene, leaves[k], instance, o, d, after, only_masked, &mut hit);
             }
             if !descend {
                 // Pop the nearest pending entry that may still hold a closer hit.
                 visiting = false;
                 while sp > 0 && !visiting {
+                    if scene.has_instances != 0 && in_instance && sp == instance_sp {
+                        // The instance's entries are done: back to the world ray.
+                        o = origin;
+                        d = dir;
+                        inv_dir = world_inv_dir;
+                        near = world_near;
+                        in_instance = false;
+                    }
                     sp -= 1;
                     if !(stack_t[sp] > hit.t) {
                         entry = stack[sp];
+                        entry_t = stack_t[sp];
                         visiting = true;
                     }
                 }
@@ -389,10 +446,18 @@ pub mod traverse {
     /// Whether any triangle (with alpha masks, any unmasked one) is hit for t in (0, t_max).
     /// Any hit ends it, so children are visited in slot order, and leaves are intersected at
     /// once: the stack holds child nodes only (`tracer::bvh::WideBvh::stack_needed` bounds it).
+    /// In two-level scenes, top-level leaves are pushed too and entered when popped, as in
+    /// `closest_candidate`.
     #[inline(always)]
     pub fn any_hit(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
-        let inv_dir = safe_inverse(dir);
-        let near = near_planes(inv_dir);
+        let world_inv_dir = safe_inverse(dir);
+        let world_near = near_planes(world_inv_dir);
+        let mut o = origin;
+        let mut d = dir;
+        let mut inv_dir = world_inv_dir;
+        let mut near = world_near;
+        let mut in_instance = false;
+        let mut instance_sp: usize = 0;
         let mut stack = [0u32; STACK_SIZE];
         stack[0] = stack_entry(0, 0);
         let mut sp: usize = 1;
@@ -400,11 +465,36 @@ pub mod traverse {
         // A node's hit leaves, intersected after its hit nodes are pushed: one site (above).
         let mut leaves = [0u32; 4];
         while sp > 0 && !blocked {
+            if scene.has_instances != 0 && in_instance && sp == instance_sp {
+                o = origin;
+                d = dir;
+                inv_dir = world_inv_dir;
+                near = world_near;
+                in_instance = false;
+            }
             sp -= 1;
-            let n = intersect_node(scene, stack[sp] >> 8, origin, inv_dir, near, t_max);
+            let mut node = stack[sp];
+            if scene.has_instances != 0 && is_leaf(node) {
+                // A top-level leaf (only those are pushed): enter its first instance.
+                let first = node >> 8;
+                if (node & 255) > 1 && sp < STACK_SIZE {
+                    stack[sp] = stack_entry(first + 1, (node & 255) - 1);
+                    sp += 1;
+                }
+                let r = instance_ray(scene, first, origin, dir);
+                o = r.origin;
+                d = r.dir;
+                inv_dir = safe_inverse(d);
+                near = near_planes(inv_dir);
+                in_instance = true;
+                instance_sp = sp;
+                node = stack_entry(r.root, 0);
+            }
+            let may_batch = scene.has_instances == 0 || in_instance;
+            let n = intersect_node(scene, node >> 8, o, inv_dir, near, t_max);
             let mut leaf_count: usize = 0;
             if n.t.x < MISS {
-                if is_leaf(n.entries.x) {
+                if is_leaf(n.entries.x) && may_batch {
                     leaves[leaf_count] = n.entries.x;
                     leaf_count += 1;
                 } else if sp < STACK_SIZE {
@@ -413,7 +503,7 @@ pub mod traverse {
                 }
             }
             if n.t.y < MISS {
-                if is_leaf(n.entries.y) {
+                if is_leaf(n.entries.y) && may_batch {
                     leaves[leaf_count] = n.entries.y;
                     leaf_count += 1;
                 } else if sp < STACK_SIZE {
@@ -422,7 +512,7 @@ pub mod traverse {
                 }
             }
             if n.t.z < MISS {
-                if is_leaf(n.entries.z) {
+                if is_leaf(n.entries.z) && may_batch {
                     leaves[leaf_count] = n.entries.z;
                     leaf_count += 1;
                 } else if sp < STACK_SIZE {
@@ -431,7 +521,7 @@ pub mod traverse {
                 }
             }
             if n.t.w < MISS {
-                if is_leaf(n.entries.w) {
+                if is_leaf(n.entries.w) && may_batch {
                     leaves[leaf_count] = n.entries.w;
                     leaf_count += 1;
                 } else if sp < STACK_SIZE {
@@ -441,7 +531,7 @@ pub mod traverse {
             }
             let mut k: usize = 0;
             while k < leaf_count && !blocked {
-                blocked = leaf_occludes(scene, leaves[k], origin, dir, t_max);
+                blocked = leaf_occludes(scene, leaves[k], o, d, t_max);
                 k += 1;
             }
         }

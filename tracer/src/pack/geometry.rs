@@ -7,6 +7,7 @@ use rayon::prelude::*;
 
 use super::{index_value, PackError};
 use crate::bvh::{Bvh, WideBvh};
+use crate::kernel::instances::INSTANCE_TEXELS;
 use crate::kernel::normal_map::TANGENT_TEXELS;
 use crate::kernel::scene_data::{NODE_TEXELS, SHADING_TEXELS, TRIANGLE_TEXELS};
 use crate::kernel::texture_ref::TEXCOORD1_TEXELS;
@@ -14,7 +15,7 @@ use crate::kernel::Features;
 use crate::scene::{Scene, Triangle};
 
 /// Largest integer stored exactly in an f32 texel.
-const MAX_EXACT: usize = 1 << 24;
+pub(super) const MAX_EXACT: usize = 1 << 24;
 
 /// A scene's triangles in BVH order with the wide BVH, checked against what the kernel's
 /// traversal takes.
@@ -25,30 +26,23 @@ pub(super) struct Ordered<'a> {
     pub traversal_stack: u32,
     /// The kernel's `leaf_stack_limit`.
     pub leaf_stack_limit: u32,
+    /// Two levels (`Features::instances`): `wide` holds the top level first, and these are
+    /// the placements' texels in top-level order (`super::instances`). Empty for one level.
+    pub instances: Vec<[Vec4; INSTANCE_TEXELS as usize]>,
+    pub two_level: bool,
 }
 
 impl<'a> Ordered<'a> {
     pub fn new(scene: &'a Scene, bvh: &Bvh) -> Result<Self, PackError> {
+        if !scene.instances.is_empty() {
+            return super::instances::two_level(scene, bvh);
+        }
         let tri_count = bvh.triangle_order.len();
         if tri_count >= MAX_EXACT || bvh.nodes.len() >= MAX_EXACT {
             return Err(PackError::TooManyTriangles(tri_count));
         }
         let wide = bvh.widen().map_err(PackError::Bvh)?;
-        let max = crate::kernel::traverse::STACK_SIZE as u32;
-        if wide.stack_needed > max {
-            return Err(PackError::BvhTooDeep { needed: wide.stack_needed, max });
-        }
-        // Closest-hit traversal pushes leaves too while the stack has room for them: child nodes
-        // alone never need more than `stack_needed` entries and leaves are pushed only below the
-        // limit, so at most `limit + stack_needed` entries are ever held. A tree that fits with
-        // every leaf pushed gets a stack of exactly its need (at least 1: `occluded` starts with
-        // the root on it), and the limit never stops a push.
-        let (traversal_stack, leaf_stack_limit) = if wide.stack_needed_with_leaves <= max {
-            let need = wide.stack_needed_with_leaves.max(1);
-            (need, need)
-        } else {
-            (max, max - wide.stack_needed)
-        };
+        let (traversal_stack, leaf_stack_limit) = check_stack(0, wide.stack_needed, wide.stack_needed_with_leaves)?;
         // The traversal stack carries a leaf's triangle count in 8 bits.
         let max_leaf = crate::kernel::traverse::MAX_LEAF_TRIANGLES;
         if let Some(leaf) = bvh.nodes.iter().find(|n| n.count > max_leaf) {
@@ -59,7 +53,7 @@ impl<'a> Ordered<'a> {
             .iter()
             .map(|&i| scene.triangles.get(i as usize).ok_or(PackError::BadBvh(i)))
             .collect::<Result<_, _>>()?;
-        Ok(Ordered { triangles, wide, traversal_stack, leaf_stack_limit })
+        Ok(Ordered { triangles, wide, traversal_stack, leaf_stack_limit, instances: Vec::new(), two_level: false })
     }
 
     /// Whether some vertex normal differs from its face's (the shading data is needed). The
@@ -73,6 +67,28 @@ impl<'a> Ordered<'a> {
     }
 }
 
+/// The traversal stack and the kernel's `leaf_stack_limit` for `below` entries that stay on the
+/// stack throughout (a two-level scene's top level) under a tree that needs `needed` entries
+/// with child nodes pushed, `needed_with_leaves` with leaves pushed too.
+///
+/// Closest-hit traversal pushes leaves too while the stack has room for them: child nodes
+/// alone never need more than `needed` entries and leaves are pushed only below the limit, so
+/// at most `limit + needed` entries are ever held. A tree that fits with every leaf pushed gets
+/// a stack of exactly its need (at least 1: `occluded` starts with the root on it), and the
+/// limit never stops a push.
+pub(super) fn check_stack(below: u32, needed: u32, needed_with_leaves: u32) -> Result<(u32, u32), PackError> {
+    let max = crate::kernel::traverse::STACK_SIZE as u32;
+    if below + needed > max {
+        return Err(PackError::BvhTooDeep { needed: below + needed, max });
+    }
+    Ok(if below + needed_with_leaves <= max {
+        let need = (below + needed_with_leaves).max(1);
+        (need, need)
+    } else {
+        (max, max - needed)
+    })
+}
+
 /// The kernel's geometry arrays.
 pub(super) struct PackedGeometry {
     pub triangles: Texels<Vec4>,
@@ -81,6 +97,8 @@ pub(super) struct PackedGeometry {
     pub node_children: Texels<UVec4>,
     pub tangent_first: u32,
     pub texcoord1_first: u32,
+    /// Where the instances start in `nodes` (0 without).
+    pub instance_first: u32,
 }
 
 /// Packs the triangles (with their light index and mask flag), their shading data and the
@@ -107,8 +125,14 @@ pub(super) fn pack_geometry(
     } else {
         0
     };
-    let (nodes, node_children) = pack_nodes(&ordered.wide);
-    PackedGeometry { triangles, shading, nodes, node_children, tangent_first, texcoord1_first }
+    let (mut nodes, node_children) = pack_nodes(&ordered.wide);
+    let mut instance_first = 0;
+    if ordered.two_level {
+        instance_first = nodes.len() as u32;
+        let texels = nodes.as_slice().iter().copied().chain(ordered.instances.iter().flatten().copied());
+        nodes = Texels::new(texels.collect());
+    }
+    PackedGeometry { triangles, shading, nodes, node_children, tangent_first, texcoord1_first, instance_first }
 }
 
 /// Normals and UVs per triangle; tangents and the second UV set extend the shading array

@@ -18,6 +18,7 @@ use crate::scene::Scene;
 mod alpha_mask;
 mod camera;
 mod geometry;
+mod instances;
 mod lights;
 mod materials;
 mod sky;
@@ -60,6 +61,8 @@ pub enum PackError {
     BadSize { width: u32, height: u32 },
     #[error("a BVH leaf holds {triangles} triangles; the kernel's traversal takes at most {max}")]
     LeafTooLarge { triangles: u32, max: u32 },
+    #[error(transparent)]
+    Instance(crate::scene::InstanceError),
     #[error("the packed textures were made from another scene (they do not match this scene's textures)")]
     TexturesMismatch,
 }
@@ -72,7 +75,12 @@ fn index_value(i: Option<u32>) -> f32 {
 /// Builds the BVH and packs `scene` for `settings`, packing the textures in parallel with the
 /// BVH build (neither needs the other).
 pub fn build_and_pack(scene: &Scene, settings: &RenderSettings) -> Result<(Bvh, Packed), BuildAndPackError> {
-    let (bvh, textures) = rayon::join(|| crate::bvh::build(&scene.triangles), || pack_textures(scene));
+    // A scene of placed meshes only has no static level (an empty BVH stands for it).
+    let static_bvh = || match scene.triangles.is_empty() && !scene.instances.is_empty() {
+        true => Ok(Bvh::default()),
+        false => crate::bvh::build(&scene.triangles),
+    };
+    let (bvh, textures) = rayon::join(static_bvh, || pack_textures(scene));
     let bvh = bvh?;
     let packed = pack_with_textures(scene, &bvh, &textures, settings)?;
     Ok((bvh, packed))
@@ -156,6 +164,7 @@ fn scene_features(
         alpha_mask: alpha_tested.contains(&true),
         texture_transform: textures_used && textures.refs.as_ref().is_some_and(|r| r.transform),
         texcoord1: textures_used && textures.refs.as_ref().is_some_and(|r| r.texcoord1),
+        instances: ordered.two_level,
         traversal_stack: ordered.traversal_stack,
         denoise_guide: false,
     }
@@ -200,6 +209,7 @@ fn kernel_scene(
         texture_ref_first: textures.refs.as_ref().filter(|_| features.textures).map_or(0, |r| r.refs.len() as u32),
         texcoord1_first: geometry.texcoord1_first,
         transmission_first: materials.transmission_first,
+        instance_first: geometry.instance_first,
         camera_position: camera.position,
         camera_right: camera.right,
         camera_up: camera.up,

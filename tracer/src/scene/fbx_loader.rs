@@ -211,6 +211,8 @@ impl Loader<'_> {
         self.problems.warn(&mut self.warnings);
         let mut scene = Scene {
             triangles: self.triangles,
+            meshes: Vec::new(),
+            instances: Vec::new(),
             materials: self.materials,
             textures,
             point_lights: self.point_lights,

@@ -350,6 +350,51 @@ pub(crate) fn sphere(out: &mut Vec<Triangle>, center: Vec3, radius: f32, materia
     }
 }
 
+/// A two-level test scene: a static floor and area light, and one mesh (a smooth sphere with a
+/// box stuck to its +x side, so that mirroring shows) placed `grid` x `grid` times by
+/// instances, rotated, scaled non-uniformly and, every third one, mirrored. Lit by the light
+/// and a dim sky. `Scene::bake_instances` gives the same scene flattened.
+pub fn instanced_shapes(grid: usize) -> Scene {
+    use glam::{Mat4, Quat};
+    let materials = vec![
+        Material::diffuse("floor", Vec3::splat(0.6)),
+        Material::diffuse("shape", Vec3::new(0.7, 0.4, 0.2)),
+        Material::emissive("light", Vec3::ZERO, Vec3::splat(8.0)),
+    ];
+    let mut shape = Vec::new();
+    sphere(&mut shape, v(0.0, 0.0, 0.0), 0.3, 1);
+    prism(&mut shape, [(0.25, 0.1), (0.5, 0.1), (0.5, -0.1), (0.25, -0.1)].map(|(x, z)| (x, -z)), 0.2, 1);
+    let half = grid as f32 * 0.5;
+    let mut floor = Vec::new();
+    quad(&mut floor, [v(-half, -0.35, half), v(half, -0.35, half), v(half, -0.35, -half), v(-half, -0.35, -half)], 0);
+    let l = half * 0.4;
+    let h = 2.5;
+    quad(&mut floor, [v(-l, h, -l), v(l, h, -l), v(l, h, l), v(-l, h, l)], 2);
+    let mut instances = Vec::with_capacity(grid * grid);
+    for i in 0..grid {
+        for j in 0..grid {
+            let k = (i * grid + j) as f32;
+            let at = v(i as f32 + 0.5 - half, 0.0, j as f32 + 0.5 - half);
+            let mut scale = v(1.0, 0.7 + 0.3 * (k * 0.7).sin().abs(), 1.2 - 0.4 * (k * 1.3).cos().abs());
+            if (i * grid + j) % 3 == 1 {
+                scale.x = -scale.x;
+            }
+            let rotation = Quat::from_rotation_y(k * 0.9) * Quat::from_rotation_x(0.3 * (k * 0.5).sin());
+            let transform = Mat4::from_scale_rotation_translation(scale, rotation, at);
+            instances.push(super::Instance { mesh: 0, transform });
+        }
+    }
+    Scene {
+        triangles: floor,
+        meshes: vec![super::Mesh { triangles: shape }],
+        instances,
+        materials,
+        sky: Some(super::Sky::uniform(Vec3::splat(0.2))),
+        camera: Camera::look_at(v(0.0, half * 1.2 + 1.0, half * 1.6 + 1.0), v(0.0, -0.3, 0.0), Vec3::Y, 0.8),
+        ..Scene::default()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -68,6 +68,7 @@ mod accessor;
 mod fbx_loader;
 mod generate;
 mod gltf_loader;
+mod instance;
 mod material;
 mod material_alpha;
 mod obj_loader;
@@ -83,14 +84,14 @@ use std::path::{Path, PathBuf};
 use glam::{Vec2, Vec3, Vec4};
 
 pub use generate::{
-    alpha_checker, alpha_masked_screen, checker_floor, cornell_box, diffuse_plane, glass_cornell, metal_rough_spheres,
-    terrain_and_spheres, white_furnace,
+    alpha_checker, alpha_masked_screen, checker_floor, cornell_box, diffuse_plane, glass_cornell, instanced_shapes,
+    metal_rough_spheres, terrain_and_spheres, white_furnace,
 };
 pub use material::Material;
 
 /// The scenes generated in code that the command line names: `cornell` (also `cornell-box`),
-/// `metal-rough-spheres` and `glass-cornell`.
-pub const BUILTIN_SCENES: [&str; 3] = ["cornell", "metal-rough-spheres", "glass-cornell"];
+/// `metal-rough-spheres`, `glass-cornell` and `instanced-shapes` (8 x 8 placements of one mesh).
+pub const BUILTIN_SCENES: [&str; 4] = ["cornell", "metal-rough-spheres", "glass-cornell", "instanced-shapes"];
 
 /// The scene generated in code called `name` (see [`BUILTIN_SCENES`]).
 pub fn builtin(name: &str) -> Option<Scene> {
@@ -98,10 +99,12 @@ pub fn builtin(name: &str) -> Option<Scene> {
         "cornell" | "cornell-box" => Some(cornell_box()),
         "metal-rough-spheres" => Some(metal_rough_spheres()),
         "glass-cornell" => Some(glass_cornell()),
+        "instanced-shapes" => Some(instanced_shapes(8)),
         _ => None,
     }
 }
 pub use gltf_loader::{load_gltf_slice, AnimationChoice};
+pub use instance::{place_triangle, Instance, InstanceError, Mesh};
 pub use obj_loader::load_obj_slice;
 pub use sky::{load_sky, load_sky_slice, SkyFormat};
 pub use texture::{srgb_to_linear, srgba8_to_linear, EncodedImage, TextureTexels};
@@ -130,8 +133,14 @@ pub const MAX_RADIANCE: f32 = 1e12;
 /// A flattened, validated scene: everything in world space, ready to be packed.
 #[derive(Clone, Debug, Default)]
 pub struct Scene {
-    /// World-space triangles (node transforms applied, winding fixed for mirroring transforms).
+    /// World-space triangles (node transforms applied, winding fixed for mirroring transforms):
+    /// the static part of the scene, every light-emitting triangle included.
     pub triangles: Vec<Triangle>,
+    /// Meshes placed by [`Scene::instances`], each stored once in its own space.
+    pub meshes: Vec<Mesh>,
+    /// Placements of [`Scene::meshes`] (a two-level scene, `Features::instances`; none in a
+    /// scene whose every mesh is static and used once).
+    pub instances: Vec<Instance>,
     /// Materials referenced by [`Triangle::material`].
     pub materials: Vec<Material>,
     /// Decoded textures referenced by materials.
@@ -487,12 +496,20 @@ pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError
 }
 
 impl Scene {
-    /// Bounds of all triangles (point lights and camera excluded).
+    /// Bounds of all triangles, placed ones included (point lights and camera excluded).
     pub fn bounds(&self) -> Aabb {
         let mut b = Aabb::EMPTY;
         for t in &self.triangles {
             for p in t.positions {
                 b.extend(p);
+            }
+        }
+        let mesh_bounds: Vec<Aabb> = self.meshes.iter().map(Mesh::bounds).collect();
+        for inst in &self.instances {
+            if let Some(&m) = mesh_bounds.get(inst.mesh as usize) {
+                let w = inst.world_bounds(m);
+                b.extend(w.min);
+                b.extend(w.max);
             }
         }
         b

@@ -94,6 +94,8 @@ fn load_obj_from(
     problems.warn(&mut warnings);
     let mut scene = Scene {
         triangles,
+        meshes: Vec::new(),
+        instances: Vec::new(),
         materials,
         textures,
         point_lights: Vec::new(),

@@ -390,7 +390,8 @@ mod tests {
 
     #[test]
     fn values_round_trip_through_words() {
-        let v = (Hit { triangle: 7, t: -0.0, u: f32::NAN, v: 1.5 }, Vec3::new(1.0, -2.0, 3.0), -5i32, true);
+        let v =
+            (Hit { triangle: 7, t: -0.0, u: f32::NAN, v: 1.5, instance: 3 }, Vec3::new(1.0, -2.0, 3.0), -5i32, true);
         let mut words = Vec::new();
         v.push_words(&mut words);
         assert_eq!(words.len(), <(Hit, Vec3, i32, bool)>::layout().len());
@@ -413,7 +414,7 @@ mod tests {
         assert!(e.contains("word 6"), "{e}");
         let e = check_layout("inputs", &<(Vec4, Vec2, f32)>::layout(), &layout.inputs).unwrap_err();
         assert!(e.contains("word 3"), "{e}");
-        let e = check_layout("outputs", &<(u32, f32, f32, f32)>::layout(), &layout.outputs).unwrap_err();
+        let e = check_layout("outputs", &<(u32, f32, f32, f32, f32)>::layout(), &layout.outputs).unwrap_err();
         assert!(e.contains("word 0"), "{e}");
         let e = check_layout("outputs", &<(crate::kernel::intersect::TriangleHit,)>::layout(), &layout.outputs);
         assert!(e.unwrap_err().contains("3 words"));
@@ -454,6 +455,7 @@ mod tests {
             ("GlassData", top_fields::<crate::kernel::scene_data::GlassData>()),
             ("GuidedSample", top_fields::<crate::kernel::integrator::GuidedSample>()),
             ("FirstHit", top_fields::<crate::kernel::integrator::FirstHit>()),
+            ("InstanceRay", top_fields::<crate::kernel::instances::InstanceRay>()),
             ("SurfaceNormals", top_fields::<crate::kernel::integrator::SurfaceNormals>()),
         ];
         let structs: Vec<kernel_dsl::ir::StructDef> = crate::kernel::modules()
@@ -480,10 +482,10 @@ mod tests {
     #[test]
     fn comparison_reports_mismatching_words() {
         let layout = <(Hit,)>::layout();
-        let a = [3u32, 1.0f32.to_bits(), 0, 0, 4, 2.0f32.to_bits(), 0, 0];
+        let a = [3u32, 1.0f32.to_bits(), 0, 0, 0, 4, 2.0f32.to_bits(), 0, 0, 0];
         let mut b = a;
         b[1] = f32::from_bits(b[1]).next_up().to_bits();
-        b[4] = 5;
+        b[5] = 5;
         let c = compare_words(Backend::Gl, &layout, &a, &b, Tolerance::ulps(1));
         assert_eq!(c.mismatched, vec![1]);
         assert_eq!(c.max_ulps, 1);

@@ -163,7 +163,7 @@ mod tests {
         assert_eq!(back.triangles.as_slice()[0].y.to_bits(), (-0.0f32).to_bits());
         assert!(back.triangles.as_slice()[0].z.is_nan());
         assert_eq!((back.max_depth, back.camera_up, back.has_normal_map), (7, scene.camera_up, 1));
-        assert!(decode_scene(&words[..words.len() - 1]).unwrap_err().contains("has_denoise_guide"));
+        assert!(decode_scene(&words[..words.len() - 1]).unwrap_err().contains("has_instances"));
         assert!(decode_scene(&[words.as_slice(), &[0]].concat()).unwrap_err().contains("after"));
         assert!(decode_scene(&words[1..]).unwrap_err().contains("not an encoded scene"));
         assert!(decode_scene(&[]).is_err());

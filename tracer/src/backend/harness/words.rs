@@ -143,6 +143,7 @@ mod kernel_structs {
     use crate::kernel::alpha_mask::AlphaMaskData;
     use crate::kernel::bsdf::Bsdf;
     use crate::kernel::camera::Ray;
+    use crate::kernel::instances::InstanceRay;
     use crate::kernel::integrator::{FirstHit, GuidedSample, Shading, SurfaceNormals};
     use crate::kernel::intersect::TriangleHit;
     use crate::kernel::lights::LightSample;
@@ -155,7 +156,7 @@ mod kernel_structs {
     harness_struct_words! {
         Ray { origin, dir }
         TriangleHit { t, u, v }
-        Hit { triangle, t, u, v }
+        Hit { triangle, t, u, v, instance }
         NodeHits { t, entries }
         TriangleData { v0, v1, v2, material, light, masked }
         MaterialData { base_color, base_texture, emission, emissive_texture }
@@ -171,6 +172,7 @@ mod kernel_structs {
         GlassData { transmission, ior, texture, thin, sigma_a }
         GuidedSample { color, albedo, normal, emission }
         FirstHit { albedo, normal, depth, emission }
+        InstanceRay { origin, dir, root }
         SurfaceNormals { ng, ns, flip, area2 }
     }
 }

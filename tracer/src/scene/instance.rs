@@ -1,0 +1,150 @@
+//! Meshes placed by instances: the host side of two-level scenes (`Features::instances`).
+//! A [`Mesh`] keeps its triangles in its own space, once; each [`Instance`] places it with an
+//! affine transform. `tracer::pack` builds one bottom-level BVH per mesh and a top level over
+//! the instances; the static triangles of [`Scene::triangles`] stay one bottom level of their
+//! own, placed by the identity.
+
+use glam::{Mat4, Vec3};
+
+use super::{Aabb, Scene, Triangle};
+
+/// A mesh that instances place: its triangles in the mesh's own space (normals and tangents
+/// too), counter-clockwise seen from the front.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    pub triangles: Vec<Triangle>,
+}
+
+/// One placement of a [`Mesh`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Instance {
+    /// Index into [`Scene::meshes`].
+    pub mesh: u32,
+    /// Mesh space to world space: affine, finite and invertible ([`Instance::check`]).
+    pub transform: Mat4,
+}
+
+/// Why an instance cannot be placed.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum InstanceError {
+    #[error("instance {instance} names mesh {mesh} of {meshes}")]
+    NoMesh { instance: usize, mesh: u32, meshes: usize },
+    #[error("instance {instance}: its transform is not finite, not affine or not invertible")]
+    BadTransform { instance: usize },
+    #[error("mesh {mesh} has no triangles")]
+    EmptyMesh { mesh: u32 },
+    #[error(
+        "mesh {mesh} has an emissive material and is placed by instances: lights must be static triangles (bake the \
+         instances into the scene with `Scene::bake_instances`)"
+    )]
+    EmissiveMesh { mesh: u32 },
+}
+
+impl Instance {
+    /// Whether the transform is one [`Instance`] may carry: finite, affine (last row 0 0 0 1)
+    /// and invertible with a finite inverse.
+    pub fn has_valid_transform(&self) -> bool {
+        let m = self.transform;
+        let inverse = m.inverse();
+        m.is_finite() && m.row(3) == glam::Vec4::W && m.determinant() != 0.0 && inverse.is_finite()
+    }
+
+    /// The world bounds of `mesh_bounds` placed by this instance (the box of its eight corners).
+    pub fn world_bounds(&self, mesh_bounds: Aabb) -> Aabb {
+        let mut b = Aabb::EMPTY;
+        for i in 0..8 {
+            let pick = |bit: usize, lo: f32, hi: f32| if i & bit == 0 { lo } else { hi };
+            let corner = Vec3::new(
+                pick(1, mesh_bounds.min.x, mesh_bounds.max.x),
+                pick(2, mesh_bounds.min.y, mesh_bounds.max.y),
+                pick(4, mesh_bounds.min.z, mesh_bounds.max.z),
+            );
+            b.extend(self.transform.transform_point3(corner));
+        }
+        b
+    }
+}
+
+impl Mesh {
+    /// Bounds of the mesh's triangles in its own space.
+    pub fn bounds(&self) -> Aabb {
+        let mut b = Aabb::EMPTY;
+        for t in &self.triangles {
+            for p in t.positions {
+                b.extend(p);
+            }
+        }
+        b
+    }
+}
+
+/// `t` placed by `m` (normals by its inverse transpose, tangents by its linear part; the winding
+/// reversed for a mirroring transform, so that the front stays the front), as glTF nodes are
+/// flattened.
+pub fn place_triangle(t: &Triangle, m: &Mat4) -> Triangle {
+    let linear = glam::Mat3::from_mat4(*m);
+    let normal_matrix = linear.inverse().transpose();
+    let mirror = linear.determinant() < 0.0;
+    let mut out = *t;
+    out.positions = t.positions.map(|p| m.transform_point3(p));
+    out.normals = t.normals.map(|n| (normal_matrix * n).normalize_or_zero());
+    out.tangents = t.tangents.map(|tg| match (linear * tg.truncate()).try_normalize() {
+        Some(xyz) if tg != glam::Vec4::ZERO => xyz.extend(if mirror { -tg.w } else { tg.w }),
+        _ => glam::Vec4::ZERO,
+    });
+    if mirror {
+        out.positions.swap(1, 2);
+        out.normals.swap(1, 2);
+        out.uvs.swap(1, 2);
+        out.uvs1.swap(1, 2);
+        out.tangents.swap(1, 2);
+    }
+    out
+}
+
+impl Scene {
+    /// Checks what `tracer::pack` relies on: every instance names a mesh with triangles and
+    /// carries a valid transform, and no placed mesh emits light.
+    pub fn check_instances(&self) -> Result<(), InstanceError> {
+        for (i, inst) in self.instances.iter().enumerate() {
+            let mesh = self.meshes.get(inst.mesh as usize).ok_or(InstanceError::NoMesh {
+                instance: i,
+                mesh: inst.mesh,
+                meshes: self.meshes.len(),
+            })?;
+            if !inst.has_valid_transform() {
+                return Err(InstanceError::BadTransform { instance: i });
+            }
+            if mesh.triangles.is_empty() {
+                return Err(InstanceError::EmptyMesh { mesh: inst.mesh });
+            }
+            let emissive = |t: &Triangle| self.materials.get(t.material as usize).is_some_and(|m| m.is_emissive());
+            if mesh.triangles.iter().any(emissive) {
+                return Err(InstanceError::EmissiveMesh { mesh: inst.mesh });
+            }
+        }
+        Ok(())
+    }
+
+    /// Moves every placed mesh into [`Scene::triangles`] (one world-space copy per instance)
+    /// and clears the instances: the flattened scene, which renders the same image.
+    pub fn bake_instances(&mut self) {
+        for inst in std::mem::take(&mut self.instances) {
+            if let Some(mesh) = self.meshes.get(inst.mesh as usize) {
+                self.triangles.extend(mesh.triangles.iter().map(|t| place_triangle(t, &inst.transform)));
+            }
+        }
+        self.meshes.clear();
+    }
+
+    /// Triangles the scene places in all: its static ones and every instance's.
+    pub fn placed_triangle_count(&self) -> usize {
+        self.triangles.len()
+            + self
+                .instances
+                .iter()
+                .filter_map(|i| self.meshes.get(i.mesh as usize))
+                .map(|m| m.triangles.len())
+                .sum::<usize>()
+    }
+}
