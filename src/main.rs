@@ -70,7 +70,8 @@ fn main() -> ExitCode {
 #[derive(clap::Args)]
 struct RenderArgs {
     /// Scene file (.gltf, .glb, .obj, .fbx), or a scene generated in code: `cornell` (the
-    /// default), `metal-rough-spheres` or `glass-cornell` (a file of that name takes precedence).
+    /// default), `metal-rough-spheres`, `glass-cornell` or `instanced-shapes` (a file of that
+    /// name takes precedence).
     scene: Option<PathBuf>,
     /// Equirectangular sky (.hdr or .exr).
     #[arg(long)]
@@ -120,6 +121,10 @@ struct RenderArgs {
     /// The time, in seconds, at which the animation poses the scene (clamped to its keyframes).
     #[arg(long, default_value_t = 0.0, value_name = "SECONDS")]
     time: f32,
+    /// Copy meshes that glTF nodes share into the scene once per placement (one BVH level)
+    /// instead of storing them once and placing them by instances (a two-level BVH).
+    #[arg(long)]
+    flatten: bool,
     /// Denoise the image written to --out: an edge-avoiding à-trous filter guided by the first
     /// hit's albedo, normal and depth, whose strength falls as the noise falls (`tracer::denoise`).
     #[arg(long)]
@@ -204,7 +209,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         Some("none") => tracer::scene::AnimationChoice::Rest,
         Some(name) => tracer::scene::AnimationChoice::Named(name.to_owned()),
     };
-    let options = tracer::scene::LoadOptions { strict: args.strict, animation, time: args.time };
+    let options = tracer::scene::LoadOptions { strict: args.strict, animation, time: args.time, flatten: args.flatten };
     let builtin = args.scene.as_ref().filter(|p| !p.exists()).and_then(|p| tracer::scene::builtin(p.to_str()?));
     let mut scene = match (&args.scene, builtin) {
         (_, Some(generated)) => generated,
@@ -213,6 +218,9 @@ fn render(args: &RenderArgs) -> Result<()> {
         }
         (None, None) => tracer::scene::cornell_box(),
     };
+    if args.flatten {
+        scene.bake_instances();
+    }
     if let Some(sky) = &args.sky {
         let s = tracer::scene::load_sky(sky, args.sky_intensity, args.sky_rotation.to_radians())
             .with_context(|| format!("loading sky {}", sky.display()))?;
@@ -238,6 +246,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     let build_time = t1.elapsed();
     let features = packed.features;
     let lights = packed.light_count;
+    let stored_triangles = packed.triangle_count;
 
     let bar = indicatif::ProgressBar::new(args.spp as u64);
     bar.set_style(
@@ -276,7 +285,16 @@ fn render(args: &RenderArgs) -> Result<()> {
     println!("triangles    {}", scene.triangles.len());
     println!("lights       {lights} (features: {features:?})");
     println!("load         {:.1} ms", load_time.as_secs_f64() * 1e3);
-    println!("BVH + pack   {:.1} ms ({} BVH nodes)", build_time.as_secs_f64() * 1e3, bvh.nodes.len());
+    let levels = match scene.instances.len() {
+        0 => format!("{} BVH nodes", bvh.nodes.len()),
+        n => format!(
+            "two levels: {n} placements of {} meshes, {} triangles stored, {} placed",
+            scene.meshes.len(),
+            stored_triangles,
+            scene.placed_triangle_count()
+        ),
+    };
+    println!("BVH + pack   {:.1} ms ({levels})", build_time.as_secs_f64() * 1e3);
     println!(
         "render       {:.2} s, {} spp at {}x{}, {:.2} M samples/s ({:?} backend, {:?} strategy)",
         render_time.as_secs_f64(),

@@ -183,7 +183,7 @@ impl Site {
                     scene.sky = sky.clone();
                 }
                 crate::report_warnings(&scene, &format!("{name}: "), args.strict)?;
-                let bvh = tracer::bvh::build(&scene.triangles).context("building the BVH")?;
+                let bvh = tracer::pack::static_bvh(&scene).context("building the BVH")?;
                 tracer::pack::pack(&scene, &bvh, &tracer::kernel::RenderSettings::default()).context("packing")
             })();
             let packed = match packed {

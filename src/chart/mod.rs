@@ -267,7 +267,7 @@ fn kernel_hash() -> Result<u64> {
 }
 
 fn packed_scene(scene: &Scene, args: &ChartArgs, strategy: Strategy) -> Result<Packed> {
-    let bvh = tracer::bvh::build(&scene.triangles).context("building the BVH")?;
+    let bvh = tracer::pack::static_bvh(scene).context("building the BVH")?;
     let settings = RenderSettings { width: args.size, height: args.size, strategy, max_depth: args.max_depth };
     pack(scene, &bvh, &settings).context("packing the scene")
 }

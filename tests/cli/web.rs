@@ -214,6 +214,18 @@ fn the_browser_agrees_with_the_cpu_on_glass() {
     }
 }
 
+/// Two levels (`Features::instances`; the generated field of placements, served by its built-in
+/// name): the page's WebGL2 and WebGPU kernels traverse both levels as the CPU does.
+#[test]
+fn the_browser_agrees_with_the_cpu_on_instanced_shapes() {
+    let server = Server::start(&["instanced-shapes"]);
+    let scene = scene::builtin("instanced-shapes").expect("built in");
+    assert!(!scene.instances.is_empty());
+    for api in ["webgl2", "webgpu"] {
+        assert_browser_agrees_with_cpu(&server, "instanced-shapes", &scene, Strategy::Mis, api);
+    }
+}
+
 /// A grey plane (an OBJ written here: the page loads files) under venice_sunset: only the sky
 /// lights it, so NEE and MIS sample the sky's importance table.
 fn sky_lit_plane() -> (Server, Scene) {

@@ -448,3 +448,74 @@ fn bvh_traversal_on_damaged_helmet() {
         );
     }
 }
+
+/// Two levels (`kernel::instances`) on every runtime: 100,000 rays through a generated field of
+/// placements of one mesh (rotated, scaled non-uniformly, every third mirrored, over static
+/// triangles) find on each GPU runtime the CPU's closest hit (the same triangle of the same
+/// placement at the same distance, to rounding relative to the coordinates' size, or a
+/// near-tie there), and the shadow test agrees.
+#[test]
+fn two_level_traversal_agrees() {
+    let scene = tracer::scene::instanced_shapes(8);
+    let packed = tracer::pack::build_and_pack(&scene, &RenderSettings::default()).expect("pack").1;
+    assert!(packed.features.instances);
+    let mut eq = equivalence();
+    eq.set_scene(&packed.scene).expect("scene uploads");
+    eq.set_specialization(packed.features.specialization());
+    let b = scene.bounds();
+    let (lo, hi) = (b.min - b.diagonal() * 0.1, b.max + b.diagonal() * 0.1);
+    let mut r = TestRng::new(28);
+    let point = |r: &mut TestRng, lo: Vec3, hi: Vec3| lo + (hi - lo) * Vec3::new(r.f32(), r.f32(), r.f32());
+    let rays: Vec<(Vec3, Vec3, f32)> = (0..100_000)
+        .map(|_| {
+            let o = point(&mut r, lo, hi);
+            (o, (point(&mut r, b.min, b.max) - o).normalize(), MISS)
+        })
+        .collect();
+    let closest =
+        eq.run("trace_closest", &rays, |s, &(o, d, t)| (traverse::trace_closest(s, o, d, t),), TRIANGLE).expect("runs");
+    report(&closest);
+    let cpu = closest.output(Backend::Cpu).unwrap();
+    let hits = cpu.iter().filter(|(h,)| h.triangle != NONE).count();
+    let placed = cpu.iter().filter(|(h,)| h.triangle != NONE && h.instance != cpu[0].0.instance).count();
+    assert!(hits > rays.len() / 3 && placed > rays.len() / 10, "{hits} hits, {placed} on other placements");
+    let shadow: Vec<(Vec3, Vec3, f32)> = rays
+        .iter()
+        .zip(cpu)
+        .flat_map(|(&(o, d, _), (h,))| [(o, d, MISS), (o, d, if h.triangle == NONE { 1.0 } else { h.t * 0.999 })])
+        .collect();
+    let any =
+        eq.run("occluded", &shadow, |s, &(o, d, t)| (traverse::occluded(s, o, d, t),), Tolerance::EXACT).expect("runs");
+    report(&any);
+    for backend in Backend::GPU {
+        let gpu = closest.output(backend).unwrap();
+        let mut near_ties = 0;
+        for &i in &closest.comparison(backend).unwrap().mismatched {
+            let ((want,), (got,)) = (cpu[i], gpu[i]);
+            assert!(
+                want.triangle != NONE && got.triangle != NONE,
+                "ray {i}: hit vs miss: CPU {want:?} vs {backend} {got:?}"
+            );
+            // Rounding in the move to a placement's space (llvmpipe fuses multiply-adds there)
+            // is relative to the coordinates' size, so is the error in t: the gap is measured
+            // against the origin's distance from the world origin as well as t.
+            let (o, _, _) = rays[i];
+            let gap = (got.t - want.t).abs() / want.t.max(o.length()).max(1.0);
+            if (want.triangle, want.instance) == (got.triangle, got.instance) {
+                assert!(gap <= 1e-5, "ray {i}: same triangle, CPU {want:?} vs {backend} {got:?}");
+            } else {
+                assert!(gap <= 1e-5, "ray {i}: {backend}'s hit {got:?} is not a near-tie of the CPU's {want:?}");
+                near_ties += 1;
+            }
+        }
+        assert!(near_ties * 1000 <= rays.len(), "{backend}: {near_ties} near-ties");
+        let (cpu_any, gpu_any) = (any.output(Backend::Cpu).unwrap(), any.output(backend).unwrap());
+        let differ = (0..cpu_any.len()).filter(|&k| cpu_any[k].0 != gpu_any[k].0).count();
+        println!("two levels on {backend}: {near_ties} near-ties, {differ} any-hit answers differ");
+        assert!(differ * 1000 <= shadow.len(), "{backend}: {differ} any-hit disagreements");
+        for (k, (hit,)) in cpu.iter().enumerate() {
+            assert_eq!(gpu_any[2 * k].0, gpu[k].0.triangle != NONE, "ray {k}: {backend}'s any-hit vs its closest hit");
+            assert_eq!(cpu_any[2 * k].0, hit.triangle != NONE, "ray {k}: CPU any-hit vs closest hit");
+        }
+    }
+}

@@ -10,6 +10,7 @@ mod cpu;
 mod denoise;
 mod gl;
 mod glass;
+mod instancing;
 mod metal_rough;
 mod normal_maps;
 mod stability;

@@ -7,6 +7,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 mod fbx;
+mod instancing;
 mod moving;
 mod validator_corpus;
 

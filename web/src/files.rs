@@ -132,7 +132,7 @@ pub fn load_dropped(files: &[DroppedFile]) -> Result<(String, Scene), DropError>
 
 /// BVH build and packing, as for a served bundle.
 pub fn prepare(name: &str, scene: &Scene, settings: &RenderSettings) -> Result<Packed, DropError> {
-    let bvh = tracer::bvh::build(&scene.triangles).map_err(|source| DropError::Bvh { scene: name.into(), source })?;
+    let bvh = tracer::pack::static_bvh(scene).map_err(|source| DropError::Bvh { scene: name.into(), source })?;
     tracer::pack::pack(scene, &bvh, settings).map_err(|source| DropError::Pack { scene: name.into(), source })
 }
 

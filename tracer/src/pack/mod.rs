@@ -75,15 +75,20 @@ fn index_value(i: Option<u32>) -> f32 {
 /// Builds the BVH and packs `scene` for `settings`, packing the textures in parallel with the
 /// BVH build (neither needs the other).
 pub fn build_and_pack(scene: &Scene, settings: &RenderSettings) -> Result<(Bvh, Packed), BuildAndPackError> {
-    // A scene of placed meshes only has no static level (an empty BVH stands for it).
-    let static_bvh = || match scene.triangles.is_empty() && !scene.instances.is_empty() {
-        true => Ok(Bvh::default()),
-        false => crate::bvh::build(&scene.triangles),
-    };
-    let (bvh, textures) = rayon::join(static_bvh, || pack_textures(scene));
+    let (bvh, textures) = rayon::join(|| static_bvh(scene), || pack_textures(scene));
     let bvh = bvh?;
     let packed = pack_with_textures(scene, &bvh, &textures, settings)?;
     Ok((bvh, packed))
+}
+
+/// The BVH of `scene`'s static triangles, which [`pack`] takes (the placed meshes' own are
+/// built there). A scene of placed meshes only has no static level: an empty BVH stands for it.
+pub fn static_bvh(scene: &Scene) -> Result<Bvh, crate::bvh::BvhError> {
+    if scene.triangles.is_empty() && !scene.instances.is_empty() {
+        Ok(Bvh::default())
+    } else {
+        crate::bvh::build(&scene.triangles)
+    }
 }
 
 /// Why [`build_and_pack`] failed.

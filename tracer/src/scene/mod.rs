@@ -466,6 +466,9 @@ pub struct LoadOptions {
     pub animation: AnimationChoice,
     /// The time in seconds at which the animation poses the scene (clamped to its keyframes).
     pub time: f32,
+    /// Place every mesh into the static triangles, even those that glTF nodes share (by
+    /// default shared meshes are stored once and placed by instances: a two-level scene).
+    pub flatten: bool,
 }
 
 /// Loads a scene with default [`LoadOptions`], choosing the format from the file extension:
@@ -577,7 +580,9 @@ impl Scene {
     pub fn validate(&self) -> Result<(), SceneError> {
         let bad = |m: String| Err(SceneError::Malformed(m));
         let texture_ok = |t: Option<u32>| t.is_none_or(|t| (t as usize) < self.textures.len());
-        for (i, t) in self.triangles.iter().enumerate() {
+        self.check_instances().map_err(|e| SceneError::Malformed(e.to_string()))?;
+        let placed = self.meshes.iter().flat_map(|m| &m.triangles);
+        for (i, t) in self.triangles.iter().chain(placed).enumerate() {
             if t.material as usize >= self.materials.len() {
                 return bad(format!("triangle {i} uses missing material {}", t.material));
             }

@@ -222,7 +222,7 @@ impl Loader<'_> {
             return;
         }
         let mut used = vec![false; self.materials.len()];
-        for t in &self.triangles {
+        for t in self.triangles.iter().chain(self.instanced_meshes.iter().flat_map(|m| &m.triangles)) {
             if let Some(u) = used.get_mut(t.material as usize) {
                 *u = true;
             }

@@ -21,6 +21,7 @@ mod animation;
 mod materials;
 mod morph;
 mod nodes;
+mod placement;
 mod skin;
 
 pub use animation::AnimationChoice;
@@ -125,6 +126,9 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>, options: &LoadOpti
         material_label: String::new(),
         mesh_instances: 0,
         pose: HashMap::new(),
+        pending: Vec::new(),
+        instanced_meshes: Vec::new(),
+        instances: Vec::new(),
     };
     loader.run(&animations, options)
 }
@@ -320,6 +324,11 @@ struct Loader<'a> {
     mesh_instances: usize,
     /// The node transforms of the chosen animation at the chosen time.
     pose: HashMap<usize, NodePose>,
+    /// Placements of meshes met while walking the nodes (`placement.rs`).
+    pending: Vec<placement::Pending>,
+    /// The meshes placed by `instances`, in mesh space.
+    instanced_meshes: Vec<crate::scene::Mesh>,
+    instances: Vec<crate::scene::Instance>,
 }
 
 impl Loader<'_> {
@@ -329,8 +338,9 @@ impl Loader<'_> {
         self.pose = self.pose(animations, &options.animation, options.time)?;
         let roots = self.scene_roots()?;
         self.visit(&roots)?;
+        self.place_pending(options.flatten)?;
 
-        if self.triangles.is_empty() {
+        if self.triangles.is_empty() && self.instances.is_empty() {
             let degenerate = self.warnings.why_no_triangles("");
             let why = if self.mesh_instances == 0 {
                 " (no node of the scene has a mesh)".to_owned()
@@ -348,8 +358,8 @@ impl Loader<'_> {
         std::mem::take(&mut self.problems).warn(&mut self.warnings);
         let mut scene = Scene {
             triangles: self.triangles,
-            meshes: Vec::new(),
-            instances: Vec::new(),
+            meshes: self.instanced_meshes,
+            instances: self.instances,
             materials: self.materials,
             textures,
             point_lights: self.point_lights,

@@ -16,7 +16,7 @@ pub(super) struct LocalPrimitive {
     /// Per corner of `triangles`: the file's `TANGENT`s, else MikkTSpace's; only for a
     /// material with a normal map.
     pub(super) tangents: Option<Vec<[Vec4; 3]>>,
-    material: u32,
+    pub(super) material: u32,
     /// `JOINTS_0` and `WEIGHTS_0`, per vertex, when the primitive has both (`skin.rs`).
     pub(super) skin: Option<VertexSkin>,
     /// Morph targets (`morph.rs`), in the file's order.
@@ -65,6 +65,8 @@ impl Loader<'_> {
             if let Some(m) = node.mesh {
                 let mesh = m.value();
                 let prims = self.morphed(mesh, node, n)?;
+                // Morphed copies differ per node: only the shared primitives may be instanced.
+                let shared = self.meshes.get(&mesh).is_some_and(|m| Rc::ptr_eq(m, &prims));
                 if let Some(skin) = node.skin {
                     self.mesh_instances += 1;
                     self.instantiate_skinned(mesh, &prims, skin.value(), n)?;
@@ -73,11 +75,11 @@ impl Loader<'_> {
                 {
                     for instance in self.gpu_instances(instancing, n)? {
                         self.mesh_instances += 1;
-                        self.place(mesh, &prims, &(world * instance))?;
+                        self.defer(mesh, shared, prims.clone(), world * instance)?;
                     }
                 } else {
                     self.mesh_instances += 1;
-                    self.place(mesh, &prims, &world)?;
+                    self.defer(mesh, shared, prims, world)?;
                 }
             }
             for child in node.children.iter().flatten().rev() {
@@ -90,7 +92,7 @@ impl Loader<'_> {
     /// The instance transforms of node `node`'s `EXT_mesh_gpu_instancing`: per instance
     /// T * R * S from its `TRANSLATION`, `ROTATION` (a quaternion, normalised) and `SCALE`
     /// accessors (each optional, all of one count), applied under the node's own transform.
-    /// Instances are flattened into the scene's triangles, as every other node.
+    /// Instances are placed as nodes are (`placement.rs`).
     fn gpu_instances(&mut self, instancing: &Value, node: usize) -> Result<Vec<Mat4>, SceneError> {
         let what = format!("node {node} EXT_mesh_gpu_instancing");
         let attributes = instancing

@@ -71,7 +71,7 @@ impl Loader<'_> {
             .collect::<Result<_, SceneError>>()?;
         let skinned: Vec<LocalPrimitive> =
             prims.iter().map(|p| skin_primitive(p, &joints, &what)).collect::<Result<_, _>>()?;
-        self.place(mesh, &skinned, &Mat4::IDENTITY)
+        self.defer(mesh, false, Rc::new(skinned), Mat4::IDENTITY)
     }
 
     /// Each node's parent (nodes are a forest: a second parent is refused).

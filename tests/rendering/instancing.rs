@@ -1,0 +1,26 @@
+//! Two levels render what one level renders: the same triangles placed by instances (as
+//! `tracer::scene::instanced_shapes` places them, mirrored and non-uniformly scaled ones
+//! included) and baked into one triangle list give the same image, statistically, with every
+//! strategy. (Each GPU runtime against the CPU on the instanced scene: the agreement suite.)
+
+use crate::common::agreement::{assert_runs_agree, packed, run, STRATEGIES};
+use tracer::backend::cpu::CpuRenderer;
+
+#[test]
+fn instanced_and_flattened_render_the_same_image() {
+    let scene = tracer::scene::instanced_shapes(5);
+    let mut flat = scene.clone();
+    flat.bake_instances();
+    let size = 32;
+    for strategy in STRATEGIES {
+        let (two, one) = (packed(&scene, strategy, size, 4), packed(&flat, strategy, size, 4));
+        assert!(two.features.instances && !one.features.instances);
+        let a = run(&mut CpuRenderer::new(two, 1), size, 256);
+        let b = run(&mut CpuRenderer::new(one, 2), size, 256);
+        let z = assert_runs_agree(&format!("instanced shapes {strategy:?}"), ["two levels", "flattened"], &a, &b);
+        eprintln!(
+            "instanced shapes {strategy:?}: max z {z:.2}; two levels {:.2} s, flattened {:.2} s",
+            a.seconds, b.seconds
+        );
+    }
+}
