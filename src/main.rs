@@ -70,8 +70,8 @@ fn main() -> ExitCode {
 #[derive(clap::Args)]
 struct RenderArgs {
     /// Scene file (.gltf, .glb, .obj, .fbx), or a scene generated in code: `cornell` (the
-    /// default), `metal-rough-spheres`, `glass-cornell` or `instanced-shapes` (a file of that
-    /// name takes precedence).
+    /// default), `metal-rough-spheres`, `glass-cornell`, `instanced-shapes` or `instanced-field`
+    /// (10,000 placements, 102 M triangles; a file of that name takes precedence).
     scene: Option<PathBuf>,
     /// Equirectangular sky (.hdr or .exr).
     #[arg(long)]

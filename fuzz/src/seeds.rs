@@ -237,7 +237,9 @@ fn bundle() -> Vec<Seed> {
     });
     let textured =
         scene::load_gltf_slice(&crate::glb::textured_quad(&crate::targets::tiny_images().0), None, &Default::default());
-    let mut scenes = vec![("cornell_box", scene::cornell_box()), ("sky", with_sky)];
+    // Two levels: placements the decoder's checks must bound (roots, transforms, flags).
+    let mut scenes =
+        vec![("cornell_box", scene::cornell_box()), ("sky", with_sky), ("instanced", scene::instanced_shapes(2))];
     if let Ok(t) = textured {
         scenes.push(("textured", t));
     }

@@ -24,3 +24,22 @@ fn instanced_and_flattened_render_the_same_image() {
         );
     }
 }
+
+/// The stress field: 10,000 placements of a 10,240-triangle sphere (over 100 million triangles
+/// placed) pack into a few megabytes and render finite, lit samples.
+#[test]
+fn a_hundred_million_placed_triangles_render() {
+    let scene = tracer::scene::instanced_field(100);
+    assert!(scene.placed_triangle_count() >= 100_000_000, "{}", scene.placed_triangle_count());
+    let p = packed(&scene, tracer::kernel::Strategy::Mis, 16, 4);
+    let s = &p.scene;
+    let bytes = std::mem::size_of_val(s.triangles.as_slice())
+        + std::mem::size_of_val(s.shading.as_slice())
+        + std::mem::size_of_val(s.nodes.as_slice())
+        + std::mem::size_of_val(s.node_children.as_slice());
+    assert!(bytes < 8 << 20, "{bytes} bytes of geometry");
+    let r = run(&mut CpuRenderer::new(p, 1), 16, 2);
+    assert_eq!(r.rejected, 0);
+    let mean = r.per_frame.iter().flatten().map(|m| m.y).sum::<f64>();
+    assert!(mean > 0.0, "a black image");
+}

@@ -59,8 +59,10 @@ pub(super) fn two_level<'a>(scene: &'a Scene, bvh: &Bvh) -> Result<Ordered<'a>, 
             triangles.extend(b.triangle_order.iter().map(|&i| &scene.meshes[m].triangles[i as usize]));
         }
     }
+    let mesh_bounds: Vec<Aabb> =
+        scene.meshes.iter().zip(&used).map(|(m, &u)| if u { m.bounds() } else { Aabb::EMPTY }).collect();
     for inst in &scene.instances {
-        let mesh_bounds = scene.meshes[inst.mesh as usize].bounds();
+        let mesh_bounds = mesh_bounds[inst.mesh as usize];
         placements.push(Placement {
             level: level_of_mesh[inst.mesh as usize],
             transform: inst.transform,

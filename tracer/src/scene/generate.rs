@@ -319,7 +319,11 @@ pub fn glass_cornell() -> Scene {
 
 /// Appends a UV sphere (32 segments x 16 rings, outward-facing, smooth normals) to `out`.
 pub(crate) fn sphere(out: &mut Vec<Triangle>, center: Vec3, radius: f32, material: u32) {
-    let (segments, rings) = (32, 16);
+    uv_sphere(out, center, radius, material, (32, 16));
+}
+
+/// Appends a UV sphere of `(segments, rings)` (`2 * segments * (rings - 1)` triangles).
+fn uv_sphere(out: &mut Vec<Triangle>, center: Vec3, radius: f32, material: u32, (segments, rings): (usize, usize)) {
     let dir = |s: usize, k: usize| {
         let phi = s as f32 / segments as f32 * std::f32::consts::TAU;
         let theta = k as f32 / rings as f32 * std::f32::consts::PI;
@@ -347,6 +351,38 @@ pub(crate) fn sphere(out: &mut Vec<Triangle>, center: Vec3, radius: f32, materia
                 });
             }
         }
+    }
+}
+
+/// The stress scene of two levels: a 10,240-triangle sphere placed `side` x `side` times
+/// (100 x 100: 102 million triangles placed, 10,242 stored) over a static floor, under a sky.
+pub fn instanced_field(side: usize) -> Scene {
+    use glam::{Mat4, Quat};
+    let mut mesh = Vec::new();
+    uv_sphere(&mut mesh, Vec3::ZERO, 0.4, 0, (128, 41));
+    let half = side as f32 * 0.5;
+    let mut floor = Vec::new();
+    quad(&mut floor, [v(-half, -0.4, half), v(half, -0.4, half), v(half, -0.4, -half), v(-half, -0.4, -half)], 1);
+    let instances = (0..side * side)
+        .map(|k| {
+            let (i, j) = (k % side, k / side);
+            let at = v(i as f32 + 0.5 - half, 0.0, j as f32 + 0.5 - half);
+            let scale = v(1.0, 0.6 + 0.4 * (k as f32 * 0.37).sin().abs(), 1.0);
+            let transform = Mat4::from_scale_rotation_translation(scale, Quat::from_rotation_y(k as f32), at);
+            super::Instance { mesh: 0, transform }
+        })
+        .collect();
+    Scene {
+        triangles: floor,
+        meshes: vec![super::Mesh { triangles: mesh }],
+        instances,
+        materials: vec![
+            Material::diffuse("spheres", Vec3::new(0.6, 0.5, 0.4)),
+            Material::diffuse("floor", Vec3::splat(0.5)),
+        ],
+        sky: Some(super::Sky::uniform(Vec3::ONE)),
+        camera: Camera::look_at(v(0.0, 6.0, half + 4.0), v(0.0, 0.0, half - 12.0), Vec3::Y, 0.9),
+        ..Scene::default()
     }
 }
 

@@ -106,6 +106,8 @@ impl Scene {
     /// Checks what `tracer::pack` relies on: every instance names a mesh with triangles and
     /// carries a valid transform, and no placed mesh emits light.
     pub fn check_instances(&self) -> Result<(), InstanceError> {
+        let emissive = |t: &Triangle| self.materials.get(t.material as usize).is_some_and(|m| m.is_emissive());
+        let mut placed = vec![false; self.meshes.len()];
         for (i, inst) in self.instances.iter().enumerate() {
             let mesh = self.meshes.get(inst.mesh as usize).ok_or(InstanceError::NoMesh {
                 instance: i,
@@ -115,10 +117,13 @@ impl Scene {
             if !inst.has_valid_transform() {
                 return Err(InstanceError::BadTransform { instance: i });
             }
+            // Each placed mesh is checked once.
+            if std::mem::replace(&mut placed[inst.mesh as usize], true) {
+                continue;
+            }
             if mesh.triangles.is_empty() {
                 return Err(InstanceError::EmptyMesh { mesh: inst.mesh });
             }
-            let emissive = |t: &Triangle| self.materials.get(t.material as usize).is_some_and(|m| m.is_emissive());
             if mesh.triangles.iter().any(emissive) {
                 return Err(InstanceError::EmissiveMesh { mesh: inst.mesh });
             }

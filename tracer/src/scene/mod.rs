@@ -84,14 +84,16 @@ use std::path::{Path, PathBuf};
 use glam::{Vec2, Vec3, Vec4};
 
 pub use generate::{
-    alpha_checker, alpha_masked_screen, checker_floor, cornell_box, diffuse_plane, glass_cornell, instanced_shapes,
-    metal_rough_spheres, terrain_and_spheres, white_furnace,
+    alpha_checker, alpha_masked_screen, checker_floor, cornell_box, diffuse_plane, glass_cornell, instanced_field,
+    instanced_shapes, metal_rough_spheres, terrain_and_spheres, white_furnace,
 };
 pub use material::Material;
 
 /// The scenes generated in code that the command line names: `cornell` (also `cornell-box`),
-/// `metal-rough-spheres`, `glass-cornell` and `instanced-shapes` (8 x 8 placements of one mesh).
-pub const BUILTIN_SCENES: [&str; 4] = ["cornell", "metal-rough-spheres", "glass-cornell", "instanced-shapes"];
+/// `metal-rough-spheres`, `glass-cornell`, `instanced-shapes` (8 x 8 placements of one mesh) and
+/// `instanced-field` (10,000 placements of a 10,240-triangle sphere: 102 million triangles).
+pub const BUILTIN_SCENES: [&str; 5] =
+    ["cornell", "metal-rough-spheres", "glass-cornell", "instanced-shapes", "instanced-field"];
 
 /// The scene generated in code called `name` (see [`BUILTIN_SCENES`]).
 pub fn builtin(name: &str) -> Option<Scene> {
@@ -100,6 +102,7 @@ pub fn builtin(name: &str) -> Option<Scene> {
         "metal-rough-spheres" => Some(metal_rough_spheres()),
         "glass-cornell" => Some(glass_cornell()),
         "instanced-shapes" => Some(instanced_shapes(8)),
+        "instanced-field" => Some(instanced_field(100)),
         _ => None,
     }
 }
