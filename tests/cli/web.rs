@@ -105,6 +105,10 @@ fn assert_browser_agrees_with_cpu(server: &Server, scene_name: &str, scene: &Sce
     assert_eq!(info["strategy"], strategy.name());
     let shown = if api == "webgpu" { "WebGPU" } else { "WebGL2" };
     assert_eq!(info["api"], shown, "the page runs the API asked for: {info}");
+    // The read-out names a two-level scene's placements (the static triangles' one included).
+    let placements = info["placements"].as_u64().expect("placements");
+    let want = if scene.instances.is_empty() { 0 } else { scene.instances.len() as u64 + 1 };
+    assert_eq!(placements, want, "{scene_name}: placements in the read-out: {info}");
     let mut browser_sums = Vec::new();
     for (b, batch) in report["batches"].as_array().expect("batches").iter().enumerate() {
         let spp = batch["spp"].as_u64().expect("spp");

@@ -481,6 +481,7 @@ impl Viewer {
             let f = &loaded.packed.features;
             set(&info, "name", loaded.name.as_str());
             set(&info, "triangles", loaded.packed.triangle_count as u32);
+            set(&info, "placements", loaded.packed.placement_count() as u32);
             set(&info, "lights", loaded.packed.light_count as u32);
             set(&info, "textureChecksum", loaded.packed.texture_checksum());
             let features = Object::new();

@@ -118,6 +118,15 @@ const hook = {
 };
 window.lightport = hook;
 
+// The scene's geometry in words: its triangles, and for a two-level scene (meshes stored once
+// and placed by instances) how many placements.
+function geometryText(info) {
+  const triangles = `${info.triangles.toLocaleString()} triangles`;
+  return info.placements > 0
+    ? `${triangles} stored, ${info.placements.toLocaleString()} placements (two levels)`
+    : triangles;
+}
+
 function showMessage(text, kind = 'error') {
   const box = $('message');
   box.textContent = text;
@@ -405,7 +414,7 @@ async function loadBundleUrl(url) {
     currentName = info.name || url;
     $('scene').value = '';
     $('screenshot').disabled = false;
-    $('scene-info').textContent = `${currentName}: ${info.triangles.toLocaleString()} triangles`;
+    $('scene-info').textContent = `${currentName}: ${geometryText(info)}`;
     showNotice();
   } catch (e) {
     showMessage(`${url}: ${e.message || e}`);
@@ -479,7 +488,7 @@ async function loadFiles(fileList) {
     $('scene').value = '';
     $('screenshot').disabled = false;
     $('scene-info').textContent =
-      `${info.name}: ${info.triangles.toLocaleString()} triangles, loaded in ${info.loadMs.toFixed(0)} ms, ` +
+      `${info.name}: ${geometryText(info)}, loaded in ${info.loadMs.toFixed(0)} ms, ` +
       `BVH + pack ${info.buildAndPackMs.toFixed(0)} ms`;
     if (info.warnings) showMessage(`${info.name}: ${info.warnings}`, 'info');
     else showNotice();

@@ -247,6 +247,18 @@ impl Packed {
         words.iter().flat_map(|w| w.to_le_bytes()).fold(0x811c_9dc5, |h, b| (h ^ b as u32).wrapping_mul(0x0100_0193))
     }
 
+    /// Placements of a two-level scene (`Features::instances`, the static triangles' one
+    /// included); 0 for a one-level scene.
+    pub fn placement_count(&self) -> usize {
+        match self.features.instances {
+            true => {
+                self.scene.nodes.len().saturating_sub(self.scene.instance_first as usize)
+                    / crate::kernel::instances::INSTANCE_TEXELS as usize
+            }
+            false => 0,
+        }
+    }
+
     /// Asks for the denoiser's guide (`Features::denoise_guide`) or not: a renderer created
     /// from this accumulates it besides the image (`Renderer::guide`). No repacking: a flag
     /// and its uniform.
