@@ -2,6 +2,7 @@
 
 mod chart;
 mod export;
+mod pose;
 mod serve;
 mod site;
 
@@ -114,17 +115,8 @@ struct RenderArgs {
     /// unsupported feature, nothing lighting it) instead of rendering it anyway.
     #[arg(long)]
     strict: bool,
-    /// The glTF animation that poses the scene: its name or index, or `none` for the nodes'
-    /// rest transforms (default: the first animation, as viewers play it).
-    #[arg(long, value_name = "NAME|INDEX|none")]
-    animation: Option<String>,
-    /// The time, in seconds, at which the animation poses the scene (clamped to its keyframes).
-    #[arg(long, default_value_t = 0.0, value_name = "SECONDS")]
-    time: f32,
-    /// Copy meshes that glTF nodes share into the scene once per placement (one BVH level)
-    /// instead of storing them once and placing them by instances (a two-level BVH).
-    #[arg(long)]
-    flatten: bool,
+    #[command(flatten)]
+    pose: pose::PoseArgs,
     /// Denoise the image written to --out: an edge-avoiding à-trous filter guided by the first
     /// hit's albedo, normal and depth, whose strength falls as the noise falls (`tracer::denoise`).
     #[arg(long)]
@@ -201,15 +193,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         bail!("--exposure must be a finite number of stops within ±64");
     }
     let t0 = Instant::now();
-    if !args.time.is_finite() {
-        bail!("--time must be a finite number of seconds");
-    }
-    let animation = match args.animation.as_deref() {
-        None => tracer::scene::AnimationChoice::First,
-        Some("none") => tracer::scene::AnimationChoice::Rest,
-        Some(name) => tracer::scene::AnimationChoice::Named(name.to_owned()),
-    };
-    let options = tracer::scene::LoadOptions { strict: args.strict, animation, time: args.time, flatten: args.flatten };
+    let options = args.pose.load_options(args.strict)?;
     let builtin = args.scene.as_ref().filter(|p| !p.exists()).and_then(|p| tracer::scene::builtin(p.to_str()?));
     let mut scene = match (&args.scene, builtin) {
         (_, Some(generated)) => generated,
@@ -218,9 +202,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         }
         (None, None) => tracer::scene::cornell_box(),
     };
-    if args.flatten {
-        scene.bake_instances();
-    }
+    args.pose.apply_to_generated(&mut scene);
     if let Some(sky) = &args.sky {
         let s = tracer::scene::load_sky(sky, args.sky_intensity, args.sky_rotation.to_radians())
             .with_context(|| format!("loading sky {}", sky.display()))?;

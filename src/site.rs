@@ -93,6 +93,8 @@ pub struct SiteArgs {
     /// Refuse (build nothing) when loading a scene gives any warning, instead of using it anyway.
     #[arg(long)]
     pub strict: bool,
+    #[command(flatten)]
+    pub pose: crate::pose::PoseArgs,
 }
 
 /// Every route, and what start-up measured.
@@ -173,12 +175,10 @@ impl Site {
                 let builtin = path.filter(|p| !p.exists()).and_then(|p| tracer::scene::builtin(p.to_str()?));
                 let mut scene = match (path, builtin) {
                     (_, Some(generated)) => generated,
-                    (Some(path), None) => tracer::scene::load_with(
-                        path,
-                        &tracer::scene::LoadOptions { strict: args.strict, ..Default::default() },
-                    )?,
+                    (Some(path), None) => tracer::scene::load_with(path, &args.pose.load_options(args.strict)?)?,
                     (None, None) => tracer::scene::cornell_box(),
                 };
+                args.pose.apply_to_generated(&mut scene);
                 if sky.is_some() {
                     scene.sky = sky.clone();
                 }

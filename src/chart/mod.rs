@@ -53,6 +53,8 @@ pub struct ChartArgs {
     /// Equirectangular sky (.hdr or .exr) for every scene.
     #[arg(long)]
     pub sky: Option<PathBuf>,
+    #[command(flatten)]
+    pub pose: crate::pose::PoseArgs,
     /// Sky radiance multiplier.
     #[arg(long, default_value_t = 1.0)]
     pub sky_intensity: f32,
@@ -209,7 +211,8 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
                         scene::stability::stability_cases().iter().map(|c| c.name).collect::<Vec<_>>().join(", ")
                     );
                 }
-                let loaded = scene::load(path).with_context(|| format!("loading {}", path.display()))?;
+                let loaded = scene::load_with(path, &args.pose.load_options(false)?)
+                    .with_context(|| format!("loading {}", path.display()))?;
                 for w in &loaded.warnings {
                     eprintln!("warning: {w}");
                 }
@@ -219,6 +222,12 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
             }
         },
     };
+    // The pose is part of what a reference was rendered from.
+    args.pose.apply_to_generated(&mut chart_scene.scene);
+    let pose = args.pose.describe();
+    if !pose.is_empty() {
+        write!(chart_scene.identity, ", posed: {pose}")?;
+    }
     if let Some(sky_path) = &args.sky {
         let sky = scene::load_sky(sky_path, args.sky_intensity, 0.0)
             .with_context(|| format!("loading sky {}", sky_path.display()))?;
@@ -576,6 +585,7 @@ mod tests {
         ChartArgs {
             scenes: scenes.iter().map(|s| s.to_string()).collect(),
             sky: None,
+            pose: Default::default(),
             sky_intensity: 1.0,
             size: 8,
             spp: 16,

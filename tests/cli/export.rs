@@ -259,3 +259,44 @@ fn an_installed_binary_serves_and_exports_its_built_in_page() {
     let _ = stderr.read_to_string(&mut said);
     assert!(!said.contains("warning"), "{said}");
 }
+
+/// `export` (and `serve`, which share the scene options) poses a scene as `render` does: the
+/// bundle of an animated scene at `--time 0` differs from the one at `--time 1`, the Cornell
+/// box's does not, and a time that is not a number is refused.
+#[test]
+fn export_poses_the_scene_at_the_time_asked() {
+    let scene = crate::common::test_data("scenes/generated/animated-skinned-instanced.gltf");
+    let dir = TempDir::new("pose");
+    let bundles_at = |time: &str| -> Vec<String> {
+        let out_dir = dir.0.join(format!("t{time}"));
+        let out = export(&[
+            scene.as_os_str(),
+            "--time".as_ref(),
+            time.as_ref(),
+            "--out".as_ref(),
+            out_dir.as_os_str(),
+            "--web".as_ref(),
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("web").as_os_str(),
+        ]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let mut names: Vec<String> = std::fs::read_dir(out_dir.join("bundles"))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    };
+    let (at_0, at_1) = (bundles_at("0"), bundles_at("1"));
+    assert_eq!(at_0.len(), 2, "the Cornell box and the scene: {at_0:?}");
+    let same: Vec<&String> = at_0.iter().filter(|b| at_1.contains(b)).collect();
+    assert_eq!(same.len(), 1, "only the Cornell box's bundle is the same at both times: {at_0:?} {at_1:?}");
+    let out = export(&[
+        scene.as_os_str(),
+        "--time".as_ref(),
+        "NaN".as_ref(),
+        "--out".as_ref(),
+        dir.0.join("nan").as_os_str(),
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--time"), "{}", String::from_utf8_lossy(&out.stderr));
+}
