@@ -5,7 +5,7 @@
 //   node run.mjs SCENARIO --url http://127.0.0.1:PORT/ --out result.json [options]
 //
 // Scenarios: accumulate, cache, camera, slow, drop, limits, context, display, api, deviceloss, bench,
-// chart, compile, denoise, denoiseedges (see each function); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
+// chart, compile, denoise, denoiseedges, toplevel (see each function); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
 // long, so that a hung page never hangs the caller. `--exit-on-stdin-eof` (no value): exit 4,
 // closing the browser, when stdin reaches its end: the caller holds the pipe's other end, which
 // the kernel closes when the caller ends however it ends (src/serve_child.rs), so neither this
@@ -719,9 +719,31 @@ async function compile(o) {
   }
 }
 
+// The top level of a two-level scene built in wasm over 32², 100² and 317² placements (the
+// stress field's), median of 5 each: what a frame in which placements move rebuilds
+// (`Viewer.topLevelBuildMs`; native figures: examples/bench_instancing.rs).
+async function topLevel(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const { page, error } = await open(context, o.url, { scene: '', paused: '1' });
+      if (error) return { error };
+      const rows = [];
+      for (const side of [32, 100, 317]) {
+        const ms = await page.evaluate((s) => window.lightport.viewer.constructor.topLevelBuildMs(s), side);
+        rows.push({ placements: side * side, ms });
+        process.stderr.write(`${JSON.stringify(rows.at(-1))}\n`);
+      }
+      return { rows };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
 const SCENARIOS = {
   accumulate, cache, camera, slow, drop, limits, context: contextLoss, display, api: apiChoice, deviceloss: deviceLoss,
-  bench, chart, compile, denoise, denoiseedges: denoiseEdges,
+  bench, chart, compile, denoise, denoiseedges: denoiseEdges, toplevel: topLevel,
 };
 
 const options = parseArgs(process.argv.slice(2));

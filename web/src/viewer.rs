@@ -453,6 +453,27 @@ impl Viewer {
         })
     }
 
+    /// Milliseconds to build the top level over the placements of the stress field
+    /// (`instanced_field(side)`: side² placements) as packing does (`pack::top_level`), median
+    /// of 5: what a frame in which placements move rebuilds, timed in wasm
+    /// (`tests/web/run.mjs toplevel`).
+    #[wasm_bindgen(js_name = topLevelBuildMs)]
+    pub fn top_level_build_ms(side: u32) -> Result<f64, JsError> {
+        let boxes: Vec<(glam::Vec3, glam::Vec3)> = tracer::scene::instanced_field(side.clamp(1, 1000) as usize)
+            .placement_boxes()
+            .iter()
+            .map(|b| (b.min, b.max))
+            .collect();
+        let mut times = Vec::with_capacity(5);
+        for _ in 0..5 {
+            let start = now_ms();
+            std::hint::black_box(tracer::pack::top_level(&boxes).map_err(js_error)?);
+            times.push(now_ms() - start);
+        }
+        times.sort_by(f64::total_cmp);
+        Ok(times[2])
+    }
+
     /// Samples per pixel accumulated since the last restart.
     pub fn spp(&self) -> u32 {
         self.running.as_ref().map_or(0, Runtime::frames)

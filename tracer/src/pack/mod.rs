@@ -19,6 +19,7 @@ mod alpha_mask;
 mod camera;
 mod geometry;
 mod instances;
+pub use instances::top_level;
 mod lights;
 mod materials;
 mod sky;

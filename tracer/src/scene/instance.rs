@@ -142,6 +142,16 @@ impl Scene {
         self.meshes.clear();
     }
 
+    /// Each instance's world bounds (its mesh's box placed by its transform), in instance order:
+    /// what the top level is built over. An instance naming no mesh gets an empty box.
+    pub fn placement_boxes(&self) -> Vec<Aabb> {
+        let mesh_bounds: Vec<Aabb> = self.meshes.iter().map(Mesh::bounds).collect();
+        self.instances
+            .iter()
+            .map(|i| mesh_bounds.get(i.mesh as usize).map_or(Aabb::EMPTY, |&b| i.world_bounds(b)))
+            .collect()
+    }
+
     /// Triangles the scene places in all: its static ones and every instance's.
     pub fn placed_triangle_count(&self) -> usize {
         self.triangles.len()
