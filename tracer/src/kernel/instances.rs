@@ -68,8 +68,8 @@ pub mod instances {
         instance_texel(scene, instance, 6).y
     }
 
-    /// The triangle of `hit` (its `triangle` in its `instance`) in world space. Without
-    /// instances, the stored triangle.
+    /// Triangle `triangle` as `instance` places it, in world space. Without instances, the
+    /// stored triangle.
     pub fn world_triangle(scene: &Scene, triangle: u32, instance: u32) -> TriangleData {
         let tri = fetch_triangle(scene, triangle);
         if scene.has_instances != 0 {

@@ -10,7 +10,7 @@ use super::geometry::{check_stack, Ordered, MAX_EXACT};
 use super::PackError;
 use crate::bvh::{BuildOptions, Bvh, WideBvh, WideNode};
 use crate::kernel::instances::INSTANCE_TEXELS;
-use crate::scene::{Aabb, Scene};
+use crate::scene::{Aabb, Scene, Triangle};
 
 /// One placement as the top level sees it: which bottom level, where.
 struct Placement {
@@ -20,11 +20,16 @@ struct Placement {
     bounds: Aabb,
 }
 
-/// Orders a scene with instances: the static triangles (BVH `bvh`, empty when there are none)
-/// and the placed meshes' triangles, each level after the other, with the combined nodes and
-/// the placements' texels in top-level order.
-pub(super) fn two_level<'a>(scene: &'a Scene, bvh: &Bvh) -> Result<Ordered<'a>, PackError> {
-    scene.check_instances().map_err(PackError::Instance)?;
+/// The bottom levels, each a BVH in its own space: their triangles in BVH order one level
+/// after the other, each level's wide BVH with its first triangle, and the placements (the
+/// static level's first, by the identity).
+struct Bottom<'a> {
+    triangles: Vec<&'a Triangle>,
+    levels: Vec<(WideBvh, u32)>,
+    placements: Vec<Placement>,
+}
+
+fn bottom_levels<'a>(scene: &'a Scene, bvh: &Bvh) -> Result<Bottom<'a>, PackError> {
     let mut used = vec![false; scene.meshes.len()];
     for inst in &scene.instances {
         used[inst.mesh as usize] = true;
@@ -36,37 +41,43 @@ pub(super) fn two_level<'a>(scene: &'a Scene, bvh: &Bvh) -> Result<Ordered<'a>, 
         .map(|(mesh, &used)| used.then(|| crate::bvh::build(&mesh.triangles)).transpose())
         .collect::<Result<_, _>>()
         .map_err(PackError::Bvh)?;
-
-    // The bottom levels: their triangles in BVH order, one after the other.
-    let mut triangles = Vec::new();
-    let mut levels: Vec<(WideBvh, u32)> = Vec::new();
-    let mut placements = Vec::new();
+    let mut b = Bottom { triangles: Vec::new(), levels: Vec::new(), placements: Vec::new() };
     if !scene.triangles.is_empty() {
-        levels.push((bvh.widen().map_err(PackError::Bvh)?, 0));
+        check_leaves(bvh)?;
+        b.levels.push((bvh.widen().map_err(PackError::Bvh)?, 0));
         for &i in &bvh.triangle_order {
-            triangles.push(scene.triangles.get(i as usize).ok_or(PackError::BadBvh(i))?);
+            b.triangles.push(scene.triangles.get(i as usize).ok_or(PackError::BadBvh(i))?);
         }
         let mut bounds = Aabb::EMPTY;
         scene.triangles.iter().flat_map(|t| t.positions).for_each(|p| bounds.extend(p));
-        placements.push(Placement { level: 0, transform: Mat4::IDENTITY, identity: true, bounds });
+        b.placements.push(Placement { level: 0, transform: Mat4::IDENTITY, identity: true, bounds });
     }
     let mut level_of_mesh = vec![usize::MAX; scene.meshes.len()];
     for (m, mesh_bvh) in mesh_bvhs.iter().enumerate() {
-        if let Some(b) = mesh_bvh {
-            check_leaves(b)?;
-            level_of_mesh[m] = levels.len();
-            levels.push((b.widen().map_err(PackError::Bvh)?, triangles.len() as u32));
-            triangles.extend(b.triangle_order.iter().map(|&i| &scene.meshes[m].triangles[i as usize]));
+        if let Some(mesh_bvh) = mesh_bvh {
+            check_leaves(mesh_bvh)?;
+            level_of_mesh[m] = b.levels.len();
+            b.levels.push((mesh_bvh.widen().map_err(PackError::Bvh)?, b.triangles.len() as u32));
+            b.triangles.extend(mesh_bvh.triangle_order.iter().map(|&i| &scene.meshes[m].triangles[i as usize]));
         }
     }
     for (inst, bounds) in scene.instances.iter().zip(scene.placement_boxes()) {
-        placements.push(Placement {
+        b.placements.push(Placement {
             level: level_of_mesh[inst.mesh as usize],
             transform: inst.transform,
             identity: inst.transform == Mat4::IDENTITY,
             bounds,
         });
     }
+    Ok(b)
+}
+
+/// Orders a scene with instances: the static triangles (BVH `bvh`, empty when there are none)
+/// and the placed meshes' triangles, each level after the other, with the combined nodes and
+/// the placements' texels in top-level order.
+pub(super) fn two_level<'a>(scene: &'a Scene, bvh: &Bvh) -> Result<Ordered<'a>, PackError> {
+    scene.check_instances().map_err(PackError::Instance)?;
+    let Bottom { triangles, levels, placements } = bottom_levels(scene, bvh)?;
     if triangles.len() >= MAX_EXACT || placements.len() >= MAX_EXACT {
         return Err(PackError::TooManyTriangles(triangles.len().max(placements.len())));
     }
