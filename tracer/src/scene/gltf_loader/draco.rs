@@ -14,7 +14,8 @@
 //! corrupt data), attribute ids the stream does not have, component counts or element counts
 //! that differ from the accessors', indices out of range. The decoder's ceilings are the
 //! accessors' own counts, so a stream cannot decode more points or faces than the file declares
-//! (and accessors are capped by the loader's limits before anything is decoded).
+//! (and accessors are capped by the loader's limits before anything is decoded), and at most
+//! [`MAX_UNBACKED_POINTS`] points unless the stream is long enough to stand for more.
 
 use std::collections::HashMap;
 
@@ -28,6 +29,13 @@ pub(super) const EXTENSION: &str = "KHR_draco_mesh_compression";
 /// Most bytes of attribute values one stream may decode to (the decoder's own ceiling, which
 /// also counts attributes the primitive does not use).
 const MAX_DECODED_BYTES: u64 = 1 << 30;
+/// Most points a stream may decode to whatever its length: constant attribute values
+/// entropy-code to almost nothing, so a stream of a few bytes can declare millions of points.
+/// The cap of an accessor without a buffer view (zeros), for the same reason.
+const MAX_UNBACKED_POINTS: u64 = 1 << 22;
+/// Points allowed per byte of the stream beyond [`MAX_UNBACKED_POINTS`] (real streams spend
+/// bytes per point: LittlestTokyo's 4 MB hold about 0.03 points per byte).
+const MAX_POINTS_PER_BYTE: u64 = 16;
 /// Decoded bytes allowed per point: 64 four-byte components, far more than any glTF primitive's
 /// attributes (position, normal, tangent, two UV sets, colour, joints, weights: 26).
 const MAX_DECODED_BYTES_PER_POINT: u64 = 256;
@@ -106,15 +114,21 @@ impl Loader<'_> {
             Some(a) => Some(self.buffers.shape(a.value(), &format!("{what} indices"))?),
             None => None,
         };
+        let (bytes, _) = self.buffers.view(view).map_err(|e| malformed(format!("{what}: {e}")))?;
         // The decoder may produce no more than the accessors declare (they must agree exactly,
-        // checked below); this bounds what a corrupt header can make it allocate.
-        let points = wanted.iter().map(|w| w.3.count as u64).max().unwrap_or(0);
+        // checked below), nor more points than the stream's length can stand for; this bounds
+        // what a corrupt or hostile header can make it allocate.
+        let points = wanted
+            .iter()
+            .map(|w| w.3.count as u64)
+            .max()
+            .unwrap_or(0)
+            .min(MAX_UNBACKED_POINTS.max(bytes.len() as u64 * MAX_POINTS_PER_BYTE));
         let faces = index_shape.map_or(MAX_TRIANGLES as u64, |s| s.count as u64 / 3);
         let limits = DecodeLimits::default()
             .with_max_points(points)
             .with_max_faces(faces)
             .with_max_decoded_bytes(points.saturating_mul(MAX_DECODED_BYTES_PER_POINT).min(MAX_DECODED_BYTES));
-        let (bytes, _) = self.buffers.view(view).map_err(|e| malformed(format!("{what}: {e}")))?;
         let mut mesh = Mesh::new();
         MeshDecoder::new().decode(&mut DecoderBuffer::new(bytes).with_limits(limits), &mut mesh).map_err(|e| {
             malformed(format!(
