@@ -78,6 +78,80 @@ pub fn textured_quad(image: &[u8]) -> Vec<u8> {
     build(json.as_bytes(), Some(&bin))
 }
 
+/// A GLB whose one primitive is a Draco stream (`KHR_draco_mesh_compression`, required): a
+/// bumpy 6 x 6 grid with positions, normals and UVs, EdgeBreaker-coded with quantised
+/// attributes, the accessors without buffer views. Mutations of its BIN chunk reach the Draco
+/// decoder; of its JSON, the extension's attribute ids and the accessors' counts.
+pub fn draco_grid() -> Vec<u8> {
+    use draco_core::{
+        DataType, DecoderBuffer, EncoderBuffer, EncoderOptions, FaceIndex, GeometryAttributeType, Mesh, MeshDecoder,
+        MeshEncoder, PointAttribute,
+    };
+    const SIDE: usize = 6;
+    let attribute = |kind, values: &[f32], components: u8| {
+        let mut a = PointAttribute::new();
+        a.init(kind, components, DataType::Float32, false, values.len() / components as usize);
+        let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+        a.buffer_mut().write(0, &bytes);
+        a
+    };
+    let (mut positions, mut normals, mut uvs) = (Vec::new(), Vec::new(), Vec::new());
+    for y in 0..SIDE {
+        for x in 0..SIDE {
+            let (u, v) = (x as f32 / (SIDE - 1) as f32, y as f32 / (SIDE - 1) as f32);
+            positions.extend_from_slice(&[2.0 * u - 1.0, 0.2 * (6.0 * u).sin(), 2.0 * v - 1.0]);
+            let n = glam::Vec3::new(-1.2 * (6.0 * u).cos(), 1.0, 0.0).normalize();
+            normals.extend_from_slice(&n.to_array());
+            uvs.extend_from_slice(&[u, v]);
+        }
+    }
+    let mut mesh = Mesh::new();
+    let ids = [
+        mesh.add_attribute(attribute(GeometryAttributeType::Position, &positions, 3)),
+        mesh.add_attribute(attribute(GeometryAttributeType::Normal, &normals, 3)),
+        mesh.add_attribute(attribute(GeometryAttributeType::TexCoord, &uvs, 2)),
+    ];
+    mesh.set_num_faces(2 * (SIDE - 1) * (SIDE - 1));
+    let mut f = 0;
+    for y in 0..SIDE - 1 {
+        for x in 0..SIDE - 1 {
+            let a = (y * SIDE + x) as u32;
+            let (b, c, d) = (a + 1, a + SIDE as u32, a + SIDE as u32 + 1);
+            mesh.set_face(FaceIndex(f), [a.into(), c.into(), b.into()]);
+            mesh.set_face(FaceIndex(f + 1), [b.into(), c.into(), d.into()]);
+            f += 2;
+        }
+    }
+    let mut options = EncoderOptions::new();
+    for (id, bits) in ids.iter().zip([12, 8, 10]) {
+        options.set_attribute_int(*id, "quantization_bits", bits);
+    }
+    let mut encoder = MeshEncoder::new();
+    encoder.set_mesh(mesh);
+    let mut out = EncoderBuffer::new();
+    encoder.encode(&options, &mut out).expect("encode the Draco seed");
+    let stream = out.data().to_vec();
+    // The counts the decoder produces (EdgeBreaker may reorder and split points).
+    let mut decoded = Mesh::new();
+    MeshDecoder::new().decode(&mut DecoderBuffer::new(&stream), &mut decoded).expect("decode the Draco seed");
+    let (points, indices) = (decoded.num_points(), decoded.num_faces() * 3);
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"extensionsUsed":["KHR_draco_mesh_compression"],"extensionsRequired":["KHR_draco_mesh_compression"],
+"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"NORMAL":1,"TEXCOORD_0":2}},"indices":3,
+"extensions":{{"KHR_draco_mesh_compression":{{"bufferView":0,"attributes":{{"POSITION":{},"NORMAL":{},"TEXCOORD_0":{}}}}}}}}}]}}],
+"accessors":[{{"componentType":5126,"count":{points},"type":"VEC3","min":[-1,-1,-1],"max":[1,1,1]}},
+{{"componentType":5126,"count":{points},"type":"VEC3"}},{{"componentType":5126,"count":{points},"type":"VEC2"}},
+{{"componentType":5125,"count":{indices},"type":"SCALAR"}}],
+"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":{len}}}],"buffers":[{{"byteLength":{len}}}]}}"#,
+        ids[0],
+        ids[1],
+        ids[2],
+        len = stream.len()
+    );
+    build(json.as_bytes(), Some(&stream))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -91,5 +165,11 @@ mod tests {
         assert_eq!(json, b"{\"a\":1} ");
         assert_eq!(bin.unwrap(), [1, 2, 3, 0]);
         assert!(split(b"{}").is_none());
+    }
+
+    #[test]
+    fn the_draco_seed_loads() {
+        let scene = tracer::scene::load_gltf_slice(&draco_grid(), None, &Default::default()).expect("loads");
+        assert_eq!(scene.triangles.len(), 50);
     }
 }

@@ -146,6 +146,7 @@ fn gltf(shared: &Path) -> Vec<Seed> {
         }
     }
     out.push(("generated_textured_quad.glb".into(), crate::glb::textured_quad(&crate::targets::tiny_images().0)));
+    out.push(("generated_draco_grid.glb".into(), crate::glb::draco_grid()));
     out
 }
 

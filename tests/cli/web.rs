@@ -462,6 +462,23 @@ fn a_bad_dropped_file_shows_an_error_and_the_page_keeps_working() {
     assert_eq!(good["spp"], 2);
 }
 
+/// A Draco-compressed GLB (`KHR_draco_mesh_compression`) dropped on the page is decoded in
+/// wasm by the native loader's code: the same triangles as loaded natively, rendered.
+#[test]
+fn a_dropped_draco_file_is_decoded_in_the_page() {
+    let server = Server::start(&[]);
+    let path = common::test_data("scenes/generated/draco-grid.glb");
+    let native = scene::load(&path).expect("the Draco GLB loads natively");
+    let report =
+        browse(&server.url, "drop", &[("scene", "cornell-box"), ("size", "16x16"), ("files", &path.to_string_lossy())]);
+    no_page_error(&report);
+    let good = &report["good"];
+    assert!(good["error"].is_null(), "{good}");
+    assert_eq!(good["info"]["name"], "draco-grid.glb", "{good}");
+    assert_eq!(good["info"]["triangles"].as_u64(), Some(native.triangles.len() as u64), "{good}");
+    assert_eq!(good["spp"], 2);
+}
+
 #[test]
 fn a_scene_beyond_the_texture_limit_is_reported_on_the_page() {
     let server = Server::start(&[]);

@@ -134,6 +134,13 @@ impl<'a> Buffers<'a> {
         self.decode(&layout, what, |bytes| component_u32(bytes, ct))
     }
 
+    /// An accessor's shape (components per element, element count, component type, normalized),
+    /// checked as for reading it: for data that replaces the accessor's own (Draco).
+    pub(crate) fn shape(&self, index: usize, what: &str) -> Result<Shape, SceneError> {
+        let l = self.layout(index, what)?;
+        Ok(Shape { dims: l.dims, count: l.count, normalized: l.normalized })
+    }
+
     /// Resolves an accessor's layout, checking its type.
     fn layout(&self, index: usize, what: &str) -> Result<Layout, SceneError> {
         let acc = self
@@ -323,6 +330,17 @@ impl<'a> Buffers<'a> {
         }
         Ok(())
     }
+}
+
+/// What [`Buffers::shape`] tells of an accessor.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Shape {
+    /// Components per element (1 for SCALAR ... 16 for MAT4).
+    pub(crate) dims: usize,
+    /// Elements.
+    pub(crate) count: usize,
+    /// Integer components map to [0, 1] or [-1, 1].
+    pub(crate) normalized: bool,
 }
 
 struct Layout {

@@ -44,8 +44,9 @@
 //!
 //! # Extensions and warnings
 //! A glTF file **requiring** an extension Lightport cannot honour is refused
-//! ([`SceneError::UnsupportedRequiredExtension`]), e.g. `KHR_draco_mesh_compression`,
-//! `EXT_meshopt_compression`, `KHR_texture_basisu`. Required extensions that only change the
+//! ([`SceneError::UnsupportedRequiredExtension`]), e.g. `EXT_meshopt_compression`,
+//! `KHR_texture_basisu`. `KHR_draco_mesh_compression` is decoded (`draco-core`, pure Rust, so
+//! natively and in the page alike). Required extensions that only change the
 //! look (`KHR_materials_*`, `KHR_texture_transform`) are accepted with a warning. Everything
 //! else unsupported (listed extensions, point/line
 //! primitives, textures on other UV sets, vertex colours, orthographic

@@ -202,13 +202,14 @@ impl Loader<'_> {
     /// A primitive's `TEXCOORD_<set>` accessor read and checked against its vertex count.
     pub(super) fn texcoords(
         &mut self,
+        data: &PrimitiveData,
         accessor: Option<usize>,
         set: u32,
         vertex_count: usize,
         what: &str,
     ) -> Result<Option<Vec<Vec2>>, SceneError> {
         let Some(a) = accessor else { return Ok(None) };
-        let t = to_vec2(self.buffers.read_f32(a, 2, &format!("{what} TEXCOORD_{set}"))?);
+        let t = to_vec2(self.vertex_f32(data, a, 2, &format!("{what} TEXCOORD_{set}"))?);
         if t.len() != vertex_count {
             return Err(malformed(format!("{what}: TEXCOORD_{set} has {} elements, POSITION {vertex_count}", t.len())));
         }

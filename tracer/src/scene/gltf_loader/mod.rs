@@ -18,6 +18,7 @@ use gltf::json::Root;
 use serde_json::{Map, Value};
 
 mod animation;
+mod draco;
 mod materials;
 mod morph;
 mod nodes;
@@ -38,6 +39,7 @@ use super::{
     MAX_SCENE_TEXELS, MAX_TRIANGLES,
 };
 use animation::NodePose;
+use draco::PrimitiveData;
 use materials::ImageSource;
 use nodes::{semantic_name, to_vec2, LocalPrimitive};
 
@@ -49,6 +51,7 @@ const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_ior",
     "KHR_materials_volume",
     "KHR_mesh_quantization",
+    "KHR_draco_mesh_compression",
     "EXT_mesh_gpu_instancing",
     "EXT_texture_webp",
     "KHR_texture_transform",
@@ -64,7 +67,7 @@ fn is_approximable(ext: &str) -> bool {
 fn extension_note(ext: &str) -> &'static str {
     match ext {
         "KHR_materials_diffuse_transmission" => "transmissive surfaces are rendered as opaque diffuse",
-        "KHR_draco_mesh_compression" | "EXT_meshopt_compression" | "KHR_meshopt_compression" => {
+        "EXT_meshopt_compression" | "KHR_meshopt_compression" => {
             "compressed primitives are read from their uncompressed fallback, or skipped"
         }
         "KHR_materials_variants" => "the default materials are used",

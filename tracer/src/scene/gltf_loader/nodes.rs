@@ -304,27 +304,27 @@ impl Loader<'_> {
         }
         let ext = prim.extensions.as_ref().map(|e| &e.others);
         warn_extensions(&mut self.warnings, ext);
-        let compressed = ext.is_some_and(|e| {
-            e.contains_key("KHR_draco_mesh_compression")
-                || e.contains_key("EXT_meshopt_compression")
-                || e.contains_key("KHR_meshopt_compression")
-        });
+        let meshopt =
+            ext.is_some_and(|e| e.contains_key("EXT_meshopt_compression") || e.contains_key("KHR_meshopt_compression"));
         let Attributes { position, normal, uv, uv1, tangent, joints, weights } = self.attributes(prim);
         let Some(position) = position else {
             self.warnings.once("no POSITION", || "primitives without POSITION are skipped".into());
             return Ok(None);
         };
-        if compressed
+        // Draco: the decoded stream replaces the accessors' data (`draco.rs`).
+        let data = self.primitive_data(prim, mode, &what)?;
+        if meshopt
+            && !data.is_draco()
             && self.root.accessors.get(position).is_some_and(|a| a.buffer_view.is_none() && a.sparse.is_none())
         {
             // Compressed data only, no uncompressed fallback to read.
             return Ok(None);
         }
-        let positions = to_vec3(self.buffers.read_f32(position, 3, &format!("{what} POSITION"))?);
+        let positions = to_vec3(self.vertex_f32(&data, position, 3, &format!("{what} POSITION"))?);
         let vertex_count = positions.len();
         let normals = match normal {
             Some(a) => {
-                let n = to_vec3(self.buffers.read_f32(a, 3, &format!("{what} NORMAL"))?);
+                let n = to_vec3(self.vertex_f32(&data, a, 3, &format!("{what} NORMAL"))?);
                 if n.len() != vertex_count {
                     return Err(malformed(format!("{what}: NORMAL has {} elements, POSITION {vertex_count}", n.len())));
                 }
@@ -332,10 +332,9 @@ impl Loader<'_> {
             }
             None => None,
         };
-        let uvs = self.texcoords(uv, 0, vertex_count, &what)?;
-        let indices = match prim.indices {
-            Some(a) => {
-                let indices = self.buffers.read_indices(a.value(), &format!("{what} indices"))?;
+        let uvs = self.texcoords(&data, uv, 0, vertex_count, &what)?;
+        let indices = match self.primitive_indices(&data, prim, &what)? {
+            Some(indices) => {
                 if let Some(bad) = indices.iter().find(|&&i| i as usize >= vertex_count) {
                     return Err(malformed(format!("{what}: index {bad} is out of range ({vertex_count} vertices)")));
                 }
@@ -348,7 +347,7 @@ impl Loader<'_> {
         let mut material = self.material(prim.material.map(|i| i.value()))?;
         let uses_set1 = self.materials.get(material as usize).is_some_and(texture_ref::uses_texcoord1);
         let uvs1 = match (uses_set1, uv1) {
-            (true, Some(a)) => self.texcoords(Some(a), 1, vertex_count, &what)?,
+            (true, Some(a)) => self.texcoords(&data, Some(a), 1, vertex_count, &what)?,
             (true, None) => {
                 material = self.material_without_texcoord1(material, &what);
                 None
@@ -360,9 +359,9 @@ impl Loader<'_> {
         let normal_set = self.materials.get(material as usize).map_or(0, |m| m.texture_uvs[3].texcoord);
         let map_uvs = if normal_set == 1 { &uvs1 } else { &uvs };
         let tangents =
-            self.tangents(normal_mapped, tangent, map_uvs, &positions, normals.as_deref(), &triangles, &what)?;
+            self.tangents(&data, normal_mapped, tangent, map_uvs, &positions, normals.as_deref(), &triangles, &what)?;
         let skin = match (joints, weights) {
-            (Some(j), Some(w)) => self.vertex_skin(j, w, vertex_count, &what)?,
+            (Some(j), Some(w)) => self.vertex_skin(&data, j, w, vertex_count, &what)?,
             _ => None,
         };
         let morph = self.morph_targets(prim, vertex_count, &what)?;
@@ -396,6 +395,7 @@ impl Loader<'_> {
     #[allow(clippy::too_many_arguments)]
     fn tangents(
         &mut self,
+        data: &PrimitiveData,
         normal_mapped: bool,
         tangent: Option<usize>,
         map_uvs: &Option<Vec<Vec2>>,
@@ -408,7 +408,7 @@ impl Loader<'_> {
         Ok(match (normal_mapped, tangent, map_uvs) {
             (false, _, _) => None,
             (true, Some(a), _) => {
-                let t = self.buffers.read_f32(a, 4, &format!("{what} TANGENT"))?;
+                let t = self.vertex_f32(data, a, 4, &format!("{what} TANGENT"))?;
                 if t.len() != vertex_count * 4 {
                     return Err(malformed(format!(
                         "{what}: TANGENT has {} elements, POSITION {vertex_count}",

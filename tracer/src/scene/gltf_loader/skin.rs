@@ -12,13 +12,14 @@ impl Loader<'_> {
     /// the primitive is then not skinned) when their counts do not match `POSITION`'s.
     pub(super) fn vertex_skin(
         &mut self,
+        data: &PrimitiveData,
         joints: usize,
         weights: usize,
         vertex_count: usize,
         what: &str,
     ) -> Result<Option<VertexSkin>, SceneError> {
-        let j = self.buffers.read_f32(joints, 4, &format!("{what} JOINTS_0"))?;
-        let w = self.buffers.read_f32(weights, 4, &format!("{what} WEIGHTS_0"))?;
+        let j = self.vertex_f32(data, joints, 4, &format!("{what} JOINTS_0"))?;
+        let w = self.vertex_f32(data, weights, 4, &format!("{what} WEIGHTS_0"))?;
         if j.len() != vertex_count * 4 || w.len() != vertex_count * 4 {
             let (nj, nw) = (j.len() / 4, w.len() / 4);
             self.warnings.once(&format!("{what} skin counts"), || {
