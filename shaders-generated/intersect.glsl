@@ -15,7 +15,7 @@ struct TriangleHit {
 // intersect::MISS (lightport-tracer/src/kernel/intersect.rs:9)
 const float MISS = 3.4028234663852886e38;
 
-// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
+// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:23)
 TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2) {
     TriangleHit miss = TriangleHit(MISS, 0.0, 0.0);
     vec3 e1 = v1 - v0;
@@ -38,7 +38,7 @@ TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2)
     }
 }
 
-// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:48)
+// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:50)
 vec3 safe_inverse(vec3 dir) {
     float tiny = 1e-20;
     float x = abs(dir.x) < tiny ? (dir.x >= 0.0 ? tiny : -tiny) : dir.x;
@@ -47,17 +47,17 @@ vec3 safe_inverse(vec3 dir) {
     return vec3(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// intersect::min_no_nan (lightport-tracer/src/kernel/intersect.rs:82)
+// intersect::min_no_nan (lightport-tracer/src/kernel/intersect.rs:84)
 float min_no_nan(float a, float b) {
     return a < b ? a : b;
 }
 
-// intersect::max_no_nan (lightport-tracer/src/kernel/intersect.rs:91)
+// intersect::max_no_nan (lightport-tracer/src/kernel/intersect.rs:93)
 float max_no_nan(float a, float b) {
     return a > b ? a : b;
 }
 
-// intersect::intersect_aabb (lightport-tracer/src/kernel/intersect.rs:101)
+// intersect::intersect_aabb (lightport-tracer/src/kernel/intersect.rs:103)
 float intersect_aabb(vec3 origin, vec3 inv_dir, vec3 bmin, vec3 bmax, float t_max) {
     vec3 t0 = (bmin - origin) * inv_dir;
     vec3 t1 = (bmax - origin) * inv_dir;

@@ -10,7 +10,7 @@ struct TriangleHit {
 // intersect::MISS (lightport-tracer/src/kernel/intersect.rs:9)
 const MISS: f32 = 3.4028234663852886e38;
 
-// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
+// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:23)
 fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> TriangleHit {
     let miss: TriangleHit = TriangleHit(MISS, 0.0, 0.0);
     let e1: vec3<f32> = v1 - v0;
@@ -33,7 +33,7 @@ fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3
     }
 }
 
-// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:48)
+// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:50)
 fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     let tiny: f32 = 1e-20;
     let x: f32 = select(dir.x, select(-tiny, tiny, dir.x >= 0.0), abs(dir.x) < tiny);
@@ -42,17 +42,17 @@ fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// intersect::min_no_nan (lightport-tracer/src/kernel/intersect.rs:82)
+// intersect::min_no_nan (lightport-tracer/src/kernel/intersect.rs:84)
 fn min_no_nan(a: f32, b: f32) -> f32 {
     return select(b, a, a < b);
 }
 
-// intersect::max_no_nan (lightport-tracer/src/kernel/intersect.rs:91)
+// intersect::max_no_nan (lightport-tracer/src/kernel/intersect.rs:93)
 fn max_no_nan(a: f32, b: f32) -> f32 {
     return select(b, a, a > b);
 }
 
-// intersect::intersect_aabb (lightport-tracer/src/kernel/intersect.rs:101)
+// intersect::intersect_aabb (lightport-tracer/src/kernel/intersect.rs:103)
 fn intersect_aabb(origin: vec3<f32>, inv_dir: vec3<f32>, bmin: vec3<f32>, bmax: vec3<f32>, t_max: f32) -> f32 {
     let t0: vec3<f32> = (bmin - origin) * inv_dir;
     let t1: vec3<f32> = (bmax - origin) * inv_dir;

@@ -434,7 +434,7 @@ Hit before_any_hit() {
     return Hit(NONE, -1.0, 0.0, 0.0, 0u);
 }
 
-// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:48)
+// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:50)
 vec3 safe_inverse(vec3 dir) {
     float tiny = 1e-20;
     float x = abs(dir.x) < tiny ? (dir.x >= 0.0 ? tiny : -tiny) : dir.x;
@@ -453,7 +453,7 @@ uint stack_entry(uint first, uint count) {
     return (first << 8) | count;
 }
 
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:216)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:219)
 bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
 }
@@ -487,7 +487,7 @@ InstanceRay instance_ray(uint instance, vec3 origin, vec3 dir) {
     }
 }
 
-// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:237)
+// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:240)
 NodeHits sort_children(NodeHits n) {
     float t0 = n.t.x;
     float t1 = n.t.y;
@@ -582,7 +582,7 @@ TriangleData fetch_triangle(uint index) {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
 }
 
-// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
+// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:23)
 TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2) {
     TriangleHit miss = TriangleHit(MISS, 0.0, 0.0);
     vec3 e1 = v1 - v0;
@@ -616,7 +616,7 @@ bool is_next_candidate(float t, uint triangle, uint instance, Hit after, Hit bes
     return before_best && past_after;
 }
 
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:152)
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:155)
 void intersect_leaf(uint entry, uint instance, vec3 origin, vec3 dir, Hit after, bool only_masked, inout Hit hit) {
     uint first = entry >> 8;
     uint i_end = first + (entry & 255u);
@@ -629,8 +629,8 @@ void intersect_leaf(uint entry, uint instance, vec3 origin, vec3 dir, Hit after,
     }
 }
 
-// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:309)
-Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_masked) {
+// traverse::closest_candidate_two_level (lightport-tracer/src/kernel/traverse.rs:437)
+Hit closest_candidate_two_level(vec3 origin, vec3 dir, float t_max, Hit after, bool only_masked) {
     vec3 world_inv_dir = safe_inverse(dir);
     uvec3 world_near = near_planes(world_inv_dir);
     vec3 o = origin;
@@ -653,7 +653,7 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
     uint leaves[3];
     for (int i_2 = 0; i_2 < 3; ++i_2) { leaves[i_2] = 0u; }
     while (visiting) {
-        if ((1u != 0u) && !in_instance && is_leaf(entry)) {
+        if (!in_instance && is_leaf(entry)) {
             uint first = entry >> 8;
             if ((entry & 255u) > 1u && sp < STACK_SIZE) {
                 stack[sp] = stack_entry(first + 1u, (entry & 255u) - 1u);
@@ -670,7 +670,7 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
             instance_sp = sp;
             entry = stack_entry(r.root, 0u);
         }
-        bool may_batch = (1u == 0u) || in_instance;
+        bool may_batch = in_instance;
         bool descend = false;
         uint leaf_count = 0u;
         if (is_leaf(entry)) {
@@ -729,7 +729,7 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
         if (!descend) {
             visiting = false;
             while (sp > 0u && !visiting) {
-                if ((1u != 0u) && in_instance && (sp == instance_sp)) {
+                if (in_instance && (sp == instance_sp)) {
                     o = origin;
                     d = dir;
                     inv_dir = world_inv_dir;
@@ -746,6 +746,11 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
         }
     }
     return hit;
+}
+
+// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:300)
+Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_masked) {
+    return closest_candidate_two_level(origin, dir, t_max, after, only_masked);
 }
 
 // alpha_mask::fetch_alpha_mask (lightport-tracer/src/kernel/alpha_mask.rs:37)
@@ -899,7 +904,7 @@ bool is_hole(uint triangle, uint material, float u, float v) {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse::visible_hit (lightport-tracer/src/kernel/traverse.rs:195)
+// traverse::visible_hit (lightport-tracer/src/kernel/traverse.rs:198)
 Hit visible_hit(vec3 origin, vec3 dir, float t_max, bool only_masked) {
     Hit after = before_any_hit();
     Hit hit = after;
@@ -920,7 +925,7 @@ Hit visible_hit(vec3 origin, vec3 dir, float t_max, bool only_masked) {
     return hit;
 }
 
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:224)
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:227)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     return visible_hit(origin, dir, t_max, false);
 }
@@ -1488,7 +1493,7 @@ float bsdf_pdf(Bsdf b, vec3 wo, vec3 wi) {
     }
 }
 
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:177)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:180)
 bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     uint first = entry >> 8;
     bool blocked = false;
@@ -1504,8 +1509,8 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:452)
-bool any_hit(vec3 origin, vec3 dir, float t_max) {
+// traverse::any_hit_two_level (lightport-tracer/src/kernel/traverse.rs:661)
+bool any_hit_two_level(vec3 origin, vec3 dir, float t_max) {
     vec3 world_inv_dir = safe_inverse(dir);
     uvec3 world_near = near_planes(world_inv_dir);
     vec3 o = origin;
@@ -1522,7 +1527,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
     uint leaves[4];
     for (int i_1 = 0; i_1 < 4; ++i_1) { leaves[i_1] = 0u; }
     while (sp > 0u && !blocked) {
-        if ((1u != 0u) && in_instance && (sp == instance_sp)) {
+        if (in_instance && (sp == instance_sp)) {
             o = origin;
             d = dir;
             inv_dir = world_inv_dir;
@@ -1531,7 +1536,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
         }
         sp -= 1u;
         uint node = stack[sp];
-        if ((1u != 0u) && is_leaf(node)) {
+        if (is_leaf(node)) {
             uint first = node >> 8;
             if ((node & 255u) > 1u && sp < STACK_SIZE) {
                 stack[sp] = stack_entry(first + 1u, (node & 255u) - 1u);
@@ -1546,7 +1551,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
             instance_sp = sp;
             node = stack_entry(r.root, 0u);
         }
-        bool may_batch = (1u == 0u) || in_instance;
+        bool may_batch = in_instance;
         NodeHits n = intersect_node(node >> 8, o, inv_dir, near, t_max);
         uint leaf_count = 0u;
         if (n.t.x < MISS) {
@@ -1594,7 +1599,12 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:438)
+// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:584)
+bool any_hit(vec3 origin, vec3 dir, float t_max) {
+    return any_hit_two_level(origin, dir, t_max);
+}
+
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:573)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     bool blocked = any_hit(origin, dir, t_max);
     if ((1u != 0u) && !blocked) {

@@ -410,7 +410,7 @@ fn before_any_hit() -> Hit {
     return Hit(NONE, -1.0, 0.0, 0.0, 0u);
 }
 
-// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:48)
+// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:50)
 fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     let tiny: f32 = 1e-20;
     let x: f32 = select(dir.x, select(-tiny, tiny, dir.x >= 0.0), abs(dir.x) < tiny);
@@ -429,7 +429,7 @@ fn stack_entry(first: u32, count: u32) -> u32 {
     return (first << 8u) | count;
 }
 
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:216)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:219)
 fn is_leaf(entry: u32) -> bool {
     return (entry & 255u) > 0u;
 }
@@ -463,7 +463,7 @@ fn instance_ray(instance: u32, origin: vec3<f32>, dir: vec3<f32>) -> InstanceRay
     }
 }
 
-// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:237)
+// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:240)
 fn sort_children(n: NodeHits) -> NodeHits {
     var t0: f32 = n.t.x;
     var t1: f32 = n.t.y;
@@ -558,7 +558,7 @@ fn fetch_triangle(index: u32) -> TriangleData {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
 }
 
-// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
+// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:23)
 fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> TriangleHit {
     let miss: TriangleHit = TriangleHit(MISS, 0.0, 0.0);
     let e1: vec3<f32> = v1 - v0;
@@ -592,7 +592,7 @@ fn is_next_candidate(t: f32, triangle: u32, instance: u32, after: Hit, best: Hit
     return before_best && past_after;
 }
 
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:152)
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:155)
 fn intersect_leaf(entry: u32, instance: u32, origin: vec3<f32>, dir: vec3<f32>, after: Hit, only_masked: bool, hit: ptr<function, Hit>) {
     let first: u32 = entry >> 8u;
     let i_end: u32 = first + (entry & 255u);
@@ -605,8 +605,8 @@ fn intersect_leaf(entry: u32, instance: u32, origin: vec3<f32>, dir: vec3<f32>, 
     }
 }
 
-// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:309)
-fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, only_masked: bool) -> Hit {
+// traverse::closest_candidate_two_level (lightport-tracer/src/kernel/traverse.rs:437)
+fn closest_candidate_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, only_masked: bool) -> Hit {
     let world_inv_dir: vec3<f32> = safe_inverse(dir);
     let world_near: vec3<u32> = near_planes(world_inv_dir);
     var o: vec3<f32> = origin;
@@ -626,7 +626,7 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
     var visiting: bool = true;
     var leaves: array<u32, 3>;
     while visiting {
-        if (1u != 0u) && !in_instance && is_leaf(entry) {
+        if !in_instance && is_leaf(entry) {
             let first: u32 = entry >> 8u;
             if (entry & 255u) > 1u && sp < STACK_SIZE {
                 stack[sp] = stack_entry(first + 1u, (entry & 255u) - 1u);
@@ -643,7 +643,7 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
             instance_sp = sp;
             entry = stack_entry(r.root, 0u);
         }
-        let may_batch: bool = (1u == 0u) || in_instance;
+        let may_batch: bool = in_instance;
         var descend: bool = false;
         var leaf_count: u32 = 0u;
         if is_leaf(entry) {
@@ -702,7 +702,7 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
         if !descend {
             visiting = false;
             while sp > 0u && !visiting {
-                if (1u != 0u) && in_instance && (sp == instance_sp) {
+                if in_instance && (sp == instance_sp) {
                     o = origin;
                     d = dir;
                     inv_dir = world_inv_dir;
@@ -719,6 +719,11 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
         }
     }
     return hit;
+}
+
+// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:300)
+fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, only_masked: bool) -> Hit {
+    return closest_candidate_two_level(origin, dir, t_max, after, only_masked);
 }
 
 // alpha_mask::fetch_alpha_mask (lightport-tracer/src/kernel/alpha_mask.rs:37)
@@ -872,7 +877,7 @@ fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse::visible_hit (lightport-tracer/src/kernel/traverse.rs:195)
+// traverse::visible_hit (lightport-tracer/src/kernel/traverse.rs:198)
 fn visible_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, only_masked: bool) -> Hit {
     var after: Hit = before_any_hit();
     var hit: Hit = after;
@@ -893,7 +898,7 @@ fn visible_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, only_masked: bool)
     return hit;
 }
 
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:224)
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:227)
 fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     return visible_hit(origin, dir, t_max, false);
 }
@@ -1461,7 +1466,7 @@ fn bsdf_pdf(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     }
 }
 
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:177)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:180)
 fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let first: u32 = entry >> 8u;
     var blocked: bool = false;
@@ -1477,8 +1482,8 @@ fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> b
     return blocked;
 }
 
-// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:452)
-fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+// traverse::any_hit_two_level (lightport-tracer/src/kernel/traverse.rs:661)
+fn any_hit_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let world_inv_dir: vec3<f32> = safe_inverse(dir);
     let world_near: vec3<u32> = near_planes(world_inv_dir);
     var o: vec3<f32> = origin;
@@ -1493,7 +1498,7 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     var blocked: bool = false;
     var leaves: array<u32, 4>;
     while sp > 0u && !blocked {
-        if (1u != 0u) && in_instance && (sp == instance_sp) {
+        if in_instance && (sp == instance_sp) {
             o = origin;
             d = dir;
             inv_dir = world_inv_dir;
@@ -1502,7 +1507,7 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
         }
         sp -= 1u;
         var node: u32 = stack[sp];
-        if (1u != 0u) && is_leaf(node) {
+        if is_leaf(node) {
             let first: u32 = node >> 8u;
             if (node & 255u) > 1u && sp < STACK_SIZE {
                 stack[sp] = stack_entry(first + 1u, (node & 255u) - 1u);
@@ -1517,7 +1522,7 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
             instance_sp = sp;
             node = stack_entry(r.root, 0u);
         }
-        let may_batch: bool = (1u == 0u) || in_instance;
+        let may_batch: bool = in_instance;
         let n: NodeHits = intersect_node(node >> 8u, o, inv_dir, near, t_max);
         var leaf_count: u32 = 0u;
         if n.t.x < MISS {
@@ -1565,7 +1570,12 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:438)
+// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:584)
+fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+    return any_hit_two_level(origin, dir, t_max);
+}
+
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:573)
 fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     var blocked: bool = any_hit(origin, dir, t_max);
     if (1u != 0u) && !blocked {

@@ -310,7 +310,7 @@ Hit before_any_hit() {
     return Hit(NONE, -1.0, 0.0, 0.0, 0u);
 }
 
-// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:48)
+// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:50)
 vec3 safe_inverse(vec3 dir) {
     float tiny = 1e-20;
     float x = abs(dir.x) < tiny ? (dir.x >= 0.0 ? tiny : -tiny) : dir.x;
@@ -329,12 +329,12 @@ uint stack_entry(uint first, uint count) {
     return (first << 8) | count;
 }
 
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:216)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:219)
 bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
 }
 
-// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:237)
+// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:240)
 NodeHits sort_children(NodeHits n) {
     float t0 = n.t.x;
     float t1 = n.t.y;
@@ -429,7 +429,7 @@ TriangleData fetch_triangle(uint index) {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
 }
 
-// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
+// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:23)
 TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2) {
     TriangleHit miss = TriangleHit(MISS, 0.0, 0.0);
     vec3 e1 = v1 - v0;
@@ -452,7 +452,7 @@ TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2)
     }
 }
 
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:152)
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:155)
 void intersect_leaf(uint entry, uint instance, vec3 origin, vec3 dir, Hit after, bool only_masked, inout Hit hit) {
     uint first = entry >> 8;
     uint i_end = first + (entry & 255u);
@@ -465,17 +465,10 @@ void intersect_leaf(uint entry, uint instance, vec3 origin, vec3 dir, Hit after,
     }
 }
 
-// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:309)
-Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_masked) {
-    vec3 world_inv_dir = safe_inverse(dir);
-    uvec3 world_near = near_planes(world_inv_dir);
-    vec3 o = origin;
-    vec3 d = dir;
-    vec3 inv_dir = world_inv_dir;
-    uvec3 near = world_near;
-    uint instance = 0u;
-    bool in_instance = false;
-    uint instance_sp = 0u;
+// traverse::closest_candidate_one_level (lightport-tracer/src/kernel/traverse.rs:322)
+Hit closest_candidate_one_level(vec3 origin, vec3 dir, float t_max, Hit after, bool only_masked) {
+    vec3 inv_dir = safe_inverse(dir);
+    uvec3 near = near_planes(inv_dir);
     Hit hit = Hit(NONE, t_max, 0.0, 0.0, 0u);
     uint stack[11];
     for (int i = 0; i < 11; ++i) { stack[i] = 0u; }
@@ -484,19 +477,17 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
     uint leaf_limit = scene_leaf_stack_limit;
     uint sp = 0u;
     uint entry = stack_entry(0u, 0u);
-    float entry_t = 0.0;
     bool visiting = true;
     uint leaves[3];
     for (int i_2 = 0; i_2 < 3; ++i_2) { leaves[i_2] = 0u; }
     while (visiting) {
-        bool may_batch = (0u == 0u) || in_instance;
         bool descend = false;
         uint leaf_count = 0u;
         if (is_leaf(entry)) {
             leaves[0u] = entry;
             leaf_count = 1u;
         } else {
-            NodeHits sorted = sort_children(intersect_node(entry >> 8, o, inv_dir, near, hit.t));
+            NodeHits sorted = sort_children(intersect_node(entry >> 8, origin, inv_dir, near, hit.t));
             float t0 = sorted.t.x;
             float t1 = sorted.t.y;
             float t2 = sorted.t.z;
@@ -506,7 +497,7 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
             uint e2 = sorted.entries.z;
             uint e3 = sorted.entries.w;
             if (t3 < MISS) {
-                if (sp >= leaf_limit && is_leaf(e3) && may_batch) {
+                if (sp >= leaf_limit && is_leaf(e3)) {
                     leaves[leaf_count] = e3;
                     leaf_count += 1u;
                 } else if (sp < STACK_SIZE) {
@@ -516,7 +507,7 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
                 }
             }
             if (t2 < MISS) {
-                if (sp >= leaf_limit && is_leaf(e2) && may_batch) {
+                if (sp >= leaf_limit && is_leaf(e2)) {
                     leaves[leaf_count] = e2;
                     leaf_count += 1u;
                 } else if (sp < STACK_SIZE) {
@@ -526,7 +517,7 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
                 }
             }
             if (t1 < MISS) {
-                if (sp >= leaf_limit && is_leaf(e1) && may_batch) {
+                if (sp >= leaf_limit && is_leaf(e1)) {
                     leaves[leaf_count] = e1;
                     leaf_count += 1u;
                 } else if (sp < STACK_SIZE) {
@@ -537,13 +528,12 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
             }
             if (t0 < MISS) {
                 entry = e0;
-                entry_t = t0;
                 descend = true;
             }
         }
         uint k_end = leaf_count;
         for (uint k = 0u; k < k_end; ++k) {
-            intersect_leaf(leaves[k], instance, o, d, after, only_masked, hit);
+            intersect_leaf(leaves[k], 0u, origin, dir, after, only_masked, hit);
         }
         if (!descend) {
             visiting = false;
@@ -551,7 +541,6 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
                 sp -= 1u;
                 if (!(stack_t[sp] > hit.t)) {
                     entry = stack[sp];
-                    entry_t = stack_t[sp];
                     visiting = true;
                 }
             }
@@ -560,7 +549,14 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
     return hit;
 }
 
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:224)
+// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:300)
+Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_masked) {
+    {
+        return closest_candidate_one_level(origin, dir, t_max, after, only_masked);
+    }
+}
+
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:227)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     {
         return closest_candidate(origin, dir, t_max, before_any_hit(), false);
@@ -730,7 +726,7 @@ float bsdf_pdf(Bsdf b, vec3 wo, vec3 wi) {
     }
 }
 
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:177)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:180)
 bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     uint first = entry >> 8;
     bool blocked = false;
@@ -745,16 +741,10 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:452)
-bool any_hit(vec3 origin, vec3 dir, float t_max) {
-    vec3 world_inv_dir = safe_inverse(dir);
-    uvec3 world_near = near_planes(world_inv_dir);
-    vec3 o = origin;
-    vec3 d = dir;
-    vec3 inv_dir = world_inv_dir;
-    uvec3 near = world_near;
-    bool in_instance = false;
-    uint instance_sp = 0u;
+// traverse::any_hit_one_level (lightport-tracer/src/kernel/traverse.rs:596)
+bool any_hit_one_level(vec3 origin, vec3 dir, float t_max) {
+    vec3 inv_dir = safe_inverse(dir);
+    uvec3 near = near_planes(inv_dir);
     uint stack[11];
     for (int i = 0; i < 11; ++i) { stack[i] = 0u; }
     stack[0u] = stack_entry(0u, 0u);
@@ -764,12 +754,10 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
     for (int i_1 = 0; i_1 < 4; ++i_1) { leaves[i_1] = 0u; }
     while (sp > 0u && !blocked) {
         sp -= 1u;
-        uint node = stack[sp];
-        bool may_batch = (0u == 0u) || in_instance;
-        NodeHits n = intersect_node(node >> 8, o, inv_dir, near, t_max);
+        NodeHits n = intersect_node(stack[sp] >> 8, origin, inv_dir, near, t_max);
         uint leaf_count = 0u;
         if (n.t.x < MISS) {
-            if (is_leaf(n.entries.x) && may_batch) {
+            if (is_leaf(n.entries.x)) {
                 leaves[leaf_count] = n.entries.x;
                 leaf_count += 1u;
             } else if (sp < STACK_SIZE) {
@@ -778,7 +766,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
             }
         }
         if (n.t.y < MISS) {
-            if (is_leaf(n.entries.y) && may_batch) {
+            if (is_leaf(n.entries.y)) {
                 leaves[leaf_count] = n.entries.y;
                 leaf_count += 1u;
             } else if (sp < STACK_SIZE) {
@@ -787,7 +775,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
             }
         }
         if (n.t.z < MISS) {
-            if (is_leaf(n.entries.z) && may_batch) {
+            if (is_leaf(n.entries.z)) {
                 leaves[leaf_count] = n.entries.z;
                 leaf_count += 1u;
             } else if (sp < STACK_SIZE) {
@@ -796,7 +784,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
             }
         }
         if (n.t.w < MISS) {
-            if (is_leaf(n.entries.w) && may_batch) {
+            if (is_leaf(n.entries.w)) {
                 leaves[leaf_count] = n.entries.w;
                 leaf_count += 1u;
             } else if (sp < STACK_SIZE) {
@@ -806,14 +794,21 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
         }
         uint k = 0u;
         while (k < leaf_count && !blocked) {
-            blocked = leaf_occludes(leaves[k], o, d, t_max);
+            blocked = leaf_occludes(leaves[k], origin, dir, t_max);
             k += 1u;
         }
     }
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:438)
+// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:584)
+bool any_hit(vec3 origin, vec3 dir, float t_max) {
+    {
+        return any_hit_one_level(origin, dir, t_max);
+    }
+}
+
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:573)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     bool blocked = any_hit(origin, dir, t_max);
     return blocked;

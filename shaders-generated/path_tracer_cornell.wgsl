@@ -299,7 +299,7 @@ fn before_any_hit() -> Hit {
     return Hit(NONE, -1.0, 0.0, 0.0, 0u);
 }
 
-// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:48)
+// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:50)
 fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     let tiny: f32 = 1e-20;
     let x: f32 = select(dir.x, select(-tiny, tiny, dir.x >= 0.0), abs(dir.x) < tiny);
@@ -318,12 +318,12 @@ fn stack_entry(first: u32, count: u32) -> u32 {
     return (first << 8u) | count;
 }
 
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:216)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:219)
 fn is_leaf(entry: u32) -> bool {
     return (entry & 255u) > 0u;
 }
 
-// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:237)
+// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:240)
 fn sort_children(n: NodeHits) -> NodeHits {
     var t0: f32 = n.t.x;
     var t1: f32 = n.t.y;
@@ -418,7 +418,7 @@ fn fetch_triangle(index: u32) -> TriangleData {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
 }
 
-// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
+// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:23)
 fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> TriangleHit {
     let miss: TriangleHit = TriangleHit(MISS, 0.0, 0.0);
     let e1: vec3<f32> = v1 - v0;
@@ -441,7 +441,7 @@ fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3
     }
 }
 
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:152)
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:155)
 fn intersect_leaf(entry: u32, instance: u32, origin: vec3<f32>, dir: vec3<f32>, after: Hit, only_masked: bool, hit: ptr<function, Hit>) {
     let first: u32 = entry >> 8u;
     let i_end: u32 = first + (entry & 255u);
@@ -454,35 +454,26 @@ fn intersect_leaf(entry: u32, instance: u32, origin: vec3<f32>, dir: vec3<f32>, 
     }
 }
 
-// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:309)
-fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, only_masked: bool) -> Hit {
-    let world_inv_dir: vec3<f32> = safe_inverse(dir);
-    let world_near: vec3<u32> = near_planes(world_inv_dir);
-    var o: vec3<f32> = origin;
-    var d: vec3<f32> = dir;
-    var inv_dir: vec3<f32> = world_inv_dir;
-    var near: vec3<u32> = world_near;
-    var instance: u32 = 0u;
-    var in_instance: bool = false;
-    var instance_sp: u32 = 0u;
+// traverse::closest_candidate_one_level (lightport-tracer/src/kernel/traverse.rs:322)
+fn closest_candidate_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, only_masked: bool) -> Hit {
+    let inv_dir: vec3<f32> = safe_inverse(dir);
+    let near: vec3<u32> = near_planes(inv_dir);
     var hit: Hit = Hit(NONE, t_max, 0.0, 0.0, 0u);
     var stack: array<u32, 11>;
     var stack_t: array<f32, 11>;
     let leaf_limit: u32 = scene.leaf_stack_limit;
     var sp: u32 = 0u;
     var entry: u32 = stack_entry(0u, 0u);
-    var entry_t: f32 = 0.0;
     var visiting: bool = true;
     var leaves: array<u32, 3>;
     while visiting {
-        let may_batch: bool = (0u == 0u) || in_instance;
         var descend: bool = false;
         var leaf_count: u32 = 0u;
         if is_leaf(entry) {
             leaves[0u] = entry;
             leaf_count = 1u;
         } else {
-            let sorted: NodeHits = sort_children(intersect_node(entry >> 8u, o, inv_dir, near, hit.t));
+            let sorted: NodeHits = sort_children(intersect_node(entry >> 8u, origin, inv_dir, near, hit.t));
             let t0: f32 = sorted.t.x;
             let t1: f32 = sorted.t.y;
             let t2: f32 = sorted.t.z;
@@ -492,7 +483,7 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
             let e2: u32 = sorted.entries.z;
             let e3: u32 = sorted.entries.w;
             if t3 < MISS {
-                if sp >= leaf_limit && is_leaf(e3) && may_batch {
+                if sp >= leaf_limit && is_leaf(e3) {
                     leaves[leaf_count] = e3;
                     leaf_count += 1u;
                 } else if sp < STACK_SIZE {
@@ -502,7 +493,7 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
                 }
             }
             if t2 < MISS {
-                if sp >= leaf_limit && is_leaf(e2) && may_batch {
+                if sp >= leaf_limit && is_leaf(e2) {
                     leaves[leaf_count] = e2;
                     leaf_count += 1u;
                 } else if sp < STACK_SIZE {
@@ -512,7 +503,7 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
                 }
             }
             if t1 < MISS {
-                if sp >= leaf_limit && is_leaf(e1) && may_batch {
+                if sp >= leaf_limit && is_leaf(e1) {
                     leaves[leaf_count] = e1;
                     leaf_count += 1u;
                 } else if sp < STACK_SIZE {
@@ -523,13 +514,12 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
             }
             if t0 < MISS {
                 entry = e0;
-                entry_t = t0;
                 descend = true;
             }
         }
         let k_end: u32 = leaf_count;
         for (var k: u32 = 0u; k < k_end; k++) {
-            intersect_leaf(leaves[k], instance, o, d, after, only_masked, &hit);
+            intersect_leaf(leaves[k], 0u, origin, dir, after, only_masked, &hit);
         }
         if !descend {
             visiting = false;
@@ -537,7 +527,6 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
                 sp -= 1u;
                 if !(stack_t[sp] > hit.t) {
                     entry = stack[sp];
-                    entry_t = stack_t[sp];
                     visiting = true;
                 }
             }
@@ -546,7 +535,14 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
     return hit;
 }
 
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:224)
+// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:300)
+fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, only_masked: bool) -> Hit {
+    {
+        return closest_candidate_one_level(origin, dir, t_max, after, only_masked);
+    }
+}
+
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:227)
 fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     {
         return closest_candidate(origin, dir, t_max, before_any_hit(), false);
@@ -716,7 +712,7 @@ fn bsdf_pdf(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     }
 }
 
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:177)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:180)
 fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let first: u32 = entry >> 8u;
     var blocked: bool = false;
@@ -731,16 +727,10 @@ fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> b
     return blocked;
 }
 
-// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:452)
-fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
-    let world_inv_dir: vec3<f32> = safe_inverse(dir);
-    let world_near: vec3<u32> = near_planes(world_inv_dir);
-    var o: vec3<f32> = origin;
-    var d: vec3<f32> = dir;
-    var inv_dir: vec3<f32> = world_inv_dir;
-    var near: vec3<u32> = world_near;
-    var in_instance: bool = false;
-    var instance_sp: u32 = 0u;
+// traverse::any_hit_one_level (lightport-tracer/src/kernel/traverse.rs:596)
+fn any_hit_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+    let inv_dir: vec3<f32> = safe_inverse(dir);
+    let near: vec3<u32> = near_planes(inv_dir);
     var stack: array<u32, 11>;
     stack[0u] = stack_entry(0u, 0u);
     var sp: u32 = 1u;
@@ -748,12 +738,10 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     var leaves: array<u32, 4>;
     while sp > 0u && !blocked {
         sp -= 1u;
-        var node: u32 = stack[sp];
-        let may_batch: bool = (0u == 0u) || in_instance;
-        let n: NodeHits = intersect_node(node >> 8u, o, inv_dir, near, t_max);
+        let n: NodeHits = intersect_node(stack[sp] >> 8u, origin, inv_dir, near, t_max);
         var leaf_count: u32 = 0u;
         if n.t.x < MISS {
-            if is_leaf(n.entries.x) && may_batch {
+            if is_leaf(n.entries.x) {
                 leaves[leaf_count] = n.entries.x;
                 leaf_count += 1u;
             } else if sp < STACK_SIZE {
@@ -762,7 +750,7 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
             }
         }
         if n.t.y < MISS {
-            if is_leaf(n.entries.y) && may_batch {
+            if is_leaf(n.entries.y) {
                 leaves[leaf_count] = n.entries.y;
                 leaf_count += 1u;
             } else if sp < STACK_SIZE {
@@ -771,7 +759,7 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
             }
         }
         if n.t.z < MISS {
-            if is_leaf(n.entries.z) && may_batch {
+            if is_leaf(n.entries.z) {
                 leaves[leaf_count] = n.entries.z;
                 leaf_count += 1u;
             } else if sp < STACK_SIZE {
@@ -780,7 +768,7 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
             }
         }
         if n.t.w < MISS {
-            if is_leaf(n.entries.w) && may_batch {
+            if is_leaf(n.entries.w) {
                 leaves[leaf_count] = n.entries.w;
                 leaf_count += 1u;
             } else if sp < STACK_SIZE {
@@ -790,14 +778,21 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
         }
         var k: u32 = 0u;
         while k < leaf_count && !blocked {
-            blocked = leaf_occludes(leaves[k], o, d, t_max);
+            blocked = leaf_occludes(leaves[k], origin, dir, t_max);
             k += 1u;
         }
     }
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:438)
+// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:584)
+fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+    {
+        return any_hit_one_level(origin, dir, t_max);
+    }
+}
+
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:573)
 fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     var blocked: bool = any_hit(origin, dir, t_max);
     return blocked;

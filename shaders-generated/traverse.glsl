@@ -229,7 +229,7 @@ TriangleData fetch_triangle(uint index) {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
 }
 
-// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
+// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:23)
 TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2) {
     TriangleHit miss = TriangleHit(MISS, 0.0, 0.0);
     vec3 e1 = v1 - v0;
@@ -252,7 +252,7 @@ TriangleHit intersect_triangle(vec3 origin, vec3 dir, vec3 v0, vec3 v1, vec3 v2)
     }
 }
 
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:152)
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:155)
 void intersect_leaf(uint entry, uint instance, vec3 origin, vec3 dir, Hit after, bool only_masked, inout Hit hit) {
     uint first = entry >> 8;
     uint i_end = first + (entry & 255u);
@@ -269,7 +269,7 @@ void intersect_leaf(uint entry, uint instance, vec3 origin, vec3 dir, Hit after,
     }
 }
 
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:177)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:180)
 bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     uint first = entry >> 8;
     bool blocked = false;
@@ -285,7 +285,7 @@ bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:48)
+// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:50)
 vec3 safe_inverse(vec3 dir) {
     float tiny = 1e-20;
     float x = abs(dir.x) < tiny ? (dir.x >= 0.0 ? tiny : -tiny) : dir.x;
@@ -294,7 +294,7 @@ vec3 safe_inverse(vec3 dir) {
     return vec3(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:216)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:219)
 bool is_leaf(uint entry) {
     return (entry & 255u) > 0u;
 }
@@ -328,7 +328,7 @@ InstanceRay instance_ray(uint instance, vec3 origin, vec3 dir) {
     }
 }
 
-// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:237)
+// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:240)
 NodeHits sort_children(NodeHits n) {
     float t0 = n.t.x;
     float t1 = n.t.y;
@@ -381,8 +381,8 @@ NodeHits sort_children(NodeHits n) {
     return NodeHits(vec4(t0, t1, t2, t3), uvec4(e0, e1, e2, e3));
 }
 
-// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:309)
-Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_masked) {
+// traverse::closest_candidate_two_level (lightport-tracer/src/kernel/traverse.rs:437)
+Hit closest_candidate_two_level(vec3 origin, vec3 dir, float t_max, Hit after, bool only_masked) {
     vec3 world_inv_dir = safe_inverse(dir);
     uvec3 world_near = near_planes(world_inv_dir);
     vec3 o = origin;
@@ -405,7 +405,7 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
     uint leaves[3];
     for (int i_2 = 0; i_2 < 3; ++i_2) { leaves[i_2] = 0u; }
     while (visiting) {
-        if ((scene_has_instances != 0u) && !in_instance && is_leaf(entry)) {
+        if (!in_instance && is_leaf(entry)) {
             uint first = entry >> 8;
             if ((entry & 255u) > 1u && sp < STACK_SIZE) {
                 stack[sp] = stack_entry(first + 1u, (entry & 255u) - 1u);
@@ -422,7 +422,7 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
             instance_sp = sp;
             entry = stack_entry(r.root, 0u);
         }
-        bool may_batch = (scene_has_instances == 0u) || in_instance;
+        bool may_batch = in_instance;
         bool descend = false;
         uint leaf_count = 0u;
         if (is_leaf(entry)) {
@@ -481,7 +481,7 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
         if (!descend) {
             visiting = false;
             while (sp > 0u && !visiting) {
-                if ((scene_has_instances != 0u) && in_instance && (sp == instance_sp)) {
+                if (in_instance && (sp == instance_sp)) {
                     o = origin;
                     d = dir;
                     inv_dir = world_inv_dir;
@@ -498,6 +498,99 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
         }
     }
     return hit;
+}
+
+// traverse::closest_candidate_one_level (lightport-tracer/src/kernel/traverse.rs:322)
+Hit closest_candidate_one_level(vec3 origin, vec3 dir, float t_max, Hit after, bool only_masked) {
+    vec3 inv_dir = safe_inverse(dir);
+    uvec3 near = near_planes(inv_dir);
+    Hit hit = Hit(NONE, t_max, 0.0, 0.0, 0u);
+    uint stack[64];
+    for (int i = 0; i < 64; ++i) { stack[i] = 0u; }
+    float stack_t[64];
+    for (int i_1 = 0; i_1 < 64; ++i_1) { stack_t[i_1] = 0.0; }
+    uint leaf_limit = scene_leaf_stack_limit;
+    uint sp = 0u;
+    uint entry = stack_entry(0u, 0u);
+    bool visiting = true;
+    uint leaves[3];
+    for (int i_2 = 0; i_2 < 3; ++i_2) { leaves[i_2] = 0u; }
+    while (visiting) {
+        bool descend = false;
+        uint leaf_count = 0u;
+        if (is_leaf(entry)) {
+            leaves[0u] = entry;
+            leaf_count = 1u;
+        } else {
+            NodeHits sorted = sort_children(intersect_node(entry >> 8, origin, inv_dir, near, hit.t));
+            float t0 = sorted.t.x;
+            float t1 = sorted.t.y;
+            float t2 = sorted.t.z;
+            float t3 = sorted.t.w;
+            uint e0 = sorted.entries.x;
+            uint e1 = sorted.entries.y;
+            uint e2 = sorted.entries.z;
+            uint e3 = sorted.entries.w;
+            if (t3 < MISS) {
+                if (sp >= leaf_limit && is_leaf(e3)) {
+                    leaves[leaf_count] = e3;
+                    leaf_count += 1u;
+                } else if (sp < STACK_SIZE) {
+                    stack[sp] = e3;
+                    stack_t[sp] = t3;
+                    sp += 1u;
+                }
+            }
+            if (t2 < MISS) {
+                if (sp >= leaf_limit && is_leaf(e2)) {
+                    leaves[leaf_count] = e2;
+                    leaf_count += 1u;
+                } else if (sp < STACK_SIZE) {
+                    stack[sp] = e2;
+                    stack_t[sp] = t2;
+                    sp += 1u;
+                }
+            }
+            if (t1 < MISS) {
+                if (sp >= leaf_limit && is_leaf(e1)) {
+                    leaves[leaf_count] = e1;
+                    leaf_count += 1u;
+                } else if (sp < STACK_SIZE) {
+                    stack[sp] = e1;
+                    stack_t[sp] = t1;
+                    sp += 1u;
+                }
+            }
+            if (t0 < MISS) {
+                entry = e0;
+                descend = true;
+            }
+        }
+        uint k_end = leaf_count;
+        for (uint k = 0u; k < k_end; ++k) {
+            intersect_leaf(leaves[k], 0u, origin, dir, after, only_masked, hit);
+        }
+        if (!descend) {
+            visiting = false;
+            while (sp > 0u && !visiting) {
+                sp -= 1u;
+                if (!(stack_t[sp] > hit.t)) {
+                    entry = stack[sp];
+                    visiting = true;
+                }
+            }
+        }
+    }
+    return hit;
+}
+
+// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:300)
+Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_masked) {
+    if (scene_has_instances != 0u) {
+        return closest_candidate_two_level(origin, dir, t_max, after, only_masked);
+    } else {
+        return closest_candidate_one_level(origin, dir, t_max, after, only_masked);
+    }
 }
 
 // alpha_mask::fetch_alpha_mask (lightport-tracer/src/kernel/alpha_mask.rs:37)
@@ -657,7 +750,7 @@ bool is_hole(uint triangle, uint material, float u, float v) {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse::visible_hit (lightport-tracer/src/kernel/traverse.rs:195)
+// traverse::visible_hit (lightport-tracer/src/kernel/traverse.rs:198)
 Hit visible_hit(vec3 origin, vec3 dir, float t_max, bool only_masked) {
     Hit after = before_any_hit();
     Hit hit = after;
@@ -678,7 +771,7 @@ Hit visible_hit(vec3 origin, vec3 dir, float t_max, bool only_masked) {
     return hit;
 }
 
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:224)
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:227)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     if (scene_has_alpha_mask != 0u) {
         return visible_hit(origin, dir, t_max, false);
@@ -687,8 +780,8 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     }
 }
 
-// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:452)
-bool any_hit(vec3 origin, vec3 dir, float t_max) {
+// traverse::any_hit_two_level (lightport-tracer/src/kernel/traverse.rs:661)
+bool any_hit_two_level(vec3 origin, vec3 dir, float t_max) {
     vec3 world_inv_dir = safe_inverse(dir);
     uvec3 world_near = near_planes(world_inv_dir);
     vec3 o = origin;
@@ -705,7 +798,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
     uint leaves[4];
     for (int i_1 = 0; i_1 < 4; ++i_1) { leaves[i_1] = 0u; }
     while (sp > 0u && !blocked) {
-        if ((scene_has_instances != 0u) && in_instance && (sp == instance_sp)) {
+        if (in_instance && (sp == instance_sp)) {
             o = origin;
             d = dir;
             inv_dir = world_inv_dir;
@@ -714,7 +807,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
         }
         sp -= 1u;
         uint node = stack[sp];
-        if ((scene_has_instances != 0u) && is_leaf(node)) {
+        if (is_leaf(node)) {
             uint first = node >> 8;
             if ((node & 255u) > 1u && sp < STACK_SIZE) {
                 stack[sp] = stack_entry(first + 1u, (node & 255u) - 1u);
@@ -729,7 +822,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
             instance_sp = sp;
             node = stack_entry(r.root, 0u);
         }
-        bool may_batch = (scene_has_instances == 0u) || in_instance;
+        bool may_batch = in_instance;
         NodeHits n = intersect_node(node >> 8, o, inv_dir, near, t_max);
         uint leaf_count = 0u;
         if (n.t.x < MISS) {
@@ -777,7 +870,76 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:438)
+// traverse::any_hit_one_level (lightport-tracer/src/kernel/traverse.rs:596)
+bool any_hit_one_level(vec3 origin, vec3 dir, float t_max) {
+    vec3 inv_dir = safe_inverse(dir);
+    uvec3 near = near_planes(inv_dir);
+    uint stack[64];
+    for (int i = 0; i < 64; ++i) { stack[i] = 0u; }
+    stack[0u] = stack_entry(0u, 0u);
+    uint sp = 1u;
+    bool blocked = false;
+    uint leaves[4];
+    for (int i_1 = 0; i_1 < 4; ++i_1) { leaves[i_1] = 0u; }
+    while (sp > 0u && !blocked) {
+        sp -= 1u;
+        NodeHits n = intersect_node(stack[sp] >> 8, origin, inv_dir, near, t_max);
+        uint leaf_count = 0u;
+        if (n.t.x < MISS) {
+            if (is_leaf(n.entries.x)) {
+                leaves[leaf_count] = n.entries.x;
+                leaf_count += 1u;
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = n.entries.x;
+                sp += 1u;
+            }
+        }
+        if (n.t.y < MISS) {
+            if (is_leaf(n.entries.y)) {
+                leaves[leaf_count] = n.entries.y;
+                leaf_count += 1u;
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = n.entries.y;
+                sp += 1u;
+            }
+        }
+        if (n.t.z < MISS) {
+            if (is_leaf(n.entries.z)) {
+                leaves[leaf_count] = n.entries.z;
+                leaf_count += 1u;
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = n.entries.z;
+                sp += 1u;
+            }
+        }
+        if (n.t.w < MISS) {
+            if (is_leaf(n.entries.w)) {
+                leaves[leaf_count] = n.entries.w;
+                leaf_count += 1u;
+            } else if (sp < STACK_SIZE) {
+                stack[sp] = n.entries.w;
+                sp += 1u;
+            }
+        }
+        uint k = 0u;
+        while (k < leaf_count && !blocked) {
+            blocked = leaf_occludes(leaves[k], origin, dir, t_max);
+            k += 1u;
+        }
+    }
+    return blocked;
+}
+
+// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:584)
+bool any_hit(vec3 origin, vec3 dir, float t_max) {
+    if (scene_has_instances != 0u) {
+        return any_hit_two_level(origin, dir, t_max);
+    } else {
+        return any_hit_one_level(origin, dir, t_max);
+    }
+}
+
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:573)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     bool blocked = any_hit(origin, dir, t_max);
     if ((scene_has_alpha_mask != 0u) && !blocked) {

@@ -205,7 +205,7 @@ fn fetch_triangle(index: u32) -> TriangleData {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
 }
 
-// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:21)
+// intersect::intersect_triangle (lightport-tracer/src/kernel/intersect.rs:23)
 fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> TriangleHit {
     let miss: TriangleHit = TriangleHit(MISS, 0.0, 0.0);
     let e1: vec3<f32> = v1 - v0;
@@ -228,7 +228,7 @@ fn intersect_triangle(origin: vec3<f32>, dir: vec3<f32>, v0: vec3<f32>, v1: vec3
     }
 }
 
-// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:152)
+// traverse::intersect_leaf (lightport-tracer/src/kernel/traverse.rs:155)
 fn intersect_leaf(entry: u32, instance: u32, origin: vec3<f32>, dir: vec3<f32>, after: Hit, only_masked: bool, hit: ptr<function, Hit>) {
     let first: u32 = entry >> 8u;
     let i_end: u32 = first + (entry & 255u);
@@ -245,7 +245,7 @@ fn intersect_leaf(entry: u32, instance: u32, origin: vec3<f32>, dir: vec3<f32>, 
     }
 }
 
-// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:177)
+// traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:180)
 fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let first: u32 = entry >> 8u;
     var blocked: bool = false;
@@ -261,7 +261,7 @@ fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> b
     return blocked;
 }
 
-// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:48)
+// intersect::safe_inverse (lightport-tracer/src/kernel/intersect.rs:50)
 fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     let tiny: f32 = 1e-20;
     let x: f32 = select(dir.x, select(-tiny, tiny, dir.x >= 0.0), abs(dir.x) < tiny);
@@ -270,7 +270,7 @@ fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:216)
+// traverse::is_leaf (lightport-tracer/src/kernel/traverse.rs:219)
 fn is_leaf(entry: u32) -> bool {
     return (entry & 255u) > 0u;
 }
@@ -304,7 +304,7 @@ fn instance_ray(instance: u32, origin: vec3<f32>, dir: vec3<f32>) -> InstanceRay
     }
 }
 
-// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:237)
+// traverse::sort_children (lightport-tracer/src/kernel/traverse.rs:240)
 fn sort_children(n: NodeHits) -> NodeHits {
     var t0: f32 = n.t.x;
     var t1: f32 = n.t.y;
@@ -357,8 +357,8 @@ fn sort_children(n: NodeHits) -> NodeHits {
     return NodeHits(vec4<f32>(t0, t1, t2, t3), vec4<u32>(e0, e1, e2, e3));
 }
 
-// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:309)
-fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, only_masked: bool) -> Hit {
+// traverse::closest_candidate_two_level (lightport-tracer/src/kernel/traverse.rs:437)
+fn closest_candidate_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, only_masked: bool) -> Hit {
     let world_inv_dir: vec3<f32> = safe_inverse(dir);
     let world_near: vec3<u32> = near_planes(world_inv_dir);
     var o: vec3<f32> = origin;
@@ -378,7 +378,7 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
     var visiting: bool = true;
     var leaves: array<u32, 3>;
     while visiting {
-        if (scene.has_instances != 0u) && !in_instance && is_leaf(entry) {
+        if !in_instance && is_leaf(entry) {
             let first: u32 = entry >> 8u;
             if (entry & 255u) > 1u && sp < STACK_SIZE {
                 stack[sp] = stack_entry(first + 1u, (entry & 255u) - 1u);
@@ -395,7 +395,7 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
             instance_sp = sp;
             entry = stack_entry(r.root, 0u);
         }
-        let may_batch: bool = (scene.has_instances == 0u) || in_instance;
+        let may_batch: bool = in_instance;
         var descend: bool = false;
         var leaf_count: u32 = 0u;
         if is_leaf(entry) {
@@ -454,7 +454,7 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
         if !descend {
             visiting = false;
             while sp > 0u && !visiting {
-                if (scene.has_instances != 0u) && in_instance && (sp == instance_sp) {
+                if in_instance && (sp == instance_sp) {
                     o = origin;
                     d = dir;
                     inv_dir = world_inv_dir;
@@ -471,6 +471,96 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
         }
     }
     return hit;
+}
+
+// traverse::closest_candidate_one_level (lightport-tracer/src/kernel/traverse.rs:322)
+fn closest_candidate_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, only_masked: bool) -> Hit {
+    let inv_dir: vec3<f32> = safe_inverse(dir);
+    let near: vec3<u32> = near_planes(inv_dir);
+    var hit: Hit = Hit(NONE, t_max, 0.0, 0.0, 0u);
+    var stack: array<u32, 64>;
+    var stack_t: array<f32, 64>;
+    let leaf_limit: u32 = scene.leaf_stack_limit;
+    var sp: u32 = 0u;
+    var entry: u32 = stack_entry(0u, 0u);
+    var visiting: bool = true;
+    var leaves: array<u32, 3>;
+    while visiting {
+        var descend: bool = false;
+        var leaf_count: u32 = 0u;
+        if is_leaf(entry) {
+            leaves[0u] = entry;
+            leaf_count = 1u;
+        } else {
+            let sorted: NodeHits = sort_children(intersect_node(entry >> 8u, origin, inv_dir, near, hit.t));
+            let t0: f32 = sorted.t.x;
+            let t1: f32 = sorted.t.y;
+            let t2: f32 = sorted.t.z;
+            let t3: f32 = sorted.t.w;
+            let e0: u32 = sorted.entries.x;
+            let e1: u32 = sorted.entries.y;
+            let e2: u32 = sorted.entries.z;
+            let e3: u32 = sorted.entries.w;
+            if t3 < MISS {
+                if sp >= leaf_limit && is_leaf(e3) {
+                    leaves[leaf_count] = e3;
+                    leaf_count += 1u;
+                } else if sp < STACK_SIZE {
+                    stack[sp] = e3;
+                    stack_t[sp] = t3;
+                    sp += 1u;
+                }
+            }
+            if t2 < MISS {
+                if sp >= leaf_limit && is_leaf(e2) {
+                    leaves[leaf_count] = e2;
+                    leaf_count += 1u;
+                } else if sp < STACK_SIZE {
+                    stack[sp] = e2;
+                    stack_t[sp] = t2;
+                    sp += 1u;
+                }
+            }
+            if t1 < MISS {
+                if sp >= leaf_limit && is_leaf(e1) {
+                    leaves[leaf_count] = e1;
+                    leaf_count += 1u;
+                } else if sp < STACK_SIZE {
+                    stack[sp] = e1;
+                    stack_t[sp] = t1;
+                    sp += 1u;
+                }
+            }
+            if t0 < MISS {
+                entry = e0;
+                descend = true;
+            }
+        }
+        let k_end: u32 = leaf_count;
+        for (var k: u32 = 0u; k < k_end; k++) {
+            intersect_leaf(leaves[k], 0u, origin, dir, after, only_masked, &hit);
+        }
+        if !descend {
+            visiting = false;
+            while sp > 0u && !visiting {
+                sp -= 1u;
+                if !(stack_t[sp] > hit.t) {
+                    entry = stack[sp];
+                    visiting = true;
+                }
+            }
+        }
+    }
+    return hit;
+}
+
+// traverse::closest_candidate (lightport-tracer/src/kernel/traverse.rs:300)
+fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, only_masked: bool) -> Hit {
+    if scene.has_instances != 0u {
+        return closest_candidate_two_level(origin, dir, t_max, after, only_masked);
+    } else {
+        return closest_candidate_one_level(origin, dir, t_max, after, only_masked);
+    }
 }
 
 // alpha_mask::fetch_alpha_mask (lightport-tracer/src/kernel/alpha_mask.rs:37)
@@ -630,7 +720,7 @@ fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse::visible_hit (lightport-tracer/src/kernel/traverse.rs:195)
+// traverse::visible_hit (lightport-tracer/src/kernel/traverse.rs:198)
 fn visible_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, only_masked: bool) -> Hit {
     var after: Hit = before_any_hit();
     var hit: Hit = after;
@@ -651,7 +741,7 @@ fn visible_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, only_masked: bool)
     return hit;
 }
 
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:224)
+// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:227)
 fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     if scene.has_alpha_mask != 0u {
         return visible_hit(origin, dir, t_max, false);
@@ -660,8 +750,8 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     }
 }
 
-// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:452)
-fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+// traverse::any_hit_two_level (lightport-tracer/src/kernel/traverse.rs:661)
+fn any_hit_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let world_inv_dir: vec3<f32> = safe_inverse(dir);
     let world_near: vec3<u32> = near_planes(world_inv_dir);
     var o: vec3<f32> = origin;
@@ -676,7 +766,7 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     var blocked: bool = false;
     var leaves: array<u32, 4>;
     while sp > 0u && !blocked {
-        if (scene.has_instances != 0u) && in_instance && (sp == instance_sp) {
+        if in_instance && (sp == instance_sp) {
             o = origin;
             d = dir;
             inv_dir = world_inv_dir;
@@ -685,7 +775,7 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
         }
         sp -= 1u;
         var node: u32 = stack[sp];
-        if (scene.has_instances != 0u) && is_leaf(node) {
+        if is_leaf(node) {
             let first: u32 = node >> 8u;
             if (node & 255u) > 1u && sp < STACK_SIZE {
                 stack[sp] = stack_entry(first + 1u, (node & 255u) - 1u);
@@ -700,7 +790,7 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
             instance_sp = sp;
             node = stack_entry(r.root, 0u);
         }
-        let may_batch: bool = (scene.has_instances == 0u) || in_instance;
+        let may_batch: bool = in_instance;
         let n: NodeHits = intersect_node(node >> 8u, o, inv_dir, near, t_max);
         var leaf_count: u32 = 0u;
         if n.t.x < MISS {
@@ -748,7 +838,74 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     return blocked;
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:438)
+// traverse::any_hit_one_level (lightport-tracer/src/kernel/traverse.rs:596)
+fn any_hit_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+    let inv_dir: vec3<f32> = safe_inverse(dir);
+    let near: vec3<u32> = near_planes(inv_dir);
+    var stack: array<u32, 64>;
+    stack[0u] = stack_entry(0u, 0u);
+    var sp: u32 = 1u;
+    var blocked: bool = false;
+    var leaves: array<u32, 4>;
+    while sp > 0u && !blocked {
+        sp -= 1u;
+        let n: NodeHits = intersect_node(stack[sp] >> 8u, origin, inv_dir, near, t_max);
+        var leaf_count: u32 = 0u;
+        if n.t.x < MISS {
+            if is_leaf(n.entries.x) {
+                leaves[leaf_count] = n.entries.x;
+                leaf_count += 1u;
+            } else if sp < STACK_SIZE {
+                stack[sp] = n.entries.x;
+                sp += 1u;
+            }
+        }
+        if n.t.y < MISS {
+            if is_leaf(n.entries.y) {
+                leaves[leaf_count] = n.entries.y;
+                leaf_count += 1u;
+            } else if sp < STACK_SIZE {
+                stack[sp] = n.entries.y;
+                sp += 1u;
+            }
+        }
+        if n.t.z < MISS {
+            if is_leaf(n.entries.z) {
+                leaves[leaf_count] = n.entries.z;
+                leaf_count += 1u;
+            } else if sp < STACK_SIZE {
+                stack[sp] = n.entries.z;
+                sp += 1u;
+            }
+        }
+        if n.t.w < MISS {
+            if is_leaf(n.entries.w) {
+                leaves[leaf_count] = n.entries.w;
+                leaf_count += 1u;
+            } else if sp < STACK_SIZE {
+                stack[sp] = n.entries.w;
+                sp += 1u;
+            }
+        }
+        var k: u32 = 0u;
+        while k < leaf_count && !blocked {
+            blocked = leaf_occludes(leaves[k], origin, dir, t_max);
+            k += 1u;
+        }
+    }
+    return blocked;
+}
+
+// traverse::any_hit (lightport-tracer/src/kernel/traverse.rs:584)
+fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+    if scene.has_instances != 0u {
+        return any_hit_two_level(origin, dir, t_max);
+    } else {
+        return any_hit_one_level(origin, dir, t_max);
+    }
+}
+
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:573)
 fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     var blocked: bool = any_hit(origin, dir, t_max);
     if (scene.has_alpha_mask != 0u) && !blocked {

@@ -319,9 +319,8 @@ fn the_denoisers_guide_is_in_the_kernel_only_when_asked_for() {
 }
 
 /// Two levels cost a one-level scene nothing: without `Features::instances` the kernel has no
-/// instance code (left: the traversal's few locals for the instance state, which are never
-/// read and which shader compilers drop), with it the loop enters placements and hits are
-/// brought back to world space, in GLSL and WGSL.
+/// instance code (the one-level traversal loop as it was), with it the loop enters placements
+/// and hits are brought back to world space, in GLSL and WGSL.
 #[test]
 fn two_level_traversal_is_in_the_kernel_only_for_scenes_with_instances() {
     use tracer::kernel::Features;
@@ -330,7 +329,9 @@ fn two_level_traversal_is_in_the_kernel_only_for_scenes_with_instances() {
     for target in [Target::GlslEs300, Target::Wgsl] {
         let without = tracer::kernel::path_tracer_shader(&plain, target).unwrap().source;
         let with = tracer::kernel::path_tracer_shader(&two_level, target).unwrap().source;
-        for extra in ["instance_ray", "instance_texel", "instance_handedness", "affine_point"] {
+        for extra in
+            ["instance_ray", "instance_texel", "instance_handedness", "affine_point", "instance_sp", "two_level"]
+        {
             assert!(with.contains(extra), "{target:?}: the two-level kernel has {extra}");
             assert!(!without.contains(extra), "{target:?}: a one-level kernel must not carry {extra}");
         }

@@ -148,7 +148,10 @@ pub mod traverse {
     /// `instance` (0 without instances; the ray in its space), keeping the closest hit in `hit`;
     /// with alpha masks, the closest candidate after `after` (of the masked triangles only,
     /// when `only_masked`), holes included.
+    // Inlined into the traversal loops (the CPU build: with the instance argument LLVM stopped
+    // inlining it, and the Cornell box lost 15 % per sample).
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     pub fn intersect_leaf(
         scene: &Scene,
         entry: u32,
@@ -287,6 +290,130 @@ pub mod traverse {
     }
 
     /// Closest intersection along `origin + t * dir` for t in (0, t_max); with alpha masks, the
+    /// closest candidate after `after` in (t, triangle) order, holes included (`intersect_leaf`):
+    /// the one-level loop, or in two-level scenes the loop over both levels.
+    // Two loops rather than one with the instance state in it: the CPU backend is not
+    // specialised, and one loop cost the Cornell box 6 % per sample there against 2 % with two
+    // (medians of 5 alternating renders; GL and wgpu, specialised, were unchanged either way).
+    // Each GPU variant keeps only the loop its scene needs.
+    #[inline(always)]
+    pub fn closest_candidate(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32, after: Hit, only_masked: bool) -> Hit {
+        if scene.has_instances != 0 {
+            closest_candidate_two_level(scene, origin, dir, t_max, after, only_masked)
+        } else {
+            closest_candidate_one_level(scene, origin, dir, t_max, after, only_masked)
+        }
+    }
+
+    /// Closest intersection along `origin + t * dir` for t in (0, t_max); with alpha masks, the
+    /// closest candidate after `after` in (t, triangle) order, holes included (`intersect_leaf`).
+    ///
+    /// A node's nearest hit child is visited next; its other hit children are pushed, farthest
+    /// first and leaves included, and popped (nearest first) when a leaf or a node without hit
+    /// children ends the descent. A visited leaf is intersected. Pushing leaves keeps one leaf
+    /// test in the loop (a compact loop, most of the time in registers), but chains of leaves,
+    /// as degenerate geometry builds, would deepen the stack by up to three entries per level:
+    /// leaves are pushed only below `scene.leaf_stack_limit` entries and intersected at once
+    /// beyond it (see `tracer::pack`, which sets the limit so that the stack cannot overflow).
+    /// Either way the leaves of an iteration are intersected at one place, after the node.
+    // The DSL has no iterators: the leaves are visited by index.
+    #[allow(clippy::needless_range_loop)]
+    #[inline(always)]
+    pub fn closest_candidate_one_level(
+        scene: &Scene,
+        origin: Vec3,
+        dir: Vec3,
+        t_max: f32,
+        after: Hit,
+        only_masked: bool,
+    ) -> Hit {
+        let inv_dir = safe_inverse(dir);
+        let near = near_planes(inv_dir);
+        let mut hit = Hit { triangle: NONE, t: t_max, u: 0.0, v: 0.0, instance: 0 };
+        let mut stack = [0u32; STACK_SIZE];
+        let mut stack_t = [0.0f32; STACK_SIZE];
+        let leaf_limit = scene.leaf_stack_limit as usize;
+        let mut sp: usize = 0;
+        // The entry being visited: the root (entered unconditionally: its children's boxes are
+        // the first test), then the nearest hit child of each node, else the next one popped.
+        let mut entry = stack_entry(0, 0);
+        let mut visiting = true;
+        // The leaves to intersect in this iteration: the one visited, or a node's hit leaves
+        // that do not go on the stack (at most three: the nearest child is visited next).
+        let mut leaves = [0u32; 3];
+        while visiting {
+            let mut descend = false;
+            let mut leaf_count: usize = 0;
+            if is_leaf(entry) {
+                leaves[0] = entry;
+                leaf_count = 1;
+            } else {
+                let sorted = sort_children(intersect_node(scene, entry >> 8, origin, inv_dir, near, hit.t));
+                let t0 = sorted.t.x;
+                let t1 = sorted.t.y;
+                let t2 = sorted.t.z;
+                let t3 = sorted.t.w;
+                let e0 = sorted.entries.x;
+                let e1 = sorted.entries.y;
+                let e2 = sorted.entries.z;
+                let e3 = sorted.entries.w;
+                // Farthest first, the nearest visited next without a round trip through the
+                // stack. (The box tests were clipped to the closest hit, so every hit child is
+                // worth visiting; the pop test below catches hits found meanwhile.)
+                if t3 < MISS {
+                    if sp >= leaf_limit && is_leaf(e3) {
+                        leaves[leaf_count] = e3;
+                        leaf_count += 1;
+                    } else if sp < STACK_SIZE {
+                        stack[sp] = e3;
+                        stack_t[sp] = t3;
+                        sp += 1;
+                    }
+                }
+                if t2 < MISS {
+                    if sp >= leaf_limit && is_leaf(e2) {
+                        leaves[leaf_count] = e2;
+                        leaf_count += 1;
+                    } else if sp < STACK_SIZE {
+                        stack[sp] = e2;
+                        stack_t[sp] = t2;
+                        sp += 1;
+                    }
+                }
+                if t1 < MISS {
+                    if sp >= leaf_limit && is_leaf(e1) {
+                        leaves[leaf_count] = e1;
+                        leaf_count += 1;
+                    } else if sp < STACK_SIZE {
+                        stack[sp] = e1;
+                        stack_t[sp] = t1;
+                        sp += 1;
+                    }
+                }
+                if t0 < MISS {
+                    entry = e0;
+                    descend = true;
+                }
+            }
+            for k in 0..leaf_count {
+                intersect_leaf(scene, leaves[k], 0, origin, dir, after, only_masked, &mut hit);
+            }
+            if !descend {
+                // Pop the nearest pending entry that may still hold a closer hit.
+                visiting = false;
+                while sp > 0 && !visiting {
+                    sp -= 1;
+                    if !(stack_t[sp] > hit.t) {
+                        entry = stack[sp];
+                        visiting = true;
+                    }
+                }
+            }
+        }
+        hit
+    }
+
+    /// Closest intersection along `origin + t * dir` for t in (0, t_max); with alpha masks, the
     /// closest candidate after `after` in (t, triangle) order, holes included (`intersect_leaf`).
     ///
     /// A node's nearest hit child is visited next; its other hit children are pushed, farthest
@@ -305,8 +432,16 @@ pub mod traverse {
     /// pushes the rest.
     // The DSL has no iterators: the leaves are visited by index.
     #[allow(clippy::needless_range_loop)]
-    #[inline(always)]
-    pub fn closest_candidate(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32, after: Hit, only_masked: bool) -> Hit {
+    // Out of line: inlined into the CPU row loop beside the one-level loop, it slows that one.
+    #[inline(never)]
+    pub fn closest_candidate_two_level(
+        scene: &Scene,
+        origin: Vec3,
+        dir: Vec3,
+        t_max: f32,
+        after: Hit,
+        only_masked: bool,
+    ) -> Hit {
         let world_inv_dir = safe_inverse(dir);
         let world_near = near_planes(world_inv_dir);
         // The ray in the space being traversed: the world's, or an instance's.
@@ -331,7 +466,7 @@ pub mod traverse {
         // that do not go on the stack (at most three: the nearest child is visited next).
         let mut leaves = [0u32; 3];
         while visiting {
-            if scene.has_instances != 0 && !in_instance && is_leaf(entry) {
+            if !in_instance && is_leaf(entry) {
                 let first = entry >> 8;
                 if (entry & 255) > 1 && sp < STACK_SIZE {
                     stack[sp] = stack_entry(first + 1, (entry & 255) - 1);
@@ -348,8 +483,8 @@ pub mod traverse {
                 instance_sp = sp;
                 entry = stack_entry(r.root, 0);
             }
-            // Leaves are intersected at once only at the bottom level (or in one-level scenes).
-            let may_batch = scene.has_instances == 0 || in_instance;
+            // Leaves are intersected at once only at the bottom level.
+            let may_batch = in_instance;
             let mut descend = false;
             let mut leaf_count: usize = 0;
             if is_leaf(entry) {
@@ -411,7 +546,7 @@ pub mod traverse {
                 // Pop the nearest pending entry that may still hold a closer hit.
                 visiting = false;
                 while sp > 0 && !visiting {
-                    if scene.has_instances != 0 && in_instance && sp == instance_sp {
+                    if in_instance && sp == instance_sp {
                         // The instance's entries are done: back to the world ray.
                         o = origin;
                         d = dir;
@@ -443,13 +578,87 @@ pub mod traverse {
         blocked
     }
 
+    /// Whether any triangle (with alpha masks, any unmasked one) is hit for t in (0, t_max): the
+    /// one-level loop, or the loop over both levels (see `closest_candidate`).
+    #[inline(always)]
+    pub fn any_hit(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        if scene.has_instances != 0 {
+            any_hit_two_level(scene, origin, dir, t_max)
+        } else {
+            any_hit_one_level(scene, origin, dir, t_max)
+        }
+    }
+
+    /// Whether any triangle (with alpha masks, any unmasked one) is hit for t in (0, t_max).
+    /// Any hit ends it, so children are visited in slot order, and leaves are intersected at
+    /// once: the stack holds child nodes only (`tracer::bvh::WideBvh::stack_needed` bounds it).
+    #[inline(always)]
+    pub fn any_hit_one_level(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        let inv_dir = safe_inverse(dir);
+        let near = near_planes(inv_dir);
+        let mut stack = [0u32; STACK_SIZE];
+        stack[0] = stack_entry(0, 0);
+        let mut sp: usize = 1;
+        let mut blocked = false;
+        // A node's hit leaves, intersected after its hit nodes are pushed: one site (above).
+        let mut leaves = [0u32; 4];
+        while sp > 0 && !blocked {
+            sp -= 1;
+            let n = intersect_node(scene, stack[sp] >> 8, origin, inv_dir, near, t_max);
+            let mut leaf_count: usize = 0;
+            if n.t.x < MISS {
+                if is_leaf(n.entries.x) {
+                    leaves[leaf_count] = n.entries.x;
+                    leaf_count += 1;
+                } else if sp < STACK_SIZE {
+                    stack[sp] = n.entries.x;
+                    sp += 1;
+                }
+            }
+            if n.t.y < MISS {
+                if is_leaf(n.entries.y) {
+                    leaves[leaf_count] = n.entries.y;
+                    leaf_count += 1;
+                } else if sp < STACK_SIZE {
+                    stack[sp] = n.entries.y;
+                    sp += 1;
+                }
+            }
+            if n.t.z < MISS {
+                if is_leaf(n.entries.z) {
+                    leaves[leaf_count] = n.entries.z;
+                    leaf_count += 1;
+                } else if sp < STACK_SIZE {
+                    stack[sp] = n.entries.z;
+                    sp += 1;
+                }
+            }
+            if n.t.w < MISS {
+                if is_leaf(n.entries.w) {
+                    leaves[leaf_count] = n.entries.w;
+                    leaf_count += 1;
+                } else if sp < STACK_SIZE {
+                    stack[sp] = n.entries.w;
+                    sp += 1;
+                }
+            }
+            let mut k: usize = 0;
+            while k < leaf_count && !blocked {
+                blocked = leaf_occludes(scene, leaves[k], origin, dir, t_max);
+                k += 1;
+            }
+        }
+        blocked
+    }
+
     /// Whether any triangle (with alpha masks, any unmasked one) is hit for t in (0, t_max).
     /// Any hit ends it, so children are visited in slot order, and leaves are intersected at
     /// once: the stack holds child nodes only (`tracer::bvh::WideBvh::stack_needed` bounds it).
     /// In two-level scenes, top-level leaves are pushed too and entered when popped, as in
     /// `closest_candidate`.
-    #[inline(always)]
-    pub fn any_hit(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+    // Out of line, as `closest_candidate_two_level`.
+    #[inline(never)]
+    pub fn any_hit_two_level(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
         let world_inv_dir = safe_inverse(dir);
         let world_near = near_planes(world_inv_dir);
         let mut o = origin;
@@ -465,7 +674,7 @@ pub mod traverse {
         // A node's hit leaves, intersected after its hit nodes are pushed: one site (above).
         let mut leaves = [0u32; 4];
         while sp > 0 && !blocked {
-            if scene.has_instances != 0 && in_instance && sp == instance_sp {
+            if in_instance && sp == instance_sp {
                 o = origin;
                 d = dir;
                 inv_dir = world_inv_dir;
@@ -474,7 +683,7 @@ pub mod traverse {
             }
             sp -= 1;
             let mut node = stack[sp];
-            if scene.has_instances != 0 && is_leaf(node) {
+            if is_leaf(node) {
                 // A top-level leaf (only those are pushed): enter its first instance.
                 let first = node >> 8;
                 if (node & 255) > 1 && sp < STACK_SIZE {
@@ -490,7 +699,7 @@ pub mod traverse {
                 instance_sp = sp;
                 node = stack_entry(r.root, 0);
             }
-            let may_batch = scene.has_instances == 0 || in_instance;
+            let may_batch = in_instance;
             let n = intersect_node(scene, node >> 8, o, inv_dir, near, t_max);
             let mut leaf_count: usize = 0;
             if n.t.x < MISS {
