@@ -142,3 +142,15 @@ fn small_shared_meshes_stay_flattened() {
     assert!(s.instances.is_empty(), "{} instances", s.instances.len());
     assert_eq!(s.triangles.len(), 17 * 4 * 4 * 2);
 }
+
+/// A placement whose transform cannot be inverted (a zero scale) is dropped with a warning
+/// (which `--strict` refuses, as it refuses every warning), never placed: rays could not be
+/// moved into its space.
+#[test]
+fn a_singular_placement_is_dropped_with_a_warning() {
+    let json = shared_meshes_json(24)
+        .replace(r#""translation": [7.5, 0, 0]}"#, r#""translation": [7.5, 0, 0], "scale": [1, 0, 1]}"#);
+    let s = load_str(&json).unwrap();
+    assert_eq!(s.instances.len(), 13, "the zero-scaled placement is dropped");
+    assert!(s.warnings.iter().any(|w| w.contains("cannot be inverted")), "{:?}", s.warnings);
+}

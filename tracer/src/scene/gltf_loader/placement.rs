@@ -68,11 +68,18 @@ impl Loader<'_> {
             };
             match slot {
                 Some(slot) => {
-                    let linear = Mat3::from_mat4(p.world);
-                    let det = linear.determinant();
-                    // A zero scale hides the mesh: nothing to place.
-                    if det != 0.0 && p.world.inverse().is_finite() {
-                        self.instances.push(Instance { mesh: slot, transform: p.world });
+                    let instance = Instance { mesh: slot, transform: p.world };
+                    if instance.has_valid_transform() {
+                        self.instances.push(instance);
+                    } else {
+                        // A zero scale hides the mesh (flattening drops it too); a transform
+                        // that cannot be inverted cannot move rays into the mesh's space.
+                        self.warnings.once(&format!("singular placement {}", p.mesh), || {
+                            format!(
+                                "mesh {} is placed by a transform that cannot be inverted (a zero scale?): that placement is dropped",
+                                p.mesh
+                            )
+                        });
                     }
                 }
                 None => self.place(p.mesh, &p.prims, &p.world)?,
