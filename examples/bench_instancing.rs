@@ -91,7 +91,7 @@ fn main() -> Result<()> {
     for (name, scene) in &rows {
         let two = build_and_pack(scene, &settings)?.1;
         let mut flat_scene = scene.clone();
-        flat_scene.bake_instances();
+        flat_scene.bake_instances()?;
         let flat = build_and_pack(&flat_scene, &settings)?.1;
         anyhow::ensure!(two.features.instances && !flat.features.instances, "{name}: levels as expected");
         let mut cells = Vec::new();

@@ -202,7 +202,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         }
         (None, None) => tracer::scene::cornell_box(),
     };
-    args.pose.apply_to_generated(&mut scene);
+    args.pose.apply_to_generated(&mut scene)?;
     if let Some(sky) = &args.sky {
         let s = tracer::scene::load_sky(sky, args.sky_intensity, args.sky_rotation.to_radians())
             .with_context(|| format!("loading sky {}", sky.display()))?;

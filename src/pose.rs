@@ -35,10 +35,11 @@ impl PoseArgs {
     }
 
     /// What `--flatten` asks of a scene generated in code (files are flattened as they load).
-    pub fn apply_to_generated(&self, scene: &mut Scene) {
+    pub fn apply_to_generated(&self, scene: &mut Scene) -> Result<()> {
         if self.flatten {
-            scene.bake_instances();
+            scene.bake_instances()?;
         }
+        Ok(())
     }
 
     /// The pose in words, for cache keys and read-outs (empty for the defaults).

@@ -178,7 +178,7 @@ impl Site {
                     (Some(path), None) => tracer::scene::load_with(path, &args.pose.load_options(args.strict)?)?,
                     (None, None) => tracer::scene::cornell_box(),
                 };
-                args.pose.apply_to_generated(&mut scene);
+                args.pose.apply_to_generated(&mut scene)?;
                 if sky.is_some() {
                     scene.sky = sky.clone();
                 }

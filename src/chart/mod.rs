@@ -223,7 +223,7 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
         },
     };
     // The pose is part of what a reference was rendered from.
-    args.pose.apply_to_generated(&mut chart_scene.scene);
+    args.pose.apply_to_generated(&mut chart_scene.scene)?;
     let pose = args.pose.describe();
     if !pose.is_empty() {
         write!(chart_scene.identity, ", posed: {pose}")?;

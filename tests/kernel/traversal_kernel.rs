@@ -202,7 +202,7 @@ fn check_two_level(scene: &Scene, rays: usize) {
     let mut leaves_at_once = k.clone();
     leaves_at_once.leaf_stack_limit = 0;
     let mut flat = scene.clone();
-    flat.bake_instances();
+    flat.bake_instances().expect("bakes");
     let b = scene.bounds();
     let (lo, hi) = (b.min - b.diagonal() * 0.25, b.max + b.diagonal() * 0.25);
     let mut rng = XorShift(4242);

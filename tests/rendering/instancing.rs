@@ -10,7 +10,7 @@ use tracer::backend::cpu::CpuRenderer;
 fn instanced_and_flattened_render_the_same_image() {
     let scene = tracer::scene::instanced_shapes(5);
     let mut flat = scene.clone();
-    flat.bake_instances();
+    flat.bake_instances().expect("bakes");
     let size = 32;
     for strategy in STRATEGIES {
         let (two, one) = (packed(&scene, strategy, size, 4), packed(&flat, strategy, size, 4));
@@ -38,6 +38,11 @@ fn a_hundred_million_placed_triangles_render() {
         + std::mem::size_of_val(s.nodes.as_slice())
         + std::mem::size_of_val(s.node_children.as_slice());
     assert!(bytes < 8 << 20, "{bytes} bytes of geometry");
+    // Flattened, it would not fit: refused with a clear error, the scene left as it was.
+    let mut flat = scene.clone();
+    let e = flat.bake_instances().unwrap_err();
+    assert!(e.to_string().contains("keep its instances"), "{e}");
+    assert_eq!(flat.instances.len(), scene.instances.len());
     let r = run(&mut CpuRenderer::new(p, 1), 16, 2);
     assert_eq!(r.rejected, 0);
     let mean = r.per_frame.iter().flatten().map(|m| m.y).sum::<f64>();

@@ -123,7 +123,7 @@ fn shared_meshes_are_placed_by_instances() {
         scene::load_gltf_slice(json.as_bytes(), None, &LoadOptions { flatten: true, ..Default::default() }).unwrap();
     assert!(flat.instances.is_empty() && flat.meshes.is_empty());
     let mut baked = s.clone();
-    baked.bake_instances();
+    baked.bake_instances().expect("bakes");
     assert_eq!(baked.triangles.len(), flat.triangles.len());
     assert!(
         corner_set(&baked.triangles) == corner_set(&flat.triangles),

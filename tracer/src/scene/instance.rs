@@ -132,14 +132,24 @@ impl Scene {
     }
 
     /// Moves every placed mesh into [`Scene::triangles`] (one world-space copy per instance)
-    /// and clears the instances: the flattened scene, which renders the same image.
-    pub fn bake_instances(&mut self) {
+    /// and clears the instances: the flattened scene, which renders the same image. A scene
+    /// that would place more than [`MAX_TRIANGLES`](super::MAX_TRIANGLES) triangles (the stress
+    /// field places 102 million) is refused and left as it was.
+    pub fn bake_instances(&mut self) -> Result<(), super::SceneError> {
+        let placed = self.placed_triangle_count();
+        if placed > super::MAX_TRIANGLES {
+            return Err(super::SceneError::TooLarge(format!(
+                "flattened, the scene would have {placed} triangles (at most {}): keep its instances",
+                super::MAX_TRIANGLES
+            )));
+        }
         for inst in std::mem::take(&mut self.instances) {
             if let Some(mesh) = self.meshes.get(inst.mesh as usize) {
                 self.triangles.extend(mesh.triangles.iter().map(|t| place_triangle(t, &inst.transform)));
             }
         }
         self.meshes.clear();
+        Ok(())
     }
 
     /// Each instance's world bounds (its mesh's box placed by its transform), in instance order:
