@@ -46,13 +46,12 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
-/// Bytes of the packed geometry: triangles, shading data, nodes (and placements), children.
+/// Bytes of the packed geometry (`Packed::arrays`): triangles, shading data, nodes (and
+/// placements), children.
 fn geometry_bytes(p: &Packed) -> usize {
-    let s = &p.scene;
-    std::mem::size_of_val(s.triangles.as_slice())
-        + std::mem::size_of_val(s.shading.as_slice())
-        + std::mem::size_of_val(s.nodes.as_slice())
-        + std::mem::size_of_val(s.node_children.as_slice())
+    let geometry = ["triangles", "shading", "nodes", "node_children"];
+    let arrays = p.arrays(16384).unwrap_or_default();
+    arrays.iter().filter(|a| geometry.contains(&a.name)).map(|a| a.texels * a.texel_bytes).sum()
 }
 
 fn arg(args: &[String], flag: &str, default: u32) -> Result<u32> {

@@ -32,11 +32,9 @@ fn a_hundred_million_placed_triangles_render() {
     let scene = tracer::scene::instanced_field(100);
     assert!(scene.placed_triangle_count() >= 100_000_000, "{}", scene.placed_triangle_count());
     let p = packed(&scene, tracer::kernel::Strategy::Mis, 16, 4);
-    let s = &p.scene;
-    let bytes = std::mem::size_of_val(s.triangles.as_slice())
-        + std::mem::size_of_val(s.shading.as_slice())
-        + std::mem::size_of_val(s.nodes.as_slice())
-        + std::mem::size_of_val(s.node_children.as_slice());
+    let geometry = ["triangles", "shading", "nodes", "node_children"];
+    let arrays = p.arrays(16384).expect("fits in textures");
+    let bytes: usize = arrays.iter().filter(|a| geometry.contains(&a.name)).map(|a| a.texels * a.texel_bytes).sum();
     assert!(bytes < 8 << 20, "{bytes} bytes of geometry");
     // Flattened, it would not fit: refused with a clear error, the scene left as it was.
     let mut flat = scene.clone();

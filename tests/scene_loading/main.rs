@@ -1,11 +1,12 @@
 //! Scene loading: every scene vendored in `tests/data/scenes/` (see `tests/data/README.md`),
 //! the loaders' conventions (transforms, winding, units, cameras) on small glTF files written
 //! here, and malformed input, which must give an error and never a panic. Beside this file:
-//! moving scenes (`moving.rs`), FBX (`fbx.rs`) and the glTF-Validator corpus
-//! (`validator_corpus.rs`).
+//! moving scenes (`moving.rs`), shared meshes placed by instances (`instancing.rs`), Draco
+//! (`draco.rs`), FBX (`fbx.rs`) and the glTF-Validator corpus (`validator_corpus.rs`).
 
 #[path = "../common/mod.rs"]
 mod common;
+mod draco;
 mod fbx;
 mod instancing;
 mod moving;
@@ -234,39 +235,6 @@ fn bad_glass_values_are_warned_with_their_defaults() {
     let err =
         scene::load_gltf_slice(json.as_bytes(), None, &LoadOptions { strict: true, ..Default::default() }).unwrap_err();
     assert!(err.to_string().contains("bad glass") || err.to_string().contains("material"), "{err}");
-}
-
-/// A primitive compressed with Draco, the extension required (as in the Draco-compressed
-/// LittlestTokyo): its accessors have no buffer views, the compressed data is a buffer view of
-/// its own. Draco is supported (`gltf_loader/draco.rs`, whose tests load real streams); this
-/// one is a bare 16-byte header, so the file is refused naming the primitive and the extension.
-#[test]
-fn undecodable_draco_stream_is_refused_by_name() {
-    let json = r#"{
-  "asset": {"version": "2.0"},
-  "extensionsUsed": ["KHR_draco_mesh_compression"],
-  "extensionsRequired": ["KHR_draco_mesh_compression"],
-  "scene": 0,
-  "scenes": [{"nodes": [0]}],
-  "nodes": [{"mesh": 0}],
-  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "extensions": {
-      "KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}}]}],
-  "buffers": [{"byteLength": 16, "uri": "data:application/octet-stream;base64,RFJBQ08CAgEBAAAAAAAAAA=="}],
-  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 16}],
-  "accessors": [
-    {"componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
-    {"componentType": 5123, "count": 3, "type": "SCALAR"}
-  ]
-}"#;
-    let err = load_str(json).unwrap_err();
-    assert!(matches!(err, SceneError::Malformed(_)), "{err:?}");
-    let message = err.to_string();
-    assert!(
-        message.contains("mesh 0 primitive 0")
-            && message.contains("KHR_draco_mesh_compression")
-            && message.contains("cannot be decoded"),
-        "{message}"
-    );
 }
 
 #[test]

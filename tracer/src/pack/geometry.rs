@@ -29,7 +29,6 @@ pub(super) struct Ordered<'a> {
     /// Two levels (`Features::instances`): `wide` holds the top level first, and these are
     /// the placements' texels in top-level order (`super::instances`). Empty for one level.
     pub instances: Vec<[Vec4; INSTANCE_TEXELS as usize]>,
-    pub two_level: bool,
 }
 
 impl<'a> Ordered<'a> {
@@ -53,7 +52,12 @@ impl<'a> Ordered<'a> {
             .iter()
             .map(|&i| scene.triangles.get(i as usize).ok_or(PackError::BadBvh(i)))
             .collect::<Result<_, _>>()?;
-        Ok(Ordered { triangles, wide, traversal_stack, leaf_stack_limit, instances: Vec::new(), two_level: false })
+        Ok(Ordered { triangles, wide, traversal_stack, leaf_stack_limit, instances: Vec::new() })
+    }
+
+    /// Whether the scene has two levels (a two-level scene has at least one placement).
+    pub fn two_level(&self) -> bool {
+        !self.instances.is_empty()
     }
 
     /// Whether some vertex normal differs from its face's (the shading data is needed). The
@@ -127,7 +131,7 @@ pub(super) fn pack_geometry(
     };
     let (mut nodes, node_children) = pack_nodes(&ordered.wide);
     let mut instance_first = 0;
-    if ordered.two_level {
+    if ordered.two_level() {
         instance_first = nodes.len() as u32;
         let texels = nodes.as_slice().iter().copied().chain(ordered.instances.iter().flatten().copied());
         nodes = Texels::new(texels.collect());

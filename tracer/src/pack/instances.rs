@@ -118,7 +118,7 @@ pub(super) fn two_level<'a>(scene: &'a Scene, bvh: &Bvh) -> Result<Ordered<'a>, 
         stack_needed: top_need + bottom_need,
         stack_needed_with_leaves: top_need + bottom_need_with_leaves,
     };
-    Ok(Ordered { triangles, wide, traversal_stack, leaf_stack_limit, instances, two_level: true })
+    Ok(Ordered { triangles, wide, traversal_stack, leaf_stack_limit, instances })
 }
 
 /// The top level over placements' world boxes, binary and widened: one placement per leaf

@@ -170,7 +170,7 @@ fn scene_features(
         alpha_mask: alpha_tested.contains(&true),
         texture_transform: textures_used && textures.refs.as_ref().is_some_and(|r| r.transform),
         texcoord1: textures_used && textures.refs.as_ref().is_some_and(|r| r.texcoord1),
-        instances: ordered.two_level,
+        instances: ordered.two_level(),
         traversal_stack: ordered.traversal_stack,
         denoise_guide: false,
     }

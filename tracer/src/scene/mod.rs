@@ -511,13 +511,9 @@ impl Scene {
                 b.extend(p);
             }
         }
-        let mesh_bounds: Vec<Aabb> = self.meshes.iter().map(Mesh::bounds).collect();
-        for inst in &self.instances {
-            if let Some(&m) = mesh_bounds.get(inst.mesh as usize) {
-                let w = inst.world_bounds(m);
-                b.extend(w.min);
-                b.extend(w.max);
-            }
+        for w in self.placement_boxes().iter().filter(|w| w.min.cmple(w.max).all()) {
+            b.extend(w.min);
+            b.extend(w.max);
         }
         b
     }
