@@ -347,7 +347,7 @@ Surface metal_rough_surface(vec3 base_color, float metallic, float roughness, fl
     return Surface(base_color * (1.0 - m), vec3(DIELECTRIC_F0) * (1.0 - m) + base_color * m, r * r, specular);
 }
 
-// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:189)
+// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:206)
 Surface surface_at(MaterialData material, uint material_index, uint triangle, float u, float v) {
     MetalRoughData params = fetch_metal_rough(material_index);
     vec3 base = base_color_at(material, triangle, u, v);

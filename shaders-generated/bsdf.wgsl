@@ -323,7 +323,7 @@ fn metal_rough_surface(base_color: vec3<f32>, metallic: f32, roughness: f32, spe
     return Surface(base_color * (1.0 - m), vec3<f32>(DIELECTRIC_F0) * (1.0 - m) + base_color * m, r * r, specular);
 }
 
-// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:189)
+// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:206)
 fn surface_at(material: MaterialData, material_index: u32, triangle: u32, u: f32, v: f32) -> Surface {
     let params: MetalRoughData = fetch_metal_rough(material_index);
     let base: vec3<f32> = base_color_at(material, triangle, u, v);

@@ -179,7 +179,7 @@ struct Bsdf {
     Surface surface;
 };
 
-// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:67)
+// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:68)
 struct SurfaceNormals {
     vec3 ng;
     vec3 ns;
@@ -187,7 +187,7 @@ struct SurfaceNormals {
     float area2;
 };
 
-// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:109)
+// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:111)
 struct FirstHit {
     vec3 albedo;
     vec3 normal;
@@ -195,7 +195,7 @@ struct FirstHit {
     vec3 emission;
 };
 
-// integrator::GuidedSample (lightport-tracer/src/kernel/integrator.rs:122)
+// integrator::GuidedSample (lightport-tracer/src/kernel/integrator.rs:125)
 struct GuidedSample {
     vec4 color;
     vec4 albedo;
@@ -203,7 +203,7 @@ struct GuidedSample {
     vec4 emission;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:272)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:290)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -286,15 +286,15 @@ const uint BSDF_LAMBERT = 0u;
 const uint BSDF_METAL_ROUGH = 1u;
 // bsdf::BSDF_DIELECTRIC (lightport-tracer/src/kernel/bsdf.rs:38)
 const uint BSDF_DIELECTRIC = 2u;
-// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:31)
+// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:32)
 const uint RR_START_DEPTH = 3u;
-// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:34)
+// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:35)
 const float RR_MAX_SURVIVAL = 0.95;
-// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:37)
+// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:38)
 const float ORIGIN_OFFSET = 4e-6;
-// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:40)
+// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:41)
 const float SHADOW_RAY_SHORTENING = 1.0 - 0.0001;
-// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:103)
+// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:104)
 const float SKY_DEPTH = 1e20;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -375,7 +375,7 @@ uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
 }
 
-// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:44)
+// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:45)
 vec3 offset_origin(vec3 p, vec3 n) {
     float eps = (lp_max_element_vec3(abs(p)) + scene_scene_scale) * ORIGIN_OFFSET;
     return p + n * eps;
@@ -388,7 +388,7 @@ float power_heuristic(float a, float b) {
     return a2 + b2 > 0.0 ? a2 / (a2 + b2) : 0.0;
 }
 
-// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:51)
+// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:52)
 float hit_emission_weight(float scatter_pdf, float light_pdf) {
     if (scatter_pdf <= 0.0 || (scene_strategy == STRATEGY_BSDF)) {
         return 1.0;
@@ -663,7 +663,7 @@ vec3 normal_mapped(Hit hit, uint material, vec3 ns, float flip, vec3 ng, vec3 wo
     return n;
 }
 
-// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:75)
+// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:76)
 SurfaceNormals surface_normals(TriangleData tri, Hit hit, vec3 dir) {
     vec3 face = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
     if (scene_has_instances != 0u) {
@@ -1314,7 +1314,7 @@ GlassData fetch_glass(uint material) {
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:331)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:349)
 vec3 volume_transmittance(uint material, float t) {
     vec3 sigma = fetch_glass(material).sigma_a;
     return vec3(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -1385,7 +1385,7 @@ Bsdf glass_at(MaterialData material, uint material_index, Hit hit, float flip, f
     return Bsdf(BSDF_METAL_ROUGH, metal_rough_surface(base, m_rest, roughness, params.specular));
 }
 
-// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:189)
+// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:206)
 Surface surface_at(MaterialData material, uint material_index, uint triangle, float u, float v) {
     MetalRoughData params = fetch_metal_rough(material_index);
     vec3 base = base_color_at(material, triangle, u, v);
@@ -1427,6 +1427,25 @@ vec3 bsdf_normal(Bsdf b, vec3 ns, vec3 ng, vec3 dir) {
 // sampling::onb_to_local (lightport-tracer/src/kernel/sampling.rs:88)
 vec3 onb_to_local(Onb onb, vec3 v) {
     return vec3(dot(v, onb.tangent), dot(v, onb.bitangent), dot(v, onb.normal));
+}
+
+// metal_rough::schlick_fresnel (lightport-tracer/src/kernel/metal_rough.rs:76)
+vec3 schlick_fresnel(Surface s, float c) {
+    float m = clamp(1.0 - c, 0.0, 1.0);
+    float m2 = m * m;
+    return (s.f0 + (vec3(1.0) - s.f0) * (m2 * m2 * m)) * s.specular;
+}
+
+// metal_rough::metal_rough_albedo (lightport-tracer/src/kernel/metal_rough.rs:192)
+vec3 metal_rough_albedo(Surface s, float nv) {
+    float c = clamp(nv, 0.0, 1.0);
+    float roughness = sqrt(s.alpha);
+    vec4 r = vec4(-1.0, -0.0275, -0.572, 0.022) * roughness + vec4(1.0, 0.0425, 1.04, -0.04);
+    float a004 = min(r.x * r.x, exp2(-9.28 * c)) * r.x + r.y;
+    float scale = -1.04 * a004 + r.z;
+    float bias = 1.04 * a004 + r.w;
+    vec3 specular = (s.f0 * scale + vec3(bias)) * s.specular;
+    return (vec3(1.0) - schlick_fresnel(s, c)) * s.diffuse + max(specular, vec3(0.0));
 }
 
 // lights::choose_light (lightport-tracer/src/kernel/lights.rs:36)
@@ -1546,13 +1565,6 @@ LightSample sample_light(vec3 p, vec3 u) {
     } else {
         return none;
     }
-}
-
-// metal_rough::schlick_fresnel (lightport-tracer/src/kernel/metal_rough.rs:76)
-vec3 schlick_fresnel(Surface s, float c) {
-    float m = clamp(1.0 - c, 0.0, 1.0);
-    float m2 = m * m;
-    return (s.f0 + (vec3(1.0) - s.f0) * (m2 * m2 * m)) * s.specular;
 }
 
 // lights::luminance (lightport-tracer/src/kernel/lights.rs:31)
@@ -1908,7 +1920,7 @@ vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:284)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:302)
 vec3 sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     vec3 direct = vec3(0.0);
@@ -2047,7 +2059,7 @@ vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }
 
-// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:154)
+// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:160)
 vec4 trace_path(uint x, uint y, inout FirstHit first) {
     uint pixel = y * scene_width + x;
     uint rng = pixel_seed(pixel, scene_frame_seed);
@@ -2076,7 +2088,11 @@ vec4 trace_path(uint x, uint y, inout FirstHit first) {
                 if ((scene_strategy == STRATEGY_MIS) && scatter_pdf > 0.0) {
                     light_pdf = sky_pdf(dir) * light_pmf(scene_light_count - 1u);
                 }
-                radiance += throughput * sky_radiance(dir) * hit_emission_weight(scatter_pdf, light_pdf);
+                vec3 sky = throughput * sky_radiance(dir) * hit_emission_weight(scatter_pdf, light_pdf);
+                radiance += sky;
+                if ((scene_has_denoise_guide != 0u) && (depth == 0u)) {
+                    first.emission = sky;
+                }
             }
             break;
         }
@@ -2121,6 +2137,9 @@ vec4 trace_path(uint x, uint y, inout FirstHit first) {
         }
         Onb frame = onb_from_normal(bsdf_normal(bsdf, ns, ng, dir));
         Shading sh = Shading(offset_origin(p, ng), ng, frame, onb_to_local(frame, -dir), bsdf);
+        if ((scene_has_denoise_guide != 0u) && (depth == 0u) && (scene_has_metal_rough != 0u) && (bsdf.kind == BSDF_METAL_ROUGH)) {
+            first.albedo = metal_rough_albedo(bsdf.surface, sh.wo.z);
+        }
         radiance += throughput * sample_ld(sh, rng);
         BrdfSample bs = bsdf_sample(sh.bsdf, sh.wo, rng);
         vec3 next = onb_to_world(sh.frame, bs.dir);
@@ -2146,16 +2165,16 @@ vec4 trace_path(uint x, uint y, inout FirstHit first) {
     return finite_or_zero(radiance);
 }
 
-// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:132)
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:135)
 vec4 render_sample(uint x, uint y) {
-    FirstHit first = FirstHit(vec3(1.0), vec3(0.0, 0.0, 1.0), SKY_DEPTH, vec3(0.0));
+    FirstHit first = FirstHit(vec3(0.0), vec3(0.0, 0.0, 1.0), SKY_DEPTH, vec3(0.0));
     return trace_path(x, y, first);
 }
 
-// integrator::render_guided_sample (lightport-tracer/src/kernel/integrator.rs:139)
+// integrator::render_guided_sample (lightport-tracer/src/kernel/integrator.rs:142)
 GuidedSample render_guided_sample(uint x, uint y) {
-    FirstHit first = FirstHit(vec3(1.0), vec3(0.0, 0.0, 1.0), SKY_DEPTH, vec3(0.0));
+    FirstHit first = FirstHit(vec3(0.0), vec3(0.0, 0.0, 1.0), SKY_DEPTH, vec3(0.0));
     vec4 color = trace_path(x, y, first);
-    float l = luminance(color.xyz);
+    float l = luminance(color.xyz - first.emission);
     return GuidedSample(color, vec4(first.albedo, l), vec4(first.normal, first.depth), vec4(first.emission, l * l));
 }

@@ -180,7 +180,7 @@ struct Bsdf {
     surface: Surface,
 }
 
-// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:67)
+// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:68)
 struct SurfaceNormals {
     ng: vec3<f32>,
     ns: vec3<f32>,
@@ -188,7 +188,7 @@ struct SurfaceNormals {
     area2: f32,
 }
 
-// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:109)
+// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:111)
 struct FirstHit {
     albedo: vec3<f32>,
     normal: vec3<f32>,
@@ -196,7 +196,7 @@ struct FirstHit {
     emission: vec3<f32>,
 }
 
-// integrator::GuidedSample (lightport-tracer/src/kernel/integrator.rs:122)
+// integrator::GuidedSample (lightport-tracer/src/kernel/integrator.rs:125)
 struct GuidedSample {
     color: vec4<f32>,
     albedo: vec4<f32>,
@@ -204,7 +204,7 @@ struct GuidedSample {
     emission: vec4<f32>,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:272)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:290)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -287,15 +287,15 @@ const BSDF_LAMBERT: u32 = 0u;
 const BSDF_METAL_ROUGH: u32 = 1u;
 // bsdf::BSDF_DIELECTRIC (lightport-tracer/src/kernel/bsdf.rs:38)
 const BSDF_DIELECTRIC: u32 = 2u;
-// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:31)
+// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:32)
 const RR_START_DEPTH: u32 = 3u;
-// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:34)
+// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:35)
 const RR_MAX_SURVIVAL: f32 = 0.95;
-// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:37)
+// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:38)
 const ORIGIN_OFFSET: f32 = 4e-6;
-// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:40)
+// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:41)
 const SHADOW_RAY_SHORTENING: f32 = 1.0 - 0.0001;
-// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:103)
+// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:104)
 const SKY_DEPTH: f32 = 1e20;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -351,7 +351,7 @@ fn lp_max_element_vec3(v: vec3<f32>) -> f32 {
     return max(max(v.x, v.y), v.z);
 }
 
-// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:44)
+// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:45)
 fn offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let eps: f32 = (lp_max_element_vec3(abs(p)) + scene.scene_scale) * ORIGIN_OFFSET;
     return p + n * eps;
@@ -364,7 +364,7 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     return select(0.0, a2 / (a2 + b2), a2 + b2 > 0.0);
 }
 
-// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:51)
+// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:52)
 fn hit_emission_weight(scatter_pdf: f32, light_pdf: f32) -> f32 {
     if scatter_pdf <= 0.0 || (scene.strategy == STRATEGY_BSDF) {
         return 1.0;
@@ -639,7 +639,7 @@ fn normal_mapped(hit: Hit, material: u32, ns: vec3<f32>, flip: f32, ng: vec3<f32
     return n;
 }
 
-// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:75)
+// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:76)
 fn surface_normals(tri: TriangleData, hit: Hit, dir: vec3<f32>) -> SurfaceNormals {
     var face: vec3<f32> = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
     if scene.has_instances != 0u {
@@ -1284,7 +1284,7 @@ fn fetch_glass(material: u32) -> GlassData {
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:331)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:349)
 fn volume_transmittance(material: u32, t: f32) -> vec3<f32> {
     let sigma: vec3<f32> = fetch_glass(material).sigma_a;
     return vec3<f32>(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -1355,7 +1355,7 @@ fn glass_at(material: MaterialData, material_index: u32, hit: Hit, flip: f32, u:
     return Bsdf(BSDF_METAL_ROUGH, metal_rough_surface(base, m_rest, roughness, params.specular));
 }
 
-// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:189)
+// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:206)
 fn surface_at(material: MaterialData, material_index: u32, triangle: u32, u: f32, v: f32) -> Surface {
     let params: MetalRoughData = fetch_metal_rough(material_index);
     let base: vec3<f32> = base_color_at(material, triangle, u, v);
@@ -1397,6 +1397,25 @@ fn bsdf_normal(b: Bsdf, ns: vec3<f32>, ng: vec3<f32>, dir: vec3<f32>) -> vec3<f3
 // sampling::onb_to_local (lightport-tracer/src/kernel/sampling.rs:88)
 fn onb_to_local(onb: Onb, v: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(dot(v, onb.tangent), dot(v, onb.bitangent), dot(v, onb.normal));
+}
+
+// metal_rough::schlick_fresnel (lightport-tracer/src/kernel/metal_rough.rs:76)
+fn schlick_fresnel(s: Surface, c: f32) -> vec3<f32> {
+    let m: f32 = clamp(1.0 - c, 0.0, 1.0);
+    let m2: f32 = m * m;
+    return (s.f0 + (vec3<f32>(1.0) - s.f0) * (m2 * m2 * m)) * s.specular;
+}
+
+// metal_rough::metal_rough_albedo (lightport-tracer/src/kernel/metal_rough.rs:192)
+fn metal_rough_albedo(s: Surface, nv: f32) -> vec3<f32> {
+    let c: f32 = clamp(nv, 0.0, 1.0);
+    let roughness: f32 = sqrt(s.alpha);
+    let r: vec4<f32> = vec4<f32>(-1.0, -0.0275, -0.572, 0.022) * roughness + vec4<f32>(1.0, 0.0425, 1.04, -0.04);
+    let a004: f32 = min(r.x * r.x, exp2(-9.28 * c)) * r.x + r.y;
+    let scale: f32 = -1.04 * a004 + r.z;
+    let bias: f32 = 1.04 * a004 + r.w;
+    let specular: vec3<f32> = (s.f0 * scale + vec3<f32>(bias)) * s.specular;
+    return (vec3<f32>(1.0) - schlick_fresnel(s, c)) * s.diffuse + max(specular, vec3<f32>(0.0));
 }
 
 // lights::choose_light (lightport-tracer/src/kernel/lights.rs:36)
@@ -1516,13 +1535,6 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     } else {
         return none;
     }
-}
-
-// metal_rough::schlick_fresnel (lightport-tracer/src/kernel/metal_rough.rs:76)
-fn schlick_fresnel(s: Surface, c: f32) -> vec3<f32> {
-    let m: f32 = clamp(1.0 - c, 0.0, 1.0);
-    let m2: f32 = m * m;
-    return (s.f0 + (vec3<f32>(1.0) - s.f0) * (m2 * m2 * m)) * s.specular;
 }
 
 // lights::luminance (lightport-tracer/src/kernel/lights.rs:31)
@@ -1874,7 +1886,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:284)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:302)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> vec3<f32> {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var direct: vec3<f32> = vec3<f32>(0.0);
@@ -2013,7 +2025,7 @@ fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }
 
-// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:154)
+// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:160)
 fn trace_path(x: u32, y: u32, first: ptr<function, FirstHit>) -> vec4<f32> {
     let pixel: u32 = y * scene.width + x;
     var rng: u32 = pixel_seed(pixel, scene.frame_seed);
@@ -2042,7 +2054,11 @@ fn trace_path(x: u32, y: u32, first: ptr<function, FirstHit>) -> vec4<f32> {
                 if (scene.strategy == STRATEGY_MIS) && scatter_pdf > 0.0 {
                     light_pdf = sky_pdf(dir) * light_pmf(scene.light_count - 1u);
                 }
-                radiance += throughput * sky_radiance(dir) * hit_emission_weight(scatter_pdf, light_pdf);
+                let sky: vec3<f32> = throughput * sky_radiance(dir) * hit_emission_weight(scatter_pdf, light_pdf);
+                radiance += sky;
+                if (scene.has_denoise_guide != 0u) && (depth == 0u) {
+                    (*first).emission = sky;
+                }
             }
             break;
         }
@@ -2087,6 +2103,9 @@ fn trace_path(x: u32, y: u32, first: ptr<function, FirstHit>) -> vec4<f32> {
         }
         let frame: Onb = onb_from_normal(bsdf_normal(bsdf, ns, ng, dir));
         let sh: Shading = Shading(offset_origin(p, ng), ng, frame, onb_to_local(frame, -dir), bsdf);
+        if (scene.has_denoise_guide != 0u) && (depth == 0u) && (scene.has_metal_rough != 0u) && (bsdf.kind == BSDF_METAL_ROUGH) {
+            (*first).albedo = metal_rough_albedo(bsdf.surface, sh.wo.z);
+        }
         radiance += throughput * sample_ld(sh, &rng);
         let bs: BrdfSample = bsdf_sample(sh.bsdf, sh.wo, &rng);
         let next: vec3<f32> = onb_to_world(sh.frame, bs.dir);
@@ -2112,16 +2131,16 @@ fn trace_path(x: u32, y: u32, first: ptr<function, FirstHit>) -> vec4<f32> {
     return finite_or_zero(radiance);
 }
 
-// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:132)
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:135)
 fn render_sample(x: u32, y: u32) -> vec4<f32> {
-    var first: FirstHit = FirstHit(vec3<f32>(1.0), vec3<f32>(0.0, 0.0, 1.0), SKY_DEPTH, vec3<f32>(0.0));
+    var first: FirstHit = FirstHit(vec3<f32>(0.0), vec3<f32>(0.0, 0.0, 1.0), SKY_DEPTH, vec3<f32>(0.0));
     return trace_path(x, y, &first);
 }
 
-// integrator::render_guided_sample (lightport-tracer/src/kernel/integrator.rs:139)
+// integrator::render_guided_sample (lightport-tracer/src/kernel/integrator.rs:142)
 fn render_guided_sample(x: u32, y: u32) -> GuidedSample {
-    var first: FirstHit = FirstHit(vec3<f32>(1.0), vec3<f32>(0.0, 0.0, 1.0), SKY_DEPTH, vec3<f32>(0.0));
+    var first: FirstHit = FirstHit(vec3<f32>(0.0), vec3<f32>(0.0, 0.0, 1.0), SKY_DEPTH, vec3<f32>(0.0));
     let color: vec4<f32> = trace_path(x, y, &first);
-    let l: f32 = luminance(color.xyz);
+    let l: f32 = luminance(color.xyz - first.emission);
     return GuidedSample(color, vec4<f32>(first.albedo, l), vec4<f32>(first.normal, first.depth), vec4<f32>(first.emission, l * l));
 }

@@ -277,6 +277,18 @@ BrdfSample metal_rough_sample(Surface s, vec3 wo, vec3 u) {
     return BrdfSample(wi, pdf, weight);
 }
 
+// metal_rough::metal_rough_albedo (lightport-tracer/src/kernel/metal_rough.rs:192)
+vec3 metal_rough_albedo(Surface s, float nv) {
+    float c = clamp(nv, 0.0, 1.0);
+    float roughness = sqrt(s.alpha);
+    vec4 r = vec4(-1.0, -0.0275, -0.572, 0.022) * roughness + vec4(1.0, 0.0425, 1.04, -0.04);
+    float a004 = min(r.x * r.x, exp2(-9.28 * c)) * r.x + r.y;
+    float scale = -1.04 * a004 + r.z;
+    float bias = 1.04 * a004 + r.w;
+    vec3 specular = (s.f0 * scale + vec3(bias)) * s.specular;
+    return (vec3(1.0) - schlick_fresnel(s, c)) * s.diffuse + max(specular, vec3(0.0));
+}
+
 // scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
@@ -435,7 +447,7 @@ vec4 sample_data_texture(uint index, vec2 uv) {
     return bilinear(index, uv, true);
 }
 
-// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:189)
+// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:206)
 Surface surface_at(MaterialData material, uint material_index, uint triangle, float u, float v) {
     MetalRoughData params = fetch_metal_rough(material_index);
     vec3 base = base_color_at(material, triangle, u, v);

@@ -253,6 +253,18 @@ fn metal_rough_sample(s: Surface, wo: vec3<f32>, u: vec3<f32>) -> BrdfSample {
     return BrdfSample(wi, pdf, weight);
 }
 
+// metal_rough::metal_rough_albedo (lightport-tracer/src/kernel/metal_rough.rs:192)
+fn metal_rough_albedo(s: Surface, nv: f32) -> vec3<f32> {
+    let c: f32 = clamp(nv, 0.0, 1.0);
+    let roughness: f32 = sqrt(s.alpha);
+    let r: vec4<f32> = vec4<f32>(-1.0, -0.0275, -0.572, 0.022) * roughness + vec4<f32>(1.0, 0.0425, 1.04, -0.04);
+    let a004: f32 = min(r.x * r.x, exp2(-9.28 * c)) * r.x + r.y;
+    let scale: f32 = -1.04 * a004 + r.z;
+    let bias: f32 = 1.04 * a004 + r.w;
+    let specular: vec3<f32> = (s.f0 * scale + vec3<f32>(bias)) * s.specular;
+    return (vec3<f32>(1.0) - schlick_fresnel(s, c)) * s.diffuse + max(specular, vec3<f32>(0.0));
+}
+
 // scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
@@ -411,7 +423,7 @@ fn sample_data_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, true);
 }
 
-// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:189)
+// metal_rough::surface_at (lightport-tracer/src/kernel/metal_rough.rs:206)
 fn surface_at(material: MaterialData, material_index: u32, triangle: u32, u: f32, v: f32) -> Surface {
     let params: MetalRoughData = fetch_metal_rough(material_index);
     let base: vec3<f32> = base_color_at(material, triangle, u, v);

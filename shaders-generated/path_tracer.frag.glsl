@@ -164,7 +164,7 @@ struct Bsdf {
     Surface surface;
 };
 
-// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:67)
+// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:68)
 struct SurfaceNormals {
     vec3 ng;
     vec3 ns;
@@ -172,7 +172,7 @@ struct SurfaceNormals {
     float area2;
 };
 
-// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:109)
+// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:111)
 struct FirstHit {
     vec3 albedo;
     vec3 normal;
@@ -180,7 +180,7 @@ struct FirstHit {
     vec3 emission;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:272)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:290)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -261,15 +261,15 @@ const float MIN_REFLECTION_COSINE = 0.01;
 const uint BSDF_METAL_ROUGH = 1u;
 // bsdf::BSDF_DIELECTRIC (lightport-tracer/src/kernel/bsdf.rs:38)
 const uint BSDF_DIELECTRIC = 2u;
-// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:31)
+// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:32)
 const uint RR_START_DEPTH = 3u;
-// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:34)
+// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:35)
 const float RR_MAX_SURVIVAL = 0.95;
-// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:37)
+// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:38)
 const float ORIGIN_OFFSET = 4e-6;
-// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:40)
+// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:41)
 const float SHADOW_RAY_SHORTENING = 1.0 - 0.0001;
-// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:103)
+// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:104)
 const float SKY_DEPTH = 1e20;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -978,7 +978,7 @@ float power_heuristic(float a, float b) {
     return a2 + b2 > 0.0 ? a2 / (a2 + b2) : 0.0;
 }
 
-// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:51)
+// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:52)
 float hit_emission_weight(float scatter_pdf, float light_pdf) {
     if (scatter_pdf <= 0.0 || (scene_strategy == STRATEGY_BSDF)) {
         return 1.0;
@@ -1115,7 +1115,7 @@ vec3 normal_mapped(Hit hit, uint material, vec3 ns, float flip, vec3 ng, vec3 wo
     return n;
 }
 
-// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:75)
+// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:76)
 SurfaceNormals surface_normals(TriangleData tri, Hit hit, vec3 dir) {
     vec3 face = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
     face *= instance_handedness(hit.instance);
@@ -1163,7 +1163,7 @@ GlassData fetch_glass(uint material) {
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:331)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:349)
 vec3 volume_transmittance(uint material, float t) {
     vec3 sigma = fetch_glass(material).sigma_a;
     return vec3(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -1247,7 +1247,7 @@ vec3 bsdf_normal(Bsdf b, vec3 ns, vec3 ng, vec3 dir) {
     return (1u != 0u) && (b.kind == BSDF_METAL_ROUGH) ? (dot(ns, dir) < 0.0 ? ns : ng) : (1u != 0u) && (b.kind == BSDF_DIELECTRIC) ? (dot(ns, dir) < 0.0 ? ns : ng) : ns;
 }
 
-// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:44)
+// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:45)
 vec3 offset_origin(vec3 p, vec3 n) {
     float eps = (lp_max_element_vec3(abs(p)) + scene_scene_scale) * ORIGIN_OFFSET;
     return p + n * eps;
@@ -1256,6 +1256,13 @@ vec3 offset_origin(vec3 p, vec3 n) {
 // sampling::onb_to_local (lightport-tracer/src/kernel/sampling.rs:88)
 vec3 onb_to_local(Onb onb, vec3 v) {
     return vec3(dot(v, onb.tangent), dot(v, onb.bitangent), dot(v, onb.normal));
+}
+
+// metal_rough::schlick_fresnel (lightport-tracer/src/kernel/metal_rough.rs:76)
+vec3 schlick_fresnel(Surface s, float c) {
+    float m = clamp(1.0 - c, 0.0, 1.0);
+    float m2 = m * m;
+    return (s.f0 + (vec3(1.0) - s.f0) * (m2 * m2 * m)) * s.specular;
 }
 
 // lights::choose_light (lightport-tracer/src/kernel/lights.rs:36)
@@ -1375,13 +1382,6 @@ LightSample sample_light(vec3 p, vec3 u) {
     } else {
         return none;
     }
-}
-
-// metal_rough::schlick_fresnel (lightport-tracer/src/kernel/metal_rough.rs:76)
-vec3 schlick_fresnel(Surface s, float c) {
-    float m = clamp(1.0 - c, 0.0, 1.0);
-    float m2 = m * m;
-    return (s.f0 + (vec3(1.0) - s.f0) * (m2 * m2 * m)) * s.specular;
 }
 
 // lights::luminance (lightport-tracer/src/kernel/lights.rs:31)
@@ -1673,7 +1673,7 @@ vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:284)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:302)
 vec3 sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     vec3 direct = vec3(0.0);
@@ -1812,7 +1812,7 @@ vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }
 
-// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:154)
+// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:160)
 vec4 trace_path(uint x, uint y, inout FirstHit first) {
     uint pixel = y * scene_width + x;
     uint rng = pixel_seed(pixel, scene_frame_seed);
@@ -1834,7 +1834,8 @@ vec4 trace_path(uint x, uint y, inout FirstHit first) {
             if ((scene_strategy == STRATEGY_MIS) && scatter_pdf > 0.0) {
                 light_pdf = sky_pdf(dir) * light_pmf(scene_light_count - 1u);
             }
-            radiance += throughput * sky_radiance(dir) * hit_emission_weight(scatter_pdf, light_pdf);
+            vec3 sky = throughput * sky_radiance(dir) * hit_emission_weight(scatter_pdf, light_pdf);
+            radiance += sky;
             break;
         }
         TriangleData tri = world_triangle(hit.triangle, hit.instance);
@@ -1891,9 +1892,9 @@ vec4 trace_path(uint x, uint y, inout FirstHit first) {
     return finite_or_zero(radiance);
 }
 
-// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:132)
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:135)
 vec4 render_sample(uint x, uint y) {
-    FirstHit first = FirstHit(vec3(1.0), vec3(0.0, 0.0, 1.0), SKY_DEPTH, vec3(0.0));
+    FirstHit first = FirstHit(vec3(0.0), vec3(0.0, 0.0, 1.0), SKY_DEPTH, vec3(0.0));
     return trace_path(x, y, first);
 }
 

@@ -165,7 +165,7 @@ struct Bsdf {
     surface: Surface,
 }
 
-// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:67)
+// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:68)
 struct SurfaceNormals {
     ng: vec3<f32>,
     ns: vec3<f32>,
@@ -173,7 +173,7 @@ struct SurfaceNormals {
     area2: f32,
 }
 
-// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:109)
+// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:111)
 struct FirstHit {
     albedo: vec3<f32>,
     normal: vec3<f32>,
@@ -181,7 +181,7 @@ struct FirstHit {
     emission: vec3<f32>,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:272)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:290)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -262,15 +262,15 @@ const MIN_REFLECTION_COSINE: f32 = 0.01;
 const BSDF_METAL_ROUGH: u32 = 1u;
 // bsdf::BSDF_DIELECTRIC (lightport-tracer/src/kernel/bsdf.rs:38)
 const BSDF_DIELECTRIC: u32 = 2u;
-// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:31)
+// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:32)
 const RR_START_DEPTH: u32 = 3u;
-// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:34)
+// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:35)
 const RR_MAX_SURVIVAL: f32 = 0.95;
-// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:37)
+// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:38)
 const ORIGIN_OFFSET: f32 = 4e-6;
-// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:40)
+// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:41)
 const SHADOW_RAY_SHORTENING: f32 = 1.0 - 0.0001;
-// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:103)
+// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:104)
 const SKY_DEPTH: f32 = 1e20;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -951,7 +951,7 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     return select(0.0, a2 / (a2 + b2), a2 + b2 > 0.0);
 }
 
-// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:51)
+// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:52)
 fn hit_emission_weight(scatter_pdf: f32, light_pdf: f32) -> f32 {
     if scatter_pdf <= 0.0 || (scene.strategy == STRATEGY_BSDF) {
         return 1.0;
@@ -1088,7 +1088,7 @@ fn normal_mapped(hit: Hit, material: u32, ns: vec3<f32>, flip: f32, ng: vec3<f32
     return n;
 }
 
-// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:75)
+// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:76)
 fn surface_normals(tri: TriangleData, hit: Hit, dir: vec3<f32>) -> SurfaceNormals {
     var face: vec3<f32> = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
     face *= instance_handedness(hit.instance);
@@ -1136,7 +1136,7 @@ fn fetch_glass(material: u32) -> GlassData {
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:331)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:349)
 fn volume_transmittance(material: u32, t: f32) -> vec3<f32> {
     let sigma: vec3<f32> = fetch_glass(material).sigma_a;
     return vec3<f32>(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -1220,7 +1220,7 @@ fn bsdf_normal(b: Bsdf, ns: vec3<f32>, ng: vec3<f32>, dir: vec3<f32>) -> vec3<f3
     return select(select(ns, select(ng, ns, dot(ns, dir) < 0.0), (1u != 0u) && (b.kind == BSDF_DIELECTRIC)), select(ng, ns, dot(ns, dir) < 0.0), (1u != 0u) && (b.kind == BSDF_METAL_ROUGH));
 }
 
-// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:44)
+// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:45)
 fn offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let eps: f32 = (lp_max_element_vec3(abs(p)) + scene.scene_scale) * ORIGIN_OFFSET;
     return p + n * eps;
@@ -1229,6 +1229,13 @@ fn offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
 // sampling::onb_to_local (lightport-tracer/src/kernel/sampling.rs:88)
 fn onb_to_local(onb: Onb, v: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(dot(v, onb.tangent), dot(v, onb.bitangent), dot(v, onb.normal));
+}
+
+// metal_rough::schlick_fresnel (lightport-tracer/src/kernel/metal_rough.rs:76)
+fn schlick_fresnel(s: Surface, c: f32) -> vec3<f32> {
+    let m: f32 = clamp(1.0 - c, 0.0, 1.0);
+    let m2: f32 = m * m;
+    return (s.f0 + (vec3<f32>(1.0) - s.f0) * (m2 * m2 * m)) * s.specular;
 }
 
 // lights::choose_light (lightport-tracer/src/kernel/lights.rs:36)
@@ -1348,13 +1355,6 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     } else {
         return none;
     }
-}
-
-// metal_rough::schlick_fresnel (lightport-tracer/src/kernel/metal_rough.rs:76)
-fn schlick_fresnel(s: Surface, c: f32) -> vec3<f32> {
-    let m: f32 = clamp(1.0 - c, 0.0, 1.0);
-    let m2: f32 = m * m;
-    return (s.f0 + (vec3<f32>(1.0) - s.f0) * (m2 * m2 * m)) * s.specular;
 }
 
 // lights::luminance (lightport-tracer/src/kernel/lights.rs:31)
@@ -1644,7 +1644,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:284)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:302)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> vec3<f32> {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var direct: vec3<f32> = vec3<f32>(0.0);
@@ -1783,7 +1783,7 @@ fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }
 
-// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:154)
+// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:160)
 fn trace_path(x: u32, y: u32, first: ptr<function, FirstHit>) -> vec4<f32> {
     let pixel: u32 = y * scene.width + x;
     var rng: u32 = pixel_seed(pixel, scene.frame_seed);
@@ -1805,7 +1805,8 @@ fn trace_path(x: u32, y: u32, first: ptr<function, FirstHit>) -> vec4<f32> {
             if (scene.strategy == STRATEGY_MIS) && scatter_pdf > 0.0 {
                 light_pdf = sky_pdf(dir) * light_pmf(scene.light_count - 1u);
             }
-            radiance += throughput * sky_radiance(dir) * hit_emission_weight(scatter_pdf, light_pdf);
+            let sky: vec3<f32> = throughput * sky_radiance(dir) * hit_emission_weight(scatter_pdf, light_pdf);
+            radiance += sky;
             break;
         }
         let tri: TriangleData = world_triangle(hit.triangle, hit.instance);
@@ -1862,9 +1863,9 @@ fn trace_path(x: u32, y: u32, first: ptr<function, FirstHit>) -> vec4<f32> {
     return finite_or_zero(radiance);
 }
 
-// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:132)
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:135)
 fn render_sample(x: u32, y: u32) -> vec4<f32> {
-    var first: FirstHit = FirstHit(vec3<f32>(1.0), vec3<f32>(0.0, 0.0, 1.0), SKY_DEPTH, vec3<f32>(0.0));
+    var first: FirstHit = FirstHit(vec3<f32>(0.0), vec3<f32>(0.0, 0.0, 1.0), SKY_DEPTH, vec3<f32>(0.0));
     return trace_path(x, y, &first);
 }
 

@@ -110,7 +110,7 @@ struct Bsdf {
     Surface surface;
 };
 
-// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:67)
+// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:68)
 struct SurfaceNormals {
     vec3 ng;
     vec3 ns;
@@ -118,7 +118,7 @@ struct SurfaceNormals {
     float area2;
 };
 
-// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:109)
+// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:111)
 struct FirstHit {
     vec3 albedo;
     vec3 normal;
@@ -126,7 +126,7 @@ struct FirstHit {
     vec3 emission;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:272)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:290)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -169,15 +169,15 @@ const uint STRATEGY_MIS = 2u;
 const uint STACK_SIZE = 11u;
 // bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:32)
 const uint BSDF_LAMBERT = 0u;
-// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:31)
+// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:32)
 const uint RR_START_DEPTH = 3u;
-// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:34)
+// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:35)
 const float RR_MAX_SURVIVAL = 0.95;
-// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:37)
+// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:38)
 const float ORIGIN_OFFSET = 4e-6;
-// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:40)
+// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:41)
 const float SHADOW_RAY_SHORTENING = 1.0 - 0.0001;
-// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:103)
+// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:104)
 const float SKY_DEPTH = 1e20;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -575,7 +575,7 @@ float power_heuristic(float a, float b) {
     return a2 + b2 > 0.0 ? a2 / (a2 + b2) : 0.0;
 }
 
-// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:51)
+// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:52)
 float hit_emission_weight(float scatter_pdf, float light_pdf) {
     if (scatter_pdf <= 0.0 || (scene_strategy == STRATEGY_BSDF)) {
         return 1.0;
@@ -594,7 +594,7 @@ TriangleData world_triangle(uint triangle, uint instance) {
     }
 }
 
-// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:75)
+// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:76)
 SurfaceNormals surface_normals(TriangleData tri, Hit hit, vec3 dir) {
     vec3 face = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
     float area2 = length(face);
@@ -656,7 +656,7 @@ vec3 bsdf_normal(Bsdf b, vec3 ns, vec3 ng, vec3 dir) {
     }
 }
 
-// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:44)
+// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:45)
 vec3 offset_origin(vec3 p, vec3 n) {
     float eps = (lp_max_element_vec3(abs(p)) + scene_scene_scale) * ORIGIN_OFFSET;
     return p + n * eps;
@@ -819,7 +819,7 @@ vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     return wi.z > 0.0 ? b.surface.diffuse * INV_PI : vec3(0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:284)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:302)
 vec3 sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     vec3 direct = vec3(0.0);
@@ -868,7 +868,7 @@ vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }
 
-// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:154)
+// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:160)
 vec4 trace_path(uint x, uint y, inout FirstHit first) {
     uint pixel = y * scene_width + x;
     uint rng = pixel_seed(pixel, scene_frame_seed);
@@ -936,9 +936,9 @@ vec4 trace_path(uint x, uint y, inout FirstHit first) {
     return finite_or_zero(radiance);
 }
 
-// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:132)
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:135)
 vec4 render_sample(uint x, uint y) {
-    FirstHit first = FirstHit(vec3(1.0), vec3(0.0, 0.0, 1.0), SKY_DEPTH, vec3(0.0));
+    FirstHit first = FirstHit(vec3(0.0), vec3(0.0, 0.0, 1.0), SKY_DEPTH, vec3(0.0));
     return trace_path(x, y, first);
 }
 

@@ -111,7 +111,7 @@ struct Bsdf {
     surface: Surface,
 }
 
-// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:67)
+// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:68)
 struct SurfaceNormals {
     ng: vec3<f32>,
     ns: vec3<f32>,
@@ -119,7 +119,7 @@ struct SurfaceNormals {
     area2: f32,
 }
 
-// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:109)
+// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:111)
 struct FirstHit {
     albedo: vec3<f32>,
     normal: vec3<f32>,
@@ -127,7 +127,7 @@ struct FirstHit {
     emission: vec3<f32>,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:272)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:290)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -170,15 +170,15 @@ const STRATEGY_MIS: u32 = 2u;
 const STACK_SIZE: u32 = 11u;
 // bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:32)
 const BSDF_LAMBERT: u32 = 0u;
-// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:31)
+// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:32)
 const RR_START_DEPTH: u32 = 3u;
-// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:34)
+// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:35)
 const RR_MAX_SURVIVAL: f32 = 0.95;
-// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:37)
+// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:38)
 const ORIGIN_OFFSET: f32 = 4e-6;
-// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:40)
+// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:41)
 const SHADOW_RAY_SHORTENING: f32 = 1.0 - 0.0001;
-// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:103)
+// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:104)
 const SKY_DEPTH: f32 = 1e20;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -561,7 +561,7 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     return select(0.0, a2 / (a2 + b2), a2 + b2 > 0.0);
 }
 
-// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:51)
+// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:52)
 fn hit_emission_weight(scatter_pdf: f32, light_pdf: f32) -> f32 {
     if scatter_pdf <= 0.0 || (scene.strategy == STRATEGY_BSDF) {
         return 1.0;
@@ -580,7 +580,7 @@ fn world_triangle(triangle: u32, instance: u32) -> TriangleData {
     }
 }
 
-// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:75)
+// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:76)
 fn surface_normals(tri: TriangleData, hit: Hit, dir: vec3<f32>) -> SurfaceNormals {
     var face: vec3<f32> = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
     let area2: f32 = length(face);
@@ -642,7 +642,7 @@ fn bsdf_normal(b: Bsdf, ns: vec3<f32>, ng: vec3<f32>, dir: vec3<f32>) -> vec3<f3
     }
 }
 
-// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:44)
+// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:45)
 fn offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let eps: f32 = (lp_max_element_vec3(abs(p)) + scene.scene_scale) * ORIGIN_OFFSET;
     return p + n * eps;
@@ -803,7 +803,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     return select(vec3<f32>(0.0), b.surface.diffuse * INV_PI, wi.z > 0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:284)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:302)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> vec3<f32> {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var direct: vec3<f32> = vec3<f32>(0.0);
@@ -852,7 +852,7 @@ fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }
 
-// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:154)
+// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:160)
 fn trace_path(x: u32, y: u32, first: ptr<function, FirstHit>) -> vec4<f32> {
     let pixel: u32 = y * scene.width + x;
     var rng: u32 = pixel_seed(pixel, scene.frame_seed);
@@ -920,9 +920,9 @@ fn trace_path(x: u32, y: u32, first: ptr<function, FirstHit>) -> vec4<f32> {
     return finite_or_zero(radiance);
 }
 
-// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:132)
+// integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:135)
 fn render_sample(x: u32, y: u32) -> vec4<f32> {
-    var first: FirstHit = FirstHit(vec3<f32>(1.0), vec3<f32>(0.0, 0.0, 1.0), SKY_DEPTH, vec3<f32>(0.0));
+    var first: FirstHit = FirstHit(vec3<f32>(0.0), vec3<f32>(0.0, 0.0, 1.0), SKY_DEPTH, vec3<f32>(0.0));
     return trace_path(x, y, &first);
 }
 

@@ -7,7 +7,7 @@ pub mod integrator {
     use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
 
     use crate::kernel::bsdf::{
-        bsdf_at, bsdf_eval, bsdf_normal, bsdf_pdf, bsdf_sample, glass_at, Bsdf, BSDF_DIELECTRIC,
+        bsdf_at, bsdf_eval, bsdf_normal, bsdf_pdf, bsdf_sample, glass_at, Bsdf, BSDF_DIELECTRIC, BSDF_METAL_ROUGH,
     };
     use crate::kernel::camera::camera_ray;
     use crate::kernel::dielectric::DELTA_PDF;
@@ -17,6 +17,7 @@ pub mod integrator {
         area_pdf_to_solid_angle, finite_or_zero, light_pmf, luminance, power_heuristic, sample_light, sky_pdf,
         sky_radiance, triangle_emission,
     };
+    use crate::kernel::metal_rough::metal_rough_albedo;
     use crate::kernel::normal_map::normal_mapped;
     use crate::kernel::rng::{pixel_jitter, pixel_seed, random_float, random_u32};
     use crate::kernel::sampling::{onb_from_normal, onb_to_local, onb_to_world, Onb};
@@ -102,9 +103,10 @@ pub mod integrator {
     /// stay finite), far beyond any surface.
     pub const SKY_DEPTH: f32 = 1.0e20;
 
-    /// What the denoiser's guide reads from a path's first hit (`kernel::denoise`): its base
-    /// colour (1 for the sky), shading normal (the reversed ray for the sky), distance
-    /// (`SKY_DEPTH` for the sky) and the emission it sends to the camera.
+    /// What the denoiser's guide reads from a path's first hit (`kernel::denoise`): its albedo
+    /// (the base colour; a metal-roughness surface's directional albedo; 0 for the sky, which
+    /// reflects nothing), shading normal (the reversed ray for the sky), distance (`SKY_DEPTH`
+    /// for the sky) and the emission it sends to the camera (the sky's radiance for the sky).
     #[derive(Clone, Copy, Debug, PartialEq)]
     pub struct FirstHit {
         pub albedo: Vec3,
@@ -115,9 +117,10 @@ pub mod integrator {
 
     /// One sample and its share of the denoiser's guide, each field added to its own running
     /// sum by the entry point of a kernel built with `Features::denoise_guide`: `color` as
-    /// [`render_sample`]'s; `albedo` the first hit's base colour and the sample's luminance;
+    /// [`render_sample`]'s; `albedo` the first hit's albedo and the luminance of the sample's
+    /// reflected light (less the first hit's emission);
     /// `normal` its shading normal and distance; `emission` its emission towards the camera and
-    /// the sample's luminance squared (the two moments give the variance the filter scales with).
+    /// that luminance squared (the two moments give the variance the filter scales with).
     #[derive(Clone, Copy, Debug, PartialEq)]
     pub struct GuidedSample {
         pub color: Vec4,
@@ -130,16 +133,19 @@ pub mod integrator {
     // Inlined into the CPU backend's row loop, which is also compiled for AVX2 (backend/cpu.rs).
     #[inline(always)]
     pub fn render_sample(scene: &Scene, x: u32, y: u32) -> Vec4 {
-        let mut first = FirstHit { albedo: Vec3::ONE, normal: Vec3::Z, depth: SKY_DEPTH, emission: Vec3::ZERO };
+        let mut first = FirstHit { albedo: Vec3::ZERO, normal: Vec3::Z, depth: SKY_DEPTH, emission: Vec3::ZERO };
         trace_path(scene, x, y, &mut first)
     }
 
     /// [`render_sample`] with the path's first hit for the denoiser's guide.
     #[inline(always)]
     pub fn render_guided_sample(scene: &Scene, x: u32, y: u32) -> GuidedSample {
-        let mut first = FirstHit { albedo: Vec3::ONE, normal: Vec3::Z, depth: SKY_DEPTH, emission: Vec3::ZERO };
+        let mut first = FirstHit { albedo: Vec3::ZERO, normal: Vec3::Z, depth: SKY_DEPTH, emission: Vec3::ZERO };
         let color = trace_path(scene, x, y, &mut first);
-        let l = luminance(color.xyz());
+        // The moments of what the filter sees: the light reflected, without the emission (and
+        // sky) the camera sees directly, which the filter leaves as it is. A pixel half sky,
+        // half surface would otherwise count the sky's coverage as the surface's noise.
+        let l = luminance(color.xyz() - first.emission);
         GuidedSample {
             color,
             albedo: first.albedo.extend(l),
@@ -182,8 +188,13 @@ pub mod integrator {
                     if scene.strategy == STRATEGY_MIS && scatter_pdf > 0.0 {
                         light_pdf = sky_pdf(scene, dir) * light_pmf(scene, scene.light_count - 1);
                     }
-                    radiance +=
+                    let sky =
                         throughput * sky_radiance(scene, dir) * hit_emission_weight(scene, scatter_pdf, light_pdf);
+                    radiance += sky;
+                    if scene.has_denoise_guide != 0 && depth == 0 {
+                        // The sky the camera sees is its emission: not noise, kept out of the filter.
+                        first.emission = sky;
+                    }
                 }
                 break;
             }
@@ -234,6 +245,13 @@ pub mod integrator {
             };
             let frame = onb_from_normal(bsdf_normal(scene, bsdf, ns, ng, dir));
             let sh = Shading { p: offset_origin(scene, p, ng), ng, frame, wo: onb_to_local(frame, -dir), bsdf };
+            if scene.has_denoise_guide != 0 && depth == 0 && scene.has_metal_rough != 0 && bsdf.kind == BSDF_METAL_ROUGH
+            {
+                // What the surface reflects of smooth light, specular included (not its base
+                // colour alone): a glossy or dark surface then leaves the filter smooth
+                // illumination too.
+                first.albedo = metal_rough_albedo(bsdf.surface, sh.wo.z);
+            }
             radiance += throughput * sample_ld(scene, sh, &mut rng);
             let bs = bsdf_sample(scene, sh.bsdf, sh.wo, &mut rng);
             let next = onb_to_world(sh.frame, bs.dir);

@@ -17,7 +17,7 @@ pub mod metal_rough {
     //! Caps") and the diffuse lobe by the cosine; every pdf is the combined one of both lobes,
     //! which is what MIS with light sampling needs.
 
-    use glam::Vec3;
+    use glam::{Vec3, Vec4};
 
     use crate::kernel::lights::luminance;
     use crate::kernel::sampling::{cos_sin_turns, cosine_sample_hemisphere, INV_PI, PI};
@@ -181,6 +181,23 @@ pub mod metal_rough {
         let pdf = metal_rough_pdf(s, wo, wi);
         let weight = if pdf > 0.0 { metal_rough_eval(s, wo, wi) * (wi.z / pdf) } else { Vec3::ZERO };
         BrdfSample { dir: wi, pdf, weight }
+    }
+
+    /// The BRDF's directional albedo seen from cosine `nv` (the share of uniform incoming light
+    /// it reflects), approximated without sampling: the diffuse lobe's `(1 − F(nv)) c_diff` plus
+    /// the specular lobe's `f0 A + B`, with A and B from Karis' analytic fit of the split-sum
+    /// integral ("Physically Based Shading on Mobile", 2014). The denoiser's guide divides a
+    /// pixel's colour by it (`integrator::FirstHit`): under smooth lighting what remains is
+    /// smooth even where roughness, metalness or a dark base colour vary.
+    pub fn metal_rough_albedo(s: Surface, nv: f32) -> Vec3 {
+        let c = nv.clamp(0.0, 1.0);
+        let roughness = s.alpha.sqrt();
+        let r = Vec4::new(-1.0, -0.0275, -0.572, 0.022) * roughness + Vec4::new(1.0, 0.0425, 1.04, -0.04);
+        let a004 = (r.x * r.x).min((-9.28 * c).exp2()) * r.x + r.y;
+        let scale = -1.04 * a004 + r.z;
+        let bias = 1.04 * a004 + r.w;
+        let specular = (s.f0 * scale + Vec3::splat(bias)) * s.specular;
+        (Vec3::ONE - schlick_fresnel(s, c)) * s.diffuse + specular.max(Vec3::ZERO)
     }
 
     /// The BRDF parameters of material `material_index` (`material`: its fetched data) at
