@@ -16,7 +16,8 @@
 //! denoised in the page by the page's own denoiser (`web/src/denoise/`: its passes on WebGL2,
 //! the remodulation `tracer::denoise::denoise_on`): after the raw lines the page's renderer is
 //! recreated with the denoiser's guide (the page's own denoise schedule off), warmed up by an
-//! untimed frame, and each strategy rendered to each checkpoint again; at each the page
+//! untimed frame and an untimed denoise (the filter's shaders are compiled at the first), and
+//! each strategy rendered to each checkpoint again; at each the page
 //! denoises the accumulation once (`denoiseNow`). As the native twins' points, a point's time is
 //! the twin's rendering so far (with the guide) plus that checkpoint's whole denoise
 //! (read-backs, passes and remodulation, timed by the page); its image is the denoised one the
@@ -168,6 +169,19 @@ pub(super) fn from_report(
     ensure!(raw.len() == strategies.len(), "{} lines reported, {} asked for", raw.len(), strategies.len());
     let expected = if denoise { strategies.len() } else { 0 };
     ensure!(twins.len() == expected, "{} denoised lines reported, {expected} asked for", twins.len());
+    for twin in &twins {
+        let ms: Vec<String> = twin["points"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(|p| format!("{} spp {:.1}", p["spp"], p["filterMs"].as_f64().unwrap_or(f64::NAN)))
+            .collect();
+        println!(
+            "web: {} denoised in the page, ms per denoise: {}",
+            twin["strategy"].as_str().unwrap_or("?"),
+            ms.join(", ")
+        );
+    }
     let mut lines = Vec::new();
     for (i, &strategy) in strategies.iter().enumerate() {
         lines.push(line_points(raw[i], strategy, false, size, checkpoints, reference)?);

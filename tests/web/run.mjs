@@ -643,8 +643,8 @@ async function webgl2Info(page) {
 //
 // `--denoise 1`: then a denoised line per strategy (reported after the raw ones, `denoised:
 // true`), by the page's own denoiser: the renderer is recreated with the denoiser's guide (its
-// schedule off: only the driver's requests denoise), warmed up by an untimed frame, and each
-// strategy rendered to each checkpoint again, timed as above; at each checkpoint the page
+// schedule off: only the driver's requests denoise), warmed up by an untimed frame and an
+// untimed denoise (the filter's shaders are JIT-compiled at the first), and each strategy rendered to each checkpoint again, timed as above; at each checkpoint the page
 // denoises the accumulation (`denoiseNow`) and the point's `ms` is this line's rendering so far
 // plus that denoise's whole time (`filterMs`: read-backs, passes, remodulation), as for a render
 // to that many samples denoised once (the native twins' rule). Its `data` is the denoised image
@@ -693,10 +693,16 @@ async function chart(o) {
           window.lightport.setDenoiseSchedule(false);
           window.lightport.setDenoise(true);
         });
-        // The new renderer's kernel (with the guide) is JIT-compiled at its first draw.
+        // The new renderer's kernel (with the guide) is JIT-compiled at its first draw, and the
+        // filter's passes at the first denoise: both untimed.
         guidedWarmUpMs = await page.evaluate(() => window.lightport.renderFrames(1));
         const e = await pageError();
         if (e) return { error: `switching the denoiser on: ${e}`, consoleErrors };
+        try {
+          await page.evaluate(() => window.lightport.denoiseNow());
+        } catch (err) {
+          return { error: `the warm-up denoise: ${err.message || err}`, consoleErrors };
+        }
         for (const strategy of strategies) {
           await page.evaluate((s) => window.lightport.setStrategy(s), strategy);
           const points = [];
