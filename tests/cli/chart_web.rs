@@ -131,11 +131,14 @@ fn the_web_line_has_a_twin_denoised_in_the_page() {
             let relative = (web - cpu).abs() / cpu;
             assert!(relative < 0.01, "web denoised at {} spp: {what} {web} vs CPU denoised {cpu} ({relative:.4})", w.2);
         }
-        // Timed: rendered again (with the guide) and denoised, so about the raw line's time or
-        // more; not the denoise alone, nor in other units.
-        assert!(w.3.is_finite() && w.3 > 0.5 * raw.3, "web denoised at {} spp: {} s, raw {} s", w.2, w.3, raw.3);
+        assert!(w.3.is_finite() && w.3 > 0.0, "web denoised at {} spp: {} s (raw {} s)", w.2, w.3, raw.3);
     }
     let (last, last_raw) = (web.last().unwrap(), web_raw.last().unwrap());
+    // Timed: rendered again (with the guide) and denoised, so its time grows with the frames and
+    // at 16 spp is about the raw line's or more (not the denoise's alone, nor in other units).
+    // Single frames are too short to compare: one of the raw line's took 72 ms once, 9 ms usually.
+    assert!(last.3 > web[0].3, "web denoised: {} s at 16 spp, {} s at 1 spp", last.3, web[0].3);
+    assert!(last.3 > 0.5 * last_raw.3, "web denoised at 16 spp: {} s, raw {} s", last.3, last_raw.3);
     assert!(last.7 < 0.8 * last_raw.7, "denoised relMSE {} at 16 spp, raw {}: {rows:?}", last.7, last_raw.7);
     let svg = std::fs::read_to_string(dir.join("chart/cornell.svg")).expect("the chart");
     assert!(svg.contains("mis web denoised"), "the chart's legend names the web twin");
