@@ -17,11 +17,11 @@
 //! the remodulation `tracer::denoise::denoise_on`): after the raw lines the page's renderer is
 //! recreated with the denoiser's guide (the page's own denoise schedule off), warmed up by an
 //! untimed frame and an untimed denoise (the filter's shaders are compiled at the first), and
-//! each strategy rendered to each checkpoint again; at each the page
-//! denoises the accumulation once (`denoiseNow`). As the native twins' points, a point's time is
-//! the twin's rendering so far (with the guide) plus that checkpoint's whole denoise
-//! (read-backs, passes and remodulation, timed by the page); its image is the denoised one the
-//! page shows (means, not sums).
+//! each strategy rendered to each checkpoint again; at each the page denoises the accumulation
+//! once (`denoiseNow`). As the native twins' points, a point's time is the twin's rendering so
+//! far (with the guide) plus that checkpoint's whole denoise (read-backs, passes and
+//! remodulation, timed by the page); its image is the denoised one the page shows (means, not
+//! sums).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
