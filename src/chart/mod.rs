@@ -13,10 +13,11 @@
 //! renderer creation, the driver's shader compile (a throwaway renderer draws one frame first),
 //! image read-back or the error computation.
 //!
-//! With `--denoise` each native line has a denoised twin (`render --denoise`'s filter, its passes
-//! on the line's runtime): at each checkpoint the same image, denoised; its time is the line's
-//! plus everything the filter costs up to then: reading each frame's accumulation back for the
-//! variance, the guide (the first hits' AOVs, once) and this checkpoint's filter passes.
+//! With `--denoise` each line has a denoised twin (`render --denoise`'s filter, its passes on
+//! the line's runtime; the web backend's denoised in the page by the page's own denoiser): at
+//! each checkpoint the same image, denoised; its time is the line's (rendered again with the
+//! denoiser's guide) plus that checkpoint's denoise: the read-backs of the accumulation and the
+//! guide, the filter passes and the remodulation.
 //!
 //! The web backend (`--backends web`) renders in the real web client: `lightport serve` serves
 //! the page and its wasm build, and `tests/web/run.mjs chart` drives headless Chromium (WebGL2 on
@@ -90,8 +91,8 @@ pub struct ChartArgs {
     /// line), in seconds; past it the browser is closed and the web backend skipped.
     #[arg(long, default_value_t = 1800.0)]
     pub web_timeout: f64,
-    /// Also chart each native line denoised (`render --denoise`'s filter on the line's
-    /// runtime), timed with everything the filter costs.
+    /// Also chart each line denoised (`render --denoise`'s filter on the line's runtime; the
+    /// web backend's by the page's denoiser), timed with everything the filter costs.
     #[arg(long)]
     pub denoise: bool,
 }
@@ -728,22 +729,34 @@ mod tests {
         })
     }
 
+    /// `report(value)` with a denoised twin whose denoised image is `denoised` everywhere.
+    fn denoised_report(value: f64, denoised: f64) -> serde_json::Value {
+        let mut r = report(value);
+        let data = vec![denoised; 4 * 3];
+        let twin = serde_json::json!({ "strategy": "mis", "denoised": true, "points": [
+            { "spp": 1, "ms": 3.0, "width": 2, "height": 2, "data": data, "accepted": 4.0 },
+            { "spp": 2, "ms": 7.0, "width": 2, "height": 2, "data": data, "accepted": 7.0 },
+        ]});
+        r["lines"].as_array_mut().unwrap().push(twin);
+        r
+    }
+
     #[test]
     fn web_reports_become_points_and_bad_ones_errors() {
         let reference = vec![Vec3::splat(0.5); 4];
-        let lines = web::from_report(&report(0.5), &[Strategy::Mis], 2, &[1, 2], &reference).unwrap();
+        let lines = web::from_report(&report(0.5), &[Strategy::Mis], 2, &[1, 2], &reference, false).unwrap();
         let line = &lines[0];
         assert_eq!(line.iter().map(|p| (p.spp, p.seconds)).collect::<Vec<_>>(), [(1, 0.002), (2, 0.005)]);
         assert!(line.iter().all(|p| p.rmse == 0.0 && p.rejected == 0 && p.backend == ChartBackend::Web));
-        let off = web::from_report(&report(0.75), &[Strategy::Mis], 2, &[1, 2], &reference).unwrap();
+        let off = web::from_report(&report(0.75), &[Strategy::Mis], 2, &[1, 2], &reference, false).unwrap();
         assert!((off[0][1].rmse - 0.25).abs() < 1e-6, "the mean of the sums is compared: {}", off[0][1].rmse);
 
-        let refused = |report: serde_json::Value, strategies: &[Strategy], size: u32, spp: &[u32]| {
-            format!(
-                "{:#}",
-                web::from_report(&report, strategies, size, spp, &reference[..(size * size) as usize]).unwrap_err()
-            )
+        let refused_with = |report: serde_json::Value, strategies: &[Strategy], size: u32, spp: &[u32], denoise| {
+            let reference = &reference[..(size * size) as usize];
+            format!("{:#}", web::from_report(&report, strategies, size, spp, reference, denoise).unwrap_err())
         };
+        let refused =
+            |report, strategies: &[Strategy], size, spp: &[u32]| refused_with(report, strategies, size, spp, false);
         let mut error = report(0.5);
         error["error"] = "no WebGL2".into();
         assert!(refused(error, &[Strategy::Mis], 2, &[1, 2]).contains("the page reported: no WebGL2"));
@@ -758,6 +771,37 @@ mod tests {
         no_time["lines"][0]["points"][0]["ms"] = serde_json::Value::Null;
         assert!(refused(no_time, &[Strategy::Mis], 2, &[1, 2]).contains("no render time"));
         assert!(refused(serde_json::json!({}), &[Strategy::Mis], 2, &[1, 2]).contains("no lines"));
+
+        // `--denoise`: the twin follows its line; its image is a mean (not divided again), its
+        // dropped samples come from `accepted`.
+        let lines = web::from_report(&denoised_report(0.75, 0.5), &[Strategy::Mis], 2, &[1, 2], &reference, true);
+        let lines = lines.unwrap();
+        assert_eq!(lines.len(), 2);
+        assert!(lines[0].iter().all(|p| !p.denoised) && lines[1].iter().all(|p| p.denoised));
+        assert!(lines[0][1].rmse > 0.2, "the raw line is off: {}", lines[0][1].rmse);
+        let twin = &lines[1];
+        assert_eq!(
+            twin.iter().map(|p| (p.spp, p.seconds, p.rejected)).collect::<Vec<_>>(),
+            [(1, 0.003, 0), (2, 0.007, 1)]
+        );
+        assert!(twin.iter().all(|p| p.rmse == 0.0 && p.backend == ChartBackend::Web && p.strategy == Strategy::Mis));
+        let denoise = |r, spp: &[u32]| refused_with(r, &[Strategy::Mis], 2, spp, true);
+        assert!(denoise(report(0.5), &[1, 2]).contains("0 denoised lines reported, 1 asked for"));
+        assert!(
+            refused(denoised_report(0.5, 0.5), &[Strategy::Mis], 2, &[1, 2]).contains("1 denoised lines reported, 0")
+        );
+        let mut rgba = denoised_report(0.5, 0.5);
+        rgba["lines"][1]["points"][0]["data"] = serde_json::json!(vec![0.5; 16]);
+        assert!(denoise(rgba, &[1, 2]).contains("mis denoised at 1 spp: 16 values for 4 RGB pixels"));
+        let mut uncounted = denoised_report(0.5, 0.5);
+        uncounted["lines"][1]["points"][1]["accepted"] = serde_json::Value::Null;
+        assert!(denoise(uncounted, &[1, 2]).contains("mis denoised at 2 spp: no count of accepted samples"));
+        let mut wrong = denoised_report(0.5, 0.5);
+        wrong["lines"][1]["strategy"] = "nee".into();
+        assert!(denoise(wrong, &[1, 2]).contains("line \"nee\" reported for mis denoised"));
+        let mut late = denoised_report(0.5, 0.5);
+        late["lines"][1]["points"][1]["spp"] = 4.into();
+        assert!(denoise(late, &[1, 2]).contains("mis denoised at 2 spp: the report says 4 spp"));
     }
 
     #[test]

@@ -11,6 +11,17 @@
 //! and upload, shader compile, one warm-up frame (the driver JITs the kernel at its first draw,
 //! as the GL backend's throwaway renderer pays for natively) and the float read-back after each
 //! checkpoint. The driver writes the accumulations (rgb sums and finite-sample counts) as JSON.
+//!
+//! With `--denoise` (`run.mjs chart --denoise 1`) each strategy also has a denoised twin,
+//! denoised in the page by the page's own denoiser (`web/src/denoise/`: its passes on WebGL2,
+//! the remodulation `tracer::denoise::denoise_on`): after the raw lines the page's renderer is
+//! recreated with the denoiser's guide (the page's own denoise schedule off), warmed up by an
+//! untimed frame and an untimed denoise (the filter's shaders are compiled at the first), and
+//! each strategy rendered to each checkpoint again; at each the page denoises the accumulation
+//! once (`denoiseNow`). As the native twins' points, a point's time is the twin's rendering so
+//! far (with the guide) plus that checkpoint's whole denoise (read-backs, passes and
+//! remodulation, timed by the page); its image is the denoised one the page shows (means, not
+//! sums).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -102,6 +113,7 @@ pub(super) fn lines(
             .arg("--out")
             .arg(&report)
             .arg("--exit-on-stdin-eof")
+            .args(["--denoise", if args.denoise { "1" } else { "0" }])
             .env("CHROMIUM", &tools.chromium);
         let start = Instant::now();
         let mut driver = Killed::spawn_tied(&mut command).context("starting node tests/web/run.mjs")?;
@@ -123,20 +135,22 @@ pub(super) fn lines(
         }
         let text = std::fs::read_to_string(&report).with_context(|| format!("reading {}", report.display()))?;
         let value: Value = serde_json::from_str(&text).context("the driver's report is not JSON")?;
-        from_report(&value, strategies, args.size, &checkpoints(args.spp), reference)
+        from_report(&value, strategies, args.size, &checkpoints(args.spp), reference, args.denoise)
     })();
     let _ = std::fs::remove_file(&bundle);
     let _ = std::fs::remove_file(&report);
     result
 }
 
-/// The lines of the driver's report, checked against what was asked for.
+/// The lines of the driver's report, checked against what was asked for: a line per strategy
+/// and, with `denoise`, its denoised twin after it.
 pub(super) fn from_report(
     report: &Value,
     strategies: &[Strategy],
     size: u32,
     checkpoints: &[u32],
     reference: &[Vec3],
+    denoise: bool,
 ) -> Result<Vec<Vec<Point>>> {
     if let Some(error) = report.get("error").filter(|e| !e.is_null()) {
         let error = error.as_str().map_or_else(|| error.to_string(), str::to_owned);
@@ -151,49 +165,87 @@ pub(super) fn from_report(
         report["warmUpMs"].as_f64().unwrap_or(f64::NAN)
     );
     let reported = report["lines"].as_array().context("the report has no lines")?;
-    ensure!(reported.len() == strategies.len(), "{} lines reported, {} asked for", reported.len(), strategies.len());
-    let pixels = (size * size) as usize;
+    let (twins, raw): (Vec<&Value>, Vec<&Value>) = reported.iter().partition(|l| l["denoised"] == true);
+    ensure!(raw.len() == strategies.len(), "{} lines reported, {} asked for", raw.len(), strategies.len());
+    let expected = if denoise { strategies.len() } else { 0 };
+    ensure!(twins.len() == expected, "{} denoised lines reported, {expected} asked for", twins.len());
+    for twin in &twins {
+        let ms: Vec<String> = twin["points"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(|p| format!("{} spp {:.1}", p["spp"], p["filterMs"].as_f64().unwrap_or(f64::NAN)))
+            .collect();
+        println!(
+            "web: {} denoised in the page, ms per denoise: {}",
+            twin["strategy"].as_str().unwrap_or("?"),
+            ms.join(", ")
+        );
+    }
     let mut lines = Vec::new();
-    for (line, &strategy) in reported.iter().zip(strategies) {
-        ensure!(line["strategy"] == strategy.name(), "line {} reported for {}", line["strategy"], strategy.name());
-        let reported = line["points"].as_array().context("a line without points")?;
-        ensure!(reported.len() == checkpoints.len(), "{}: {} checkpoints reported", strategy.name(), reported.len());
-        let mut points = Vec::new();
-        for (p, &spp) in reported.iter().zip(checkpoints) {
-            let what = || format!("{} at {spp} spp", strategy.name());
-            ensure!(p["spp"].as_u64() == Some(spp as u64), "{}: the report says {} spp", what(), p["spp"]);
-            ensure!(
-                (p["width"].as_u64(), p["height"].as_u64()) == (Some(size as u64), Some(size as u64)),
-                "{}: the page rendered {}x{}, not {size}x{size}",
-                what(),
-                p["width"],
-                p["height"]
-            );
-            let ms = p["ms"].as_f64().filter(|ms| ms.is_finite() && *ms >= 0.0);
-            let ms = ms.with_context(|| format!("{}: no render time", what()))?;
-            let data = p["data"].as_array().with_context(|| format!("{}: no image", what()))?;
-            ensure!(data.len() == pixels * 4, "{}: {} values for {pixels} RGBA pixels", what(), data.len());
-            let values: Vec<f32> = data.iter().map(|v| v.as_f64().map_or(f32::NAN, |v| v as f32)).collect();
-            let n = spp as f32;
-            let image = Image {
-                width: size,
-                height: size,
-                pixels: values.chunks_exact(4).map(|t| Vec3::new(t[0], t[1], t[2]) / n).collect(),
-            };
-            let accepted: f64 = values.chunks_exact(4).map(|t| t[3] as f64).sum();
-            points.push(Point {
-                backend: ChartBackend::Web,
-                strategy,
-                denoised: false,
-                spp,
-                seconds: ms / 1e3,
-                rmse: tracer::stats::rmse(&image.pixels, reference)?,
-                rel_mse: tracer::stats::rel_mse(&image.pixels, reference)?,
-                rejected: (spp as u64 * pixels as u64).saturating_sub(accepted.round() as u64),
-                image,
-            });
+    for (i, &strategy) in strategies.iter().enumerate() {
+        lines.push(line_points(raw[i], strategy, false, size, checkpoints, reference)?);
+        if denoise {
+            lines.push(line_points(twins[i], strategy, true, size, checkpoints, reference)?);
         }
-        lines.push(points);
     }
     Ok(lines)
+}
+
+/// One reported line's points. Raw: `data` is the accumulation (rgb sums and the count of
+/// finite samples per pixel); denoised: the denoised image (rgb means) and `accepted`, the
+/// accumulation's count of finite samples.
+fn line_points(
+    line: &Value,
+    strategy: Strategy,
+    denoised: bool,
+    size: u32,
+    checkpoints: &[u32],
+    reference: &[Vec3],
+) -> Result<Vec<Point>> {
+    let kind = if denoised { " denoised" } else { "" };
+    ensure!(line["strategy"] == strategy.name(), "line {} reported for {}{kind}", line["strategy"], strategy.name());
+    let reported = line["points"].as_array().context("a line without points")?;
+    ensure!(reported.len() == checkpoints.len(), "{}{kind}: {} checkpoints reported", strategy.name(), reported.len());
+    let pixels = (size * size) as usize;
+    let mut points = Vec::new();
+    for (p, &spp) in reported.iter().zip(checkpoints) {
+        let what = || format!("{}{kind} at {spp} spp", strategy.name());
+        ensure!(p["spp"].as_u64() == Some(spp as u64), "{}: the report says {} spp", what(), p["spp"]);
+        ensure!(
+            (p["width"].as_u64(), p["height"].as_u64()) == (Some(size as u64), Some(size as u64)),
+            "{}: the page rendered {}x{}, not {size}x{size}",
+            what(),
+            p["width"],
+            p["height"]
+        );
+        let ms = p["ms"].as_f64().filter(|ms| ms.is_finite() && *ms >= 0.0);
+        let ms = ms.with_context(|| format!("{}: no render time", what()))?;
+        let data = p["data"].as_array().with_context(|| format!("{}: no image", what()))?;
+        let values: Vec<f32> = data.iter().map(|v| v.as_f64().map_or(f32::NAN, |v| v as f32)).collect();
+        let (pixels_rgb, accepted) = if denoised {
+            ensure!(data.len() == pixels * 3, "{}: {} values for {pixels} RGB pixels", what(), data.len());
+            let accepted = p["accepted"].as_f64().filter(|a| a.is_finite() && *a >= 0.0);
+            let accepted = accepted.with_context(|| format!("{}: no count of accepted samples", what()))?;
+            (values.chunks_exact(3).map(Vec3::from_slice).collect::<Vec<_>>(), accepted)
+        } else {
+            ensure!(data.len() == pixels * 4, "{}: {} values for {pixels} RGBA pixels", what(), data.len());
+            let n = spp as f32;
+            let accepted: f64 = values.chunks_exact(4).map(|t| t[3] as f64).sum();
+            (values.chunks_exact(4).map(|t| Vec3::new(t[0], t[1], t[2]) / n).collect(), accepted)
+        };
+        let image = Image { width: size, height: size, pixels: pixels_rgb };
+        points.push(Point {
+            backend: ChartBackend::Web,
+            strategy,
+            denoised,
+            spp,
+            seconds: ms / 1e3,
+            rmse: tracer::stats::rmse(&image.pixels, reference)?,
+            rel_mse: tracer::stats::rel_mse(&image.pixels, reference)?,
+            rejected: (spp as u64 * pixels as u64).saturating_sub(accepted.round() as u64),
+            image,
+        });
+    }
+    Ok(points)
 }

@@ -640,6 +640,15 @@ async function webgl2Info(page) {
 // (accumulation pass + display pass to the canvas) and the wait for the GPU (a 1-pixel read-back),
 // with performance.now(); not the page load, bundle upload, shader compile, the untimed warm-up
 // frame (the driver's shader JIT) or the float read-back after each checkpoint.
+//
+// `--denoise 1`: then a denoised line per strategy (reported after the raw ones, `denoised:
+// true`), by the page's own denoiser: the renderer is recreated with the denoiser's guide (its
+// schedule off: only the driver's requests denoise), warmed up by an untimed frame and an
+// untimed denoise (the filter's shaders are JIT-compiled at the first), and each strategy rendered to each checkpoint again, timed as above; at each checkpoint the page
+// denoises the accumulation (`denoiseNow`) and the point's `ms` is this line's rendering so far
+// plus that denoise's whole time (`filterMs`: read-backs, passes, remodulation), as for a render
+// to that many samples denoised once (the native twins' rule). Its `data` is the denoised image
+// (rgb means, 3 values a pixel) and `accepted` the accumulation's finite samples.
 async function chart(o) {
   const strategies = (o.strategies || 'mis').split(',');
   const checkpoints = (o.checkpoints || '1').split(',').map(Number);
@@ -678,7 +687,52 @@ async function chart(o) {
         }
         lines.push({ strategy, points, info: await page.evaluate(() => window.lightport.info()) });
       }
-      return { info, gl: await webgl2Info(page), warmUpMs, lines, consoleErrors };
+      let guidedWarmUpMs = null;
+      if (o.denoise === '1') {
+        await page.evaluate(() => {
+          window.lightport.setDenoiseSchedule(false);
+          window.lightport.setDenoise(true);
+        });
+        // The new renderer's kernel (with the guide) is JIT-compiled at its first draw, and the
+        // filter's passes at the first denoise: both untimed.
+        guidedWarmUpMs = await page.evaluate(() => window.lightport.renderFrames(1));
+        const e = await pageError();
+        if (e) return { error: `switching the denoiser on: ${e}`, consoleErrors };
+        try {
+          await page.evaluate(() => window.lightport.denoiseNow());
+        } catch (err) {
+          return { error: `the warm-up denoise: ${err.message || err}`, consoleErrors };
+        }
+        for (const strategy of strategies) {
+          await page.evaluate((s) => window.lightport.setStrategy(s), strategy);
+          const points = [];
+          let ms = 0;
+          for (const spp of checkpoints) {
+            const frames = spp - (await page.evaluate(() => window.lightport.spp()));
+            ms += frames * (await page.evaluate((n) => window.lightport.renderFrames(n), frames));
+            const e = await pageError();
+            if (e) return { error: e, consoleErrors };
+            let denoised;
+            try {
+              denoised = await page.evaluate(() => window.lightport.denoiseNow());
+            } catch (err) {
+              return { error: `${strategy} at ${spp} spp: ${err.message || err}`, consoleErrors };
+            }
+            if (!denoised || denoised.spp !== spp) {
+              return { error: `${strategy}: denoised at ${denoised && denoised.spp} spp, ${spp} expected`, consoleErrors };
+            }
+            const accumulation = await page.evaluate(() => window.lightport.readAccumulation());
+            let accepted = 0;
+            for (let i = 3; i < accumulation.data.length; i += 4) accepted += accumulation.data[i];
+            points.push({
+              spp, ms: ms + denoised.filterMs, renderMs: ms, filterMs: denoised.filterMs,
+              width: denoised.width, height: denoised.height, data: denoised.data, accepted,
+            });
+          }
+          lines.push({ strategy, denoised: true, points });
+        }
+      }
+      return { info, gl: await webgl2Info(page), warmUpMs, guidedWarmUpMs, lines, consoleErrors };
     });
   } finally {
     rmSync(profile, { recursive: true, force: true });

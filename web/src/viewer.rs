@@ -391,6 +391,42 @@ impl Viewer {
         }
     }
 
+    /// Whether the page's rule starts denoises (on, the default: at 4 spp, then each time the
+    /// samples per pixel double); off, only `denoiseNow` does (`lightport chart --denoise`).
+    #[wasm_bindgen(js_name = setDenoiseSchedule)]
+    pub fn set_denoise_schedule(&mut self, on: bool) {
+        self.denoiser.set_schedule(on);
+    }
+
+    /// Asks for a denoise of the accumulation as it is now, whatever the page's rule says; it
+    /// starts at the next `pollDenoise` or frame, and `sceneInfo().denoise.shownSpp` says when
+    /// it shows. An error when the denoiser is off, no scene renders, the renderer lacks the
+    /// guide or the denoiser failed on this accumulation.
+    #[wasm_bindgen(js_name = denoiseNow)]
+    pub fn denoise_now(&mut self) -> Result<(), JsError> {
+        if self.halted() {
+            return Err(JsError::new("the WebGL context or the WebGPU device is lost"));
+        }
+        let running = self.running.as_ref().ok_or_else(|| JsError::new("no scene is loaded"))?;
+        self.denoiser.request(running).map_err(|e| JsError::new(&e))
+    }
+
+    /// The denoised image on show: `{ spp, width, height, data: Float32Array (rgb per pixel,
+    /// rows from the top: the mean, not a sum), filterMs (the whole denoise: read-backs,
+    /// passes, remodulation) }`, or null when the current accumulation shows none.
+    #[wasm_bindgen(js_name = readDenoised)]
+    pub fn read_denoised(&self) -> JsValue {
+        let Some((spp, image, filter_ms)) = self.denoiser.shown() else { return JsValue::NULL };
+        let o = Object::new();
+        set(&o, "spp", spp);
+        set(&o, "width", image.width);
+        set(&o, "height", image.height);
+        let floats: Vec<f32> = image.pixels.iter().flat_map(|p| p.to_array()).collect();
+        set(&o, "data", Float32Array::from(floats.as_slice()));
+        set(&o, "filterMs", filter_ms);
+        o.into()
+    }
+
     /// Draws the image again (the denoised one where there is one), e.g. before copying the
     /// canvas in the same task.
     pub fn draw(&mut self) {

@@ -111,6 +111,33 @@ const hook = {
   // shows ({ enabled, shownSpp, pendingSpp, filterMs, guideMs, error, readout }).
   setDenoise: (on) => guarded(() => { viewer.setDenoise(on); $('denoise').checked = on; }),
   denoise: () => (viewer ? viewer.sceneInfo().denoise : null),
+  // Whether the page's rule denoises by itself (default true); false: only denoiseNow does.
+  setDenoiseSchedule: (on) => viewer.setDenoiseSchedule(on),
+  // Denoises the accumulation as it is now, whatever the page's rule says, and resolves once
+  // the denoised image shows, to readDenoised()'s object (rejects with the denoiser's error, or
+  // after `timeoutMs`). Polls the denoiser in a loop of its own (a message to itself: neither
+  // an animation frame nor setTimeout's 4 ms clamp), so that filterMs is the denoise's time,
+  // not the wait for the next poll.
+  async denoiseNow(timeoutMs = 120000) {
+    viewer.denoiseNow();
+    const spp = viewer.spp();
+    const start = performance.now();
+    for (;;) {
+      viewer.pollDenoise();
+      const d = viewer.sceneInfo().denoise;
+      if (d.error) throw new Error(`the denoiser failed: ${d.error}`);
+      if (d.shownSpp === spp) return hook.readDenoised();
+      if (performance.now() - start > timeoutMs) throw new Error(`no denoised image after ${timeoutMs} ms`);
+      await yieldToBrowser();
+    }
+  },
+  // The denoised image on show: { spp, width, height, data: number[] (rgb per pixel, rows from
+  // the top: the mean, not a sum), filterMs (the whole denoise: read-backs, passes,
+  // remodulation) }, or null when none shows.
+  readDenoised() {
+    const d = viewer.readDenoised();
+    return d && { ...d, data: Array.from(d.data) };
+  },
   // Draws the image again (the denoised one where shown): copy the canvas in the same task.
   draw: () => viewer && viewer.draw(),
   clearCache: () => clearCache(),
@@ -151,6 +178,15 @@ function showNotice() {
   } else {
     hideMessage();
   }
+}
+
+// Resolves after the browser has run what was queued (tasks, the GPU process's replies).
+function yieldToBrowser() {
+  return new Promise((resolve) => {
+    const channel = new MessageChannel();
+    channel.port1.onmessage = () => resolve();
+    channel.port2.postMessage(null);
+  });
 }
 
 function guarded(action) {

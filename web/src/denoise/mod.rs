@@ -19,6 +19,12 @@
 //! of the new accumulation; a denoise of an older accumulation that finishes late is dropped.
 //! One denoise is in flight at a time: a due one waits for it.
 //!
+//! **On request** ([`PageDenoiser::request`], `Viewer::denoiseNow`): a denoise of the
+//! accumulation as it is now, whatever the rule says (after the one in flight, if any); with
+//! the schedule off ([`PageDenoiser::set_schedule`], `Viewer::setDenoiseSchedule`) only
+//! requested denoises run, so that `lightport chart --denoise` times a render to N samples per
+//! pixel denoised once (`tests/web/run.mjs chart`).
+//!
 //! **The guide** comes from one function, [`page_guide`]: the sums the path tracer accumulates
 //! beside the colour (`Features::denoise_guide`: the renderer is created with it while the
 //! denoiser is on), read back with the accumulation at the same sample count.
@@ -128,6 +134,11 @@ fn page_guide(running: &Runtime) -> PageRead {
 /// The page's denoiser state: whether it is on, the denoise in flight and the image on show.
 pub struct PageDenoiser {
     enabled: bool,
+    /// Whether the rule above starts denoises (else only [`request`](Self::request)s do).
+    schedule: bool,
+    /// A denoise of the current accumulation at this many samples per pixel was asked for
+    /// ([`request`](Self::request)) and has not started yet.
+    requested: Option<(u64, u32)>,
     /// Bumped at every restart of the accumulation (and new renderer): older results are dropped.
     generation: u64,
     /// WebGPU: the filter pass on the current renderer's device.
@@ -150,6 +161,8 @@ impl PageDenoiser {
     pub fn new(enabled: bool) -> Self {
         PageDenoiser {
             enabled,
+            schedule: true,
+            requested: None,
             generation: 0,
             gpu_filter: None,
             job: None,
@@ -174,8 +187,47 @@ impl PageDenoiser {
         self.shown = None;
     }
 
+    /// Whether the page's rule (see the module) starts denoises; off, only requested ones run.
+    pub fn set_schedule(&mut self, on: bool) {
+        self.schedule = on;
+    }
+
+    /// Asks for a denoise of `running`'s accumulation as it is now, whatever the rule says: it
+    /// starts at the next poll (after the denoise in flight, if any). Nothing to do when the
+    /// image shown already is this accumulation denoised at its sample count. An error when the
+    /// denoiser is off, failed on this accumulation, or the renderer lacks the guide, or
+    /// nothing is rendered yet.
+    pub fn request(&mut self, running: &Runtime) -> Result<(), String> {
+        if !self.enabled {
+            return Err("the denoiser is off (setDenoise(true) first)".into());
+        }
+        if !running.packed().features.denoise_guide {
+            return Err("the renderer does not accumulate the denoiser's guide".into());
+        }
+        if let Some(e) = &self.error {
+            return Err(format!("the denoiser failed on this accumulation: {e}"));
+        }
+        let spp = running.frames();
+        if spp == 0 {
+            return Err("nothing is rendered yet (0 samples per pixel)".into());
+        }
+        let shown = self.shown.as_ref().filter(|s| s.generation == self.generation).map(|s| s.spp);
+        if shown != Some(spp) && self.pending() != Some(spp) {
+            self.requested = Some((self.generation, spp));
+        }
+        Ok(())
+    }
+
+    /// The image on show for the current accumulation, its sample count and the time its
+    /// denoise took (milliseconds), if there is one.
+    pub fn shown(&self) -> Option<(u32, &Image, f64)> {
+        let shown = self.shown.as_ref().filter(|s| self.enabled && s.generation == self.generation)?;
+        Some((shown.spp, &shown.image, self.filter_ms.unwrap_or(f64::NAN)))
+    }
+
     /// The accumulation restarted: the raw image shows until the next denoise.
     pub fn restart(&mut self) {
+        self.requested = None;
         self.generation += 1;
         self.shown = None;
         self.error = None;
@@ -224,6 +276,7 @@ impl PageDenoiser {
     /// Whether the accumulation should be denoised now (see the module's rule).
     fn due(&self, running: &Runtime, now: f64) -> bool {
         let spp = running.frames();
+        let requested = self.requested == Some((self.generation, spp));
         let scene = &running.packed().scene;
         let between_frames = running.renderer().rows_left() == scene.height;
         let shown = self.shown.as_ref().filter(|s| s.generation == self.generation).map_or(0, |s| s.spp);
@@ -232,12 +285,8 @@ impl PageDenoiser {
             _ => true,
         } && (shown > 0 || now - self.restarted_ms >= SETTLE_MS);
         let has_guide = running.packed().features.denoise_guide;
-        self.job.is_none()
-            && self.error.is_none()
-            && has_guide
-            && between_frames
-            && spp >= FIRST_SPP.max(2 * shown)
-            && spaced
+        let by_rule = self.schedule && spp >= FIRST_SPP.max(2 * shown) && spaced;
+        self.job.is_none() && self.error.is_none() && has_guide && between_frames && (requested || by_rule)
     }
 
     /// Starts a denoise of the accumulation as it is: its read-back and the guide's
@@ -252,6 +301,7 @@ impl PageDenoiser {
                 Err(e) => return self.fail(e),
             }
         }
+        self.requested = None;
         let stage = Stage::Reading(page_guide(running));
         self.job =
             Some(Job { generation: self.generation, spp: running.frames(), stage, started_ms: now_ms(), read_ms: 0.0 });
