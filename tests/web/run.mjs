@@ -670,9 +670,10 @@ async function chart(o) {
       const pageError = () => page.evaluate(() => window.lightport.error);
       // The warm-up frame: the driver compiles (JITs) the kernel at the first draw.
       const warmUpMs = await page.evaluate(() => window.lightport.renderFrames(1));
-      const lines = [];
-      for (const strategy of strategies) {
-        // Restarts the accumulation: frame 0 of the seed's sequence, as a fresh renderer.
+      // One line: `strategy` restarted (frame 0 of the seed's sequence, as a fresh renderer) and
+      // rendered to each checkpoint, its frames timed; `point(spp, ms)` reads that checkpoint's
+      // point, or returns a string: what went wrong. Returns the points, or { error }.
+      const renderLine = async (strategy, point) => {
         await page.evaluate((s) => window.lightport.setStrategy(s), strategy);
         const points = [];
         let ms = 0;
@@ -680,11 +681,21 @@ async function chart(o) {
           const frames = spp - (await page.evaluate(() => window.lightport.spp()));
           ms += frames * (await page.evaluate((n) => window.lightport.renderFrames(n), frames));
           const e = await pageError();
-          if (e) return { error: e, consoleErrors };
-          const image = await page.evaluate(() => window.lightport.readAccumulation());
-          if (image.spp !== spp) return { error: `${strategy}: ${image.spp} spp rendered, ${spp} expected`, consoleErrors };
-          points.push({ spp, ms, width: image.width, height: image.height, data: image.data });
+          if (e) return { error: e };
+          const p = await point(spp, ms);
+          if (typeof p === 'string') return { error: `${strategy} at ${spp} spp: ${p}` };
+          points.push(p);
         }
+        return { points };
+      };
+      const lines = [];
+      for (const strategy of strategies) {
+        const { points, error: lineError } = await renderLine(strategy, async (spp, ms) => {
+          const image = await page.evaluate(() => window.lightport.readAccumulation());
+          if (image.spp !== spp) return `${image.spp} spp rendered`;
+          return { spp, ms, width: image.width, height: image.height, data: image.data };
+        });
+        if (lineError) return { error: lineError, consoleErrors };
         lines.push({ strategy, points, info: await page.evaluate(() => window.lightport.info()) });
       }
       let guidedWarmUpMs = null;
@@ -704,31 +715,23 @@ async function chart(o) {
           return { error: `the warm-up denoise: ${err.message || err}`, consoleErrors };
         }
         for (const strategy of strategies) {
-          await page.evaluate((s) => window.lightport.setStrategy(s), strategy);
-          const points = [];
-          let ms = 0;
-          for (const spp of checkpoints) {
-            const frames = spp - (await page.evaluate(() => window.lightport.spp()));
-            ms += frames * (await page.evaluate((n) => window.lightport.renderFrames(n), frames));
-            const e = await pageError();
-            if (e) return { error: e, consoleErrors };
+          const { points, error: lineError } = await renderLine(strategy, async (spp, ms) => {
             let denoised;
             try {
               denoised = await page.evaluate(() => window.lightport.denoiseNow());
             } catch (err) {
-              return { error: `${strategy} at ${spp} spp: ${err.message || err}`, consoleErrors };
+              return `${err.message || err}`;
             }
-            if (!denoised || denoised.spp !== spp) {
-              return { error: `${strategy}: denoised at ${denoised && denoised.spp} spp, ${spp} expected`, consoleErrors };
-            }
+            if (!denoised || denoised.spp !== spp) return `denoised at ${denoised && denoised.spp} spp`;
             const accumulation = await page.evaluate(() => window.lightport.readAccumulation());
             let accepted = 0;
             for (let i = 3; i < accumulation.data.length; i += 4) accepted += accumulation.data[i];
-            points.push({
+            return {
               spp, ms: ms + denoised.filterMs, renderMs: ms, filterMs: denoised.filterMs,
               width: denoised.width, height: denoised.height, data: denoised.data, accepted,
-            });
-          }
+            };
+          });
+          if (lineError) return { error: lineError, consoleErrors };
           lines.push({ strategy, denoised: true, points });
         }
       }
