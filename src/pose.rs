@@ -31,7 +31,7 @@ impl PoseArgs {
             Some("none") => AnimationChoice::Rest,
             Some(name) => AnimationChoice::Named(name.to_owned()),
         };
-        Ok(LoadOptions { strict, animation, time: self.time, flatten: self.flatten })
+        Ok(LoadOptions { strict, animation, time: self.time, flatten: self.flatten, keep_motion: false })
     }
 
     /// What `--flatten` asks of a scene generated in code (files are flattened as they load).

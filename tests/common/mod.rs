@@ -24,6 +24,18 @@ pub fn test_data(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(rel)
 }
 
+/// `tests/data/scenes/generated/animated-skinned-instanced.gltf` (a skinned, morphed triangle
+/// whose joints and weights are animated, and a triangle placed three times by
+/// `EXT_mesh_gpu_instancing`) with its instanced node turned by the animation's rotation
+/// sampler too: every kind of moving part at once (`LoadOptions::keep_motion`).
+pub fn moving_parts_gltf() -> Vec<u8> {
+    let path = test_data("scenes/generated/animated-skinned-instanced.gltf");
+    let mut json: serde_json::Value = serde_json::from_slice(&std::fs::read(path).expect("the seed")).expect("JSON");
+    let channel = serde_json::json!({"sampler": 1, "target": {"node": 3, "path": "rotation"}});
+    json["animations"][0]["channels"].as_array_mut().expect("channels").push(channel);
+    serde_json::to_vec(&json).expect("JSON")
+}
+
 /// xorshift64* (Vigna 2016): a fast, good-enough generator for test inputs. Deterministic,
 /// so a failing statistical test fails the same way every run.
 #[derive(Clone, Debug)]

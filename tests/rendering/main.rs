@@ -12,6 +12,7 @@ mod gl;
 mod glass;
 mod instancing;
 mod metal_rough;
+mod moving;
 mod normal_maps;
 mod stability;
 mod texture_transform;

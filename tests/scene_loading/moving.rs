@@ -343,3 +343,68 @@ fn the_moving_scene_seed_loads_at_any_time() {
         assert_eq!(s.triangles.len(), 4, "{time}");
     }
 }
+
+/// A scene's triangles as placed in the world (instances baked), zero-area ones left out, in
+/// a canonical order: what two ways of posing a scene must agree on.
+fn placed_triangles(mut s: Scene) -> Vec<[Vec3; 3]> {
+    s.bake_instances().unwrap();
+    let mut t: Vec<[Vec3; 3]> =
+        s.triangles.iter().map(|t| t.positions).filter(|p| (p[1] - p[0]).cross(p[2] - p[0]) != Vec3::ZERO).collect();
+    let key = |p: &[Vec3; 3]| p.map(|v| v.to_array()).concat();
+    t.sort_by(|a, b| key(a).partial_cmp(&key(b)).unwrap());
+    t
+}
+
+/// A scene that keeps its animation (`LoadOptions::keep_motion`) and is posed at a time
+/// (`Scene::pose`) has the triangles of the scene loaded at that time: nodes (LINEAR, STEP,
+/// CUBICSPLINE), skins with animated joints, morph weights and `EXT_mesh_gpu_instancing` under
+/// a moving node; the moving meshes are instances, the rest stays static; a bad time is a
+/// clear error and leaves the scene as it was.
+#[test]
+fn a_kept_motion_poses_the_scene_as_loading_at_that_time_does() {
+    use tracer::scene::AnimationChoice;
+    let skin_animation = r#"{"channels": [{"sampler": 0, "target": {"node": 2, "path": "translation"}}],
+        "samplers": [{"input": 6, "output": 7}]}"#;
+    let turn = r#"[{"channels": [{"sampler": 0, "target": {"node": 0, "path": "rotation"}},
+                              {"sampler": 1, "target": {"node": 0, "path": "translation"}}],
+        "samplers": [{"input": 2, "output": 3}, {"input": 2, "output": 4, "interpolation": "CUBICSPLINE"}]}]"#;
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    let quarter_turn = [0.0, 0.0, 0.0, 1.0, 0.0, h, 0.0, h];
+    let turn_accessors: Vec<(&str, &[f32])> = vec![
+        ("SCALAR", &[0.0, 2.0]),
+        ("VEC4", &quarter_turn),
+        ("VEC3", &[0.0, 0.0, 0.0, 0.0, 0.0, -5.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -5.0, 0.0, 0.0, 0.0]),
+    ];
+    let cases: Vec<(&str, Vec<u8>)> = vec![
+        ("the moving-scene seed, its instances turning", common::moving_parts_gltf()),
+        ("a skin", skinned_json(None, skin_animation).into_bytes()),
+        ("a node turning", animated_json(turn, &turn_accessors).into_bytes()),
+    ];
+    for (name, bytes) in &cases {
+        let load = |time: f32, keep_motion: bool| {
+            let options = LoadOptions { time, keep_motion, animation: AnimationChoice::First, ..Default::default() };
+            scene::load_gltf_slice(bytes, None, &options).unwrap()
+        };
+        let mut moving = load(0.0, true);
+        let motion = moving.motion.as_ref().unwrap_or_else(|| panic!("{name}: no motion kept"));
+        assert!(motion.moving_placements() + motion.deformed_meshes() > 0, "{name}: nothing moves");
+        assert!(!moving.instances.is_empty(), "{name}: the moving meshes are not instances");
+        for time in [0.0, 0.3, 1.0, 1.7, 9.0, 0.5] {
+            assert!(moving.pose(time).unwrap(), "{name}");
+            let (posed, loaded) = (placed_triangles(moving.clone()), placed_triangles(load(time, false)));
+            assert_eq!(posed.len(), loaded.len(), "{name} at {time}");
+            for (a, b) in posed.iter().zip(&loaded) {
+                let close = a.iter().zip(b).all(|(a, b)| (*a - *b).length() < 1e-4);
+                assert!(close, "{name} at {time}: posed {a:?}, loaded {b:?}");
+            }
+        }
+        // A time that is not a number: an error, the scene as it was.
+        let before = placed_triangles(moving.clone());
+        assert!(moving.pose(f32::NAN).unwrap_err().to_string().contains("finite"), "{name}");
+        assert_eq!(placed_triangles(moving.clone()), before, "{name}");
+    }
+    // Without keep_motion nothing is kept; a scene without motion does not move.
+    let mut still = scene::load_gltf_slice(&cases[1].1, None, &LoadOptions::default()).unwrap();
+    assert!(still.motion.is_none() && still.instances.is_empty());
+    assert!(!still.pose(1.0).unwrap());
+}

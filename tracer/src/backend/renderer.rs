@@ -34,6 +34,9 @@ pub enum RenderError {
         "the renderer was created without the denoiser's guide (pack the scene with `Packed::set_denoise_guide(true)`)"
     )]
     NoGuide,
+    /// [`Renderer::take_geometry`] of a pose the renderer's kernel cannot draw.
+    #[error(transparent)]
+    Pack(#[from] crate::pack::PackError),
     /// The runtime cannot do this here (not built in, or not on this platform).
     #[error("the {runtime} renderer {what}")]
     Unsupported { runtime: &'static str, what: &'static str },
@@ -124,6 +127,14 @@ pub trait Renderer {
     /// `update` are not re-uploaded. The image size cannot change: that is
     /// [`RenderError::SizeChanged`], and the size stays as it was.
     fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError>;
+
+    /// Takes the geometry of `moved`, the renderer's scene posed at another time
+    /// (`Scene::pose`, packed again: [`Packed::take_geometry`]), uploads the scene's arrays
+    /// again without recompiling the kernel, and restarts the accumulation. Uniforms set
+    /// through [`set_uniforms`](Self::set_uniforms) stay. A pose that needs another kernel
+    /// variant is [`PackError::KernelChanged`](crate::pack::PackError::KernelChanged) and
+    /// changes nothing: create a renderer for it.
+    fn take_geometry(&mut self, moved: Packed) -> Result<(), RenderError>;
 
     /// Drops every accumulated sample: the next frame is sample 1 again (a split frame in
     /// progress is abandoned: the next band is its first row).

@@ -66,6 +66,10 @@ pub enum PackError {
     Instance(crate::scene::InstanceError),
     #[error("the packed textures were made from another scene (they do not match this scene's textures)")]
     TexturesMismatch,
+    /// [`Packed::take_geometry`] of a pose that needs another kernel variant (a deeper
+    /// traversal stack, say): the renderer must be created again for it.
+    #[error("the moved scene needs another kernel variant ({now:?}, was {was:?}): create the renderer again")]
+    KernelChanged { was: Box<Features>, now: Box<Features> },
 }
 
 /// An optional index as the packed layout stores it: the index as an exact float, or -1.
@@ -241,6 +245,25 @@ fn kernel_scene(
 }
 
 impl Packed {
+    /// Takes the geometry of `moved` (this scene posed at another time by `Scene::pose`, packed
+    /// with the same textures and settings) in place of this one's: the triangles, their
+    /// shading data, the nodes and placements, the lights and what depends on them. Uniforms
+    /// set since packing (camera, strategy, depth, the denoiser's guide) stay. A pose that
+    /// needs another kernel variant is [`PackError::KernelChanged`], and nothing changes.
+    pub fn take_geometry(&mut self, moved: Packed) -> Result<(), PackError> {
+        let now = Features { denoise_guide: self.features.denoise_guide, ..moved.features };
+        if now != self.features {
+            return Err(PackError::KernelChanged { was: Box::new(self.features), now: Box::new(now) });
+        }
+        let (s, m) = (&mut self.scene, moved.scene);
+        (s.triangles, s.shading, s.nodes, s.node_children, s.lights) =
+            (m.triangles, m.shading, m.nodes, m.node_children, m.lights);
+        (s.tangent_first, s.texcoord1_first, s.instance_first) = (m.tangent_first, m.texcoord1_first, m.instance_first);
+        (s.light_count, s.scene_scale, s.leaf_stack_limit) = (m.light_count, m.scene_scale, m.leaf_stack_limit);
+        (self.triangle_count, self.light_count) = (moved.triangle_count, moved.light_count);
+        Ok(())
+    }
+
     /// FNV-1a over the texture atlas's texels: the page reports it, so a test can tell that the
     /// browser decoded a bundle's images to the very texels the native loader made.
     pub fn texture_checksum(&self) -> u32 {

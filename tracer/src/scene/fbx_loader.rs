@@ -219,6 +219,7 @@ impl Loader<'_> {
             camera: Camera::default(),
             sky: None,
             warnings: Vec::new(),
+            motion: None,
         };
         let bounds = scene.bounds();
         scene.camera = match self.camera {

@@ -143,6 +143,8 @@ impl Scene {
                 super::MAX_TRIANGLES
             )));
         }
+        // A flattened scene no longer moves: its motion's instances are gone.
+        self.motion = None;
         for inst in std::mem::take(&mut self.instances) {
             if let Some(mesh) = self.meshes.get(inst.mesh as usize) {
                 self.triangles.extend(mesh.triangles.iter().map(|t| place_triangle(t, &inst.transform)));
@@ -150,6 +152,17 @@ impl Scene {
         }
         self.meshes.clear();
         Ok(())
+    }
+
+    /// Poses the scene at `time` seconds with its kept animation ([`Scene::motion`]): the
+    /// moving instances' transforms and the deformed meshes' triangles change, nothing else.
+    /// Returns whether anything can move (false, and nothing done, for a scene without motion).
+    /// On an error (a non-finite time or pose) the scene is left as it was.
+    pub fn pose(&mut self, time: f32) -> Result<bool, super::SceneError> {
+        let Some(motion) = self.motion.take() else { return Ok(false) };
+        let posed = motion.apply(self, time);
+        self.motion = Some(motion);
+        posed.map(|()| true)
     }
 
     /// Each instance's world bounds (its mesh's box placed by its transform), in instance order:

@@ -107,7 +107,7 @@ pub fn builtin(name: &str) -> Option<Scene> {
         _ => None,
     }
 }
-pub use gltf_loader::{load_gltf_slice, AnimationChoice};
+pub use gltf_loader::{load_gltf_slice, AnimationChoice, Motion};
 pub use instance::{place_triangle, Instance, InstanceError, Mesh};
 pub use obj_loader::load_obj_slice;
 pub use sky::{load_sky, load_sky_slice, SkyFormat};
@@ -157,6 +157,9 @@ pub struct Scene {
     pub sky: Option<Sky>,
     /// Unsupported features met while loading, each reported once and named.
     pub warnings: Vec<String>,
+    /// The animation that moves this scene's instances and deformed meshes, kept by a loader
+    /// asked to ([`LoadOptions::keep_motion`]); [`Scene::pose`] poses the scene with it.
+    pub motion: Option<Motion>,
 }
 
 /// One triangle in world space. Vertex order is counter-clockwise seen from the front face.
@@ -473,6 +476,10 @@ pub struct LoadOptions {
     /// Place every mesh into the static triangles, even those that glTF nodes share (by
     /// default shared meshes are stored once and placed by instances: a two-level scene).
     pub flatten: bool,
+    /// Keep the chosen animation in the scene ([`Scene::motion`]) so that [`Scene::pose`]
+    /// moves it to any time: the meshes it moves become instances (two levels) and skinned or
+    /// morphed meshes are made again at each pose, instead of being flattened at `time`.
+    pub keep_motion: bool,
 }
 
 /// Loads a scene with default [`LoadOptions`], choosing the format from the file extension:

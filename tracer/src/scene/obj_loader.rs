@@ -102,6 +102,7 @@ fn load_obj_from(
         camera: Camera::default(),
         sky: None,
         warnings: Vec::new(),
+        motion: None,
     };
     scene.camera = Camera::framing(&scene.bounds());
     scene.warnings = warnings.into_vec();

@@ -151,6 +151,9 @@ impl Renderer for Replay<'_> {
     fn set_uniforms(&mut self, _update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
         Err(Self::refuse("has no uniforms"))
     }
+    fn take_geometry(&mut self, _moved: Packed) -> Result<(), RenderError> {
+        Err(Self::refuse("has no geometry"))
+    }
     fn restart(&mut self) -> Result<(), RenderError> {
         Ok(())
     }

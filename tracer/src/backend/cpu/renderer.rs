@@ -123,6 +123,11 @@ impl Renderer for CpuRenderer {
         self.restart()
     }
 
+    fn take_geometry(&mut self, moved: Packed) -> Result<(), RenderError> {
+        self.packed.take_geometry(moved)?;
+        self.restart()
+    }
+
     fn restart(&mut self) -> Result<(), RenderError> {
         self.accumulation.fill(Vec4::ZERO);
         self.squares.fill(Vec3::ZERO);

@@ -274,6 +274,42 @@ impl Renderer for GlRenderer {
         self.restart()
     }
 
+    /// Uploads the scene's data textures again (the same units: the kernel variant is the
+    /// same) and restarts; the program is kept.
+    fn take_geometry(&mut self, moved: Packed) -> Result<(), RenderError> {
+        self.activate()?;
+        let mut packed = self.packed.clone();
+        packed.take_geometry(moved)?;
+        let max_texture_size = self.pipeline.info.max_texture_size;
+        packed.arrays(max_texture_size).map_err(|reason| GlError::SceneTooLarge { max_texture_size, reason })?;
+        let gl = &self.gl;
+        let program = self.pipeline.program;
+        let mut fresh = Objects::default();
+        // SAFETY: the program was linked on this context, which is current.
+        unsafe { gl.use_program(Some(program)) };
+        let bound = bind_scene(gl, program, &packed.scene.fields(), max_texture_size, &mut fresh);
+        // SAFETY: as above.
+        unsafe { gl.use_program(None) };
+        let bound = match bound {
+            Ok(bound) if bound.data_textures.len() == self.pipeline.data_textures.len() => bound,
+            other => {
+                fresh.delete(gl);
+                let detail = "its arrays do not bind to the kernel's data textures".to_string();
+                return Err(other.err().unwrap_or(GlError::Gl { what: "uploading a moved scene", detail }).into());
+            }
+        };
+        let old: Vec<glow::Texture> = self.pipeline.data_textures.iter().map(|&(_, t)| t).collect();
+        self.objects.textures.retain(|t| !old.contains(t));
+        // SAFETY: the old data textures belong to this context and no longer to the pipeline.
+        unsafe { old.iter().for_each(|&t| gl.delete_texture(t)) };
+        self.objects.textures.append(&mut fresh.textures);
+        self.pipeline.data_textures = bound.data_textures;
+        self.pipeline.frame_seed_location = bound.frame_seed_location;
+        self.pipeline.frame_index_location = bound.frame_index_location;
+        self.packed = packed;
+        self.restart()
+    }
+
     /// Fragment passes of the kernel's `atrous_pixel` on this renderer's context ([`GlFilter`]).
     fn denoise_passes(&mut self, image: FilterImage) -> Result<Vec<Vec4>, RenderError> {
         self.activate()?;

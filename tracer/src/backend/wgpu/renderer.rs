@@ -8,9 +8,10 @@ use lightport_codegen::Target;
 use wgpu::util::DeviceExt;
 
 use super::{
-    bind_groups, check_scene_limits, map_texels, oneshot, reflect, scene_uniform_bytes, start_pipeline, storage_limit,
-    u32_uniform_bytes, upload_scene, BufferEntry, OwnResource, PipelineCheck, UniformLayout, WgpuDevice, WgpuError,
-    WgpuFilter, WgpuInfo, WgpuOptions, ACCUMULATION_BUFFER, SCENE_UNIFORM, TARGET_UNIFORM, WORKGROUP_SIZE,
+    bind_group_layouts, bind_groups, check_scene_limits, map_texels, oneshot, reflect, scene_uniform_bytes,
+    start_pipeline, storage_limit, u32_uniform_bytes, upload_scene, BufferEntry, OwnResource, PipelineCheck,
+    ShaderLayout, UniformLayout, WgpuDevice, WgpuError, WgpuFilter, WgpuInfo, WgpuOptions, ACCUMULATION_BUFFER,
+    SCENE_UNIFORM, TARGET_UNIFORM, WORKGROUP_SIZE,
 };
 use crate::backend::{
     frame_seed, ms_since, update_uniforms, BuildTimes, GuideSums, PendingAccumulation, PendingGuideSums, RenderError,
@@ -24,6 +25,11 @@ use crate::pack::Packed;
 struct Pipeline {
     pipeline: wgpu::ComputePipeline,
     bind_groups: Vec<wgpu::BindGroup>,
+    /// The shader's resources, its bind group layouts and the entries of its own buffers
+    /// (accumulation, guide, target): what binding a moved scene's buffers takes.
+    layout: ShaderLayout,
+    group_layouts: Vec<wgpu::BindGroupLayout>,
+    own_entries: Vec<BufferEntry>,
     scene_uniform: Option<(wgpu::Buffer, UniformLayout)>,
     accumulation: wgpu::Buffer,
     readback: wgpu::Buffer,
@@ -44,6 +50,8 @@ struct Pipeline {
 /// the mean back, as [`CpuRenderer`](super::cpu::CpuRenderer) does.
 pub struct WgpuRenderer {
     device: WgpuDevice,
+    /// The options it was created with (limits a moved scene is checked against too).
+    options: WgpuOptions,
     packed: Packed,
     seed: u32,
     frames: u32,
@@ -86,7 +94,10 @@ impl WgpuRenderer {
         let (pipeline, check) = build(&device, &packed, options)?;
         let mut device = device;
         device.info.max_storage_buffer_binding_size = storage_limit(&device.limits, options);
-        Ok((WgpuRenderer { device, packed, seed, frames: 0, band_row: 0, pipeline, filter: None, uncaptured }, check))
+        let options = options.clone();
+        let renderer =
+            WgpuRenderer { device, options, packed, seed, frames: 0, band_row: 0, pipeline, filter: None, uncaptured };
+        Ok((renderer, check))
     }
 
     /// A renderer on its own native device (Vulkan, Metal or DX12).
@@ -297,6 +308,23 @@ impl Renderer for WgpuRenderer {
         self.restart()
     }
 
+    /// New scene buffers (their layout may differ: a moved scene's arrays can change length)
+    /// bound with the pipeline's own; the pipeline is kept.
+    fn take_geometry(&mut self, moved: Packed) -> Result<(), RenderError> {
+        self.check_uncaptured()?;
+        let mut packed = self.packed.clone();
+        packed.take_geometry(moved)?;
+        let p = &mut self.pipeline;
+        let d = &self.device.device;
+        check_scene_limits(&self.device.limits, &self.options, &packed.scene, &p.layout)?;
+        let (mut entries, scene_uniform) = upload_scene(d, &p.layout, &packed.scene)?;
+        entries.extend(p.own_entries.iter().cloned());
+        p.bind_groups = bind_groups(d, &p.group_layouts, &entries);
+        p.scene_uniform = scene_uniform;
+        self.packed = packed;
+        self.restart()
+    }
+
     /// Compute passes of the kernel's `atrous_pixel` on this renderer's device ([`WgpuFilter`]).
     /// Natively the device is polled until they are read back; in the browser a read-back
     /// cannot block: an error.
@@ -453,7 +481,10 @@ fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<
         usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
     });
     entries.push(BufferEntry::uniform(&target, target_buffer.clone()));
-    let (bind_groups, pipeline_layout) = bind_groups(d, &entries);
+    let (group_layouts, pipeline_layout) = bind_group_layouts(d, &entries);
+    let bind_groups = bind_groups(d, &group_layouts, &entries);
+    // What `take_geometry` binds again: the buffers that are not the scene's.
+    let own_entries = entries.split_off(entries.len() - own.len());
     let upload_ms = ms_since(uploading);
     let compiling = web_time::Instant::now();
     let (pipeline, check) = start_pipeline(d, &generated, Some(&pipeline_layout));
@@ -463,6 +494,9 @@ fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<
     let pipeline = Pipeline {
         pipeline,
         bind_groups,
+        layout,
+        group_layouts,
+        own_entries,
         scene_uniform,
         accumulation,
         readback,

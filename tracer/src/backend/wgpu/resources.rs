@@ -286,6 +286,7 @@ pub(crate) fn check_scene_limits(
 }
 
 /// A buffer and where the shader binds it.
+#[derive(Clone)]
 pub(crate) struct BufferEntry {
     pub(crate) group: u32,
     pub(crate) binding: u32,
@@ -353,45 +354,60 @@ pub(crate) fn upload_scene(
     Ok((entries, scene_uniform))
 }
 
-/// The bind groups of `entries` (groups 0, 1, ... as the shader numbers them) and the
+/// The bind group layouts of `entries` (groups 0, 1, ... as the shader numbers them) and the
 /// pipeline layout they imply.
-pub(crate) fn bind_groups(d: &wgpu::Device, entries: &[BufferEntry]) -> (Vec<wgpu::BindGroup>, wgpu::PipelineLayout) {
+pub(crate) fn bind_group_layouts(
+    d: &wgpu::Device,
+    entries: &[BufferEntry],
+) -> (Vec<wgpu::BindGroupLayout>, wgpu::PipelineLayout) {
     let group_count = entries.iter().map(|e| e.group).max().map_or(0, |g| g + 1);
-    let mut group_layouts = Vec::new();
-    let mut groups = Vec::new();
-    for group in 0..group_count {
-        let members: Vec<&BufferEntry> = entries.iter().filter(|e| e.group == group).collect();
-        let layout_entries: Vec<wgpu::BindGroupLayoutEntry> = members
-            .iter()
-            .map(|e| wgpu::BindGroupLayoutEntry {
-                binding: e.binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer { ty: e.ty, has_dynamic_offset: false, min_binding_size: None },
-                count: None,
+    let group_layouts: Vec<wgpu::BindGroupLayout> = (0..group_count)
+        .map(|group| {
+            let layout_entries: Vec<wgpu::BindGroupLayoutEntry> = entries
+                .iter()
+                .filter(|e| e.group == group)
+                .map(|e| wgpu::BindGroupLayoutEntry {
+                    binding: e.binding,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer { ty: e.ty, has_dynamic_offset: false, min_binding_size: None },
+                    count: None,
+                })
+                .collect();
+            d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("lightport"),
+                entries: &layout_entries,
             })
-            .collect();
-        let group_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("lightport"),
-            entries: &layout_entries,
-        });
-        let group_entries: Vec<wgpu::BindGroupEntry> = members
-            .iter()
-            .map(|e| wgpu::BindGroupEntry { binding: e.binding, resource: e.buffer.as_entire_binding() })
-            .collect();
-        groups.push(d.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("lightport"),
-            layout: &group_layout,
-            entries: &group_entries,
-        }));
-        group_layouts.push(group_layout);
-    }
+        })
+        .collect();
     let layout_refs: Vec<Option<&wgpu::BindGroupLayout>> = group_layouts.iter().map(Some).collect();
     let pipeline_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some("lightport"),
         bind_group_layouts: &layout_refs,
         immediate_size: 0,
     });
-    (groups, pipeline_layout)
+    (group_layouts, pipeline_layout)
+}
+
+/// The bind groups of `entries` on `layouts` ([`bind_group_layouts`] of entries like them).
+pub(crate) fn bind_groups(
+    d: &wgpu::Device,
+    layouts: &[wgpu::BindGroupLayout],
+    entries: &[BufferEntry],
+) -> Vec<wgpu::BindGroup> {
+    (0..layouts.len() as u32)
+        .map(|group| {
+            let group_entries: Vec<wgpu::BindGroupEntry> = entries
+                .iter()
+                .filter(|e| e.group == group)
+                .map(|e| wgpu::BindGroupEntry { binding: e.binding, resource: e.buffer.as_entire_binding() })
+                .collect();
+            d.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("lightport"),
+                layout: &layouts[group as usize],
+                entries: &group_entries,
+            })
+        })
+        .collect()
 }
 
 /// The bind groups of `entries` (groups 0, 1, ...) on the layouts `pipeline` derived from its

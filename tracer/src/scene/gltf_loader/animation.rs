@@ -32,12 +32,35 @@ pub(super) struct NodePose {
 impl NodePose {
     /// The node's local matrix with the animated components in place of its own.
     pub(super) fn matrix(&self, node: &gltf::json::scene::Node) -> Mat4 {
-        let t = self.translation.unwrap_or(Vec3::from(node.translation.unwrap_or([0.0; 3])));
-        let s = self.scale.unwrap_or(Vec3::from(node.scale.unwrap_or([1.0; 3])));
-        let q = self.rotation.unwrap_or(node.rotation.map_or(Quat::IDENTITY, |r| Quat::from_array(r.0)));
+        self.local(&RestTransform::of(node))
+    }
+
+    /// The local matrix of a node at rest `rest` with the animated components in its place.
+    pub(super) fn local(&self, rest: &RestTransform) -> Mat4 {
+        let t = self.translation.unwrap_or(rest.translation);
+        let s = self.scale.unwrap_or(rest.scale);
+        let q = self.rotation.unwrap_or(rest.rotation);
         let len = q.length();
         let q = if len > 0.0 && len.is_finite() { q / len } else { Quat::IDENTITY };
         Mat4::from_scale_rotation_translation(s, q, t)
+    }
+}
+
+/// A node's own transform components, which channels override (the rest pose).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct RestTransform {
+    translation: Vec3,
+    rotation: Quat,
+    scale: Vec3,
+}
+
+impl RestTransform {
+    pub(super) fn of(node: &gltf::json::scene::Node) -> Self {
+        RestTransform {
+            translation: Vec3::from(node.translation.unwrap_or([0.0; 3])),
+            rotation: node.rotation.map_or(Quat::IDENTITY, |r| Quat::from_array(r.0)),
+            scale: Vec3::from(node.scale.unwrap_or([1.0; 3])),
+        }
     }
 }
 
@@ -51,6 +74,7 @@ enum Interpolation {
 
 /// Keyframes of one channel: times and, per keyframe, one value (STEP, LINEAR) or an
 /// in-tangent, a value and an out-tangent (CUBICSPLINE), each of `n` components.
+#[derive(Clone, Debug)]
 struct Keyframes {
     times: Vec<f32>,
     values: Vec<f32>,
@@ -103,21 +127,56 @@ impl Keyframes {
     }
 }
 
+/// What a channel animates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Target {
+    Translation,
+    Rotation,
+    Scale,
+    Weights,
+}
+
+/// One channel of the chosen animation: a node's component and its keyframes.
+#[derive(Clone, Debug)]
+pub(super) struct Channel {
+    pub(super) node: usize,
+    pub(super) target: Target,
+    keys: Keyframes,
+}
+
+impl Channel {
+    /// The time of the channel's last keyframe.
+    pub(super) fn end(&self) -> f32 {
+        self.keys.times.last().copied().unwrap_or(0.0)
+    }
+}
+
+/// The node transforms `channels` give at `time` (a finite number of seconds).
+pub(super) fn pose_at(channels: &[Channel], time: f32) -> HashMap<usize, NodePose> {
+    let mut pose: HashMap<usize, NodePose> = HashMap::new();
+    for channel in channels {
+        let v = channel.keys.sample(time, channel.target == Target::Rotation);
+        let entry = pose.entry(channel.node).or_default();
+        match channel.target {
+            Target::Translation => entry.translation = Some(Vec3::from_slice(&v)),
+            Target::Scale => entry.scale = Some(Vec3::from_slice(&v)),
+            Target::Weights => entry.weights = Some(v),
+            Target::Rotation => entry.rotation = Some(Quat::from_slice(&v)),
+        }
+    }
+    pose
+}
+
 impl Loader<'_> {
-    /// The node transforms of `choice` at `time` seconds (empty for the rest pose or a file
-    /// without animations).
-    pub(super) fn pose(
+    /// The channels of `choice` (none for the rest pose or a file without animations), checked.
+    pub(super) fn channels(
         &mut self,
         animations: &[Value],
         choice: &AnimationChoice,
-        time: f32,
-    ) -> Result<HashMap<usize, NodePose>, SceneError> {
-        if !time.is_finite() {
-            return Err(malformed(format!("the animation time {time} is not a finite number of seconds")));
-        }
+    ) -> Result<Vec<Channel>, SceneError> {
         let index = match choice {
-            AnimationChoice::Rest => return Ok(HashMap::new()),
-            AnimationChoice::First if animations.is_empty() => return Ok(HashMap::new()),
+            AnimationChoice::Rest => return Ok(Vec::new()),
+            AnimationChoice::First if animations.is_empty() => return Ok(Vec::new()),
             AnimationChoice::First => 0,
             AnimationChoice::Named(name) => {
                 let by_name = animations.iter().position(|a| a.get("name").and_then(Value::as_str) == Some(name));
@@ -142,7 +201,7 @@ impl Loader<'_> {
         let what = format!("animation {index}");
         let list = |key: &str| animation.get(key).and_then(Value::as_array).map(Vec::as_slice).unwrap_or(&[]);
         let (channels, samplers) = (list("channels"), list("samplers"));
-        let mut pose: HashMap<usize, NodePose> = HashMap::new();
+        let mut out = Vec::new();
         for (c, channel) in channels.iter().enumerate() {
             let what = format!("{what} channel {c}");
             let target = channel.get("target");
@@ -151,16 +210,17 @@ impl Loader<'_> {
             let gltf_node =
                 self.root.nodes.get(node).ok_or_else(|| malformed(format!("{what}: node {node} does not exist")))?;
             let path = target.and_then(|t| t.get("path")).and_then(Value::as_str).unwrap_or("");
-            let n = match path {
-                "translation" | "scale" => 3,
-                "rotation" => 4,
+            let (target, n) = match path {
+                "translation" => (Target::Translation, 3),
+                "scale" => (Target::Scale, 3),
+                "rotation" => (Target::Rotation, 4),
                 "weights" => match self.morph_target_count(gltf_node)? {
                     0 => continue,
-                    targets => targets,
+                    targets => (Target::Weights, targets),
                 },
                 other => return Err(malformed(format!("{what}: unknown target path \"{other}\""))),
             };
-            if gltf_node.matrix.is_some() && path != "weights" {
+            if gltf_node.matrix.is_some() && target != Target::Weights {
                 self.warnings.once("animated matrix", || {
                     "an animation targets a node given by a matrix (glTF allows only TRS nodes): that channel is ignored"
                         .into()
@@ -168,16 +228,9 @@ impl Loader<'_> {
                 continue;
             }
             let keys = self.keyframes(samplers, channel, n, &what)?;
-            let v = keys.sample(time, path == "rotation");
-            let entry = pose.entry(node).or_default();
-            match path {
-                "translation" => entry.translation = Some(Vec3::from_slice(&v)),
-                "scale" => entry.scale = Some(Vec3::from_slice(&v)),
-                "weights" => entry.weights = Some(v),
-                _ => entry.rotation = Some(Quat::from_slice(&v)),
-            }
+            out.push(Channel { node, target, keys });
         }
-        Ok(pose)
+        Ok(out)
     }
 
     /// The keyframes of `channel`'s sampler, checked: times non-decreasing, as many values as

@@ -21,11 +21,13 @@ mod animation;
 mod draco;
 mod materials;
 mod morph;
+mod motion;
 mod nodes;
 mod placement;
 mod skin;
 
 pub use animation::AnimationChoice;
+pub use motion::Motion;
 
 use super::accessor::Buffers;
 use super::texture::{
@@ -132,6 +134,8 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>, options: &LoadOpti
         pending: Vec::new(),
         instanced_meshes: Vec::new(),
         instances: Vec::new(),
+        motion: None,
+        moving_meshes: HashMap::new(),
     };
     loader.run(&animations, options)
 }
@@ -332,13 +336,24 @@ struct Loader<'a> {
     /// The meshes placed by `instances`, in mesh space.
     instanced_meshes: Vec<crate::scene::Mesh>,
     instances: Vec<crate::scene::Instance>,
+    /// The chosen animation, kept when [`LoadOptions::keep_motion`] asks (`motion.rs`).
+    motion: Option<Motion>,
+    /// glTF mesh -> its slot in `instanced_meshes` as moving nodes place it (`motion.rs`).
+    moving_meshes: HashMap<usize, usize>,
 }
 
 impl Loader<'_> {
     fn run(mut self, animations: &[Value], options: &LoadOptions) -> Result<Scene, SceneError> {
         let root = self.root;
         warn_extensions(&mut self.warnings, root.extensions.as_ref().map(|e| &e.others));
-        self.pose = self.pose(animations, &options.animation, options.time)?;
+        if !options.time.is_finite() {
+            return Err(malformed(format!("the animation time {} is not a finite number of seconds", options.time)));
+        }
+        let channels = self.channels(animations, &options.animation)?;
+        self.pose = animation::pose_at(&channels, options.time);
+        if options.keep_motion && !channels.is_empty() {
+            self.motion = Some(Motion::new(self.root, &self.parents()?, channels));
+        }
         let roots = self.scene_roots()?;
         self.visit(&roots)?;
         self.place_pending(options.flatten)?;
@@ -369,7 +384,13 @@ impl Loader<'_> {
             camera: Camera::default(),
             sky: None,
             warnings: Vec::new(),
+            motion: None,
         };
+        // The moving parts are posed by the kept motion, as `Scene::pose` will pose them.
+        if let Some(motion) = self.motion.take() {
+            motion.apply(&mut scene, options.time)?;
+            scene.motion = Some(motion);
+        }
         let bounds = scene.bounds();
         scene.camera = match self.camera {
             Some(c) => c.finish(&bounds),

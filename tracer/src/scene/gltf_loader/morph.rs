@@ -82,7 +82,7 @@ impl Loader<'_> {
 }
 
 /// `p` with `weights` of its targets' displacements added (missing weights count as 0).
-fn morph_primitive(p: &LocalPrimitive, weights: &[f32]) -> LocalPrimitive {
+pub(super) fn morph_primitive(p: &LocalPrimitive, weights: &[f32]) -> LocalPrimitive {
     let mut out = p.clone();
     for (target, &w) in p.morph.iter().zip(weights) {
         if w == 0.0 {

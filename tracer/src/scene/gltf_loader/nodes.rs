@@ -35,8 +35,9 @@ impl Loader<'_> {
     pub(super) fn visit(&mut self, roots: &[usize]) -> Result<(), SceneError> {
         let root = self.root;
         let mut visited = vec![false; root.nodes.len()];
-        let mut stack: Vec<(usize, Mat4)> = roots.iter().rev().map(|&n| (n, Mat4::IDENTITY)).collect();
-        while let Some((n, parent)) = stack.pop() {
+        // Each node with its parent's world transform and whether a channel moves an ancestor.
+        let mut stack: Vec<(usize, Mat4, bool)> = roots.iter().rev().map(|&n| (n, Mat4::IDENTITY, false)).collect();
+        while let Some((n, parent, parent_moves)) = stack.pop() {
             let node = root.nodes.get(n).ok_or_else(|| malformed(format!("node {n} does not exist")))?;
             let seen = visited.get_mut(n).ok_or_else(|| malformed(format!("node {n} does not exist")))?;
             if *seen {
@@ -45,11 +46,8 @@ impl Loader<'_> {
                 )));
             }
             *seen = true;
-            let local = match self.pose.get(&n) {
-                Some(animated) => animated.matrix(node),
-                None => node_matrix(node, n)?,
-            };
-            let world = parent * local;
+            let world = parent * self.posed_local(node, n)?;
+            let moving = parent_moves || self.channel_moves(n);
             if !world.is_finite() {
                 return Err(malformed(format!("node {n} has a non-finite world transform")));
             }
@@ -67,7 +65,9 @@ impl Loader<'_> {
                 let prims = self.morphed(mesh, node, n)?;
                 // Morphed copies differ per node: only the shared primitives may be instanced.
                 let shared = self.meshes.get(&mesh).is_some_and(|m| Rc::ptr_eq(m, &prims));
-                if let Some(skin) = node.skin {
+                if self.place_moving(n, node, mesh, &prims, world, moving)? {
+                    // a moving part of the kept motion (`motion.rs`)
+                } else if let Some(skin) = node.skin {
                     self.mesh_instances += 1;
                     self.instantiate_skinned(mesh, &prims, skin.value(), n)?;
                 } else if let Some(instancing) =
@@ -83,7 +83,7 @@ impl Loader<'_> {
                 }
             }
             for child in node.children.iter().flatten().rev() {
-                stack.push((child.value(), world));
+                stack.push((child.value(), world, moving));
             }
         }
         Ok(())
@@ -93,7 +93,7 @@ impl Loader<'_> {
     /// T * R * S from its `TRANSLATION`, `ROTATION` (a quaternion, normalised) and `SCALE`
     /// accessors (each optional, all of one count), applied under the node's own transform.
     /// Instances are placed as nodes are (`placement.rs`).
-    fn gpu_instances(&mut self, instancing: &Value, node: usize) -> Result<Vec<Mat4>, SceneError> {
+    pub(super) fn gpu_instances(&mut self, instancing: &Value, node: usize) -> Result<Vec<Mat4>, SceneError> {
         let what = format!("node {node} EXT_mesh_gpu_instancing");
         let attributes = instancing
             .get("attributes")
@@ -206,65 +206,20 @@ impl Loader<'_> {
         Ok(())
     }
 
-    /// Appends `prims` (mesh `mesh`'s primitives, or their skinned copies) under `world`.
+    /// Appends `prims` (mesh `mesh`'s primitives, or their skinned copies) under `world`,
+    /// dropping zero-area triangles.
     pub(super) fn place(&mut self, mesh: usize, prims: &[LocalPrimitive], world: &Mat4) -> Result<(), SceneError> {
-        let linear = Mat3::from_mat4(*world);
-        let det = linear.determinant();
-        if det == 0.0 {
-            return Ok(()); // a zero scale hides the mesh: nothing to render
+        let warnings = &mut self.warnings;
+        place_primitives(mesh, prims, world, &mut |p| warnings.keep_triangle(p), &mut self.triangles)
+    }
+
+    /// A node's local transform in the load-time pose: its own, or with the animated
+    /// components in place (a node given by a matrix keeps it: channels cannot move it).
+    pub(super) fn posed_local(&self, node: &gltf::json::scene::Node, n: usize) -> Result<Mat4, SceneError> {
+        match self.pose.get(&n) {
+            Some(animated) if node.matrix.is_none() => Ok(animated.matrix(node)),
+            _ => node_matrix(node, n),
         }
-        let normal_matrix = linear.inverse().transpose();
-        let flip = det < 0.0;
-        let added: usize = prims.iter().map(|p| p.triangles.len()).sum();
-        if self.triangles.len().saturating_add(added) > MAX_TRIANGLES {
-            return Err(SceneError::TooLarge(format!(
-                "the scene has more than {MAX_TRIANGLES} triangles after instancing"
-            )));
-        }
-        self.triangles.reserve(added);
-        for prim in prims.iter() {
-            for (t, tri) in prim.triangles.iter().enumerate() {
-                let mut idx = *tri;
-                if flip {
-                    idx.swap(1, 2);
-                }
-                let fetch = |i: u32| prim.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO);
-                let positions = idx.map(|i| world.transform_point3(fetch(i)));
-                if !positions.iter().all(|p| p.is_finite()) {
-                    return Err(malformed(format!("mesh {mesh}: a vertex is not finite after its node transform")));
-                }
-                if !self.warnings.keep_triangle(&positions) {
-                    continue;
-                }
-                let flat = flat_normal(&positions);
-                let normals = match &prim.normals {
-                    Some(ns) => idx.map(|i| {
-                        let n = ns.get(i as usize).copied().unwrap_or(Vec3::ZERO);
-                        let n = (normal_matrix * n).normalize_or_zero();
-                        if n == Vec3::ZERO {
-                            flat
-                        } else {
-                            n
-                        }
-                    }),
-                    None => [flat; 3],
-                };
-                let corner_uvs = |set: &Option<Vec<Vec2>>| match set {
-                    Some(uv) => idx.map(|i| uv.get(i as usize).copied().unwrap_or(Vec2::ZERO)),
-                    None => [Vec2::ZERO; 3],
-                };
-                let (uvs, uvs1) = (corner_uvs(&prim.uvs), corner_uvs(&prim.uvs1));
-                let mut tangents = match &prim.tangents {
-                    Some(ts) => ts.get(t).map_or([Vec4::ZERO; 3], |c| c.map(|c| world_tangent(&linear, c, flip))),
-                    None => [Vec4::ZERO; 3],
-                };
-                if flip {
-                    tangents.swap(1, 2);
-                }
-                self.triangles.push(Triangle { positions, normals, uvs, uvs1, tangents, material: prim.material });
-            }
-        }
-        Ok(())
     }
 
     /// Decodes a mesh's primitives (once per mesh).
@@ -454,6 +409,75 @@ pub(super) fn semantic_name(s: &Checked<Semantic>) -> String {
         Checked::Valid(other) => format!("{other:?}"),
         Checked::Invalid => "(invalid)".into(),
     }
+}
+
+/// Appends `prims` (mesh `mesh`'s primitives) under `world` to `out`, keeping the triangles
+/// `keep` accepts (by their world positions). A transform that cannot be inverted (a zero
+/// scale) hides the mesh: nothing is appended.
+pub(super) fn place_primitives(
+    mesh: usize,
+    prims: &[LocalPrimitive],
+    world: &Mat4,
+    keep: &mut dyn FnMut(&[Vec3; 3]) -> bool,
+    out: &mut Vec<Triangle>,
+) -> Result<(), SceneError> {
+    let linear = Mat3::from_mat4(*world);
+    let det = linear.determinant();
+    if det == 0.0 {
+        return Ok(()); // a zero scale hides the mesh: nothing to render
+    }
+    let normal_matrix = linear.inverse().transpose();
+    let flip = det < 0.0;
+    let added: usize = prims.iter().map(|p| p.triangles.len()).sum();
+    if out.len().saturating_add(added) > MAX_TRIANGLES {
+        return Err(SceneError::TooLarge(format!(
+            "the scene has more than {MAX_TRIANGLES} triangles after instancing"
+        )));
+    }
+    out.reserve(added);
+    for prim in prims.iter() {
+        for (t, tri) in prim.triangles.iter().enumerate() {
+            let mut idx = *tri;
+            if flip {
+                idx.swap(1, 2);
+            }
+            let fetch = |i: u32| prim.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO);
+            let positions = idx.map(|i| world.transform_point3(fetch(i)));
+            if !positions.iter().all(|p| p.is_finite()) {
+                return Err(malformed(format!("mesh {mesh}: a vertex is not finite after its node transform")));
+            }
+            if !keep(&positions) {
+                continue;
+            }
+            let flat = flat_normal(&positions);
+            let normals = match &prim.normals {
+                Some(ns) => idx.map(|i| {
+                    let n = ns.get(i as usize).copied().unwrap_or(Vec3::ZERO);
+                    let n = (normal_matrix * n).normalize_or_zero();
+                    if n == Vec3::ZERO {
+                        flat
+                    } else {
+                        n
+                    }
+                }),
+                None => [flat; 3],
+            };
+            let corner_uvs = |set: &Option<Vec<Vec2>>| match set {
+                Some(uv) => idx.map(|i| uv.get(i as usize).copied().unwrap_or(Vec2::ZERO)),
+                None => [Vec2::ZERO; 3],
+            };
+            let (uvs, uvs1) = (corner_uvs(&prim.uvs), corner_uvs(&prim.uvs1));
+            let mut tangents = match &prim.tangents {
+                Some(ts) => ts.get(t).map_or([Vec4::ZERO; 3], |c| c.map(|c| world_tangent(&linear, c, flip))),
+                None => [Vec4::ZERO; 3],
+            };
+            if flip {
+                tangents.swap(1, 2);
+            }
+            out.push(Triangle { positions, normals, uvs, uvs1, tangents, material: prim.material });
+        }
+    }
+    Ok(())
 }
 
 /// A mesh-space tangent (xyz unit, w ±1) in world space under `linear`: tangents are carried

@@ -46,6 +46,17 @@ impl Loader<'_> {
         skin: usize,
         node: usize,
     ) -> Result<(), SceneError> {
+        let what = format!("node {node} skin {skin}");
+        let skin = self.skin_joints(skin, node)?;
+        let parents = self.parents()?;
+        let joints = skin.matrices(|j| self.world_of(j, &parents), &what)?;
+        let skinned: Vec<LocalPrimitive> =
+            prims.iter().map(|p| skin_primitive(p, &joints, &what)).collect::<Result<_, _>>()?;
+        self.defer(mesh, false, Rc::new(skinned), Mat4::IDENTITY)
+    }
+
+    /// Skin `skin`'s joints and inverse bind matrices (used by node `node`), checked.
+    pub(super) fn skin_joints(&mut self, skin: usize, node: usize) -> Result<SkinJoints, SceneError> {
         let root = self.root;
         let what = format!("node {node} skin {skin}");
         let s = root.skins.get(skin).ok_or_else(|| malformed(format!("{what}: the skin does not exist")))?;
@@ -63,20 +74,15 @@ impl Loader<'_> {
                 s.joints.len()
             )));
         }
-        let parents = self.parents()?;
-        let joints: Vec<Mat4> = s
-            .joints
-            .iter()
-            .zip(&inverse_bind)
-            .map(|(j, ibm)| Ok(self.world_of(j.value(), &parents)? * *ibm))
-            .collect::<Result<_, SceneError>>()?;
-        let skinned: Vec<LocalPrimitive> =
-            prims.iter().map(|p| skin_primitive(p, &joints, &what)).collect::<Result<_, _>>()?;
-        self.defer(mesh, false, Rc::new(skinned), Mat4::IDENTITY)
+        let joints: Vec<usize> = s.joints.iter().map(|j| j.value()).collect();
+        if let Some(&bad) = joints.iter().find(|&&j| j >= root.nodes.len()) {
+            return Err(malformed(format!("{what}: joint node {bad} does not exist")));
+        }
+        Ok(SkinJoints { joints, inverse_bind })
     }
 
     /// Each node's parent (nodes are a forest: a second parent is refused).
-    fn parents(&self) -> Result<Vec<Option<usize>>, SceneError> {
+    pub(super) fn parents(&self) -> Result<Vec<Option<usize>>, SceneError> {
         let nodes = &self.root.nodes;
         let mut parents = vec![None; nodes.len()];
         for (p, node) in nodes.iter().enumerate() {
@@ -104,11 +110,7 @@ impl Loader<'_> {
         let mut world = Mat4::IDENTITY;
         for &i in chain.iter().rev() {
             let node = self.root.nodes.get(i).ok_or_else(|| malformed(format!("node {i} does not exist")))?;
-            let local = match self.pose.get(&i) {
-                Some(animated) => animated.matrix(node),
-                None => nodes::node_matrix(node, i)?,
-            };
-            world *= local;
+            world *= self.posed_local(node, i)?;
         }
         if !world.is_finite() {
             return Err(malformed(format!("joint node {n} has a non-finite world transform")));
@@ -117,9 +119,38 @@ impl Loader<'_> {
     }
 }
 
+/// A skin's joint nodes and their inverse bind matrices.
+#[derive(Clone, Debug)]
+pub(super) struct SkinJoints {
+    joints: Vec<usize>,
+    inverse_bind: Vec<Mat4>,
+}
+
+impl SkinJoints {
+    /// Each joint's `world(joint) × inverseBindMatrix(joint)`, `world` giving a node's world
+    /// transform in the pose.
+    pub(super) fn matrices(
+        &self,
+        world: impl Fn(usize) -> Result<Mat4, SceneError>,
+        what: &str,
+    ) -> Result<Vec<Mat4>, SceneError> {
+        self.joints
+            .iter()
+            .zip(&self.inverse_bind)
+            .map(|(&j, ibm)| {
+                let m = world(j)? * *ibm;
+                match m.is_finite() {
+                    true => Ok(m),
+                    false => Err(malformed(format!("{what}: joint node {j} has a non-finite transform"))),
+                }
+            })
+            .collect()
+    }
+}
+
 /// `p` with its vertices (and normals, tangents) moved by their blended joint matrices; a
 /// primitive without joints and weights is left in the skin's space.
-fn skin_primitive(p: &LocalPrimitive, joints: &[Mat4], what: &str) -> Result<LocalPrimitive, SceneError> {
+pub(super) fn skin_primitive(p: &LocalPrimitive, joints: &[Mat4], what: &str) -> Result<LocalPrimitive, SceneError> {
     let Some(skin) = &p.skin else { return Ok(p.clone()) };
     let blended: Vec<Mat4> = skin
         .joints

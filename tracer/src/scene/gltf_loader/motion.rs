@@ -1,0 +1,319 @@
+//! A scene that keeps its animation ([`LoadOptions::keep_motion`]) so that it can be posed at
+//! any time without loading it again ([`Scene::pose`]): the host side of scenes that move.
+//!
+//! What the chosen animation moves is kept apart from the static triangles:
+//! - a mesh under a node that a translation, rotation or scale channel moves (the node or an
+//!   ancestor) is stored once in its own space and placed by an [`Instance`] whose transform
+//!   follows the node: a new pose rewrites transforms only, and the renderer rebuilds the top
+//!   level over them;
+//! - a skinned mesh, or one whose morph weights are animated, is *deformed*: its triangles are
+//!   made again at each pose (morphed, then skinned or placed by its node) as a mesh placed by
+//!   the identity, whose bottom level is rebuilt.
+//!
+//! Everything else stays as the loader flattens it, so the static part of a scene keeps its
+//! one BVH. Lights and cameras stay where the load-time pose put them; an emissive mesh under
+//! a moving node stays there too (lights must be static triangles), with a warning.
+
+use std::borrow::Cow;
+use std::collections::HashMap;
+
+use super::animation::{pose_at, Channel, NodePose, RestTransform, Target};
+use super::morph::morph_primitive;
+use super::nodes::{place_primitives, LocalPrimitive};
+use super::skin::{skin_primitive, SkinJoints};
+use super::*;
+use crate::scene::{Instance, Mesh};
+
+/// The chosen animation and what it moves in a loaded scene ([`Scene::motion`]).
+#[derive(Clone)]
+pub struct Motion {
+    channels: Vec<Channel>,
+    nodes: Vec<RigNode>,
+    /// Every node reachable from a root, each after its parent.
+    order: Vec<usize>,
+    rigid: Vec<RigidPlacement>,
+    deformed: Vec<DeformedMesh>,
+    duration: f32,
+}
+
+/// A node of the hierarchy as the pose needs it.
+#[derive(Clone, Debug)]
+struct RigNode {
+    parent: Option<usize>,
+    rest: RestTransform,
+    /// The node's matrix, when it is given by one (channels never move such a node).
+    matrix: Option<Mat4>,
+    /// A translation, rotation or scale channel targets it.
+    moved: bool,
+    /// A weights channel targets it.
+    morphed: bool,
+}
+
+/// An instance whose transform is its node's world transform times `local` (the identity, or
+/// an `EXT_mesh_gpu_instancing` instance's TRS).
+#[derive(Clone, Debug)]
+struct RigidPlacement {
+    instance: usize,
+    node: usize,
+    local: Mat4,
+}
+
+/// A mesh made again at each pose, placed by the identity: `Scene::meshes[mesh]`.
+#[derive(Clone)]
+struct DeformedMesh {
+    mesh: usize,
+    node: usize,
+    prims: Vec<LocalPrimitive>,
+    skin: Option<SkinJoints>,
+    /// The node's (else the mesh's) morph weights, when no channel animates them.
+    rest_weights: Vec<f32>,
+    what: String,
+}
+
+impl std::fmt::Debug for Motion {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.describe())
+    }
+}
+
+impl Motion {
+    /// The motion of `channels` over `root`'s node hierarchy (`parents` per node); no part of
+    /// the scene follows it until the loader registers them.
+    pub(super) fn new(root: &Root, parents: &[Option<usize>], channels: Vec<Channel>) -> Self {
+        let mut nodes: Vec<RigNode> = root
+            .nodes
+            .iter()
+            .zip(parents)
+            .map(|(node, &parent)| RigNode {
+                parent,
+                rest: RestTransform::of(node),
+                matrix: node.matrix.map(|m| Mat4::from_cols_array(&m)),
+                moved: false,
+                morphed: false,
+            })
+            .collect();
+        for c in &channels {
+            if let Some(node) = nodes.get_mut(c.node) {
+                match c.target {
+                    Target::Weights => node.morphed = true,
+                    _ => node.moved = true,
+                }
+            }
+        }
+        let mut children: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
+        for (n, p) in parents.iter().enumerate() {
+            if let Some(p) = p {
+                children[*p].push(n);
+            }
+        }
+        let mut order: Vec<usize> = (0..nodes.len()).filter(|&n| parents[n].is_none()).collect();
+        let mut at = 0;
+        while at < order.len() {
+            let n = order[at];
+            order.extend(&children[n]);
+            at += 1;
+        }
+        let duration = channels.iter().map(Channel::end).fold(0.0, f32::max);
+        Motion { channels, nodes, order, rigid: Vec::new(), deformed: Vec::new(), duration }
+    }
+
+    /// The time of the animation's last keyframe, in seconds (poses after it are its last).
+    pub fn duration(&self) -> f32 {
+        self.duration
+    }
+
+    /// Instances whose transforms follow the animation.
+    pub fn moving_placements(&self) -> usize {
+        self.rigid.len()
+    }
+
+    /// Meshes made again at each pose (skinned, or morphed by animated weights).
+    pub fn deformed_meshes(&self) -> usize {
+        self.deformed.len()
+    }
+
+    /// What moves, in words (for read-outs).
+    pub fn describe(&self) -> String {
+        format!(
+            "{} moving placements and {} skinned or morphed meshes, over {:.2} s",
+            self.rigid.len(),
+            self.deformed.len(),
+            self.duration
+        )
+    }
+
+    /// Whether node `n` is moved by a channel.
+    fn moves(&self, n: usize) -> bool {
+        self.nodes.get(n).is_some_and(|node| node.moved)
+    }
+
+    /// Every node's world transform in `pose` (the identity for nodes no root reaches).
+    fn world_matrices(&self, pose: &HashMap<usize, NodePose>) -> Vec<Mat4> {
+        let mut world = vec![Mat4::IDENTITY; self.nodes.len()];
+        for &n in &self.order {
+            let node = &self.nodes[n];
+            let local = match (node.matrix, pose.get(&n)) {
+                (Some(m), _) => m,
+                (None, Some(p)) => p.local(&node.rest),
+                (None, None) => NodePose::default().local(&node.rest),
+            };
+            world[n] = node.parent.map_or(local, |p| world[p] * local);
+        }
+        world
+    }
+
+    /// Poses `scene` (the scene this motion was loaded with) at `time` seconds: the moving
+    /// instances' transforms and the deformed meshes' triangles. On an error the scene is left
+    /// as it was.
+    pub(crate) fn apply(&self, scene: &mut Scene, time: f32) -> Result<(), SceneError> {
+        if !time.is_finite() {
+            return Err(malformed(format!("the animation time {time} is not a finite number of seconds")));
+        }
+        let pose = pose_at(&self.channels, time);
+        let world = self.world_matrices(&pose);
+        let transforms = self
+            .rigid
+            .iter()
+            .map(|r| placeable(world[r.node] * r.local, &format!("node {}", r.node)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let meshes = self.deformed.iter().map(|d| d.posed(&pose, &world)).collect::<Result<Vec<_>, _>>()?;
+        let mismatch = || malformed("the scene's instances no longer match its motion (was it changed?)".into());
+        if self.rigid.iter().any(|r| r.instance >= scene.instances.len())
+            || self.deformed.iter().any(|d| d.mesh >= scene.meshes.len())
+        {
+            return Err(mismatch());
+        }
+        for (r, transform) in self.rigid.iter().zip(transforms) {
+            scene.instances[r.instance].transform = transform;
+        }
+        for (d, triangles) in self.deformed.iter().zip(meshes) {
+            scene.meshes[d.mesh].triangles = triangles;
+        }
+        Ok(())
+    }
+}
+
+impl DeformedMesh {
+    /// The mesh's world-space triangles in `pose` (every triangle kept, so that their number
+    /// and order never change from one pose to the next).
+    fn posed(&self, pose: &HashMap<usize, NodePose>, world: &[Mat4]) -> Result<Vec<Triangle>, SceneError> {
+        let weights = pose.get(&self.node).and_then(|p| p.weights.as_deref()).unwrap_or(&self.rest_weights);
+        if let Some(bad) = weights.iter().find(|w| !w.is_finite()) {
+            return Err(malformed(format!("{}: morph weight {bad} is not finite", self.what)));
+        }
+        let morphed: Cow<[LocalPrimitive]> = match weights.iter().all(|&w| w == 0.0) {
+            true => Cow::Borrowed(&self.prims),
+            false => Cow::Owned(self.prims.iter().map(|p| morph_primitive(p, weights)).collect()),
+        };
+        let (prims, placed_by) = match &self.skin {
+            Some(skin) => {
+                let joints = skin.matrices(|j| Ok(world[j]), &self.what)?;
+                let skinned = morphed.iter().map(|p| skin_primitive(p, &joints, &self.what));
+                (Cow::Owned(skinned.collect::<Result<Vec<_>, _>>()?), Mat4::IDENTITY)
+            }
+            None => (morphed, placeable(world[self.node], &self.what)?),
+        };
+        let mut triangles = Vec::new();
+        place_primitives(self.mesh, &prims, &placed_by, &mut |_| true, &mut triangles)?;
+        Ok(triangles)
+    }
+}
+
+/// `m` as an instance may carry it: a transform that cannot be inverted (a scale animated to
+/// zero, which hides a part) becomes a millionth of a unit's scale at the same place, so that
+/// rays can still be moved into the mesh's space; a non-finite one is an error.
+fn placeable(m: Mat4, what: &str) -> Result<Mat4, SceneError> {
+    if !m.is_finite() {
+        return Err(malformed(format!("{what}: the animation gives a non-finite transform")));
+    }
+    if (Instance { mesh: 0, transform: m }).has_valid_transform() {
+        return Ok(m);
+    }
+    Ok(Mat4::from_translation(m.w_axis.truncate()) * Mat4::from_scale(Vec3::splat(1e-6)))
+}
+
+impl Loader<'_> {
+    /// Places node `n`'s mesh `mesh` (`prims`, as morphed by the load-time pose; `world` its
+    /// node's world transform; `moving`: a channel moves the node or an ancestor) as a moving
+    /// part of the kept motion, and returns true; false when the mesh is static (or no motion
+    /// is kept) and the caller places it as before.
+    pub(super) fn place_moving(
+        &mut self,
+        n: usize,
+        node: &gltf::json::scene::Node,
+        mesh: usize,
+        prims: &Rc<Vec<LocalPrimitive>>,
+        world: Mat4,
+        moving: bool,
+    ) -> Result<bool, SceneError> {
+        let Some(motion) = &self.motion else { return Ok(false) };
+        let deformed = node.skin.is_some() || motion.nodes.get(n).is_some_and(|node| node.morphed);
+        if !deformed && !moving {
+            return Ok(false);
+        }
+        let base = self.mesh(mesh)?;
+        if base.iter().any(|p| self.materials.get(p.material as usize).is_some_and(Material::is_emissive)) {
+            self.warnings.once("moving emitter", || {
+                "an emissive mesh is moved by the animation: it stays where the load-time pose puts it (lights are static)"
+                    .into()
+            });
+            return Ok(false);
+        }
+        self.mesh_instances += 1;
+        if deformed {
+            let skin = node.skin.map(|s| self.skin_joints(s.value(), n)).transpose()?;
+            let rest_weights = node
+                .weights
+                .clone()
+                .or_else(|| self.root.meshes.get(mesh).and_then(|m| m.weights.clone()))
+                .unwrap_or_default();
+            let slot = self.instanced_meshes.len();
+            self.instanced_meshes.push(Mesh::default());
+            self.instances.push(Instance { mesh: slot as u32, transform: Mat4::IDENTITY });
+            let what = format!("node {n} mesh {mesh}");
+            let d = DeformedMesh { mesh: slot, node: n, prims: base.to_vec(), skin, rest_weights, what };
+            self.motion.as_mut().expect("checked above").deformed.push(d);
+            return Ok(true);
+        }
+        // Rigid: the mesh in its own space, once per glTF mesh (a node's morphed copy is its own).
+        let shared = Rc::ptr_eq(&base, prims);
+        let slot = match self.moving_meshes.get(&mesh).filter(|_| shared) {
+            Some(&slot) => slot,
+            None => {
+                let mut triangles = Vec::new();
+                place_primitives(
+                    mesh,
+                    prims,
+                    &Mat4::IDENTITY,
+                    &mut |p| self.warnings.keep_triangle(p),
+                    &mut triangles,
+                )?;
+                if triangles.is_empty() {
+                    return Ok(true); // nothing to render at any pose
+                }
+                self.instanced_meshes.push(Mesh { triangles });
+                let slot = self.instanced_meshes.len() - 1;
+                if shared {
+                    self.moving_meshes.insert(mesh, slot);
+                }
+                slot
+            }
+        };
+        let locals = match node.extensions.as_ref().and_then(|e| e.others.get("EXT_mesh_gpu_instancing")) {
+            Some(instancing) => self.gpu_instances(instancing, n)?,
+            None => vec![Mat4::IDENTITY],
+        };
+        for local in locals {
+            let transform = placeable(world * local, &format!("node {n}"))?;
+            let instance = self.instances.len();
+            self.instances.push(Instance { mesh: slot as u32, transform });
+            self.motion.as_mut().expect("checked above").rigid.push(RigidPlacement { instance, node: n, local });
+        }
+        Ok(true)
+    }
+
+    /// Whether a channel of the kept motion moves node `n`.
+    pub(super) fn channel_moves(&self, n: usize) -> bool {
+        self.motion.as_ref().is_some_and(|m| m.moves(n))
+    }
+}
