@@ -1,5 +1,6 @@
 //! The `lightport` command line.
 
+mod animate;
 mod chart;
 mod export;
 mod pose;
@@ -117,6 +118,14 @@ struct RenderArgs {
     strict: bool,
     #[command(flatten)]
     pose: pose::PoseArgs,
+    /// Render the animation as this many frames, from --time to --until, each with --spp
+    /// samples: one renderer takes each pose's geometry without recompiling. Writes each
+    /// frame beside --out (out-000.png, ...) and the frames side by side as out-strip.png.
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    frames: u32,
+    /// With --frames: the time of the last frame, in seconds (default: the animation's end).
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    until: Option<f32>,
     /// Denoise the image written to --out: an edge-avoiding à-trous filter guided by the first
     /// hit's albedo, normal and depth, whose strength falls as the noise falls (`tracer::denoise`).
     #[arg(long)]
@@ -184,7 +193,6 @@ impl BackendArg {
 fn render(args: &RenderArgs) -> Result<()> {
     use std::time::Instant;
     use tracer::kernel::denoise::ATROUS_ITERATIONS as ATROUS_PASSES;
-    use tracer::kernel::{RenderSettings, Strategy};
 
     if args.spp == 0 {
         bail!("--spp must be at least 1");
@@ -193,33 +201,12 @@ fn render(args: &RenderArgs) -> Result<()> {
         bail!("--exposure must be a finite number of stops within ±64");
     }
     let t0 = Instant::now();
-    let options = args.pose.load_options(args.strict)?;
-    let builtin = args.scene.as_ref().filter(|p| !p.exists()).and_then(|p| tracer::scene::builtin(p.to_str()?));
-    let mut scene = match (&args.scene, builtin) {
-        (_, Some(generated)) => generated,
-        (Some(path), None) => {
-            tracer::scene::load_with(path, &options).with_context(|| format!("loading {}", path.display()))?
-        }
-        (None, None) => tracer::scene::cornell_box(),
-    };
-    args.pose.apply_to_generated(&mut scene)?;
-    if let Some(sky) = &args.sky {
-        let s = tracer::scene::load_sky(sky, args.sky_intensity, args.sky_rotation.to_radians())
-            .with_context(|| format!("loading sky {}", sky.display()))?;
-        scene.sky = Some(s);
-    }
-    report_warnings(&scene, "", args.strict)?;
+    let scene = load_scene(args)?;
     let load_time = t0.elapsed();
-    let settings = RenderSettings {
-        width: args.width,
-        height: args.height,
-        strategy: match args.strategy {
-            StrategyArg::Bsdf => Strategy::Bsdf,
-            StrategyArg::Nee => Strategy::Nee,
-            StrategyArg::Mis => Strategy::Mis,
-        },
-        max_depth: args.max_depth,
-    };
+    let settings = render_settings(args);
+    if args.frames > 1 {
+        return animate::render_frames(args, scene, &settings);
+    }
     // Textures are packed while the BVH builds.
     let t1 = Instant::now();
     let (bvh, mut packed) = tracer::pack::build_and_pack(&scene, &settings).context("building the BVH and packing")?;
@@ -311,6 +298,43 @@ fn render(args: &RenderArgs) -> Result<()> {
     }
     println!("wrote        {}", args.out.display());
     Ok(())
+}
+
+/// The scene `render` renders: loaded (with its motion kept for --frames), or generated, with
+/// its sky; its warnings printed (an error under --strict).
+fn load_scene(args: &RenderArgs) -> Result<tracer::scene::Scene> {
+    let mut options = args.pose.load_options(args.strict)?;
+    options.keep_motion = args.frames > 1;
+    let builtin = args.scene.as_ref().filter(|p| !p.exists()).and_then(|p| tracer::scene::builtin(p.to_str()?));
+    let mut scene = match (&args.scene, builtin) {
+        (_, Some(generated)) => generated,
+        (Some(path), None) => {
+            tracer::scene::load_with(path, &options).with_context(|| format!("loading {}", path.display()))?
+        }
+        (None, None) => tracer::scene::cornell_box(),
+    };
+    args.pose.apply_to_generated(&mut scene)?;
+    if let Some(sky) = &args.sky {
+        let s = tracer::scene::load_sky(sky, args.sky_intensity, args.sky_rotation.to_radians())
+            .with_context(|| format!("loading sky {}", sky.display()))?;
+        scene.sky = Some(s);
+    }
+    report_warnings(&scene, "", args.strict)?;
+    Ok(scene)
+}
+
+fn render_settings(args: &RenderArgs) -> tracer::kernel::RenderSettings {
+    use tracer::kernel::Strategy;
+    tracer::kernel::RenderSettings {
+        width: args.width,
+        height: args.height,
+        strategy: match args.strategy {
+            StrategyArg::Bsdf => Strategy::Bsdf,
+            StrategyArg::Nee => Strategy::Nee,
+            StrategyArg::Mis => Strategy::Mis,
+        },
+        max_depth: args.max_depth,
+    }
 }
 
 /// Where `render --denoise` spent its time: reading the guide the path tracer accumulated back

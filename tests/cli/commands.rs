@@ -133,3 +133,38 @@ fn render_denoise_writes_the_denoised_and_the_noisy_image() {
         .expect("run lightport");
     assert!(!o.status.success() && stderr(&o).contains("--denoise"), "{}", stderr(&o));
 }
+
+/// `render --frames N` renders the animation as N poses with one renderer (each pose's
+/// geometry taken without recompiling), writes each frame and a strip of them side by side,
+/// and prints a row per frame; the poses differ. A scene that does not move is a clear error.
+#[test]
+fn render_frames_writes_each_pose_and_a_strip() {
+    let dir = scratch("frames");
+    let sky = test_data("scenes/hdri/venice_sunset_1k.hdr");
+    for backend in ["cpu", "gl", "wgpu"] {
+        let out = dir.join(format!("{backend}.png"));
+        let o = Command::new(env!("CARGO_BIN_EXE_lightport"))
+            .arg("render")
+            .arg(test_data("scenes/generated/animated-skinned-instanced.gltf"))
+            .args(["--backend", backend, "--width", "16", "--height", "12", "--spp", "2", "--frames", "3"])
+            .args(["--until", "1", "--out"])
+            .arg(&out)
+            .arg("--sky")
+            .arg(&sky)
+            .output()
+            .expect("run lightport");
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success(), "{backend}: {}{stdout}", stderr(&o));
+        assert!(stdout.contains("1 skinned or morphed meshes"), "{backend}: {stdout}");
+        assert!(!stderr(&o).contains("created again"), "{backend}: recompiled: {}", stderr(&o));
+        let frame = |k: usize| image::open(dir.join(format!("{backend}-{k:03}.png"))).expect("a frame").into_rgb8();
+        let frames: Vec<_> = (0..3).map(frame).collect();
+        assert!(frames.iter().all(|f| f.dimensions() == (16, 12)), "{backend}");
+        assert!(frames[0] != frames[2], "{backend}: the first and last poses look the same");
+        let strip = image::open(dir.join(format!("{backend}-strip.png"))).expect("the strip").into_rgb8();
+        assert_eq!(strip.dimensions(), (48, 12), "{backend}");
+        assert_eq!(strip.get_pixel(32 + 5, 7), frames[2].get_pixel(5, 7), "{backend}: the strip's third frame");
+    }
+    let o = render("cornell-box/CornellBox-Original.gltf", &["--frames", "2"], &dir);
+    assert!(!o.status.success() && stderr(&o).contains("needs an animated scene"), "{}", stderr(&o));
+}

@@ -22,6 +22,8 @@ mod instances;
 pub use instances::top_level;
 mod lights;
 mod materials;
+mod moving;
+pub use moving::{MovingScene, PoseError};
 mod sky;
 #[cfg(test)]
 mod tests;
@@ -249,10 +251,14 @@ impl Packed {
     /// with the same textures and settings) in place of this one's: the triangles, their
     /// shading data, the nodes and placements, the lights and what depends on them. Uniforms
     /// set since packing (camera, strategy, depth, the denoiser's guide) stay. A pose that
-    /// needs another kernel variant is [`PackError::KernelChanged`], and nothing changes.
+    /// needs another kernel variant is [`PackError::KernelChanged`], and nothing changes; a
+    /// kernel with a larger traversal stack than the pose needs draws it (the pose's
+    /// `leaf_stack_limit` keeps its pushes within its own need).
     pub fn take_geometry(&mut self, moved: Packed) -> Result<(), PackError> {
+        let stack = self.features.traversal_stack;
         let now = Features { denoise_guide: self.features.denoise_guide, ..moved.features };
-        if now != self.features {
+        let fits = now.traversal_stack <= stack || stack == 0;
+        if (Features { traversal_stack: stack, ..now }) != self.features || !fits {
             return Err(PackError::KernelChanged { was: Box::new(self.features), now: Box::new(now) });
         }
         let (s, m) = (&mut self.scene, moved.scene);

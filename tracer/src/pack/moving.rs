@@ -1,0 +1,78 @@
+//! A scene that moves ([`Scene::motion`]), packed again at each pose: what no pose changes (the
+//! static level's BVH and the textures) is built once; a pose rebuilds the placed meshes'
+//! bottom levels, the top level over the placements and the texel arrays. A renderer takes
+//! the result with `Renderer::take_geometry`, without recompiling its kernel.
+
+use super::{pack_textures, pack_with_textures, static_bvh, BuildAndPackError, PackError, Packed, PackedTextures};
+use crate::bvh::Bvh;
+use crate::kernel::RenderSettings;
+use crate::scene::{Scene, SceneError};
+
+/// Traversal stack entries a moving scene's kernel holds beyond what its first pose needs.
+pub const STACK_HEADROOM: u32 = 4;
+
+/// A scene that keeps its motion, with what packing it at any pose reuses.
+pub struct MovingScene {
+    scene: Scene,
+    bvh: Bvh,
+    textures: PackedTextures,
+    settings: RenderSettings,
+}
+
+/// Why a pose could not be packed.
+#[derive(Debug, thiserror::Error)]
+pub enum PoseError {
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error(transparent)]
+    Pack(#[from] PackError),
+}
+
+impl MovingScene {
+    /// `scene` (as loaded, posed at the load time) packed for a new renderer
+    /// ([`pack_for_kernel`](Self::pack_for_kernel)), and what packs it again at other poses.
+    pub fn new(scene: Scene, settings: &RenderSettings) -> Result<(Self, Packed), BuildAndPackError> {
+        let (bvh, textures) = rayon::join(|| static_bvh(&scene), || pack_textures(&scene));
+        let moving = MovingScene { scene, bvh: bvh?, textures, settings: *settings };
+        let packed = moving.pack_for_kernel()?;
+        Ok((moving, packed))
+    }
+
+    /// The scene as posed now, packed for creating a renderer: its kernel's traversal stack
+    /// has [`STACK_HEADROOM`] entries more than this pose needs, since the top level rebuilt
+    /// at each pose needs a little more or less (LittlestTokyo: 59 or 60 entries from pose to
+    /// pose), and a pose needing more than the kernel's stack would recompile it.
+    pub fn pack_for_kernel(&self) -> Result<Packed, PackError> {
+        let mut packed = self.pack()?;
+        let stack = &mut packed.features.traversal_stack;
+        if *stack > 0 {
+            *stack = (*stack + STACK_HEADROOM).min(crate::kernel::traverse::STACK_SIZE as u32);
+        }
+        Ok(packed)
+    }
+
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The animation's length in seconds (0 for a scene that does not move).
+    pub fn duration(&self) -> f32 {
+        self.scene.motion.as_ref().map_or(0.0, |m| m.duration())
+    }
+
+    /// Poses the scene at `time` seconds (`Scene::pose`); false for a scene that does not move.
+    pub fn pose(&mut self, time: f32) -> Result<bool, SceneError> {
+        self.scene.pose(time)
+    }
+
+    /// The scene as posed now, packed (for `Renderer::take_geometry`).
+    pub fn pack(&self) -> Result<Packed, PackError> {
+        pack_with_textures(&self.scene, &self.bvh, &self.textures, &self.settings)
+    }
+
+    /// [`pose`](Self::pose) then [`pack`](Self::pack).
+    pub fn packed_at(&mut self, time: f32) -> Result<Packed, PoseError> {
+        self.pose(time)?;
+        Ok(self.pack()?)
+    }
+}
