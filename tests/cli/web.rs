@@ -7,6 +7,7 @@
 //! these tests fail and say which command installs the missing piece (`scripts/test.sh` runs
 //! them all).
 
+mod animation;
 mod denoise;
 
 use crate::common;

@@ -27,12 +27,20 @@ pub fn test_data(rel: &str) -> PathBuf {
 /// `tests/data/scenes/generated/animated-skinned-instanced.gltf` (a skinned, morphed triangle
 /// whose joints and weights are animated, and a triangle placed three times by
 /// `EXT_mesh_gpu_instancing`) with its instanced node turned by the animation's rotation
-/// sampler too: every kind of moving part at once (`LoadOptions::keep_motion`).
+/// sampler too: every kind of moving part at once (`LoadOptions::keep_motion`); a point light
+/// lights them.
 pub fn moving_parts_gltf() -> Vec<u8> {
     let path = test_data("scenes/generated/animated-skinned-instanced.gltf");
     let mut json: serde_json::Value = serde_json::from_slice(&std::fs::read(path).expect("the seed")).expect("JSON");
     let channel = serde_json::json!({"sampler": 1, "target": {"node": 3, "path": "rotation"}});
     json["animations"][0]["channels"].as_array_mut().expect("channels").push(channel);
+    // A point light in front of them, so that the page (which has no sky) sees them lit.
+    json["extensionsUsed"] = serde_json::json!(["EXT_mesh_gpu_instancing", "KHR_lights_punctual"]);
+    json["extensions"] = serde_json::json!({"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 40}]}});
+    let nodes = json["nodes"].as_array_mut().expect("nodes");
+    nodes.push(serde_json::json!({"translation": [0.5, 1.5, 3], "extensions": {"KHR_lights_punctual": {"light": 0}}}));
+    let light = nodes.len() - 1;
+    json["scenes"][0]["nodes"].as_array_mut().expect("scene nodes").push(light.into());
     serde_json::to_vec(&json).expect("JSON")
 }
 

@@ -5,39 +5,15 @@
 //   node run.mjs SCENARIO --url http://127.0.0.1:PORT/ --out result.json [options]
 //
 // Scenarios: accumulate, cache, camera, slow, drop, limits, context, display, api, deviceloss, bench,
-// chart, compile, denoise, denoiseedges, toplevel (see each function); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
+// chart, compile, denoise, denoiseedges, toplevel (see each function), animation (animation.mjs); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
 // long, so that a hung page never hangs the caller. `--exit-on-stdin-eof` (no value): exit 4,
 // closing the browser, when stdin reaches its end: the caller holds the pipe's other end, which
 // the kernel closes when the caller ends however it ends (src/serve_child.rs), so neither this
 // driver nor its browser outlives a test binary that panics, aborts or is killed.
 
-import { chromium } from 'playwright-core';
-import { mkdtempSync, rmSync, writeFileSync, readFileSync } from 'node:fs';
-import { tmpdir } from 'node:os';
-import { join } from 'node:path';
-
-const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
-// The flags DESIGN.md lists for WebGL2 on SwiftShader, and WebGPU (on SwiftShader too: adapter
-// "google / swiftshader"; the user data dir is given separately).
-const BASE_ARGS = [
-  '--headless=new', '--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
-  '--disable-background-networking', '--disable-component-update', '--disable-sync', '--no-first-run',
-  '--disable-quic', '--enable-unsafe-webgpu',
-];
-// WebGL2 pages: the GPU process disabled (DESIGN.md). A WebGPU canvas needs a compositor that
-// can take WebGPU's swap-chain images: with `--disable-gpu` (GL compositing over SwiftShader)
-// Chromium finds no shared-image backing for them ("Could not find SharedImageBackingFactory
-// ... WebgpuSwapChainTexture") and the GPU process dies at the first getCurrentTexture (every
-// later promise rejects: "A valid external Instance reference no longer exists"); with Vulkan
-// compositing on SwiftShader it works.
-const WEBGL2_ARGS = [...BASE_ARGS, '--disable-gpu'];
-const WEBGPU_ARGS = [...BASE_ARGS, '--use-vulkan=swiftshader', '--enable-features=Vulkan'];
-// Extra Chromium flags for experiments (space-separated), e.g. LIGHTPORT_CHROMIUM_ARGS=
-// --enable-dawn-features=disable_robustness to see what WebGPU's bounds checks cost.
-const EXTRA_ARGS = (process.env.LIGHTPORT_CHROMIUM_ARGS || '').split(' ').filter(Boolean);
-// `--api auto|webgpu|webgl2` (any scenario): the page's `api=`; default webgl2, which every
-// scenario was written against.
-let pageApi = 'webgl2';
+import { rmSync, writeFileSync, readFileSync } from 'node:fs';
+import { freshProfile, open, pageApi, setPageApi, withBrowser } from './page.mjs';
+import { animation } from './animation.mjs';
 
 function parseArgs(argv) {
   const [scenario, ...rest] = argv;
@@ -55,44 +31,6 @@ function parseArgs(argv) {
     if (!options[required]) throw new Error(`--${required} is required`);
   }
   return options;
-}
-
-async function withBrowser(profile, action, extraArgs = []) {
-  const context = await chromium.launchPersistentContext(profile, {
-    executablePath: CHROMIUM,
-    headless: true,
-    args: [...(pageApi === 'webgl2' ? WEBGL2_ARGS : WEBGPU_ARGS), ...EXTRA_ARGS, ...extraArgs],
-    viewport: { width: 900, height: 700 },
-  });
-  try {
-    return await action(context);
-  } finally {
-    await context.close();
-  }
-}
-
-function freshProfile() {
-  return mkdtempSync(join(tmpdir(), 'lightport-chromium-'));
-}
-
-// Opens the page and waits until the first scene is shown (or the page reports why not).
-// Records every request the page makes and the console's errors.
-async function open(context, baseUrl, query, timeoutMs = 240000) {
-  const page = context.pages()[0] || (await context.newPage());
-  const requests = [];
-  const consoleErrors = [];
-  page.on('request', (r) => requests.push(new URL(r.url()).pathname));
-  page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
-  page.on('pageerror', (e) => consoleErrors.push(String(e)));
-  const url = new URL(baseUrl);
-  for (const [k, v] of Object.entries({ api: pageApi, ...query })) {
-    if (v !== undefined) url.searchParams.set(k, v);
-  }
-  const navigationStart = Date.now();
-  await page.goto(url.toString());
-  await page.waitForFunction(() => window.lightport && window.lightport.ready, null, { timeout: timeoutMs });
-  const state = await page.evaluate(() => ({ error: window.lightport.error, info: window.lightport.info() }));
-  return { page, requests, consoleErrors, navigationStart, ...state };
 }
 
 function bundleRequests(requests) {
@@ -800,11 +738,11 @@ async function topLevel(o) {
 
 const SCENARIOS = {
   accumulate, cache, camera, slow, drop, limits, context: contextLoss, display, api: apiChoice, deviceloss: deviceLoss,
-  bench, chart, compile, denoise, denoiseedges: denoiseEdges, toplevel: topLevel,
+  bench, chart, compile, denoise, denoiseedges: denoiseEdges, toplevel: topLevel, animation,
 };
 
 const options = parseArgs(process.argv.slice(2));
-if (options.api) pageApi = options.api;
+if (options.api) setPageApi(options.api);
 const run = SCENARIOS[options.scenario];
 if (!run) {
   console.error(`unknown scenario ${options.scenario}: ${Object.keys(SCENARIOS).join(', ')}`);

@@ -125,7 +125,9 @@ pub fn load_dropped(files: &[DroppedFile]) -> Result<(String, Scene), DropError>
     } else {
         std::borrow::Cow::Borrowed(file.bytes.as_slice())
     };
-    let scene = tracer::scene::load_gltf_slice(&bytes, None, &LoadOptions::default())
+    // An animated scene keeps its motion: the page plays it (`crate::playback`).
+    let options = LoadOptions { keep_motion: true, ..Default::default() };
+    let scene = tracer::scene::load_gltf_slice(&bytes, None, &options)
         .map_err(|source| DropError::Scene { scene: file.name.clone(), source })?;
     Ok((file.name.clone(), scene))
 }

@@ -21,6 +21,7 @@
 
 import init, { Viewer, requestWebGpu } from './pkg/lightport_web.js';
 import { BundleCache, DEFAULT_BUDGET_BYTES } from './cache.js';
+import { movingText, setUpAnimationControls, showAnimation } from './animation.js';
 
 const params = new URLSearchParams(location.search);
 const $ = (id) => document.getElementById(id);
@@ -141,6 +142,12 @@ const hook = {
   // Draws the image again (the denoised one where shown): copy the canvas in the same task.
   draw: () => viewer && viewer.draw(),
   clearCache: () => clearCache(),
+  // A moving scene's animation (sceneInfo().animation: { duration, time, playing, speed,
+  // moving, poseMs }, or null) and its controls.
+  animation: () => (viewer ? viewer.sceneInfo().animation || null : null),
+  setPlaying: (on) => guarded(() => viewer.setPlaying(on)),
+  setAnimationTime: (seconds) => guarded(() => viewer.setAnimationTime(seconds)),
+  setAnimationSpeed: (speed) => guarded(() => viewer.setAnimationSpeed(speed)),
   get viewer() { return viewer; },
 };
 window.lightport = hook;
@@ -149,9 +156,10 @@ window.lightport = hook;
 // and placed by instances) how many placements.
 function geometryText(info) {
   const triangles = `${info.triangles.toLocaleString()} triangles`;
-  return info.placements > 0
+  const geometry = info.placements > 0
     ? `${triangles} stored, ${info.placements.toLocaleString()} placements (two levels)`
     : triangles;
+  return geometry + movingText(info);
 }
 
 function showMessage(text, kind = 'error') {
@@ -352,6 +360,7 @@ function updateReadouts() {
   const info = viewer.sceneInfo();
   $('api-info').textContent = info.api ? `${info.api} (${info.adapter})` : '–';
   $('spp').textContent = info.spp;
+  showAnimation($, info);
   $('denoise-info').textContent = info.denoise.readout;
   $('size').textContent = `${info.width}×${info.height}`;
   if (frameMs !== null) {
@@ -526,6 +535,7 @@ async function loadFiles(fileList) {
     $('scene-info').textContent =
       `${info.name}: ${geometryText(info)}, loaded in ${info.loadMs.toFixed(0)} ms, ` +
       `BVH + pack ${info.buildAndPackMs.toFixed(0)} ms`;
+    showAnimation($, info);
     if (info.warnings) showMessage(`${info.name}: ${info.warnings}`, 'info');
     else showNotice();
   } catch (e) {
@@ -669,6 +679,7 @@ $('exposure').addEventListener('input', (e) => hook.setExposure(Number(e.target.
 $('denoise').addEventListener('change', (e) => hook.setDenoise(e.target.checked));
 $('scale').addEventListener('change', applySize);
 $('reset-camera').addEventListener('click', () => cameraAction(() => viewer.resetCamera()));
+setUpAnimationControls($, () => viewer, guarded);
 $('clear-cache').addEventListener('click', clearCache);
 $('screenshot').addEventListener('click', async () => {
   try {

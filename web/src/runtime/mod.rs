@@ -185,6 +185,11 @@ impl Runtime {
         self.renderer_mut().set_uniforms(&mut update).map_err(|e| e.to_string())
     }
 
+    /// Takes a moved scene's geometry (`Renderer::take_geometry`) and restarts the accumulation.
+    pub fn take_geometry(&mut self, moved: Packed) -> Result<(), tracer::backend::RenderError> {
+        self.renderer_mut().take_geometry(moved)
+    }
+
     /// Resolves once the GPU has done the work queued so far (WebGL2: already, by a 1-pixel
     /// read-back; WebGPU: `onSubmittedWorkDone`).
     pub fn sync(&self) -> Pin<Box<dyn Future<Output = ()>>> {

@@ -23,7 +23,7 @@ use tracer::backend::wgpu::WgpuOptions;
 use tracer::backend::Image;
 use tracer::kernel::{RenderSettings, Strategy};
 use tracer::output::{Display, ToneMap};
-use tracer::pack::Packed;
+use tracer::pack::{MovingScene, Packed};
 use wasm_bindgen::prelude::*;
 use wasm_bindgen::JsCast;
 use wasm_bindgen_futures::future_to_promise;
@@ -33,7 +33,11 @@ use crate::camera::OrbitCamera;
 use crate::denoise::PageDenoiser;
 use crate::files::{self, DroppedFile};
 use crate::js::{camel_case, js_error, now_ms, set};
+mod camera_input;
+mod playback;
+
 use crate::runtime::{webgl2, Api, GlRuntime, GpuDevice, GpuRuntime, Runtime};
+use playback::Playback;
 
 /// The loaded scene: the master copy of its packed data (uniforms kept current) and the view.
 struct Loaded {
@@ -80,6 +84,8 @@ pub struct Viewer {
     display: Display,
     /// The denoiser (`setDenoise`; on by default): see `crate::denoise`.
     denoiser: PageDenoiser,
+    /// The loaded scene's animation, when it moves (`crate::playback`).
+    playback: Option<Playback>,
 }
 
 /// Renderers recreated after uncaptured WebGPU errors before the error is shown instead.
@@ -113,6 +119,7 @@ impl Viewer {
             gpu_recoveries: 0,
             display: Display::default(),
             denoiser: PageDenoiser::new(true),
+            playback: None,
         }
     }
 
@@ -202,13 +209,21 @@ impl Viewer {
         let (name, scene) = files::load_dropped(&dropped).map_err(js_error)?;
         drop(dropped);
         let loaded_at = js_sys::Date::now();
-        let packed = files::prepare(&name, &scene, &self.settings).map_err(js_error)?;
+        let warnings = scene.warnings.join("; ");
+        let (packed, playback) = match scene.motion {
+            Some(_) => {
+                let (moving, packed) = MovingScene::new(scene, &self.settings).map_err(js_error)?;
+                (packed, Some(Playback::new(moving)))
+            }
+            None => (files::prepare(&name, &scene, &self.settings).map_err(js_error)?, None),
+        };
         let prepared_at = js_sys::Date::now();
-        let info = self.install(name, packed, 0.0)?;
-        let info = Object::from(info);
+        self.install(name, packed, 0.0)?;
+        self.playback = playback;
+        let info = Object::from(self.scene_info());
         set(&info, "loadMs", loaded_at - start);
         set(&info, "buildAndPackMs", prepared_at - loaded_at);
-        set(&info, "warnings", scene.warnings.join("; "));
+        set(&info, "warnings", warnings);
         Ok(info.into())
     }
 
@@ -226,6 +241,7 @@ impl Viewer {
         self.running = Some(running);
         self.denoiser.new_runtime();
         self.loaded = Some(Loaded { name, packed, camera, home: camera, decode_ms });
+        self.playback = None;
         Ok(self.scene_info())
     }
 
@@ -443,6 +459,7 @@ impl Viewer {
         if self.halted() {
             return Ok(0);
         }
+        self.advance_animation(now_ms)?;
         let Some(running) = &mut self.running else { return Ok(0) };
         let step = match running.step(now_ms, &self.display) {
             Ok(step) => step,
@@ -534,6 +551,9 @@ impl Viewer {
             None => Err("no scene"),
         };
         set(&info, "denoise", self.denoiser.describe(rendering));
+        if let Some(playback) = &self.playback {
+            set(&info, "animation", playback.describe());
+        }
         if let Some(loaded) = &self.loaded {
             let f = &loaded.packed.features;
             set(&info, "name", loaded.name.as_str());
@@ -647,47 +667,9 @@ impl Viewer {
         self.options.max_texture_size = (size > 0).then_some(size);
     }
 
-    /// Orbit: turns the eye around the target (radians). Restarts the accumulation.
-    pub fn orbit(&mut self, yaw: f32, pitch: f32) -> Result<(), JsError> {
-        self.move_camera(|c| c.orbit(yaw, pitch))
-    }
-
-    /// Fly: turns the view around the eye (radians). Restarts the accumulation.
-    pub fn look(&mut self, yaw: f32, pitch: f32) -> Result<(), JsError> {
-        self.move_camera(|c| c.look(yaw, pitch))
-    }
-
-    /// Moves eye and target sideways by fractions of the view height. Restarts the accumulation.
-    pub fn pan(&mut self, dx: f32, dy: f32) -> Result<(), JsError> {
-        self.move_camera(|c| c.pan(dx, dy))
-    }
-
-    /// Scales the eye's distance to the target. Restarts the accumulation.
-    pub fn dolly(&mut self, factor: f32) -> Result<(), JsError> {
-        self.move_camera(|c| c.dolly(factor))
-    }
-
-    /// Moves eye and target (scene-size units) along the view, right and +Y. Restarts.
-    pub fn fly(&mut self, forward: f32, right: f32, up: f32) -> Result<(), JsError> {
-        self.move_camera(|c| c.fly(forward, right, up))
-    }
-
-    /// The scene's own camera again. Restarts the accumulation.
-    #[wasm_bindgen(js_name = resetCamera)]
-    pub fn reset_camera(&mut self) -> Result<(), JsError> {
-        let Some(home) = self.loaded.as_ref().map(|l| l.home) else { return Ok(()) };
-        self.move_camera(|c| *c = home)
-    }
-
-    fn move_camera(&mut self, change: impl FnOnce(&mut OrbitCamera)) -> Result<(), JsError> {
-        let Some(loaded) = &mut self.loaded else { return Ok(()) };
-        change(&mut loaded.camera);
-        self.update_uniforms()
-    }
-
     /// Writes the camera and settings into the master copy and the renderer's uniforms, and
     /// restarts the accumulation.
-    fn update_uniforms(&mut self) -> Result<(), JsError> {
+    pub(crate) fn update_uniforms(&mut self) -> Result<(), JsError> {
         let settings = self.settings;
         let Some(loaded) = &mut self.loaded else { return Ok(()) };
         let camera = loaded.camera;
