@@ -247,6 +247,10 @@ fn kernel_scene(
 }
 
 impl Packed {
+    /// The texel arrays [`take_geometry`](Self::take_geometry) replaces: a renderer uploads
+    /// these again for a moved scene and keeps the others (textures, materials, sky).
+    pub const GEOMETRY_ARRAYS: [&'static str; 5] = ["triangles", "shading", "nodes", "node_children", "lights"];
+
     /// Takes the geometry of `moved` (this scene posed at another time by `Scene::pose`, packed
     /// with the same textures and settings) in place of this one's: the triangles, their
     /// shading data, the nodes and placements, the lights and what depends on them. Uniforms

@@ -274,8 +274,9 @@ impl Renderer for GlRenderer {
         self.restart()
     }
 
-    /// Uploads the scene's data textures again (the same units: the kernel variant is the
-    /// same) and restarts; the program is kept.
+    /// Uploads the moved arrays (`Packed::GEOMETRY_ARRAYS`) as new data textures on the same
+    /// units (the kernel variant is the same), keeps the others (textures, materials, sky) and
+    /// sets every uniform; the program is kept.
     fn take_geometry(&mut self, moved: Packed) -> Result<(), RenderError> {
         self.activate()?;
         let mut packed = self.packed.clone();
@@ -287,7 +288,8 @@ impl Renderer for GlRenderer {
         let mut fresh = Objects::default();
         // SAFETY: the program was linked on this context, which is current.
         unsafe { gl.use_program(Some(program)) };
-        let bound = bind_scene(gl, program, &packed.scene.fields(), max_texture_size, &mut fresh);
+        let reuse = Some(Reuse { textures: &self.pipeline.data_textures, upload: &Packed::GEOMETRY_ARRAYS });
+        let bound = bind_scene(gl, program, &packed.scene.fields(), max_texture_size, &mut fresh, reuse);
         // SAFETY: as above.
         unsafe { gl.use_program(None) };
         let bound = match bound {
@@ -298,7 +300,9 @@ impl Renderer for GlRenderer {
                 return Err(other.err().unwrap_or(GlError::Gl { what: "uploading a moved scene", detail }).into());
             }
         };
-        let old: Vec<glow::Texture> = self.pipeline.data_textures.iter().map(|&(_, t)| t).collect();
+        let kept: Vec<glow::Texture> = bound.data_textures.iter().map(|&(_, t)| t).collect();
+        let old: Vec<glow::Texture> =
+            self.pipeline.data_textures.iter().map(|&(_, t)| t).filter(|t| !kept.contains(t)).collect();
         self.objects.textures.retain(|t| !old.contains(t));
         // SAFETY: the old data textures belong to this context and no longer to the pipeline.
         unsafe { old.iter().for_each(|&t| gl.delete_texture(t)) };
@@ -429,7 +433,7 @@ fn build(gl: &glow::Context, packed: &Packed, options: &GlOptions, objects: &mut
     // SAFETY: the program was linked on the current context.
     unsafe { gl.use_program(Some(program)) };
     let SceneBindings { data_textures, frame_seed_location, frame_index_location } =
-        bind_scene(gl, program, &bindings, max_texture_size, objects)?;
+        bind_scene(gl, program, &bindings, max_texture_size, objects, None)?;
     let accumulation_unit = data_textures.len() as u32;
     // The kernel's outputs: the colour, and with the denoiser's guide its three sums.
     let outputs = if packed.features.denoise_guide { 4 } else { 1 };
@@ -478,13 +482,15 @@ fn build(gl: &glow::Context, packed: &Packed, options: &GlOptions, objects: &mut
 }
 
 /// Uploads the `Scene` fields the program (in use) reads: each texel array as a data texture on
-/// the next texture unit, each scalar as its uniform.
+/// the next texture unit, each scalar as its uniform. With `reuse` (a previous binding's data
+/// textures, and the arrays to upload anyway), the other arrays keep their texture.
 fn bind_scene(
     gl: &glow::Context,
     program: glow::Program,
     bindings: &[(&'static str, Resource<'_>)],
     max_texture_size: u32,
     objects: &mut Objects,
+    reuse: Option<Reuse<'_>>,
 ) -> Result<SceneBindings, GlError> {
     let mut data_textures = Vec::new();
     let (mut frame_seed_location, mut frame_index_location) = (None, None);
@@ -499,8 +505,19 @@ fn bind_scene(
             match binding {
                 Resource::Vec4s(_) | Resource::UVec4s(_) => {
                     let unit = data_textures.len() as u32;
-                    let texture = upload_texels(gl, binding, max_texture_size, name)?;
-                    objects.textures.push(texture);
+                    let kept = reuse.filter(|r| !r.upload.contains(name)).map(|r| r.textures.get(unit as usize));
+                    let texture = match kept {
+                        Some(Some(&(_, texture))) => texture,
+                        Some(None) => {
+                            let detail = format!("no data texture on unit {unit} to keep for `{name}`");
+                            return Err(GlError::Gl { what: "binding a moved scene", detail });
+                        }
+                        None => {
+                            let texture = upload_texels(gl, binding, max_texture_size, name)?;
+                            objects.textures.push(texture);
+                            texture
+                        }
+                    };
                     gl.uniform_1_i32(location, unit as i32);
                     data_textures.push((unit, texture));
                 }
@@ -516,6 +533,14 @@ fn bind_scene(
         }
     }
     Ok(SceneBindings { data_textures, frame_seed_location, frame_index_location })
+}
+
+/// A previous binding's data textures (by unit), kept by [`bind_scene`] except for the arrays
+/// named in `upload`.
+#[derive(Clone, Copy)]
+struct Reuse<'a> {
+    textures: &'a [(u32, glow::Texture)],
+    upload: &'a [&'a str],
 }
 
 /// What [`bind_scene`] bound: the data textures by unit, and where `frame_seed` is set.

@@ -260,36 +260,58 @@ impl Loader<'_> {
             return Ok(false);
         }
         self.mesh_instances += 1;
-        if deformed {
-            let skin = node.skin.map(|s| self.skin_joints(s.value(), n)).transpose()?;
-            let rest_weights = node
-                .weights
-                .clone()
-                .or_else(|| self.root.meshes.get(mesh).and_then(|m| m.weights.clone()))
-                .unwrap_or_default();
-            let slot = self.instanced_meshes.len();
-            self.instanced_meshes.push(Mesh::default());
-            self.instances.push(Instance { mesh: slot as u32, transform: Mat4::IDENTITY });
-            let what = format!("node {n} mesh {mesh}");
-            let d = DeformedMesh { mesh: slot, node: n, prims: base.to_vec(), skin, rest_weights, what };
-            self.motion.as_mut().expect("checked above").deformed.push(d);
-            return Ok(true);
+        match deformed {
+            true => self.place_deformed(n, node, mesh, &base)?,
+            false => self.place_rigid(n, node, mesh, &base, prims, world)?,
         }
-        // Rigid: the mesh in its own space, once per glTF mesh (a node's morphed copy is its own).
-        let shared = Rc::ptr_eq(&base, prims);
+        Ok(true)
+    }
+
+    /// Node `n`'s mesh `mesh` (primitives `base`, before morphing) as a mesh made again at each
+    /// pose, placed by the identity (its triangles come with the first pose).
+    fn place_deformed(
+        &mut self,
+        n: usize,
+        node: &gltf::json::scene::Node,
+        mesh: usize,
+        base: &[LocalPrimitive],
+    ) -> Result<(), SceneError> {
+        let skin = node.skin.map(|s| self.skin_joints(s.value(), n)).transpose()?;
+        let rest_weights = node
+            .weights
+            .clone()
+            .or_else(|| self.root.meshes.get(mesh).and_then(|m| m.weights.clone()))
+            .unwrap_or_default();
+        let slot = self.instanced_meshes.len();
+        self.instanced_meshes.push(Mesh::default());
+        self.instances.push(Instance { mesh: slot as u32, transform: Mat4::IDENTITY });
+        let what = format!("node {n} mesh {mesh}");
+        let d = DeformedMesh { mesh: slot, node: n, prims: base.to_vec(), skin, rest_weights, what };
+        self.motion.as_mut().expect("a kept motion").deformed.push(d);
+        Ok(())
+    }
+
+    /// Node `n`'s mesh `mesh` (`prims`, as the load-time pose morphs it; `base` its shared
+    /// primitives) stored in its own space, once per glTF mesh unless morphed per node, and
+    /// placed by instances that follow the node (`world` at the load time).
+    fn place_rigid(
+        &mut self,
+        n: usize,
+        node: &gltf::json::scene::Node,
+        mesh: usize,
+        base: &Rc<Vec<LocalPrimitive>>,
+        prims: &Rc<Vec<LocalPrimitive>>,
+        world: Mat4,
+    ) -> Result<(), SceneError> {
+        let shared = Rc::ptr_eq(base, prims);
         let slot = match self.moving_meshes.get(&mesh).filter(|_| shared) {
             Some(&slot) => slot,
             None => {
                 let mut triangles = Vec::new();
-                place_primitives(
-                    mesh,
-                    prims,
-                    &Mat4::IDENTITY,
-                    &mut |p| self.warnings.keep_triangle(p),
-                    &mut triangles,
-                )?;
+                let keep = &mut |p: &[Vec3; 3]| self.warnings.keep_triangle(p);
+                place_primitives(mesh, prims, &Mat4::IDENTITY, keep, &mut triangles)?;
                 if triangles.is_empty() {
-                    return Ok(true); // nothing to render at any pose
+                    return Ok(()); // nothing to render at any pose
                 }
                 self.instanced_meshes.push(Mesh { triangles });
                 let slot = self.instanced_meshes.len() - 1;
@@ -307,9 +329,9 @@ impl Loader<'_> {
             let transform = placeable(world * local, &format!("node {n}"))?;
             let instance = self.instances.len();
             self.instances.push(Instance { mesh: slot as u32, transform });
-            self.motion.as_mut().expect("checked above").rigid.push(RigidPlacement { instance, node: n, local });
+            self.motion.as_mut().expect("a kept motion").rigid.push(RigidPlacement { instance, node: n, local });
         }
-        Ok(true)
+        Ok(())
     }
 
     /// Whether a channel of the kept motion moves node `n`.
