@@ -1222,10 +1222,165 @@ Hit visible_hit(vec3 origin, vec3 dir, float t_max, bool only_masked) {
     return hit;
 }
 
+// traverse::no_hit (lightport-tracer/src/kernel/traverse.rs:762)
+Hit no_hit() {
+    return Hit(NONE, 0.0, 0.0, 0.0, 0u);
+}
+
+// traverse::intersect_leaf_masked (lightport-tracer/src/kernel/traverse.rs:772)
+void intersect_leaf_masked(uint entry, uint instance, vec3 origin, vec3 dir, Hit after, inout Hit hit, inout Hit pending) {
+    uint first = entry >> 8;
+    uint i_end = first + (entry & 255u);
+    for (uint i = first; i < i_end; ++i) {
+        TriangleData tri = fetch_triangle(i);
+        TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+        if (tri.masked) {
+            Hit best = hit;
+            if (pending.triangle != NONE) {
+                best = pending;
+            }
+            if (is_next_candidate(h.t, i, instance, after, best)) {
+                pending = Hit(i, h.t, h.u, h.v, instance);
+            }
+        } else if (h.t < hit.t) {
+            hit = Hit(i, h.t, h.u, h.v, instance);
+        }
+    }
+}
+
+// traverse::closest_visible_one_level (lightport-tracer/src/kernel/traverse.rs:810)
+Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
+    vec3 inv_dir = safe_inverse(dir);
+    uvec3 near = near_planes(inv_dir);
+    Hit hit = Hit(NONE, t_max, 0.0, 0.0, 0u);
+    uint stack[64];
+    for (int i = 0; i < 64; ++i) { stack[i] = 0u; }
+    float stack_t[64];
+    for (int i_1 = 0; i_1 < 64; ++i_1) { stack_t[i_1] = 0.0; }
+    uint leaf_limit = scene_leaf_stack_limit;
+    uint sp = 0u;
+    uint entry = stack_entry(0u, 0u);
+    bool visiting = true;
+    uint leaves[3];
+    for (int i_2 = 0; i_2 < 3; ++i_2) { leaves[i_2] = 0u; }
+    uint leaf_count = 0u;
+    bool descend = false;
+    Hit pending = no_hit();
+    Hit after = before_any_hit();
+    bool rescan = false;
+    uint holes = 0u;
+    while (visiting) {
+        while (visiting && (pending.triangle == NONE)) {
+            if (!rescan) {
+                descend = false;
+                leaf_count = 0u;
+                if (is_leaf(entry)) {
+                    leaves[0u] = entry;
+                    leaf_count = 1u;
+                } else {
+                    NodeHits sorted = sort_children(intersect_node(entry >> 8, origin, inv_dir, near, hit.t));
+                    float t0 = sorted.t.x;
+                    float t1 = sorted.t.y;
+                    float t2 = sorted.t.z;
+                    float t3 = sorted.t.w;
+                    uint e0 = sorted.entries.x;
+                    uint e1 = sorted.entries.y;
+                    uint e2 = sorted.entries.z;
+                    uint e3 = sorted.entries.w;
+                    if (t3 < MISS) {
+                        if (sp >= leaf_limit && is_leaf(e3)) {
+                            leaves[leaf_count] = e3;
+                            leaf_count += 1u;
+                        } else if (sp < STACK_SIZE) {
+                            stack[sp] = e3;
+                            stack_t[sp] = t3;
+                            sp += 1u;
+                        }
+                    }
+                    if (t2 < MISS) {
+                        if (sp >= leaf_limit && is_leaf(e2)) {
+                            leaves[leaf_count] = e2;
+                            leaf_count += 1u;
+                        } else if (sp < STACK_SIZE) {
+                            stack[sp] = e2;
+                            stack_t[sp] = t2;
+                            sp += 1u;
+                        }
+                    }
+                    if (t1 < MISS) {
+                        if (sp >= leaf_limit && is_leaf(e1)) {
+                            leaves[leaf_count] = e1;
+                            leaf_count += 1u;
+                        } else if (sp < STACK_SIZE) {
+                            stack[sp] = e1;
+                            stack_t[sp] = t1;
+                            sp += 1u;
+                        }
+                    }
+                    if (t0 < MISS) {
+                        entry = e0;
+                        descend = true;
+                    }
+                }
+            }
+            rescan = false;
+            uint k_end = leaf_count;
+            for (uint k = 0u; k < k_end; ++k) {
+                intersect_leaf_masked(leaves[k], 0u, origin, dir, after, hit, pending);
+            }
+            after = before_any_hit();
+            if ((pending.triangle != NONE) && !is_next_candidate(pending.t, pending.triangle, 0u, before_any_hit(), hit)) {
+                pending = no_hit();
+            }
+            if ((pending.triangle == NONE) && !descend) {
+                visiting = false;
+                while (sp > 0u && !visiting) {
+                    sp -= 1u;
+                    if (!(stack_t[sp] > hit.t)) {
+                        entry = stack[sp];
+                        visiting = true;
+                    }
+                }
+            }
+        }
+        if (pending.triangle != NONE) {
+            TriangleData tri = fetch_triangle(pending.triangle);
+            if (holes < MAX_HOLES && is_hole(pending.triangle, tri.material, pending.u, pending.v)) {
+                holes += 1u;
+                after = pending;
+                rescan = true;
+            } else {
+                hit = pending;
+                if (!descend) {
+                    visiting = false;
+                    while (sp > 0u && !visiting) {
+                        sp -= 1u;
+                        if (!(stack_t[sp] > hit.t)) {
+                            entry = stack[sp];
+                            visiting = true;
+                        }
+                    }
+                }
+            }
+            pending = no_hit();
+        }
+    }
+    return hit;
+}
+
+// traverse::closest_visible (lightport-tracer/src/kernel/traverse.rs:753)
+Hit closest_visible(vec3 origin, vec3 dir, float t_max) {
+    if (scene_has_instances != 0u) {
+        return visible_hit(origin, dir, t_max, false);
+    } else {
+        return closest_visible_one_level(origin, dir, t_max);
+    }
+}
+
 // traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:227)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     if (scene_has_alpha_mask != 0u) {
-        return visible_hit(origin, dir, t_max, false);
+        return closest_visible(origin, dir, t_max);
     } else {
         return closest_candidate(origin, dir, t_max, before_any_hit(), false);
     }
@@ -1782,6 +1937,109 @@ bool any_hit_two_level(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
+// traverse::occluded_masked_one_level (lightport-tracer/src/kernel/traverse.rs:935)
+bool occluded_masked_one_level(vec3 origin, vec3 dir, float t_max) {
+    vec3 inv_dir = safe_inverse(dir);
+    uvec3 near = near_planes(inv_dir);
+    uint stack[64];
+    for (int i_1 = 0; i_1 < 64; ++i_1) { stack[i_1] = 0u; }
+    stack[0u] = stack_entry(0u, 0u);
+    uint sp = 1u;
+    bool blocked = false;
+    uint leaves[4];
+    for (int i_2 = 0; i_2 < 4; ++i_2) { leaves[i_2] = 0u; }
+    uint leaf_count = 0u;
+    uint k = 0u;
+    uint candidate = NONE;
+    uint hole_material = 0u;
+    float hole_u = 0.0;
+    float hole_v = 0.0;
+    uint holes = 0u;
+    bool searching = true;
+    while (searching) {
+        while ((k < leaf_count || sp > 0u) && !blocked && (candidate == NONE)) {
+            if (k >= leaf_count) {
+                sp -= 1u;
+                NodeHits n = intersect_node(stack[sp] >> 8, origin, inv_dir, near, t_max);
+                leaf_count = 0u;
+                k = 0u;
+                if (n.t.x < MISS) {
+                    if (is_leaf(n.entries.x)) {
+                        leaves[leaf_count] = n.entries.x;
+                        leaf_count += 1u;
+                    } else if (sp < STACK_SIZE) {
+                        stack[sp] = n.entries.x;
+                        sp += 1u;
+                    }
+                }
+                if (n.t.y < MISS) {
+                    if (is_leaf(n.entries.y)) {
+                        leaves[leaf_count] = n.entries.y;
+                        leaf_count += 1u;
+                    } else if (sp < STACK_SIZE) {
+                        stack[sp] = n.entries.y;
+                        sp += 1u;
+                    }
+                }
+                if (n.t.z < MISS) {
+                    if (is_leaf(n.entries.z)) {
+                        leaves[leaf_count] = n.entries.z;
+                        leaf_count += 1u;
+                    } else if (sp < STACK_SIZE) {
+                        stack[sp] = n.entries.z;
+                        sp += 1u;
+                    }
+                }
+                if (n.t.w < MISS) {
+                    if (is_leaf(n.entries.w)) {
+                        leaves[leaf_count] = n.entries.w;
+                        leaf_count += 1u;
+                    } else if (sp < STACK_SIZE) {
+                        stack[sp] = n.entries.w;
+                        sp += 1u;
+                    }
+                }
+            }
+            while (k < leaf_count && !blocked && (candidate == NONE)) {
+                uint first = leaves[k] >> 8;
+                uint end = first + (leaves[k] & 255u);
+                uint i = first;
+                while (i < end && !blocked && (candidate == NONE)) {
+                    TriangleData tri = fetch_triangle(i);
+                    TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+                    if (h.t < t_max) {
+                        if (tri.masked) {
+                            candidate = i;
+                            hole_material = tri.material;
+                            hole_u = h.u;
+                            hole_v = h.v;
+                        } else {
+                            blocked = true;
+                        }
+                    }
+                    i += 1u;
+                }
+                if ((candidate != NONE) && i < end) {
+                    leaves[k] = stack_entry(i, end - i);
+                } else {
+                    k += 1u;
+                }
+            }
+        }
+        searching = false;
+        if (candidate != NONE) {
+            if (holes < MAX_HOLES && is_hole(candidate, hole_material, hole_u, hole_v)) {
+                holes += 1u;
+                searching = true;
+            } else {
+                blocked = true;
+            }
+            candidate = NONE;
+        }
+    }
+    return blocked;
+}
+
 // traverse::any_hit_one_level (lightport-tracer/src/kernel/traverse.rs:596)
 bool any_hit_one_level(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
@@ -1846,6 +2104,8 @@ bool any_hit_one_level(vec3 origin, vec3 dir, float t_max) {
 bool any_hit(vec3 origin, vec3 dir, float t_max) {
     if (scene_has_instances != 0u) {
         return any_hit_two_level(origin, dir, t_max);
+    } else if (scene_has_alpha_mask != 0u) {
+        return occluded_masked_one_level(origin, dir, t_max);
     } else {
         return any_hit_one_level(origin, dir, t_max);
     }
@@ -1854,7 +2114,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
 // traverse::occluded (lightport-tracer/src/kernel/traverse.rs:573)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     bool blocked = any_hit(origin, dir, t_max);
-    if ((scene_has_alpha_mask != 0u) && !blocked) {
+    if ((scene_has_alpha_mask != 0u) && (scene_has_instances != 0u) && !blocked) {
         blocked = visible_hit(origin, dir, t_max, true).triangle != NONE;
     }
     return blocked;

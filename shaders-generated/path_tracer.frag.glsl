@@ -925,9 +925,14 @@ Hit visible_hit(vec3 origin, vec3 dir, float t_max, bool only_masked) {
     return hit;
 }
 
+// traverse::closest_visible (lightport-tracer/src/kernel/traverse.rs:753)
+Hit closest_visible(vec3 origin, vec3 dir, float t_max) {
+    return visible_hit(origin, dir, t_max, false);
+}
+
 // traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:227)
 Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
-    return visible_hit(origin, dir, t_max, false);
+    return closest_visible(origin, dir, t_max);
 }
 
 // lights::sky_texel_coords (lightport-tracer/src/kernel/lights.rs:85)
@@ -1607,7 +1612,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
 // traverse::occluded (lightport-tracer/src/kernel/traverse.rs:573)
 bool occluded(vec3 origin, vec3 dir, float t_max) {
     bool blocked = any_hit(origin, dir, t_max);
-    if ((1u != 0u) && !blocked) {
+    if ((1u != 0u) && (1u != 0u) && !blocked) {
         blocked = visible_hit(origin, dir, t_max, true).triangle != NONE;
     }
     return blocked;

@@ -898,9 +898,14 @@ fn visible_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, only_masked: bool)
     return hit;
 }
 
+// traverse::closest_visible (lightport-tracer/src/kernel/traverse.rs:753)
+fn closest_visible(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
+    return visible_hit(origin, dir, t_max, false);
+}
+
 // traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:227)
 fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
-    return visible_hit(origin, dir, t_max, false);
+    return closest_visible(origin, dir, t_max);
 }
 
 // lights::sky_texel_coords (lightport-tracer/src/kernel/lights.rs:85)
@@ -1578,7 +1583,7 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
 // traverse::occluded (lightport-tracer/src/kernel/traverse.rs:573)
 fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     var blocked: bool = any_hit(origin, dir, t_max);
-    if (1u != 0u) && !blocked {
+    if (1u != 0u) && (1u != 0u) && !blocked {
         blocked = visible_hit(origin, dir, t_max, true).triangle != NONE;
     }
     return blocked;

@@ -144,6 +144,18 @@ fn alpha_mask_functions_agree() {
         Tolerance::EXACT,
     );
 
+    // One traversal that resumes behind a hole (`closest_visible_one_level`,
+    // `occluded_masked_one_level`, issue 31) finds what searching again from the root behind
+    // each hole (`visible_hit`, the design before) finds, on the CPU.
+    for &(o, d, t) in &rays {
+        assert_eq!(traverse::trace_closest(&k, o, d, t), traverse::visible_hit(&k, o, d, t, false), "{o} {d}");
+    }
+    for &(o, d, t) in &shadow {
+        let searched =
+            traverse::any_hit_one_level(&k, o, d, t) || traverse::visible_hit(&k, o, d, t, true).triangle != NONE;
+        assert_eq!(traverse::occluded(&k, o, d, t), searched, "{o} {d} {t}");
+    }
+
     // Each segment against a leaf of one triangle: an unmasked triangle hit blocks; masked
     // ones are left to `visible_hit` (the hole test stays out of traversal's loops).
     let segments: Vec<(u32, Vec3, Vec3, f32)> = shadow

@@ -110,13 +110,13 @@ pub mod traverse {
 
     // Alpha masks (`Features::alpha_mask`, `alpha_mask::is_hole`). The hole test (a texture
     // lookup) is kept out of the traversal loops: SIMD drivers (llvmpipe, SwiftShader) run both
-    // sides of a branch under a lane mask, so a test in the per-triangle loop cost every
-    // triangle of every ray its texel fetches, masked or not (2.4x per sample on GL for
-    // LittlestTokyo, issue 31). Instead traversal returns the closest *candidate* in (t,
-    // triangle) order after a given one, holes included, and `trace_closest` tests only that
-    // candidate, searching again behind it when it is a hole (`visible_hit`); shadow rays test
-    // unmasked triangles in the loop and masked ones through `visible_hit`. Specialisation
-    // removes all of it: scenes without masks get the code they had.
+    // sides of a branch under a lane mask, so a test in a traversal loop costs every node or
+    // triangle of every ray its texel fetches, masked or not (2.4x per sample on GL, issue 31).
+    // A masked triangle that would be the closest hit (a shadow ray: any masked hit) ends the
+    // traversal loop instead; the loop around it tests that one candidate, and traversal resumes
+    // where it stopped (`closest_visible_one_level`, `occluded_masked_one_level`: one traversal
+    // per ray). Two-level scenes search again from the root behind each hole (`visible_hit`).
+    // Specialisation removes all of it: scenes without masks get the code they had.
 
     /// Most holes one ray passes through (`visible_hit`): each costs a traversal. The candidate
     /// after that many holes counts as a hit (a dense cut-out canopy seen edge-on may darken).
@@ -226,7 +226,7 @@ pub mod traverse {
     #[inline(always)]
     pub fn trace_closest(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
         if scene.has_alpha_mask != 0 {
-            visible_hit(scene, origin, dir, t_max, false)
+            closest_visible(scene, origin, dir, t_max)
         } else {
             closest_candidate(scene, origin, dir, t_max, before_any_hit(), false)
         }
@@ -567,31 +567,31 @@ pub mod traverse {
     }
 
     /// Whether anything blocks `origin + t * dir` for t in (0, t_max): the shadow-ray test.
-    /// With alpha masks, an unmasked triangle or a masked one outside its holes.
+    /// With alpha masks, an unmasked triangle or a masked one outside its holes (`any_hit`).
     // Inlined into the CPU backend's row loop, which is also compiled for AVX2 (backend/cpu.rs).
     #[inline(always)]
     pub fn occluded(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
         let mut blocked = any_hit(scene, origin, dir, t_max);
-        if scene.has_alpha_mask != 0 && !blocked {
+        if scene.has_alpha_mask != 0 && scene.has_instances != 0 && !blocked {
             blocked = visible_hit(scene, origin, dir, t_max, true).triangle != NONE;
         }
         blocked
     }
 
-    /// Whether any triangle (with alpha masks, any unmasked one) is hit for t in (0, t_max): the
-    /// one-level loop, or the loop over both levels (see `closest_candidate`).
+    /// Whether any triangle is hit for t in (0, t_max): one level (with alpha masks, outside the
+    /// holes: `occluded_masked_one_level`) or two (with alpha masks, unmasked: see `occluded`).
     #[inline(always)]
     pub fn any_hit(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
         if scene.has_instances != 0 {
             any_hit_two_level(scene, origin, dir, t_max)
+        } else if scene.has_alpha_mask != 0 {
+            occluded_masked_one_level(scene, origin, dir, t_max)
         } else {
             any_hit_one_level(scene, origin, dir, t_max)
         }
     }
-
-    /// Whether any triangle (with alpha masks, any unmasked one) is hit for t in (0, t_max).
-    /// Any hit ends it, so children are visited in slot order, and leaves are intersected at
-    /// once: the stack holds child nodes only (`tracer::bvh::WideBvh::stack_needed` bounds it).
+    /// Whether any triangle is hit for t in (0, t_max) (without alpha masks): children in slot
+    /// order, leaves at once, a stack of child nodes only (`WideBvh::stack_needed` bounds it).
     #[inline(always)]
     pub fn any_hit_one_level(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
         let inv_dir = safe_inverse(dir);
@@ -742,6 +742,293 @@ pub mod traverse {
             while k < leaf_count && !blocked {
                 blocked = leaf_occludes(scene, leaves[k], o, d, t_max);
                 k += 1;
+            }
+        }
+        blocked
+    }
+
+    /// `trace_closest` with alpha masks: one traversal that tests candidates as it finds them
+    /// (`closest_visible_one_level`), or in two-level scenes the search again behind each hole
+    /// (`visible_hit`).
+    pub fn closest_visible(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
+        if scene.has_instances != 0 {
+            visible_hit(scene, origin, dir, t_max, false)
+        } else {
+            closest_visible_one_level(scene, origin, dir, t_max)
+        }
+    }
+
+    /// No hit: the triangle NONE (a masked candidate not yet found).
+    pub fn no_hit() -> Hit {
+        Hit { triangle: NONE, t: 0.0, u: 0.0, v: 0.0, instance: 0 }
+    }
+
+    /// The leaf test of `closest_visible_one_level`: the triangles of leaf `entry` of
+    /// `instance`; an unmasked one closer than `hit` becomes `hit`, a masked one becomes
+    /// `pending` when it is the next candidate after `after` before both (its hole test is the
+    /// caller's, out of the traversal loop).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn intersect_leaf_masked(
+        scene: &Scene,
+        entry: u32,
+        instance: u32,
+        origin: Vec3,
+        dir: Vec3,
+        after: Hit,
+        hit: &mut Hit,
+        pending: &mut Hit,
+    ) {
+        let first = entry >> 8;
+        for i in first..first + (entry & 255) {
+            let tri = fetch_triangle(scene, i);
+            let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+            if tri.masked {
+                let mut best = *hit;
+                if pending.triangle != NONE {
+                    best = *pending;
+                }
+                if is_next_candidate(scene, h.t, i, instance, after, best) {
+                    *pending = Hit { triangle: i, t: h.t, u: h.u, v: h.v, instance };
+                }
+            } else if h.t < hit.t {
+                *hit = Hit { triangle: i, t: h.t, u: h.u, v: h.v, instance };
+            }
+        }
+    }
+
+    /// `closest_candidate_one_level` for scenes with alpha masks: the closest hit outside the
+    /// holes, in one traversal. A masked triangle that would become the closest hit is not
+    /// taken at once: it ends the inner (traversal) loop as `pending`, the outer loop tests it
+    /// for a hole, then traversal resumes where it stopped, with it as the closest hit, or,
+    /// behind a hole, by intersecting the same leaves again for the next candidate after it.
+    /// The traversal loop appears once and carries no hole test; the hole test runs once per
+    /// masked candidate, at most `MAX_HOLES` times (then the candidate counts as a hit).
+    // The DSL has no iterators: the leaves are visited by index.
+    #[allow(clippy::needless_range_loop)]
+    #[inline(always)]
+    pub fn closest_visible_one_level(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> Hit {
+        let inv_dir = safe_inverse(dir);
+        let near = near_planes(inv_dir);
+        let mut hit = Hit { triangle: NONE, t: t_max, u: 0.0, v: 0.0, instance: 0 };
+        let mut stack = [0u32; STACK_SIZE];
+        let mut stack_t = [0.0f32; STACK_SIZE];
+        let leaf_limit = scene.leaf_stack_limit as usize;
+        let mut sp: usize = 0;
+        let mut entry = stack_entry(0, 0);
+        let mut visiting = true;
+        let mut leaves = [0u32; 3];
+        let mut leaf_count: usize = 0;
+        let mut descend = false;
+        // The masked candidate waiting for its hole test; behind a hole, the leaves of the
+        // same iteration are intersected again (`rescan`) for candidates after it (`after`).
+        let mut pending = no_hit();
+        let mut after = before_any_hit();
+        let mut rescan = false;
+        let mut holes = 0u32;
+        while visiting {
+            while visiting && pending.triangle == NONE {
+                if !rescan {
+                    descend = false;
+                    leaf_count = 0;
+                    if is_leaf(entry) {
+                        leaves[0] = entry;
+                        leaf_count = 1;
+                    } else {
+                        let sorted = sort_children(intersect_node(scene, entry >> 8, origin, inv_dir, near, hit.t));
+                        let t0 = sorted.t.x;
+                        let t1 = sorted.t.y;
+                        let t2 = sorted.t.z;
+                        let t3 = sorted.t.w;
+                        let e0 = sorted.entries.x;
+                        let e1 = sorted.entries.y;
+                        let e2 = sorted.entries.z;
+                        let e3 = sorted.entries.w;
+                        if t3 < MISS {
+                            if sp >= leaf_limit && is_leaf(e3) {
+                                leaves[leaf_count] = e3;
+                                leaf_count += 1;
+                            } else if sp < STACK_SIZE {
+                                stack[sp] = e3;
+                                stack_t[sp] = t3;
+                                sp += 1;
+                            }
+                        }
+                        if t2 < MISS {
+                            if sp >= leaf_limit && is_leaf(e2) {
+                                leaves[leaf_count] = e2;
+                                leaf_count += 1;
+                            } else if sp < STACK_SIZE {
+                                stack[sp] = e2;
+                                stack_t[sp] = t2;
+                                sp += 1;
+                            }
+                        }
+                        if t1 < MISS {
+                            if sp >= leaf_limit && is_leaf(e1) {
+                                leaves[leaf_count] = e1;
+                                leaf_count += 1;
+                            } else if sp < STACK_SIZE {
+                                stack[sp] = e1;
+                                stack_t[sp] = t1;
+                                sp += 1;
+                            }
+                        }
+                        if t0 < MISS {
+                            entry = e0;
+                            descend = true;
+                        }
+                    }
+                }
+                rescan = false;
+                for k in 0..leaf_count {
+                    intersect_leaf_masked(scene, leaves[k], 0, origin, dir, after, &mut hit, &mut pending);
+                }
+                after = before_any_hit();
+                if pending.triangle != NONE
+                    && !is_next_candidate(scene, pending.t, pending.triangle, 0, before_any_hit(), hit)
+                {
+                    // An unmasked triangle of the same leaves is closer.
+                    pending = no_hit();
+                }
+                if pending.triangle == NONE && !descend {
+                    visiting = false;
+                    while sp > 0 && !visiting {
+                        sp -= 1;
+                        if !(stack_t[sp] > hit.t) {
+                            entry = stack[sp];
+                            visiting = true;
+                        }
+                    }
+                }
+            }
+            if pending.triangle != NONE {
+                let tri = fetch_triangle(scene, pending.triangle);
+                if holes < MAX_HOLES && is_hole(scene, pending.triangle, tri.material, pending.u, pending.v) {
+                    holes += 1;
+                    after = pending;
+                    rescan = true;
+                } else {
+                    hit = pending;
+                    if !descend {
+                        visiting = false;
+                        while sp > 0 && !visiting {
+                            sp -= 1;
+                            if !(stack_t[sp] > hit.t) {
+                                entry = stack[sp];
+                                visiting = true;
+                            }
+                        }
+                    }
+                }
+                pending = no_hit();
+            }
+        }
+        hit
+    }
+
+    /// `occluded` for one-level scenes with alpha masks, in one traversal: an unmasked triangle
+    /// hit ends it; a masked one ends the inner (traversal) loop, the outer loop tests it for a
+    /// hole, and behind a hole traversal resumes after it (the rest of its leaf, the node's
+    /// other leaves, then the stack). The traversal loop appears once and carries no hole test.
+    #[inline(always)]
+    pub fn occluded_masked_one_level(scene: &Scene, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        let inv_dir = safe_inverse(dir);
+        let near = near_planes(inv_dir);
+        let mut stack = [0u32; STACK_SIZE];
+        stack[0] = stack_entry(0, 0);
+        let mut sp: usize = 1;
+        let mut blocked = false;
+        let mut leaves = [0u32; 4];
+        let mut leaf_count: usize = 0;
+        let mut k: usize = 0;
+        // The masked triangle hit, waiting for its hole test.
+        let mut candidate = NONE;
+        let mut hole_material = 0u32;
+        let mut hole_u = 0.0f32;
+        let mut hole_v = 0.0f32;
+        let mut holes = 0u32;
+        let mut searching = true;
+        while searching {
+            while (k < leaf_count || sp > 0) && !blocked && candidate == NONE {
+                if k >= leaf_count {
+                    sp -= 1;
+                    let n = intersect_node(scene, stack[sp] >> 8, origin, inv_dir, near, t_max);
+                    leaf_count = 0;
+                    k = 0;
+                    if n.t.x < MISS {
+                        if is_leaf(n.entries.x) {
+                            leaves[leaf_count] = n.entries.x;
+                            leaf_count += 1;
+                        } else if sp < STACK_SIZE {
+                            stack[sp] = n.entries.x;
+                            sp += 1;
+                        }
+                    }
+                    if n.t.y < MISS {
+                        if is_leaf(n.entries.y) {
+                            leaves[leaf_count] = n.entries.y;
+                            leaf_count += 1;
+                        } else if sp < STACK_SIZE {
+                            stack[sp] = n.entries.y;
+                            sp += 1;
+                        }
+                    }
+                    if n.t.z < MISS {
+                        if is_leaf(n.entries.z) {
+                            leaves[leaf_count] = n.entries.z;
+                            leaf_count += 1;
+                        } else if sp < STACK_SIZE {
+                            stack[sp] = n.entries.z;
+                            sp += 1;
+                        }
+                    }
+                    if n.t.w < MISS {
+                        if is_leaf(n.entries.w) {
+                            leaves[leaf_count] = n.entries.w;
+                            leaf_count += 1;
+                        } else if sp < STACK_SIZE {
+                            stack[sp] = n.entries.w;
+                            sp += 1;
+                        }
+                    }
+                }
+                while k < leaf_count && !blocked && candidate == NONE {
+                    let first = leaves[k] >> 8;
+                    let end = first + (leaves[k] & 255);
+                    let mut i = first;
+                    while i < end && !blocked && candidate == NONE {
+                        let tri = fetch_triangle(scene, i);
+                        let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+                        if h.t < t_max {
+                            if tri.masked {
+                                candidate = i;
+                                hole_material = tri.material;
+                                hole_u = h.u;
+                                hole_v = h.v;
+                            } else {
+                                blocked = true;
+                            }
+                        }
+                        i += 1;
+                    }
+                    if candidate != NONE && i < end {
+                        // Resume after the candidate.
+                        leaves[k] = stack_entry(i, end - i);
+                    } else {
+                        k += 1;
+                    }
+                }
+            }
+            searching = false;
+            if candidate != NONE {
+                if holes < MAX_HOLES && is_hole(scene, candidate, hole_material, hole_u, hole_v) {
+                    holes += 1;
+                    searching = true;
+                } else {
+                    blocked = true;
+                }
+                candidate = NONE;
             }
         }
         blocked
