@@ -39,16 +39,11 @@ pub fn render_frames(args: &RenderArgs, scene: Scene, settings: &RenderSettings)
     println!("frame  time (s)   pose (ms)   pack (ms)   upload (ms)   render (ms)   written");
     for k in 0..args.frames {
         let time = from + (until - from) * k as f32 / (args.frames - 1) as f32;
-        let posing = Instant::now();
-        moving.pose(time)?;
-        let pose_ms = ms(posing);
-        let packing = Instant::now();
-        let moved = moving.pack()?;
-        let pack_ms = ms(packing);
-        let uploading = Instant::now();
-        take(&mut renderer, &moving, moved, args)?;
-        renderer.finish()?;
-        let upload_ms = ms(uploading);
+        // The first frame is the pose the scene was loaded and the renderer created with.
+        let (pose_ms, pack_ms, upload_ms) = match k {
+            0 => (0.0, 0.0, 0.0),
+            _ => next_pose(&mut renderer, &mut moving, time, args)?,
+        };
         let rendering = Instant::now();
         for _ in 0..args.spp {
             renderer.render_frame()?;
@@ -70,6 +65,25 @@ pub fn render_frames(args: &RenderArgs, scene: Scene, settings: &RenderSettings)
     tracer::output::write_image(&strip, &side_by_side(&frames), &display)?;
     println!("wrote        {} ({} frames side by side)", strip.display(), frames.len());
     Ok(())
+}
+
+/// Poses the scene at `time`, packs it and hands it to the renderer: the milliseconds each took.
+fn next_pose(
+    renderer: &mut Box<dyn Renderer>,
+    moving: &mut MovingScene,
+    time: f32,
+    args: &RenderArgs,
+) -> Result<(f64, f64, f64)> {
+    let posing = Instant::now();
+    moving.pose(time)?;
+    let pose_ms = ms(posing);
+    let packing = Instant::now();
+    let moved = moving.pack()?;
+    let pack_ms = ms(packing);
+    let uploading = Instant::now();
+    take(renderer, moving, moved, args)?;
+    renderer.finish()?;
+    Ok((pose_ms, pack_ms, ms(uploading)))
 }
 
 /// Hands `moved` to the renderer; a pose that needs another kernel variant gets a new renderer.
