@@ -203,7 +203,26 @@ struct GuidedSample {
     vec4 emission;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:290)
+// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:184)
+struct PathState {
+    vec3 origin;
+    vec3 dir;
+    vec3 throughput;
+    vec3 radiance;
+    float scatter_pdf;
+    uint depth;
+    uint rng;
+};
+
+// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:198)
+struct ShadowRay {
+    vec3 origin;
+    vec3 dir;
+    float t_max;
+    vec3 contribution;
+};
+
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:369)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -766,6 +785,18 @@ Ray camera_ray(vec2 film, vec2 lens) {
     } else {
         return Ray(scene_camera_position, dir);
     }
+}
+
+// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:214)
+PathState start_path(uint x, uint y, uint frame_seed, uint frame_index) {
+    uint pixel = y * scene_width + x;
+    uint rng = pixel_seed(pixel, frame_seed);
+    vec2 film = vec2(lp_u32_to_f32(x), lp_u32_to_f32(y)) + pixel_jitter(pixel, frame_seed, frame_index);
+    random_u32(rng);
+    random_u32(rng);
+    vec2 lens = vec2(random_float(rng), random_float(rng));
+    Ray ray = camera_ray(film, lens);
+    return PathState(ray.origin, ray.dir, vec3(1.0), vec3(0.0), 0.0, 0u, rng);
 }
 
 // traverse::before_any_hit (lightport-tracer/src/kernel/traverse.rs:126)
@@ -1386,6 +1417,11 @@ Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
     }
 }
 
+// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:206)
+ShadowRay no_shadow_ray() {
+    return ShadowRay(vec3(0.0), vec3(0.0, 0.0, 1.0), 0.0, vec3(0.0));
+}
+
 // lights::sky_texel_coords (lightport-tracer/src/kernel/lights.rs:85)
 vec2 sky_texel_coords(vec3 dir) {
     float phi = atan(dir.x, -dir.z) - scene_sky_rotation;
@@ -1469,7 +1505,7 @@ GlassData fetch_glass(uint material) {
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:349)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:424)
 vec3 volume_transmittance(uint material, float t) {
     vec3 sigma = fetch_glass(material).sigma_a;
     return vec3(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -1831,6 +1867,299 @@ float bsdf_pdf(Bsdf b, vec3 wo, vec3 wi) {
     }
 }
 
+// metal_rough::smith_visibility (lightport-tracer/src/kernel/metal_rough.rs:102)
+float smith_visibility(float alpha, float nl, float nv) {
+    float denominator = nl * smith_root(alpha, nv) + nv * smith_root(alpha, nl);
+    return denominator > 0.0 ? 0.5 / denominator : 0.0;
+}
+
+// metal_rough::metal_rough_eval (lightport-tracer/src/kernel/metal_rough.rs:113)
+vec3 metal_rough_eval(Surface s, vec3 wo, vec3 wi) {
+    if (!(wo.z > MIN_COSINE) || !(wi.z > MIN_COSINE)) {
+        return vec3(0.0);
+    }
+    vec3 h = normalize(wo + wi);
+    vec3 f = schlick_fresnel(s, dot(wo, h));
+    vec3 specular = f * (ggx_distribution(s.alpha, h) * smith_visibility(s.alpha, wi.z, wo.z));
+    return (vec3(1.0) - f) * s.diffuse * INV_PI + specular;
+}
+
+// dielectric::dielectric_eval (lightport-tracer/src/kernel/dielectric.rs:114)
+vec3 dielectric_eval(Surface s, vec3 wo, vec3 wi) {
+    if (is_delta(s) || !(wo.z > MIN_COSINE) || !(abs(wi.z) > MIN_COSINE)) {
+        return vec3(0.0);
+    }
+    float eta = s.f0.x;
+    if (wi.z > 0.0) {
+        vec3 h = normalize(wo + wi);
+        float f = fresnel_dielectric(dot(wo, h), eta);
+        return vec3(f * ggx_distribution(s.alpha, h) * smith_visibility(s.alpha, wi.z, wo.z));
+    }
+    if (s.f0.y > 0.0) {
+        vec3 wr = vec3(wi.x, wi.y, -wi.z);
+        vec3 h_1 = normalize(wo + wr);
+        float f_1 = fresnel_dielectric(dot(wo, h_1), eta);
+        return s.diffuse * ((1.0 - f_1) * ggx_distribution(s.alpha, h_1) * smith_visibility(s.alpha, wr.z, wo.z));
+    }
+    vec3 h_2 = refraction_half(wo, wi, eta);
+    float ho = dot(wo, h_2);
+    float hi = dot(wi, h_2);
+    if (!(ho > 0.0) || !(hi < 0.0)) {
+        return vec3(0.0);
+    }
+    float f_2 = fresnel_dielectric(ho, eta);
+    float denom = hi + ho / eta;
+    float g = 4.0 * smith_visibility(s.alpha, -wi.z, wo.z);
+    float ft = (1.0 - f_2) * ggx_distribution(s.alpha, h_2) * g * (-hi * ho) / (denom * denom * eta * eta);
+    return s.diffuse * ft;
+}
+
+// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:87)
+vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
+    if ((scene_has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH)) {
+        return metal_rough_eval(b.surface, wo, wi);
+    } else if ((scene_has_transmission != 0u) && (b.kind == BSDF_DIELECTRIC)) {
+        return dielectric_eval(b.surface, wo, wi);
+    } else if (wi.z > 0.0) {
+        return b.surface.diffuse * INV_PI;
+    } else {
+        return vec3(0.0);
+    }
+}
+
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:382)
+ShadowRay sample_ld(Shading sh, inout uint rng) {
+    vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
+    ShadowRay shadow = no_shadow_ray();
+    if ((scene_has_lights != 0u) && scene_light_count > 0u) {
+        LightSample ls = sample_light(sh.p, u_light);
+        vec3 wi = onb_to_local(sh.frame, ls.dir);
+        if (ls.pdf > 0.0 && (scene_has_transmission != 0u ? ((sh.bsdf.kind != BSDF_DIELECTRIC) && wi.z > 0.0) || ((sh.bsdf.kind == BSDF_DIELECTRIC) && sh.bsdf.surface.alpha > 0.0 && (wi.z != 0.0)) : wi.z > 0.0) && (scene_has_transmission != 0u ? dot(sh.ng, ls.dir) * wi.z > 0.0 : dot(sh.ng, ls.dir) > 0.0) && (ls.delta || (scene_strategy != STRATEGY_BSDF))) {
+            float weight = 1.0;
+            if (!ls.delta && (scene_strategy == STRATEGY_MIS)) {
+                weight = power_heuristic(ls.pdf, bsdf_pdf(sh.bsdf, sh.wo, wi));
+            }
+            shadow.origin = (scene_has_transmission != 0u) && wi.z < 0.0 ? sh.p - sh.ng * (2.0 * (lp_max_element_vec3(abs(sh.p)) + scene_scene_scale) * ORIGIN_OFFSET) : sh.p;
+            shadow.dir = ls.dir;
+            shadow.t_max = ls.dist < MISS ? ls.dist * SHADOW_RAY_SHORTENING : MISS;
+            shadow.contribution = bsdf_eval(sh.bsdf, sh.wo, wi) * ((scene_has_transmission != 0u ? abs(wi.z) : wi.z) * weight / ls.pdf) * ls.radiance;
+        }
+    }
+    return shadow;
+}
+
+// metal_rough::sample_ggx_vndf (lightport-tracer/src/kernel/metal_rough.rs:157)
+vec3 sample_ggx_vndf(float alpha, vec3 wo, float u1, float u2) {
+    vec3 v = normalize(vec3(wo.x * alpha, wo.y * alpha, wo.z));
+    vec2 cs = cos_sin_turns(u1);
+    float z = (1.0 - u2) * (1.0 + v.z) - v.z;
+    float sin_theta = sqrt(clamp(1.0 - z * z, 0.0, 1.0));
+    vec3 h = vec3(sin_theta * cs.x, sin_theta * cs.y, z) + v;
+    return normalize(vec3(h.x * alpha, h.y * alpha, max(h.z, 0.0)));
+}
+
+// sampling::cosine_sample_hemisphere (lightport-tracer/src/kernel/sampling.rs:39)
+vec3 cosine_sample_hemisphere(float u1, float u2) {
+    float r = sqrt(u1);
+    vec2 cs = cos_sin_turns(u2);
+    float z = sqrt(max(1.0 - u1, 0.0));
+    return vec3(r * cs.x, r * cs.y, z);
+}
+
+// metal_rough::metal_rough_sample (lightport-tracer/src/kernel/metal_rough.rs:171)
+BrdfSample metal_rough_sample(Surface s, vec3 wo, vec3 u) {
+    if (!(wo.z > MIN_COSINE)) {
+        return BrdfSample(vec3(0.0, 0.0, 1.0), 0.0, vec3(0.0));
+    }
+    vec3 wi;
+    if (u.z < specular_probability(s, wo.z)) {
+        vec3 h = sample_ggx_vndf(s.alpha, wo, u.x, u.y);
+        wi = h * (2.0 * dot(wo, h)) - wo;
+    } else {
+        wi = cosine_sample_hemisphere(u.x, u.y);
+    }
+    float pdf = metal_rough_pdf(s, wo, wi);
+    vec3 weight;
+    if (pdf > 0.0) {
+        weight = metal_rough_eval(s, wo, wi) * (wi.z / pdf);
+    } else {
+        weight = vec3(0.0);
+    }
+    return BrdfSample(wi, pdf, weight);
+}
+
+// dielectric::refract_dir (lightport-tracer/src/kernel/dielectric.rs:85)
+vec3 refract_dir(vec3 wo, vec3 h, float eta) {
+    float c = dot(wo, h);
+    float sin2_t = (1.0 - c * c) / (eta * eta);
+    float cos_t = sqrt(max(1.0 - sin2_t, 0.0));
+    return normalize(h * (c / eta - cos_t) - wo / eta);
+}
+
+// dielectric::dielectric_sample (lightport-tracer/src/kernel/dielectric.rs:176)
+BrdfSample dielectric_sample(Surface s, vec3 wo, vec3 u) {
+    if (!(wo.z > MIN_COSINE)) {
+        return BrdfSample(vec3(0.0, 0.0, 1.0), 0.0, vec3(0.0));
+    }
+    float eta = s.f0.x;
+    bool thin = s.f0.y > 0.0;
+    if (is_delta(s)) {
+        float f = fresnel_dielectric(wo.z, eta);
+        if (u.z < f) {
+            return BrdfSample(vec3(-wo.x, -wo.y, wo.z), DELTA_PDF, vec3(1.0));
+        }
+        if (thin) {
+            return BrdfSample(-wo, DELTA_PDF, s.diffuse);
+        }
+        vec3 wt = refract_dir(wo, vec3(0.0, 0.0, 1.0), eta);
+        return BrdfSample(wt, DELTA_PDF, s.diffuse / (eta * eta));
+    }
+    vec3 h = sample_ggx_vndf(s.alpha, wo, u.x, u.y);
+    float ho = dot(wo, h);
+    float f_1 = fresnel_dielectric(ho, eta);
+    vec3 reflected = h * (2.0 * ho) - wo;
+    vec3 wi = reflected;
+    bool reflect_ = u.z < f_1;
+    if (!reflect_) {
+        if (thin) {
+            wi = vec3(reflected.x, reflected.y, -reflected.z);
+        } else {
+            wi = refract_dir(wo, h, eta);
+        }
+    }
+    if ((reflect_ && !(wi.z > 0.0)) || (!reflect_ && !(wi.z < 0.0))) {
+        return BrdfSample(wi, 0.0, vec3(0.0));
+    }
+    float pdf = dielectric_pdf(s, wo, wi);
+    vec3 weight;
+    if (pdf > 0.0) {
+        weight = dielectric_eval(s, wo, wi) * (abs(wi.z) / pdf);
+    } else {
+        weight = vec3(0.0);
+    }
+    return BrdfSample(wi, pdf, weight);
+}
+
+// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:115)
+BrdfSample bsdf_sample(Bsdf b, vec3 wo, inout uint rng) {
+    float u1 = random_float(rng);
+    float u2 = random_float(rng);
+    if ((scene_has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH)) {
+        float u3 = random_float(rng);
+        return metal_rough_sample(b.surface, wo, vec3(u1, u2, u3));
+    } else if ((scene_has_transmission != 0u) && (b.kind == BSDF_DIELECTRIC)) {
+        float u3_1 = random_float(rng);
+        return dielectric_sample(b.surface, wo, vec3(u1, u2, u3_1));
+    } else {
+        vec3 wi = cosine_sample_hemisphere(u1, u2);
+        return BrdfSample(wi, wi.z * INV_PI, b.surface.diffuse);
+    }
+}
+
+// sampling::onb_to_world (lightport-tracer/src/kernel/sampling.rs:33)
+vec3 onb_to_world(Onb onb, vec3 v) {
+    return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
+}
+
+// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:242)
+bool shade_hit(inout PathState path, Hit hit, inout FirstHit first, inout ShadowRay shadow) {
+    vec3 origin = path.origin;
+    vec3 dir = path.dir;
+    uint depth = path.depth;
+    float scatter_pdf = path.scatter_pdf;
+    if ((scene_has_denoise_guide != 0u) && (depth == 0u)) {
+        first.normal = -dir;
+        if (hit.triangle != NONE) {
+            first.depth = hit.t;
+        }
+    }
+    if (hit.triangle == NONE) {
+        if (scene_has_sky != 0u) {
+            float light_pdf = 0.0;
+            if ((scene_strategy == STRATEGY_MIS) && scatter_pdf > 0.0) {
+                light_pdf = sky_pdf(dir) * light_pmf(scene_light_count - 1u);
+            }
+            vec3 sky = path.throughput * sky_radiance(dir) * hit_emission_weight(scatter_pdf, light_pdf);
+            path.radiance += sky;
+            if ((scene_has_denoise_guide != 0u) && (depth == 0u)) {
+                first.emission = sky;
+            }
+        }
+        return false;
+    }
+    TriangleData tri = world_triangle(hit.triangle, hit.instance);
+    vec3 p = origin + dir * hit.t;
+    SurfaceNormals normals = surface_normals(tri, hit, dir);
+    if (!(normals.area2 > 0.0)) {
+        return false;
+    }
+    float flip = normals.flip;
+    vec3 ng = normals.ng;
+    vec3 ns = normals.ns;
+    float area2 = normals.area2;
+    MaterialData material = fetch_material(tri.material);
+    if ((scene_has_denoise_guide != 0u) && (depth == 0u)) {
+        first.albedo = base_color_at(material, hit.triangle, hit.u, hit.v);
+        first.normal = ns;
+    }
+    if ((scene_has_volume != 0u) && flip < 0.0) {
+        path.throughput *= volume_transmittance(tri.material, hit.t);
+    }
+    if (lp_max_element_vec3(material.emission) > 0.0 && flip > 0.0) {
+        float light_pdf_1 = 0.0;
+        if ((scene_strategy == STRATEGY_MIS) && scatter_pdf > 0.0 && (tri.light != NONE)) {
+            float cos_light = -dot(ng, dir);
+            light_pdf_1 = area_pdf_to_solid_angle(light_pmf(tri.light), 0.5 * area2, hit.t, cos_light);
+        }
+        vec3 e = triangle_emission(hit.triangle, tri.material, hit.u, hit.v);
+        path.radiance += path.throughput * e * hit_emission_weight(scatter_pdf, light_pdf_1);
+        if ((scene_has_denoise_guide != 0u) && (depth == 0u)) {
+            first.emission = e;
+        }
+    }
+    if (depth + 1u >= scene_max_depth) {
+        return false;
+    }
+    uint rng = path.rng;
+    Bsdf bsdf;
+    if (scene_has_transmission != 0u) {
+        bsdf = glass_at(material, tri.material, hit, flip, random_float(rng));
+    } else {
+        bsdf = bsdf_at(material, tri.material, hit);
+    }
+    Onb frame = onb_from_normal(bsdf_normal(bsdf, ns, ng, dir));
+    Shading sh = Shading(offset_origin(p, ng), ng, frame, onb_to_local(frame, -dir), bsdf);
+    if ((scene_has_denoise_guide != 0u) && (depth == 0u) && (scene_has_metal_rough != 0u) && (bsdf.kind == BSDF_METAL_ROUGH)) {
+        first.albedo = metal_rough_albedo(bsdf.surface, sh.wo.z);
+    }
+    shadow = sample_ld(sh, rng);
+    shadow.contribution = path.throughput * shadow.contribution;
+    BrdfSample bs = bsdf_sample(sh.bsdf, sh.wo, rng);
+    path.rng = rng;
+    vec3 next = onb_to_world(sh.frame, bs.dir);
+    if (scene_has_transmission != 0u ? !(bs.pdf > 0.0 || (bs.pdf == DELTA_PDF)) || !(dot(ng, next) * bs.dir.z > 0.0) : !(bs.pdf > 0.0) || dot(ng, next) <= 0.0) {
+        return false;
+    }
+    path.scatter_pdf = bs.pdf;
+    path.throughput *= bs.weight;
+    path.depth = depth + 1u;
+    if (path.depth >= RR_START_DEPTH) {
+        float q = min(lp_max_element_vec3(path.throughput), RR_MAX_SURVIVAL);
+        float survive = random_float(rng);
+        path.rng = rng;
+        if (survive >= q) {
+            return false;
+        }
+        path.throughput /= q;
+    }
+    path.origin = sh.p;
+    if ((scene_has_transmission != 0u) && bs.dir.z < 0.0) {
+        path.origin = offset_origin(p, -ng);
+    }
+    path.dir = next;
+    return true;
+}
+
 // traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:180)
 bool leaf_occludes(uint entry, vec3 origin, vec3 dir, float t_max) {
     uint first = entry >> 8;
@@ -2120,309 +2449,26 @@ bool occluded(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// metal_rough::smith_visibility (lightport-tracer/src/kernel/metal_rough.rs:102)
-float smith_visibility(float alpha, float nl, float nv) {
-    float denominator = nl * smith_root(alpha, nv) + nv * smith_root(alpha, nl);
-    return denominator > 0.0 ? 0.5 / denominator : 0.0;
-}
-
-// metal_rough::metal_rough_eval (lightport-tracer/src/kernel/metal_rough.rs:113)
-vec3 metal_rough_eval(Surface s, vec3 wo, vec3 wi) {
-    if (!(wo.z > MIN_COSINE) || !(wi.z > MIN_COSINE)) {
-        return vec3(0.0);
-    }
-    vec3 h = normalize(wo + wi);
-    vec3 f = schlick_fresnel(s, dot(wo, h));
-    vec3 specular = f * (ggx_distribution(s.alpha, h) * smith_visibility(s.alpha, wi.z, wo.z));
-    return (vec3(1.0) - f) * s.diffuse * INV_PI + specular;
-}
-
-// dielectric::dielectric_eval (lightport-tracer/src/kernel/dielectric.rs:114)
-vec3 dielectric_eval(Surface s, vec3 wo, vec3 wi) {
-    if (is_delta(s) || !(wo.z > MIN_COSINE) || !(abs(wi.z) > MIN_COSINE)) {
-        return vec3(0.0);
-    }
-    float eta = s.f0.x;
-    if (wi.z > 0.0) {
-        vec3 h = normalize(wo + wi);
-        float f = fresnel_dielectric(dot(wo, h), eta);
-        return vec3(f * ggx_distribution(s.alpha, h) * smith_visibility(s.alpha, wi.z, wo.z));
-    }
-    if (s.f0.y > 0.0) {
-        vec3 wr = vec3(wi.x, wi.y, -wi.z);
-        vec3 h_1 = normalize(wo + wr);
-        float f_1 = fresnel_dielectric(dot(wo, h_1), eta);
-        return s.diffuse * ((1.0 - f_1) * ggx_distribution(s.alpha, h_1) * smith_visibility(s.alpha, wr.z, wo.z));
-    }
-    vec3 h_2 = refraction_half(wo, wi, eta);
-    float ho = dot(wo, h_2);
-    float hi = dot(wi, h_2);
-    if (!(ho > 0.0) || !(hi < 0.0)) {
-        return vec3(0.0);
-    }
-    float f_2 = fresnel_dielectric(ho, eta);
-    float denom = hi + ho / eta;
-    float g = 4.0 * smith_visibility(s.alpha, -wi.z, wo.z);
-    float ft = (1.0 - f_2) * ggx_distribution(s.alpha, h_2) * g * (-hi * ho) / (denom * denom * eta * eta);
-    return s.diffuse * ft;
-}
-
-// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:87)
-vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
-    if ((scene_has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH)) {
-        return metal_rough_eval(b.surface, wo, wi);
-    } else if ((scene_has_transmission != 0u) && (b.kind == BSDF_DIELECTRIC)) {
-        return dielectric_eval(b.surface, wo, wi);
-    } else if (wi.z > 0.0) {
-        return b.surface.diffuse * INV_PI;
-    } else {
-        return vec3(0.0);
-    }
-}
-
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:302)
-vec3 sample_ld(Shading sh, inout uint rng) {
-    vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
-    vec3 direct = vec3(0.0);
-    if ((scene_has_lights != 0u) && scene_light_count > 0u) {
-        LightSample ls = sample_light(sh.p, u_light);
-        vec3 wi = onb_to_local(sh.frame, ls.dir);
-        if (ls.pdf > 0.0 && (scene_has_transmission != 0u ? ((sh.bsdf.kind != BSDF_DIELECTRIC) && wi.z > 0.0) || ((sh.bsdf.kind == BSDF_DIELECTRIC) && sh.bsdf.surface.alpha > 0.0 && (wi.z != 0.0)) : wi.z > 0.0) && (scene_has_transmission != 0u ? dot(sh.ng, ls.dir) * wi.z > 0.0 : dot(sh.ng, ls.dir) > 0.0) && (ls.delta || (scene_strategy != STRATEGY_BSDF))) {
-            float weight = 1.0;
-            if (!ls.delta && (scene_strategy == STRATEGY_MIS)) {
-                weight = power_heuristic(ls.pdf, bsdf_pdf(sh.bsdf, sh.wo, wi));
-            }
-            float t_max = ls.dist < MISS ? ls.dist * SHADOW_RAY_SHORTENING : MISS;
-            if (!occluded((scene_has_transmission != 0u) && wi.z < 0.0 ? sh.p - sh.ng * (2.0 * (lp_max_element_vec3(abs(sh.p)) + scene_scene_scale) * ORIGIN_OFFSET) : sh.p, ls.dir, t_max)) {
-                direct = bsdf_eval(sh.bsdf, sh.wo, wi) * ((scene_has_transmission != 0u ? abs(wi.z) : wi.z) * weight / ls.pdf) * ls.radiance;
-            }
-        }
-    }
-    return direct;
-}
-
-// metal_rough::sample_ggx_vndf (lightport-tracer/src/kernel/metal_rough.rs:157)
-vec3 sample_ggx_vndf(float alpha, vec3 wo, float u1, float u2) {
-    vec3 v = normalize(vec3(wo.x * alpha, wo.y * alpha, wo.z));
-    vec2 cs = cos_sin_turns(u1);
-    float z = (1.0 - u2) * (1.0 + v.z) - v.z;
-    float sin_theta = sqrt(clamp(1.0 - z * z, 0.0, 1.0));
-    vec3 h = vec3(sin_theta * cs.x, sin_theta * cs.y, z) + v;
-    return normalize(vec3(h.x * alpha, h.y * alpha, max(h.z, 0.0)));
-}
-
-// sampling::cosine_sample_hemisphere (lightport-tracer/src/kernel/sampling.rs:39)
-vec3 cosine_sample_hemisphere(float u1, float u2) {
-    float r = sqrt(u1);
-    vec2 cs = cos_sin_turns(u2);
-    float z = sqrt(max(1.0 - u1, 0.0));
-    return vec3(r * cs.x, r * cs.y, z);
-}
-
-// metal_rough::metal_rough_sample (lightport-tracer/src/kernel/metal_rough.rs:171)
-BrdfSample metal_rough_sample(Surface s, vec3 wo, vec3 u) {
-    if (!(wo.z > MIN_COSINE)) {
-        return BrdfSample(vec3(0.0, 0.0, 1.0), 0.0, vec3(0.0));
-    }
-    vec3 wi;
-    if (u.z < specular_probability(s, wo.z)) {
-        vec3 h = sample_ggx_vndf(s.alpha, wo, u.x, u.y);
-        wi = h * (2.0 * dot(wo, h)) - wo;
-    } else {
-        wi = cosine_sample_hemisphere(u.x, u.y);
-    }
-    float pdf = metal_rough_pdf(s, wo, wi);
-    vec3 weight;
-    if (pdf > 0.0) {
-        weight = metal_rough_eval(s, wo, wi) * (wi.z / pdf);
-    } else {
-        weight = vec3(0.0);
-    }
-    return BrdfSample(wi, pdf, weight);
-}
-
-// dielectric::refract_dir (lightport-tracer/src/kernel/dielectric.rs:85)
-vec3 refract_dir(vec3 wo, vec3 h, float eta) {
-    float c = dot(wo, h);
-    float sin2_t = (1.0 - c * c) / (eta * eta);
-    float cos_t = sqrt(max(1.0 - sin2_t, 0.0));
-    return normalize(h * (c / eta - cos_t) - wo / eta);
-}
-
-// dielectric::dielectric_sample (lightport-tracer/src/kernel/dielectric.rs:176)
-BrdfSample dielectric_sample(Surface s, vec3 wo, vec3 u) {
-    if (!(wo.z > MIN_COSINE)) {
-        return BrdfSample(vec3(0.0, 0.0, 1.0), 0.0, vec3(0.0));
-    }
-    float eta = s.f0.x;
-    bool thin = s.f0.y > 0.0;
-    if (is_delta(s)) {
-        float f = fresnel_dielectric(wo.z, eta);
-        if (u.z < f) {
-            return BrdfSample(vec3(-wo.x, -wo.y, wo.z), DELTA_PDF, vec3(1.0));
-        }
-        if (thin) {
-            return BrdfSample(-wo, DELTA_PDF, s.diffuse);
-        }
-        vec3 wt = refract_dir(wo, vec3(0.0, 0.0, 1.0), eta);
-        return BrdfSample(wt, DELTA_PDF, s.diffuse / (eta * eta));
-    }
-    vec3 h = sample_ggx_vndf(s.alpha, wo, u.x, u.y);
-    float ho = dot(wo, h);
-    float f_1 = fresnel_dielectric(ho, eta);
-    vec3 reflected = h * (2.0 * ho) - wo;
-    vec3 wi = reflected;
-    bool reflect_ = u.z < f_1;
-    if (!reflect_) {
-        if (thin) {
-            wi = vec3(reflected.x, reflected.y, -reflected.z);
-        } else {
-            wi = refract_dir(wo, h, eta);
-        }
-    }
-    if ((reflect_ && !(wi.z > 0.0)) || (!reflect_ && !(wi.z < 0.0))) {
-        return BrdfSample(wi, 0.0, vec3(0.0));
-    }
-    float pdf = dielectric_pdf(s, wo, wi);
-    vec3 weight;
-    if (pdf > 0.0) {
-        weight = dielectric_eval(s, wo, wi) * (abs(wi.z) / pdf);
-    } else {
-        weight = vec3(0.0);
-    }
-    return BrdfSample(wi, pdf, weight);
-}
-
-// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:115)
-BrdfSample bsdf_sample(Bsdf b, vec3 wo, inout uint rng) {
-    float u1 = random_float(rng);
-    float u2 = random_float(rng);
-    if ((scene_has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH)) {
-        float u3 = random_float(rng);
-        return metal_rough_sample(b.surface, wo, vec3(u1, u2, u3));
-    } else if ((scene_has_transmission != 0u) && (b.kind == BSDF_DIELECTRIC)) {
-        float u3_1 = random_float(rng);
-        return dielectric_sample(b.surface, wo, vec3(u1, u2, u3_1));
-    } else {
-        vec3 wi = cosine_sample_hemisphere(u1, u2);
-        return BrdfSample(wi, wi.z * INV_PI, b.surface.diffuse);
-    }
-}
-
-// sampling::onb_to_world (lightport-tracer/src/kernel/sampling.rs:33)
-vec3 onb_to_world(Onb onb, vec3 v) {
-    return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
-}
-
 // lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:228)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }
 
-// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:160)
+// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:164)
 vec4 trace_path(uint x, uint y, inout FirstHit first) {
-    uint pixel = y * scene_width + x;
-    uint rng = pixel_seed(pixel, scene_frame_seed);
-    vec2 film = vec2(lp_u32_to_f32(x), lp_u32_to_f32(y)) + pixel_jitter(pixel, scene_frame_seed, scene_frame_index);
-    random_u32(rng);
-    random_u32(rng);
-    vec2 lens = vec2(random_float(rng), random_float(rng));
-    Ray ray = camera_ray(film, lens);
-    vec3 origin = ray.origin;
-    vec3 dir = ray.dir;
-    vec3 throughput = vec3(1.0);
-    vec3 radiance = vec3(0.0);
-    float scatter_pdf = 0.0;
-    uint depth = 0u;
+    PathState path = start_path(x, y, scene_frame_seed, scene_frame_index);
     while (true) {
-        Hit hit = trace_closest(origin, dir, MISS);
-        if ((scene_has_denoise_guide != 0u) && (depth == 0u)) {
-            first.normal = -dir;
-            if (hit.triangle != NONE) {
-                first.depth = hit.t;
-            }
+        Hit hit = trace_closest(path.origin, path.dir, MISS);
+        ShadowRay shadow = no_shadow_ray();
+        bool go_on = shade_hit(path, hit, first, shadow);
+        if (shadow.t_max > 0.0 && !occluded(shadow.origin, shadow.dir, shadow.t_max)) {
+            path.radiance += shadow.contribution;
         }
-        if (hit.triangle == NONE) {
-            if (scene_has_sky != 0u) {
-                float light_pdf = 0.0;
-                if ((scene_strategy == STRATEGY_MIS) && scatter_pdf > 0.0) {
-                    light_pdf = sky_pdf(dir) * light_pmf(scene_light_count - 1u);
-                }
-                vec3 sky = throughput * sky_radiance(dir) * hit_emission_weight(scatter_pdf, light_pdf);
-                radiance += sky;
-                if ((scene_has_denoise_guide != 0u) && (depth == 0u)) {
-                    first.emission = sky;
-                }
-            }
+        if (!go_on) {
             break;
         }
-        TriangleData tri = world_triangle(hit.triangle, hit.instance);
-        vec3 p = origin + dir * hit.t;
-        SurfaceNormals normals = surface_normals(tri, hit, dir);
-        if (!(normals.area2 > 0.0)) {
-            break;
-        }
-        float flip = normals.flip;
-        vec3 ng = normals.ng;
-        vec3 ns = normals.ns;
-        float area2 = normals.area2;
-        MaterialData material = fetch_material(tri.material);
-        if ((scene_has_denoise_guide != 0u) && (depth == 0u)) {
-            first.albedo = base_color_at(material, hit.triangle, hit.u, hit.v);
-            first.normal = ns;
-        }
-        if ((scene_has_volume != 0u) && flip < 0.0) {
-            throughput *= volume_transmittance(tri.material, hit.t);
-        }
-        if (lp_max_element_vec3(material.emission) > 0.0 && flip > 0.0) {
-            float light_pdf_1 = 0.0;
-            if ((scene_strategy == STRATEGY_MIS) && scatter_pdf > 0.0 && (tri.light != NONE)) {
-                float cos_light = -dot(ng, dir);
-                light_pdf_1 = area_pdf_to_solid_angle(light_pmf(tri.light), 0.5 * area2, hit.t, cos_light);
-            }
-            vec3 e = triangle_emission(hit.triangle, tri.material, hit.u, hit.v);
-            radiance += throughput * e * hit_emission_weight(scatter_pdf, light_pdf_1);
-            if ((scene_has_denoise_guide != 0u) && (depth == 0u)) {
-                first.emission = e;
-            }
-        }
-        if (depth + 1u >= scene_max_depth) {
-            break;
-        }
-        Bsdf bsdf;
-        if (scene_has_transmission != 0u) {
-            bsdf = glass_at(material, tri.material, hit, flip, random_float(rng));
-        } else {
-            bsdf = bsdf_at(material, tri.material, hit);
-        }
-        Onb frame = onb_from_normal(bsdf_normal(bsdf, ns, ng, dir));
-        Shading sh = Shading(offset_origin(p, ng), ng, frame, onb_to_local(frame, -dir), bsdf);
-        if ((scene_has_denoise_guide != 0u) && (depth == 0u) && (scene_has_metal_rough != 0u) && (bsdf.kind == BSDF_METAL_ROUGH)) {
-            first.albedo = metal_rough_albedo(bsdf.surface, sh.wo.z);
-        }
-        radiance += throughput * sample_ld(sh, rng);
-        BrdfSample bs = bsdf_sample(sh.bsdf, sh.wo, rng);
-        vec3 next = onb_to_world(sh.frame, bs.dir);
-        if (scene_has_transmission != 0u ? !(bs.pdf > 0.0 || (bs.pdf == DELTA_PDF)) || !(dot(ng, next) * bs.dir.z > 0.0) : !(bs.pdf > 0.0) || dot(ng, next) <= 0.0) {
-            break;
-        }
-        scatter_pdf = bs.pdf;
-        throughput *= bs.weight;
-        depth += 1u;
-        if (depth >= RR_START_DEPTH) {
-            float q = min(lp_max_element_vec3(throughput), RR_MAX_SURVIVAL);
-            if (random_float(rng) >= q) {
-                break;
-            }
-            throughput /= q;
-        }
-        origin = sh.p;
-        if ((scene_has_transmission != 0u) && bs.dir.z < 0.0) {
-            origin = offset_origin(p, -ng);
-        }
-        dir = next;
     }
-    return finite_or_zero(radiance);
+    return finite_or_zero(path.radiance);
 }
 
 // integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:135)

@@ -204,7 +204,26 @@ struct GuidedSample {
     emission: vec4<f32>,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:290)
+// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:184)
+struct PathState {
+    origin: vec3<f32>,
+    dir: vec3<f32>,
+    throughput: vec3<f32>,
+    radiance: vec3<f32>,
+    scatter_pdf: f32,
+    depth: u32,
+    rng: u32,
+}
+
+// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:198)
+struct ShadowRay {
+    origin: vec3<f32>,
+    dir: vec3<f32>,
+    t_max: f32,
+    contribution: vec3<f32>,
+}
+
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:369)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -742,6 +761,18 @@ fn camera_ray(film: vec2<f32>, lens: vec2<f32>) -> Ray {
     } else {
         return Ray(scene.camera_position, dir);
     }
+}
+
+// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:214)
+fn start_path(x: u32, y: u32, frame_seed: u32, frame_index: u32) -> PathState {
+    let pixel: u32 = y * scene.width + x;
+    var rng: u32 = pixel_seed(pixel, frame_seed);
+    let film: vec2<f32> = vec2<f32>(lp_u32_to_f32(x), lp_u32_to_f32(y)) + pixel_jitter(pixel, frame_seed, frame_index);
+    random_u32(&rng);
+    random_u32(&rng);
+    let lens: vec2<f32> = vec2<f32>(random_float(&rng), random_float(&rng));
+    let ray: Ray = camera_ray(film, lens);
+    return PathState(ray.origin, ray.dir, vec3<f32>(1.0), vec3<f32>(0.0), 0.0, 0u, rng);
 }
 
 // traverse::before_any_hit (lightport-tracer/src/kernel/traverse.rs:126)
@@ -1353,6 +1384,11 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     }
 }
 
+// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:206)
+fn no_shadow_ray() -> ShadowRay {
+    return ShadowRay(vec3<f32>(0.0), vec3<f32>(0.0, 0.0, 1.0), 0.0, vec3<f32>(0.0));
+}
+
 // lights::sky_texel_coords (lightport-tracer/src/kernel/lights.rs:85)
 fn sky_texel_coords(dir: vec3<f32>) -> vec2<f32> {
     let phi: f32 = atan2(dir.x, -dir.z) - scene.sky_rotation;
@@ -1436,7 +1472,7 @@ fn fetch_glass(material: u32) -> GlassData {
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:349)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:424)
 fn volume_transmittance(material: u32, t: f32) -> vec3<f32> {
     let sigma: vec3<f32> = fetch_glass(material).sigma_a;
     return vec3<f32>(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -1798,6 +1834,299 @@ fn bsdf_pdf(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> f32 {
     }
 }
 
+// metal_rough::smith_visibility (lightport-tracer/src/kernel/metal_rough.rs:102)
+fn smith_visibility(alpha: f32, nl: f32, nv: f32) -> f32 {
+    let denominator: f32 = nl * smith_root(alpha, nv) + nv * smith_root(alpha, nl);
+    return select(0.0, 0.5 / denominator, denominator > 0.0);
+}
+
+// metal_rough::metal_rough_eval (lightport-tracer/src/kernel/metal_rough.rs:113)
+fn metal_rough_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
+    if !(wo.z > MIN_COSINE) || !(wi.z > MIN_COSINE) {
+        return vec3<f32>(0.0);
+    }
+    let h: vec3<f32> = normalize(wo + wi);
+    let f: vec3<f32> = schlick_fresnel(s, dot(wo, h));
+    let specular: vec3<f32> = f * (ggx_distribution(s.alpha, h) * smith_visibility(s.alpha, wi.z, wo.z));
+    return (vec3<f32>(1.0) - f) * s.diffuse * INV_PI + specular;
+}
+
+// dielectric::dielectric_eval (lightport-tracer/src/kernel/dielectric.rs:114)
+fn dielectric_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
+    if is_delta(s) || !(wo.z > MIN_COSINE) || !(abs(wi.z) > MIN_COSINE) {
+        return vec3<f32>(0.0);
+    }
+    let eta: f32 = s.f0.x;
+    if wi.z > 0.0 {
+        let h: vec3<f32> = normalize(wo + wi);
+        let f: f32 = fresnel_dielectric(dot(wo, h), eta);
+        return vec3<f32>(f * ggx_distribution(s.alpha, h) * smith_visibility(s.alpha, wi.z, wo.z));
+    }
+    if s.f0.y > 0.0 {
+        let wr: vec3<f32> = vec3<f32>(wi.x, wi.y, -wi.z);
+        let h_1: vec3<f32> = normalize(wo + wr);
+        let f_1: f32 = fresnel_dielectric(dot(wo, h_1), eta);
+        return s.diffuse * ((1.0 - f_1) * ggx_distribution(s.alpha, h_1) * smith_visibility(s.alpha, wr.z, wo.z));
+    }
+    let h_2: vec3<f32> = refraction_half(wo, wi, eta);
+    let ho: f32 = dot(wo, h_2);
+    let hi: f32 = dot(wi, h_2);
+    if !(ho > 0.0) || !(hi < 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let f_2: f32 = fresnel_dielectric(ho, eta);
+    let denom: f32 = hi + ho / eta;
+    let g: f32 = 4.0 * smith_visibility(s.alpha, -wi.z, wo.z);
+    let ft: f32 = (1.0 - f_2) * ggx_distribution(s.alpha, h_2) * g * (-hi * ho) / (denom * denom * eta * eta);
+    return s.diffuse * ft;
+}
+
+// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:87)
+fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
+    if (scene.has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH) {
+        return metal_rough_eval(b.surface, wo, wi);
+    } else if (scene.has_transmission != 0u) && (b.kind == BSDF_DIELECTRIC) {
+        return dielectric_eval(b.surface, wo, wi);
+    } else if wi.z > 0.0 {
+        return b.surface.diffuse * INV_PI;
+    } else {
+        return vec3<f32>(0.0);
+    }
+}
+
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:382)
+fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> ShadowRay {
+    let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
+    var shadow: ShadowRay = no_shadow_ray();
+    if (scene.has_lights != 0u) && scene.light_count > 0u {
+        let ls: LightSample = sample_light(sh.p, u_light);
+        let wi: vec3<f32> = onb_to_local(sh.frame, ls.dir);
+        if ls.pdf > 0.0 && select(wi.z > 0.0, ((sh.bsdf.kind != BSDF_DIELECTRIC) && wi.z > 0.0) || ((sh.bsdf.kind == BSDF_DIELECTRIC) && sh.bsdf.surface.alpha > 0.0 && (wi.z != 0.0)), scene.has_transmission != 0u) && select(dot(sh.ng, ls.dir) > 0.0, dot(sh.ng, ls.dir) * wi.z > 0.0, scene.has_transmission != 0u) && (ls.delta || (scene.strategy != STRATEGY_BSDF)) {
+            var weight: f32 = 1.0;
+            if !ls.delta && (scene.strategy == STRATEGY_MIS) {
+                weight = power_heuristic(ls.pdf, bsdf_pdf(sh.bsdf, sh.wo, wi));
+            }
+            shadow.origin = select(sh.p, sh.p - sh.ng * (2.0 * (lp_max_element_vec3(abs(sh.p)) + scene.scene_scale) * ORIGIN_OFFSET), (scene.has_transmission != 0u) && wi.z < 0.0);
+            shadow.dir = ls.dir;
+            shadow.t_max = select(MISS, ls.dist * SHADOW_RAY_SHORTENING, ls.dist < MISS);
+            shadow.contribution = bsdf_eval(sh.bsdf, sh.wo, wi) * (select(wi.z, abs(wi.z), scene.has_transmission != 0u) * weight / ls.pdf) * ls.radiance;
+        }
+    }
+    return shadow;
+}
+
+// metal_rough::sample_ggx_vndf (lightport-tracer/src/kernel/metal_rough.rs:157)
+fn sample_ggx_vndf(alpha: f32, wo: vec3<f32>, u1: f32, u2: f32) -> vec3<f32> {
+    let v: vec3<f32> = normalize(vec3<f32>(wo.x * alpha, wo.y * alpha, wo.z));
+    let cs: vec2<f32> = cos_sin_turns(u1);
+    let z: f32 = (1.0 - u2) * (1.0 + v.z) - v.z;
+    let sin_theta: f32 = sqrt(clamp(1.0 - z * z, 0.0, 1.0));
+    let h: vec3<f32> = vec3<f32>(sin_theta * cs.x, sin_theta * cs.y, z) + v;
+    return normalize(vec3<f32>(h.x * alpha, h.y * alpha, max(h.z, 0.0)));
+}
+
+// sampling::cosine_sample_hemisphere (lightport-tracer/src/kernel/sampling.rs:39)
+fn cosine_sample_hemisphere(u1: f32, u2: f32) -> vec3<f32> {
+    let r: f32 = sqrt(u1);
+    let cs: vec2<f32> = cos_sin_turns(u2);
+    let z: f32 = sqrt(max(1.0 - u1, 0.0));
+    return vec3<f32>(r * cs.x, r * cs.y, z);
+}
+
+// metal_rough::metal_rough_sample (lightport-tracer/src/kernel/metal_rough.rs:171)
+fn metal_rough_sample(s: Surface, wo: vec3<f32>, u: vec3<f32>) -> BrdfSample {
+    if !(wo.z > MIN_COSINE) {
+        return BrdfSample(vec3<f32>(0.0, 0.0, 1.0), 0.0, vec3<f32>(0.0));
+    }
+    var wi: vec3<f32>;
+    if u.z < specular_probability(s, wo.z) {
+        let h: vec3<f32> = sample_ggx_vndf(s.alpha, wo, u.x, u.y);
+        wi = h * (2.0 * dot(wo, h)) - wo;
+    } else {
+        wi = cosine_sample_hemisphere(u.x, u.y);
+    }
+    let pdf: f32 = metal_rough_pdf(s, wo, wi);
+    var weight: vec3<f32>;
+    if pdf > 0.0 {
+        weight = metal_rough_eval(s, wo, wi) * (wi.z / pdf);
+    } else {
+        weight = vec3<f32>(0.0);
+    }
+    return BrdfSample(wi, pdf, weight);
+}
+
+// dielectric::refract_dir (lightport-tracer/src/kernel/dielectric.rs:85)
+fn refract_dir(wo: vec3<f32>, h: vec3<f32>, eta: f32) -> vec3<f32> {
+    let c: f32 = dot(wo, h);
+    let sin2_t: f32 = (1.0 - c * c) / (eta * eta);
+    let cos_t: f32 = sqrt(max(1.0 - sin2_t, 0.0));
+    return normalize(h * (c / eta - cos_t) - wo / eta);
+}
+
+// dielectric::dielectric_sample (lightport-tracer/src/kernel/dielectric.rs:176)
+fn dielectric_sample(s: Surface, wo: vec3<f32>, u: vec3<f32>) -> BrdfSample {
+    if !(wo.z > MIN_COSINE) {
+        return BrdfSample(vec3<f32>(0.0, 0.0, 1.0), 0.0, vec3<f32>(0.0));
+    }
+    let eta: f32 = s.f0.x;
+    let thin: bool = s.f0.y > 0.0;
+    if is_delta(s) {
+        let f: f32 = fresnel_dielectric(wo.z, eta);
+        if u.z < f {
+            return BrdfSample(vec3<f32>(-wo.x, -wo.y, wo.z), DELTA_PDF, vec3<f32>(1.0));
+        }
+        if thin {
+            return BrdfSample(-wo, DELTA_PDF, s.diffuse);
+        }
+        let wt: vec3<f32> = refract_dir(wo, vec3<f32>(0.0, 0.0, 1.0), eta);
+        return BrdfSample(wt, DELTA_PDF, s.diffuse / (eta * eta));
+    }
+    let h: vec3<f32> = sample_ggx_vndf(s.alpha, wo, u.x, u.y);
+    let ho: f32 = dot(wo, h);
+    let f_1: f32 = fresnel_dielectric(ho, eta);
+    let reflected: vec3<f32> = h * (2.0 * ho) - wo;
+    var wi: vec3<f32> = reflected;
+    let reflect_: bool = u.z < f_1;
+    if !reflect_ {
+        if thin {
+            wi = vec3<f32>(reflected.x, reflected.y, -reflected.z);
+        } else {
+            wi = refract_dir(wo, h, eta);
+        }
+    }
+    if (reflect_ && !(wi.z > 0.0)) || (!reflect_ && !(wi.z < 0.0)) {
+        return BrdfSample(wi, 0.0, vec3<f32>(0.0));
+    }
+    let pdf: f32 = dielectric_pdf(s, wo, wi);
+    var weight: vec3<f32>;
+    if pdf > 0.0 {
+        weight = dielectric_eval(s, wo, wi) * (abs(wi.z) / pdf);
+    } else {
+        weight = vec3<f32>(0.0);
+    }
+    return BrdfSample(wi, pdf, weight);
+}
+
+// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:115)
+fn bsdf_sample(b: Bsdf, wo: vec3<f32>, rng: ptr<function, u32>) -> BrdfSample {
+    let u1: f32 = random_float(rng);
+    let u2: f32 = random_float(rng);
+    if (scene.has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH) {
+        let u3: f32 = random_float(rng);
+        return metal_rough_sample(b.surface, wo, vec3<f32>(u1, u2, u3));
+    } else if (scene.has_transmission != 0u) && (b.kind == BSDF_DIELECTRIC) {
+        let u3_1: f32 = random_float(rng);
+        return dielectric_sample(b.surface, wo, vec3<f32>(u1, u2, u3_1));
+    } else {
+        let wi: vec3<f32> = cosine_sample_hemisphere(u1, u2);
+        return BrdfSample(wi, wi.z * INV_PI, b.surface.diffuse);
+    }
+}
+
+// sampling::onb_to_world (lightport-tracer/src/kernel/sampling.rs:33)
+fn onb_to_world(onb: Onb, v: vec3<f32>) -> vec3<f32> {
+    return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
+}
+
+// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:242)
+fn shade_hit(path: ptr<function, PathState>, hit: Hit, first: ptr<function, FirstHit>, shadow: ptr<function, ShadowRay>) -> bool {
+    let origin: vec3<f32> = (*path).origin;
+    let dir: vec3<f32> = (*path).dir;
+    let depth: u32 = (*path).depth;
+    let scatter_pdf: f32 = (*path).scatter_pdf;
+    if (scene.has_denoise_guide != 0u) && (depth == 0u) {
+        (*first).normal = -dir;
+        if hit.triangle != NONE {
+            (*first).depth = hit.t;
+        }
+    }
+    if hit.triangle == NONE {
+        if scene.has_sky != 0u {
+            var light_pdf: f32 = 0.0;
+            if (scene.strategy == STRATEGY_MIS) && scatter_pdf > 0.0 {
+                light_pdf = sky_pdf(dir) * light_pmf(scene.light_count - 1u);
+            }
+            let sky: vec3<f32> = (*path).throughput * sky_radiance(dir) * hit_emission_weight(scatter_pdf, light_pdf);
+            (*path).radiance += sky;
+            if (scene.has_denoise_guide != 0u) && (depth == 0u) {
+                (*first).emission = sky;
+            }
+        }
+        return false;
+    }
+    let tri: TriangleData = world_triangle(hit.triangle, hit.instance);
+    let p: vec3<f32> = origin + dir * hit.t;
+    let normals: SurfaceNormals = surface_normals(tri, hit, dir);
+    if !(normals.area2 > 0.0) {
+        return false;
+    }
+    let flip: f32 = normals.flip;
+    let ng: vec3<f32> = normals.ng;
+    let ns: vec3<f32> = normals.ns;
+    let area2: f32 = normals.area2;
+    let material: MaterialData = fetch_material(tri.material);
+    if (scene.has_denoise_guide != 0u) && (depth == 0u) {
+        (*first).albedo = base_color_at(material, hit.triangle, hit.u, hit.v);
+        (*first).normal = ns;
+    }
+    if (scene.has_volume != 0u) && flip < 0.0 {
+        (*path).throughput *= volume_transmittance(tri.material, hit.t);
+    }
+    if lp_max_element_vec3(material.emission) > 0.0 && flip > 0.0 {
+        var light_pdf_1: f32 = 0.0;
+        if (scene.strategy == STRATEGY_MIS) && scatter_pdf > 0.0 && (tri.light != NONE) {
+            let cos_light: f32 = -dot(ng, dir);
+            light_pdf_1 = area_pdf_to_solid_angle(light_pmf(tri.light), 0.5 * area2, hit.t, cos_light);
+        }
+        let e: vec3<f32> = triangle_emission(hit.triangle, tri.material, hit.u, hit.v);
+        (*path).radiance += (*path).throughput * e * hit_emission_weight(scatter_pdf, light_pdf_1);
+        if (scene.has_denoise_guide != 0u) && (depth == 0u) {
+            (*first).emission = e;
+        }
+    }
+    if depth + 1u >= scene.max_depth {
+        return false;
+    }
+    var rng: u32 = (*path).rng;
+    var bsdf: Bsdf;
+    if scene.has_transmission != 0u {
+        bsdf = glass_at(material, tri.material, hit, flip, random_float(&rng));
+    } else {
+        bsdf = bsdf_at(material, tri.material, hit);
+    }
+    let frame: Onb = onb_from_normal(bsdf_normal(bsdf, ns, ng, dir));
+    let sh: Shading = Shading(offset_origin(p, ng), ng, frame, onb_to_local(frame, -dir), bsdf);
+    if (scene.has_denoise_guide != 0u) && (depth == 0u) && (scene.has_metal_rough != 0u) && (bsdf.kind == BSDF_METAL_ROUGH) {
+        (*first).albedo = metal_rough_albedo(bsdf.surface, sh.wo.z);
+    }
+    *shadow = sample_ld(sh, &rng);
+    (*shadow).contribution = (*path).throughput * (*shadow).contribution;
+    let bs: BrdfSample = bsdf_sample(sh.bsdf, sh.wo, &rng);
+    (*path).rng = rng;
+    let next: vec3<f32> = onb_to_world(sh.frame, bs.dir);
+    if select(!(bs.pdf > 0.0) || dot(ng, next) <= 0.0, !(bs.pdf > 0.0 || (bs.pdf == DELTA_PDF)) || !(dot(ng, next) * bs.dir.z > 0.0), scene.has_transmission != 0u) {
+        return false;
+    }
+    (*path).scatter_pdf = bs.pdf;
+    (*path).throughput *= bs.weight;
+    (*path).depth = depth + 1u;
+    if (*path).depth >= RR_START_DEPTH {
+        let q: f32 = min(lp_max_element_vec3((*path).throughput), RR_MAX_SURVIVAL);
+        let survive: f32 = random_float(&rng);
+        (*path).rng = rng;
+        if survive >= q {
+            return false;
+        }
+        (*path).throughput /= q;
+    }
+    (*path).origin = sh.p;
+    if (scene.has_transmission != 0u) && bs.dir.z < 0.0 {
+        (*path).origin = offset_origin(p, -ng);
+    }
+    (*path).dir = next;
+    return true;
+}
+
 // traverse::leaf_occludes (lightport-tracer/src/kernel/traverse.rs:180)
 fn leaf_occludes(entry: u32, origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let first: u32 = entry >> 8u;
@@ -2081,309 +2410,26 @@ fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     return blocked;
 }
 
-// metal_rough::smith_visibility (lightport-tracer/src/kernel/metal_rough.rs:102)
-fn smith_visibility(alpha: f32, nl: f32, nv: f32) -> f32 {
-    let denominator: f32 = nl * smith_root(alpha, nv) + nv * smith_root(alpha, nl);
-    return select(0.0, 0.5 / denominator, denominator > 0.0);
-}
-
-// metal_rough::metal_rough_eval (lightport-tracer/src/kernel/metal_rough.rs:113)
-fn metal_rough_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
-    if !(wo.z > MIN_COSINE) || !(wi.z > MIN_COSINE) {
-        return vec3<f32>(0.0);
-    }
-    let h: vec3<f32> = normalize(wo + wi);
-    let f: vec3<f32> = schlick_fresnel(s, dot(wo, h));
-    let specular: vec3<f32> = f * (ggx_distribution(s.alpha, h) * smith_visibility(s.alpha, wi.z, wo.z));
-    return (vec3<f32>(1.0) - f) * s.diffuse * INV_PI + specular;
-}
-
-// dielectric::dielectric_eval (lightport-tracer/src/kernel/dielectric.rs:114)
-fn dielectric_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
-    if is_delta(s) || !(wo.z > MIN_COSINE) || !(abs(wi.z) > MIN_COSINE) {
-        return vec3<f32>(0.0);
-    }
-    let eta: f32 = s.f0.x;
-    if wi.z > 0.0 {
-        let h: vec3<f32> = normalize(wo + wi);
-        let f: f32 = fresnel_dielectric(dot(wo, h), eta);
-        return vec3<f32>(f * ggx_distribution(s.alpha, h) * smith_visibility(s.alpha, wi.z, wo.z));
-    }
-    if s.f0.y > 0.0 {
-        let wr: vec3<f32> = vec3<f32>(wi.x, wi.y, -wi.z);
-        let h_1: vec3<f32> = normalize(wo + wr);
-        let f_1: f32 = fresnel_dielectric(dot(wo, h_1), eta);
-        return s.diffuse * ((1.0 - f_1) * ggx_distribution(s.alpha, h_1) * smith_visibility(s.alpha, wr.z, wo.z));
-    }
-    let h_2: vec3<f32> = refraction_half(wo, wi, eta);
-    let ho: f32 = dot(wo, h_2);
-    let hi: f32 = dot(wi, h_2);
-    if !(ho > 0.0) || !(hi < 0.0) {
-        return vec3<f32>(0.0);
-    }
-    let f_2: f32 = fresnel_dielectric(ho, eta);
-    let denom: f32 = hi + ho / eta;
-    let g: f32 = 4.0 * smith_visibility(s.alpha, -wi.z, wo.z);
-    let ft: f32 = (1.0 - f_2) * ggx_distribution(s.alpha, h_2) * g * (-hi * ho) / (denom * denom * eta * eta);
-    return s.diffuse * ft;
-}
-
-// bsdf::bsdf_eval (lightport-tracer/src/kernel/bsdf.rs:87)
-fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
-    if (scene.has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH) {
-        return metal_rough_eval(b.surface, wo, wi);
-    } else if (scene.has_transmission != 0u) && (b.kind == BSDF_DIELECTRIC) {
-        return dielectric_eval(b.surface, wo, wi);
-    } else if wi.z > 0.0 {
-        return b.surface.diffuse * INV_PI;
-    } else {
-        return vec3<f32>(0.0);
-    }
-}
-
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:302)
-fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> vec3<f32> {
-    let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
-    var direct: vec3<f32> = vec3<f32>(0.0);
-    if (scene.has_lights != 0u) && scene.light_count > 0u {
-        let ls: LightSample = sample_light(sh.p, u_light);
-        let wi: vec3<f32> = onb_to_local(sh.frame, ls.dir);
-        if ls.pdf > 0.0 && select(wi.z > 0.0, ((sh.bsdf.kind != BSDF_DIELECTRIC) && wi.z > 0.0) || ((sh.bsdf.kind == BSDF_DIELECTRIC) && sh.bsdf.surface.alpha > 0.0 && (wi.z != 0.0)), scene.has_transmission != 0u) && select(dot(sh.ng, ls.dir) > 0.0, dot(sh.ng, ls.dir) * wi.z > 0.0, scene.has_transmission != 0u) && (ls.delta || (scene.strategy != STRATEGY_BSDF)) {
-            var weight: f32 = 1.0;
-            if !ls.delta && (scene.strategy == STRATEGY_MIS) {
-                weight = power_heuristic(ls.pdf, bsdf_pdf(sh.bsdf, sh.wo, wi));
-            }
-            let t_max: f32 = select(MISS, ls.dist * SHADOW_RAY_SHORTENING, ls.dist < MISS);
-            if !occluded(select(sh.p, sh.p - sh.ng * (2.0 * (lp_max_element_vec3(abs(sh.p)) + scene.scene_scale) * ORIGIN_OFFSET), (scene.has_transmission != 0u) && wi.z < 0.0), ls.dir, t_max) {
-                direct = bsdf_eval(sh.bsdf, sh.wo, wi) * (select(wi.z, abs(wi.z), scene.has_transmission != 0u) * weight / ls.pdf) * ls.radiance;
-            }
-        }
-    }
-    return direct;
-}
-
-// metal_rough::sample_ggx_vndf (lightport-tracer/src/kernel/metal_rough.rs:157)
-fn sample_ggx_vndf(alpha: f32, wo: vec3<f32>, u1: f32, u2: f32) -> vec3<f32> {
-    let v: vec3<f32> = normalize(vec3<f32>(wo.x * alpha, wo.y * alpha, wo.z));
-    let cs: vec2<f32> = cos_sin_turns(u1);
-    let z: f32 = (1.0 - u2) * (1.0 + v.z) - v.z;
-    let sin_theta: f32 = sqrt(clamp(1.0 - z * z, 0.0, 1.0));
-    let h: vec3<f32> = vec3<f32>(sin_theta * cs.x, sin_theta * cs.y, z) + v;
-    return normalize(vec3<f32>(h.x * alpha, h.y * alpha, max(h.z, 0.0)));
-}
-
-// sampling::cosine_sample_hemisphere (lightport-tracer/src/kernel/sampling.rs:39)
-fn cosine_sample_hemisphere(u1: f32, u2: f32) -> vec3<f32> {
-    let r: f32 = sqrt(u1);
-    let cs: vec2<f32> = cos_sin_turns(u2);
-    let z: f32 = sqrt(max(1.0 - u1, 0.0));
-    return vec3<f32>(r * cs.x, r * cs.y, z);
-}
-
-// metal_rough::metal_rough_sample (lightport-tracer/src/kernel/metal_rough.rs:171)
-fn metal_rough_sample(s: Surface, wo: vec3<f32>, u: vec3<f32>) -> BrdfSample {
-    if !(wo.z > MIN_COSINE) {
-        return BrdfSample(vec3<f32>(0.0, 0.0, 1.0), 0.0, vec3<f32>(0.0));
-    }
-    var wi: vec3<f32>;
-    if u.z < specular_probability(s, wo.z) {
-        let h: vec3<f32> = sample_ggx_vndf(s.alpha, wo, u.x, u.y);
-        wi = h * (2.0 * dot(wo, h)) - wo;
-    } else {
-        wi = cosine_sample_hemisphere(u.x, u.y);
-    }
-    let pdf: f32 = metal_rough_pdf(s, wo, wi);
-    var weight: vec3<f32>;
-    if pdf > 0.0 {
-        weight = metal_rough_eval(s, wo, wi) * (wi.z / pdf);
-    } else {
-        weight = vec3<f32>(0.0);
-    }
-    return BrdfSample(wi, pdf, weight);
-}
-
-// dielectric::refract_dir (lightport-tracer/src/kernel/dielectric.rs:85)
-fn refract_dir(wo: vec3<f32>, h: vec3<f32>, eta: f32) -> vec3<f32> {
-    let c: f32 = dot(wo, h);
-    let sin2_t: f32 = (1.0 - c * c) / (eta * eta);
-    let cos_t: f32 = sqrt(max(1.0 - sin2_t, 0.0));
-    return normalize(h * (c / eta - cos_t) - wo / eta);
-}
-
-// dielectric::dielectric_sample (lightport-tracer/src/kernel/dielectric.rs:176)
-fn dielectric_sample(s: Surface, wo: vec3<f32>, u: vec3<f32>) -> BrdfSample {
-    if !(wo.z > MIN_COSINE) {
-        return BrdfSample(vec3<f32>(0.0, 0.0, 1.0), 0.0, vec3<f32>(0.0));
-    }
-    let eta: f32 = s.f0.x;
-    let thin: bool = s.f0.y > 0.0;
-    if is_delta(s) {
-        let f: f32 = fresnel_dielectric(wo.z, eta);
-        if u.z < f {
-            return BrdfSample(vec3<f32>(-wo.x, -wo.y, wo.z), DELTA_PDF, vec3<f32>(1.0));
-        }
-        if thin {
-            return BrdfSample(-wo, DELTA_PDF, s.diffuse);
-        }
-        let wt: vec3<f32> = refract_dir(wo, vec3<f32>(0.0, 0.0, 1.0), eta);
-        return BrdfSample(wt, DELTA_PDF, s.diffuse / (eta * eta));
-    }
-    let h: vec3<f32> = sample_ggx_vndf(s.alpha, wo, u.x, u.y);
-    let ho: f32 = dot(wo, h);
-    let f_1: f32 = fresnel_dielectric(ho, eta);
-    let reflected: vec3<f32> = h * (2.0 * ho) - wo;
-    var wi: vec3<f32> = reflected;
-    let reflect_: bool = u.z < f_1;
-    if !reflect_ {
-        if thin {
-            wi = vec3<f32>(reflected.x, reflected.y, -reflected.z);
-        } else {
-            wi = refract_dir(wo, h, eta);
-        }
-    }
-    if (reflect_ && !(wi.z > 0.0)) || (!reflect_ && !(wi.z < 0.0)) {
-        return BrdfSample(wi, 0.0, vec3<f32>(0.0));
-    }
-    let pdf: f32 = dielectric_pdf(s, wo, wi);
-    var weight: vec3<f32>;
-    if pdf > 0.0 {
-        weight = dielectric_eval(s, wo, wi) * (abs(wi.z) / pdf);
-    } else {
-        weight = vec3<f32>(0.0);
-    }
-    return BrdfSample(wi, pdf, weight);
-}
-
-// bsdf::bsdf_sample (lightport-tracer/src/kernel/bsdf.rs:115)
-fn bsdf_sample(b: Bsdf, wo: vec3<f32>, rng: ptr<function, u32>) -> BrdfSample {
-    let u1: f32 = random_float(rng);
-    let u2: f32 = random_float(rng);
-    if (scene.has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH) {
-        let u3: f32 = random_float(rng);
-        return metal_rough_sample(b.surface, wo, vec3<f32>(u1, u2, u3));
-    } else if (scene.has_transmission != 0u) && (b.kind == BSDF_DIELECTRIC) {
-        let u3_1: f32 = random_float(rng);
-        return dielectric_sample(b.surface, wo, vec3<f32>(u1, u2, u3_1));
-    } else {
-        let wi: vec3<f32> = cosine_sample_hemisphere(u1, u2);
-        return BrdfSample(wi, wi.z * INV_PI, b.surface.diffuse);
-    }
-}
-
-// sampling::onb_to_world (lightport-tracer/src/kernel/sampling.rs:33)
-fn onb_to_world(onb: Onb, v: vec3<f32>) -> vec3<f32> {
-    return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
-}
-
 // lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:228)
 fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }
 
-// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:160)
+// integrator::trace_path (lightport-tracer/src/kernel/integrator.rs:164)
 fn trace_path(x: u32, y: u32, first: ptr<function, FirstHit>) -> vec4<f32> {
-    let pixel: u32 = y * scene.width + x;
-    var rng: u32 = pixel_seed(pixel, scene.frame_seed);
-    let film: vec2<f32> = vec2<f32>(lp_u32_to_f32(x), lp_u32_to_f32(y)) + pixel_jitter(pixel, scene.frame_seed, scene.frame_index);
-    random_u32(&rng);
-    random_u32(&rng);
-    let lens: vec2<f32> = vec2<f32>(random_float(&rng), random_float(&rng));
-    let ray: Ray = camera_ray(film, lens);
-    var origin: vec3<f32> = ray.origin;
-    var dir: vec3<f32> = ray.dir;
-    var throughput: vec3<f32> = vec3<f32>(1.0);
-    var radiance: vec3<f32> = vec3<f32>(0.0);
-    var scatter_pdf: f32 = 0.0;
-    var depth: u32 = 0u;
+    var path: PathState = start_path(x, y, scene.frame_seed, scene.frame_index);
     loop {
-        let hit: Hit = trace_closest(origin, dir, MISS);
-        if (scene.has_denoise_guide != 0u) && (depth == 0u) {
-            (*first).normal = -dir;
-            if hit.triangle != NONE {
-                (*first).depth = hit.t;
-            }
+        let hit: Hit = trace_closest(path.origin, path.dir, MISS);
+        var shadow: ShadowRay = no_shadow_ray();
+        let go_on: bool = shade_hit(&path, hit, first, &shadow);
+        if shadow.t_max > 0.0 && !occluded(shadow.origin, shadow.dir, shadow.t_max) {
+            path.radiance += shadow.contribution;
         }
-        if hit.triangle == NONE {
-            if scene.has_sky != 0u {
-                var light_pdf: f32 = 0.0;
-                if (scene.strategy == STRATEGY_MIS) && scatter_pdf > 0.0 {
-                    light_pdf = sky_pdf(dir) * light_pmf(scene.light_count - 1u);
-                }
-                let sky: vec3<f32> = throughput * sky_radiance(dir) * hit_emission_weight(scatter_pdf, light_pdf);
-                radiance += sky;
-                if (scene.has_denoise_guide != 0u) && (depth == 0u) {
-                    (*first).emission = sky;
-                }
-            }
+        if !go_on {
             break;
         }
-        let tri: TriangleData = world_triangle(hit.triangle, hit.instance);
-        let p: vec3<f32> = origin + dir * hit.t;
-        let normals: SurfaceNormals = surface_normals(tri, hit, dir);
-        if !(normals.area2 > 0.0) {
-            break;
-        }
-        let flip: f32 = normals.flip;
-        let ng: vec3<f32> = normals.ng;
-        let ns: vec3<f32> = normals.ns;
-        let area2: f32 = normals.area2;
-        let material: MaterialData = fetch_material(tri.material);
-        if (scene.has_denoise_guide != 0u) && (depth == 0u) {
-            (*first).albedo = base_color_at(material, hit.triangle, hit.u, hit.v);
-            (*first).normal = ns;
-        }
-        if (scene.has_volume != 0u) && flip < 0.0 {
-            throughput *= volume_transmittance(tri.material, hit.t);
-        }
-        if lp_max_element_vec3(material.emission) > 0.0 && flip > 0.0 {
-            var light_pdf_1: f32 = 0.0;
-            if (scene.strategy == STRATEGY_MIS) && scatter_pdf > 0.0 && (tri.light != NONE) {
-                let cos_light: f32 = -dot(ng, dir);
-                light_pdf_1 = area_pdf_to_solid_angle(light_pmf(tri.light), 0.5 * area2, hit.t, cos_light);
-            }
-            let e: vec3<f32> = triangle_emission(hit.triangle, tri.material, hit.u, hit.v);
-            radiance += throughput * e * hit_emission_weight(scatter_pdf, light_pdf_1);
-            if (scene.has_denoise_guide != 0u) && (depth == 0u) {
-                (*first).emission = e;
-            }
-        }
-        if depth + 1u >= scene.max_depth {
-            break;
-        }
-        var bsdf: Bsdf;
-        if scene.has_transmission != 0u {
-            bsdf = glass_at(material, tri.material, hit, flip, random_float(&rng));
-        } else {
-            bsdf = bsdf_at(material, tri.material, hit);
-        }
-        let frame: Onb = onb_from_normal(bsdf_normal(bsdf, ns, ng, dir));
-        let sh: Shading = Shading(offset_origin(p, ng), ng, frame, onb_to_local(frame, -dir), bsdf);
-        if (scene.has_denoise_guide != 0u) && (depth == 0u) && (scene.has_metal_rough != 0u) && (bsdf.kind == BSDF_METAL_ROUGH) {
-            (*first).albedo = metal_rough_albedo(bsdf.surface, sh.wo.z);
-        }
-        radiance += throughput * sample_ld(sh, &rng);
-        let bs: BrdfSample = bsdf_sample(sh.bsdf, sh.wo, &rng);
-        let next: vec3<f32> = onb_to_world(sh.frame, bs.dir);
-        if select(!(bs.pdf > 0.0) || dot(ng, next) <= 0.0, !(bs.pdf > 0.0 || (bs.pdf == DELTA_PDF)) || !(dot(ng, next) * bs.dir.z > 0.0), scene.has_transmission != 0u) {
-            break;
-        }
-        scatter_pdf = bs.pdf;
-        throughput *= bs.weight;
-        depth += 1u;
-        if depth >= RR_START_DEPTH {
-            let q: f32 = min(lp_max_element_vec3(throughput), RR_MAX_SURVIVAL);
-            if random_float(&rng) >= q {
-                break;
-            }
-            throughput /= q;
-        }
-        origin = sh.p;
-        if (scene.has_transmission != 0u) && bs.dir.z < 0.0 {
-            origin = offset_origin(p, -ng);
-        }
-        dir = next;
     }
-    return finite_or_zero(radiance);
+    return finite_or_zero(path.radiance);
 }
 
 // integrator::render_sample (lightport-tracer/src/kernel/integrator.rs:135)

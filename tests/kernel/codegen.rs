@@ -343,6 +343,7 @@ fn two_level_traversal_is_in_the_kernel_only_for_scenes_with_instances() {
 fn every_kernel_function_has_a_valid_equivalence_harness() {
     let program = tracer_program();
     let mut checked = 0;
+    let mut wide = Vec::new();
     for module in tracer::kernel::modules() {
         for item in &module.items {
             let kernel_dsl::ir::Item::Fn(f) = item else { continue };
@@ -350,12 +351,19 @@ fn every_kernel_function_has_a_valid_equivalence_harness() {
                 let g = program.emit(target, &Selection::harness(&f.name)).expect("harness emits");
                 validate::validate(&g).unwrap_or_else(|e| panic!("harness of {}: {e}\n{}", f.name, g.source));
                 let h = g.harness.expect("layout");
-                assert!(h.output_words <= 16, "{}: at most 4 RGBA32UI attachments", f.name);
+                if h.output_words > 16 && target == Target::GlslEs300 {
+                    wide.push(f.name.clone());
+                }
             }
             checked += 1;
         }
     }
     assert!(checked > 30, "{checked} functions");
+    // GLSL ES 3.00 guarantees 4 colour attachments: 16 words per invocation. One function is
+    // wider: a path segment's shading (the path, the shadow ray and the denoiser's first hit,
+    // 36 words), checked on the CPU against WGSL (its wavefront stage's language) and through
+    // images on GL. Any other function must fit.
+    assert_eq!(wide, ["shade_hit"], "functions whose GLSL harness needs more than 4 RGBA32UI attachments");
     // The layout of a known function: intersect_triangle(origin, dir, v0, v1, v2) -> TriangleHit.
     let g = program.emit(Target::GlslEs300, &Selection::harness("intersect_triangle")).unwrap();
     let h = g.harness.unwrap();

@@ -156,11 +156,65 @@ pub mod integrator {
 
     /// One path sample through pixel (x, y), as [`render_sample`] returns it; where the scene
     /// asks for the denoiser's guide (`has_denoise_guide`), the path's first hit in `first`.
+    /// The megakernel schedule: one invocation follows its path to the end, each segment's
+    /// extension ray, shading and shadow ray in turn. The wavefront schedule (`kernel::wavefront`)
+    /// runs the same three steps ([`trace_closest`], [`shade_hit`], [`occluded`]) as stages
+    /// over a pool of paths.
     #[inline(always)]
     pub fn trace_path(scene: &Scene, x: u32, y: u32, first: &mut FirstHit) -> Vec4 {
+        let mut path = start_path(scene, x, y, scene.frame_seed, scene.frame_index);
+        loop {
+            let hit = trace_closest(scene, path.origin, path.dir, MISS);
+            let mut shadow = no_shadow_ray();
+            let go_on = shade_hit(scene, &mut path, hit, first, &mut shadow);
+            if shadow.t_max > 0.0 && !occluded(scene, shadow.origin, shadow.dir, shadow.t_max) {
+                path.radiance += shadow.contribution;
+            }
+            if !go_on {
+                break;
+            }
+        }
+        finite_or_zero(path.radiance)
+    }
+
+    /// A path between two of its segments: the ray it continues along, what it carries
+    /// (`throughput`) and has gathered (`radiance`), the pdf of the BSDF sample that chose `dir`
+    /// (0 for the camera ray), the segments it has (`depth`) and its random stream.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct PathState {
+        pub origin: Vec3,
+        pub dir: Vec3,
+        pub throughput: Vec3,
+        pub radiance: Vec3,
+        pub scatter_pdf: f32,
+        pub depth: u32,
+        pub rng: u32,
+    }
+
+    /// The shadow ray of a light sample: what it adds to the path's radiance (already
+    /// multiplied by the throughput) unless something lies between `origin` and `origin + dir *
+    /// t_max`. `t_max` 0: no shadow ray.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct ShadowRay {
+        pub origin: Vec3,
+        pub dir: Vec3,
+        pub t_max: f32,
+        pub contribution: Vec3,
+    }
+
+    /// No shadow ray (`t_max` 0).
+    pub fn no_shadow_ray() -> ShadowRay {
+        ShadowRay { origin: Vec3::ZERO, dir: Vec3::Z, t_max: 0.0, contribution: Vec3::ZERO }
+    }
+
+    /// The camera path through pixel (x, y) of the frame with `frame_seed` and `frame_index`
+    /// (the scene's own for the megakernel; the wavefront's generate stage passes the frame it
+    /// is filling).
+    #[inline(always)]
+    pub fn start_path(scene: &Scene, x: u32, y: u32, frame_seed: u32, frame_index: u32) -> PathState {
         let pixel = y * scene.width + x;
-        let mut rng = pixel_seed(pixel, scene.frame_seed);
-        let film = Vec2::new(x as f32, y as f32) + pixel_jitter(pixel, scene.frame_seed, scene.frame_index);
+        let mut rng = pixel_seed(pixel, frame_seed);
+        let film = Vec2::new(x as f32, y as f32) + pixel_jitter(pixel, frame_seed, frame_index);
         // The stream's first two numbers stay unused (they were the film position's): xorshift's
         // first outputs after seeding are correlated from frame to frame, and a path that used
         // them stopped converging (the furnace chart's NEE line plateaued at 16 spp).
@@ -168,119 +222,144 @@ pub mod integrator {
         random_u32(&mut rng);
         let lens = Vec2::new(random_float(&mut rng), random_float(&mut rng));
         let ray = camera_ray(scene, film, lens);
-        let mut origin = ray.origin;
-        let mut dir = ray.dir;
-        let mut throughput = Vec3::ONE;
-        let mut radiance = Vec3::ZERO;
-        let mut scatter_pdf = 0.0f32;
-        let mut depth = 0u32;
-        loop {
-            let hit = trace_closest(scene, origin, dir, MISS);
-            if scene.has_denoise_guide != 0 && depth == 0 {
-                first.normal = -dir;
-                if hit.triangle != NONE {
-                    first.depth = hit.t;
-                }
-            }
-            if hit.triangle == NONE {
-                if scene.has_sky != 0 {
-                    let mut light_pdf = 0.0;
-                    if scene.strategy == STRATEGY_MIS && scatter_pdf > 0.0 {
-                        light_pdf = sky_pdf(scene, dir) * light_pmf(scene, scene.light_count - 1);
-                    }
-                    let sky =
-                        throughput * sky_radiance(scene, dir) * hit_emission_weight(scene, scatter_pdf, light_pdf);
-                    radiance += sky;
-                    if scene.has_denoise_guide != 0 && depth == 0 {
-                        // The sky the camera sees is its emission: not noise, kept out of the filter.
-                        first.emission = sky;
-                    }
-                }
-                break;
-            }
-            let tri = world_triangle(scene, hit.triangle, hit.instance);
-            let p = origin + dir * hit.t;
-            let normals = surface_normals(scene, tri, hit, dir);
-            if !(normals.area2 > 0.0) {
-                break;
-            }
-            let flip = normals.flip;
-            let ng = normals.ng;
-            let ns = normals.ns;
-            let area2 = normals.area2;
-            let material = fetch_material(scene, tri.material);
-            if scene.has_denoise_guide != 0 && depth == 0 {
-                first.albedo = base_color_at(scene, material, hit.triangle, hit.u, hit.v);
-                first.normal = ns;
-            }
-            if scene.has_volume != 0 && flip < 0.0 {
-                // The segment that ends here, at a back face, ran inside this material's volume.
-                throughput *= volume_transmittance(scene, tri.material, hit.t);
-            }
-
-            // Emission found by this ray (one-sided: only the front face emits).
-            if material.emission.max_element() > 0.0 && flip > 0.0 {
-                let mut light_pdf = 0.0;
-                if scene.strategy == STRATEGY_MIS && scatter_pdf > 0.0 && tri.light != NONE {
-                    let cos_light = -ng.dot(dir);
-                    light_pdf = area_pdf_to_solid_angle(light_pmf(scene, tri.light), 0.5 * area2, hit.t, cos_light);
-                }
-                let e = triangle_emission(scene, hit.triangle, tri.material, hit.u, hit.v);
-                radiance += throughput * e * hit_emission_weight(scene, scatter_pdf, light_pdf);
-                if scene.has_denoise_guide != 0 && depth == 0 {
-                    first.emission = e;
-                }
-            }
-            if depth + 1 >= scene.max_depth {
-                break;
-            }
-
-            // The shading record (built here: as a function's result it would be more words than
-            // the equivalence harness reads back), then one light sample and one BSDF sample,
-            // whatever the BSDF.
-            let bsdf = if scene.has_transmission != 0 {
-                glass_at(scene, material, tri.material, hit, flip, random_float(&mut rng))
-            } else {
-                bsdf_at(scene, material, tri.material, hit)
-            };
-            let frame = onb_from_normal(bsdf_normal(scene, bsdf, ns, ng, dir));
-            let sh = Shading { p: offset_origin(scene, p, ng), ng, frame, wo: onb_to_local(frame, -dir), bsdf };
-            if scene.has_denoise_guide != 0 && depth == 0 && scene.has_metal_rough != 0 && bsdf.kind == BSDF_METAL_ROUGH
-            {
-                // What the surface reflects of smooth light, specular included (not its base
-                // colour alone): a glossy or dark surface then leaves the filter smooth
-                // illumination too.
-                first.albedo = metal_rough_albedo(bsdf.surface, sh.wo.z);
-            }
-            radiance += throughput * sample_ld(scene, sh, &mut rng);
-            let bs = bsdf_sample(scene, sh.bsdf, sh.wo, &mut rng);
-            let next = onb_to_world(sh.frame, bs.dir);
-            // No sample (a delta lobe's DELTA_PDF is one), or one on the wrong side of the geometric
-            // surface (a reflection continues above it, a refraction below).
-            if (if scene.has_transmission != 0 {
-                !(bs.pdf > 0.0 || bs.pdf == DELTA_PDF) || !(ng.dot(next) * bs.dir.z > 0.0)
-            } else {
-                !(bs.pdf > 0.0) || ng.dot(next) <= 0.0
-            }) {
-                break;
-            }
-            scatter_pdf = bs.pdf;
-            throughput *= bs.weight;
-            depth += 1;
-            if depth >= RR_START_DEPTH {
-                let q = throughput.max_element().min(RR_MAX_SURVIVAL);
-                if random_float(&mut rng) >= q {
-                    break;
-                }
-                throughput /= q;
-            }
-            origin = sh.p;
-            if scene.has_transmission != 0 && bs.dir.z < 0.0 {
-                origin = offset_origin(scene, p, -ng);
-            }
-            dir = next;
+        PathState {
+            origin: ray.origin,
+            dir: ray.dir,
+            throughput: Vec3::ONE,
+            radiance: Vec3::ZERO,
+            scatter_pdf: 0.0,
+            depth: 0,
+            rng,
         }
-        finite_or_zero(radiance)
+    }
+
+    /// One segment's end: `hit` is what `path`'s ray found. Adds the emission it found
+    /// (MIS-weighted), samples a light (the shadow ray in `shadow`, which the caller traces)
+    /// and the BSDF, applies Russian roulette and moves `path` onto its next ray. Returns
+    /// whether the path goes on. Where the scene asks for the denoiser's guide, the first
+    /// segment fills `first`.
+    #[inline(always)]
+    pub fn shade_hit(
+        scene: &Scene,
+        path: &mut PathState,
+        hit: Hit,
+        first: &mut FirstHit,
+        shadow: &mut ShadowRay,
+    ) -> bool {
+        let origin = path.origin;
+        let dir = path.dir;
+        let depth = path.depth;
+        let scatter_pdf = path.scatter_pdf;
+        if scene.has_denoise_guide != 0 && depth == 0 {
+            first.normal = -dir;
+            if hit.triangle != NONE {
+                first.depth = hit.t;
+            }
+        }
+        if hit.triangle == NONE {
+            if scene.has_sky != 0 {
+                let mut light_pdf = 0.0;
+                if scene.strategy == STRATEGY_MIS && scatter_pdf > 0.0 {
+                    light_pdf = sky_pdf(scene, dir) * light_pmf(scene, scene.light_count - 1);
+                }
+                let sky =
+                    path.throughput * sky_radiance(scene, dir) * hit_emission_weight(scene, scatter_pdf, light_pdf);
+                path.radiance += sky;
+                if scene.has_denoise_guide != 0 && depth == 0 {
+                    // The sky the camera sees is its emission: not noise, kept out of the filter.
+                    first.emission = sky;
+                }
+            }
+            return false;
+        }
+        let tri = world_triangle(scene, hit.triangle, hit.instance);
+        let p = origin + dir * hit.t;
+        let normals = surface_normals(scene, tri, hit, dir);
+        if !(normals.area2 > 0.0) {
+            return false;
+        }
+        let flip = normals.flip;
+        let ng = normals.ng;
+        let ns = normals.ns;
+        let area2 = normals.area2;
+        let material = fetch_material(scene, tri.material);
+        if scene.has_denoise_guide != 0 && depth == 0 {
+            first.albedo = base_color_at(scene, material, hit.triangle, hit.u, hit.v);
+            first.normal = ns;
+        }
+        if scene.has_volume != 0 && flip < 0.0 {
+            // The segment that ends here, at a back face, ran inside this material's volume.
+            path.throughput *= volume_transmittance(scene, tri.material, hit.t);
+        }
+
+        // Emission found by this ray (one-sided: only the front face emits).
+        if material.emission.max_element() > 0.0 && flip > 0.0 {
+            let mut light_pdf = 0.0;
+            if scene.strategy == STRATEGY_MIS && scatter_pdf > 0.0 && tri.light != NONE {
+                let cos_light = -ng.dot(dir);
+                light_pdf = area_pdf_to_solid_angle(light_pmf(scene, tri.light), 0.5 * area2, hit.t, cos_light);
+            }
+            let e = triangle_emission(scene, hit.triangle, tri.material, hit.u, hit.v);
+            path.radiance += path.throughput * e * hit_emission_weight(scene, scatter_pdf, light_pdf);
+            if scene.has_denoise_guide != 0 && depth == 0 {
+                first.emission = e;
+            }
+        }
+        if depth + 1 >= scene.max_depth {
+            return false;
+        }
+
+        // The shading record (built here: as a function's result it would be more words than
+        // the equivalence harness reads back), then one light sample and one BSDF sample,
+        // whatever the BSDF.
+        // The stream in a local: naga's SPIR-V writer fails on a pointer to a field of a
+        // pointer parameter (`&mut path.rng`), so it is written back before each return below.
+        let mut rng = path.rng;
+        let bsdf = if scene.has_transmission != 0 {
+            glass_at(scene, material, tri.material, hit, flip, random_float(&mut rng))
+        } else {
+            bsdf_at(scene, material, tri.material, hit)
+        };
+        let frame = onb_from_normal(bsdf_normal(scene, bsdf, ns, ng, dir));
+        let sh = Shading { p: offset_origin(scene, p, ng), ng, frame, wo: onb_to_local(frame, -dir), bsdf };
+        if scene.has_denoise_guide != 0 && depth == 0 && scene.has_metal_rough != 0 && bsdf.kind == BSDF_METAL_ROUGH {
+            // What the surface reflects of smooth light, specular included (not its base
+            // colour alone): a glossy or dark surface then leaves the filter smooth
+            // illumination too.
+            first.albedo = metal_rough_albedo(bsdf.surface, sh.wo.z);
+        }
+        *shadow = sample_ld(scene, sh, &mut rng);
+        shadow.contribution = path.throughput * shadow.contribution;
+        let bs = bsdf_sample(scene, sh.bsdf, sh.wo, &mut rng);
+        path.rng = rng;
+        let next = onb_to_world(sh.frame, bs.dir);
+        // No sample (a delta lobe's DELTA_PDF is one), or one on the wrong side of the geometric
+        // surface (a reflection continues above it, a refraction below).
+        if (if scene.has_transmission != 0 {
+            !(bs.pdf > 0.0 || bs.pdf == DELTA_PDF) || !(ng.dot(next) * bs.dir.z > 0.0)
+        } else {
+            !(bs.pdf > 0.0) || ng.dot(next) <= 0.0
+        }) {
+            return false;
+        }
+        path.scatter_pdf = bs.pdf;
+        path.throughput *= bs.weight;
+        path.depth = depth + 1;
+        if path.depth >= RR_START_DEPTH {
+            let q = path.throughput.max_element().min(RR_MAX_SURVIVAL);
+            let survive = random_float(&mut rng);
+            path.rng = rng;
+            if survive >= q {
+                return false;
+            }
+            path.throughput /= q;
+        }
+        path.origin = sh.p;
+        if scene.has_transmission != 0 && bs.dir.z < 0.0 {
+            path.origin = offset_origin(scene, p, -ng);
+        }
+        path.dir = next;
+        true
     }
 
     /// A surface point as the BSDF sees it: the origin of the rays leaving it (the hit moved off
@@ -297,11 +376,12 @@ pub mod integrator {
 
     /// Next event estimation at `sh`: one light sampled (three uniforms from `rng`, drawn
     /// whether or not the scene has lights), the BSDF evaluated towards it, MIS-weighted
-    /// against BSDF sampling, one shadow ray. Not yet multiplied by the path throughput.
+    /// against BSDF sampling: the shadow ray and what it adds unless occluded (not yet
+    /// multiplied by the path throughput), or [`no_shadow_ray`].
     #[inline(always)]
-    pub fn sample_ld(scene: &Scene, sh: Shading, rng: &mut u32) -> Vec3 {
+    pub fn sample_ld(scene: &Scene, sh: Shading, rng: &mut u32) -> ShadowRay {
         let u_light = Vec3::new(random_float(rng), random_float(rng), random_float(rng));
-        let mut direct = Vec3::ZERO;
+        let mut shadow = no_shadow_ray();
         if scene.has_lights != 0 && scene.light_count > 0 {
             let ls = sample_light(scene, sh.p, u_light);
             let wi = onb_to_local(sh.frame, ls.dir);
@@ -321,26 +401,21 @@ pub mod integrator {
                 if !ls.delta && scene.strategy == STRATEGY_MIS {
                     weight = power_heuristic(ls.pdf, bsdf_pdf(scene, sh.bsdf, sh.wo, wi));
                 }
-                let t_max = if ls.dist < MISS { ls.dist * SHADOW_RAY_SHORTENING } else { MISS };
                 // With glass, a light seen through a rough dielectric (below the surface): the
                 // shadow ray leaves from `sh.p` moved back through the surface by twice its offset.
-                if !occluded(
-                    scene,
-                    if scene.has_transmission != 0 && wi.z < 0.0 {
-                        sh.p - sh.ng * (2.0 * (sh.p.abs().max_element() + scene.scene_scale) * ORIGIN_OFFSET)
-                    } else {
-                        sh.p
-                    },
-                    ls.dir,
-                    t_max,
-                ) {
-                    direct = bsdf_eval(scene, sh.bsdf, sh.wo, wi)
-                        * ((if scene.has_transmission != 0 { wi.z.abs() } else { wi.z }) * weight / ls.pdf)
-                        * ls.radiance;
-                }
+                shadow.origin = if scene.has_transmission != 0 && wi.z < 0.0 {
+                    sh.p - sh.ng * (2.0 * (sh.p.abs().max_element() + scene.scene_scale) * ORIGIN_OFFSET)
+                } else {
+                    sh.p
+                };
+                shadow.dir = ls.dir;
+                shadow.t_max = if ls.dist < MISS { ls.dist * SHADOW_RAY_SHORTENING } else { MISS };
+                shadow.contribution = bsdf_eval(scene, sh.bsdf, sh.wo, wi)
+                    * ((if scene.has_transmission != 0 { wi.z.abs() } else { wi.z }) * weight / ls.pdf)
+                    * ls.radiance;
             }
         }
-        direct
+        shadow
     }
 
     /// Beer–Lambert transmittance `exp(−σa t)` of a segment of length `t` inside the volume of
