@@ -343,7 +343,9 @@ pub struct Generated {
     /// (1-based output line, Rust file, Rust span, kernel fn), in output order.
     pub source_map: Vec<SourceMapEntry>,
     /// WGSL: each resources struct's bind group and bindings, in declaration order (empty for
-    /// GLSL, whose resources are uniforms and samplers by name).
+    /// GLSL, whose resources are uniforms and samplers by name). The bindings of a pixel entry
+    /// point or a harness (`lp_accumulation`, `lp_target`, `lp_args`, ..., group 1) are theirs,
+    /// documented with [`EntryPoint`] and [`Harness`], and not listed here.
     pub bindings: Vec<ResourceBindings>,
 }
 
