@@ -540,7 +540,7 @@ impl<'a> Lowerer<'a> {
 }
 
 impl Lowerer<'_> {
-    /// `resources.field.load(i)`, `.store(i, v)` (see [`Lowerer::storage_store`]) and
+    /// `resources.field.load(i)`, `.store(i, v)` (its statement text, ending in `;`) and
     /// `.atomic_*(i, ..)` on a compute module's `Storage` and `Atomics` fields.
     pub(super) fn compute_access(&mut self, e: &Expr, receiver: &Expr, method: &str, args: &[Expr]) -> R<String> {
         let usage = "use storage and atomics as `resources.field.method(..)`";
