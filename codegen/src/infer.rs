@@ -105,7 +105,7 @@ pub(crate) fn infer_fn(program: &Program, func: &Located<ir::FnDef>) -> Result<F
         Some(t) => cx.resolve_type(t, f.span)?,
         None => Ty::Unit,
     };
-    if matches!(cx.out.ret, Ty::Resource(_) | Ty::RefMut(_) | Ty::Texels(_)) {
+    if matches!(cx.out.ret, Ty::Resource(_) | Ty::RefMut(_) | Ty::Texels(_) | Ty::Storage(_) | Ty::Atomics) {
         return Err(cx.error(f.span, "kernel functions return values: not references or resources"));
     }
     let body_ty = cx.block(&f.body)?;
@@ -227,7 +227,7 @@ impl<'a> Cx<'a> {
                     if t == Ty::Never {
                         return Err(self.error(*span, "give this `let` a type or an initial value"));
                     }
-                    if matches!(t, Ty::Resource(_) | Ty::Texels(_)) {
+                    if matches!(t, Ty::Resource(_) | Ty::Texels(_) | Ty::Storage(_) | Ty::Atomics) {
                         return Err(self
                             .error(*span, "resources cannot be bound to local variables: use `scene.field` directly"));
                     }
@@ -604,8 +604,19 @@ impl<'a> Cx<'a> {
                     self.unify(a, &U32, span)?;
                 }
             }
-            "fetch" => {
+            "fetch" | "load" | "atomic_load" => {
                 if let Some(a) = at.first() {
+                    self.unify(a, &U32, span)?;
+                }
+            }
+            "store" => {
+                if let (Some(i), Some(v), Ty::Storage(elem)) = (at.first(), at.get(1), &recv) {
+                    self.unify(i, &U32, span)?;
+                    self.unify(v, elem, span)?;
+                }
+            }
+            "atomic_add" | "atomic_sub" | "atomic_min" | "atomic_max" | "atomic_exchange" | "atomic_store" => {
+                for a in &at {
                     self.unify(a, &U32, span)?;
                 }
             }
@@ -727,6 +738,24 @@ pub(crate) fn resolve_type(program: &Program, t: &ir::Type) -> Result<Ty, String
                     ));
                 }
                 return Ok(Ty::Texels(Box::new(e)));
+            }
+            if name == "Storage" {
+                let [elem] = args.as_slice() else {
+                    return Err("`Storage` takes one type argument: `Storage<Vec4>`, `Storage<UVec4>`, `Storage<u32>` or `Storage<f32>`".into());
+                };
+                let e = resolve_type(program, elem)?;
+                if !matches!(e, Ty::Vector(Scalar::F32 | Scalar::U32, 4) | Ty::Scalar(Scalar::F32 | Scalar::U32)) {
+                    return Err(format!(
+                        "`Storage<{e}>` is not supported: use `Storage<Vec4>`, `Storage<UVec4>`, `Storage<u32>` or `Storage<f32>`"
+                    ));
+                }
+                return Ok(Ty::Storage(Box::new(e)));
+            }
+            if name == "Atomics" {
+                if !args.is_empty() {
+                    return Err("`Atomics` takes no type arguments (its counters are u32)".into());
+                }
+                return Ok(Ty::Atomics);
             }
             match program.structs.get(name) {
                 Some(s) if s.item.resources => Ok(Ty::Resource(name.clone())),

@@ -115,12 +115,16 @@ pub(crate) struct ResourceBlock {
     pub global: String,
     /// `Scene (file:line)`, for the comment above the declarations.
     pub origin: String,
+    /// `#[resources(group = N)]`: the bind group of its bindings, where a language has groups.
+    pub group: u32,
     pub fields: Vec<ResourceField>,
 }
 
 pub(crate) struct ResourceField {
     /// The Rust field name.
     pub name: String,
+    /// The field's type as the kernel source spells it (`f32`, `Vec3`, `Texels<Vec4>`).
+    pub dsl_type: String,
     pub kind: ResourceKind,
 }
 
@@ -129,6 +133,69 @@ pub(crate) enum ResourceKind {
     Texels { unsigned: bool },
     /// A scalar or vector set once per dispatch, with the language's type name.
     Uniform { type_name: String },
+    /// `Storage<T>` (compute modules): a read-write array of `element`.
+    Storage { element: StorageElement },
+    /// `Atomics` (compute modules): `u32` counters updated atomically.
+    Atomics,
+}
+
+/// The element of a `Storage<T>` resource field, in the order its buffers are bound.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) enum StorageElement {
+    Vec4,
+    UVec4,
+    U32,
+    F32,
+}
+
+impl StorageElement {
+    pub fn of(t: &Ty) -> Option<StorageElement> {
+        Some(match t {
+            Ty::Vector(Scalar::F32, 4) => StorageElement::Vec4,
+            Ty::Vector(Scalar::U32, 4) => StorageElement::UVec4,
+            Ty::Scalar(Scalar::U32) => StorageElement::U32,
+            Ty::Scalar(Scalar::F32) => StorageElement::F32,
+            _ => return None,
+        })
+    }
+
+    /// The type as the kernel source spells it.
+    pub fn dsl_type(self) -> &'static str {
+        match self {
+            StorageElement::Vec4 => "Vec4",
+            StorageElement::UVec4 => "UVec4",
+            StorageElement::U32 => "u32",
+            StorageElement::F32 => "f32",
+        }
+    }
+}
+
+/// An atomic operation on a counter of an `Atomics` resource field.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum AtomicOp {
+    Add,
+    Sub,
+    Min,
+    Max,
+    Exchange,
+    Load,
+    Store,
+}
+
+impl AtomicOp {
+    /// The op of a DSL method (`atomic_add`).
+    pub fn of_method(method: &str) -> Option<AtomicOp> {
+        Some(match method {
+            "atomic_add" => AtomicOp::Add,
+            "atomic_sub" => AtomicOp::Sub,
+            "atomic_min" => AtomicOp::Min,
+            "atomic_max" => AtomicOp::Max,
+            "atomic_exchange" => AtomicOp::Exchange,
+            "atomic_load" => AtomicOp::Load,
+            "atomic_store" => AtomicOp::Store,
+            _ => return None,
+        })
+    }
 }
 
 /// One argument of the kernel function a harness calls: its value decoded from input words.
@@ -179,7 +246,7 @@ pub(crate) trait Language {
             Ty::Array(elem, n) => self.array_type(&self.type_name(elem), *n),
             Ty::RefMut(inner) => self.type_name(inner),
             Ty::Unit | Ty::Never => "void".into(),
-            Ty::Texels(_) | Ty::Resource(_) => "<resource>".into(),
+            Ty::Texels(_) | Ty::Storage(_) | Ty::Atomics | Ty::Resource(_) => "<resource>".into(),
         }
     }
     fn array_type(&self, elem: &str, n: u32) -> String;
@@ -260,11 +327,40 @@ pub(crate) trait Language {
     /// Texel `index` of the texel array `field` of resource struct global `global`.
     fn fetch(&self, global: &str, field: &str, index: Text, unsigned: bool, helpers: &mut Helpers) -> String;
 
+    // ------------------------------------------------------------ compute (storage, atomics)
+
+    /// Whether the language has storage buffers and atomics (compute modules and compute
+    /// entry points). A language without them refuses compute modules before anything below
+    /// is asked for.
+    fn supports_compute(&self) -> bool {
+        false
+    }
+    /// Element `index` of the storage array `field` of resource struct global `global`, as a
+    /// place (read, or assigned by a statement).
+    fn storage_element(&self, _global: &str, _field: &str, _element: StorageElement, _index: Text) -> String {
+        unreachable!("compute modules are refused for languages without compute (`supports_compute`)")
+    }
+    /// An atomic operation on counter `index` of the `Atomics` field `field` (`value`: its
+    /// operand, none for a load).
+    fn atomic(&self, _global: &str, _field: &str, _op: AtomicOp, _index: Text, _value: Option<Text>) -> String {
+        unreachable!("compute modules are refused for languages without compute (`supports_compute`)")
+    }
+    /// The compute entry points, one per stage function `fn(.., invocation: u32)` (names in
+    /// generated code).
+    fn compute_entries(&self, _stages: &[String]) -> String {
+        unreachable!("compute entry points are refused for languages without compute (`supports_compute`)")
+    }
+
     // ------------------------------------------------------------ the file around the functions
 
     /// The first lines: version, the `header` comment, precision and the like.
     fn preamble(&self, header: &str) -> String;
     fn resources(&self, blocks: &[ResourceBlock]) -> String;
+    /// The bind groups and bindings [`Language::resources`] declares, for hosts; empty where the
+    /// language binds resources by name (GLSL's uniforms and samplers).
+    fn bindings(&self, _blocks: &[ResourceBlock]) -> Vec<crate::ResourceBindings> {
+        Vec::new()
+    }
     fn helper(&self, h: &Helper) -> String;
     /// The entry point around `fn(&Resources, x: u32, y: u32) -> Vec4` named `function`, doing
     /// `output` with its value (see [`crate::EntryPoint`]).

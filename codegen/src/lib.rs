@@ -115,6 +115,84 @@ pub struct Selection {
     /// How the file is regenerated, for its header (`Do not edit: {regenerate}.`), e.g.
     /// "regenerate with `cargo run -- shaders`". None: the header only says not to edit it.
     pub regenerate: Option<String>,
+    /// Compute entry points (WGSL only): one `main_{stage}` per stage function
+    /// `fn stage(<&resources..>, invocation: u32)`, see [`Selection::compute`].
+    pub compute: Vec<String>,
+}
+
+/// Invocations per workgroup of a compute entry point ([`Selection::compute`]).
+pub const COMPUTE_WORKGROUP_SIZE: u32 = 64;
+
+/// The most workgroups a dispatch may have along one dimension (WebGPU's default
+/// `maxComputeWorkgroupsPerDimension`).
+pub const MAX_WORKGROUPS_PER_DIMENSION: u32 = 65_535;
+
+/// The workgroup grid of a compute entry point's dispatch covering `invocations` invocations:
+/// `[x, y, 1]` with x, y at most 65,535 and `x * y * 64 >= invocations` (invocation
+/// `id.x + id.y * x * 64`; those at or beyond `invocations` run too, and the stage's own bound
+/// check skips them).
+pub fn dispatch_grid(invocations: u32) -> [u32; 3] {
+    let groups = invocations.div_ceil(COMPUTE_WORKGROUP_SIZE);
+    if groups <= MAX_WORKGROUPS_PER_DIMENSION {
+        [groups, 1, 1]
+    } else {
+        [MAX_WORKGROUPS_PER_DIMENSION, groups.div_ceil(MAX_WORKGROUPS_PER_DIMENSION), 1]
+    }
+}
+
+/// One `#[resources]` struct's bindings in generated WGSL ([`Generated::bindings`]), in
+/// binding order: what a host creates buffers and bind groups from. The rule (see `docs/dsl.md`,
+/// "Compute kernels"): group `#[resources(group = N)]`, bindings numbered within each group in
+/// struct order; per struct its uniform block, then one read-only buffer per texel element
+/// type (`vec4<f32>`, `vec4<u32>`), then one read-write buffer per storage element type
+/// (`vec4<f32>`, `vec4<u32>`, `u32`, `f32`), then one read-write buffer of `atomic<u32>` for
+/// all its `Atomics`. Only what the emitted code uses is bound.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ResourceBindings {
+    /// The Rust struct name.
+    pub resources: String,
+    pub group: u32,
+    pub bindings: Vec<ResourceBinding>,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ResourceBinding {
+    pub binding: u32,
+    /// The variable's name in WGSL (`scene`, `lp_scene_vec4f`, `lp_pool_storage_u32`,
+    /// `lp_pool_atomics`).
+    pub variable: String,
+    pub kind: BindingKind,
+    /// A uniform block: its members in order (uniform fields, then the start members of the
+    /// struct's texel, storage and atomic arrays). A buffer: the arrays concatenated in it, in
+    /// order; array `field` starts at element `{uniform}.lp_start_{field}`.
+    pub fields: Vec<BoundField>,
+}
+
+/// What a [`ResourceBinding`] holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum BindingKind {
+    /// `var<uniform>`: the struct's scalars and vectors and where each array starts.
+    Uniform,
+    /// `var<storage, read>`: `Texels<..>` arrays.
+    Texels,
+    /// `var<storage, read_write>`: `Storage<..>` arrays of one element type.
+    Storage,
+    /// `var<storage, read_write>` of `atomic<u32>`: `Atomics` arrays.
+    Atomics,
+}
+
+/// A field of a resources struct in a [`ResourceBinding`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BoundField {
+    /// The Rust field.
+    pub field: String,
+    /// The DSL type: of the uniform member (`f32`, `Vec3`; `u32` for a start member), or of
+    /// the array's elements in a buffer (`Vec4`, `UVec4`, `u32`, `f32`; `u32` for atomics).
+    pub ty: String,
+    /// In a uniform block, the member's name: the field's ([`identifier`]), or
+    /// `lp_start_{field}` for where array `field` starts in its buffer (in elements). None in a
+    /// buffer.
+    pub member: Option<String>,
 }
 
 /// The layout of a generated equivalence-test harness: a `main` that calls one kernel
@@ -221,7 +299,19 @@ impl Selection {
             entry: Some(EntryPoint { function: function.to_string(), output }),
             harness: None,
             regenerate: None,
+            compute: Vec::new(),
         }
+    }
+
+    /// Compute stages (WGSL only): each `stage` (a kernel function `fn stage(<&resources..>,
+    /// invocation: u32)` without a return value) and everything it reaches, specialised, with
+    /// an entry point `main_{stage}` per stage sharing one set of resource declarations. Entry
+    /// `main_{stage}` runs 64-invocation workgroups ([`COMPUTE_WORKGROUP_SIZE`]) over a 2-D grid
+    /// ([`dispatch_grid`]) and calls `stage(id.x + id.y * groups.x * 64)`; the stage checks its
+    /// own bound (CUDA style). GLSL ES 3.00 refuses it.
+    pub fn compute(stages: &[&str], specialize: BTreeMap<String, u32>) -> Selection {
+        let stages: Vec<String> = stages.iter().map(|s| s.to_string()).collect();
+        Selection { roots: stages.clone(), specialize, compute: stages, ..Selection::default() }
     }
 
     /// An equivalence-test harness around `function` and everything it reaches.
@@ -252,6 +342,11 @@ pub struct Generated {
     pub harness: Option<Harness>,
     /// (1-based output line, Rust file, Rust span, kernel fn), in output order.
     pub source_map: Vec<SourceMapEntry>,
+    /// WGSL: each resources struct's bind group and bindings, in declaration order (empty for
+    /// GLSL, whose resources are uniforms and samplers by name). The bindings of a pixel entry
+    /// point or a harness (`lp_accumulation`, `lp_target`, `lp_args`, ..., group 1) are theirs,
+    /// documented with [`EntryPoint`] and [`Harness`], and not listed here.
+    pub bindings: Vec<ResourceBindings>,
 }
 
 #[derive(Clone, Debug, PartialEq, Eq)]

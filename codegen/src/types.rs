@@ -20,6 +20,10 @@ pub enum Ty {
     Array(Box<Ty>, u32),
     /// `Texels<Vec4>` / `Texels<UVec4>`: a data texture in a resource struct.
     Texels(Box<Ty>),
+    /// `Storage<Vec4|UVec4|u32|f32>`: a read-write array of a compute module's resources.
+    Storage(Box<Ty>),
+    /// `Atomics`: `u32` counters of a compute module's resources.
+    Atomics,
     /// A `#[resources]` struct (always behind `&`).
     Resource(String),
     /// `&mut T`: a parameter or argument that aliases a caller's variable.
@@ -103,6 +107,8 @@ impl fmt::Display for Ty {
             Ty::Struct(n) | Ty::Resource(n) => write!(f, "{n}"),
             Ty::Array(t, n) => write!(f, "[{t}; {n}]"),
             Ty::Texels(t) => write!(f, "Texels<{t}>"),
+            Ty::Storage(t) => write!(f, "Storage<{t}>"),
+            Ty::Atomics => write!(f, "Atomics"),
             Ty::RefMut(t) => write!(f, "&mut {t}"),
             Ty::Unit => write!(f, "()"),
             Ty::Never => write!(f, "!"),
@@ -173,6 +179,16 @@ pub fn method_result(recv: &Ty, method: &str, args: &[Ty]) -> Option<Ty> {
             Ty::Texels(t) => Some((**t).clone()),
             _ => None,
         },
+        ("load", 1) => match recv {
+            Ty::Storage(t) => Some((**t).clone()),
+            _ => None,
+        },
+        ("store", 2) if matches!(recv, Ty::Storage(_)) => Some(Ty::Unit),
+        ("atomic_add" | "atomic_sub" | "atomic_min" | "atomic_max" | "atomic_exchange", 2) if *recv == Ty::Atomics => {
+            Some(U32)
+        }
+        ("atomic_load", 1) if *recv == Ty::Atomics => Some(U32),
+        ("atomic_store", 2) if *recv == Ty::Atomics => Some(Ty::Unit),
         _ => None,
     }
 }

@@ -17,16 +17,22 @@
 //! `#[resources]` whose fields are [`Texels`] (data textures, read with `fetch`) or plain
 //! values (uniforms). Kernel functions take it as `&Resources`; on the CPU it is an ordinary
 //! struct, in shaders the parameter disappears and the fields become globals.
+//!
+//! A module under `#[kernel(compute)]` may also declare [`Storage`] arrays (read-write) and
+//! [`Atomics`] counters in its resources: compute stages, generated for WGSL and the CPU only
+//! (GLSL ES 3.00 has neither storage buffers nor atomics).
 
 use std::sync::Arc;
 
 use rayon::prelude::*;
 
 mod resources;
+mod storage;
 
 pub use kernel_dsl_ir as ir;
 pub use kernel_dsl_macros::kernel;
 pub use resources::{Resource, ResourceField, ResourceMut, Resources};
+pub use storage::{Atomics, Storage, StorageElement};
 
 /// A read-only array of texels, addressed by a linear index.
 ///

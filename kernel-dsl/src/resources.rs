@@ -5,7 +5,7 @@
 
 use glam::{UVec4, Vec3, Vec4};
 
-use crate::Texels;
+use crate::{Atomics, Storage, Texels};
 
 /// One field of a `#[resources]` struct, borrowed.
 #[derive(Clone, Copy, Debug)]
@@ -17,6 +17,13 @@ pub enum Resource<'a> {
     F32(&'a f32),
     U32(&'a u32),
     Vec3(&'a Vec3),
+    /// Read-write storage of a compute module (`#[kernel(compute)]`): WGSL and the CPU only.
+    Vec4Storage(&'a Storage<Vec4>),
+    UVec4Storage(&'a Storage<UVec4>),
+    U32Storage(&'a Storage<u32>),
+    F32Storage(&'a Storage<f32>),
+    /// Atomic counters of a compute module: WGSL and the CPU only.
+    Atomics(&'a Atomics),
 }
 
 /// One field of a `#[resources]` struct, borrowed mutably (to fill a default struct).
@@ -27,6 +34,11 @@ pub enum ResourceMut<'a> {
     F32(&'a mut f32),
     U32(&'a mut u32),
     Vec3(&'a mut Vec3),
+    Vec4Storage(&'a mut Storage<Vec4>),
+    UVec4Storage(&'a mut Storage<UVec4>),
+    U32Storage(&'a mut Storage<u32>),
+    F32Storage(&'a mut Storage<f32>),
+    Atomics(&'a mut Atomics),
 }
 
 impl Resource<'_> {
@@ -38,7 +50,25 @@ impl Resource<'_> {
             Resource::F32(_) => "f32",
             Resource::U32(_) => "u32",
             Resource::Vec3(_) => "Vec3",
+            Resource::Vec4Storage(_) => "Storage<Vec4>",
+            Resource::UVec4Storage(_) => "Storage<UVec4>",
+            Resource::U32Storage(_) => "Storage<u32>",
+            Resource::F32Storage(_) => "Storage<f32>",
+            Resource::Atomics(_) => "Atomics",
         }
+    }
+
+    /// A read-write field of a compute module (storage or atomics), which only WGSL and the CPU
+    /// have: a scene's read-only paths (data textures, bundles, GL uniforms) refuse it.
+    pub fn is_compute(&self) -> bool {
+        matches!(
+            self,
+            Resource::Vec4Storage(_)
+                | Resource::UVec4Storage(_)
+                | Resource::U32Storage(_)
+                | Resource::F32Storage(_)
+                | Resource::Atomics(_)
+        )
     }
 
     /// Texel count of a texel array; `None` for a uniform.
@@ -70,7 +100,18 @@ macro_rules! resource_field {
         }
     )*};
 }
-resource_field!(Texels<Vec4> => Vec4s, Texels<UVec4> => UVec4s, f32 => F32, u32 => U32, Vec3 => Vec3);
+resource_field!(
+    Texels<Vec4> => Vec4s,
+    Texels<UVec4> => UVec4s,
+    f32 => F32,
+    u32 => U32,
+    Vec3 => Vec3,
+    Storage<Vec4> => Vec4Storage,
+    Storage<UVec4> => UVec4Storage,
+    Storage<u32> => U32Storage,
+    Storage<f32> => F32Storage,
+    Atomics => Atomics,
+);
 
 /// A `#[resources]` struct's fields by name, in declaration order (implemented by `#[kernel]`).
 pub trait Resources {

@@ -269,13 +269,16 @@ fn every_supported_method_is_implemented_for_some_type() {
     let vec3 = Ty::builtin("Vec3").unwrap();
     let vec4 = Ty::builtin("Vec4").unwrap();
     let texels = Ty::Texels(Box::new(vec4.clone()));
+    let storage = Ty::Storage(Box::new(U32));
     for m in kernel_dsl::ir::SUPPORTED_METHODS {
-        let found = [F32, I32, U32, vec3.clone(), vec4.clone(), texels.clone()].iter().any(|t| {
-            (0..3).any(|arity| method_result(t, m, &vec![t.clone(); arity]).is_some())
-                || method_result(t, m, &[U32]).is_some()
-                || method_result(t, m, &[F32]).is_some()
-                || method_result(t, m, &[vec3.clone(), F32]).is_some()
-        });
+        let found =
+            [F32, I32, U32, vec3.clone(), vec4.clone(), texels.clone(), storage.clone(), Ty::Atomics].iter().any(|t| {
+                (0..3).any(|arity| method_result(t, m, &vec![t.clone(); arity]).is_some())
+                    || method_result(t, m, &[U32]).is_some()
+                    || method_result(t, m, &[U32, U32]).is_some()
+                    || method_result(t, m, &[F32]).is_some()
+                    || method_result(t, m, &[vec3.clone(), F32]).is_some()
+            });
         assert!(found, "`{m}` is accepted by the macro but no type implements it in codegen");
     }
 }

@@ -25,6 +25,10 @@ pub(super) fn resources(blocks: &[ResourceBlock]) -> String {
                 ResourceKind::Uniform { type_name } => {
                     let _ = writeln!(out, "uniform {type_name} {}_{};", block.global, f.name);
                 }
+                // Not reached: only a `#[kernel(compute)]` module may read storage or atomics
+                // (the macro refuses their methods elsewhere), and the lowering refuses every
+                // function of such a module for GLSL ES 3.00 before resources are declared.
+                ResourceKind::Storage { .. } | ResourceKind::Atomics => {}
             }
         }
         out.push('\n');

@@ -8,14 +8,20 @@ use std::fmt::Write as _;
 use super::{snake, Lowerer, R};
 use crate::infer;
 use crate::ir::{self, Expr, ExprKind as K, UnOp};
-use crate::language::{prec, prec::wrap, Helper, ResourceBlock, ResourceField, ResourceKind, SampleFields, Text};
+use crate::language::{
+    prec, prec::wrap, Helper, ResourceBlock, ResourceField, ResourceKind, SampleFields, StorageElement, Text,
+};
 use crate::names;
 use crate::types::{self, Scalar, Ty, U32};
-use crate::{CodegenError, Harness, Located, Program, SourceMapEntry};
+use crate::{CodegenError, Harness, Located, Program, ResourceBindings, SourceMapEntry};
 
 impl Lowerer<'_> {
     /// The whole file, its source map and the harness layout (when one was asked for).
-    pub(super) fn assemble(&mut self, order: &[String]) -> R<(String, Vec<SourceMapEntry>, Option<Harness>)> {
+    #[allow(clippy::type_complexity)]
+    pub(super) fn assemble(
+        &mut self,
+        order: &[String],
+    ) -> R<(String, Vec<SourceMapEntry>, Option<Harness>, Vec<ResourceBindings>)> {
         let mut out = String::new();
         let modules: Vec<String> = {
             let mut seen = Vec::new();
@@ -36,6 +42,7 @@ impl Lowerer<'_> {
         out.push('\n');
         let blocks = self.resource_blocks()?;
         out.push_str(&self.lang.resources(&blocks));
+        let bindings = self.lang.bindings(&blocks);
         self.write_structs(&mut out)?;
         self.write_consts(&mut out)?;
 
@@ -53,6 +60,9 @@ impl Lowerer<'_> {
         if let Some(entry) = &self.selection.entry {
             out.push_str(&self.entry_point(entry)?);
         }
+        if !self.selection.compute.is_empty() {
+            out.push_str(&self.compute_entries()?);
+        }
         let mut harness = None;
         if let Some(function) = &self.selection.harness {
             let (text, layout) = self.harness(function)?;
@@ -63,7 +73,7 @@ impl Lowerer<'_> {
             out.pop();
         }
         let source_map = self.map.iter().map(|m| SourceMapEntry { line: m.line + offset, ..m.clone() }).collect();
-        Ok((out, source_map, harness))
+        Ok((out, source_map, harness, bindings))
     }
 
     /// The fields of each `#[resources]` struct (in link order) that the code uses.
@@ -100,6 +110,11 @@ impl Lowerer<'_> {
                         ))
                     }
                     Ty::Scalar(_) | Ty::Vector(..) => ResourceKind::Uniform { type_name: self.ty_name(&t) },
+                    Ty::Storage(el) => match StorageElement::of(el) {
+                        Some(element) => ResourceKind::Storage { element },
+                        None => return Err(error(f.span, format!("`{t}` is not a supported storage type"))),
+                    },
+                    Ty::Atomics => ResourceKind::Atomics,
                     other => {
                         return Err(error(
                             f.span,
@@ -107,12 +122,13 @@ impl Lowerer<'_> {
                         ))
                     }
                 };
-                fields.push(ResourceField { name: f.name.clone(), kind });
+                fields.push(ResourceField { name: f.name.clone(), dsl_type: t.to_string(), kind });
             }
             blocks.push(ResourceBlock {
                 name: res.clone(),
                 global: snake(res),
                 origin: format!("{} ({}:{})", res, file, def.span.line),
+                group: def.group,
                 fields,
             });
         }
@@ -211,6 +227,41 @@ impl Lowerer<'_> {
             }
         };
         Ok(self.lang.pixel_entry(&names::safe(&entry.function), entry.output, outputs.as_ref()))
+    }
+
+    /// The compute entry points of [`crate::Selection::compute`]: each stage is a kernel
+    /// function `fn(<&resources..>, invocation: u32)` without a value.
+    fn compute_entries(&mut self) -> R<String> {
+        let mut names = Vec::new();
+        for stage in &self.selection.compute {
+            let Some(f) = self.program.fns.get(stage) else {
+                return Err(CodegenError {
+                    file: String::new(),
+                    span: ir::Span::default(),
+                    function: None,
+                    message: format!("compute stage `{stage}` is not a kernel function"),
+                });
+            };
+            let error = |message: String| CodegenError {
+                file: f.file.clone(),
+                span: f.item.span,
+                function: Some(format!("{}::{}", f.module, f.item.name)),
+                message,
+            };
+            if !self.lang.supports_compute() {
+                return Err(error(format!("`{stage}` is a compute stage: this target has no compute entry points")));
+            }
+            let types = infer::infer_fn(self.program, f)?;
+            let params: Vec<&Ty> =
+                types.params.iter().map(|i| &types.bindings[*i].ty).filter(|t| !matches!(t, Ty::Resource(_))).collect();
+            if params != [&U32] || types.ret != Ty::Unit {
+                return Err(error(format!(
+                    "a compute stage is `fn {stage}(<&resources..>, invocation: u32)` without a return value (its entry point passes the invocation index; the stage checks its own bound)"
+                )));
+            }
+            names.push(names::safe(stage));
+        }
+        Ok(self.lang.compute_entries(&names))
     }
 
     /// A const's value: literals, or simple expressions of literals and other consts.

@@ -5,7 +5,7 @@
 use super::{float_lit, has_effects, helper_suffix, is_zero_literal, op_prec, strip_parens, Lowerer, R};
 use crate::infer;
 use crate::ir::{self, BinOp, Expr, ExprKind as K, UnOp};
-use crate::language::{prec, prec::wrap, Bitcast, Helper, Text};
+use crate::language::{prec, prec::wrap, AtomicOp, Bitcast, Helper, StorageElement, Text};
 use crate::names;
 use crate::types::{self, ConstValue, Scalar, Ty, F32, U32};
 
@@ -193,12 +193,24 @@ impl<'a> Lowerer<'a> {
             return Ok((format!("{v}u"), prec::ATOM));
         }
         let def = &self.program.structs[res].item;
-        let is_texels = def
-            .fields
-            .iter()
-            .any(|f| f.name == field && matches!(&f.ty, ir::Type::Named { name, .. } if name == "Texels"));
-        if is_texels {
-            return Err(self.error(span, "read texels as `resources.field.fetch(index)`"));
+        let array = def.fields.iter().find_map(|f| match &f.ty {
+            ir::Type::Named { name, .. } if f.name == field => Some(name.as_str()),
+            _ => None,
+        });
+        match array {
+            Some("Texels") => return Err(self.error(span, "read texels as `resources.field.fetch(index)`")),
+            Some("Storage") => {
+                return Err(self.error(
+                    span,
+                    "use storage as `resources.field.load(index)` and `resources.field.store(index, value);`",
+                ))
+            }
+            Some("Atomics") => {
+                return Err(
+                    self.error(span, "use atomics through their methods: `resources.field.atomic_add(index, value)`")
+                )
+            }
+            _ => {}
         }
         self.resources_used.insert((res.to_string(), field.to_string()));
         Ok((self.lang.resource_field(&super::snake(res), field), prec::ATOM))
@@ -393,6 +405,14 @@ impl<'a> Lowerer<'a> {
         if method == "fetch" {
             return self.fetch(e, receiver, &rt, &args[0]);
         }
+        if method == "load" || AtomicOp::of_method(method).is_some() {
+            return Ok((self.compute_access(e, receiver, method, args)?, prec::ATOM));
+        }
+        if method == "store" {
+            return Err(
+                self.error(e.span, "`store` is a statement: write `resources.field.store(index, value);` on its own")
+            );
+        }
         let recv = self.expr(receiver)?;
         let recv_t = self.types.ty(receiver).clone();
         let r = self.auto_deref(recv, &recv_t);
@@ -516,6 +536,42 @@ impl<'a> Lowerer<'a> {
         let i = self.expr(index)?;
         let unsigned = matches!(rt, Ty::Texels(el) if matches!(**el, Ty::Vector(Scalar::U32, _)));
         Ok((self.lang.fetch(&super::snake(&res), field, i, unsigned, &mut self.helpers), prec::ATOM))
+    }
+}
+
+impl Lowerer<'_> {
+    /// `resources.field.load(i)`, `.store(i, v)` (its statement text, ending in `;`) and
+    /// `.atomic_*(i, ..)` on a compute module's `Storage` and `Atomics` fields.
+    pub(super) fn compute_access(&mut self, e: &Expr, receiver: &Expr, method: &str, args: &[Expr]) -> R<String> {
+        let usage = "use storage and atomics as `resources.field.method(..)`";
+        let K::Field { base, field } = &strip_parens(receiver).kind else {
+            return Err(self.error(e.span, usage));
+        };
+        let Ty::Resource(res) = self.types.ty(base).strip_ref().clone() else {
+            return Err(self.error(e.span, usage));
+        };
+        self.resources_used.insert((res.clone(), field.clone()));
+        let global = super::snake(&res);
+        let rt = self.types.ty(receiver).strip_ref().clone();
+        let index = self.expr(&args[0])?;
+        let value = match args.get(1) {
+            Some(v) => Some(self.expr(v)?),
+            None => None,
+        };
+        if let Some(op) = AtomicOp::of_method(method) {
+            return Ok(self.lang.atomic(&global, field, op, index, value));
+        }
+        let Some(element) = (match &rt {
+            Ty::Storage(el) => StorageElement::of(el),
+            _ => None,
+        }) else {
+            return Err(self.error(e.span, format!("`{method}` is for `Storage<..>` fields, not `{rt}`")));
+        };
+        let place = self.lang.storage_element(&global, field, element, index);
+        Ok(match value {
+            Some(v) => format!("{place} = {};", v.0),
+            None => place,
+        })
     }
 }
 

@@ -34,6 +34,9 @@ pub(crate) fn emit(program: &Program, target: Target, selection: &Selection) -> 
     let program = specialized.as_ref().unwrap_or(program);
     let lang = target.language();
     let order = fn_order(program, selection);
+    if !lang.supports_compute() {
+        refuse_compute(program, target, selection, &order)?;
+    }
     // First pass: which calls survive specialisation. Second pass: only what is reached.
     let first = lower_functions(program, lang, selection, &order)?;
     let roots: Vec<String> =
@@ -47,8 +50,35 @@ pub(crate) fn emit(program: &Program, target: Target, selection: &Selection) -> 
     }
     let order: Vec<String> = order.into_iter().filter(|n| reached.contains(n)).collect();
     let mut l = lower_functions(program, lang, selection, &order)?;
-    let (source, source_map, harness) = l.assemble(&order)?;
-    Ok(Generated { target, source, source_map, harness })
+    let (source, source_map, harness, bindings) = l.assemble(&order)?;
+    Ok(Generated { target, source, source_map, harness, bindings })
+}
+
+/// A language without storage buffers and atomics (GLSL ES 3.00) refuses compute entry points
+/// and every function of a `#[kernel(compute)]` module, at the function.
+fn refuse_compute(program: &Program, target: Target, selection: &Selection, order: &[String]) -> R<()> {
+    let target_name = match target {
+        Target::GlslEs300 => "GLSL ES 3.00",
+        Target::Wgsl => "WGSL",
+    };
+    let compute_module = |m: &str| program.modules.iter().any(|k| k.name == m && k.compute);
+    let refused = selection
+        .compute
+        .iter()
+        .chain(order.iter().filter(|n| program.fns.get(*n).is_some_and(|f| compute_module(&f.module))))
+        .find_map(|n| program.fns.get(n));
+    match refused {
+        Some(f) => Err(CodegenError {
+            file: f.file.clone(),
+            span: f.item.span,
+            function: Some(format!("{}::{}", f.module, f.item.name)),
+            message: format!(
+                "`{}` is a compute kernel (storage, atomics): {target_name} has neither; it is generated for WGSL and the CPU only",
+                f.item.name
+            ),
+        }),
+        None => Ok(()),
+    }
 }
 
 fn lower_functions<'a>(
@@ -171,11 +201,14 @@ fn is_zero_literal(e: &Expr) -> bool {
     }
 }
 
-/// Whether evaluating `e` can change state (it calls a kernel function or takes `&mut`).
+/// Whether evaluating `e` can change state (it calls a kernel function, takes `&mut`, or writes
+/// storage or atomics).
 fn has_effects(e: &Expr) -> bool {
     let mut effects = false;
     crate::walk_expr(e, &mut |x| {
-        if matches!(x.kind, K::Call { .. } | K::AddrOfMut(_) | K::Assign { .. }) {
+        let writes =
+            matches!(&x.kind, K::MethodCall { method, .. } if method == "store" || method.starts_with("atomic_"));
+        if writes || matches!(x.kind, K::Call { .. } | K::AddrOfMut(_) | K::Assign { .. }) {
             effects = true;
         }
     });

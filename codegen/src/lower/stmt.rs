@@ -169,6 +169,15 @@ impl<'a> Lowerer<'a> {
             | K::Break
             | K::Continue
             | K::Assign { .. } => self.stmt_expr(e)?,
+            // `resources.field.store(i, v)` and `atomic_store`: statements with no value.
+            K::MethodCall { receiver, method, args }
+                if matches!(dest, Dest::Discard) && (method == "store" || method == "atomic_store") =>
+            {
+                self.mark(e.span);
+                let text = self.compute_access(e, receiver, method, args)?;
+                let text = if text.ends_with(';') { text } else { format!("{text};") };
+                self.line(&text);
+            }
             _ => {
                 let ty = self.types.ty(e).clone();
                 self.mark(e.span);

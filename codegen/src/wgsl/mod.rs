@@ -15,7 +15,7 @@ mod reserved;
 mod shaders;
 
 use crate::ir::BinOp;
-use crate::language::{prec, Bitcast, Helper, Helpers, Language, SampleFields, Text};
+use crate::language::{prec, AtomicOp, Bitcast, Helper, Helpers, Language, SampleFields, StorageElement, Text};
 use crate::types::{Scalar, Ty, U32};
 
 /// The WGSL language.
@@ -203,6 +203,43 @@ impl Language for Wgsl {
 
     fn resources(&self, blocks: &[crate::language::ResourceBlock]) -> String {
         shaders::resources(blocks)
+    }
+
+    fn bindings(&self, blocks: &[crate::language::ResourceBlock]) -> Vec<crate::ResourceBindings> {
+        shaders::layout(blocks)
+    }
+
+    fn supports_compute(&self) -> bool {
+        true
+    }
+
+    /// Storage arrays of one element type share a buffer ([`shaders::storage_buffer`]); each
+    /// starts at `{global}.lp_start_{field}`.
+    fn storage_element(&self, global: &str, field: &str, element: StorageElement, index: Text) -> String {
+        let buffer = shaders::storage_buffer(global, element);
+        format!("{buffer}[{global}.{} + {}]", shaders::start_member(field), prec::wrap(index, prec::MUL))
+    }
+
+    fn atomic(&self, global: &str, field: &str, op: AtomicOp, index: Text, value: Option<Text>) -> String {
+        let buffer = shaders::atomics_buffer(global);
+        let place = format!("&{buffer}[{global}.{} + {}]", shaders::start_member(field), prec::wrap(index, prec::MUL));
+        let f = match op {
+            AtomicOp::Add => "atomicAdd",
+            AtomicOp::Sub => "atomicSub",
+            AtomicOp::Min => "atomicMin",
+            AtomicOp::Max => "atomicMax",
+            AtomicOp::Exchange => "atomicExchange",
+            AtomicOp::Load => "atomicLoad",
+            AtomicOp::Store => "atomicStore",
+        };
+        match value {
+            Some(v) => format!("{f}({place}, {})", v.0),
+            None => format!("{f}({place})"),
+        }
+    }
+
+    fn compute_entries(&self, stages: &[String]) -> String {
+        shaders::compute_entries(stages)
     }
 
     fn helper(&self, h: &Helper) -> String {

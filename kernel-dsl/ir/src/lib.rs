@@ -18,6 +18,18 @@ pub struct Module {
     /// Kernel modules this one imports with `use` (last path segment of each module path).
     pub imports: Vec<Import>,
     pub items: Vec<Item>,
+    /// `#[kernel(compute)]`: the module may use `Storage` and `Atomics` resources (compute
+    /// stages). Generated for WGSL and the CPU only: GLSL ES 3.00 has neither.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub compute: bool,
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
+}
+
+fn is_zero(n: &u32) -> bool {
+    *n == 0
 }
 
 impl Module {
@@ -72,6 +84,9 @@ pub struct StructDef {
     /// `#[resources]`: the struct describes scene data bound to the kernel (data textures
     /// and uniforms) rather than a value type. Passed as `&Name`; it disappears in shaders.
     pub resources: bool,
+    /// `#[resources(group = N)]`: the WGSL bind group of the struct's bindings (default 0).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub group: u32,
     pub span: Span,
 }
 
@@ -389,7 +404,34 @@ pub const SUPPORTED_METHODS: &[&str] = &[
     "as_ivec4",
     // resources
     "fetch",
+    // compute resources (`#[kernel(compute)]` modules only): Storage and Atomics
+    "load",
+    "store",
+    "atomic_add",
+    "atomic_sub",
+    "atomic_min",
+    "atomic_max",
+    "atomic_exchange",
+    "atomic_load",
+    "atomic_store",
 ];
+
+/// The methods of `Storage` and `Atomics` (in [`SUPPORTED_METHODS`]): only a
+/// `#[kernel(compute)]` module may call them.
+pub const COMPUTE_METHODS: &[&str] = &[
+    "load",
+    "store",
+    "atomic_add",
+    "atomic_sub",
+    "atomic_min",
+    "atomic_max",
+    "atomic_exchange",
+    "atomic_load",
+    "atomic_store",
+];
+
+/// The resource types only a `#[kernel(compute)]` module may declare (in [`BUILTIN_TYPES`]).
+pub const COMPUTE_TYPES: &[&str] = &["Storage", "Atomics"];
 
 /// Associated functions called through a type path that are not methods: constructors and
 /// conversions.
@@ -398,5 +440,5 @@ pub const SUPPORTED_CONSTRUCTORS: &[&str] = &["new", "splat", "from_bits"];
 /// Scalar and vector types the subset knows (besides structs declared in kernel modules).
 pub const BUILTIN_TYPES: &[&str] = &[
     "f32", "i32", "u32", "bool", "usize", "Vec2", "Vec3", "Vec4", "IVec2", "IVec3", "IVec4", "UVec2", "UVec3", "UVec4",
-    "Texels",
+    "Texels", "Storage", "Atomics",
 ];

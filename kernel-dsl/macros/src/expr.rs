@@ -153,6 +153,10 @@ impl Lowering {
                     self.error(err_at(&m.method, unsupported_method_message(&method)));
                     return None;
                 }
+                if ir::COMPUTE_METHODS.contains(&method.as_str()) && !self.compute {
+                    self.error(err_at(&m.method, crate::needs_compute(&format!("`{method}`"))));
+                    return None;
+                }
                 let receiver = self.boxed(&m.receiver);
                 let args = self.exprs(m.args.iter());
                 ir::ExprKind::MethodCall { receiver: receiver?, method, args: args? }
@@ -538,6 +542,10 @@ impl Lowering {
         }
         if through_type {
             let f = path[1].as_str();
+            if ir::COMPUTE_METHODS.contains(&f) {
+                self.error(err_at(tokens, format!("call `{f}` as a method: `resources.field.{f}(..)`")));
+                return None;
+            }
             if !ir::SUPPORTED_METHODS.contains(&f) && !ir::SUPPORTED_CONSTRUCTORS.contains(&f) {
                 self.error(err_at(
                     tokens,

@@ -27,9 +27,17 @@ pub fn kernel(attr: proc_macro::TokenStream, item: proc_macro::TokenStream) -> p
 }
 
 fn expand(attr: TokenStream, item: TokenStream, file: String) -> TokenStream {
-    if !attr.is_empty() {
-        return Error::new(attr.span(), "`#[kernel]` takes no arguments").to_compile_error();
-    }
+    let compute = match syn::parse2::<Option<syn::Ident>>(attr.clone()) {
+        Ok(None) => false,
+        Ok(Some(i)) if i == "compute" => true,
+        _ => {
+            return Error::new(
+                attr.span(),
+                "`#[kernel]` takes no arguments, or `compute` (`#[kernel(compute)]`: a compute module, with storage and atomics, for WGSL and the CPU)",
+            )
+            .to_compile_error()
+        }
+    };
     let mut module: syn::ItemMod = match syn::parse2(item) {
         Ok(m) => m,
         Err(e) => {
@@ -37,7 +45,7 @@ fn expand(attr: TokenStream, item: TokenStream, file: String) -> TokenStream {
                 .to_compile_error()
         }
     };
-    let mut lowering = Lowering::default();
+    let mut lowering = Lowering { compute, ..Lowering::default() };
     let ir = lowering.module(&module, file);
     let resource_impls = resources_impls(&module);
     strip_dsl_attributes(&mut module);
@@ -110,6 +118,14 @@ fn strip_dsl_attributes(module: &mut syn::ItemMod) {
     }
 }
 
+/// The error for a compute construct (`Storage`, `Atomics`, their methods) in a module without
+/// `#[kernel(compute)]`.
+pub(crate) fn needs_compute(what: &str) -> String {
+    format!(
+        "{what} needs compute: GLSL ES 3.00 (WebGL2) has no storage buffers or atomics. Write it in a `#[kernel(compute)]` module, which is generated for WGSL and the CPU only"
+    )
+}
+
 fn span_of(s: Span) -> ir::Span {
     let start = s.start();
     ir::Span { line: start.line as u32, column: start.column as u32 }
@@ -140,6 +156,8 @@ struct Lowering {
     /// Names imported by `use` from other (kernel) modules, and whether a glob import exists.
     imported: BTreeSet<String>,
     glob_import: bool,
+    /// `#[kernel(compute)]`: `Storage`/`Atomics` resources and their methods are allowed.
+    compute: bool,
 }
 
 impl Lowering {
@@ -201,7 +219,8 @@ impl Lowering {
                 _ => {}
             }
         }
-        let mut out = ir::Module { name: module.ident.to_string(), file, imports: vec![], items: vec![] };
+        let mut out =
+            ir::Module { name: module.ident.to_string(), file, imports: vec![], items: vec![], compute: self.compute };
         for item in items {
             if is_cfg_test(item) {
                 continue;
@@ -310,6 +329,23 @@ impl Lowering {
             return None;
         }
         let resources = s.attrs.iter().any(|a| a.path().is_ident("resources"));
+        let mut group = 0;
+        for a in s.attrs.iter().filter(|a| a.path().is_ident("resources")) {
+            if let syn::Meta::List(_) = &a.meta {
+                let parsed = a.parse_nested_meta(|meta| {
+                    if meta.path.is_ident("group") {
+                        let n: syn::LitInt = meta.value()?.parse()?;
+                        group = n.base10_parse::<u32>()?;
+                        Ok(())
+                    } else {
+                        Err(meta.error("`#[resources]` takes `group = N` (the WGSL bind group of its bindings)"))
+                    }
+                });
+                if let Err(e) = parsed {
+                    self.error(e);
+                }
+            }
+        }
         let syn::Fields::Named(named) = &s.fields else {
             self.error(err_at(&s.ident, "kernel structs need named fields: `struct Hit { t: f32, ... }`"));
             return None;
@@ -318,10 +354,15 @@ impl Lowering {
         for f in &named.named {
             let name = f.ident.as_ref().map(|i| i.to_string()).unwrap_or_default();
             if let Some(ty) = self.ty(&f.ty) {
+                if let ir::Type::Named { name: ty_name, .. } = &ty {
+                    if ir::COMPUTE_TYPES.contains(&ty_name.as_str()) && !self.compute {
+                        self.error(err_at(&f.ty, needs_compute(&format!("`{ty_name}`"))));
+                    }
+                }
                 fields.push(ir::Field { name, ty, span: span_of(f.span()) });
             }
         }
-        Some(ir::StructDef { name: s.ident.to_string(), fields, resources, span: span_of(s.ident.span()) })
+        Some(ir::StructDef { name: s.ident.to_string(), fields, resources, group, span: span_of(s.ident.span()) })
     }
 
     fn const_item(&mut self, c: &syn::ItemConst) -> Option<ir::ConstDef> {

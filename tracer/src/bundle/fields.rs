@@ -225,6 +225,13 @@ impl Field for Scene {
                 Resource::F32(x) => x.write(&name, w),
                 Resource::U32(x) => x.write(&name, w),
                 Resource::Vec3(v) => v.write(&name, w),
+                // Unreachable by construction: `Scene` is the resources of a rendering kernel
+                // (GLSL and WGSL), which has no storage or atomics (compute modules only).
+                Resource::Vec4Storage(_)
+                | Resource::UVec4Storage(_)
+                | Resource::U32Storage(_)
+                | Resource::F32Storage(_)
+                | Resource::Atomics(_) => {}
             }
         }
     }
@@ -238,6 +245,12 @@ impl Field for Scene {
                 ResourceMut::F32(x) => *x = Field::read(&name, r)?,
                 ResourceMut::U32(x) => *x = Field::read(&name, r)?,
                 ResourceMut::Vec3(v) => *v = Field::read(&name, r)?,
+                // Unreachable by construction, as in `write`: `Scene` has no storage or atomics.
+                ResourceMut::Vec4Storage(_)
+                | ResourceMut::UVec4Storage(_)
+                | ResourceMut::U32Storage(_)
+                | ResourceMut::F32Storage(_)
+                | ResourceMut::Atomics(_) => {}
             }
         }
         Ok(scene)

@@ -15,6 +15,14 @@ pub fn gl_type(field: &Resource<'_>) -> u32 {
         Resource::F32(_) => glow::FLOAT,
         Resource::U32(_) => glow::UNSIGNED_INT,
         Resource::Vec3(_) => glow::FLOAT_VEC3,
+        // GLSL ES 3.00 has no storage buffers or atomics (codegen refuses compute modules for
+        // it): no GL type, so a uniform of the shader never matches such a field and
+        // `check_active_uniforms` reports it as unbound.
+        Resource::Vec4Storage(_)
+        | Resource::UVec4Storage(_)
+        | Resource::U32Storage(_)
+        | Resource::F32Storage(_)
+        | Resource::Atomics(_) => glow::NONE,
     }
 }
 

@@ -288,6 +288,13 @@ impl GlHarness {
                     Resource::F32(x) => gl.uniform_1_f32(location.as_ref(), **x),
                     Resource::U32(x) => gl.uniform_1_u32(location.as_ref(), **x),
                     Resource::Vec3(v) => gl.uniform_3_f32(location.as_ref(), v.x, v.y, v.z),
+                    // Not reached: `gl_type` of a compute field matches no uniform (checked
+                    // above), and GLSL ES 3.00 has no storage or atomics to bind.
+                    Resource::Vec4Storage(_)
+                    | Resource::UVec4Storage(_)
+                    | Resource::U32Storage(_)
+                    | Resource::F32Storage(_)
+                    | Resource::Atomics(_) => {}
                 }
             }
             gl.use_program(None);

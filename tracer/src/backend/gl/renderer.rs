@@ -267,6 +267,12 @@ impl Renderer for GlRenderer {
                     Resource::U32(x) => gl.uniform_1_u32(location.as_ref(), *x),
                     Resource::Vec3(v) => gl.uniform_3_f32(location.as_ref(), v.x, v.y, v.z),
                     Resource::Vec4s(_) | Resource::UVec4s(_) => {}
+                    // `Scene` has no storage or atomics (compute modules only, never GLSL).
+                    Resource::Vec4Storage(_)
+                    | Resource::UVec4Storage(_)
+                    | Resource::U32Storage(_)
+                    | Resource::F32Storage(_)
+                    | Resource::Atomics(_) => {}
                 }
             }
             gl.use_program(None);
@@ -524,6 +530,13 @@ fn bind_scene(
                 Resource::F32(x) => gl.uniform_1_f32(location, **x),
                 Resource::U32(x) => gl.uniform_1_u32(location, **x),
                 Resource::Vec3(v) => gl.uniform_3_f32(location, v.x, v.y, v.z),
+                // `Scene` has no storage or atomics (compute modules only, never GLSL): a
+                // uniform of that name would not be one the program declares.
+                Resource::Vec4Storage(_)
+                | Resource::UVec4Storage(_)
+                | Resource::U32Storage(_)
+                | Resource::F32Storage(_)
+                | Resource::Atomics(_) => {}
             }
             match *name {
                 "frame_seed" => frame_seed_location = location.cloned(),

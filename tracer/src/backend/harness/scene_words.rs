@@ -113,6 +113,14 @@ pub fn encode_resources(resources: &dyn Resources) -> Vec<u32> {
             Resource::F32(x) => x.put(&mut out),
             Resource::U32(x) => x.put(&mut out),
             Resource::Vec3(v) => v.put(&mut out),
+            // Scene words carry read-only resources (what the harness's functions read):
+            // a compute struct's storage and atomics are not encoded, and `decode_resources`
+            // refuses a struct that has them.
+            Resource::Vec4Storage(_)
+            | Resource::UVec4Storage(_)
+            | Resource::U32Storage(_)
+            | Resource::F32Storage(_)
+            | Resource::Atomics(_) => {}
         }
     }
     out
@@ -133,6 +141,15 @@ pub fn decode_resources<R: Resources + Default>(words: &[u32]) -> Result<R, Stri
             ResourceMut::F32(x) => *x = SceneField::get(r, name)?,
             ResourceMut::U32(x) => *x = SceneField::get(r, name)?,
             ResourceMut::Vec3(v) => *v = SceneField::get(r, name)?,
+            ResourceMut::Vec4Storage(_)
+            | ResourceMut::UVec4Storage(_)
+            | ResourceMut::U32Storage(_)
+            | ResourceMut::F32Storage(_)
+            | ResourceMut::Atomics(_) => {
+                return Err(format!(
+                "field `{name}` is storage or atomics (a compute module's): scene words hold read-only resources only"
+            ))
+            }
         }
     }
     if !reader.0.is_empty() {
