@@ -694,7 +694,7 @@ fn wang_hash(seed: u32) -> u32 {
     return s;
 }
 
-// rng::pixel_seed (lightport-tracer/src/kernel/rng.rs:55)
+// rng::pixel_seed (lightport-tracer/src/kernel/rng.rs:63)
 fn pixel_seed(pixel_index: u32, frame_seed: u32) -> u32 {
     let s: u32 = wang_hash(pixel_index + frame_seed);
     return select(s, 0x9e3779b9u, s == 0u);
@@ -708,7 +708,7 @@ fn random_u32(state: ptr<function, u32>) -> u32 {
     return *state;
 }
 
-// rng::pixel_jitter (lightport-tracer/src/kernel/rng.rs:45)
+// rng::pixel_jitter (lightport-tracer/src/kernel/rng.rs:53)
 fn pixel_jitter(pixel_index: u32, frame_seed: u32, frame_index: u32) -> vec2<f32> {
     let render_seed: u32 = frame_seed ^ (frame_index * FRAME_MIX);
     var state: u32 = pixel_seed(pixel_index, render_seed ^ 0x5bd1e995u);

@@ -379,7 +379,7 @@ uint wang_hash(uint seed) {
     return s;
 }
 
-// rng::pixel_seed (lightport-tracer/src/kernel/rng.rs:55)
+// rng::pixel_seed (lightport-tracer/src/kernel/rng.rs:63)
 uint pixel_seed(uint pixel_index, uint frame_seed) {
     uint s = wang_hash(pixel_index + frame_seed);
     return s == 0u ? 0x9e3779b9u : s;
@@ -393,7 +393,7 @@ uint random_u32(inout uint state) {
     return state;
 }
 
-// rng::pixel_jitter (lightport-tracer/src/kernel/rng.rs:45)
+// rng::pixel_jitter (lightport-tracer/src/kernel/rng.rs:53)
 vec2 pixel_jitter(uint pixel_index, uint frame_seed, uint frame_index) {
     uint render_seed = frame_seed ^ (frame_index * FRAME_MIX);
     uint state = pixel_seed(pixel_index, render_seed ^ 0x5bd1e995u);

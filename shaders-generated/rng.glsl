@@ -35,13 +35,18 @@ float random_float(inout uint state) {
     return float(random_u32(state) >> 8) * (1.0 / 16777216.0);
 }
 
-// rng::pixel_seed (lightport-tracer/src/kernel/rng.rs:55)
+// rng::seed_of_frame (lightport-tracer/src/kernel/rng.rs:43)
+uint seed_of_frame(uint frame, uint seed) {
+    return (frame * FRAME_MIX) ^ (seed * 0x85ebca6bu);
+}
+
+// rng::pixel_seed (lightport-tracer/src/kernel/rng.rs:63)
 uint pixel_seed(uint pixel_index, uint frame_seed) {
     uint s = wang_hash(pixel_index + frame_seed);
     return s == 0u ? 0x9e3779b9u : s;
 }
 
-// rng::pixel_jitter (lightport-tracer/src/kernel/rng.rs:45)
+// rng::pixel_jitter (lightport-tracer/src/kernel/rng.rs:53)
 vec2 pixel_jitter(uint pixel_index, uint frame_seed, uint frame_index) {
     uint render_seed = frame_seed ^ (frame_index * FRAME_MIX);
     uint state = pixel_seed(pixel_index, render_seed ^ 0x5bd1e995u);

@@ -16,4 +16,5 @@ mod moving;
 mod normal_maps;
 mod stability;
 mod texture_transform;
+mod wavefront;
 mod wgpu;

@@ -8,6 +8,7 @@ pub mod frame_split;
 pub mod gl;
 pub mod harness;
 mod renderer;
+pub mod wavefront;
 #[cfg(feature = "wgpu")]
 pub mod wgpu;
 
@@ -39,9 +40,8 @@ pub(crate) fn ms_since(start: web_time::Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3
 }
 
-/// Seed of frame `frame`: spreads consecutive frames over the hash's input space.
+/// Seed of frame `frame` (the kernel's `rng::seed_of_frame`, which the wavefront's stages call
+/// on the device).
 pub fn frame_seed(frame: u32, seed: u32) -> u32 {
-    // The kernel xors `frame * FRAME_MIX` back out for the part of the seed common to a
-    // render's frames (`rng::pixel_jitter`).
-    frame.wrapping_mul(crate::kernel::rng::FRAME_MIX) ^ seed.wrapping_mul(0x85eb_ca6b)
+    crate::kernel::rng::seed_of_frame(frame, seed)
 }

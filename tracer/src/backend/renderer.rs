@@ -37,6 +37,9 @@ pub enum RenderError {
     /// [`Renderer::take_geometry`] of a pose the renderer's kernel cannot draw.
     #[error(transparent)]
     Pack(#[from] crate::pack::PackError),
+    /// The wavefront schedule cannot render this scene or image here.
+    #[error(transparent)]
+    Wavefront(#[from] super::wavefront::WavefrontError),
     /// The runtime cannot do this here (not built in, or not on this platform).
     #[error("the {runtime} renderer {what}")]
     Unsupported { runtime: &'static str, what: &'static str },

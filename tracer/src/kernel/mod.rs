@@ -3,8 +3,8 @@
 //! (`shaders-generated/`, regenerated with `cargo run -- shaders`).
 
 // Kernels write `!(x > 0.0)` on purpose: it is true for NaN, which is how they reject NaN on
-// every target. `RangeInclusive::contains` is not part of the DSL.
-#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::manual_range_contains)]
+// every target. `RangeInclusive::contains` and `u32::is_multiple_of` are not part of the DSL.
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::manual_range_contains, clippy::manual_is_multiple_of)]
 
 #[path = "alpha_mask.rs"]
 mod alpha_mask_src;
@@ -48,6 +48,8 @@ mod textures_src;
 mod tonemap_src;
 #[path = "traverse.rs"]
 mod traverse_src;
+#[path = "wavefront.rs"]
+mod wavefront_src;
 
 pub mod features;
 
@@ -69,6 +71,7 @@ pub use texture_ref_src::texture_ref;
 pub use textures_src::textures;
 pub use tonemap_src::tonemap;
 pub use traverse_src::traverse;
+pub use wavefront_src::wavefront;
 
 pub use features::{Features, RenderSettings, Strategy};
 
@@ -93,12 +96,13 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
         integrator::kernel_ir(),
         tonemap::kernel_ir(),
         denoise::kernel_ir(),
+        wavefront::kernel_ir(),
     ]
 }
 
 /// Every kernel module's captured description, as the macro serialised it (what
 /// [`modules`] parses): a stable text to fingerprint the kernel with.
-pub fn ir_json() -> [&'static str; 17] {
+pub fn ir_json() -> [&'static str; 18] {
     [
         rng::KERNEL_IR_JSON,
         sampling::KERNEL_IR_JSON,
@@ -117,6 +121,7 @@ pub fn ir_json() -> [&'static str; 17] {
         integrator::KERNEL_IR_JSON,
         tonemap::KERNEL_IR_JSON,
         denoise::KERNEL_IR_JSON,
+        wavefront::KERNEL_IR_JSON,
     ]
 }
 
@@ -139,6 +144,22 @@ fn path_tracer_shader_for(
     let entry = if features.denoise_guide { "render_guided_sample" } else { "render_sample" };
     let selection = lightport_codegen::Selection::entry(entry, features.specialization());
     emit_validated(target, selection, regenerate)
+}
+
+/// The wavefront schedule's shader (WGSL only: GLSL ES 3.00 has no compute), specialised to
+/// `features` as the megakernel is: one module with an entry point `main_<stage>` per stage of
+/// `kernel::wavefront` ([`backend::wavefront::ITERATION`](crate::backend::wavefront::ITERATION)), validated.
+pub fn wavefront_shader(features: &Features) -> Result<lightport_codegen::Generated, ShaderError> {
+    wavefront_shader_for(features, None)
+}
+
+fn wavefront_shader_for(
+    features: &Features,
+    regenerate: Option<&str>,
+) -> Result<lightport_codegen::Generated, ShaderError> {
+    let stages = crate::backend::wavefront::stage_functions();
+    let selection = lightport_codegen::Selection::compute(&stages, features.specialization());
+    emit_validated(lightport_codegen::Target::Wgsl, selection, regenerate)
 }
 
 /// One pass of the denoiser's à-trous filter for `target`: a GLSL ES 3.00 fragment shader or a
@@ -198,7 +219,12 @@ pub fn generated_shaders() -> Result<Vec<GeneratedFile>, ShaderError> {
     let program = Program::link(&modules)?;
     let mut files = Vec::new();
     for module in program.module_names() {
+        let compute = modules.iter().any(|m| m.name == module && m.compute);
         for target in [Target::GlslEs300, Target::Wgsl] {
+            if compute && target == Target::GlslEs300 {
+                // A compute module has no GLSL ES 3.00 (no storage buffers, atomics or compute).
+                continue;
+            }
             let selection = Selection { regenerate: Some(REGENERATE.into()), ..Selection::module(&program, &module) };
             let generated = program.emit(target, &selection)?;
             lightport_codegen::validate::validate(&generated)?;
@@ -213,6 +239,13 @@ pub fn generated_shaders() -> Result<Vec<GeneratedFile>, ShaderError> {
             let ext = if target == Target::GlslEs300 { "frag.glsl" } else { "wgsl" };
             files.push(GeneratedFile { name: format!("{name}.{ext}"), source: generated.source });
         }
+    }
+    // The wavefront schedule's stages, with every feature and for the Cornell box.
+    for (name, features) in
+        [("path_tracer_wavefront", Features::all()), ("path_tracer_wavefront_cornell", cornell_features())]
+    {
+        let generated = wavefront_shader_for(&features, Some(REGENERATE))?;
+        files.push(GeneratedFile { name: format!("{name}.wgsl"), source: generated.source });
     }
     // The denoiser's filter pass.
     for target in [Target::GlslEs300, Target::Wgsl] {

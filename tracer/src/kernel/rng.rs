@@ -36,6 +36,14 @@ pub mod rng {
     /// `frame * FRAME_MIX` out of it leaves the part that is the same for every frame of a render.
     pub const FRAME_MIX: u32 = 0x9e3779b9;
 
+    /// The seed of frame `frame` of a render with seed `seed`: spreads consecutive frames over
+    /// the hash's input space. `pixel_jitter` xors `frame * FRAME_MIX` back out for the part of
+    /// the seed common to a render's frames. (Hosts set it per frame for the megakernel; the
+    /// wavefront's `generate` stage computes it for the frame it fills.)
+    pub fn seed_of_frame(frame: u32, seed: u32) -> u32 {
+        frame.wrapping_mul(FRAME_MIX) ^ seed.wrapping_mul(0x85eb_ca6b)
+    }
+
     /// Where in pixel `pixel_index` the sample of frame `frame_index` lies, in [0, 1)²: R2, a
     /// rank-1 lattice over the frames, shifted per pixel by a random offset that stays the same
     /// from frame to frame (a Cranley–Patterson rotation, from the render's seed). A pixel's

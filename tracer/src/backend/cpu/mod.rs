@@ -7,5 +7,7 @@
 //! `compile.rs`, `display.rs` and `harness.rs`.
 
 mod renderer;
+mod wavefront;
 
 pub use renderer::CpuRenderer;
+pub use wavefront::{WavefrontRenderer, CPU_POOL};

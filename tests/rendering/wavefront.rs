@@ -1,0 +1,135 @@
+//! The wavefront schedule (`kernel::wavefront`, `backend::wavefront`) on the CPU: each path
+//! computes what the megakernel's computes, so the two add the same samples bit for bit; the
+//! queues lose and duplicate nothing; bad sizes are errors.
+
+use glam::{Vec2, Vec3, Vec4};
+use tracer::backend::cpu::{CpuRenderer, WavefrontRenderer};
+use tracer::backend::wavefront::{pool_size, WavefrontError};
+use tracer::backend::{RenderError, Renderer};
+use tracer::kernel::wavefront::{FREE, WORKGROUP};
+use tracer::kernel::Strategy;
+use tracer::scene::{self, alpha_checker, Camera, Material, Scene, Triangle};
+
+use crate::common::agreement::{damaged_helmet, packed, textured_box, STRATEGIES};
+
+/// The Cornell box with a 4 x 4 alpha-checkered screen in front of its back wall.
+fn masked_cornell() -> Scene {
+    let mut scene = scene::cornell_box();
+    let material = scene.materials.len() as u32;
+    let mut screen = Material::diffuse("screen", Vec3::splat(0.7));
+    screen.base_color_texture = Some(scene.textures.len() as u32);
+    screen.alpha_cutoff = Some(0.5);
+    scene.materials.push(screen);
+    scene.textures.push(alpha_checker(4));
+    let q = [Vec3::new(-0.5, 0.2, 0.0), Vec3::new(0.5, 0.2, 0.0), Vec3::new(0.5, 1.2, 0.0), Vec3::new(-0.5, 1.2, 0.0)];
+    let uv = [Vec2::new(0.0, 1.0), Vec2::new(1.0, 1.0), Vec2::new(1.0, 0.0), Vec2::ZERO];
+    for [a, b, c] in [[0, 1, 2], [0, 2, 3]] {
+        scene.triangles.push(Triangle {
+            positions: [q[a], q[b], q[c]],
+            normals: [Vec3::Z; 3],
+            uvs: [uv[a], uv[b], uv[c]],
+            uvs1: Default::default(),
+            tangents: Default::default(),
+            material,
+        });
+    }
+    scene
+}
+
+/// `frames` frames of `scene` on the megakernel and on the wavefront (a pool of `pool` slots),
+/// their running sums.
+fn both(scene: &Scene, strategy: Strategy, size: u32, frames: u32, pool: u32) -> (Vec<Vec4>, Vec<Vec4>) {
+    let p = packed(scene, strategy, size, 8);
+    let mut mega = CpuRenderer::new(p.clone(), 5);
+    let mut wave = WavefrontRenderer::new(p, 5, pool).expect("a wavefront renderer");
+    for _ in 0..frames {
+        mega.render_frame().unwrap();
+        wave.render_frame().unwrap();
+    }
+    assert_eq!(wave.frames(), frames);
+    (mega.accumulation().unwrap(), wave.accumulation().unwrap())
+}
+
+#[test]
+fn the_cpu_wavefront_adds_the_megakernels_samples_bit_for_bit() {
+    // A pool smaller than the image: several waves per frame, frames drained and restarted.
+    let (size, frames, pool) = (20, 3, 90);
+    let mut scenes: Vec<(String, Scene, Strategy)> =
+        STRATEGIES.iter().map(|s| (format!("Cornell box {s:?}"), scene::cornell_box(), *s)).collect();
+    scenes.push(("glass Cornell box".into(), scene::glass_cornell(), Strategy::Mis));
+    scenes.push(("metal-rough spheres".into(), scene::metal_rough_spheres(), Strategy::Mis));
+    scenes.push(("BoxTextured under a sky".into(), textured_box(), Strategy::Mis));
+    scenes.push(("DamagedHelmet under a sky".into(), damaged_helmet(), Strategy::Mis));
+    scenes.push(("instanced shapes".into(), scene::instanced_shapes(2), Strategy::Mis));
+    scenes.push(("alpha-masked screen".into(), masked_cornell(), Strategy::Nee));
+    for (what, scene, strategy) in scenes {
+        let (mega, wave) = both(&scene, strategy, size, frames, pool);
+        let lit = mega.iter().filter(|a| a.x + a.y + a.z > 0.0).count();
+        assert!(lit * 40 > mega.len(), "{what}: the test image must show something ({lit} lit pixels)");
+        let differ = mega
+            .iter()
+            .zip(&wave)
+            .filter(|(m, w)| m.to_array().map(f32::to_bits) != w.to_array().map(f32::to_bits))
+            .count();
+        assert_eq!(differ, 0, "{what}: pixels whose sums differ between the megakernel and the wavefront");
+    }
+}
+
+#[test]
+fn every_pixel_receives_exactly_the_samples_it_was_owed_and_no_slot_is_lost() {
+    // A pool that divides nothing: 37 slots over 23 x 19 pixels.
+    let mut p = packed(&scene::cornell_box(), Strategy::Mis, 23, 8);
+    p.scene.height = 19;
+    let mut wave = WavefrontRenderer::new(p, 9, 37).unwrap();
+    for frame in 1..=4u32 {
+        wave.render_frame().unwrap();
+        let sums = wave.accumulation().unwrap();
+        assert!(sums.iter().all(|a| a.w == frame as f32), "frame {frame}: every pixel has {frame} samples");
+        let counts = wave.counts();
+        assert_eq!(counts.frames, frame);
+        // Every path of a frame traces its camera ray; bounces add more.
+        assert!(counts.segments >= frame * 23 * 19, "{counts:?}");
+        let paths = wave.paths();
+        assert_eq!(paths.counters.atomic_load(FREE), 37, "every slot is free between frames");
+        let mut free: Vec<u32> = (0..37).map(|i| paths.free.load(i)).collect();
+        free.sort_unstable();
+        assert_eq!(free, (0..37).collect::<Vec<u32>>(), "each slot once on the free stack");
+    }
+}
+
+#[test]
+fn pools_follow_the_device_limit_and_an_image_beyond_it_is_an_error() {
+    // The image's sums and eight Vec4 arrays per slot share the largest binding.
+    assert_eq!(pool_size(640 * 480, 128 << 20).unwrap(), 640 * 480);
+    let small = pool_size(1920 * 1080, 128 << 20).unwrap();
+    assert!(small < 1920 * 1080 && small.is_multiple_of(WORKGROUP), "{small}");
+    assert!(small as u64 * 8 * 16 + 1920 * 1080 * 16 <= 128 << 20);
+    match pool_size(1 << 24, 1 << 20) {
+        Err(e @ WavefrontError::ImageTooLarge { .. }) => {
+            assert!(e.to_string().contains("largest storage buffer binding"), "{e}")
+        }
+        other => panic!("an image beyond the limit: {other:?}"),
+    }
+}
+
+#[test]
+fn a_scene_packed_for_the_denoiser_is_a_clear_error() {
+    let mut p = packed(&scene::cornell_box(), Strategy::Mis, 8, 4);
+    p.set_denoise_guide(true);
+    match WavefrontRenderer::new(p, 1, 64) {
+        Err(RenderError::Wavefront(e)) => assert!(e.to_string().contains("megakernel"), "{e}"),
+        Err(e) => panic!("another error: {e}"),
+        Ok(_) => panic!("the wavefront has no denoiser guide"),
+    }
+}
+
+#[test]
+fn a_camera_inside_a_closed_box_still_completes_every_frame() {
+    // Paths that never escape end by depth and roulette: the frame completes within the bound.
+    let mut scene = scene::cornell_box();
+    scene.camera = Camera::look_at(Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 1.0, -1.0), Vec3::Y, 1.0);
+    let p = packed(&scene, Strategy::Bsdf, 12, 32);
+    let mut wave = WavefrontRenderer::new(p, 2, 64).unwrap();
+    wave.render_frame().unwrap();
+    assert_eq!(wave.frames(), 1);
+}

@@ -1,0 +1,147 @@
+//! The wavefront schedule on the CPU: each stage of `kernel::wavefront` run over its grid with
+//! rayon, the queues and counters the kernel's own `Storage` and `Atomics` (atomic words on the
+//! CPU). The reference the wgpu wavefront is compared with, and, since every path computes what
+//! the megakernel's would, equal to [`CpuRenderer`](super::CpuRenderer) bit for bit.
+
+use glam::Vec4;
+use rayon::prelude::*;
+
+use crate::backend::wavefront::{
+    check_features, iteration_bound, new_dispatch, new_paths, reset, Stage, WavefrontCounts, WavefrontError, ITERATION,
+};
+use crate::backend::{update_uniforms, GuideSums, RenderError, Renderer, RendererInfo};
+use crate::kernel::scene_data::Scene;
+use crate::kernel::wavefront::{self as stages, Dispatch, Paths, FRAMES_DONE, WORKGROUP};
+use crate::pack::Packed;
+
+/// Path slots on the CPU: enough for every thread to find work in each stage, few enough that
+/// a path's state stays in cache between the stages (measured: `examples/bench_wavefront.rs`).
+pub const CPU_POOL: u32 = 1 << 16;
+
+pub struct WavefrontRenderer {
+    packed: Packed,
+    paths: Paths,
+    dispatch: Dispatch,
+    frames: u32,
+}
+
+impl WavefrontRenderer {
+    /// A wavefront renderer for `packed` with `seed` (the megakernel's random sequence), over a
+    /// pool of at most `pool` slots (at most one per pixel).
+    pub fn new(packed: Packed, seed: u32, pool: u32) -> Result<Self, RenderError> {
+        check_features(&packed.features)?;
+        let pixels = packed.scene.width * packed.scene.height;
+        let pool = pool.min(pixels).max(1);
+        let paths = new_paths(pool, pixels, seed);
+        Ok(WavefrontRenderer { packed, paths, dispatch: new_dispatch(), frames: 0 })
+    }
+
+    /// The pool: its slots, queues and counters as the stages left them.
+    pub fn paths(&self) -> &Paths {
+        &self.paths
+    }
+
+    /// What the pool has traced since the last restart.
+    pub fn counts(&self) -> WavefrontCounts {
+        WavefrontCounts::from_counters(&self.paths.counters.to_vec())
+    }
+
+    /// Runs `stage` over its grid: one invocation for a `plan_*` stage, else the grid its plan
+    /// wrote, numbered as a GPU numbers it (`x + y * groups_x * WORKGROUP`).
+    fn run(&self, stage: Stage) {
+        let (scene, paths, dispatch) = (&self.packed.scene, &self.paths, &self.dispatch);
+        let invocations = match stage.args {
+            None => 1,
+            Some(at) => dispatch.args.load(at) * dispatch.args.load(at + 1) * dispatch.args.load(at + 2) * WORKGROUP,
+        };
+        let call = |i: u32| match stage.function {
+            "plan_generate" => stages::plan_generate(paths, dispatch, i),
+            "generate" => stages::generate(scene, paths, i),
+            "plan_extend" => stages::plan_extend(paths, dispatch, i),
+            "extend" => stages::extend(scene, paths, i),
+            "shade" => stages::shade(scene, paths, i),
+            "plan_connect" => stages::plan_connect(paths, dispatch, i),
+            "connect" => stages::connect(scene, paths, i),
+            "accumulate" => stages::accumulate(paths, i),
+            _ => {}
+        };
+        if invocations <= WORKGROUP {
+            (0..invocations).for_each(call);
+        } else {
+            (0..invocations).into_par_iter().with_min_len(WORKGROUP as usize).for_each(call);
+        }
+    }
+}
+
+impl Renderer for WavefrontRenderer {
+    fn describe(&self) -> RendererInfo {
+        let threads = rayon::current_num_threads();
+        RendererInfo {
+            runtime: "cpu",
+            device: format!("{threads} threads, wavefront"),
+            limits: vec![("path slots", self.paths.pool as u64)],
+        }
+    }
+
+    fn packed(&self) -> &Packed {
+        &self.packed
+    }
+
+    fn frames(&self) -> u32 {
+        self.frames
+    }
+
+    /// A wavefront frame is not split into rows (its work per iteration is bounded by the pool).
+    fn rows_left(&self) -> u32 {
+        self.packed.scene.height
+    }
+
+    /// Renders a whole frame, whatever `rows`: iterations until every pixel has its sample.
+    fn render_band(&mut self, _rows: u32) -> Result<bool, RenderError> {
+        let wanted = self.frames + 1;
+        self.paths.frames_wanted = wanted;
+        let scene = &self.packed.scene;
+        let bound = iteration_bound(self.paths.pixels, self.paths.pool, scene.max_depth);
+        let mut iterations = 0;
+        while self.paths.counters.atomic_load(FRAMES_DONE) < wanted {
+            if iterations == bound {
+                return Err(WavefrontError::Stalled { iterations }.into());
+            }
+            for stage in ITERATION {
+                self.run(stage);
+            }
+            iterations += 1;
+        }
+        self.frames = wanted;
+        Ok(true)
+    }
+
+    fn finish(&self) -> Result<(), RenderError> {
+        Ok(())
+    }
+
+    fn accumulation(&self) -> Result<Vec<Vec4>, RenderError> {
+        Ok(self.paths.image.to_vec())
+    }
+
+    fn guide_sums(&self) -> Result<GuideSums, RenderError> {
+        Err(RenderError::NoGuide)
+    }
+
+    fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
+        update_uniforms(&mut self.packed.scene, update)?;
+        self.restart()
+    }
+
+    fn take_geometry(&mut self, moved: Packed) -> Result<(), RenderError> {
+        self.packed.take_geometry(moved)?;
+        self.restart()
+    }
+
+    fn restart(&mut self) -> Result<(), RenderError> {
+        reset(&self.paths);
+        self.paths.frames_wanted = 0;
+        self.frames = 0;
+        Ok(())
+    }
+}

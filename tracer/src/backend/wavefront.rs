@@ -1,0 +1,162 @@
+//! The wavefront schedule as hosts run it (`kernel::wavefront` holds the stages): the order of
+//! an iteration's dispatches, how each is sized, how big the pool of paths is, and the pool's
+//! initial state. The CPU runtime (`cpu::WavefrontRenderer`) and the wgpu runtime
+//! (`wgpu::WavefrontRenderer`) both follow [`ITERATION`].
+
+use glam::{UVec4, Vec4};
+use kernel_dsl::{Atomics, Storage};
+
+use crate::kernel::wavefront::{
+    Dispatch, Paths, ARGS_ACCUMULATE, ARGS_CONNECT, ARGS_EXTEND, ARGS_GENERATE, ARGS_WORDS, COUNTERS, FRAMES_DONE,
+    FREE, SEGMENTS, SHADOW_RAYS, WORKGROUP,
+};
+use crate::kernel::Features;
+
+/// One dispatch of an iteration: the kernel function it runs and how many invocations.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Stage {
+    pub function: &'static str,
+    /// `None`: one invocation (a `plan_*` stage, which reads the queue lengths and writes the
+    /// next stages' sizes); `Some(at)`: the grid written at `at` in `Dispatch::args`.
+    pub args: Option<u32>,
+}
+
+/// An iteration's dispatches, in order. Each path in the pool advances by at most one segment.
+pub const ITERATION: [Stage; 8] = [
+    Stage { function: "plan_generate", args: None },
+    Stage { function: "generate", args: Some(ARGS_GENERATE) },
+    Stage { function: "plan_extend", args: None },
+    Stage { function: "extend", args: Some(ARGS_EXTEND) },
+    Stage { function: "shade", args: Some(ARGS_EXTEND) },
+    Stage { function: "plan_connect", args: None },
+    Stage { function: "connect", args: Some(ARGS_CONNECT) },
+    Stage { function: "accumulate", args: Some(ARGS_ACCUMULATE) },
+];
+
+/// Every stage's function (the entry points of the wavefront's shader; each runs once per iteration).
+pub fn stage_functions() -> Vec<&'static str> {
+    ITERATION.iter().map(|s| s.function).collect()
+}
+
+/// Bytes of the pool's state per path slot: eight `Vec4` arrays, one `UVec4` array and five
+/// `u32` queue entries (two active queues, shadow, finished, free).
+pub const BYTES_PER_PATH: u64 = 8 * 16 + 16 + 5 * 4;
+
+/// At most this many path slots: a pool larger than the image has nothing to do (a frame is
+/// one path per pixel), and beyond ~1 M paths a GPU is full while memory keeps growing.
+pub const MAX_POOL: u32 = 1 << 20;
+
+/// Why the wavefront cannot render a scene.
+#[derive(Debug, thiserror::Error)]
+pub enum WavefrontError {
+    #[error("the wavefront schedule has no denoiser guide yet: render with `--schedule megakernel` to denoise")]
+    DenoiseGuide,
+    #[error(
+        "the image ({pixels} pixels) does not fit the device: its running sums alone take {need} bytes, over the {limit_name} of {limit} bytes"
+    )]
+    ImageTooLarge { pixels: u64, need: u64, limit_name: &'static str, limit: u64 },
+    #[error("the wavefront did not complete its frame in {iterations} iterations (a path outlived the scene's depth)")]
+    Stalled { iterations: u32 },
+}
+
+/// Checks that the wavefront can render a scene with `features`.
+pub fn check_features(features: &Features) -> Result<(), WavefrontError> {
+    if features.denoise_guide {
+        return Err(WavefrontError::DenoiseGuide);
+    }
+    Ok(())
+}
+
+/// The pool for an image of `pixels` pixels on a device whose largest storage binding is
+/// `max_binding` bytes: the per-slot `Vec4` arrays and the image's sums share one binding
+/// (`Storage<Vec4>` arrays are concatenated), so the slots are what is left of it after the
+/// image, in whole workgroups, at most [`MAX_POOL`] and the image's pixel count.
+pub fn pool_size(pixels: u32, max_binding: u64) -> Result<u32, WavefrontError> {
+    let image = pixels as u64 * 16;
+    let per_slot = 8 * 16;
+    let room = max_binding.saturating_sub(image) / per_slot;
+    let pool = room.min(pixels as u64).min(MAX_POOL as u64) as u32;
+    let pool = if pool >= WORKGROUP { pool / WORKGROUP * WORKGROUP } else { pool };
+    if pool == 0 && pixels > 0 {
+        return Err(WavefrontError::ImageTooLarge {
+            pixels: pixels as u64,
+            need: image + per_slot,
+            limit_name: "largest storage buffer binding",
+            limit: max_binding,
+        });
+    }
+    Ok(pool)
+}
+
+/// A fresh pool of `pool` slots for `pixels` pixels and render seed `seed`: every slot free,
+/// no frame begun, the sums zero.
+pub fn new_paths(pool: u32, pixels: u32, seed: u32) -> Paths {
+    let slots = pool as usize;
+    let paths = Paths {
+        pool,
+        pixels,
+        frames_wanted: 0,
+        seed,
+        origin: Storage::new(slots),
+        direction: Storage::new(slots),
+        throughput: Storage::new(slots),
+        radiance: Storage::new(slots),
+        hit: Storage::new(slots),
+        shadow_origin: Storage::new(slots),
+        shadow_direction: Storage::new(slots),
+        shadow_contribution: Storage::new(slots),
+        words: Storage::<UVec4>::new(slots),
+        active: Storage::new(2 * slots),
+        shadow_queue: Storage::new(slots),
+        finished: Storage::new(slots),
+        free: Storage::new(slots),
+        image: Storage::<Vec4>::new(pixels as usize),
+        counters: Atomics::new(COUNTERS as usize),
+    };
+    reset(&paths);
+    paths
+}
+
+/// Empties `paths`: every slot free (the stack holds slots 0..pool), every counter and sum zero.
+pub fn reset(paths: &Paths) {
+    for slot in 0..paths.pool {
+        paths.free.store(slot, slot);
+    }
+    for k in 0..COUNTERS {
+        paths.counters.atomic_store(k, 0);
+    }
+    paths.counters.atomic_store(FREE, paths.pool);
+    for pixel in 0..paths.pixels {
+        paths.image.store(pixel, Vec4::ZERO);
+    }
+}
+
+/// The indirect dispatches' sizes, all zero.
+pub fn new_dispatch() -> Dispatch {
+    Dispatch { args: Storage::new(ARGS_WORDS as usize) }
+}
+
+/// Iterations after which a frame that has not completed is [`WavefrontError::Stalled`]:
+/// each wave of paths (the pixels over the pool) takes at most `max_depth` segments, plus the
+/// iteration that completes the frame.
+pub fn iteration_bound(pixels: u32, pool: u32, max_depth: u32) -> u32 {
+    let waves = pixels.div_ceil(pool.max(1));
+    waves.saturating_mul(max_depth.max(1) + 2).saturating_add(4)
+}
+
+/// What a wavefront traced: extension rays (path segments) and shadow rays since the pool
+/// was reset, and frames completed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct WavefrontCounts {
+    pub segments: u32,
+    pub shadow_rays: u32,
+    pub frames: u32,
+}
+
+impl WavefrontCounts {
+    /// The counts in `counters` (`Paths::counters` as read back).
+    pub fn from_counters(counters: &[u32]) -> WavefrontCounts {
+        let at = |k: u32| counters.get(k as usize).copied().unwrap_or(0);
+        WavefrontCounts { segments: at(SEGMENTS), shadow_rays: at(SHADOW_RAYS), frames: at(FRAMES_DONE) }
+    }
+}
