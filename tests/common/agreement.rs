@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use glam::{DVec3, Vec3, Vec4, Vec4Swizzles};
 use tracer::backend::cpu::CpuRenderer;
-use tracer::backend::{create, Renderer, RendererKind};
+use tracer::backend::{create_scheduled, Renderer, RendererKind, Schedule};
 use tracer::denoise::{filter_input, Guide};
 use tracer::kernel::denoise::FilterImage;
 use tracer::kernel::{RenderSettings, Strategy};
@@ -83,10 +83,36 @@ pub struct Run {
     pub seconds: f64,
 }
 
-/// A renderer of `kind` (the GPU ones on their own headless context or device); a runtime that
-/// cannot start fails the test with the reason.
-pub fn renderer(kind: RendererKind, packed: Packed, seed: u32) -> Box<dyn Renderer> {
-    create(kind, packed, seed).unwrap_or_else(|e| panic!("the {} backend must run here: {e}", kind.name()))
+/// A runtime and the schedule it runs the path tracer with: what the agreement suite tests
+/// (a bare [`RendererKind`] is its megakernel).
+#[derive(Clone, Copy, Debug)]
+pub struct Runtime {
+    pub kind: RendererKind,
+    pub schedule: Schedule,
+}
+
+impl From<RendererKind> for Runtime {
+    fn from(kind: RendererKind) -> Runtime {
+        Runtime { kind, schedule: Schedule::Megakernel }
+    }
+}
+
+impl Runtime {
+    /// "wgpu", or "wgpu wavefront".
+    pub fn name(&self) -> String {
+        match self.schedule {
+            Schedule::Megakernel => self.kind.name().to_string(),
+            other => format!("{} {}", self.kind.name(), other.name()),
+        }
+    }
+}
+
+/// A renderer of `runtime` (the GPU ones on their own headless context or device); a runtime
+/// that cannot start fails the test with the reason.
+pub fn renderer(runtime: impl Into<Runtime>, packed: Packed, seed: u32) -> Box<dyn Renderer> {
+    let r = runtime.into();
+    create_scheduled(r.kind, r.schedule, packed, seed)
+        .unwrap_or_else(|e| panic!("the {} backend must run here: {e}", r.name()))
 }
 
 /// The running sums of an accumulation (rgb: sum of samples, w: finite samples).
@@ -118,14 +144,16 @@ fn estimate(run: &Run, region: usize, channel: usize) -> Estimate {
 /// that every region mean agrees within the bound and no sample was rejected. Returns the
 /// largest z-score.
 pub fn assert_agrees_with_cpu(
-    kind: RendererKind,
+    kind: impl Into<Runtime>,
     what: &str,
     scene: &Scene,
     size: u32,
     frames: u32,
     max_depth: u32,
 ) -> f64 {
+    let kind = kind.into();
     let name = kind.name();
+    let name = name.as_str();
     let mut worst = 0.0f64;
     for strategy in STRATEGIES {
         let p = packed(scene, strategy, size, max_depth);
@@ -183,7 +211,8 @@ pub fn share_equal(a: &[Vec3], b: &[Vec3]) -> f64 {
 /// neighbouring texel when `atan2`/`acos` differ by an ulp between the driver and Rust's libm
 /// (on llvmpipe, 0.5% of the pixels with BSDF sampling, ~2% with NEE). The other pixels agree
 /// within 1e-5 (relative; most exactly).
-pub fn assert_same_random_sequence(kind: RendererKind) {
+pub fn assert_same_random_sequence(kind: impl Into<Runtime>) {
+    let kind = kind.into();
     let (size, seed, name) = (32u32, 12345, kind.name());
     let first_frame = |r: &mut dyn Renderer| {
         r.render_frame().expect("frame");
@@ -208,13 +237,32 @@ pub fn assert_same_random_sequence(kind: RendererKind) {
 
 /// The image-level suite every GPU runtime passes, written once and instantiated in the
 /// runtime's test module (`tests/rendering/gl.rs`, `wgpu.rs`), as CubeCL's `testgen_all!`:
-/// `agreement_suite!(RendererKind::Gl, frames / 1);`. Each scene is rendered on the CPU and
+/// `agreement_suite!(RendererKind::Gl, frames / 1);` (a [`Runtime`] for another schedule; `whole frames` for one that does not split frames into bands). Each scene is rendered on the CPU and
 /// on the runtime with every strategy and compared region by region
 /// ([`assert_agrees_with_cpu`]); the frame counts are GL's, divided by the second argument
 /// for slower runtimes (lavapipe). Then the random sequence, bands and restarts.
 #[macro_export]
 macro_rules! agreement_suite {
     ($kind:expr, frames / $fewer:expr) => {
+        $crate::agreement_suite!($kind, frames / $fewer, whole frames);
+
+        /// A frame rendered in bands of rows is the frame rendered whole (`common::bands`).
+        /// Heights that are not multiples of a GPU's 8-row workgroup, so that a band's last
+        /// workgroup reaches into rows that belong to the next band.
+        #[test]
+        fn a_frame_split_into_bands_is_the_unsplit_frame() {
+            let base = suite::packed(&tracer::scene::cornell_box(), tracer::kernel::Strategy::Mis, 20, 4);
+            assert_eq!((base.scene.width, base.scene.height), (20, 20));
+            $crate::common::bands::assert_bands_make_the_whole_frame(
+                suite::renderer($kind, base.clone(), 3).as_mut(),
+                suite::renderer($kind, base, 3).as_mut(),
+                20,
+            );
+        }
+    };
+    // A schedule whose frames are not split into rows (the wavefront bounds its work per
+    // submission instead): every test but the bands'.
+    ($kind:expr, frames / $fewer:expr, whole frames) => {
         use $crate::common::agreement as suite;
 
         #[test]
@@ -275,20 +323,6 @@ macro_rules! agreement_suite {
         #[test]
         fn the_random_sequence_matches_the_cpu() {
             suite::assert_same_random_sequence($kind);
-        }
-
-        /// A frame rendered in bands of rows is the frame rendered whole (`common::bands`).
-        /// Heights that are not multiples of a GPU's 8-row workgroup, so that a band's last
-        /// workgroup reaches into rows that belong to the next band.
-        #[test]
-        fn a_frame_split_into_bands_is_the_unsplit_frame() {
-            let base = suite::packed(&tracer::scene::cornell_box(), tracer::kernel::Strategy::Mis, 20, 4);
-            assert_eq!((base.scene.width, base.scene.height), (20, 20));
-            $crate::common::bands::assert_bands_make_the_whole_frame(
-                suite::renderer($kind, base.clone(), 3).as_mut(),
-                suite::renderer($kind, base, 3).as_mut(),
-                20,
-            );
         }
 
         /// Restarting drops every sample; moving the camera through `set_uniforms` changes the

@@ -133,3 +133,15 @@ fn a_camera_inside_a_closed_box_still_completes_every_frame() {
     wave.render_frame().unwrap();
     assert_eq!(wave.frames(), 1);
 }
+
+/// The wavefront on wgpu (lavapipe in CI) against the CPU's megakernel: the agreement suite's
+/// scenes and strategies, the random sequence, restarts and uniform updates.
+mod wgpu_wavefront {
+    use tracer::backend::{RendererKind, Schedule};
+
+    use crate::common::agreement::Runtime;
+
+    const WAVEFRONT: Runtime = Runtime { kind: RendererKind::Wgpu, schedule: Schedule::Wavefront };
+
+    crate::agreement_suite!(WAVEFRONT, frames / 2, whole frames);
+}

@@ -12,14 +12,14 @@ pub mod wavefront;
 #[cfg(feature = "wgpu")]
 pub mod wgpu;
 
-#[cfg(not(target_arch = "wasm32"))]
-pub use renderer::create;
 pub(crate) use renderer::update_uniforms;
+#[cfg(not(target_arch = "wasm32"))]
+pub use renderer::{create, create_scheduled};
 // The image a renderer reads back lives with what writes and displays it (`output`).
 pub use crate::output::Image;
 pub use renderer::{
     mean_image, rejected_samples, GuideSums, PendingAccumulation, PendingGuideSums, RenderError, Renderer,
-    RendererInfo, RendererKind,
+    RendererInfo, RendererKind, Schedule,
 };
 
 /// Where a GPU renderer's creation went, in milliseconds of the calling thread: generating the

@@ -211,20 +211,63 @@ impl RendererKind {
     }
 }
 
+/// How a renderer organises a frame's work: the same path tracer either way.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Schedule {
+    /// One invocation per pixel follows its path to the end (`integrator::trace_path`): every
+    /// runtime.
+    #[default]
+    Megakernel,
+    /// Stages over a pool of paths with queues on the device (`kernel::wavefront`): the CPU and
+    /// wgpu (GLSL ES 3.00 has no compute shaders or atomics).
+    Wavefront,
+}
+
+impl Schedule {
+    pub const ALL: [Schedule; 2] = [Schedule::Megakernel, Schedule::Wavefront];
+
+    /// "megakernel" or "wavefront" (as `--schedule` spells it).
+    pub fn name(self) -> &'static str {
+        match self {
+            Schedule::Megakernel => "megakernel",
+            Schedule::Wavefront => "wavefront",
+        }
+    }
+}
+
 /// A renderer of `kind` for `packed` with `seed` (the same seed gives the same random sequence
 /// on every runtime), on its own context or device where it needs one. In the browser the
 /// canvas's context or device is the page's: create [`GlRenderer`](super::gl::GlRenderer) or
 /// [`WgpuRenderer`](super::wgpu::WgpuRenderer) on it.
 #[cfg(not(target_arch = "wasm32"))]
 pub fn create(kind: RendererKind, packed: Packed, seed: u32) -> Result<Box<dyn Renderer>, RenderError> {
-    Ok(match kind {
-        RendererKind::Cpu => Box::new(super::cpu::CpuRenderer::new(packed, seed)),
+    create_scheduled(kind, Schedule::Megakernel, packed, seed)
+}
+
+/// [`create`] with the frame's work organised by `schedule`. A wavefront on GL is
+/// [`WavefrontError::NoCompute`](super::wavefront::WavefrontError::NoCompute).
+#[cfg(not(target_arch = "wasm32"))]
+pub fn create_scheduled(
+    kind: RendererKind,
+    schedule: Schedule,
+    packed: Packed,
+    seed: u32,
+) -> Result<Box<dyn Renderer>, RenderError> {
+    use super::wavefront::WavefrontError;
+    Ok(match (kind, schedule) {
+        (RendererKind::Cpu, Schedule::Megakernel) => Box::new(super::cpu::CpuRenderer::new(packed, seed)),
+        (RendererKind::Cpu, Schedule::Wavefront) => {
+            Box::new(super::cpu::WavefrontRenderer::new(packed, seed, super::cpu::CPU_POOL)?)
+        }
         #[cfg(feature = "gl")]
-        RendererKind::Gl => Box::new(super::gl::GlRenderer::headless(packed, seed)?),
+        (RendererKind::Gl, Schedule::Megakernel) => Box::new(super::gl::GlRenderer::headless(packed, seed)?),
+        (RendererKind::Gl, Schedule::Wavefront) => return Err(WavefrontError::NoCompute { runtime: "gl" }.into()),
         #[cfg(feature = "wgpu")]
-        RendererKind::Wgpu => Box::new(super::wgpu::WgpuRenderer::headless(packed, seed)?),
+        (RendererKind::Wgpu, Schedule::Megakernel) => Box::new(super::wgpu::WgpuRenderer::headless(packed, seed)?),
+        #[cfg(feature = "wgpu")]
+        (RendererKind::Wgpu, Schedule::Wavefront) => Box::new(super::wgpu::WavefrontRenderer::headless(packed, seed)?),
         #[allow(unreachable_patterns)]
-        other => {
+        (other, _) => {
             return Err(RenderError::Unsupported { runtime: other.name(), what: "is not built in (cargo feature)" })
         }
     })

@@ -55,6 +55,10 @@ pub enum WavefrontError {
         "the image ({pixels} pixels) does not fit the device: its running sums alone take {need} bytes, over the {limit_name} of {limit} bytes"
     )]
     ImageTooLarge { pixels: u64, need: u64, limit_name: &'static str, limit: u64 },
+    #[error(
+        "the {runtime} runtime has no wavefront schedule: GLSL ES 3.00 has no compute shaders or atomics (use `--schedule megakernel`, or the cpu or wgpu backend)"
+    )]
+    NoCompute { runtime: &'static str },
     #[error("the wavefront did not complete its frame in {iterations} iterations (a path outlived the scene's depth)")]
     Stalled { iterations: u32 },
 }
@@ -88,10 +92,22 @@ pub fn pool_size(pixels: u32, max_binding: u64) -> Result<u32, WavefrontError> {
     Ok(pool)
 }
 
+/// Elements of array `field` of [`Paths`] for a pool of `pool` slots and `pixels` pixels: one
+/// per slot, two per slot for the two active queues, one per pixel for the image's sums,
+/// [`COUNTERS`] counters.
+pub fn array_len(field: &str, pool: u32, pixels: u32) -> usize {
+    match field {
+        "active" => 2 * pool as usize,
+        "image" => pixels as usize,
+        "counters" => COUNTERS as usize,
+        _ => pool as usize,
+    }
+}
+
 /// A fresh pool of `pool` slots for `pixels` pixels and render seed `seed`: every slot free,
 /// no frame begun, the sums zero.
 pub fn new_paths(pool: u32, pixels: u32, seed: u32) -> Paths {
-    let slots = pool as usize;
+    let slots = array_len("origin", pool, pixels);
     let paths = Paths {
         pool,
         pixels,
@@ -106,12 +122,12 @@ pub fn new_paths(pool: u32, pixels: u32, seed: u32) -> Paths {
         shadow_direction: Storage::new(slots),
         shadow_contribution: Storage::new(slots),
         words: Storage::<UVec4>::new(slots),
-        active: Storage::new(2 * slots),
+        active: Storage::new(array_len("active", pool, pixels)),
         shadow_queue: Storage::new(slots),
         finished: Storage::new(slots),
         free: Storage::new(slots),
-        image: Storage::<Vec4>::new(pixels as usize),
-        counters: Atomics::new(COUNTERS as usize),
+        image: Storage::<Vec4>::new(array_len("image", pool, pixels)),
+        counters: Atomics::new(array_len("counters", pool, pixels)),
     };
     reset(&paths);
     paths

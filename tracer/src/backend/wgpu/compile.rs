@@ -57,19 +57,36 @@ pub fn start_pipeline(
     generated: &Generated,
     layout: Option<&wgpu::PipelineLayout>,
 ) -> (wgpu::ComputePipeline, PipelineCheck) {
+    let (mut pipelines, check) = start_pipelines(device, generated, &[(ENTRY_POINT, layout)]);
+    (pipelines.remove(0), check)
+}
+
+/// [`start_pipeline`] for several entry points of one shader module (a compute module's
+/// stages), each with its pipeline layout: the pipelines in order, and one check for all.
+pub fn start_pipelines(
+    device: &wgpu::Device,
+    generated: &Generated,
+    entries: &[(&str, Option<&wgpu::PipelineLayout>)],
+) -> (Vec<wgpu::ComputePipeline>, PipelineCheck) {
     let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("lightport path tracer"),
         source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(&generated.source)),
     });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some("lightport path tracer"),
-        layout,
-        module: &module,
-        entry_point: Some(ENTRY_POINT),
-        compilation_options: Default::default(),
-        cache: None,
-    });
+    let pipelines = entries
+        .iter()
+        .map(|(entry, layout)| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: *layout,
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        })
+        .collect();
+    let names: Vec<String> = entries.iter().map(|(e, _)| e.to_string()).collect();
     let scope = scope.pop();
     let info = module.get_compilation_info();
     let generated = generated.clone();
@@ -87,10 +104,10 @@ pub fn start_pipeline(
         }
         if let Some(e) = scope {
             return Err(WgpuError::Compile {
-                log: format!("creating the compute pipeline (entry point `{ENTRY_POINT}`): {e}"),
+                log: format!("creating the compute pipeline (entry point `{}`): {e}", names.join("`, `")),
             });
         }
         Ok(())
     };
-    (pipeline, Box::pin(check))
+    (pipelines, Box::pin(check))
 }

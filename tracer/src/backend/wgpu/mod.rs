@@ -34,8 +34,9 @@ pub mod harness;
 mod oneshot;
 mod renderer;
 mod resources;
+mod wavefront;
 
-pub use compile::{compile_pipeline, start_pipeline, PipelineCheck};
+pub use compile::{compile_pipeline, start_pipeline, start_pipelines, PipelineCheck};
 pub use device::{WgpuDevice, WgpuInfo};
 pub use display::{display_shader, DisplayPass};
 pub use filter::WgpuFilter;
@@ -45,6 +46,7 @@ pub(crate) use resources::{
     scene_uniform_bytes, storage_limit, u32_uniform_bytes, upload_scene, BufferEntry, OwnResource, ShaderLayout,
     UniformLayout,
 };
+pub use wavefront::WavefrontRenderer;
 
 use crate::kernel::ShaderError;
 

@@ -1,0 +1,521 @@
+//! [`WavefrontRenderer`]: the wavefront schedule (`kernel::wavefront`) on a wgpu device. One
+//! WGSL module holds every stage (`main_<stage>`); the pool's arrays, queues and counters live
+//! in the `Paths` buffers (bind group 1), the indirect dispatches' sizes in the `Dispatch`
+//! buffer (group 2, bound only to the `plan_*` stages: a buffer an indirect dispatch reads may
+//! not be bound to the stage it dispatches). A submission is one compute pass of several
+//! iterations ([`ITERATION`]): no queue length is read back between stages; the host reads
+//! the counters once per submission to learn whether the frame is complete.
+
+use std::sync::{Arc, Mutex};
+
+use glam::Vec4;
+use lightport_codegen::{BindingKind, ResourceBindings};
+use wgpu::util::DeviceExt;
+
+use super::{
+    bind_group_layouts, bind_groups, check_scene_limits, map_texels, reflect, scene_uniform_bytes, start_pipelines,
+    storage_limit, upload_scene, BufferEntry, OwnResource, PipelineCheck, ShaderLayout, UniformLayout, WgpuDevice,
+    WgpuError, WgpuOptions, SCENE_UNIFORM,
+};
+use crate::backend::wavefront::{
+    array_len, check_features, iteration_bound, pool_size, Stage, WavefrontCounts, WavefrontError, ITERATION,
+};
+use crate::backend::{ms_since, update_uniforms, BuildTimes, GuideSums, RenderError, Renderer, RendererInfo};
+use crate::kernel::scene_data::Scene;
+use crate::kernel::wavefront::{ARGS_WORDS, COUNTERS, FRAMES_DONE, FREE};
+use crate::pack::Packed;
+
+/// The `#[resources]` structs of the wavefront besides the scene, as codegen names them.
+const PATHS: &str = "Paths";
+const DISPATCH: &str = "Dispatch";
+
+/// One storage buffer of `Paths` or `Dispatch`: where each of its arrays starts (elements).
+struct PoolBuffer {
+    buffer: wgpu::Buffer,
+    /// (field, start, length, bytes per element)
+    arrays: Vec<(String, u64, u64, u64)>,
+}
+
+impl PoolBuffer {
+    /// The byte range of array `field` in this buffer.
+    fn range(&self, field: &str) -> Option<(u64, u64)> {
+        self.arrays.iter().find(|a| a.0 == field).map(|(_, start, len, size)| (start * size, len * size))
+    }
+}
+
+/// The wavefront schedule on a wgpu device, accumulating one sample per pixel per frame as
+/// [`WgpuRenderer`](super::WgpuRenderer) does.
+pub struct WavefrontRenderer {
+    device: WgpuDevice,
+    options: WgpuOptions,
+    packed: Packed,
+    frames: u32,
+    pool: u32,
+    /// Each stage of an iteration with its pipeline.
+    stages: Vec<(Stage, wgpu::ComputePipeline)>,
+    layout: ShaderLayout,
+    group_layouts: Vec<wgpu::BindGroupLayout>,
+    /// The pool's and the dispatch sizes' buffers (groups 1 and 2), bound again with a moved
+    /// scene's.
+    pool_entries: Vec<BufferEntry>,
+    bind_groups: Vec<wgpu::BindGroup>,
+    scene_uniform: Option<(wgpu::Buffer, UniformLayout)>,
+    paths_uniform: (wgpu::Buffer, UniformLayout),
+    buffers: Vec<PoolBuffer>,
+    dispatch_args: wgpu::Buffer,
+    counters_readback: wgpu::Buffer,
+    image_readback: wgpu::Buffer,
+    iterations_per_submission: u32,
+    times: BuildTimes,
+    uncaptured: Arc<Mutex<Option<String>>>,
+}
+
+impl WavefrontRenderer {
+    /// A wavefront renderer on `device` for `packed` with `seed` (the megakernel's random
+    /// sequence), its pool sized from the device's storage binding limit.
+    pub async fn new(
+        device: WgpuDevice,
+        packed: Packed,
+        seed: u32,
+        options: &WgpuOptions,
+    ) -> Result<Self, RenderError> {
+        let (renderer, check) = Self::create(device, packed, seed, options)?;
+        check.await?;
+        Ok(renderer)
+    }
+
+    /// [`new`](Self::new) without waiting for the compiler's verdict (see
+    /// [`WgpuRenderer::create`](super::WgpuRenderer::create)).
+    pub fn create(
+        device: WgpuDevice,
+        packed: Packed,
+        seed: u32,
+        options: &WgpuOptions,
+    ) -> Result<(Self, PipelineCheck), RenderError> {
+        check_features(&packed.features)?;
+        let uncaptured = Arc::new(Mutex::new(None));
+        let sink = uncaptured.clone();
+        device.device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            let mut slot = sink.lock().unwrap_or_else(|p| p.into_inner());
+            slot.get_or_insert_with(|| e.to_string());
+        }));
+        let started = web_time::Instant::now();
+        let generated = crate::kernel::wavefront_shader(&packed.features).map_err(WgpuError::from)?;
+        let own: Vec<String> = generated
+            .bindings
+            .iter()
+            .filter(|b| b.resources != "Scene")
+            .flat_map(|b| b.bindings.iter().map(|x| x.variable.clone()))
+            .collect();
+        let own_refs: Vec<&str> = own.iter().map(String::as_str).collect();
+        let layout = reflect(&generated, SCENE_UNIFORM, &own_refs)?;
+        let codegen_ms = ms_since(started);
+        let scene = &packed.scene;
+        check_scene_limits(&device.limits, options, scene, &layout)?;
+        let pixels = scene.width * scene.height;
+        let max_binding = storage_limit(&device.limits, options).min(device.limits.max_buffer_size);
+        let pool = pool_size(pixels, max_binding)?;
+
+        let uploading = web_time::Instant::now();
+        let d = &device.device;
+        let (mut entries, scene_uniform) = upload_scene(d, &layout, scene)?;
+        let scene_entries = entries.len();
+        let mut buffers = Vec::new();
+        let mut paths_uniform = None;
+        let mut dispatch_args = None;
+        for resources in generated.bindings.iter().filter(|b| b.resources != "Scene") {
+            let values = |field: &str| -> Option<u32> {
+                match field {
+                    "pool" => Some(pool),
+                    "pixels" => Some(pixels),
+                    "frames_wanted" => Some(0),
+                    "seed" => Some(seed),
+                    _ => None,
+                }
+            };
+            let (uniform, storage) = pool_buffers(d, &layout, resources, pool, pixels, &values)?;
+            entries.push(BufferEntry::uniform(&uniform.0, uniform.1.clone()));
+            for (resource, b) in storage {
+                entries.push(BufferEntry::storage(&resource, b.buffer.clone(), false));
+                if resources.resources == DISPATCH {
+                    dispatch_args = Some(b.buffer.clone());
+                }
+                buffers.push(b);
+            }
+            if resources.resources == PATHS {
+                let layout = uniform.0.uniform.clone().expect("reflected as a uniform");
+                paths_uniform = Some((uniform.1, layout));
+            }
+        }
+        let (Some(paths_uniform), Some(dispatch_args)) = (paths_uniform, dispatch_args) else {
+            return Err(WgpuError::UnboundResource {
+                name: format!("{PATHS} / {DISPATCH}"),
+                detail: ": the wavefront shader lacks the pool or the dispatch sizes".into(),
+            }
+            .into());
+        };
+        let (group_layouts, plan_layout) = bind_group_layouts(d, &entries);
+        let bind_groups = bind_groups(d, &group_layouts, &entries);
+        // The stages dispatched indirectly see groups 0 and 1 only.
+        let stage_refs: Vec<Option<&wgpu::BindGroupLayout>> = group_layouts.iter().take(2).map(Some).collect();
+        let stage_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("lightport wavefront stage"),
+            bind_group_layouts: &stage_refs,
+            immediate_size: 0,
+        });
+        let counters_readback = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("wavefront counters readback"),
+            size: COUNTERS as u64 * 4,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let image_readback = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("wavefront image readback"),
+            size: pixels as u64 * 16,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let upload_ms = ms_since(uploading);
+        let compiling = web_time::Instant::now();
+        let names: Vec<String> = ITERATION.iter().map(|s| format!("main_{}", s.function)).collect();
+        let entry_points: Vec<(&str, Option<&wgpu::PipelineLayout>)> = ITERATION
+            .iter()
+            .zip(&names)
+            .map(|(s, n)| (n.as_str(), Some(if s.args.is_none() { &plan_layout } else { &stage_layout })))
+            .collect();
+        let (pipelines, check) = start_pipelines(d, &generated, &entry_points);
+        let times = BuildTimes { codegen_ms, compile_ms: ms_since(compiling), upload_ms };
+        let pool_entries = entries.split_off(scene_entries);
+        let renderer = WavefrontRenderer {
+            options: options.clone(),
+            frames: 0,
+            pool,
+            stages: ITERATION.iter().copied().zip(pipelines).collect(),
+            layout,
+            group_layouts,
+            pool_entries,
+            bind_groups,
+            scene_uniform,
+            paths_uniform,
+            buffers,
+            dispatch_args,
+            counters_readback,
+            image_readback,
+            iterations_per_submission: scene.max_depth.max(1) + 2,
+            times,
+            uncaptured,
+            packed,
+            device,
+        };
+        renderer.reset_pool();
+        Ok((renderer, check))
+    }
+
+    /// A wavefront renderer on its own native device.
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn headless(packed: Packed, seed: u32) -> Result<Self, RenderError> {
+        let device = WgpuDevice::native()?;
+        pollster::block_on(Self::new(device, packed, seed, &WgpuOptions::default()))
+    }
+
+    /// What creating the renderer took on this thread.
+    pub fn build_times(&self) -> BuildTimes {
+        self.times
+    }
+
+    /// Path slots in the pool.
+    pub fn pool(&self) -> u32 {
+        self.pool
+    }
+
+    fn check_uncaptured(&self) -> Result<(), WgpuError> {
+        let slot = self.uncaptured.lock().unwrap_or_else(|p| p.into_inner());
+        match &*slot {
+            Some(detail) => Err(WgpuError::Wgpu { what: "the device", detail: detail.clone() }),
+            None => Ok(()),
+        }
+    }
+
+    /// The storage buffer holding array `field` and its byte range.
+    fn array(&self, field: &str) -> Option<(&wgpu::Buffer, u64, u64)> {
+        self.buffers.iter().find_map(|b| b.range(field).map(|(at, len)| (&b.buffer, at, len)))
+    }
+
+    /// Empties the pool: every slot on the free stack, the counters and the image's sums zero.
+    fn reset_pool(&self) {
+        let queue = &self.device.queue;
+        if let Some((buffer, at, _)) = self.array("free") {
+            let slots: Vec<u32> = (0..self.pool).collect();
+            queue.write_buffer(buffer, at, bytemuck::cast_slice(&slots));
+        }
+        if let Some((buffer, at, _)) = self.array("counters") {
+            let mut counters = [0u32; COUNTERS as usize];
+            counters[FREE as usize] = self.pool;
+            queue.write_buffer(buffer, at, bytemuck::cast_slice(&counters));
+        }
+        if let Some((buffer, at, len)) = self.array("image") {
+            let mut encoder = self.device.device.create_command_encoder(&Default::default());
+            encoder.clear_buffer(buffer, at, Some(len));
+            queue.submit([encoder.finish()]);
+        }
+    }
+
+    /// Writes `Paths::frames_wanted`.
+    fn want_frames(&self, frames: u32) {
+        let (buffer, layout) = &self.paths_uniform;
+        if let Some((_, offset)) = layout.members.iter().find(|(n, _)| n == "frames_wanted") {
+            self.device.queue.write_buffer(buffer, *offset as u64, &frames.to_le_bytes());
+        }
+    }
+
+    /// Submits `iterations` iterations as one compute pass.
+    fn submit(&self, iterations: u32) {
+        let mut encoder = self.device.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("lightport wavefront"),
+                timestamp_writes: None,
+            });
+            for _ in 0..iterations {
+                for (stage, pipeline) in &self.stages {
+                    pass.set_pipeline(pipeline);
+                    pass.set_bind_group(0, &self.bind_groups[0], &[]);
+                    pass.set_bind_group(1, &self.bind_groups[1], &[]);
+                    match stage.args {
+                        None => {
+                            pass.set_bind_group(2, &self.bind_groups[2], &[]);
+                            pass.dispatch_workgroups(1, 1, 1);
+                        }
+                        Some(at) => pass.dispatch_workgroups_indirect(&self.dispatch_args, at as u64 * 4),
+                    }
+                }
+            }
+        }
+        self.device.queue.submit([encoder.finish()]);
+    }
+
+    /// The counters as the device left them (blocks natively; polls the device).
+    #[cfg(not(target_arch = "wasm32"))]
+    fn read_counters(&self) -> Result<Vec<u32>, RenderError> {
+        let Some((buffer, at, len)) = self.array("counters") else { return Ok(Vec::new()) };
+        let mut encoder = self.device.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(buffer, at, &self.counters_readback, 0, len);
+        self.device.queue.submit([encoder.finish()]);
+        let read = map_words(self.counters_readback.clone());
+        self.finish()?;
+        Ok(pollster::block_on(read)?)
+    }
+
+    /// What the pool has traced since the last restart (blocks natively).
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn counts(&self) -> Result<WavefrontCounts, RenderError> {
+        Ok(WavefrontCounts::from_counters(&self.read_counters()?))
+    }
+}
+
+/// The uniform and storage buffers of one wavefront resources struct (`Paths`, `Dispatch`),
+/// laid out as codegen bound them: each array at its start, the uniform's fields from
+/// `values` and the starts.
+#[allow(clippy::type_complexity)]
+fn pool_buffers(
+    d: &wgpu::Device,
+    layout: &ShaderLayout,
+    resources: &ResourceBindings,
+    pool: u32,
+    pixels: u32,
+    values: &dyn Fn(&str) -> Option<u32>,
+) -> Result<((OwnResource, wgpu::Buffer), Vec<(OwnResource, PoolBuffer)>), WgpuError> {
+    let mut storage = Vec::new();
+    let mut starts = Vec::new();
+    let mut uniform = None;
+    for binding in &resources.bindings {
+        let own = layout.own(&binding.variable).clone();
+        match binding.kind {
+            BindingKind::Uniform => uniform = Some(own),
+            BindingKind::Storage | BindingKind::Atomics => {
+                let mut arrays = Vec::new();
+                let mut end = 0u64;
+                for f in &binding.fields {
+                    let size = if f.ty == "Vec4" || f.ty == "UVec4" { 16 } else { 4 };
+                    let len = array_len(&f.field, pool, pixels) as u64;
+                    arrays.push((f.field.clone(), end, len, size));
+                    starts.push((format!("lp_start_{}", f.field), end));
+                    end += len;
+                }
+                let size = end.max(1) * arrays.first().map_or(4, |a| a.3);
+                let mut usage =
+                    wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+                if resources.resources == DISPATCH {
+                    usage |= wgpu::BufferUsages::INDIRECT;
+                }
+                let buffer = d.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(&binding.variable),
+                    size,
+                    usage,
+                    mapped_at_creation: false,
+                });
+                storage.push((own, PoolBuffer { buffer, arrays }));
+            }
+            BindingKind::Texels => {
+                return Err(WgpuError::UnboundResource {
+                    name: binding.variable.clone(),
+                    detail: ": the wavefront's pool has no read-only arrays".into(),
+                })
+            }
+        }
+    }
+    let Some(uniform) = uniform else {
+        return Err(WgpuError::UnboundResource {
+            name: resources.resources.clone(),
+            detail: ": no uniform block".into(),
+        });
+    };
+    let bytes = super::u32_uniform_bytes(&uniform, |member| {
+        starts.iter().find(|(n, _)| n == member).map(|(_, s)| *s as u32).or_else(|| values(member))
+    })?;
+    let buffer = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(&resources.resources),
+        contents: &bytes,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+    });
+    Ok(((uniform, buffer), storage))
+}
+
+/// The `u32` words of `readback` once mapped (see [`map_texels`]).
+fn map_words(readback: wgpu::Buffer) -> impl std::future::Future<Output = Result<Vec<u32>, WgpuError>> + 'static {
+    let (sender, receiver) = super::oneshot::channel();
+    readback.slice(..).map_async(wgpu::MapMode::Read, move |result| sender.send(result));
+    let failed = |detail: String| WgpuError::Wgpu { what: "mapping a read-back buffer", detail };
+    async move {
+        receiver
+            .await
+            .ok_or_else(|| failed("the device dropped the request".into()))?
+            .map_err(|e| failed(e.to_string()))?;
+        let words: Vec<u32> = {
+            let view = readback
+                .slice(..)
+                .get_mapped_range()
+                .map_err(|e| WgpuError::Wgpu { what: "reading a read-back buffer", detail: e.to_string() })?;
+            bytemuck::pod_collect_to_vec(&view)
+        };
+        readback.unmap();
+        Ok(words)
+    }
+}
+
+impl Renderer for WavefrontRenderer {
+    fn describe(&self) -> RendererInfo {
+        let info = &self.device.info;
+        RendererInfo {
+            runtime: "wgpu",
+            device: format!("{} ({}), wavefront", info.adapter, info.backend),
+            limits: vec![
+                ("max_storage_buffer_binding_size", storage_limit(&self.device.limits, &self.options)),
+                ("path slots", self.pool as u64),
+                ("dispatch args words", ARGS_WORDS as u64),
+            ],
+        }
+    }
+
+    fn packed(&self) -> &Packed {
+        &self.packed
+    }
+
+    fn frames(&self) -> u32 {
+        self.frames
+    }
+
+    /// A wavefront frame is not split into rows (its work per submission is bounded by the pool).
+    fn rows_left(&self) -> u32 {
+        self.packed.scene.height
+    }
+
+    /// Renders a whole frame, whatever `rows`: submissions of `max_depth + 2` iterations (at most
+    /// that many path segments per slot) until the counters say the frame is complete.
+    #[cfg(not(target_arch = "wasm32"))]
+    fn render_band(&mut self, _rows: u32) -> Result<bool, RenderError> {
+        self.check_uncaptured()?;
+        let wanted = self.frames + 1;
+        self.want_frames(wanted);
+        let scene = &self.packed.scene;
+        let bound = iteration_bound(scene.width * scene.height, self.pool, scene.max_depth);
+        let mut iterations = 0;
+        loop {
+            self.submit(self.iterations_per_submission);
+            iterations += self.iterations_per_submission;
+            let counters = self.read_counters()?;
+            if counters.get(FRAMES_DONE as usize).copied().unwrap_or(0) >= wanted {
+                break;
+            }
+            if iterations >= bound {
+                return Err(WavefrontError::Stalled { iterations }.into());
+            }
+        }
+        self.frames = wanted;
+        Ok(true)
+    }
+
+    #[cfg(target_arch = "wasm32")]
+    fn render_band(&mut self, _rows: u32) -> Result<bool, RenderError> {
+        Err(RenderError::Unsupported { runtime: "wgpu", what: "has no wavefront schedule in the browser yet" })
+    }
+
+    fn finish(&self) -> Result<(), RenderError> {
+        #[cfg(not(target_arch = "wasm32"))]
+        self.device
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| WgpuError::Wgpu { what: "waiting for the queue", detail: e.to_string() })?;
+        Ok(self.check_uncaptured()?)
+    }
+
+    fn accumulation(&self) -> Result<Vec<Vec4>, RenderError> {
+        #[cfg(not(target_arch = "wasm32"))]
+        {
+            let Some((buffer, at, len)) = self.array("image") else { return Ok(Vec::new()) };
+            let mut encoder = self.device.device.create_command_encoder(&Default::default());
+            encoder.copy_buffer_to_buffer(buffer, at, &self.image_readback, 0, len);
+            self.device.queue.submit([encoder.finish()]);
+            let read = map_texels(self.image_readback.clone());
+            self.finish()?;
+            Ok(pollster::block_on(read)?)
+        }
+        #[cfg(target_arch = "wasm32")]
+        Err(RenderError::Unsupported { runtime: "wgpu", what: "cannot block for a read-back in the browser" })
+    }
+
+    fn guide_sums(&self) -> Result<GuideSums, RenderError> {
+        Err(RenderError::NoGuide)
+    }
+
+    fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
+        update_uniforms(&mut self.packed.scene, update)?;
+        if let Some((buffer, layout)) = &self.scene_uniform {
+            self.device.queue.write_buffer(buffer, 0, &scene_uniform_bytes(layout, SCENE_UNIFORM, &self.packed.scene)?);
+        }
+        self.restart()
+    }
+
+    /// New scene buffers bound with the pool's; the pipelines are kept.
+    fn take_geometry(&mut self, moved: Packed) -> Result<(), RenderError> {
+        self.check_uncaptured()?;
+        let mut packed = self.packed.clone();
+        packed.take_geometry(moved)?;
+        let d = &self.device.device;
+        check_scene_limits(&self.device.limits, &self.options, &packed.scene, &self.layout)?;
+        let (mut entries, scene_uniform) = upload_scene(d, &self.layout, &packed.scene)?;
+        entries.extend(self.pool_entries.iter().cloned());
+        self.bind_groups = bind_groups(d, &self.group_layouts, &entries);
+        self.scene_uniform = scene_uniform;
+        self.packed = packed;
+        self.restart()
+    }
+
+    fn restart(&mut self) -> Result<(), RenderError> {
+        self.check_uncaptured()?;
+        self.reset_pool();
+        self.want_frames(0);
+        self.frames = 0;
+        Ok(())
+    }
+}
