@@ -523,6 +523,9 @@ impl<'a> Cx<'a> {
                 return Err(self.error(span, format!("`{name}` takes {} arguments", callee.params.len())));
             }
             for (p, a) in callee.params.iter().zip(args) {
+                if let Some(message) = partial_place_argument(a) {
+                    return Err(self.error(a.span, message));
+                }
                 let pt = self.resolve_type(&p.ty, p.span)?;
                 let at = self.expr(a)?;
                 self.unify(&pt, &at, a.span)?;
@@ -783,4 +786,52 @@ pub(crate) fn resolve_type(program: &Program, t: &ir::Type) -> Result<Ty, String
             )),
         },
     }
+}
+
+/// `&mut place` as a kernel function's argument, where `place` is a field or an array element:
+/// the message refusing it. WGSL (without the `unrestricted_pointer_parameters` extension)
+/// takes only the address of a whole variable as a pointer argument; naga's SPIR-V writer
+/// panics on anything else (gfx-rs/wgpu #4540, #6875) and Chromium's Tint rejects it. The DSL
+/// means one thing on every target, so it is refused for all of them.
+fn partial_place_argument(arg: &Expr) -> Option<String> {
+    let K::AddrOfMut(place) = &unparen(arg).kind else { return None };
+    let what = match &unparen(place).kind {
+        K::Field { .. } => "a field",
+        K::Index { .. } => "an array element",
+        _ => return None,
+    };
+    let text = place_text(place).unwrap_or_else(|| "place".to_string());
+    let local = match &unparen(place).kind {
+        K::Field { field, .. } => field.clone(),
+        _ => "element".to_string(),
+    };
+    Some(format!(
+        "`&mut {text}` passes a pointer to {what}: WGSL takes only the address of a whole variable as a function's pointer argument. Copy it into a local, pass `&mut local`, and write it back: `let mut {local} = {text}; f(.., &mut {local}, ..); {text} = {local};`"
+    ))
+}
+
+fn unparen(e: &Expr) -> &Expr {
+    match &e.kind {
+        K::Paren(inner) => unparen(inner),
+        _ => e,
+    }
+}
+
+/// A place expression as the kernel source spells it (`path.rng`, `a[i]`, `(*p).x`), for
+/// messages; `None` for anything more complex.
+fn place_text(e: &Expr) -> Option<String> {
+    Some(match &e.kind {
+        K::Path(p) => p.join("::"),
+        K::Paren(inner) => format!("({})", place_text(inner)?),
+        K::Unary { op: ir::UnOp::Deref, expr } => format!("*{}", place_text(expr)?),
+        K::Field { base, field } => format!("{}.{field}", place_text(base)?),
+        K::Index { base, index } => {
+            let i = match &index.kind {
+                K::Lit(ir::Lit::Int { value, .. }) => value.to_string(),
+                _ => place_text(index).unwrap_or_else(|| "..".to_string()),
+            };
+            format!("{}[{i}]", place_text(base)?)
+        }
+        _ => return None,
+    })
 }

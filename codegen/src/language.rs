@@ -330,25 +330,39 @@ pub(crate) trait Language {
     // ------------------------------------------------------------ compute (storage, atomics)
 
     /// Whether the language has storage buffers and atomics (compute modules and compute
-    /// entry points). A language without them refuses compute modules before anything below
-    /// is asked for.
+    /// entry points). A language without them refuses compute modules at the function before
+    /// anything below is asked for; should one be asked for anyway, its default is an error
+    /// (`Err`: the message), never a panic.
     fn supports_compute(&self) -> bool {
         false
     }
     /// Element `index` of the storage array `field` of resource struct global `global`, as a
     /// place (read, or assigned by a statement).
-    fn storage_element(&self, _global: &str, _field: &str, _element: StorageElement, _index: Text) -> String {
-        unreachable!("compute modules are refused for languages without compute (`supports_compute`)")
+    fn storage_element(
+        &self,
+        _global: &str,
+        _field: &str,
+        _element: StorageElement,
+        _index: Text,
+    ) -> Result<String, String> {
+        Err(no_compute("`Storage` arrays"))
     }
     /// An atomic operation on counter `index` of the `Atomics` field `field` (`value`: its
     /// operand, none for a load).
-    fn atomic(&self, _global: &str, _field: &str, _op: AtomicOp, _index: Text, _value: Option<Text>) -> String {
-        unreachable!("compute modules are refused for languages without compute (`supports_compute`)")
+    fn atomic(
+        &self,
+        _global: &str,
+        _field: &str,
+        _op: AtomicOp,
+        _index: Text,
+        _value: Option<Text>,
+    ) -> Result<String, String> {
+        Err(no_compute("atomics"))
     }
     /// The compute entry points, one per stage function `fn(.., invocation: u32)` (names in
     /// generated code).
-    fn compute_entries(&self, _stages: &[String]) -> String {
-        unreachable!("compute entry points are refused for languages without compute (`supports_compute`)")
+    fn compute_entries(&self, _stages: &[String]) -> Result<String, String> {
+        Err(no_compute("compute entry points"))
     }
 
     // ------------------------------------------------------------ the file around the functions
@@ -386,10 +400,38 @@ pub(crate) trait Language {
     fn harness_shader(&self, h: &HarnessShader) -> String;
 }
 
+/// The refusal of a compute construct by a language without compute.
+fn no_compute(what: &str) -> String {
+    format!("this target has no {what} (no storage buffers, atomics or compute shaders): compute kernels are generated for WGSL and the CPU only")
+}
+
 /// The struct an accumulating entry point's function returns: its type's name and its Vec4
 /// fields, in order (output 0 is the first field).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SampleFields {
     pub type_name: String,
     pub fields: Vec<String>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{prec, AtomicOp, StorageElement};
+    use crate::Target;
+
+    /// A language without compute answers a compute construct with an error, not a panic, if
+    /// the lowering's refusal at the function (`lower::refuse_compute`) is ever bypassed.
+    #[test]
+    fn a_language_without_compute_refuses_it_with_errors() {
+        let glsl = Target::GlslEs300.language();
+        assert!(!glsl.supports_compute());
+        let index = || ("i".to_string(), prec::ATOM);
+        let storage = glsl.storage_element("pool", "items", StorageElement::U32, index());
+        let atomic = glsl.atomic("pool", "counters", AtomicOp::Add, index(), Some(("1u".into(), prec::ATOM)));
+        let entries = glsl.compute_entries(&["shade".to_string()]);
+        for (what, result) in [("storage", storage), ("atomic", atomic), ("entries", entries)] {
+            let message = result.expect_err(what);
+            assert!(message.contains("compute kernels are generated for WGSL and the CPU only"), "{what}: {message}");
+        }
+        assert!(Target::Wgsl.language().compute_entries(&["shade".to_string()]).is_ok());
+    }
 }

@@ -85,6 +85,29 @@ pub mod wavefront {
     }
 }
 
+/// A kernel function named as a stage's entry point (`main_{stage}`).
+#[kernel_dsl::kernel(compute)]
+pub mod clash {
+    use kernel_dsl::Atomics;
+
+    #[resources]
+    pub struct Ticks {
+        pub count: Atomics,
+    }
+
+    pub fn tick(ticks: &Ticks, invocation: u32) {
+        ticks.count.atomic_add(0, main_tick(invocation));
+    }
+
+    pub fn main_tick(invocation: u32) -> u32 {
+        invocation & 1
+    }
+
+    pub fn tock(ticks: &Ticks, invocation: u32) {
+        ticks.count.atomic_sub(0, invocation & 1);
+    }
+}
+
 /// A plain module beside the compute one: it still generates for GLSL.
 #[kernel_dsl::kernel]
 pub mod plain {
@@ -264,4 +287,30 @@ fn the_dispatch_grid_covers_every_invocation_within_the_dimension_limit() {
         assert!(x as u64 * y as u64 * 64 >= n as u64, "{n}: {x} x {y} workgroups cover it");
         assert!((x as u64 * (y as u64 - 1)) * 64 < n as u64, "{n}: no whole row of workgroups is idle");
     }
+}
+
+#[test]
+fn a_function_named_as_an_entry_point_is_an_error_naming_both() {
+    let program = Program::link(&[clash::kernel_ir()]).expect("links");
+    let err = program
+        .emit(Target::Wgsl, &Selection::compute(&["tock", "tick"], BTreeMap::new()))
+        .expect_err("`main_tick` is taken");
+    let text = err.to_string();
+    assert!(
+        text.contains("kernel fn `clash::main_tick` has the name of the entry point of compute stage `clash::tick` (`main_tick`, generated for each stage): rename one of them"),
+        "{text}"
+    );
+    assert_eq!(err.function.as_deref(), Some("clash::main_tick"));
+    let main_tick = clash::kernel_ir()
+        .items
+        .iter()
+        .find_map(|i| match i {
+            kernel_dsl::ir::Item::Fn(f) if f.name == "main_tick" => Some(f.span),
+            _ => None,
+        })
+        .expect("main_tick");
+    assert_eq!(err.span, main_tick);
+    // A stage whose entry point's name is free generates.
+    let g = program.emit(Target::Wgsl, &Selection::compute(&["tock"], BTreeMap::new())).expect("`main_tock` is free");
+    validate::validate(&g).unwrap_or_else(|e| panic!("{e}\n{}", g.source));
 }

@@ -230,9 +230,11 @@ impl Lowerer<'_> {
     }
 
     /// The compute entry points of [`crate::Selection::compute`]: each stage is a kernel
-    /// function `fn(<&resources..>, invocation: u32)` without a value.
+    /// function `fn(<&resources..>, invocation: u32)` without a value, and no kernel function
+    /// takes its entry point's name `main_{stage}`.
     fn compute_entries(&mut self) -> R<String> {
         let mut names = Vec::new();
+        let mut first = None;
         for stage in &self.selection.compute {
             let Some(f) = self.program.fns.get(stage) else {
                 return Err(CodegenError {
@@ -242,26 +244,28 @@ impl Lowerer<'_> {
                     message: format!("compute stage `{stage}` is not a kernel function"),
                 });
             };
-            let error = |message: String| CodegenError {
-                file: f.file.clone(),
-                span: f.item.span,
-                function: Some(format!("{}::{}", f.module, f.item.name)),
-                message,
-            };
-            if !self.lang.supports_compute() {
-                return Err(error(format!("`{stage}` is a compute stage: this target has no compute entry points")));
-            }
             let types = infer::infer_fn(self.program, f)?;
             let params: Vec<&Ty> =
                 types.params.iter().map(|i| &types.bindings[*i].ty).filter(|t| !matches!(t, Ty::Resource(_))).collect();
             if params != [&U32] || types.ret != Ty::Unit {
-                return Err(error(format!(
+                return Err(located(f, format!(
                     "a compute stage is `fn {stage}(<&resources..>, invocation: u32)` without a return value (its entry point passes the invocation index; the stage checks its own bound)"
                 )));
             }
+            let entry = format!("main_{}", names::safe(stage));
+            if let Some(clash) = self.program.fns.values().find(|g| names::safe(&g.item.name) == entry) {
+                return Err(located(clash, format!(
+                    "kernel fn `{}::{}` has the name of the entry point of compute stage `{}::{stage}` (`{entry}`, generated for each stage): rename one of them",
+                    clash.module, clash.item.name, f.module
+                )));
+            }
+            first.get_or_insert(f);
             names.push(names::safe(stage));
         }
-        Ok(self.lang.compute_entries(&names))
+        self.lang.compute_entries(&names).map_err(|message| match first {
+            Some(f) => located(f, format!("`{}` is a compute stage: {message}", f.item.name)),
+            None => CodegenError { file: String::new(), span: ir::Span::default(), function: None, message },
+        })
     }
 
     /// A const's value: literals, or simple expressions of literals and other consts.
@@ -346,5 +350,15 @@ impl Lowerer<'_> {
             visit(self.program, &n, &mut done, &mut out);
         }
         out
+    }
+}
+
+/// An error at kernel function `f`'s name.
+fn located(f: &Located<ir::FnDef>, message: String) -> CodegenError {
+    CodegenError {
+        file: f.file.clone(),
+        span: f.item.span,
+        function: Some(format!("{}::{}", f.module, f.item.name)),
+        message,
     }
 }

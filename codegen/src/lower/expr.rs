@@ -559,7 +559,7 @@ impl Lowerer<'_> {
             None => None,
         };
         if let Some(op) = AtomicOp::of_method(method) {
-            return Ok(self.lang.atomic(&global, field, op, index, value));
+            return self.lang.atomic(&global, field, op, index, value).map_err(|m| self.error(e.span, m));
         }
         let Some(element) = (match &rt {
             Ty::Storage(el) => StorageElement::of(el),
@@ -567,7 +567,7 @@ impl Lowerer<'_> {
         }) else {
             return Err(self.error(e.span, format!("`{method}` is for `Storage<..>` fields, not `{rt}`")));
         };
-        let place = self.lang.storage_element(&global, field, element, index);
+        let place = self.lang.storage_element(&global, field, element, index).map_err(|m| self.error(e.span, m))?;
         Ok(match value {
             Some(v) => format!("{place} = {};", v.0),
             None => place,

@@ -215,12 +215,25 @@ impl Language for Wgsl {
 
     /// Storage arrays of one element type share a buffer ([`shaders::storage_buffer`]); each
     /// starts at `{global}.lp_start_{field}`.
-    fn storage_element(&self, global: &str, field: &str, element: StorageElement, index: Text) -> String {
+    fn storage_element(
+        &self,
+        global: &str,
+        field: &str,
+        element: StorageElement,
+        index: Text,
+    ) -> Result<String, String> {
         let buffer = shaders::storage_buffer(global, element);
-        format!("{buffer}[{global}.{} + {}]", shaders::start_member(field), prec::wrap(index, prec::MUL))
+        Ok(format!("{buffer}[{global}.{} + {}]", shaders::start_member(field), prec::wrap(index, prec::MUL)))
     }
 
-    fn atomic(&self, global: &str, field: &str, op: AtomicOp, index: Text, value: Option<Text>) -> String {
+    fn atomic(
+        &self,
+        global: &str,
+        field: &str,
+        op: AtomicOp,
+        index: Text,
+        value: Option<Text>,
+    ) -> Result<String, String> {
         let buffer = shaders::atomics_buffer(global);
         let place = format!("&{buffer}[{global}.{} + {}]", shaders::start_member(field), prec::wrap(index, prec::MUL));
         let f = match op {
@@ -232,14 +245,14 @@ impl Language for Wgsl {
             AtomicOp::Load => "atomicLoad",
             AtomicOp::Store => "atomicStore",
         };
-        match value {
+        Ok(match value {
             Some(v) => format!("{f}({place}, {})", v.0),
             None => format!("{f}({place})"),
-        }
+        })
     }
 
-    fn compute_entries(&self, stages: &[String]) -> String {
-        shaders::compute_entries(stages)
+    fn compute_entries(&self, stages: &[String]) -> Result<String, String> {
+        Ok(shaders::compute_entries(stages))
     }
 
     fn helper(&self, h: &Helper) -> String {

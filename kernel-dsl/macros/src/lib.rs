@@ -355,8 +355,17 @@ impl Lowering {
             let name = f.ident.as_ref().map(|i| i.to_string()).unwrap_or_default();
             if let Some(ty) = self.ty(&f.ty) {
                 if let ir::Type::Named { name: ty_name, .. } = &ty {
-                    if ir::COMPUTE_TYPES.contains(&ty_name.as_str()) && !self.compute {
-                        self.error(err_at(&f.ty, needs_compute(&format!("`{ty_name}`"))));
+                    if ir::COMPUTE_TYPES.contains(&ty_name.as_str()) {
+                        if !self.compute {
+                            self.error(err_at(&f.ty, needs_compute(&format!("`{ty_name}`"))));
+                        } else if !resources {
+                            self.error(err_at(
+                                &f.ty,
+                                format!(
+                                    "`{ty_name}` is a resource: declare it in a `#[resources]` struct (the host binds it; kernel values are plain data)"
+                                ),
+                            ));
+                        }
                     }
                 }
                 fields.push(ir::Field { name, ty, span: span_of(f.span()) });
