@@ -557,7 +557,7 @@ fn seed_of_frame(frame: u32, seed: u32) -> u32 {
     return (frame * FRAME_MIX) ^ (seed * 0x85ebca6bu);
 }
 
-// wavefront::store_path (lightport-tracer/src/kernel/wavefront.rs:283)
+// wavefront::store_path (lightport-tracer/src/kernel/wavefront.rs:286)
 fn store_path(slot: u32, path: PathState, pixel: u32) {
     lp_paths_storage_vec4f[paths.lp_start_origin + slot] = vec4<f32>(path.origin, path.scatter_pdf);
     lp_paths_storage_vec4f[paths.lp_start_direction + slot] = vec4<f32>(path.dir, 0.0);
@@ -588,7 +588,9 @@ fn plan_extend(invocation: u32) {
     }
     atomicStore(&lp_paths_atomics[paths.lp_start_counters + SHADOW], 0u);
     atomicStore(&lp_paths_atomics[paths.lp_start_counters + FINISHED], 0u);
-    write_grid(ARGS_EXTEND, atomicLoad(&lp_paths_atomics[paths.lp_start_counters + ACTIVE]));
+    let active_: u32 = atomicLoad(&lp_paths_atomics[paths.lp_start_counters + ACTIVE]);
+    _ = atomicAdd(&lp_paths_atomics[paths.lp_start_counters + SEGMENTS], active_);
+    write_grid(ARGS_EXTEND, active_);
 }
 
 // traverse::before_any_hit (lightport-tracer/src/kernel/traverse.rs:126)
@@ -1094,7 +1096,7 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     return closest_visible(origin, dir, t_max);
 }
 
-// wavefront::extend (lightport-tracer/src/kernel/wavefront.rs:187)
+// wavefront::extend (lightport-tracer/src/kernel/wavefront.rs:190)
 fn extend(invocation: u32) {
     if invocation >= atomicLoad(&lp_paths_atomics[paths.lp_start_counters + ACTIVE]) {
         return;
@@ -1106,10 +1108,9 @@ fn extend(invocation: u32) {
     lp_paths_storage_vec4f[paths.lp_start_hit + slot] = vec4<f32>(hit.t, hit.u, hit.v, bitcast<f32>(hit.instance));
     let w: vec4<u32> = lp_paths_storage_vec4u[paths.lp_start_words + slot];
     lp_paths_storage_vec4u[paths.lp_start_words + slot] = vec4<u32>(w.x, w.y, w.z, hit.triangle);
-    _ = atomicAdd(&lp_paths_atomics[paths.lp_start_counters + SEGMENTS], 1u);
 }
 
-// wavefront::load_path (lightport-tracer/src/kernel/wavefront.rs:268)
+// wavefront::load_path (lightport-tracer/src/kernel/wavefront.rs:271)
 fn load_path(slot: u32) -> PathState {
     let o: vec4<f32> = lp_paths_storage_vec4f[paths.lp_start_origin + slot];
     let w: vec4<u32> = lp_paths_storage_vec4u[paths.lp_start_words + slot];
@@ -1951,7 +1952,7 @@ fn shade_hit(path: ptr<function, PathState>, hit: Hit, first: ptr<function, Firs
     return true;
 }
 
-// wavefront::shade (lightport-tracer/src/kernel/wavefront.rs:203)
+// wavefront::shade (lightport-tracer/src/kernel/wavefront.rs:205)
 fn shade(invocation: u32) {
     if invocation >= atomicLoad(&lp_paths_atomics[paths.lp_start_counters + ACTIVE]) {
         return;
@@ -1979,12 +1980,14 @@ fn shade(invocation: u32) {
     }
 }
 
-// wavefront::plan_connect (lightport-tracer/src/kernel/wavefront.rs:232)
+// wavefront::plan_connect (lightport-tracer/src/kernel/wavefront.rs:234)
 fn plan_connect(invocation: u32) {
     if invocation != 0u {
         return;
     }
-    write_grid(ARGS_CONNECT, atomicLoad(&lp_paths_atomics[paths.lp_start_counters + SHADOW]));
+    let shadow: u32 = atomicLoad(&lp_paths_atomics[paths.lp_start_counters + SHADOW]);
+    _ = atomicAdd(&lp_paths_atomics[paths.lp_start_counters + SHADOW_RAYS], shadow);
+    write_grid(ARGS_CONNECT, shadow);
     write_grid(ARGS_ACCUMULATE, atomicLoad(&lp_paths_atomics[paths.lp_start_counters + FINISHED]));
 }
 
@@ -2106,7 +2109,7 @@ fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     return blocked;
 }
 
-// wavefront::connect (lightport-tracer/src/kernel/wavefront.rs:241)
+// wavefront::connect (lightport-tracer/src/kernel/wavefront.rs:245)
 fn connect(invocation: u32) {
     if invocation >= atomicLoad(&lp_paths_atomics[paths.lp_start_counters + SHADOW]) {
         return;
@@ -2117,7 +2120,6 @@ fn connect(invocation: u32) {
         let r: vec4<f32> = lp_paths_storage_vec4f[paths.lp_start_radiance + slot];
         lp_paths_storage_vec4f[paths.lp_start_radiance + slot] = vec4<f32>(r.xyz + lp_paths_storage_vec4f[paths.lp_start_shadow_contribution + slot].xyz, 0.0);
     }
-    _ = atomicAdd(&lp_paths_atomics[paths.lp_start_counters + SHADOW_RAYS], 1u);
 }
 
 // lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:228)
@@ -2125,7 +2127,7 @@ fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }
 
-// wavefront::accumulate (lightport-tracer/src/kernel/wavefront.rs:256)
+// wavefront::accumulate (lightport-tracer/src/kernel/wavefront.rs:259)
 fn accumulate(invocation: u32) {
     if invocation >= atomicLoad(&lp_paths_atomics[paths.lp_start_counters + FINISHED]) {
         return;

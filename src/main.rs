@@ -100,6 +100,12 @@ struct RenderArgs {
     /// Backend to render with.
     #[arg(long, value_enum, default_value_t = BackendArg::Cpu)]
     backend: BackendArg,
+    /// How a frame's work is organised: one invocation per pixel following its path to the end
+    /// (megakernel), or stages over a pool of paths with queues on the device (wavefront: cpu
+    /// and wgpu; GL has no compute). `auto` picks the megakernel, the faster on every device
+    /// measured so far (docs/wavefront.md).
+    #[arg(long, value_enum, default_value_t = ScheduleArg::Auto)]
+    schedule: ScheduleArg,
     /// Random seed (the same seed gives the same image).
     #[arg(long, default_value_t = 0)]
     seed: u32,
@@ -171,6 +177,23 @@ impl From<ToneMapArg> for tracer::output::ToneMap {
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
+enum ScheduleArg {
+    Megakernel,
+    Wavefront,
+    Auto,
+}
+
+impl ScheduleArg {
+    fn schedule(self) -> tracer::backend::Schedule {
+        match self {
+            ScheduleArg::Megakernel => tracer::backend::Schedule::Megakernel,
+            ScheduleArg::Wavefront => tracer::backend::Schedule::Wavefront,
+            ScheduleArg::Auto => tracer::backend::Schedule::auto(),
+        }
+    }
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
 enum BackendArg {
     Cpu,
     /// OpenGL ES 3.0 through a headless EGL context (any GL driver; Mesa llvmpipe without a GPU).
@@ -224,8 +247,9 @@ fn render(args: &RenderArgs) -> Result<()> {
             .progress_chars("=> "),
     );
     let t3 = Instant::now();
-    let mut r = tracer::backend::create(args.backend.kind(), packed, args.seed)
-        .with_context(|| format!("starting the {} backend", args.backend.kind().name()))?;
+    let schedule = args.schedule.schedule();
+    let mut r = tracer::backend::create_scheduled(args.backend.kind(), schedule, packed, args.seed)
+        .with_context(|| format!("starting the {} backend ({})", args.backend.kind().name(), schedule.name()))?;
     for _ in 0..args.spp {
         r.render_frame()?;
         // Wait for each frame so that the progress bar tells the truth.
@@ -265,13 +289,14 @@ fn render(args: &RenderArgs) -> Result<()> {
     };
     println!("BVH + pack   {:.1} ms ({levels})", build_time.as_secs_f64() * 1e3);
     println!(
-        "render       {:.2} s, {} spp at {}x{}, {:.2} M samples/s ({:?} backend, {:?} strategy)",
+        "render       {:.2} s, {} spp at {}x{}, {:.2} M samples/s ({:?} backend, {}, {:?} strategy)",
         render_time.as_secs_f64(),
         args.spp,
         args.width,
         args.height,
         samples / render_time.as_secs_f64() / 1e6,
         r.describe().runtime,
+        schedule.name(),
         settings.strategy.name()
     );
     if rejected > 0 {

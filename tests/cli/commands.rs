@@ -168,3 +168,38 @@ fn render_frames_writes_each_pose_and_a_strip() {
     let o = render("cornell-box/CornellBox-Original.gltf", &["--frames", "2"], &dir);
     assert!(!o.status.success() && stderr(&o).contains("needs an animated scene"), "{}", stderr(&o));
 }
+
+/// `render --schedule`: the CPU's wavefront writes the megakernel's image bit for bit, wgpu's
+/// renders the box, the read-out names the schedule; GL has none, and the wavefront has no
+/// denoiser guide: clear errors.
+#[test]
+fn render_schedule_chooses_the_wavefront_or_refuses_it_clearly() {
+    let dir = scratch("schedule");
+    let run = |args: &[&str], out: &str| {
+        Command::new(env!("CARGO_BIN_EXE_lightport"))
+            .args(["render", "--width", "20", "--height", "16", "--spp", "3"])
+            .args(args)
+            .arg("--out")
+            .arg(dir.join(out))
+            .output()
+            .expect("run lightport")
+    };
+    let read = |name: &str| image::open(dir.join(name)).expect("an EXR").into_rgb32f().into_raw();
+    for (schedule, out) in [("megakernel", "mega.exr"), ("wavefront", "wave.exr"), ("auto", "auto.exr")] {
+        let o = run(&["--schedule", schedule], out);
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success(), "{schedule}: {}", stderr(&o));
+        let runs = if schedule == "auto" { "megakernel" } else { schedule };
+        assert!(stdout.contains(&format!("\"cpu\" backend, {runs}")), "{schedule}: {stdout}");
+    }
+    assert_eq!(read("wave.exr"), read("mega.exr"), "the CPU's wavefront adds the megakernel's samples");
+    assert_eq!(read("auto.exr"), read("mega.exr"));
+    let o = run(&["--schedule", "wavefront", "--backend", "wgpu"], "wgpu.exr");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let lit = read("wgpu.exr").iter().filter(|v| **v > 0.0).count();
+    assert!(lit > 20 * 16, "the wgpu wavefront renders the box ({lit} lit values)");
+    let o = run(&["--schedule", "wavefront", "--backend", "gl"], "gl.png");
+    assert!(!o.status.success() && stderr(&o).contains("no compute shaders"), "{}", stderr(&o));
+    let o = run(&["--schedule", "wavefront", "--denoise"], "denoised.png");
+    assert!(!o.status.success() && stderr(&o).contains("--schedule megakernel"), "{}", stderr(&o));
+}

@@ -154,6 +154,12 @@ pub trait Renderer {
         Ok(rejected_samples(self.frames(), &self.accumulation()?))
     }
 
+    /// A wavefront renderer's ray counts since its last restart (read from the device: blocks
+    /// natively); `None` for a megakernel.
+    fn wavefront_counts(&self) -> Option<super::wavefront::WavefrontCounts> {
+        None
+    }
+
     /// The denoiser's à-trous passes over `image` on this runtime (the kernel's
     /// `denoise::atrous_pixel` at steps 1, 2, 4, ...): the last pass's output per pixel, as
     /// [`filter_on_cpu`](crate::denoise::filter_on_cpu) computes it. GL runs them as fragment
@@ -225,6 +231,13 @@ pub enum Schedule {
 
 impl Schedule {
     pub const ALL: [Schedule; 2] = [Schedule::Megakernel, Schedule::Wavefront];
+
+    /// What `--schedule auto` runs: the megakernel, faster on every device measured so far
+    /// (`examples/bench_wavefront.rs`: the CPU by 1.5-2.5x, lavapipe by 1.4-3x at depth 8; see
+    /// `docs/wavefront.md`). A device where the wavefront measures faster changes this rule.
+    pub fn auto() -> Schedule {
+        Schedule::Megakernel
+    }
 
     /// "megakernel" or "wavefront" (as `--schedule` spells it).
     pub fn name(self) -> &'static str {

@@ -33,6 +33,13 @@ pub const ITERATION: [Stage; 8] = [
     Stage { function: "accumulate", args: Some(ARGS_ACCUMULATE) },
 ];
 
+/// Iterations a GPU runtime submits at once, between two read-backs of the counters: a
+/// submission's work is at most this many path segments per slot of the pool, whatever the
+/// paths' depth. Measured on lavapipe (`examples/bench_wavefront.rs`, 160x160, depth 8): 2, 4
+/// and 8 per submission within noise of each other (4 the fastest), 10 (`max_depth + 2`) 5-30 %
+/// slower on DamagedHelmet, whose paths mostly end early.
+pub const ITERATIONS_PER_SUBMISSION: u32 = 4;
+
 /// Every stage's function (the entry points of the wavefront's shader; each runs once per iteration).
 pub fn stage_functions() -> Vec<&'static str> {
     ITERATION.iter().map(|s| s.function).collect()

@@ -180,7 +180,10 @@ pub mod wavefront {
         }
         paths.counters.atomic_store(SHADOW, 0);
         paths.counters.atomic_store(FINISHED, 0);
-        write_grid(dispatch, ARGS_EXTEND, paths.counters.atomic_load(ACTIVE));
+        let active = paths.counters.atomic_load(ACTIVE);
+        // The statistics are counted here, once per stage, not by an atomic per ray.
+        paths.counters.atomic_add(SEGMENTS, active);
+        write_grid(dispatch, ARGS_EXTEND, active);
     }
 
     /// The closest hit of each active path's ray.
@@ -195,7 +198,6 @@ pub mod wavefront {
         paths.hit.store(slot, Vec4::new(hit.t, hit.u, hit.v, f32::from_bits(hit.instance)));
         let w = paths.words.load(slot);
         paths.words.store(slot, UVec4::new(w.x, w.y, w.z, hit.triangle));
-        paths.counters.atomic_add(SEGMENTS, 1);
     }
 
     /// Each active path at its hit (`integrator::shade_hit`): its shadow ray queued for
@@ -233,7 +235,9 @@ pub mod wavefront {
         if invocation != 0 {
             return;
         }
-        write_grid(dispatch, ARGS_CONNECT, paths.counters.atomic_load(SHADOW));
+        let shadow = paths.counters.atomic_load(SHADOW);
+        paths.counters.atomic_add(SHADOW_RAYS, shadow);
+        write_grid(dispatch, ARGS_CONNECT, shadow);
         write_grid(dispatch, ARGS_ACCUMULATE, paths.counters.atomic_load(FINISHED));
     }
 
@@ -248,7 +252,6 @@ pub mod wavefront {
             let r = paths.radiance.load(slot);
             paths.radiance.store(slot, (r.xyz() + paths.shadow_contribution.load(slot).xyz()).extend(0.0));
         }
-        paths.counters.atomic_add(SHADOW_RAYS, 1);
     }
 
     /// Each path that ended: its sample added to its pixel's sum (as the megakernel's entry

@@ -138,6 +138,10 @@ impl Renderer for WavefrontRenderer {
         self.restart()
     }
 
+    fn wavefront_counts(&self) -> Option<WavefrontCounts> {
+        Some(self.counts())
+    }
+
     fn restart(&mut self) -> Result<(), RenderError> {
         reset(&self.paths);
         self.paths.frames_wanted = 0;

@@ -34,6 +34,9 @@ pub mod harness;
 mod oneshot;
 mod renderer;
 mod resources;
+// Native only for now: the browser's WebGPU runs the megakernel (a wavefront there needs the
+// page's frame loop to await its counters instead of blocking).
+#[cfg(not(target_arch = "wasm32"))]
 mod wavefront;
 
 pub use compile::{compile_pipeline, start_pipeline, start_pipelines, PipelineCheck};
@@ -46,6 +49,7 @@ pub(crate) use resources::{
     scene_uniform_bytes, storage_limit, u32_uniform_bytes, upload_scene, BufferEntry, OwnResource, ShaderLayout,
     UniformLayout,
 };
+#[cfg(not(target_arch = "wasm32"))]
 pub use wavefront::WavefrontRenderer;
 
 use crate::kernel::ShaderError;

@@ -19,6 +19,7 @@ use super::{
 };
 use crate::backend::wavefront::{
     array_len, check_features, iteration_bound, pool_size, Stage, WavefrontCounts, WavefrontError, ITERATION,
+    ITERATIONS_PER_SUBMISSION,
 };
 use crate::backend::{ms_since, update_uniforms, BuildTimes, GuideSums, RenderError, Renderer, RendererInfo};
 use crate::kernel::scene_data::Scene;
@@ -65,7 +66,6 @@ pub struct WavefrontRenderer {
     dispatch_args: wgpu::Buffer,
     counters_readback: wgpu::Buffer,
     image_readback: wgpu::Buffer,
-    iterations_per_submission: u32,
     times: BuildTimes,
     uncaptured: Arc<Mutex<Option<String>>>,
 }
@@ -201,7 +201,7 @@ impl WavefrontRenderer {
             dispatch_args,
             counters_readback,
             image_readback,
-            iterations_per_submission: scene.max_depth.max(1) + 2,
+
             times,
             uncaptured,
             packed,
@@ -212,7 +212,6 @@ impl WavefrontRenderer {
     }
 
     /// A wavefront renderer on its own native device.
-    #[cfg(not(target_arch = "wasm32"))]
     pub fn headless(packed: Packed, seed: u32) -> Result<Self, RenderError> {
         let device = WgpuDevice::native()?;
         pollster::block_on(Self::new(device, packed, seed, &WgpuOptions::default()))
@@ -295,7 +294,6 @@ impl WavefrontRenderer {
     }
 
     /// The counters as the device left them (blocks natively; polls the device).
-    #[cfg(not(target_arch = "wasm32"))]
     fn read_counters(&self) -> Result<Vec<u32>, RenderError> {
         let Some((buffer, at, len)) = self.array("counters") else { return Ok(Vec::new()) };
         let mut encoder = self.device.device.create_command_encoder(&Default::default());
@@ -307,7 +305,6 @@ impl WavefrontRenderer {
     }
 
     /// What the pool has traced since the last restart (blocks natively).
-    #[cfg(not(target_arch = "wasm32"))]
     pub fn counts(&self) -> Result<WavefrontCounts, RenderError> {
         Ok(WavefrontCounts::from_counters(&self.read_counters()?))
     }
@@ -430,9 +427,9 @@ impl Renderer for WavefrontRenderer {
         self.packed.scene.height
     }
 
-    /// Renders a whole frame, whatever `rows`: submissions of `max_depth + 2` iterations (at most
-    /// that many path segments per slot) until the counters say the frame is complete.
-    #[cfg(not(target_arch = "wasm32"))]
+    /// Renders a whole frame, whatever `rows`: submissions of [`ITERATIONS_PER_SUBMISSION`]
+    /// iterations (at most that many path segments per slot: the work of a submission is
+    /// bounded whatever the paths' depth) until the counters say the frame is complete.
     fn render_band(&mut self, _rows: u32) -> Result<bool, RenderError> {
         self.check_uncaptured()?;
         let wanted = self.frames + 1;
@@ -441,8 +438,8 @@ impl Renderer for WavefrontRenderer {
         let bound = iteration_bound(scene.width * scene.height, self.pool, scene.max_depth);
         let mut iterations = 0;
         loop {
-            self.submit(self.iterations_per_submission);
-            iterations += self.iterations_per_submission;
+            self.submit(ITERATIONS_PER_SUBMISSION);
+            iterations += ITERATIONS_PER_SUBMISSION;
             let counters = self.read_counters()?;
             if counters.get(FRAMES_DONE as usize).copied().unwrap_or(0) >= wanted {
                 break;
@@ -455,13 +452,7 @@ impl Renderer for WavefrontRenderer {
         Ok(true)
     }
 
-    #[cfg(target_arch = "wasm32")]
-    fn render_band(&mut self, _rows: u32) -> Result<bool, RenderError> {
-        Err(RenderError::Unsupported { runtime: "wgpu", what: "has no wavefront schedule in the browser yet" })
-    }
-
     fn finish(&self) -> Result<(), RenderError> {
-        #[cfg(not(target_arch = "wasm32"))]
         self.device
             .device
             .poll(wgpu::PollType::wait_indefinitely())
@@ -470,7 +461,6 @@ impl Renderer for WavefrontRenderer {
     }
 
     fn accumulation(&self) -> Result<Vec<Vec4>, RenderError> {
-        #[cfg(not(target_arch = "wasm32"))]
         {
             let Some((buffer, at, len)) = self.array("image") else { return Ok(Vec::new()) };
             let mut encoder = self.device.device.create_command_encoder(&Default::default());
@@ -480,8 +470,6 @@ impl Renderer for WavefrontRenderer {
             self.finish()?;
             Ok(pollster::block_on(read)?)
         }
-        #[cfg(target_arch = "wasm32")]
-        Err(RenderError::Unsupported { runtime: "wgpu", what: "cannot block for a read-back in the browser" })
     }
 
     fn guide_sums(&self) -> Result<GuideSums, RenderError> {
@@ -509,6 +497,10 @@ impl Renderer for WavefrontRenderer {
         self.scene_uniform = scene_uniform;
         self.packed = packed;
         self.restart()
+    }
+
+    fn wavefront_counts(&self) -> Option<WavefrontCounts> {
+        self.counts().ok()
     }
 
     fn restart(&mut self) -> Result<(), RenderError> {
