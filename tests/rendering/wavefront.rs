@@ -134,6 +134,34 @@ fn a_camera_inside_a_closed_box_still_completes_every_frame() {
     assert_eq!(wave.frames(), 1);
 }
 
+/// On wgpu, a pool far smaller than the image (a storage binding limit that leaves room for
+/// 192 slots beside a 48 x 48 image's sums): twelve waves per frame, and still every pixel gets
+/// exactly its samples, however the device's atomics interleave the queues.
+#[test]
+fn the_wgpu_wavefront_gives_every_pixel_its_samples_through_a_small_pool() {
+    use tracer::backend::wgpu::{WavefrontRenderer as WgpuWavefront, WgpuDevice, WgpuOptions};
+    let p = packed(&scene::cornell_box(), Strategy::Mis, 48, 8);
+    let limit = 48 * 48 * 16 + 192 * 8 * 16;
+    let options = WgpuOptions { max_storage_buffer_binding_size: Some(limit), ..Default::default() };
+    let device = WgpuDevice::native().unwrap_or_else(|e| panic!("the wgpu backend must run here: {e}"));
+    let mut wave = pollster::block_on(WgpuWavefront::new(device, p, 4, &options)).expect("a wgpu wavefront");
+    assert_eq!(wave.pool(), 192, "the pool follows the binding limit");
+    for frame in 1..=3u32 {
+        wave.render_frame().unwrap();
+        let sums = wave.accumulation().unwrap();
+        let wrong = sums.iter().filter(|a| a.w != frame as f32).count();
+        assert_eq!(wrong, 0, "frame {frame}: pixels without exactly {frame} samples");
+        let counts = wave.wavefront_counts().expect("a wavefront");
+        assert_eq!(counts.frames, frame);
+        assert!(counts.segments >= frame * 48 * 48, "{counts:?}");
+    }
+    assert!(sums_lit(&wave.accumulation().unwrap()) > 48 * 48 / 2, "the box is lit");
+}
+
+fn sums_lit(sums: &[Vec4]) -> usize {
+    sums.iter().filter(|a| a.x + a.y + a.z > 0.0).count()
+}
+
 /// The wavefront on wgpu (lavapipe in CI) against the CPU's megakernel: the agreement suite's
 /// scenes and strategies, the random sequence, restarts and uniform updates.
 mod wgpu_wavefront {

@@ -66,6 +66,9 @@ pub enum WavefrontError {
         "the {runtime} runtime has no wavefront schedule: GLSL ES 3.00 has no compute shaders or atomics (use `--schedule megakernel`, or the cpu or wgpu backend)"
     )]
     NoCompute { runtime: &'static str },
+    /// A stage of [`ITERATION`] that a runtime has no function for (a new stage not added to it).
+    #[error("the wavefront stage `{stage}` is not implemented by this runtime")]
+    UnknownStage { stage: &'static str },
     #[error("the wavefront did not complete its frame in {iterations} iterations (a path outlived the scene's depth)")]
     Stalled { iterations: u32 },
 }

@@ -18,6 +18,21 @@ use crate::pack::Packed;
 /// a path's state stays in cache between the stages (measured: `examples/bench_wavefront.rs`).
 pub const CPU_POOL: u32 = 1 << 16;
 
+/// A stage as the CPU calls it: the kernel function with every resource it may take.
+type StageFn = fn(&Scene, &Paths, &Dispatch, u32);
+
+/// Each stage of [`ITERATION`] by its kernel function's name.
+const CPU_STAGES: [(&str, StageFn); 8] = [
+    ("plan_generate", |_, p, d, i| stages::plan_generate(p, d, i)),
+    ("generate", |s, p, _, i| stages::generate(s, p, i)),
+    ("plan_extend", |_, p, d, i| stages::plan_extend(p, d, i)),
+    ("extend", |s, p, _, i| stages::extend(s, p, i)),
+    ("shade", |s, p, _, i| stages::shade(s, p, i)),
+    ("plan_connect", |_, p, d, i| stages::plan_connect(p, d, i)),
+    ("connect", |s, p, _, i| stages::connect(s, p, i)),
+    ("accumulate", |_, p, _, i| stages::accumulate(p, i)),
+];
+
 pub struct WavefrontRenderer {
     packed: Packed,
     paths: Paths,
@@ -48,28 +63,22 @@ impl WavefrontRenderer {
 
     /// Runs `stage` over its grid: one invocation for a `plan_*` stage, else the grid its plan
     /// wrote, numbered as a GPU numbers it (`x + y * groups_x * WORKGROUP`).
-    fn run(&self, stage: Stage) {
+    fn run(&self, stage: Stage) -> Result<(), WavefrontError> {
         let (scene, paths, dispatch) = (&self.packed.scene, &self.paths, &self.dispatch);
         let invocations = match stage.args {
             None => 1,
             Some(at) => dispatch.args.load(at) * dispatch.args.load(at + 1) * dispatch.args.load(at + 2) * WORKGROUP,
         };
-        let call = |i: u32| match stage.function {
-            "plan_generate" => stages::plan_generate(paths, dispatch, i),
-            "generate" => stages::generate(scene, paths, i),
-            "plan_extend" => stages::plan_extend(paths, dispatch, i),
-            "extend" => stages::extend(scene, paths, i),
-            "shade" => stages::shade(scene, paths, i),
-            "plan_connect" => stages::plan_connect(paths, dispatch, i),
-            "connect" => stages::connect(scene, paths, i),
-            "accumulate" => stages::accumulate(paths, i),
-            _ => {}
+        let Some(&(_, run)) = CPU_STAGES.iter().find(|(name, _)| *name == stage.function) else {
+            return Err(WavefrontError::UnknownStage { stage: stage.function });
         };
+        let call = |i: u32| run(scene, paths, dispatch, i);
         if invocations <= WORKGROUP {
             (0..invocations).for_each(call);
         } else {
             (0..invocations).into_par_iter().with_min_len(WORKGROUP as usize).for_each(call);
         }
+        Ok(())
     }
 }
 
@@ -108,7 +117,7 @@ impl Renderer for WavefrontRenderer {
                 return Err(WavefrontError::Stalled { iterations }.into());
             }
             for stage in ITERATION {
-                self.run(stage);
+                self.run(stage)?;
             }
             iterations += 1;
         }

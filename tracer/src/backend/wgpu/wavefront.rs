@@ -120,40 +120,9 @@ impl WavefrontRenderer {
         let d = &device.device;
         let (mut entries, scene_uniform) = upload_scene(d, &layout, scene)?;
         let scene_entries = entries.len();
-        let mut buffers = Vec::new();
-        let mut paths_uniform = None;
-        let mut dispatch_args = None;
-        for resources in generated.bindings.iter().filter(|b| b.resources != "Scene") {
-            let values = |field: &str| -> Option<u32> {
-                match field {
-                    "pool" => Some(pool),
-                    "pixels" => Some(pixels),
-                    "frames_wanted" => Some(0),
-                    "seed" => Some(seed),
-                    _ => None,
-                }
-            };
-            let (uniform, storage) = pool_buffers(d, &layout, resources, pool, pixels, &values)?;
-            entries.push(BufferEntry::uniform(&uniform.0, uniform.1.clone()));
-            for (resource, b) in storage {
-                entries.push(BufferEntry::storage(&resource, b.buffer.clone(), false));
-                if resources.resources == DISPATCH {
-                    dispatch_args = Some(b.buffer.clone());
-                }
-                buffers.push(b);
-            }
-            if resources.resources == PATHS {
-                let layout = uniform.0.uniform.clone().expect("reflected as a uniform");
-                paths_uniform = Some((uniform.1, layout));
-            }
-        }
-        let (Some(paths_uniform), Some(dispatch_args)) = (paths_uniform, dispatch_args) else {
-            return Err(WgpuError::UnboundResource {
-                name: format!("{PATHS} / {DISPATCH}"),
-                detail: ": the wavefront shader lacks the pool or the dispatch sizes".into(),
-            }
-            .into());
-        };
+        let pool_resources = pool_resources(d, &generated, &layout, pool, pixels, seed)?;
+        entries.extend(pool_resources.entries.iter().cloned());
+        let PoolResources { buffers, paths_uniform, dispatch_args, .. } = pool_resources;
         let (group_layouts, plan_layout) = bind_group_layouts(d, &entries);
         let bind_groups = bind_groups(d, &group_layouts, &entries);
         // The stages dispatched indirectly see groups 0 and 1 only.
@@ -308,6 +277,62 @@ impl WavefrontRenderer {
     pub fn counts(&self) -> Result<WavefrontCounts, RenderError> {
         Ok(WavefrontCounts::from_counters(&self.read_counters()?))
     }
+}
+
+/// The buffers of the wavefront's own resources structs (`Paths`, `Dispatch`).
+struct PoolResources {
+    /// Their bindings (groups 1 and 2).
+    entries: Vec<BufferEntry>,
+    buffers: Vec<PoolBuffer>,
+    paths_uniform: (wgpu::Buffer, UniformLayout),
+    /// The `Dispatch` storage buffer, also the indirect dispatches' arguments.
+    dispatch_args: wgpu::Buffer,
+}
+
+/// Creates the pool of `pool` slots for `pixels` pixels and the dispatch sizes' buffer, as
+/// `generated` binds them (`Paths::seed` = `seed`, nothing wanted yet).
+fn pool_resources(
+    d: &wgpu::Device,
+    generated: &lightport_codegen::Generated,
+    layout: &ShaderLayout,
+    pool: u32,
+    pixels: u32,
+    seed: u32,
+) -> Result<PoolResources, WgpuError> {
+    let values = |field: &str| -> Option<u32> {
+        match field {
+            "pool" => Some(pool),
+            "pixels" => Some(pixels),
+            "frames_wanted" => Some(0),
+            "seed" => Some(seed),
+            _ => None,
+        }
+    };
+    let (mut entries, mut buffers) = (Vec::new(), Vec::new());
+    let (mut paths_uniform, mut dispatch_args) = (None, None);
+    for resources in generated.bindings.iter().filter(|b| b.resources != "Scene") {
+        let (uniform, storage) = pool_buffers(d, layout, resources, pool, pixels, &values)?;
+        entries.push(BufferEntry::uniform(&uniform.0, uniform.1.clone()));
+        for (resource, b) in storage {
+            entries.push(BufferEntry::storage(&resource, b.buffer.clone(), false));
+            if resources.resources == DISPATCH {
+                dispatch_args = Some(b.buffer.clone());
+            }
+            buffers.push(b);
+        }
+        if resources.resources == PATHS {
+            if let Some(members) = uniform.0.uniform.clone() {
+                paths_uniform = Some((uniform.1, members));
+            }
+        }
+    }
+    let (Some(paths_uniform), Some(dispatch_args)) = (paths_uniform, dispatch_args) else {
+        return Err(WgpuError::UnboundResource {
+            name: format!("{PATHS} / {DISPATCH}"),
+            detail: ": the wavefront shader lacks the pool or the dispatch sizes".into(),
+        });
+    };
+    Ok(PoolResources { entries, buffers, paths_uniform, dispatch_args })
 }
 
 /// The uniform and storage buffers of one wavefront resources struct (`Paths`, `Dispatch`),
