@@ -15,7 +15,7 @@ use crate::kernel::wavefront::{self as stages, Dispatch, Paths, FRAMES_DONE, WOR
 use crate::pack::Packed;
 
 /// Path slots on the CPU: enough for every thread to find work in each stage, few enough that
-/// a path's state stays in cache between the stages (measured: `examples/bench_wavefront.rs`).
+/// the pool's state stays around 10 MB (a choice, not yet measured against other sizes).
 pub const CPU_POOL: u32 = 1 << 16;
 
 /// A stage as the CPU calls it: the kernel function with every resource it may take.
