@@ -20,6 +20,7 @@ mod hazards;
 mod intersection;
 mod kernels;
 mod normal_map;
+mod path_segment;
 mod texture_ref;
 
 use common::{node_child_box, test_data, TestRng};

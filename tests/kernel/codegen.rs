@@ -364,8 +364,8 @@ fn every_kernel_function_has_a_valid_equivalence_harness() {
     assert!(checked > 30, "{checked} functions");
     // GLSL ES 3.00 guarantees 4 colour attachments: 16 words per invocation. One function is
     // wider: a path segment's shading (the path, the shadow ray and the denoiser's first hit,
-    // 36 words), checked on the CPU against WGSL (its wavefront stage's language) and through
-    // images on GL. Any other function must fit.
+    // 36 words), checked against the CPU on wgpu and WebGPU (`tests/equivalence/path_segment.rs`:
+    // the wavefront's languages) and through images on GL. Any other function must fit.
     assert_eq!(wide, ["shade_hit"], "functions whose GLSL harness needs more than 4 RGBA32UI attachments");
     // The layout of a known function: intersect_triangle(origin, dir, v0, v1, v2) -> TriangleHit.
     let g = program.emit(Target::GlslEs300, &Selection::harness("intersect_triangle")).unwrap();

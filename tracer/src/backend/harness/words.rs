@@ -144,7 +144,7 @@ mod kernel_structs {
     use crate::kernel::bsdf::Bsdf;
     use crate::kernel::camera::Ray;
     use crate::kernel::instances::InstanceRay;
-    use crate::kernel::integrator::{FirstHit, GuidedSample, Shading, SurfaceNormals};
+    use crate::kernel::integrator::{FirstHit, GuidedSample, PathState, Shading, ShadowRay, SurfaceNormals};
     use crate::kernel::intersect::TriangleHit;
     use crate::kernel::lights::LightSample;
     use crate::kernel::metal_rough::{BrdfSample, Surface};
@@ -174,6 +174,8 @@ mod kernel_structs {
         FirstHit { albedo, normal, depth, emission }
         InstanceRay { origin, dir, root }
         SurfaceNormals { ng, ns, flip, area2 }
+        PathState { origin, dir, throughput, radiance, scatter_pdf, depth, rng }
+        ShadowRay { origin, dir, t_max, contribution }
     }
 }
 
