@@ -457,6 +457,8 @@ mod tests {
             ("FirstHit", top_fields::<crate::kernel::integrator::FirstHit>()),
             ("InstanceRay", top_fields::<crate::kernel::instances::InstanceRay>()),
             ("SurfaceNormals", top_fields::<crate::kernel::integrator::SurfaceNormals>()),
+            ("PathState", top_fields::<crate::kernel::integrator::PathState>()),
+            ("ShadowRay", top_fields::<crate::kernel::integrator::ShadowRay>()),
         ];
         let structs: Vec<kernel_dsl::ir::StructDef> = crate::kernel::modules()
             .into_iter()
