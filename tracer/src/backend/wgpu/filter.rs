@@ -9,7 +9,7 @@ use lightport_codegen::Target;
 use wgpu::util::DeviceExt;
 
 use super::{
-    compile_pipeline, map_texels, pipeline_bind_groups, place_arrays, reflect, storage_limit, u32_uniform_bytes,
+    compile_pipeline, map_readback, pipeline_bind_groups, place_arrays, reflect, storage_limit, u32_uniform_bytes,
     upload_scene, BufferEntry, ShaderLayout, WgpuDevice, WgpuError, WgpuOptions, TARGET_UNIFORM, WORKGROUP_SIZE,
 };
 use crate::kernel::denoise::{FilterImage, ATROUS_ITERATIONS};
@@ -71,7 +71,7 @@ impl WgpuFilter {
         let workgroups = check_limits(&device.limits, width, height)?;
         let buffers = self.upload(device, image)?;
         self.dispatch(device, &buffers, workgroups);
-        Ok(map_texels(buffers.readback))
+        Ok(map_readback(buffers.readback))
     }
 
     /// The image's buffers and bind groups: the `FilterImage` uniform and texel buffer, the

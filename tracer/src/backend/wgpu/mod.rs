@@ -45,9 +45,9 @@ pub use display::{display_shader, DisplayPass};
 pub use filter::WgpuFilter;
 pub use renderer::WgpuRenderer;
 pub(crate) use resources::{
-    bind_group_layouts, bind_groups, check_scene_limits, map_texels, pipeline_bind_groups, place_arrays, reflect,
+    bind_group_layouts, bind_groups, check_scene_limits, map_readback, pipeline_bind_groups, place_arrays, reflect,
     scene_uniform_bytes, storage_limit, u32_uniform_bytes, upload_scene, BufferEntry, OwnResource, ShaderLayout,
-    UniformLayout,
+    UncapturedErrors, UniformLayout,
 };
 #[cfg(not(target_arch = "wasm32"))]
 pub use wavefront::WavefrontRenderer;

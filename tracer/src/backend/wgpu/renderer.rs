@@ -1,17 +1,15 @@
 //! [`WgpuRenderer`]: the kernel's compute pipeline on a [`WgpuDevice`], one dispatch per frame
 //! (or per band of rows) into the accumulation buffer.
 
-use std::sync::{Arc, Mutex};
-
 use glam::Vec4;
 use lightport_codegen::Target;
 use wgpu::util::DeviceExt;
 
 use super::{
-    bind_group_layouts, bind_groups, check_scene_limits, map_texels, oneshot, reflect, scene_uniform_bytes,
+    bind_group_layouts, bind_groups, check_scene_limits, map_readback, oneshot, reflect, scene_uniform_bytes,
     start_pipeline, storage_limit, u32_uniform_bytes, upload_scene, BufferEntry, OwnResource, PipelineCheck,
-    ShaderLayout, UniformLayout, WgpuDevice, WgpuError, WgpuFilter, WgpuInfo, WgpuOptions, ACCUMULATION_BUFFER,
-    SCENE_UNIFORM, TARGET_UNIFORM, WORKGROUP_SIZE,
+    ShaderLayout, UncapturedErrors, UniformLayout, WgpuDevice, WgpuError, WgpuFilter, WgpuInfo, WgpuOptions,
+    ACCUMULATION_BUFFER, SCENE_UNIFORM, TARGET_UNIFORM, WORKGROUP_SIZE,
 };
 use crate::backend::{
     frame_seed, ms_since, update_uniforms, BuildTimes, GuideSums, PendingAccumulation, PendingGuideSums, RenderError,
@@ -63,7 +61,7 @@ pub struct WgpuRenderer {
     #[cfg_attr(target_arch = "wasm32", allow(dead_code))]
     filter: Option<WgpuFilter>,
     /// The first error wgpu reported outside an error scope (e.g. a lost device).
-    uncaptured: Arc<Mutex<Option<String>>>,
+    uncaptured: UncapturedErrors,
 }
 
 impl WgpuRenderer {
@@ -85,12 +83,7 @@ impl WgpuRenderer {
         seed: u32,
         options: &WgpuOptions,
     ) -> Result<(Self, PipelineCheck), WgpuError> {
-        let uncaptured = Arc::new(Mutex::new(None));
-        let sink = uncaptured.clone();
-        device.device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
-            let mut slot = sink.lock().unwrap_or_else(|p| p.into_inner());
-            slot.get_or_insert_with(|| e.to_string());
-        }));
+        let uncaptured = UncapturedErrors::watch(&device.device);
         let (pipeline, check) = build(&device, &packed, options)?;
         let mut device = device;
         device.info.max_storage_buffer_binding_size = storage_limit(&device.limits, options);
@@ -129,11 +122,7 @@ impl WgpuRenderer {
 
     /// The first error wgpu reported outside an error scope since the renderer was created.
     pub fn check_uncaptured(&self) -> Result<(), WgpuError> {
-        let slot = self.uncaptured.lock().unwrap_or_else(|p| p.into_inner());
-        match &*slot {
-            Some(detail) => Err(WgpuError::Wgpu { what: "the device", detail: detail.clone() }),
-            None => Ok(()),
-        }
+        self.uncaptured.check()
     }
 
     /// Resolves when everything submitted so far has run on the device (never blocks; in the
@@ -160,7 +149,7 @@ impl WgpuRenderer {
         let mut encoder = self.device.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(&p.accumulation, 0, &p.readback, 0, p.accumulation.size());
         self.device.queue.submit([encoder.finish()]);
-        let read = map_texels(p.readback.clone());
+        let read = map_readback(p.readback.clone());
         let uncaptured = self.check_uncaptured();
         async move {
             uncaptured?;
@@ -289,7 +278,7 @@ impl Renderer for WgpuRenderer {
             encoder.copy_buffer_to_buffer(buffer, 0, readback, k as u64 * buffer.size(), buffer.size());
         }
         self.device.queue.submit([encoder.finish()]);
-        let read = map_texels(readback.clone());
+        let read = map_readback(readback.clone());
         let uncaptured = self.check_uncaptured();
         let pixels = self.packed.scene.width as usize * self.packed.scene.height as usize;
         Box::pin(async move {

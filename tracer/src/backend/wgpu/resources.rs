@@ -455,12 +455,12 @@ pub(crate) fn u32_uniform_bytes(
     Ok(bytes)
 }
 
-/// The texels of `readback` once the device has mapped it for reading (the copy into it must be
-/// submitted already); the buffer is unmapped again. Resolves when the device is polled
-/// (natively) or by the browser.
-pub(crate) fn map_texels(
+/// The contents of `readback` (texels, words) once the device has mapped it for reading (the
+/// copy into it must be submitted already); the buffer is unmapped again. Resolves when the
+/// device is polled (natively) or by the browser.
+pub(crate) fn map_readback<T: bytemuck::Pod>(
     readback: wgpu::Buffer,
-) -> impl std::future::Future<Output = Result<Vec<glam::Vec4>, WgpuError>> + 'static {
+) -> impl std::future::Future<Output = Result<Vec<T>, WgpuError>> + 'static {
     let (sender, receiver) = super::oneshot::channel();
     readback.slice(..).map_async(wgpu::MapMode::Read, move |result| sender.send(result));
     let failed = |detail: String| WgpuError::Wgpu { what: "mapping a read-back buffer", detail };
@@ -469,7 +469,7 @@ pub(crate) fn map_texels(
             .await
             .ok_or_else(|| failed("the device dropped the request".into()))?
             .map_err(|e| failed(e.to_string()))?;
-        let texels: Vec<glam::Vec4> = {
+        let contents: Vec<T> = {
             let view = readback
                 .slice(..)
                 .get_mapped_range()
@@ -477,6 +477,32 @@ pub(crate) fn map_texels(
             bytemuck::pod_collect_to_vec(&view)
         };
         readback.unmap();
-        Ok(texels)
+        Ok(contents)
+    }
+}
+
+/// The first error wgpu reported outside an error scope on a device, since [`watch`](Self::watch).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct UncapturedErrors(std::sync::Arc<std::sync::Mutex<Option<String>>>);
+
+impl UncapturedErrors {
+    /// Keeps the first error `device` reports from now on (replacing its previous handler).
+    pub(crate) fn watch(device: &wgpu::Device) -> UncapturedErrors {
+        let errors = UncapturedErrors::default();
+        let sink = errors.0.clone();
+        device.on_uncaptured_error(std::sync::Arc::new(move |e: wgpu::Error| {
+            let mut slot = sink.lock().unwrap_or_else(|p| p.into_inner());
+            slot.get_or_insert_with(|| e.to_string());
+        }));
+        errors
+    }
+
+    /// That error, if there was one.
+    pub(crate) fn check(&self) -> Result<(), WgpuError> {
+        let slot = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        match &*slot {
+            Some(detail) => Err(WgpuError::Wgpu { what: "the device", detail: detail.clone() }),
+            None => Ok(()),
+        }
     }
 }

@@ -6,16 +6,14 @@
 //! iterations ([`ITERATION`]): no queue length is read back between stages; the host reads
 //! the counters once per submission to learn whether the frame is complete.
 
-use std::sync::{Arc, Mutex};
-
 use glam::Vec4;
 use lightport_codegen::{BindingKind, ResourceBindings};
 use wgpu::util::DeviceExt;
 
 use super::{
-    bind_group_layouts, bind_groups, check_scene_limits, map_texels, reflect, scene_uniform_bytes, start_pipelines,
-    storage_limit, upload_scene, BufferEntry, OwnResource, PipelineCheck, ShaderLayout, UniformLayout, WgpuDevice,
-    WgpuError, WgpuOptions, SCENE_UNIFORM,
+    bind_group_layouts, bind_groups, check_scene_limits, map_readback, reflect, scene_uniform_bytes, start_pipelines,
+    storage_limit, upload_scene, BufferEntry, OwnResource, PipelineCheck, ShaderLayout, UncapturedErrors,
+    UniformLayout, WgpuDevice, WgpuError, WgpuOptions, SCENE_UNIFORM,
 };
 use crate::backend::wavefront::{
     array_len, check_features, iteration_bound, pool_size, Stage, WavefrontCounts, WavefrontError, ITERATION,
@@ -67,7 +65,7 @@ pub struct WavefrontRenderer {
     counters_readback: wgpu::Buffer,
     image_readback: wgpu::Buffer,
     times: BuildTimes,
-    uncaptured: Arc<Mutex<Option<String>>>,
+    uncaptured: UncapturedErrors,
 }
 
 impl WavefrontRenderer {
@@ -93,12 +91,7 @@ impl WavefrontRenderer {
         options: &WgpuOptions,
     ) -> Result<(Self, PipelineCheck), RenderError> {
         check_features(&packed.features)?;
-        let uncaptured = Arc::new(Mutex::new(None));
-        let sink = uncaptured.clone();
-        device.device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
-            let mut slot = sink.lock().unwrap_or_else(|p| p.into_inner());
-            slot.get_or_insert_with(|| e.to_string());
-        }));
+        let uncaptured = UncapturedErrors::watch(&device.device);
         let started = web_time::Instant::now();
         let generated = crate::kernel::wavefront_shader(&packed.features).map_err(WgpuError::from)?;
         let own: Vec<String> = generated
@@ -197,11 +190,7 @@ impl WavefrontRenderer {
     }
 
     fn check_uncaptured(&self) -> Result<(), WgpuError> {
-        let slot = self.uncaptured.lock().unwrap_or_else(|p| p.into_inner());
-        match &*slot {
-            Some(detail) => Err(WgpuError::Wgpu { what: "the device", detail: detail.clone() }),
-            None => Ok(()),
-        }
+        self.uncaptured.check()
     }
 
     /// The storage buffer holding array `field` and its byte range.
@@ -268,7 +257,7 @@ impl WavefrontRenderer {
         let mut encoder = self.device.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(buffer, at, &self.counters_readback, 0, len);
         self.device.queue.submit([encoder.finish()]);
-        let read = map_words(self.counters_readback.clone());
+        let read = map_readback::<u32>(self.counters_readback.clone());
         self.finish()?;
         Ok(pollster::block_on(read)?)
     }
@@ -403,28 +392,6 @@ fn pool_buffers(
     Ok(((uniform, buffer), storage))
 }
 
-/// The `u32` words of `readback` once mapped (see [`map_texels`]).
-fn map_words(readback: wgpu::Buffer) -> impl std::future::Future<Output = Result<Vec<u32>, WgpuError>> + 'static {
-    let (sender, receiver) = super::oneshot::channel();
-    readback.slice(..).map_async(wgpu::MapMode::Read, move |result| sender.send(result));
-    let failed = |detail: String| WgpuError::Wgpu { what: "mapping a read-back buffer", detail };
-    async move {
-        receiver
-            .await
-            .ok_or_else(|| failed("the device dropped the request".into()))?
-            .map_err(|e| failed(e.to_string()))?;
-        let words: Vec<u32> = {
-            let view = readback
-                .slice(..)
-                .get_mapped_range()
-                .map_err(|e| WgpuError::Wgpu { what: "reading a read-back buffer", detail: e.to_string() })?;
-            bytemuck::pod_collect_to_vec(&view)
-        };
-        readback.unmap();
-        Ok(words)
-    }
-}
-
 impl Renderer for WavefrontRenderer {
     fn describe(&self) -> RendererInfo {
         let info = &self.device.info;
@@ -491,7 +458,7 @@ impl Renderer for WavefrontRenderer {
             let mut encoder = self.device.device.create_command_encoder(&Default::default());
             encoder.copy_buffer_to_buffer(buffer, at, &self.image_readback, 0, len);
             self.device.queue.submit([encoder.finish()]);
-            let read = map_texels(self.image_readback.clone());
+            let read = map_readback(self.image_readback.clone());
             self.finish()?;
             Ok(pollster::block_on(read)?)
         }
