@@ -43,7 +43,7 @@ struct SceneUniforms {
 @group(0) @binding(1) var<storage, read> lp_scene_vec4f: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> lp_scene_vec4u: array<vec4<u32>>;
 
-// resources: Paths (lightport-tracer/src/kernel/wavefront.rs:72)
+// resources: Paths (lightport-tracer/src/kernel/wavefront.rs:78)
 struct PathsUniforms {
     pool: u32,
     pixels: u32,
@@ -73,7 +73,7 @@ struct PathsUniforms {
 @group(1) @binding(3) var<storage, read_write> lp_paths_storage_u32: array<u32>;
 @group(1) @binding(4) var<storage, read_write> lp_paths_atomics: array<atomic<u32>>;
 
-// resources: Dispatch (lightport-tracer/src/kernel/wavefront.rs:109)
+// resources: Dispatch (lightport-tracer/src/kernel/wavefront.rs:124)
 struct DispatchUniforms {
     // Where each storage array starts in lp_dispatch_storage_u32 (in elements).
     lp_start_args: u32,
@@ -327,41 +327,41 @@ const ORIGIN_OFFSET: f32 = 4e-6;
 const SHADOW_RAY_SHORTENING: f32 = 1.0 - 0.0001;
 // integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:104)
 const SKY_DEPTH: f32 = 1e20;
-// wavefront::WORKGROUP (lightport-tracer/src/kernel/wavefront.rs:29)
+// wavefront::WORKGROUP (lightport-tracer/src/kernel/wavefront.rs:35)
 const WORKGROUP: u32 = 64u;
-// wavefront::MAX_GROUPS (lightport-tracer/src/kernel/wavefront.rs:31)
+// wavefront::MAX_GROUPS (lightport-tracer/src/kernel/wavefront.rs:37)
 const MAX_GROUPS: u32 = 65535u;
-// wavefront::NEXT_PIXEL (lightport-tracer/src/kernel/wavefront.rs:35)
+// wavefront::NEXT_PIXEL (lightport-tracer/src/kernel/wavefront.rs:41)
 const NEXT_PIXEL: u32 = 0u;
-// wavefront::FRAMES_DONE (lightport-tracer/src/kernel/wavefront.rs:37)
+// wavefront::FRAMES_DONE (lightport-tracer/src/kernel/wavefront.rs:43)
 const FRAMES_DONE: u32 = 1u;
-// wavefront::FREE (lightport-tracer/src/kernel/wavefront.rs:39)
+// wavefront::FREE (lightport-tracer/src/kernel/wavefront.rs:45)
 const FREE: u32 = 2u;
-// wavefront::ACTIVE (lightport-tracer/src/kernel/wavefront.rs:42)
+// wavefront::ACTIVE (lightport-tracer/src/kernel/wavefront.rs:48)
 const ACTIVE: u32 = 3u;
-// wavefront::NEXT_ACTIVE (lightport-tracer/src/kernel/wavefront.rs:44)
+// wavefront::NEXT_ACTIVE (lightport-tracer/src/kernel/wavefront.rs:50)
 const NEXT_ACTIVE: u32 = 4u;
-// wavefront::SHADOW (lightport-tracer/src/kernel/wavefront.rs:46)
+// wavefront::SHADOW (lightport-tracer/src/kernel/wavefront.rs:52)
 const SHADOW: u32 = 5u;
-// wavefront::FINISHED (lightport-tracer/src/kernel/wavefront.rs:48)
+// wavefront::FINISHED (lightport-tracer/src/kernel/wavefront.rs:54)
 const FINISHED: u32 = 6u;
-// wavefront::GENERATE_BASE (lightport-tracer/src/kernel/wavefront.rs:50)
+// wavefront::GENERATE_BASE (lightport-tracer/src/kernel/wavefront.rs:56)
 const GENERATE_BASE: u32 = 7u;
-// wavefront::GENERATE_COUNT (lightport-tracer/src/kernel/wavefront.rs:51)
+// wavefront::GENERATE_COUNT (lightport-tracer/src/kernel/wavefront.rs:57)
 const GENERATE_COUNT: u32 = 8u;
-// wavefront::PARITY (lightport-tracer/src/kernel/wavefront.rs:53)
+// wavefront::PARITY (lightport-tracer/src/kernel/wavefront.rs:59)
 const PARITY: u32 = 9u;
-// wavefront::SEGMENTS (lightport-tracer/src/kernel/wavefront.rs:55)
+// wavefront::SEGMENTS (lightport-tracer/src/kernel/wavefront.rs:61)
 const SEGMENTS: u32 = 10u;
-// wavefront::SHADOW_RAYS (lightport-tracer/src/kernel/wavefront.rs:56)
+// wavefront::SHADOW_RAYS (lightport-tracer/src/kernel/wavefront.rs:62)
 const SHADOW_RAYS: u32 = 11u;
-// wavefront::ARGS_GENERATE (lightport-tracer/src/kernel/wavefront.rs:61)
+// wavefront::ARGS_GENERATE (lightport-tracer/src/kernel/wavefront.rs:67)
 const ARGS_GENERATE: u32 = 0u;
-// wavefront::ARGS_EXTEND (lightport-tracer/src/kernel/wavefront.rs:63)
+// wavefront::ARGS_EXTEND (lightport-tracer/src/kernel/wavefront.rs:69)
 const ARGS_EXTEND: u32 = 3u;
-// wavefront::ARGS_CONNECT (lightport-tracer/src/kernel/wavefront.rs:64)
+// wavefront::ARGS_CONNECT (lightport-tracer/src/kernel/wavefront.rs:70)
 const ARGS_CONNECT: u32 = 6u;
-// wavefront::ARGS_ACCUMULATE (lightport-tracer/src/kernel/wavefront.rs:65)
+// wavefront::ARGS_ACCUMULATE (lightport-tracer/src/kernel/wavefront.rs:71)
 const ARGS_ACCUMULATE: u32 = 9u;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -417,7 +417,7 @@ fn lp_max_element_vec3(v: vec3<f32>) -> f32 {
     return max(max(v.x, v.y), v.z);
 }
 
-// wavefront::write_grid (lightport-tracer/src/kernel/wavefront.rs:116)
+// wavefront::write_grid (lightport-tracer/src/kernel/wavefront.rs:131)
 fn write_grid(at: u32, invocations: u32) {
     let groups: u32 = invocations / WORKGROUP + select(0u, 1u, invocations % WORKGROUP != 0u);
     var x: u32 = groups;
@@ -431,7 +431,7 @@ fn write_grid(at: u32, invocations: u32) {
     lp_dispatch_storage_u32[dispatch.lp_start_args + (at + 2u)] = 1u;
 }
 
-// wavefront::plan_generate (lightport-tracer/src/kernel/wavefront.rs:131)
+// wavefront::plan_generate (lightport-tracer/src/kernel/wavefront.rs:146)
 fn plan_generate(invocation: u32) {
     if invocation != 0u {
         return;
@@ -557,7 +557,7 @@ fn seed_of_frame(frame: u32, seed: u32) -> u32 {
     return (frame * FRAME_MIX) ^ (seed * 0x85ebca6bu);
 }
 
-// wavefront::store_path (lightport-tracer/src/kernel/wavefront.rs:286)
+// wavefront::store_path (lightport-tracer/src/kernel/wavefront.rs:336)
 fn store_path(slot: u32, path: PathState, pixel: u32) {
     lp_paths_storage_vec4f[paths.lp_start_origin + slot] = vec4<f32>(path.origin, path.scatter_pdf);
     lp_paths_storage_vec4f[paths.lp_start_direction + slot] = vec4<f32>(path.dir, 0.0);
@@ -567,7 +567,7 @@ fn store_path(slot: u32, path: PathState, pixel: u32) {
     lp_paths_storage_vec4u[paths.lp_start_words + slot] = vec4<u32>(pixel, path.rng, path.depth, w.w);
 }
 
-// wavefront::generate (lightport-tracer/src/kernel/wavefront.rs:162)
+// wavefront::generate (lightport-tracer/src/kernel/wavefront.rs:177)
 fn generate(invocation: u32) {
     if invocation >= atomicLoad(&lp_paths_atomics[paths.lp_start_counters + GENERATE_COUNT]) {
         return;
@@ -581,7 +581,7 @@ fn generate(invocation: u32) {
     lp_paths_storage_u32[paths.lp_start_active + (atomicLoad(&lp_paths_atomics[paths.lp_start_counters + PARITY]) * paths.pool + at)] = slot;
 }
 
-// wavefront::plan_extend (lightport-tracer/src/kernel/wavefront.rs:177)
+// wavefront::plan_extend (lightport-tracer/src/kernel/wavefront.rs:192)
 fn plan_extend(invocation: u32) {
     if invocation != 0u {
         return;
@@ -1096,7 +1096,7 @@ fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     return closest_visible(origin, dir, t_max);
 }
 
-// wavefront::extend (lightport-tracer/src/kernel/wavefront.rs:190)
+// wavefront::extend (lightport-tracer/src/kernel/wavefront.rs:205)
 fn extend(invocation: u32) {
     if invocation >= atomicLoad(&lp_paths_atomics[paths.lp_start_counters + ACTIVE]) {
         return;
@@ -1110,7 +1110,7 @@ fn extend(invocation: u32) {
     lp_paths_storage_vec4u[paths.lp_start_words + slot] = vec4<u32>(w.x, w.y, w.z, hit.triangle);
 }
 
-// wavefront::load_path (lightport-tracer/src/kernel/wavefront.rs:271)
+// wavefront::load_path (lightport-tracer/src/kernel/wavefront.rs:321)
 fn load_path(slot: u32) -> PathState {
     let o: vec4<f32> = lp_paths_storage_vec4f[paths.lp_start_origin + slot];
     let w: vec4<u32> = lp_paths_storage_vec4u[paths.lp_start_words + slot];
@@ -1952,7 +1952,7 @@ fn shade_hit(path: ptr<function, PathState>, hit: Hit, first: ptr<function, Firs
     return true;
 }
 
-// wavefront::shade (lightport-tracer/src/kernel/wavefront.rs:205)
+// wavefront::shade (lightport-tracer/src/kernel/wavefront.rs:220)
 fn shade(invocation: u32) {
     if invocation >= atomicLoad(&lp_paths_atomics[paths.lp_start_counters + ACTIVE]) {
         return;
@@ -1980,7 +1980,7 @@ fn shade(invocation: u32) {
     }
 }
 
-// wavefront::plan_connect (lightport-tracer/src/kernel/wavefront.rs:234)
+// wavefront::plan_connect (lightport-tracer/src/kernel/wavefront.rs:253)
 fn plan_connect(invocation: u32) {
     if invocation != 0u {
         return;
@@ -2109,7 +2109,7 @@ fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     return blocked;
 }
 
-// wavefront::connect (lightport-tracer/src/kernel/wavefront.rs:245)
+// wavefront::connect (lightport-tracer/src/kernel/wavefront.rs:264)
 fn connect(invocation: u32) {
     if invocation >= atomicLoad(&lp_paths_atomics[paths.lp_start_counters + SHADOW]) {
         return;
@@ -2127,7 +2127,7 @@ fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }
 
-// wavefront::accumulate (lightport-tracer/src/kernel/wavefront.rs:259)
+// wavefront::accumulate (lightport-tracer/src/kernel/wavefront.rs:279)
 fn accumulate(invocation: u32) {
     if invocation >= atomicLoad(&lp_paths_atomics[paths.lp_start_counters + FINISHED]) {
         return;

@@ -170,8 +170,9 @@ fn render_frames_writes_each_pose_and_a_strip() {
 }
 
 /// `render --schedule`: the CPU's wavefront writes the megakernel's image bit for bit, wgpu's
-/// renders the box, the read-out names the schedule; GL has none, and the wavefront has no
-/// denoiser guide: clear errors.
+/// renders the box, the read-out names the schedule; GL has none: a clear error. With
+/// `--denoise` the CPU's wavefront writes the megakernel's denoised image and guide bit for bit
+/// (it accumulates the same guide), and wgpu's denoises too.
 #[test]
 fn render_schedule_chooses_the_wavefront_or_refuses_it_clearly() {
     let dir = scratch("schedule");
@@ -200,6 +201,23 @@ fn render_schedule_chooses_the_wavefront_or_refuses_it_clearly() {
     assert!(lit > 20 * 16, "the wgpu wavefront renders the box ({lit} lit values)");
     let o = run(&["--schedule", "wavefront", "--backend", "gl"], "gl.png");
     assert!(!o.status.success() && stderr(&o).contains("no compute shaders"), "{}", stderr(&o));
-    let o = run(&["--schedule", "wavefront", "--denoise"], "denoised.png");
-    assert!(!o.status.success() && stderr(&o).contains("--schedule megakernel"), "{}", stderr(&o));
+    let aovs = |name: &str| dir.join(name).to_str().expect("a UTF-8 path").to_string();
+    for schedule in ["megakernel", "wavefront"] {
+        let (aov_dir, noisy) = (aovs(&format!("{schedule}-aovs")), aovs(&format!("{schedule}-noisy.exr")));
+        let args = ["--schedule", schedule, "--denoise", "--aovs", &aov_dir, "--noisy", &noisy];
+        let o = run(&args, &format!("{schedule}-denoised.exr"));
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success(), "{schedule} --denoise: {}", stderr(&o));
+        assert!(stdout.contains("denoise ") && stdout.contains(&format!("backend, {schedule}")), "{stdout}");
+    }
+    assert_eq!(read("wavefront-denoised.exr"), read("megakernel-denoised.exr"), "the denoised images");
+    assert_ne!(read("wavefront-denoised.exr"), read("wavefront-noisy.exr"), "the filter ran");
+    for aov in ["albedo", "normal", "depth", "emission"] {
+        let (wave, mega) = (format!("wavefront-aovs/{aov}.exr"), format!("megakernel-aovs/{aov}.exr"));
+        assert_eq!(read(&wave), read(&mega), "the wavefront's {aov} is the megakernel's");
+    }
+    let o = run(&["--schedule", "wavefront", "--backend", "wgpu", "--denoise"], "wgpu-denoised.exr");
+    assert!(o.status.success(), "wgpu wavefront --denoise: {}", stderr(&o));
+    let lit = read("wgpu-denoised.exr").iter().filter(|v| **v > 0.0).count();
+    assert!(lit > 20 * 16, "the wgpu wavefront denoises the box ({lit} lit values)");
 }

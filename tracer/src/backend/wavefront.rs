@@ -49,6 +49,20 @@ pub fn stage_functions() -> Vec<&'static str> {
 /// `u32` queue entries (two active queues, shadow, finished, free).
 pub const BYTES_PER_PATH: u64 = 8 * 16 + 16 + 5 * 4;
 
+/// Bytes per path slot the denoiser's guide adds (`Features::denoise_guide`): the first hit's
+/// emission (`Paths::first_emission`, one `Vec4`).
+pub const GUIDE_BYTES_PER_PATH: u64 = 16;
+
+/// Bytes per pixel: the image's running sum (one `Vec4`), and with the denoiser's guide its
+/// three sums (`Paths::guide_albedo`, `guide_normal`, `guide_emission`).
+pub const fn bytes_per_pixel(guide: bool) -> u64 {
+    if guide {
+        4 * 16
+    } else {
+        16
+    }
+}
+
 /// At most this many path slots: a pool larger than the image has nothing to do (a frame is
 /// one path per pixel), and beyond ~1 M paths a GPU is full while memory keeps growing.
 pub const MAX_POOL: u32 = 1 << 20;
@@ -56,8 +70,6 @@ pub const MAX_POOL: u32 = 1 << 20;
 /// Why the wavefront cannot render a scene.
 #[derive(Debug, thiserror::Error)]
 pub enum WavefrontError {
-    #[error("the wavefront schedule has no denoiser guide yet: render with `--schedule megakernel` to denoise")]
-    DenoiseGuide,
     #[error(
         "the image ({pixels} pixels) does not fit the device: its running sums alone take {need} bytes, over the {limit_name} of {limit} bytes"
     )]
@@ -73,21 +85,15 @@ pub enum WavefrontError {
     Stalled { iterations: u32 },
 }
 
-/// Checks that the wavefront can render a scene with `features`.
-pub fn check_features(features: &Features) -> Result<(), WavefrontError> {
-    if features.denoise_guide {
-        return Err(WavefrontError::DenoiseGuide);
-    }
-    Ok(())
-}
-
 /// The pool for an image of `pixels` pixels on a device whose largest storage binding is
-/// `max_binding` bytes: the per-slot `Vec4` arrays and the image's sums share one binding
+/// `max_binding` bytes, for a scene with `features`: the per-slot `Vec4` arrays and the image's
+/// sums (with the denoiser's guide, its sums and per-slot array too) share one binding
 /// (`Storage<Vec4>` arrays are concatenated), so the slots are what is left of it after the
 /// image, in whole workgroups, at most [`MAX_POOL`] and the image's pixel count.
-pub fn pool_size(pixels: u32, max_binding: u64) -> Result<u32, WavefrontError> {
-    let image = pixels as u64 * 16;
-    let per_slot = 8 * 16;
+pub fn pool_size(pixels: u32, max_binding: u64, features: &Features) -> Result<u32, WavefrontError> {
+    let guide = features.denoise_guide;
+    let image = pixels as u64 * bytes_per_pixel(guide);
+    let per_slot = 8 * 16 + if guide { GUIDE_BYTES_PER_PATH } else { 0 };
     let room = max_binding.saturating_sub(image) / per_slot;
     let pool = room.min(pixels as u64).min(MAX_POOL as u64) as u32;
     let pool = if pool >= WORKGROUP { pool / WORKGROUP * WORKGROUP } else { pool };
@@ -103,21 +109,23 @@ pub fn pool_size(pixels: u32, max_binding: u64) -> Result<u32, WavefrontError> {
 }
 
 /// Elements of array `field` of [`Paths`] for a pool of `pool` slots and `pixels` pixels: one
-/// per slot, two per slot for the two active queues, one per pixel for the image's sums,
-/// [`COUNTERS`] counters.
+/// per slot, two per slot for the two active queues, one per pixel for the image's sums and the
+/// denoiser's guide sums, [`COUNTERS`] counters.
 pub fn array_len(field: &str, pool: u32, pixels: u32) -> usize {
     match field {
         "active" => 2 * pool as usize,
-        "image" => pixels as usize,
+        "image" | "guide_albedo" | "guide_normal" | "guide_emission" => pixels as usize,
         "counters" => COUNTERS as usize,
         _ => pool as usize,
     }
 }
 
 /// A fresh pool of `pool` slots for `pixels` pixels and render seed `seed`: every slot free,
-/// no frame begun, the sums zero.
-pub fn new_paths(pool: u32, pixels: u32, seed: u32) -> Paths {
+/// no frame begun, the sums zero. With `guide` (`Features::denoise_guide`) the denoiser's
+/// guide arrays are sized too (empty without: the stages do not reach them).
+pub fn new_paths(pool: u32, pixels: u32, seed: u32, guide: bool) -> Paths {
     let slots = array_len("origin", pool, pixels);
+    let guide_len = |field: &str| if guide { array_len(field, pool, pixels) } else { 0 };
     let paths = Paths {
         pool,
         pixels,
@@ -137,6 +145,10 @@ pub fn new_paths(pool: u32, pixels: u32, seed: u32) -> Paths {
         finished: Storage::new(slots),
         free: Storage::new(slots),
         image: Storage::<Vec4>::new(array_len("image", pool, pixels)),
+        guide_albedo: Storage::new(guide_len("guide_albedo")),
+        guide_normal: Storage::new(guide_len("guide_normal")),
+        guide_emission: Storage::new(guide_len("guide_emission")),
+        first_emission: Storage::new(guide_len("first_emission")),
         counters: Atomics::new(array_len("counters", pool, pixels)),
     };
     reset(&paths);
@@ -154,6 +166,11 @@ pub fn reset(paths: &Paths) {
     paths.counters.atomic_store(FREE, paths.pool);
     for pixel in 0..paths.pixels {
         paths.image.store(pixel, Vec4::ZERO);
+    }
+    for sums in [&paths.guide_albedo, &paths.guide_normal, &paths.guide_emission] {
+        for pixel in 0..sums.len() as u32 {
+            sums.store(pixel, Vec4::ZERO);
+        }
     }
 }
 
@@ -184,5 +201,48 @@ impl WavefrontCounts {
     pub fn from_counters(counters: &[u32]) -> WavefrontCounts {
         let at = |k: u32| counters.get(k as usize).copied().unwrap_or(0);
         WavefrontCounts { segments: at(SEGMENTS), shadow_rays: at(SHADOW_RAYS), frames: at(FRAMES_DONE) }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use lightport_codegen::BindingKind;
+
+    use super::*;
+
+    /// The denoiser's guide in the stages only when asked for: without `denoise_guide` the
+    /// stages carry no guide code and bind no guide array; with it the guide's arrays share the
+    /// pool's one `Vec4` buffer (the stages stay within WebGPU's 8 storage buffers), and
+    /// [`array_len`] sizes the sums per pixel and the first hit's emission per slot.
+    #[test]
+    fn the_guide_is_in_the_stages_only_with_the_flag() {
+        let guide_arrays = ["guide_albedo", "guide_normal", "guide_emission", "first_emission"];
+        for guide in [false, true] {
+            let features = Features { emissive_triangles: true, denoise_guide: guide, ..Default::default() };
+            let generated = crate::kernel::wavefront_shader(&features).expect("the wavefront's shader");
+            let storage: Vec<_> = generated
+                .bindings
+                .iter()
+                .flat_map(|r| &r.bindings)
+                .filter(|b| !matches!(b.kind, BindingKind::Uniform))
+                .collect();
+            assert!(storage.len() <= 8, "guide {guide}: {} storage buffers", storage.len());
+            let vec4f: Vec<&str> = storage
+                .iter()
+                .filter(|b| b.variable == "lp_paths_storage_vec4f")
+                .flat_map(|b| b.fields.iter().map(|f| f.field.as_str()))
+                .collect();
+            assert!(vec4f.contains(&"image"), "{vec4f:?}");
+            for array in guide_arrays {
+                assert_eq!(vec4f.contains(&array), guide, "guide {guide}: {array} in {vec4f:?}");
+                assert_eq!(generated.source.contains(array), guide, "guide {guide}: {array} in the source");
+            }
+        }
+        assert_eq!(array_len("guide_normal", 64, 1000), 1000);
+        assert_eq!(array_len("first_emission", 64, 1000), 64);
+        let paths = new_paths(64, 1000, 1, false);
+        assert!(paths.guide_albedo.is_empty() && paths.first_emission.is_empty());
+        let paths = new_paths(64, 1000, 1, true);
+        assert_eq!((paths.guide_emission.len(), paths.first_emission.len()), (1000, 64));
     }
 }

@@ -14,13 +14,19 @@ pub mod wavefront {
     //! pixels are handed out to free slots until every pixel of the frame has its path, and the
     //! frame is complete when every slot is free again (each pixel's sample is added to its sum
     //! by one path, so the sums need no float atomics).
+    //!
+    //! With the denoiser's guide (`Features::denoise_guide`, which specialises the stages as it
+    //! does the megakernel), [`shade`] adds each path's first hit to its pixel's guide sums and
+    //! [`accumulate`] the luminance moments of its sample: the sums the megakernel's entry point
+    //! adds (`integrator::GuidedSample`). Without it the stages carry no guide code, and the
+    //! guide's arrays are not bound.
 
     use glam::{UVec4, Vec3, Vec4, Vec4Swizzles};
     use kernel_dsl::{Atomics, Storage};
 
     use crate::kernel::integrator::{no_shadow_ray, shade_hit, start_path, FirstHit, PathState, SKY_DEPTH};
     use crate::kernel::intersect::MISS;
-    use crate::kernel::lights::finite_or_zero;
+    use crate::kernel::lights::{finite_or_zero, luminance};
     use crate::kernel::rng::seed_of_frame;
     use crate::kernel::scene_data::Scene;
     use crate::kernel::traverse::{occluded, trace_closest, Hit};
@@ -100,6 +106,15 @@ pub mod wavefront {
         pub free: Storage<u32>,
         /// Per pixel: the running sum (rgb) and the count of finite samples (w).
         pub image: Storage<Vec4>,
+        /// Per pixel, with the denoiser's guide only: the running sums of
+        /// `integrator::GuidedSample`'s fields after the colour (albedo and luminance, normal
+        /// and depth, emission and squared luminance), as the megakernel's entry point adds them.
+        pub guide_albedo: Storage<Vec4>,
+        pub guide_normal: Storage<Vec4>,
+        pub guide_emission: Storage<Vec4>,
+        /// Per slot, with the denoiser's guide only: the emission the path's first hit sends to
+        /// the camera, which [`accumulate`] takes from the sample for the luminance moments.
+        pub first_emission: Storage<Vec4>,
         pub counters: Atomics,
     }
 
@@ -216,6 +231,10 @@ pub mod wavefront {
         let mut first = FirstHit { albedo: Vec3::ZERO, normal: Vec3::Z, depth: SKY_DEPTH, emission: Vec3::ZERO };
         let mut shadow = no_shadow_ray();
         let go_on = shade_hit(scene, &mut path, hit, &mut first, &mut shadow);
+        // `w.z`: the path's depth before this segment (0 at its first hit).
+        if scene.has_denoise_guide != 0 && w.z == 0 {
+            add_first_hit(paths, w.x, slot, first);
+        }
         store_path(paths, slot, path, w.x);
         if shadow.t_max > 0.0 {
             paths.shadow_origin.store(slot, shadow.origin.extend(shadow.t_max));
@@ -255,8 +274,9 @@ pub mod wavefront {
     }
 
     /// Each path that ended: its sample added to its pixel's sum (as the megakernel's entry
-    /// point adds `render_sample`), its slot freed.
-    pub fn accumulate(paths: &Paths, invocation: u32) {
+    /// point adds `render_sample`), with the denoiser's guide the sample's luminance moments to
+    /// the pixel's guide sums (as it adds `render_guided_sample`'s), its slot freed.
+    pub fn accumulate(scene: &Scene, paths: &Paths, invocation: u32) {
         if invocation >= paths.counters.atomic_load(FINISHED) {
             return;
         }
@@ -264,7 +284,37 @@ pub mod wavefront {
         let pixel = paths.words.load(slot).x;
         let sample = finite_or_zero(paths.radiance.load(slot).xyz());
         paths.image.store(pixel, paths.image.load(pixel) + sample);
+        if scene.has_denoise_guide != 0 {
+            // `integrator::render_guided_sample`'s moments: the light reflected, without the
+            // emission the camera sees directly. Race-free as in `add_first_hit`.
+            let l = luminance(sample.xyz() - paths.first_emission.load(slot).xyz());
+            let a = paths.guide_albedo.load(pixel);
+            paths.guide_albedo.store(pixel, Vec4::new(a.x, a.y, a.z, a.w + l));
+            let e = paths.guide_emission.load(pixel);
+            paths.guide_emission.store(pixel, Vec4::new(e.x, e.y, e.z, e.w + l * l));
+        }
         paths.free.store(paths.counters.atomic_add(FREE, 1), slot);
+    }
+
+    /// With the denoiser's guide: the first hit of pixel `pixel`'s path (in slot `slot`) added
+    /// to the pixel's guide sums, as the megakernel's entry point adds `render_guided_sample`'s
+    /// fields (the luminance moments, in w, once the sample is known: [`accumulate`]); its
+    /// emission kept in the slot for `accumulate`.
+    ///
+    /// Plain adds, no atomics: one path per pixel is in flight. `plan_generate` hands each pixel
+    /// of a frame to one path (`NEXT_PIXEL` only grows within the frame) and starts the next
+    /// frame only when every slot is free again (`FREE == pool`, after the frame's last
+    /// `accumulate`), so no two invocations of a dispatch (`shade` or `accumulate`) touch one
+    /// pixel's sums, and a pixel's frames add in order. Each component of a sum gets the
+    /// megakernel's addends in its order (rgb here, w in `accumulate`; a component not added
+    /// to is stored back as loaded), so splitting the adds between two stages changes no bit.
+    pub fn add_first_hit(paths: &Paths, pixel: u32, slot: u32, first: FirstHit) {
+        let a = paths.guide_albedo.load(pixel);
+        paths.guide_albedo.store(pixel, (a.xyz() + first.albedo).extend(a.w));
+        paths.guide_normal.store(pixel, paths.guide_normal.load(pixel) + first.normal.extend(first.depth));
+        let e = paths.guide_emission.load(pixel);
+        paths.guide_emission.store(pixel, (e.xyz() + first.emission).extend(e.w));
+        paths.first_emission.store(slot, first.emission.extend(0.0));
     }
 
     /// Slot `slot`'s path (as `store_path` left it).

@@ -7,7 +7,7 @@ use glam::Vec4;
 use rayon::prelude::*;
 
 use crate::backend::wavefront::{
-    check_features, iteration_bound, new_dispatch, new_paths, reset, Stage, WavefrontCounts, WavefrontError, ITERATION,
+    iteration_bound, new_dispatch, new_paths, reset, Stage, WavefrontCounts, WavefrontError, ITERATION,
 };
 use crate::backend::{update_uniforms, GuideSums, RenderError, Renderer, RendererInfo};
 use crate::kernel::scene_data::Scene;
@@ -30,7 +30,7 @@ const CPU_STAGES: [(&str, StageFn); 8] = [
     ("shade", |s, p, _, i| stages::shade(s, p, i)),
     ("plan_connect", |_, p, d, i| stages::plan_connect(p, d, i)),
     ("connect", |s, p, _, i| stages::connect(s, p, i)),
-    ("accumulate", |_, p, _, i| stages::accumulate(p, i)),
+    ("accumulate", |s, p, _, i| stages::accumulate(s, p, i)),
 ];
 
 pub struct WavefrontRenderer {
@@ -44,10 +44,9 @@ impl WavefrontRenderer {
     /// A wavefront renderer for `packed` with `seed` (the megakernel's random sequence), over a
     /// pool of at most `pool` slots (at most one per pixel).
     pub fn new(packed: Packed, seed: u32, pool: u32) -> Result<Self, RenderError> {
-        check_features(&packed.features)?;
         let pixels = packed.scene.width * packed.scene.height;
         let pool = pool.min(pixels).max(1);
-        let paths = new_paths(pool, pixels, seed);
+        let paths = new_paths(pool, pixels, seed, packed.features.denoise_guide);
         Ok(WavefrontRenderer { packed, paths, dispatch: new_dispatch(), frames: 0 })
     }
 
@@ -134,7 +133,11 @@ impl Renderer for WavefrontRenderer {
     }
 
     fn guide_sums(&self) -> Result<GuideSums, RenderError> {
-        Err(RenderError::NoGuide)
+        if !self.packed.features.denoise_guide {
+            return Err(RenderError::NoGuide);
+        }
+        let p = &self.paths;
+        Ok([p.guide_albedo.to_vec(), p.guide_normal.to_vec(), p.guide_emission.to_vec()])
     }
 
     fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {

@@ -16,8 +16,7 @@ use super::{
     UniformLayout, WgpuDevice, WgpuError, WgpuOptions, SCENE_UNIFORM,
 };
 use crate::backend::wavefront::{
-    array_len, check_features, iteration_bound, pool_size, Stage, WavefrontCounts, WavefrontError, ITERATION,
-    ITERATIONS_PER_SUBMISSION,
+    array_len, iteration_bound, pool_size, Stage, WavefrontCounts, WavefrontError, ITERATION, ITERATIONS_PER_SUBMISSION,
 };
 use crate::backend::{ms_since, update_uniforms, BuildTimes, GuideSums, RenderError, Renderer, RendererInfo};
 use crate::kernel::scene_data::Scene;
@@ -90,7 +89,6 @@ impl WavefrontRenderer {
         seed: u32,
         options: &WgpuOptions,
     ) -> Result<(Self, PipelineCheck), RenderError> {
-        check_features(&packed.features)?;
         let uncaptured = UncapturedErrors::watch(&device.device);
         let started = web_time::Instant::now();
         let generated = crate::kernel::wavefront_shader(&packed.features).map_err(WgpuError::from)?;
@@ -107,7 +105,7 @@ impl WavefrontRenderer {
         check_scene_limits(&device.limits, options, scene, &layout)?;
         let pixels = scene.width * scene.height;
         let max_binding = storage_limit(&device.limits, options).min(device.limits.max_buffer_size);
-        let pool = pool_size(pixels, max_binding)?;
+        let pool = pool_size(pixels, max_binding, &packed.features)?;
 
         let uploading = web_time::Instant::now();
         let d = &device.device;
@@ -210,10 +208,12 @@ impl WavefrontRenderer {
             counters[FREE as usize] = self.pool;
             queue.write_buffer(buffer, at, bytemuck::cast_slice(&counters));
         }
-        if let Some((buffer, at, len)) = self.array("image") {
-            let mut encoder = self.device.device.create_command_encoder(&Default::default());
-            encoder.clear_buffer(buffer, at, Some(len));
-            queue.submit([encoder.finish()]);
+        for sums in ["image", "guide_albedo", "guide_normal", "guide_emission"] {
+            if let Some((buffer, at, len)) = self.array(sums) {
+                let mut encoder = self.device.device.create_command_encoder(&Default::default());
+                encoder.clear_buffer(buffer, at, Some(len));
+                queue.submit([encoder.finish()]);
+            }
         }
     }
 
@@ -464,8 +464,20 @@ impl Renderer for WavefrontRenderer {
         }
     }
 
+    /// The guide's three arrays, each read back as [`accumulation`](Renderer::accumulation)
+    /// reads the image (through the same read-back buffer, one array after the other).
     fn guide_sums(&self) -> Result<GuideSums, RenderError> {
-        Err(RenderError::NoGuide)
+        let mut sums: GuideSums = Default::default();
+        for (sum, field) in sums.iter_mut().zip(["guide_albedo", "guide_normal", "guide_emission"]) {
+            let Some((buffer, at, len)) = self.array(field) else { return Err(RenderError::NoGuide) };
+            let mut encoder = self.device.device.create_command_encoder(&Default::default());
+            encoder.copy_buffer_to_buffer(buffer, at, &self.image_readback, 0, len);
+            self.device.queue.submit([encoder.finish()]);
+            let read = map_readback(self.image_readback.clone());
+            self.finish()?;
+            *sum = pollster::block_on(read)?;
+        }
+        Ok(sums)
     }
 
     fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
