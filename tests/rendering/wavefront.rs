@@ -153,6 +153,7 @@ fn the_cpu_wavefront_adds_the_megakernels_denoiser_guide_bit_for_bit() {
             assert!(m[0].iter().any(|a| a.x > 0.0) && m[1].iter().any(|n| n.w > 0.0), "{what}: no first hits");
             assert!(m[2].iter().any(|e| e.w > 0.0), "{what}: no luminance moments");
             let (mb, wb) = (bits(&m), bits(&w));
+            assert_eq!(mb.len(), wb.len(), "{what}: the guide's size");
             let differ = mb.iter().zip(&wb).filter(|(a, b)| a != b).count();
             assert_eq!(differ, 0, "{what}, round {round}: guide words that differ from the megakernel's");
             assert_eq!(bits_of(&mega.accumulation().unwrap()), bits_of(&wave.accumulation().unwrap()), "{what}");
