@@ -9,6 +9,8 @@
 
 mod animation;
 mod denoise;
+mod fallback;
+mod wavefront;
 
 use crate::common;
 use crate::common::browser;
@@ -85,6 +87,19 @@ fn packed(scene: &Scene, strategy: Strategy) -> Packed {
 /// Renders `scene_name` in the browser (on `api`: "webgl2" or "webgpu") and `scene` on the CPU
 /// in `batches` x `frames` frames and asserts that every region agrees within the bound.
 fn assert_browser_agrees_with_cpu(server: &Server, scene_name: &str, scene: &Scene, strategy: Strategy, api: &str) {
+    assert_page_agrees_with_cpu(server, scene_name, scene, strategy, api, "auto");
+}
+
+/// [`assert_browser_agrees_with_cpu`] with the page's `schedule` ("auto", "megakernel" or
+/// "wavefront"; auto runs the megakernel).
+fn assert_page_agrees_with_cpu(
+    server: &Server,
+    scene_name: &str,
+    scene: &Scene,
+    strategy: Strategy,
+    api: &str,
+    schedule: &str,
+) {
     let (batches, frames) = (16usize, 16u32);
     let size = format!("{SIZE}x{SIZE}");
     let (batch_text, frame_text) = (batches.to_string(), frames.to_string());
@@ -98,14 +113,17 @@ fn assert_browser_agrees_with_cpu(server: &Server, scene_name: &str, scene: &Sce
             ("batches", &batch_text),
             ("frames", &frame_text),
             ("api", api),
+            ("schedule", schedule),
         ],
     );
     no_page_error(&report);
     let info = &report["info"];
-    eprintln!("{scene_name}: {} on {} ({})", info["name"], info["api"], info["adapter"]);
+    eprintln!("{scene_name}: {} on {}, {} ({})", info["name"], info["api"], info["schedule"], info["adapter"]);
     assert_eq!(info["strategy"], strategy.name());
     let shown = if api == "webgpu" { "WebGPU" } else { "WebGL2" };
     assert_eq!(info["api"], shown, "the page runs the API asked for: {info}");
+    let runs = if schedule == "wavefront" { "wavefront" } else { "megakernel" };
+    assert_eq!(info["schedule"], runs, "the page runs the schedule asked for: {info}");
     // The read-out names a two-level scene's placements (the static triangles' one included).
     let placements = info["placements"].as_u64().expect("placements");
     let want = if scene.instances.is_empty() { 0 } else { scene.instances.len() as u64 + 1 };
@@ -299,7 +317,8 @@ fn the_page_runs_and_shows_the_api_asked_for() {
             assert!(adapter.to_lowercase().contains("swiftshader"), "Chromium's WebGPU adapter here: {adapter:?}");
         }
         let readout = report["readout"].as_str().unwrap_or("");
-        assert_eq!(readout, format!("{shown} ({adapter})"), "api={api}: the read-out");
+        let named = if shown == "WebGPU" { format!("{shown}, megakernel") } else { shown.to_string() };
+        assert_eq!(readout, format!("{named} ({adapter})"), "api={api}: the read-out");
         let rendered = &report["rendered"];
         assert_eq!(rendered["spp"], 2, "{report}");
         assert!(rendered["sum"].as_f64().unwrap_or(0.0) > 0.0, "api={api}: it draws the scene: {rendered}");

@@ -10,8 +10,8 @@
 //   node tests/web/bench.mjs --lightport target/release/lightport [--frames 5] [--size 640x480]
 //        [--apis webgl2,webgpu] [--rounds 1] [--scenes cornell-box,LittlestTokyo,...]
 //
-// Each API (the page's `api=`) runs every scene; the table puts them side by side with the
-// WebGPU / WebGL2 frame-time ratio.
+// Each API (the page's `api=`; `webgpu:wavefront` for WebGPU with `schedule=wavefront`) runs
+// every scene; the table puts them side by side with each one's frame-time ratio to the first.
 //
 // Needs web/pkg (scripts/build-web.sh), `npm ci` in tests/web, and the benchmark scenes, which
 // are not in the repository: the data folder `../shared` beside it, or `$LIGHTPORT_SHARED`.
@@ -106,12 +106,15 @@ try {
   for (let round = 0; round < rounds; round++) {
     for (const api of round % 2 ? [...apis].reverse() : apis) {
       const out = join(tmpdir(), `lightport-bench-${process.pid}.json`);
+      const [pageApi, schedule] = api.split(':');
       execFileSync('node', [join(here, 'run.mjs'), 'bench', '--url', url, '--out', out, '--size', size, '--frames', frames,
-        '--api', api, '--scenes', scenes.map((s) => s.name).join(',')], { stdio: 'inherit' });
+        '--api', pageApi, ...(schedule ? ['--schedule', schedule] : []),
+        '--scenes', scenes.map((s) => s.name).join(',')], { stdio: 'inherit' });
       const { results } = JSON.parse(readFileSync(out, 'utf8'));
       rmSync(out, { force: true });
       for (const r of results) {
-        if (r.info.api.toLowerCase() !== api) throw new Error(`${r.scene}: asked for ${api}, ran ${r.info.api}`);
+        if (r.info.api.toLowerCase() !== pageApi) throw new Error(`${r.scene}: asked for ${pageApi}, ran ${r.info.api}`);
+        if (schedule && r.info.schedule !== schedule) throw new Error(`${r.scene}: asked for ${schedule}, ran ${r.info.schedule}`);
         ((runs[api] ||= {})[r.scene] ||= []).push(r);
         infos[api] = r.info;
       }
@@ -122,7 +125,7 @@ try {
   console.log('Shared, noisy 2-core machine: compare the ratios (same run), not absolute times.\n');
   const head = ['scene', 'triangles', 'bundle (raw)', 'bundle (gzip)'];
   for (const api of apis) head.push(`${api} frame (ms)`, `${api} first frame cold (ms)`, `${api} first frame warm (ms)`);
-  if (apis.length === 2) head.push(`frame ${apis[1]} / ${apis[0]}`);
+  for (const api of apis.slice(1)) head.push(`frame ${api} / ${apis[0]}`);
   console.log(`| ${head.join(' | ')} |`);
   console.log(`|${head.map(() => '---').join('|')}|`);
   for (const s of scenes) {
@@ -138,7 +141,7 @@ try {
         if (r.coldFromCache || !r.warmFromCache) console.log(`  (unexpected: ${api} ${s.name}: cold visit from cache ${r.coldFromCache}, warm visit from cache ${r.warmFromCache})`);
       }
     }
-    if (apis.length === 2) cells.push(`${(frame[apis[1]] / frame[apis[0]]).toFixed(2)}x`);
+    for (const api of apis.slice(1)) cells.push(`${(frame[api] / frame[apis[0]]).toFixed(2)}x`);
     console.log(`| ${cells.join(' | ')} |`);
   }
 

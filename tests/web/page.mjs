@@ -34,11 +34,29 @@ export function setPageApi(api) {
   pageApi = api;
 }
 
+// `--schedule auto|megakernel|wavefront` (any scenario): the page's `schedule=`; default none
+// (the page's auto).
+export let pageSchedule;
+
+export function setPageSchedule(schedule) {
+  pageSchedule = schedule;
+}
+
+// `--browser webgl2|webgpu` (any scenario): start Chromium with that API's flags whatever the
+// page's `api=` (default: the page's API's): `webgl2` with `api=auto` is a browser whose
+// WebGPU device dies at its first frame (see WEBGL2_ARGS).
+export let browserFlags;
+
+export function setBrowserFlags(flags) {
+  browserFlags = flags;
+}
+
 export async function withBrowser(profile, action, extraArgs = []) {
+  const flags = (browserFlags || pageApi) === 'webgl2' ? WEBGL2_ARGS : WEBGPU_ARGS;
   const context = await chromium.launchPersistentContext(profile, {
     executablePath: CHROMIUM,
     headless: true,
-    args: [...(pageApi === 'webgl2' ? WEBGL2_ARGS : WEBGPU_ARGS), ...EXTRA_ARGS, ...extraArgs],
+    args: [...flags, ...EXTRA_ARGS, ...extraArgs],
     viewport: { width: 900, height: 700 },
   });
   try {
@@ -62,7 +80,7 @@ export async function open(context, baseUrl, query, timeoutMs = 240000) {
   page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
   page.on('pageerror', (e) => consoleErrors.push(String(e)));
   const url = new URL(baseUrl);
-  for (const [k, v] of Object.entries({ api: pageApi, ...query })) {
+  for (const [k, v] of Object.entries({ api: pageApi, schedule: pageSchedule, ...query })) {
     if (v !== undefined) url.searchParams.set(k, v);
   }
   const navigationStart = Date.now();

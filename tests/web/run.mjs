@@ -5,14 +5,16 @@
 //   node run.mjs SCENARIO --url http://127.0.0.1:PORT/ --out result.json [options]
 //
 // Scenarios: accumulate, cache, camera, slow, drop, limits, context, display, api, deviceloss, bench,
-// chart, compile, denoise, denoiseedges, toplevel (see each function), animation (animation.mjs); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2). `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
+// chart, compile, denoise, denoiseedges, toplevel (see each function), animation (animation.mjs); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2), `--schedule auto|megakernel|wavefront` its schedule. `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
 // long, so that a hung page never hangs the caller. `--exit-on-stdin-eof` (no value): exit 4,
 // closing the browser, when stdin reaches its end: the caller holds the pipe's other end, which
 // the kernel closes when the caller ends however it ends (src/serve_child.rs), so neither this
 // driver nor its browser outlives a test binary that panics, aborts or is killed.
 
 import { rmSync, writeFileSync, readFileSync } from 'node:fs';
-import { freshProfile, open, pageApi, setPageApi, withBrowser } from './page.mjs';
+import {
+  freshProfile, open, pageApi, setBrowserFlags, setPageApi, setPageSchedule, withBrowser,
+} from './page.mjs';
 import { animation } from './animation.mjs';
 
 function parseArgs(argv) {
@@ -477,6 +479,44 @@ async function apiChoice(o) {
   }
 }
 
+// A WebGPU that fails under the page (e.g. `--browser webgl2` with `--api auto`: Chromium gives
+// a device that dies at its first frame, and no new one): waits until the page settles on an
+// API, then renders two frames. Reports the API, the notice, the message box and the frames.
+async function fallback(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const { page, error } = await open(context, o.url, { scene: o.scene, size: o.size, paused: '1' });
+      if (error) return { error };
+      // Losses are noticed by the frame loop; frames give the device its chances to fail.
+      let settled = false;
+      for (const start = Date.now(); !settled && Date.now() - start < 90000;) {
+        settled = await page.evaluate(async () => {
+          const l = window.lightport;
+          if (l.error || l.info().api === 'WebGL2') return true;
+          await l.renderFrames(1);
+          await new Promise((resolve) => setTimeout(resolve, 250));
+          return false;
+        });
+      }
+      await page.evaluate(() => window.lightport.renderFrames(2));
+      const a = await page.evaluate(() => window.lightport.readAccumulation());
+      return {
+        settled,
+        error: await page.evaluate(() => window.lightport.error),
+        notice: await page.evaluate(() => window.lightport.notice || null),
+        info: await page.evaluate(() => window.lightport.info()),
+        messageKind: await page.evaluate(() => document.getElementById('message').className),
+        messageText: await page.textContent('#message'),
+        readout: await page.textContent('#api-info'),
+        rendered: { spp: a.spp, sum: a.data.reduce((x, y) => x + y, 0) },
+      };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}
+
 // WebGPU device loss (`GPUDevice.destroy()` through the hook): the page requests a new device
 // and recreates the renderer from the scene in memory, then keeps rendering.
 async function deviceLoss(o) {
@@ -487,9 +527,14 @@ async function deviceLoss(o) {
       if (error) return { error };
       await page.evaluate(() => window.lightport.renderFrames(4));
       const before = await page.evaluate(() => window.lightport.spp());
-      await page.evaluate(() => window.lightport.loseWebGpu());
-      await page.waitForFunction(() => window.lightport.deviceRecoveries > 0 || window.lightport.error, null,
-        { timeout: 60000 });
+      // `--losses N` (default 1): the device is lost N times, each once the page has recovered
+      // from the last (or moved to WebGL2).
+      for (let i = 0; i < Number(o.losses || 1); i++) {
+        if (await page.evaluate(() => window.lightport.info().api !== 'WebGPU')) break;
+        await page.evaluate(() => window.lightport.loseWebGpu());
+        await page.waitForFunction((k) => window.lightport.deviceRecoveries > k || window.lightport.error
+          || window.lightport.info().api === 'WebGL2', i, { timeout: 60000 });
+      }
       const restored = await page.evaluate(async () => {
         const sppAfterLoss = window.lightport.spp();
         await window.lightport.renderFrames(3);
@@ -738,11 +783,14 @@ async function topLevel(o) {
 
 const SCENARIOS = {
   accumulate, cache, camera, slow, drop, limits, context: contextLoss, display, api: apiChoice, deviceloss: deviceLoss,
+  fallback,
   bench, chart, compile, denoise, denoiseedges: denoiseEdges, toplevel: topLevel, animation,
 };
 
 const options = parseArgs(process.argv.slice(2));
 if (options.api) setPageApi(options.api);
+if (options.schedule) setPageSchedule(options.schedule);
+if (options.browser) setBrowserFlags(options.browser);
 const run = SCENARIOS[options.scenario];
 if (!run) {
   console.error(`unknown scenario ${options.scenario}: ${Object.keys(SCENARIOS).join(', ')}`);

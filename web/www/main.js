@@ -16,6 +16,9 @@
 //                     50; 0: frames are not split (one submission per frame),
 //   api=auto|webgpu|webgl2  the graphics API (default auto: WebGPU if the browser gives a device
 //                     and the scene fits its limits, else WebGL2; the "API" control reloads with it),
+//   schedule=auto|megakernel|wavefront  how WebGPU organises a frame (default auto: the
+//                     megakernel, measured faster; the wavefront needs WebGPU; the "Schedule"
+//                     control reloads with it),
 //   maxTextureSize=N, maxStorageBuffers=N  pretend the device allows at most N (WebGL2's texture
 //                     size; WebGPU's storage buffers per shader stage).
 
@@ -31,6 +34,7 @@ const $ = (id) => document.getElementById(id);
 const view = () => (viewer ? viewer.canvas : $('view'));
 const stage = $('stage');
 const api = (params.get('api') || 'auto').toLowerCase();
+const schedule = (params.get('schedule') || 'auto').toLowerCase();
 
 const cache = new BundleCache(Number(params.get('budget')) || DEFAULT_BUDGET_BYTES);
 let viewer = null;
@@ -76,10 +80,13 @@ const hook = {
   cacheUsage: () => cache.usage(),
   pause() { paused = true; },
   resume() { paused = false; },
-  // Renders `n` frames now and waits for the GPU; resolves to milliseconds per frame.
+  // Renders `n` frames now and waits for the GPU; resolves to milliseconds per frame. (A
+  // wavefront frame is done once its counters, read after each submission, say so.)
   async renderFrames(n) {
     const start = performance.now();
-    for (let i = 0; i < n; i++) frame();
+    for (let i = 0; i < n; i++) {
+      while (!frame()) await viewer.sync();
+    }
     await viewer.sync();
     return (performance.now() - start) / Math.max(n, 1);
   },
@@ -163,6 +170,9 @@ function geometryText(info) {
   return geometry + movingText(info);
 }
 
+// How long a notice (kind 'info': e.g. why WebGL2 runs) stays over the image; errors stay.
+const NOTICE_MS = 10000;
+
 function showMessage(text, kind = 'error') {
   const box = $('message');
   box.textContent = text;
@@ -171,6 +181,8 @@ function showMessage(text, kind = 'error') {
   if (kind === 'error') {
     hook.error = text;
     console.error(text);
+  } else {
+    setTimeout(() => { if (box.textContent === text && box.className === kind) box.hidden = true; }, NOTICE_MS);
   }
 }
 
@@ -205,6 +217,11 @@ function guarded(action) {
     showMessage(String(e.message || e));
     return undefined;
   }
+}
+
+// The API and, on WebGPU, the schedule that runs: "WebGPU, wavefront".
+function apiName(info) {
+  return info.api === 'WebGPU' ? `${info.api}, ${info.schedule}` : info.api;
 }
 
 function formatBytes(n) {
@@ -291,17 +308,20 @@ async function finishFirstFrame(load, doneAt) {
 }
 
 // One whole frame in one submission (the test hook's renderFrames).
+// One frame, or (a wavefront's) the next submission of it: whether it is done (or failed).
 function frame() {
-  if (!viewer || lost) return;
+  if (!viewer || lost) return true;
+  let done;
   try {
     markSubmitted(performance.now());
-    viewer.frame();
+    done = viewer.frame();
   } catch (e) {
     showMessage(String(e.message || e));
     paused = true;
-    return;
+    return true;
   }
-  frameDone();
+  if (done) frameDone();
+  return done;
 }
 
 // The frame loop: at most one band of a frame on the GPU at a time (Viewer.step polls the
@@ -359,7 +379,8 @@ function tick(now) {
 function updateReadouts() {
   if (!viewer) return;
   const info = viewer.sceneInfo();
-  $('api-info').textContent = info.api ? `${info.api} (${info.adapter})` : '–';
+  $('api-info').textContent = info.api ? `${apiName(info)} (${info.adapter})` : '–';
+  $('api-info').title = info.notice || '';
   $('spp').textContent = info.spp;
   showAnimation($, info);
   $('denoise-info').textContent = info.denoise.readout;
@@ -682,31 +703,56 @@ onView('webglcontextrestored', () => {
 // ---- WebGPU device loss ---------------------------------------------------------------------
 
 let recovering = false;
+// Devices recreated after a loss before auto gives WebGPU up for WebGL2.
+const MAX_DEVICE_RECOVERIES = 2;
 
 // The device was lost (GPU reset, driver update, `device.destroy()`): request a new one and
 // recreate the renderer on it from the scene kept in memory, as after a WebGL context restore.
+// Under auto, a device that cannot be recreated, or is lost again and again, hands the scene
+// to WebGL2 with a notice; with `api=webgpu` a failed recreation is the error.
 async function recoverWebGpu(reason) {
   recovering = true;
-  showMessage(`The WebGPU device was lost (${reason}); requesting a new one…`, 'info');
-  try {
-    viewer.useWebGpu(await requestWebGpu());
-    hook.deviceRecoveries++;
+  const fallBack = (why) => {
+    guarded(() => viewer.webGpuUnavailable(why));
     showNotice();
-  } catch (e) {
-    showMessage(`recreating the WebGPU device failed: ${e.message || e}`);
-    paused = true;
+  };
+  try {
+    if (api === 'auto' && hook.deviceRecoveries >= MAX_DEVICE_RECOVERIES) {
+      fallBack(`the WebGPU device was lost ${hook.deviceRecoveries + 1} times (last: ${reason})`);
+      return;
+    }
+    showMessage(`The WebGPU device was lost (${reason}); requesting a new one…`, 'info');
+    try {
+      viewer.useWebGpu(await requestWebGpu());
+      hook.deviceRecoveries++;
+      showNotice();
+    } catch (e) {
+      const why = `a new WebGPU device could not be created after a loss (${reason}): ${e.message || e}`;
+      if (api === 'auto') {
+        fallBack(why);
+      } else {
+        showMessage(why);
+        paused = true;
+      }
+    }
   } finally {
     recovering = false;
   }
 }
 
-// The API control: reloads the page with `api=` (the scene comes back from the cache).
-$('api').value = ['auto', 'webgpu', 'webgl2'].includes(api) ? api : 'auto';
-$('api').addEventListener('change', (e) => {
-  const url = new URL(location.href);
-  url.searchParams.set('api', e.target.value);
-  location.href = url.toString();
-});
+// The API and Schedule controls: reload the page with `api=` or `schedule=` (the scene comes
+// back from the cache).
+for (const [id, value, values] of [
+  ['api', api, ['auto', 'webgpu', 'webgl2']],
+  ['schedule', schedule, ['auto', 'megakernel', 'wavefront']],
+]) {
+  $(id).value = values.includes(value) ? value : 'auto';
+  $(id).addEventListener('change', (e) => {
+    const url = new URL(location.href);
+    url.searchParams.set(id, e.target.value);
+    location.href = url.toString();
+  });
+}
 
 // ---- start --------------------------------------------------------------------------------
 
@@ -722,6 +768,7 @@ async function main() {
   try {
     viewer = new Viewer($('view'));
     viewer.setApi(api);
+    viewer.setSchedule(schedule);
   } catch (e) {
     showMessage(String(e.message || e));
     hook.ready = true;
@@ -734,7 +781,7 @@ async function main() {
       hook.startup.device = performance.now();
     } catch (e) {
       const why = String(e.message || e);
-      viewer.webGpuUnavailable(why);
+      guarded(() => viewer.webGpuUnavailable(why));
       if (api === 'webgpu') showMessage(`WebGPU was asked for (api=webgpu) but is not available: ${why}`);
     }
   }

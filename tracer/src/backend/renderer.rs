@@ -239,6 +239,17 @@ impl Schedule {
         Schedule::Megakernel
     }
 
+    /// `name` as `--schedule` and the page's `?schedule=` spell it: "megakernel",
+    /// "wavefront", or "auto" ([`auto`](Self::auto)'s choice).
+    pub fn parse(name: &str) -> Result<Schedule, String> {
+        match name.to_ascii_lowercase().as_str() {
+            "" | "auto" => Ok(Schedule::auto()),
+            "megakernel" => Ok(Schedule::Megakernel),
+            "wavefront" => Ok(Schedule::Wavefront),
+            other => Err(format!("unknown schedule {other:?}: use auto, megakernel or wavefront")),
+        }
+    }
+
     /// "megakernel" or "wavefront" (as `--schedule` spells it).
     pub fn name(self) -> &'static str {
         match self {

@@ -7,7 +7,7 @@ use std::cell::RefCell;
 use std::rc::Rc;
 
 use glam::Vec4;
-use tracer::backend::wgpu::{WgpuDevice, WgpuFilter, WgpuRenderer};
+use tracer::backend::wgpu::{DeviceRenderer, WgpuDevice, WgpuFilter};
 use tracer::backend::{GuideSums, RenderError, Renderer, RendererInfo};
 use tracer::kernel::denoise::FilterImage;
 use tracer::kernel::scene_data::Scene;
@@ -27,17 +27,19 @@ pub struct StagedRead {
 
 impl StagedRead {
     /// Queues the copy of `renderer`'s accumulation and its map.
-    pub fn queue(renderer: &WgpuRenderer) -> StagedRead {
+    pub fn queue(renderer: &dyn DeviceRenderer) -> StagedRead {
         let device = renderer.device();
-        let source = renderer.accumulation_buffer();
+        let source = renderer.sums();
+        let scene = &renderer.packed().scene;
+        let size = scene.width as u64 * scene.height as u64 * 16;
         let buffer = device.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("lightport denoiser read-back"),
-            size: source.size(),
+            size,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let mut encoder = device.device.create_command_encoder(&Default::default());
-        encoder.copy_buffer_to_buffer(source, 0, &buffer, 0, source.size());
+        encoder.copy_buffer_to_buffer(source, 0, &buffer, 0, size);
         device.queue.submit([encoder.finish()]);
         let mapped: Slot<()> = Rc::new(RefCell::new(None));
         let slot = mapped.clone();

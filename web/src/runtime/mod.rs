@@ -13,7 +13,7 @@ use std::pin::Pin;
 use glam::Vec4;
 use js_sys::Object;
 use tracer::backend::frame_split::Step;
-use tracer::backend::Renderer;
+use tracer::backend::{Renderer, Schedule};
 use tracer::kernel::scene_data::Scene;
 use tracer::output::Display;
 use tracer::pack::Packed;
@@ -88,8 +88,9 @@ pub type Pending<T> = Pin<Box<dyn Future<Output = Result<T, String>>>>;
 
 /// The renderer that runs, with its display pass and frame pacing.
 pub enum Runtime {
-    WebGl2(GlRuntime),
-    WebGpu(GpuRuntime),
+    // Boxed: a runtime holds its renderer, pacing and display pass inline (up to ~1.4 KB).
+    WebGl2(Box<GlRuntime>),
+    WebGpu(Box<GpuRuntime>),
 }
 
 impl Runtime {
@@ -106,6 +107,14 @@ impl Runtime {
         match self {
             Runtime::WebGl2(r) => r.renderer(),
             Runtime::WebGpu(r) => r.renderer(),
+        }
+    }
+
+    /// How the renderer organises a frame (WebGL2: always the megakernel).
+    pub fn schedule(&self) -> Schedule {
+        match self {
+            Runtime::WebGl2(_) => Schedule::Megakernel,
+            Runtime::WebGpu(r) => r.renderer().schedule(),
         }
     }
 
@@ -140,10 +149,13 @@ impl Runtime {
         }
     }
 
-    /// One whole frame in one submission, then the display pass through `display`.
-    pub fn frame(&mut self, display: &Display) -> Result<(), String> {
+    /// The rest of the frame, then the display pass through `display`: whether the frame is
+    /// done (the megakernel's always is, in one submission; the wavefront's is done once a
+    /// read of its counters, which in the browser arrives with a promise, says so: call
+    /// again after [`sync`](Self::sync)).
+    pub fn frame(&mut self, display: &Display) -> Result<bool, String> {
         match self {
-            Runtime::WebGl2(r) => r.frame(display),
+            Runtime::WebGl2(r) => r.frame(display).map(|()| true),
             Runtime::WebGpu(r) => r.frame(display),
         }
     }
@@ -211,6 +223,7 @@ impl Runtime {
     /// The read-outs of `sceneInfo`: the API and adapter, and how frames are submitted.
     pub fn describe(&self, info: &Object) {
         set(info, "api", self.api());
+        set(info, "schedule", self.schedule().name());
         let (policy, busy) = match self {
             Runtime::WebGl2(r) => (r.pacer().policy(), r.pacer().busy()),
             Runtime::WebGpu(r) => (r.policy(), r.busy()),
@@ -228,7 +241,7 @@ impl Runtime {
                 set(info, "maxTextureSize", gl.max_texture_size);
             }
             Runtime::WebGpu(r) => {
-                let w = r.renderer().info();
+                let w = &r.renderer().device().info;
                 set(info, "adapter", w.adapter.as_str());
                 set(info, "gpuDriver", w.driver.as_str());
                 set(info, "maxStorageBufferBindingSize", w.max_storage_buffer_binding_size as f64);

@@ -1,13 +1,15 @@
-//! The WebGPU runtime: the wgpu backend's [`WgpuRenderer`] (the generated WGSL kernel as a
-//! compute shader over storage buffers) on a device of the browser's WebGPU, and its display
-//! pass ([`tracer::backend::wgpu::DisplayPass`]) drawing to the canvas's WebGPU surface.
+//! The WebGPU runtime: a wgpu backend's renderer (the generated WGSL as compute shaders over
+//! storage buffers: the megakernel's [`WgpuRenderer`] or the [`WavefrontRenderer`], by the
+//! [`Schedule`] asked for) on a device of the browser's WebGPU, and its display pass
+//! ([`tracer::backend::wgpu::DisplayPass`]) drawing to the canvas's WebGPU surface.
 //!
 //! Nothing here blocks: the shader compiler's verdict, read-backs and the queue's completion
 //! are promises. The frame loop submits each frame in bands of rows within the time budget, as
 //! the WebGL2 runtime does (`tracer::backend::frame_split`'s [`BandPolicy`]), one band on the
 //! GPU at a time: a band is submitted only once the previous one's `onSubmittedWorkDone` has
 //! resolved, and its time (submission to the animation frame that sees it done) chooses the
-//! next band's height.
+//! next band's height. The wavefront's bands are its submissions (a bounded number of path
+//! segments each); its frame is done when the counters read after one say so.
 
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
@@ -15,8 +17,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 use tracer::backend::frame_split::{BandPolicy, Step};
-use tracer::backend::wgpu::{DisplayPass, PipelineCheck, WgpuDevice, WgpuOptions, WgpuRenderer};
-use tracer::backend::{Image, Renderer};
+use tracer::backend::wgpu::{
+    DeviceRenderer, DisplayPass, PipelineCheck, WavefrontRenderer, WgpuDevice, WgpuError, WgpuOptions, WgpuRenderer,
+};
+use tracer::backend::{Image, Schedule};
 use tracer::output::Display;
 use tracer::pack::Packed;
 use wasm_bindgen::prelude::*;
@@ -66,8 +70,16 @@ pub async fn request_web_gpu() -> Result<GpuDevice, JsError> {
         ));
     }
     let label = adapter_label(&gpu).await;
-    let mut device =
-        WgpuDevice::request(wgpu::Backends::BROWSER_WEBGPU).await.map_err(|e| JsError::new(&e.to_string()))?;
+    let mut device = WgpuDevice::request(wgpu::Backends::BROWSER_WEBGPU).await.map_err(|e| {
+        // wgpu's own words name native drivers and apt packages: speak to a person in a browser.
+        JsError::new(&match e {
+            WgpuError::NoAdapter { .. } => "this browser offers WebGPU but no graphics adapter for it (WebGPU may \
+                                            be turned off, or the GPU blocklisted: see chrome://gpu)"
+                .to_string(),
+            WgpuError::Device { detail, .. } => format!("the browser's WebGPU adapter refused a device: {detail}"),
+            other => other.to_string(),
+        })
+    })?;
     if device.info.adapter.is_empty() {
         // wgpu names a browser adapter by its `description`, which Chromium leaves empty.
         device.info.adapter = label.unwrap_or_else(|| "unnamed WebGPU adapter".into());
@@ -101,7 +113,7 @@ async fn adapter_label(gpu: &JsValue) -> Option<String> {
 
 /// The renderer, the canvas's surface and the display pass.
 pub struct GpuRuntime {
-    renderer: WgpuRenderer,
+    renderer: Box<dyn DeviceRenderer>,
     surface: wgpu::Surface<'static>,
     display: DisplayPass,
     /// How many rows each band covers, from the measured band times.
@@ -130,7 +142,7 @@ struct InFlight {
 /// A renderer created on the device (limits checked, scene uploaded), not yet on a canvas:
 /// a scene that does not fit is refused before the canvas is given a WebGPU context.
 pub struct Prepared {
-    renderer: WgpuRenderer,
+    renderer: Box<dyn DeviceRenderer>,
     check: PipelineCheck,
 }
 
@@ -142,12 +154,27 @@ fn timed<T>(run: impl FnOnce() -> T) -> (f64, T) {
 }
 
 impl GpuRuntime {
-    pub fn prepare(gpu: &GpuDevice, packed: &Packed, seed: u32, options: &WgpuOptions) -> Result<Prepared, String> {
+    pub fn prepare(
+        gpu: &GpuDevice,
+        packed: &Packed,
+        seed: u32,
+        options: &WgpuOptions,
+        schedule: Schedule,
+    ) -> Result<Prepared, String> {
         if let Some(why) = gpu.lost() {
             return Err(format!("the WebGPU device was lost ({why})"));
         }
-        let (renderer, check) =
-            WgpuRenderer::create(gpu.device.clone(), packed.clone(), seed, options).map_err(|e| e.to_string())?;
+        let (device, packed) = (gpu.device.clone(), packed.clone());
+        let (renderer, check): (Box<dyn DeviceRenderer>, _) = match schedule {
+            Schedule::Megakernel => {
+                let (r, check) = WgpuRenderer::create(device, packed, seed, options).map_err(|e| e.to_string())?;
+                (Box::new(r), check)
+            }
+            Schedule::Wavefront => {
+                let (r, check) = WavefrontRenderer::create(device, packed, seed, options).map_err(|e| e.to_string())?;
+                (Box::new(r), check)
+            }
+        };
         Ok(Prepared { renderer, check })
     }
 
@@ -208,12 +235,12 @@ impl GpuRuntime {
         })
     }
 
-    pub fn renderer(&self) -> &WgpuRenderer {
-        &self.renderer
+    pub fn renderer(&self) -> &dyn DeviceRenderer {
+        self.renderer.as_ref()
     }
 
-    pub fn renderer_mut(&mut self) -> &mut WgpuRenderer {
-        &mut self.renderer
+    pub fn renderer_mut(&mut self) -> &mut dyn DeviceRenderer {
+        self.renderer.as_mut()
     }
 
     pub fn startup(&self) -> Startup {
@@ -234,6 +261,11 @@ impl GpuRuntime {
         self.in_flight = None;
     }
 
+    /// Whether the device rejected the kernel's shader (recreating the renderer would not help).
+    pub fn shader_rejected(&self) -> bool {
+        self.compile_error.borrow().is_some()
+    }
+
     /// An error the device reported since (the shader compiler's, or an uncaptured one).
     fn check(&self) -> Result<(), String> {
         if let Some(e) = self.compile_error.borrow().as_ref() {
@@ -250,7 +282,7 @@ impl GpuRuntime {
             _ => return,
         };
         let view = texture.texture.create_view(&Default::default());
-        self.display.draw(&self.renderer, &view, settings);
+        self.display.draw(self.renderer.as_ref(), &view, settings);
         self.renderer.device().queue.present(texture);
     }
 
@@ -268,14 +300,17 @@ impl GpuRuntime {
         Ok(())
     }
 
-    /// The rest of the frame in one submission, then the display pass.
-    pub fn frame(&mut self, settings: &Display) -> Result<(), String> {
+    /// The rest of the frame in one submission (the megakernel's rows left; the wavefront's
+    /// next submission), then the display pass once the frame is done: whether it is.
+    pub fn frame(&mut self, settings: &Display) -> Result<bool, String> {
         self.check()?;
         // The band in flight would be timed with this whole frame.
         self.in_flight = None;
-        self.renderer.render_frame().map_err(|e| e.to_string())?;
-        self.draw(settings);
-        Ok(())
+        let done = self.renderer.render_band(self.renderer.rows_left()).map_err(|e| e.to_string())?;
+        if done {
+            self.draw(settings);
+        }
+        Ok(done)
     }
 
     /// The frame loop's step: unless the previous band is still on the GPU, records its time,
@@ -301,7 +336,7 @@ impl GpuRuntime {
         }
         let done = Arc::new(AtomicBool::new(false));
         let flag = done.clone();
-        let finished = self.renderer.done();
+        let finished = self.renderer.device().done();
         wasm_bindgen_futures::spawn_local(async move {
             finished.await;
             flag.store(true, Ordering::Release);
@@ -312,6 +347,6 @@ impl GpuRuntime {
 
     /// Resolves once the queued work is done.
     pub fn sync(&self) -> impl std::future::Future<Output = ()> + 'static {
-        self.renderer.done()
+        self.renderer.device().done()
     }
 }

@@ -19,8 +19,9 @@
 use js_sys::{Float32Array, Object, Uint8Array};
 use tracer::backend::frame_split::{Step, DEFAULT_BUDGET_MS};
 use tracer::backend::gl::GlOptions;
+use tracer::backend::wavefront::WavefrontError;
 use tracer::backend::wgpu::WgpuOptions;
-use tracer::backend::Image;
+use tracer::backend::{Image, Schedule};
 use tracer::kernel::{RenderSettings, Strategy};
 use tracer::output::{Display, ToneMap};
 use tracer::pack::{MovingScene, Packed};
@@ -60,6 +61,8 @@ pub struct Viewer {
     canvas_api: Option<Api>,
     gl_context: Option<WebGl2RenderingContext>,
     api: Api,
+    /// The schedule asked for (`setSchedule`): `None` for auto ([`Schedule::auto`]).
+    schedule: Option<Schedule>,
     gpu: Option<GpuDevice>,
     /// Why there is no WebGPU device (`webGpuUnavailable`), for auto's notice.
     gpu_unavailable: Option<String>,
@@ -104,6 +107,7 @@ impl Viewer {
             canvas_api: None,
             gl_context: None,
             api: Api::Auto,
+            schedule: None,
             gpu: None,
             gpu_unavailable: None,
             notice: None,
@@ -143,6 +147,23 @@ impl Viewer {
         Ok(())
     }
 
+    /// Chooses how WebGPU organises a frame: "auto" (default: the megakernel, `Schedule::auto`),
+    /// "megakernel" or "wavefront" (WebGPU only: WebGL2 has no compute shaders, so with
+    /// `webgl2` it is an error and under auto's fallback to WebGL2 a notice). Applies to the
+    /// next scene loaded (or the current one, recreated).
+    #[wasm_bindgen(js_name = setSchedule)]
+    pub fn set_schedule(&mut self, name: &str) -> Result<(), JsError> {
+        let auto = matches!(name.to_ascii_lowercase().as_str(), "" | "auto");
+        let schedule = (!auto).then(|| Schedule::parse(name)).transpose().map_err(|e| JsError::new(&e))?;
+        if schedule != self.schedule {
+            self.schedule = schedule;
+            if self.running.is_some() {
+                self.rebuild()?;
+            }
+        }
+        Ok(())
+    }
+
     /// Gives the viewer a WebGPU device (from `requestWebGpu()`); after a device loss, the
     /// new one: the renderer is recreated on it from the scene kept in memory.
     #[wasm_bindgen(js_name = useWebGpu)]
@@ -155,10 +176,17 @@ impl Viewer {
         Ok(())
     }
 
-    /// Records why `requestWebGpu()` failed: auto says so when it runs WebGL2.
+    /// Records why WebGPU cannot be used (`requestWebGpu()` failed, a lost device could not be
+    /// replaced, or was lost too often): auto says so when it runs WebGL2. Under auto a scene
+    /// running on WebGPU moves to WebGL2 now (from the scene in memory).
     #[wasm_bindgen(js_name = webGpuUnavailable)]
-    pub fn web_gpu_unavailable(&mut self, why: String) {
+    pub fn web_gpu_unavailable(&mut self, why: String) -> Result<(), JsError> {
         self.gpu_unavailable = Some(why);
+        self.gpu = None;
+        if self.api == Api::Auto && matches!(self.running, Some(Runtime::WebGpu(_))) {
+            self.rebuild()?;
+        }
+        Ok(())
     }
 
     /// Why the WebGPU device the scene runs on was lost, once it was (the page then requests
@@ -250,6 +278,9 @@ impl Viewer {
         self.notice = None;
         let gpu_ready = self.gpu.as_ref().is_some_and(|g| g.lost().is_none());
         match self.api {
+            Api::WebGl2 if self.schedule == Some(Schedule::Wavefront) => {
+                return Err(JsError::new(&WavefrontError::NoCompute { runtime: "WebGL2" }.to_string()));
+            }
             Api::WebGl2 => {}
             Api::WebGpu => return self.start_webgpu(packed).map_err(|e| JsError::new(&e)),
             Api::Auto if gpu_ready => match self.start_webgpu(packed) {
@@ -261,6 +292,11 @@ impl Viewer {
                 self.notice = Some(format!("WebGPU is not available, so WebGL2 runs: {why}"));
             }
         }
+        if self.schedule == Some(Schedule::Wavefront) {
+            if let Some(notice) = &mut self.notice {
+                notice.push_str(" (with the megakernel: the wavefront needs WebGPU's compute shaders)");
+            }
+        }
         self.start_webgl2(packed)
     }
 
@@ -270,11 +306,12 @@ impl Viewer {
             format!("WebGPU is not available: {why}")
         })?;
         // Limits are checked and the scene uploaded before the canvas gets a WebGPU context.
-        let prepared = GpuRuntime::prepare(&gpu, packed, self.seed, &self.wgpu_options)?;
+        let schedule = self.schedule.unwrap_or_else(Schedule::auto);
+        let prepared = GpuRuntime::prepare(&gpu, packed, self.seed, &self.wgpu_options, schedule)?;
         let canvas = self.canvas_for(Api::WebGpu)?;
         canvas.set_width(packed.scene.width);
         canvas.set_height(packed.scene.height);
-        Ok(Runtime::WebGpu(GpuRuntime::attach(prepared, &canvas, self.band_budget_ms)?))
+        Ok(Runtime::WebGpu(Box::new(GpuRuntime::attach(prepared, &canvas, self.band_budget_ms)?)))
     }
 
     fn start_webgl2(&mut self, packed: &Packed) -> Result<Runtime, JsError> {
@@ -294,7 +331,7 @@ impl Viewer {
         };
         let runtime = GlRuntime::new(&context, packed, self.seed, &self.options, self.band_budget_ms)
             .map_err(|e| JsError::new(&e))?;
-        Ok(Runtime::WebGl2(runtime))
+        Ok(Runtime::WebGl2(Box::new(runtime)))
     }
 
     /// The canvas for a context of `api`: the current one, unless it already gave out the
@@ -335,33 +372,41 @@ impl Viewer {
     }
 
     /// An error of the running renderer: on WebGPU (an uncaptured device error), the renderer
-    /// is recreated from the scene in memory, a few times, with a notice; else the error.
+    /// is recreated from the scene in memory, a few times, with a notice; then, or at once for
+    /// a shader the device rejected, auto moves to WebGL2 with a notice; else the error.
     fn recover(&mut self, error: String) -> Result<(), JsError> {
-        let on_gpu = matches!(self.running, Some(Runtime::WebGpu(_)));
-        if on_gpu && self.gpu_recoveries < MAX_GPU_RECOVERIES {
+        let Some(Runtime::WebGpu(gpu)) = &self.running else { return Err(JsError::new(&error)) };
+        let rejected = gpu.shader_rejected();
+        if !rejected && self.gpu_recoveries < MAX_GPU_RECOVERIES {
             self.gpu_recoveries += 1;
             self.rebuild()?;
             self.notice = Some(format!("WebGPU reported an error; the renderer was recreated: {error}"));
             return Ok(());
         }
+        if self.api == Api::Auto {
+            let why = if rejected { "it rejected the kernel" } else { "it kept reporting errors" };
+            return self.web_gpu_unavailable(format!("{why} ({error})"));
+        }
         Err(JsError::new(&error))
     }
 
     /// Adds one sample per pixel (the rest of the frame, if `step` began it) in one submission
-    /// and draws the converging image (the test hook's `renderFrames`). Does nothing without a
-    /// scene or while the context or device is lost.
-    pub fn frame(&mut self) -> Result<(), JsError> {
+    /// and draws the converging image (the test hook's `renderFrames`): `false` while the
+    /// frame is not done yet (the wavefront's, whose counters arrive with a promise: call again
+    /// after `sync()`). Does nothing without a scene or while the context or device is lost.
+    pub fn frame(&mut self) -> Result<bool, JsError> {
         if self.halted() {
-            return Ok(());
+            return Ok(true);
         }
-        let Some(running) = &mut self.running else { return Ok(()) };
+        let Some(running) = &mut self.running else { return Ok(true) };
         match running.frame(&self.display) {
-            Ok(()) => {
+            Ok(false) => Ok(false),
+            Ok(true) => {
                 self.denoiser.poll(running);
                 self.show_denoised();
-                Ok(())
+                Ok(true)
             }
-            Err(e) => self.recover(e),
+            Err(e) => self.recover(e).map(|()| true),
         }
     }
 
@@ -570,6 +615,7 @@ impl Viewer {
         let budget = self.band_budget_ms.unwrap_or(0.0);
         set(&info, "bandBudgetMs", budget);
         set(&info, "apiRequested", self.api.name());
+        set(&info, "scheduleRequested", self.schedule.map_or("auto", Schedule::name));
         set(&info, "notice", self.notice.as_deref().map_or(JsValue::NULL, JsValue::from));
         set(&info, "webGpuLost", self.web_gpu_lost().map_or(JsValue::NULL, JsValue::from));
         if let Some(running) = &self.running {

@@ -71,6 +71,16 @@ impl WgpuDevice {
         Ok(WgpuDevice { device, queue, info, limits, instance, adapter })
     }
 
+    /// Resolves when everything submitted so far has run on the device (never blocks; in the
+    /// browser, `onSubmittedWorkDone`).
+    pub fn done(&self) -> impl std::future::Future<Output = ()> + 'static {
+        let (sender, receiver) = super::oneshot::channel();
+        self.queue.on_submitted_work_done(move || sender.send(()));
+        async move {
+            let _ = receiver.await;
+        }
+    }
+
     /// The native default: Vulkan, Metal or DX12 (whichever the platform has).
     #[cfg(not(target_arch = "wasm32"))]
     pub fn native() -> Result<Self, WgpuError> {

@@ -10,8 +10,7 @@ use std::borrow::Cow;
 use lightport_codegen::Target;
 use wgpu::util::DeviceExt;
 
-use super::{WgpuError, WgpuRenderer};
-use crate::backend::Renderer;
+use super::{DeviceRenderer, WgpuError};
 use crate::output::Display;
 
 /// The entry points and resources the pass adds to the generated tone-map module.
@@ -114,11 +113,11 @@ impl DisplayPass {
 
     /// Draws `renderer`'s current mean through `settings` into `target` (the renderer's image
     /// size).
-    pub fn draw(&self, renderer: &WgpuRenderer, target: &wgpu::TextureView, settings: &Display) {
+    pub fn draw(&self, renderer: &dyn DeviceRenderer, target: &wgpu::TextureView, settings: &Display) {
         let device = renderer.device();
         let width = renderer.packed().scene.width;
         let inverse_frames = 1.0 / renderer.frames().max(1) as f32;
-        let sums = renderer.accumulation_buffer();
+        let sums = renderer.sums();
         self.draw_buffer(&device.device, &device.queue, target, sums, width, inverse_frames, settings);
     }
 

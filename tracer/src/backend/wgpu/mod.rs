@@ -34,9 +34,6 @@ pub mod harness;
 mod oneshot;
 mod renderer;
 mod resources;
-// Native only for now: the browser's WebGPU runs the megakernel (a wavefront there needs the
-// page's frame loop to await its counters instead of blocking).
-#[cfg(not(target_arch = "wasm32"))]
 mod wavefront;
 
 pub use compile::{compile_pipeline, start_pipeline, start_pipelines, PipelineCheck};
@@ -49,10 +46,26 @@ pub(crate) use resources::{
     scene_uniform_bytes, storage_limit, u32_uniform_bytes, upload_scene, BufferEntry, OwnResource, ShaderLayout,
     UncapturedErrors, UniformLayout,
 };
-#[cfg(not(target_arch = "wasm32"))]
 pub use wavefront::WavefrontRenderer;
 
+use crate::backend::{BuildTimes, Renderer};
 use crate::kernel::ShaderError;
+
+/// A renderer on a wgpu device, whichever schedule runs it (the megakernel's [`WgpuRenderer`],
+/// the [`WavefrontRenderer`]): what a host that draws its image (the display pass, the page's
+/// WebGPU runtime and denoiser) needs beyond [`Renderer`].
+pub trait DeviceRenderer: Renderer {
+    fn device(&self) -> &WgpuDevice;
+    /// The storage buffer whose first `width × height` texels are the running sums (rgb: sum,
+    /// w: finite samples; row-major, row 0 at the top).
+    fn sums(&self) -> &wgpu::Buffer;
+    /// The first error wgpu reported outside an error scope since the renderer was created.
+    fn check_uncaptured(&self) -> Result<(), WgpuError>;
+    /// What creating the renderer took on this thread.
+    fn build_times(&self) -> BuildTimes;
+    /// "megakernel" or "wavefront".
+    fn schedule(&self) -> crate::backend::Schedule;
+}
 
 /// The read-write storage buffer holding the running sum (written by codegen's entry point).
 pub const ACCUMULATION_BUFFER: &str = "lp_accumulation";

@@ -6,10 +6,10 @@ use lightport_codegen::Target;
 use wgpu::util::DeviceExt;
 
 use super::{
-    bind_group_layouts, bind_groups, check_scene_limits, map_readback, oneshot, reflect, scene_uniform_bytes,
-    start_pipeline, storage_limit, u32_uniform_bytes, upload_scene, BufferEntry, OwnResource, PipelineCheck,
-    ShaderLayout, UncapturedErrors, UniformLayout, WgpuDevice, WgpuError, WgpuFilter, WgpuInfo, WgpuOptions,
-    ACCUMULATION_BUFFER, SCENE_UNIFORM, TARGET_UNIFORM, WORKGROUP_SIZE,
+    bind_group_layouts, bind_groups, check_scene_limits, map_readback, reflect, scene_uniform_bytes, start_pipeline,
+    storage_limit, u32_uniform_bytes, upload_scene, BufferEntry, OwnResource, PipelineCheck, ShaderLayout,
+    UncapturedErrors, UniformLayout, WgpuDevice, WgpuError, WgpuFilter, WgpuInfo, WgpuOptions, ACCUMULATION_BUFFER,
+    SCENE_UNIFORM, TARGET_UNIFORM, WORKGROUP_SIZE,
 };
 use crate::backend::{
     frame_seed, ms_since, update_uniforms, BuildTimes, GuideSums, PendingAccumulation, PendingGuideSums, RenderError,
@@ -125,16 +125,6 @@ impl WgpuRenderer {
         self.uncaptured.check()
     }
 
-    /// Resolves when everything submitted so far has run on the device (never blocks; in the
-    /// browser, `onSubmittedWorkDone`).
-    pub fn done(&self) -> impl std::future::Future<Output = ()> + 'static {
-        let (sender, receiver) = oneshot::channel();
-        self.device.queue.on_submitted_work_done(move || sender.send(()));
-        async move {
-            let _ = receiver.await;
-        }
-    }
-
     /// The running-sum buffer (rgb: sum of samples, w: finite samples; row-major, row 0 at
     /// the top), e.g. for a display pass.
     pub fn accumulation_buffer(&self) -> &wgpu::Buffer {
@@ -155,6 +145,28 @@ impl WgpuRenderer {
             uncaptured?;
             read.await
         }
+    }
+}
+
+impl super::DeviceRenderer for WgpuRenderer {
+    fn device(&self) -> &WgpuDevice {
+        &self.device
+    }
+
+    fn sums(&self) -> &wgpu::Buffer {
+        &self.pipeline.accumulation
+    }
+
+    fn check_uncaptured(&self) -> Result<(), WgpuError> {
+        self.uncaptured.check()
+    }
+
+    fn build_times(&self) -> BuildTimes {
+        self.pipeline.times
+    }
+
+    fn schedule(&self) -> crate::backend::Schedule {
+        crate::backend::Schedule::Megakernel
     }
 }
 

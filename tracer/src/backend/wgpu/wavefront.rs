@@ -3,8 +3,15 @@
 //! in the `Paths` buffers (bind group 1), the indirect dispatches' sizes in the `Dispatch`
 //! buffer (group 2, bound only to the `plan_*` stages: a buffer an indirect dispatch reads may
 //! not be bound to the stage it dispatches). A submission is one compute pass of several
-//! iterations ([`ITERATION`]): no queue length is read back between stages; the host reads
-//! the counters once per submission to learn whether the frame is complete.
+//! iterations ([`ITERATION`]): no queue length is read back between stages; the host asks for
+//! the counters after each submission to learn whether the frame is complete. Nothing here
+//! needs to block: natively the device is polled until the counters arrive; in the browser
+//! they arrive with a promise, and [`render_band`](Renderer::render_band) looks for them on
+//! its next call (the page's frame loop calls it once the previous submission is done).
+
+use std::future::Future;
+use std::pin::Pin;
+use std::task::{Context, Poll, Waker};
 
 use glam::Vec4;
 use lightport_codegen::{BindingKind, ResourceBindings};
@@ -12,13 +19,16 @@ use wgpu::util::DeviceExt;
 
 use super::{
     bind_group_layouts, bind_groups, check_scene_limits, map_readback, reflect, scene_uniform_bytes, start_pipelines,
-    storage_limit, upload_scene, BufferEntry, OwnResource, PipelineCheck, ShaderLayout, UncapturedErrors,
-    UniformLayout, WgpuDevice, WgpuError, WgpuOptions, SCENE_UNIFORM,
+    storage_limit, upload_scene, BufferEntry, DeviceRenderer, OwnResource, PipelineCheck, ShaderLayout,
+    UncapturedErrors, UniformLayout, WgpuDevice, WgpuError, WgpuOptions, SCENE_UNIFORM,
 };
 use crate::backend::wavefront::{
     array_len, iteration_bound, pool_size, Stage, WavefrontCounts, WavefrontError, ITERATION, ITERATIONS_PER_SUBMISSION,
 };
-use crate::backend::{ms_since, update_uniforms, BuildTimes, GuideSums, RenderError, Renderer, RendererInfo};
+use crate::backend::{
+    ms_since, update_uniforms, BuildTimes, GuideSums, PendingAccumulation, PendingGuideSums, RenderError, Renderer,
+    RendererInfo, Schedule,
+};
 use crate::kernel::scene_data::Scene;
 use crate::kernel::wavefront::{ARGS_WORDS, COUNTERS, FRAMES_DONE, FREE};
 use crate::pack::Packed;
@@ -65,6 +75,23 @@ pub struct WavefrontRenderer {
     image_readback: wgpu::Buffer,
     times: BuildTimes,
     uncaptured: UncapturedErrors,
+    /// The frames asked of the device (`Paths::frames_wanted`): `frames + 1` while a frame is
+    /// on its way, `frames` between frames.
+    wanted: u32,
+    /// Iterations submitted for the frame on its way (against [`iteration_bound`]).
+    iterations: u32,
+    /// Restarts so far: tells a counters read asked for before the latest restart.
+    generation: u32,
+    /// The counters read on its way, if any.
+    counters_read: Option<CountersRead>,
+    /// The counters the latest read found since the latest restart.
+    counters: Vec<u32>,
+}
+
+/// A read of the counters, asked for after a submission.
+struct CountersRead {
+    generation: u32,
+    counters: Pin<Box<dyn Future<Output = Result<Vec<u32>, WgpuError>>>>,
 }
 
 impl WavefrontRenderer {
@@ -164,6 +191,11 @@ impl WavefrontRenderer {
 
             times,
             uncaptured,
+            wanted: 0,
+            iterations: 0,
+            generation: 0,
+            counters_read: None,
+            counters: Vec::new(),
             packed,
             device,
         };
@@ -172,23 +204,15 @@ impl WavefrontRenderer {
     }
 
     /// A wavefront renderer on its own native device.
+    #[cfg(not(target_arch = "wasm32"))]
     pub fn headless(packed: Packed, seed: u32) -> Result<Self, RenderError> {
         let device = WgpuDevice::native()?;
         pollster::block_on(Self::new(device, packed, seed, &WgpuOptions::default()))
     }
 
-    /// What creating the renderer took on this thread.
-    pub fn build_times(&self) -> BuildTimes {
-        self.times
-    }
-
     /// Path slots in the pool.
     pub fn pool(&self) -> u32 {
         self.pool
-    }
-
-    fn check_uncaptured(&self) -> Result<(), WgpuError> {
-        self.uncaptured.check()
     }
 
     /// The storage buffer holding array `field` and its byte range.
@@ -251,20 +275,96 @@ impl WavefrontRenderer {
         self.device.queue.submit([encoder.finish()]);
     }
 
-    /// The counters as the device left them (blocks natively; polls the device).
-    fn read_counters(&self) -> Result<Vec<u32>, RenderError> {
-        let Some((buffer, at, len)) = self.array("counters") else { return Ok(Vec::new()) };
-        let mut encoder = self.device.device.create_command_encoder(&Default::default());
-        encoder.copy_buffer_to_buffer(buffer, at, &self.counters_readback, 0, len);
-        self.device.queue.submit([encoder.finish()]);
-        let read = map_readback::<u32>(self.counters_readback.clone());
+    /// Asks for the counters after the work submitted so far, unless a read is on its way
+    /// (its read-back buffer is mapped until it arrives). Natively, waits for them.
+    fn request_counters(&mut self) -> Result<(), RenderError> {
+        if self.counters_read.is_none() {
+            let Some((buffer, at, len)) = self.array("counters") else { return Ok(()) };
+            let mut encoder = self.device.device.create_command_encoder(&Default::default());
+            encoder.copy_buffer_to_buffer(buffer, at, &self.counters_readback, 0, len);
+            self.device.queue.submit([encoder.finish()]);
+            let counters = Box::pin(map_readback::<u32>(self.counters_readback.clone()));
+            self.counters_read = Some(CountersRead { generation: self.generation, counters });
+        }
+        #[cfg(not(target_arch = "wasm32"))]
         self.finish()?;
-        Ok(pollster::block_on(read)?)
+        Ok(())
     }
 
-    /// What the pool has traced since the last restart (blocks natively).
-    pub fn counts(&self) -> Result<WavefrontCounts, RenderError> {
-        Ok(WavefrontCounts::from_counters(&self.read_counters()?))
+    /// Takes the counters read if it has arrived (into `counters`, unless a restart made it
+    /// stale); never waits.
+    fn take_counters(&mut self) -> Result<(), RenderError> {
+        let Some(read) = &mut self.counters_read else { return Ok(()) };
+        let Poll::Ready(counters) = read.counters.as_mut().poll(&mut Context::from_waker(Waker::noop())) else {
+            return Ok(());
+        };
+        let stale = read.generation != self.generation;
+        self.counters_read = None;
+        if !stale {
+            self.counters = counters?;
+        }
+        Ok(())
+    }
+
+    /// Whether the counters last read say that the frame asked for is complete.
+    fn wanted_done(&self) -> bool {
+        self.counters.get(FRAMES_DONE as usize).copied().unwrap_or(0) >= self.wanted
+    }
+
+    /// What the pool has traced since the last restart, as the counters last read say (after
+    /// each whole frame natively).
+    pub fn counts(&self) -> WavefrontCounts {
+        WavefrontCounts::from_counters(&self.counters)
+    }
+
+    /// The image's running sums, copied to the read-back buffer now, arriving once the device
+    /// has mapped it (natively someone must poll the device).
+    fn read_image(&self) -> impl Future<Output = Result<Vec<Vec4>, WgpuError>> + 'static {
+        let uncaptured = self.uncaptured.check();
+        let read = self.array("image").map(|(buffer, at, len)| {
+            let mut encoder = self.device.device.create_command_encoder(&Default::default());
+            encoder.copy_buffer_to_buffer(buffer, at, &self.image_readback, 0, len);
+            self.device.queue.submit([encoder.finish()]);
+            map_readback(self.image_readback.clone())
+        });
+        async move {
+            uncaptured?;
+            match read {
+                Some(read) => read.await,
+                None => Ok(Vec::new()),
+            }
+        }
+    }
+
+    /// The guide's three per-pixel arrays copied now, one after the other, into a read-back
+    /// buffer of their own (a read of the image may be on its way in the other), arriving once
+    /// the device has mapped it; [`RenderError::NoGuide`] without the guide.
+    fn read_guide(&self) -> PendingGuideSums {
+        const FIELDS: [&str; 3] = ["guide_albedo", "guide_normal", "guide_emission"];
+        let arrays: Option<Vec<_>> = FIELDS.iter().map(|f| self.array(f)).collect();
+        let Some(arrays) = arrays else { return Box::pin(std::future::ready(Err(RenderError::NoGuide))) };
+        let total: u64 = arrays.iter().map(|a| a.2).sum();
+        let readback = self.device.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("wavefront guide readback"),
+            size: total,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.device.create_command_encoder(&Default::default());
+        let mut to = 0;
+        for (buffer, at, len) in &arrays {
+            encoder.copy_buffer_to_buffer(buffer, *at, &readback, to, *len);
+            to += len;
+        }
+        self.device.queue.submit([encoder.finish()]);
+        let read = map_readback::<Vec4>(readback);
+        let uncaptured = self.uncaptured.check();
+        let pixels = (arrays[0].2 / 16) as usize;
+        Box::pin(async move {
+            uncaptured?;
+            let texels = read.await?;
+            Ok(std::array::from_fn(|k| texels[k * pixels..(k + 1) * pixels].to_vec()))
+        })
     }
 }
 
@@ -346,7 +446,10 @@ fn pool_buffers(
             BindingKind::Storage | BindingKind::Atomics => {
                 let mut arrays = Vec::new();
                 let mut end = 0u64;
-                for f in &binding.fields {
+                // The image's sums first, at offset 0: the display pass reads them from there.
+                let mut fields: Vec<_> = binding.fields.iter().collect();
+                fields.sort_by_key(|f| f.field != "image");
+                for f in fields {
                     let size = if f.ty == "Vec4" || f.ty == "UVec4" { 16 } else { 4 };
                     let len = array_len(&f.field, pool, pixels) as u64;
                     arrays.push((f.field.clone(), end, len, size));
@@ -392,6 +495,32 @@ fn pool_buffers(
     Ok(((uniform, buffer), storage))
 }
 
+impl DeviceRenderer for WavefrontRenderer {
+    fn device(&self) -> &WgpuDevice {
+        &self.device
+    }
+
+    /// The `Paths` buffer holding the image's sums: [`pool_buffers`] places them first.
+    fn sums(&self) -> &wgpu::Buffer {
+        match self.array("image") {
+            Some((buffer, _, _)) => buffer,
+            None => &self.image_readback,
+        }
+    }
+
+    fn check_uncaptured(&self) -> Result<(), WgpuError> {
+        self.uncaptured.check()
+    }
+
+    fn build_times(&self) -> BuildTimes {
+        self.times
+    }
+
+    fn schedule(&self) -> Schedule {
+        Schedule::Wavefront
+    }
+}
+
 impl Renderer for WavefrontRenderer {
     fn describe(&self) -> RendererInfo {
         let info = &self.device.info;
@@ -414,70 +543,105 @@ impl Renderer for WavefrontRenderer {
         self.frames
     }
 
-    /// A wavefront frame is not split into rows (its work per submission is bounded by the pool).
+    /// A wavefront frame is not split into rows: the image's height between frames, one row
+    /// while a frame is on its way (the pool does not tell which rows are done).
     fn rows_left(&self) -> u32 {
-        self.packed.scene.height
+        if self.wanted == self.frames {
+            self.packed.scene.height
+        } else {
+            1
+        }
     }
 
-    /// Renders a whole frame, whatever `rows`: submissions of [`ITERATIONS_PER_SUBMISSION`]
+    /// Submissions until the frame is done, each waiting for its counters. In the browser,
+    /// where they arrive with a promise, the frame loop calls
+    /// [`render_band`](Renderer::render_band) instead: an error here.
+    fn render_frame(&mut self) -> Result<(), RenderError> {
+        #[cfg(not(target_arch = "wasm32"))]
+        while !self.render_band(self.rows_left())? {}
+        #[cfg(target_arch = "wasm32")]
+        return Err(RenderError::Unsupported {
+            runtime: "wgpu",
+            what: "cannot wait for a wavefront frame in the browser (call render_band from the frame loop)",
+        });
+        #[cfg(not(target_arch = "wasm32"))]
+        Ok(())
+    }
+
+    /// Works on the frame, whatever `rows`: one submission of [`ITERATIONS_PER_SUBMISSION`]
     /// iterations (at most that many path segments per slot: the work of a submission is
-    /// bounded whatever the paths' depth) until the counters say the frame is complete.
+    /// bounded whatever the paths' depth), then a read of the counters; the frame is done when
+    /// a read says so (natively the read arrives at once; in the browser on a later call).
     fn render_band(&mut self, _rows: u32) -> Result<bool, RenderError> {
-        self.check_uncaptured()?;
-        let wanted = self.frames + 1;
-        self.want_frames(wanted);
-        let scene = &self.packed.scene;
-        let bound = iteration_bound(scene.width * scene.height, self.pool, scene.max_depth);
-        let mut iterations = 0;
-        loop {
-            self.submit(ITERATIONS_PER_SUBMISSION);
-            iterations += ITERATIONS_PER_SUBMISSION;
-            let counters = self.read_counters()?;
-            if counters.get(FRAMES_DONE as usize).copied().unwrap_or(0) >= wanted {
-                break;
+        self.uncaptured.check()?;
+        if self.wanted == self.frames {
+            self.wanted = self.frames + 1;
+            self.want_frames(self.wanted);
+            self.iterations = 0;
+        }
+        for submit in [false, true] {
+            self.take_counters()?;
+            if self.wanted_done() {
+                self.frames = self.wanted;
+                return Ok(true);
             }
-            if iterations >= bound {
-                return Err(WavefrontError::Stalled { iterations }.into());
+            if submit {
+                let scene = &self.packed.scene;
+                if self.iterations >= iteration_bound(scene.width * scene.height, self.pool, scene.max_depth) {
+                    return Err(WavefrontError::Stalled { iterations: self.iterations }.into());
+                }
+                self.submit(ITERATIONS_PER_SUBMISSION);
+                self.iterations += ITERATIONS_PER_SUBMISSION;
+                self.request_counters()?;
             }
         }
-        self.frames = wanted;
-        Ok(true)
+        Ok(false)
     }
 
+    /// Waits until the queue is idle. In the browser nothing blocks: it reports the device's
+    /// errors only.
     fn finish(&self) -> Result<(), RenderError> {
+        #[cfg(not(target_arch = "wasm32"))]
         self.device
             .device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| WgpuError::Wgpu { what: "waiting for the queue", detail: e.to_string() })?;
-        Ok(self.check_uncaptured()?)
+        Ok(self.uncaptured.check()?)
     }
 
+    /// Natively, [`read_accumulation`](Renderer::read_accumulation) waited for by polling the
+    /// device. In the browser a read-back cannot block: an error.
     fn accumulation(&self) -> Result<Vec<Vec4>, RenderError> {
+        #[cfg(not(target_arch = "wasm32"))]
         {
-            let Some((buffer, at, len)) = self.array("image") else { return Ok(Vec::new()) };
-            let mut encoder = self.device.device.create_command_encoder(&Default::default());
-            encoder.copy_buffer_to_buffer(buffer, at, &self.image_readback, 0, len);
-            self.device.queue.submit([encoder.finish()]);
-            let read = map_readback(self.image_readback.clone());
+            let read = self.read_image();
             self.finish()?;
             Ok(pollster::block_on(read)?)
         }
+        #[cfg(target_arch = "wasm32")]
+        Err(RenderError::Unsupported { runtime: "wgpu", what: "cannot block for a read-back in the browser" })
     }
 
-    /// The guide's three arrays, each read back as [`accumulation`](Renderer::accumulation)
-    /// reads the image (through the same read-back buffer, one array after the other).
+    fn read_accumulation(&self) -> PendingAccumulation {
+        let read = self.read_image();
+        Box::pin(async move { Ok(read.await?) })
+    }
+
+    /// Natively, [`read_guide_sums`](Renderer::read_guide_sums) waited for by polling the
+    /// device. In the browser a read-back cannot block: an error.
     fn guide_sums(&self) -> Result<GuideSums, RenderError> {
-        let mut sums: GuideSums = Default::default();
-        for (sum, field) in sums.iter_mut().zip(["guide_albedo", "guide_normal", "guide_emission"]) {
-            let Some((buffer, at, len)) = self.array(field) else { return Err(RenderError::NoGuide) };
-            let mut encoder = self.device.device.create_command_encoder(&Default::default());
-            encoder.copy_buffer_to_buffer(buffer, at, &self.image_readback, 0, len);
-            self.device.queue.submit([encoder.finish()]);
-            let read = map_readback(self.image_readback.clone());
+        #[cfg(not(target_arch = "wasm32"))]
+        {
+            let read = self.read_guide();
             self.finish()?;
-            *sum = pollster::block_on(read)?;
+            pollster::block_on(read)
         }
-        Ok(sums)
+        #[cfg(target_arch = "wasm32")]
+        Err(RenderError::Unsupported { runtime: "wgpu", what: "cannot block for a read-back in the browser" })
+    }
+
+    fn read_guide_sums(&self) -> PendingGuideSums {
+        self.read_guide()
     }
 
     fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
@@ -490,7 +654,7 @@ impl Renderer for WavefrontRenderer {
 
     /// New scene buffers bound with the pool's; the pipelines are kept.
     fn take_geometry(&mut self, moved: Packed) -> Result<(), RenderError> {
-        self.check_uncaptured()?;
+        self.uncaptured.check()?;
         let mut packed = self.packed.clone();
         packed.take_geometry(moved)?;
         let d = &self.device.device;
@@ -504,14 +668,18 @@ impl Renderer for WavefrontRenderer {
     }
 
     fn wavefront_counts(&self) -> Option<WavefrontCounts> {
-        self.counts().ok()
+        Some(self.counts())
     }
 
+    /// Empties the pool; a counters read on its way is stale.
     fn restart(&mut self) -> Result<(), RenderError> {
-        self.check_uncaptured()?;
+        self.uncaptured.check()?;
         self.reset_pool();
         self.want_frames(0);
         self.frames = 0;
+        self.wanted = 0;
+        self.generation += 1;
+        self.counters.clear();
         Ok(())
     }
 }
