@@ -145,6 +145,16 @@ fn png_bytes(image: &Image) -> Result<Vec<u8>> {
     Ok(png)
 }
 
+/// A legend entry at `$at`: the line's stroke, 18 pixels long, and `$marker` (at pixel offsets
+/// from `$at`: its middle is (9, 0)), hollow for a wavefront line, which tells the runtimes apart.
+macro_rules! key {
+    ($at:expr, $stroke_width:expr, $style:expr, $marker:expr) => {
+        EmptyElement::at($at)
+            + PathElement::new(vec![(0, 0), (18, 0)], ShapeStyle { stroke_width: $stroke_width, ..$style })
+            + $marker
+    };
+}
+
 pub(super) fn draw_chart(path: &Path, title: &str, lines: &[Vec<Point>]) -> Result<()> {
     use plotters::prelude::*;
 
@@ -202,45 +212,42 @@ pub(super) fn draw_chart(path: &Path, title: &str, lines: &[Vec<Point>]) -> Resu
             let style = ShapeStyle { color: color.to_rgba(), filled: !wavefront, stroke_width: 2 };
             match first.backend {
                 ChartBackend::Cpu if wavefront => {
-                    chart.draw_series(DashedLineSeries::new(points.clone(), 4, 3, style))?.label(label).legend(
-                        move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 18, y)], ShapeStyle { stroke_width: 2, ..style })
-                        },
-                    );
+                    chart
+                        .draw_series(DashedLineSeries::new(points.clone(), 4, 3, style))?
+                        .label(label)
+                        .legend(move |(x, y)| key!((x, y), 2, style, Circle::new((9, 0), 3, style)));
                     chart.draw_series(points.iter().map(|p| Circle::new(*p, 3, style)))?;
                 }
                 ChartBackend::Cpu => {
-                    chart.draw_series(LineSeries::new(points.clone(), style))?.label(label).legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 18, y)], ShapeStyle { stroke_width: 2, ..style })
-                    });
+                    chart
+                        .draw_series(LineSeries::new(points.clone(), style))?
+                        .label(label)
+                        .legend(move |(x, y)| key!((x, y), 2, style, Circle::new((9, 0), 3, style)));
                     chart.draw_series(points.iter().map(|p| Circle::new(*p, 3, style)))?;
                 }
                 ChartBackend::Gl => {
-                    chart.draw_series(DashedLineSeries::new(points.clone(), 6, 4, style))?.label(label).legend(
-                        move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 18, y)], ShapeStyle { stroke_width: 1, ..style })
-                        },
-                    );
+                    chart
+                        .draw_series(DashedLineSeries::new(points.clone(), 6, 4, style))?
+                        .label(label)
+                        .legend(move |(x, y)| key!((x, y), 1, style, TriangleMarker::new((9, 0), 4, style)));
                     chart.draw_series(points.iter().map(|p| TriangleMarker::new(*p, 4, style)))?;
                 }
                 ChartBackend::Wgpu => {
                     let (dash, gap) = if wavefront { (5, 5) } else { (10, 3) };
-                    chart.draw_series(DashedLineSeries::new(points.clone(), dash, gap, style))?.label(label).legend(
-                        move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 18, y)], ShapeStyle { stroke_width: 1, ..style })
-                        },
-                    );
+                    chart
+                        .draw_series(DashedLineSeries::new(points.clone(), dash, gap, style))?
+                        .label(label)
+                        .legend(move |(x, y)| key!((x, y), 1, style, Rectangle::new([(6, -3), (12, 3)], style)));
                     // Squares: an element anchored at the point, drawn in pixel offsets.
                     chart.draw_series(
                         points.iter().map(|p| EmptyElement::at(*p) + Rectangle::new([(-3, -3), (3, 3)], style)),
                     )?;
                 }
                 ChartBackend::Web => {
-                    chart.draw_series(DashedLineSeries::new(points.clone(), 2, 3, style))?.label(label).legend(
-                        move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 18, y)], ShapeStyle { stroke_width: 1, ..style })
-                        },
-                    );
+                    chart
+                        .draw_series(DashedLineSeries::new(points.clone(), 2, 3, style))?
+                        .label(label)
+                        .legend(move |(x, y)| key!((x, y), 1, style, Cross::new((9, 0), 4, style)));
                     chart.draw_series(points.iter().map(|p| Cross::new(*p, 4, style)))?;
                 }
             }
