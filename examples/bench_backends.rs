@@ -1,5 +1,6 @@
 //! CPU, GL and wgpu backend throughput (samples per second), measured in the same run on the same
-//! packed scenes, printed as a table of medians and ratios.
+//! packed scenes, printed as a table of medians and ratios; the CPU and wgpu each under both
+//! schedules (the megakernel and the wavefront, `docs/wavefront.md`).
 //!
 //! ```sh
 //! cargo run --release --example bench_backends [-- FRAMES] [--size N] [--rounds R]
@@ -9,7 +10,9 @@
 //! shaders on the first draw). Then R rounds (default 5) time FRAMES frames (default 8) on each
 //! renderer of each scene, waiting for the device before and after; the order of the renderers
 //! rotates from round to round, so that a noisy neighbour on a shared machine hits every column
-//! and every row alike. The table gives each renderer's median and the ratios of medians.
+//! and every row alike. The table gives each renderer's median and the ratios of medians. Each
+//! runtime's wavefront renderer is created right after its megakernel, so every round measures
+//! the two back to back (A/B, the order alternating with the rotation).
 //!
 //! `--size N` renders both scenes at NxN (default: the Cornell box at 256x256, LittlestTokyo at
 //! 128x128; a GPU wants more pixels per dispatch to be busy, e.g. `--size 1024`).
@@ -22,6 +25,9 @@
 //! triangle flagged as masked (the hole test compiled into traversal but never run).
 //!
 //! Columns beyond the backends:
+//! - **CPU wavefront, wgpu wavefront** (`Schedule::Wavefront`) and **wavefront / megakernel**:
+//!   the ratio of the wavefront's samples per second to its runtime's megakernel's (above 1: the
+//!   wavefront is faster). GL has no wavefront (no compute).
 //! - **sized / 64**: the kernel with its traversal stack sized to the scene (`Features::
 //!   traversal_stack`, a specialisation constant) against the same kernel with 64 entries, on
 //!   GL and on wgpu.
@@ -33,7 +39,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use tracer::backend::{create, Renderer, RendererKind};
+use tracer::backend::{create_scheduled, Renderer, RendererKind, Schedule};
 use tracer::kernel::{RenderSettings, Strategy};
 use tracer::pack::{pack, Packed};
 
@@ -57,25 +63,60 @@ fn check(r: &dyn Renderer) -> Result<()> {
     Ok(())
 }
 
-/// The columns, in the order renderers are created.
-const COLUMNS: [&str; 6] = ["CPU", "GL", "GL, 64-entry stack", "GL, leaves at once", "wgpu", "wgpu, 64-entry stack"];
+/// The columns, in the order renderers are created (a wavefront right after its megakernel).
+const COLUMNS: [&str; 8] = [
+    "CPU",
+    "CPU, wavefront",
+    "GL",
+    "GL, 64-entry stack",
+    "GL, leaves at once",
+    "wgpu",
+    "wgpu, wavefront",
+    "wgpu, 64-entry stack",
+];
 
 fn renderers(p: &Packed) -> Result<Vec<Box<dyn Renderer>>> {
     let mut stack_64 = p.clone();
     stack_64.features.traversal_stack = 0; // no specialisation: the kernel's own 64 entries
     let mut at_once = p.clone();
     at_once.scene.leaf_stack_limit = 0;
+    let (mega, wave) = (Schedule::Megakernel, Schedule::Wavefront);
     [
-        (RendererKind::Cpu, p.clone()),
-        (RendererKind::Gl, p.clone()),
-        (RendererKind::Gl, stack_64.clone()),
-        (RendererKind::Gl, at_once),
-        (RendererKind::Wgpu, p.clone()),
-        (RendererKind::Wgpu, stack_64),
+        (RendererKind::Cpu, mega, p.clone()),
+        (RendererKind::Cpu, wave, p.clone()),
+        (RendererKind::Gl, mega, p.clone()),
+        (RendererKind::Gl, mega, stack_64.clone()),
+        (RendererKind::Gl, mega, at_once),
+        (RendererKind::Wgpu, mega, p.clone()),
+        (RendererKind::Wgpu, wave, p.clone()),
+        (RendererKind::Wgpu, mega, stack_64),
     ]
     .into_iter()
-    .map(|(kind, packed)| Ok(create(kind, packed, 0)?))
+    .map(|(kind, schedule, packed)| {
+        create_scheduled(kind, schedule, packed, 0).with_context(|| format!("{} {}", kind.name(), schedule.name()))
+    })
     .collect()
+}
+
+/// One scene's medians, by column.
+struct Medians {
+    cpu: f64,
+    cpu_wave: f64,
+    gl: f64,
+    gl_64: f64,
+    gl_at_once: f64,
+    wgpu: f64,
+    wgpu_wave: f64,
+    wgpu_64: f64,
+}
+
+impl Medians {
+    fn of(m: &[f64]) -> Medians {
+        let [cpu, cpu_wave, gl, gl_64, gl_at_once, wgpu, wgpu_wave, wgpu_64] = m[..] else {
+            unreachable!("one median per column")
+        };
+        Medians { cpu, cpu_wave, gl, gl_64, gl_at_once, wgpu, wgpu_wave, wgpu_64 }
+    }
 }
 
 /// Median samples per second of each renderer over `rounds` rotated rounds.
@@ -185,38 +226,52 @@ fn main() -> Result<()> {
     let table: Vec<_> = rows
         .into_iter()
         .zip(medians.chunks(COLUMNS.len()))
-        .map(|((name, size, triangles, stack), m)| (name, size, triangles, stack, m.to_vec()))
+        .map(|((name, size, triangles, stack), m)| (name, size, triangles, stack, Medians::of(m)))
         .collect();
     println!("{frames} frames x {rounds} rounds (medians), MIS, max depth 8; {devices}");
     println!("columns: {}", COLUMNS.join(", "));
     println!(
-        "| scene | size | triangles | stack | CPU Ms/s | GL Ms/s | wgpu Ms/s | GL / CPU | wgpu / CPU | wgpu / GL \
+        "| scene | size | triangles | stack | CPU Ms/s | CPU wavefront Ms/s | GL Ms/s | wgpu Ms/s | wgpu wavefront Ms/s \
+         | CPU wavefront / megakernel | wgpu wavefront / megakernel | GL / CPU | wgpu / CPU | wgpu / GL \
          | GL sized / 64 | wgpu sized / 64 | GL leaves at once / pushed |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (name, size, triangles, stack, m) in &table {
-        let [cpu, gl, gl_64, gl_at_once, wgpu, wgpu_64] = m[..] else { unreachable!("one median per column") };
         let (size, triangles, stack) = (*size, *triangles, *stack);
         println!(
-            "| {name} | {size}x{size} | {triangles} | {stack} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
-            cpu / 1e6,
-            gl / 1e6,
-            wgpu / 1e6,
-            gl / cpu,
-            wgpu / cpu,
-            wgpu / gl,
-            gl / gl_64,
-            wgpu / wgpu_64,
-            gl_at_once / gl,
+            "| {name} | {size}x{size} | {triangles} | {stack} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} \
+             | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            m.cpu / 1e6,
+            m.cpu_wave / 1e6,
+            m.gl / 1e6,
+            m.wgpu / 1e6,
+            m.wgpu_wave / 1e6,
+            m.cpu_wave / m.cpu,
+            m.wgpu_wave / m.wgpu,
+            m.gl / m.cpu,
+            m.wgpu / m.cpu,
+            m.wgpu / m.gl,
+            m.gl / m.gl_64,
+            m.wgpu / m.wgpu_64,
+            m.gl_at_once / m.gl,
         );
     }
     // The cost of alpha masks per runtime, and where it goes.
     let [masked, opaque, no_holes, unflagged] = [&table[1].4, &table[2].4, &table[3].4, &table[4].4];
-    let row = |what: &str, a: &[f64], b: &[f64]| {
-        println!("| {what} | {:.2} | {:.2} | {:.2} |", a[0] / b[0], a[1] / b[1], a[4] / b[4]);
+    let row = |what: &str, a: &Medians, b: &Medians| {
+        println!(
+            "| {what} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            a.cpu / b.cpu,
+            a.cpu_wave / b.cpu_wave,
+            a.gl / b.gl,
+            a.wgpu / b.wgpu,
+            a.wgpu_wave / b.wgpu_wave
+        );
     };
-    println!("\n| LittlestTokyo, cost of masks (ratio of samples per second) | CPU | GL | wgpu |");
-    println!("|---|---|---|---|");
+    println!(
+        "\n| LittlestTokyo, cost of masks (ratio of samples per second) | CPU | CPU wavefront | GL | wgpu | wgpu wavefront |"
+    );
+    println!("|---|---|---|---|---|---|");
     row("as shipped: opaque / masked", opaque, masked);
     row("the paths through holes: masked without holes / masked", no_holes, masked);
     row("the hole tests run: no triangle flagged / masked without holes", unflagged, no_holes);

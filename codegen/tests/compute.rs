@@ -314,3 +314,26 @@ fn a_function_named_as_an_entry_point_is_an_error_naming_both() {
     let g = program.emit(Target::Wgsl, &Selection::compute(&["tock"], BTreeMap::new())).expect("`main_tock` is free");
     validate::validate(&g).unwrap_or_else(|e| panic!("{e}\n{}", g.source));
 }
+
+/// A harness binds its arguments and results in bind group 1: a function that reads a
+/// resources struct of group 1 or above is refused at the function, naming the struct and its
+/// group, instead of emitting a shader whose bindings collide. One that reads group 0 only
+/// still gets its harness.
+#[test]
+fn a_harness_refuses_functions_that_read_resources_beyond_group_0() {
+    let program = program();
+    let err = program.emit(Target::Wgsl, &Selection::harness("shade")).expect_err("Queue is group 1");
+    let text = err.to_string();
+    assert!(
+        text.contains("in kernel fn `wavefront::shade`")
+            && text.contains(
+                "no equivalence harness around `shade`: it reads `Queue`, a `#[resources(group = 1)]` struct"
+            )
+            && text.contains("a harness binds its own arguments and results in bind group 1"),
+        "{text}"
+    );
+    assert_eq!(err.span, program_span("shade"));
+    let g = program.emit(Target::Wgsl, &Selection::harness("count_of")).expect("Pool is group 0");
+    validate::validate(&g).unwrap_or_else(|e| panic!("{e}\n{}", g.source));
+    assert_eq!(g.harness.expect("layout").input_words, 1);
+}

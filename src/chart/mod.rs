@@ -3,6 +3,11 @@
 //! render time and error against a converged reference (RMSE and relMSE) go to a CSV and an SVG
 //! chart (error against time, log-log, with the −½ slope an unbiased estimator's RMSE follows).
 //!
+//! The CPU and wgpu runtimes chart each strategy under both schedules (`--schedules`): a
+//! megakernel line and a wavefront line (`docs/wavefront.md`), labelled e.g. "mis wgpu,
+//! wavefront"; GL and the web backend have the megakernel only (no compute). On the CPU the two
+//! schedules add the same samples, so their lines differ in time only.
+//!
 //! The reference is analytic where the scene has one (`furnace`, `sky-plane`); otherwise a long
 //! CPU MIS render with its own seed, cached as EXR under `--reference-dir` by a hash of
 //! everything it depends on (scene file bytes, sky file bytes and settings, image size, depth,
@@ -13,7 +18,7 @@
 //! renderer creation, the driver's shader compile (a throwaway renderer draws one frame first),
 //! image read-back or the error computation.
 //!
-//! With `--denoise` each line has a denoised twin (`render --denoise`'s filter, its passes on
+//! With `--denoise` each line (either schedule) has a denoised twin (`render --denoise`'s filter, its passes on
 //! the line's runtime; the web backend's denoised in the page by the page's own denoiser): at
 //! each checkpoint the same image, denoised; its time is the line's (rendered again with the
 //! denoiser's guide) plus that checkpoint's denoise: the read-backs of the accumulation and the
@@ -34,7 +39,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, ensure, Context, Result};
 use glam::Vec3;
 use tracer::backend::cpu::CpuRenderer;
-use tracer::backend::{Image, Renderer, RendererKind};
+use tracer::backend::{Image, Renderer, RendererKind, Schedule};
 use tracer::kernel::{Features, RenderSettings, Strategy};
 use tracer::pack::{pack, Packed};
 use tracer::scene::{self, Scene, Sky};
@@ -78,6 +83,10 @@ pub struct ChartArgs {
     /// Strategies to chart.
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ChartStrategy::Bsdf, ChartStrategy::Nee, ChartStrategy::Mis])]
     pub strategies: Vec<ChartStrategy>,
+    /// Schedules to chart on the runtimes that have both (CPU and wgpu: a line per strategy and
+    /// schedule); GL and the web backend render the megakernel only.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ChartSchedule::Megakernel, ChartSchedule::Wavefront])]
+    pub schedules: Vec<ChartSchedule>,
     /// Where the CSV, SVG and equal-time PNG of each scene go.
     #[arg(long, default_value = "target/lightport-chart")]
     pub out_dir: PathBuf,
@@ -117,6 +126,40 @@ impl ChartBackend {
             ChartBackend::Web => "web",
         }
     }
+
+    /// Whether the backend runs the wavefront schedule (compute shaders and atomics, or the CPU).
+    fn has_wavefront(self) -> bool {
+        matches!(self, ChartBackend::Cpu | ChartBackend::Wgpu)
+    }
+
+    /// The schedules of `wanted` this backend charts, in order.
+    fn schedules(self, wanted: &[ChartSchedule]) -> Vec<Schedule> {
+        let mut out: Vec<Schedule> = Vec::new();
+        for s in wanted.iter().map(|&s| Schedule::from(s)) {
+            if (s == Schedule::Megakernel || self.has_wavefront()) && !out.contains(&s) {
+                out.push(s);
+            }
+        }
+        out
+    }
+}
+
+/// A schedule to chart (`tracer::backend::Schedule`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ChartSchedule {
+    /// One invocation follows each path to its end: every backend.
+    Megakernel,
+    /// Stages over a pool of paths with queues (`docs/wavefront.md`): CPU and wgpu.
+    Wavefront,
+}
+
+impl From<ChartSchedule> for Schedule {
+    fn from(s: ChartSchedule) -> Schedule {
+        match s {
+            ChartSchedule::Megakernel => Schedule::Megakernel,
+            ChartSchedule::Wavefront => Schedule::Wavefront,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -147,10 +190,12 @@ struct ChartScene {
     analytic: Option<Vec3>,
 }
 
-/// One measurement: a line (backend x strategy) at one sample count.
+/// One measurement: a line (backend x schedule x strategy) at one sample count.
 #[derive(Clone, Debug)]
 struct Point {
     backend: ChartBackend,
+    /// The megakernel on GL and the web backend.
+    schedule: Schedule,
     strategy: Strategy,
     /// A point of a denoised line (`--denoise`).
     denoised: bool,
@@ -167,7 +212,7 @@ pub fn chart(args: &ChartArgs) -> Result<()> {
     ensure!((1..=4096).contains(&args.size), "--size must be 1..=4096");
     ensure!(args.spp >= 1 && args.reference_spp >= 1, "--spp and --reference-spp must be at least 1");
     ensure!(args.max_depth >= 1, "--max-depth must be at least 1");
-    ensure!(!args.backends.is_empty() && !args.strategies.is_empty(), "nothing to chart");
+    ensure!(!args.backends.is_empty() && !args.strategies.is_empty() && !args.schedules.is_empty(), "nothing to chart");
     ensure!(
         args.web_timeout.is_finite() && args.web_timeout > 0.0 && args.web_timeout <= 86400.0,
         "--web-timeout must be between 0 and 86400 seconds"
@@ -348,15 +393,16 @@ fn checkpoints(max: u32) -> Vec<u32> {
     c
 }
 
-/// An in-process renderer of `backend` (the web backend renders in a browser: [`web::lines`]).
-fn renderer(backend: ChartBackend, packed: Packed, seed: u32) -> Result<Box<dyn Renderer>> {
+/// An in-process renderer of `backend` under `schedule` (the web backend renders in a
+/// browser: [`web::lines`]).
+fn renderer(backend: ChartBackend, schedule: Schedule, packed: Packed, seed: u32) -> Result<Box<dyn Renderer>> {
     let kind = match backend {
         ChartBackend::Cpu => RendererKind::Cpu,
         ChartBackend::Gl => RendererKind::Gl,
         ChartBackend::Wgpu => RendererKind::Wgpu,
         ChartBackend::Web => bail!("the web backend renders in a browser (web::lines), not in this process"),
     };
-    Ok(tracer::backend::create(kind, packed, seed)?)
+    Ok(tracer::backend::create_scheduled(kind, schedule, packed, seed)?)
 }
 
 impl Point {
@@ -368,25 +414,37 @@ impl Point {
             ""
         }
     }
+
+    /// The runtime of the point's line as labels name it: the backend, and on the backends
+    /// with two schedules the schedule ("wgpu, wavefront", "cpu, megakernel", "gl").
+    fn runtime(&self) -> String {
+        if self.backend.has_wavefront() {
+            format!("{}, {}", self.backend.name(), self.schedule.name())
+        } else {
+            self.backend.name().to_string()
+        }
+    }
 }
 
-/// Renders one line (backend x strategy) through every checkpoint; with `--denoise`, its
-/// denoised twin too, from a renderer of its own that accumulates the denoiser's guide (so the
-/// guide's cost is on the denoised line only).
-fn run_line(
-    packed: &Packed,
-    backend: ChartBackend,
-    strategy: Strategy,
-    args: &ChartArgs,
-    reference: &[Vec3],
-) -> Result<Vec<Vec<Point>>> {
-    let mut lines = vec![run_checkpoints(packed, backend, strategy, args, reference, false)?];
+/// Renders one line (backend x schedule x strategy) through every checkpoint; with
+/// `--denoise`, its denoised twin too, from a renderer of its own that accumulates the
+/// denoiser's guide (so the guide's cost is on the denoised line only), whichever the schedule.
+fn run_line(packed: &Packed, line: Line, args: &ChartArgs, reference: &[Vec3]) -> Result<Vec<Vec<Point>>> {
+    let mut lines = vec![run_checkpoints(packed, line, args, reference, false)?];
     if args.denoise {
         let mut guided = packed.clone();
         guided.set_denoise_guide(true);
-        lines.push(run_checkpoints(&guided, backend, strategy, args, reference, true)?);
+        lines.push(run_checkpoints(&guided, line, args, reference, true)?);
     }
     Ok(lines)
+}
+
+/// What a line renders with.
+#[derive(Clone, Copy, Debug)]
+struct Line {
+    backend: ChartBackend,
+    schedule: Schedule,
+    strategy: Strategy,
 }
 
 /// One line's points: rendered to every checkpoint and, if `denoised`, denoised there on the
@@ -395,20 +453,20 @@ fn run_line(
 /// for a render to that many samples denoised once.
 fn run_checkpoints(
     packed: &Packed,
-    backend: ChartBackend,
-    strategy: Strategy,
+    line: Line,
     args: &ChartArgs,
     reference: &[Vec3],
     denoised: bool,
 ) -> Result<Vec<Point>> {
+    let Line { backend, schedule, .. } = line;
     if backend != ChartBackend::Cpu {
         // The driver compiles (JITs) the shader at the first draw; a throwaway renderer pays
         // for it here, so the timed one does not.
-        let mut warm = renderer(backend, packed.clone(), args.seed ^ 0xFFFF)?;
+        let mut warm = renderer(backend, schedule, packed.clone(), args.seed ^ 0xFFFF)?;
         warm.render_frame()?;
         warm.finish()?;
     }
-    let mut r = renderer(backend, packed.clone(), args.seed)?;
+    let mut r = renderer(backend, schedule, packed.clone(), args.seed)?;
     let mut points = Vec::new();
     let mut elapsed = Duration::ZERO;
     let mut frames = 0;
@@ -432,16 +490,25 @@ fn run_checkpoints(
             image = tracer::denoise::denoise_on(r.as_mut(), &image, &guide)?.image;
             seconds += start.elapsed().as_secs_f64();
         }
-        points.push(point(backend, strategy, denoised, spp, seconds, rejected, image, reference)?);
+        points.push(point(line, denoised, spp, seconds, rejected, image, reference)?);
+    }
+    // The line is what it says: a wavefront renderer counts its rays (a megakernel has no
+    // counters), read once after the timed frames.
+    let (runtime, counts) = (backend.name(), r.wavefront_counts());
+    match (schedule, counts) {
+        (Schedule::Wavefront, None) => {
+            bail!("the {runtime} wavefront line was rendered by a megakernel (no ray counters)")
+        }
+        (Schedule::Wavefront, Some(c)) => ensure!(c.segments > 0, "the {runtime} wavefront traced no path segments"),
+        (Schedule::Megakernel, Some(_)) => bail!("the {runtime} megakernel line was rendered by a wavefront"),
+        (Schedule::Megakernel, None) => {}
     }
     Ok(points)
 }
 
 /// A checkpoint's point: `image`'s errors against `reference`.
-#[allow(clippy::too_many_arguments)]
 fn point(
-    backend: ChartBackend,
-    strategy: Strategy,
+    line: Line,
     denoised: bool,
     spp: u32,
     seconds: f64,
@@ -450,8 +517,9 @@ fn point(
     reference: &[Vec3],
 ) -> Result<Point> {
     Ok(Point {
-        backend,
-        strategy,
+        backend: line.backend,
+        schedule: line.schedule,
+        strategy: line.strategy,
         denoised,
         spp,
         seconds,
@@ -481,16 +549,24 @@ fn run_scene(scene: &ChartScene, args: &ChartArgs, kernel_hash: u64) -> Result<(
             }
             continue;
         }
-        for &strategy in &args.strategies {
-            let strategy = Strategy::from(strategy);
-            packed.apply(&RenderSettings { width: args.size, height: args.size, strategy, max_depth: args.max_depth });
-            match run_line(&packed, backend, strategy, args, &reference) {
-                Ok(line_and_twin) => lines.extend(line_and_twin),
-                Err(e) if backend != ChartBackend::Cpu => {
-                    eprintln!("warning: skipping the {} backend: {e:#}", backend.name());
-                    break;
+        let schedules = backend.schedules(&args.schedules);
+        if schedules.is_empty() {
+            eprintln!("warning: skipping the {} backend: it has no wavefront schedule (no compute)", backend.name());
+        }
+        for schedule in schedules {
+            for &strategy in &args.strategies {
+                let strategy = Strategy::from(strategy);
+                let settings =
+                    RenderSettings { width: args.size, height: args.size, strategy, max_depth: args.max_depth };
+                packed.apply(&settings);
+                match run_line(&packed, Line { backend, schedule, strategy }, args, &reference) {
+                    Ok(line_and_twin) => lines.extend(line_and_twin),
+                    Err(e) if backend != ChartBackend::Cpu => {
+                        eprintln!("warning: skipping the {} backend's {}: {e:#}", backend.name(), schedule.name());
+                        break;
+                    }
+                    Err(e) => return Err(e),
                 }
-                Err(e) => return Err(e),
             }
         }
     }
@@ -516,11 +592,12 @@ fn run_scene(scene: &ChartScene, args: &ChartArgs, kernel_hash: u64) -> Result<(
 }
 
 fn to_csv(slug: &str, lines: &[Vec<Point>], reference: &str) -> String {
-    let mut out = String::from("scene,backend,strategy,spp,seconds,rmse,rel_mse,rejected_samples,reference,denoised\n");
+    let mut out =
+        String::from("scene,backend,strategy,spp,seconds,rmse,rel_mse,rejected_samples,reference,denoised,schedule\n");
     for p in lines.iter().flatten() {
         let _ = writeln!(
             out,
-            "{slug},{},{},{},{:.6},{:.6e},{:.6e},{},{reference},{}",
+            "{slug},{},{},{},{:.6},{:.6e},{:.6e},{},{reference},{},{}",
             p.backend.name(),
             p.strategy.name(),
             p.spp,
@@ -528,7 +605,8 @@ fn to_csv(slug: &str, lines: &[Vec<Point>], reference: &str) -> String {
             p.rmse,
             p.rel_mse,
             p.rejected,
-            p.denoised
+            p.denoised,
+            p.schedule.name()
         );
     }
     out
@@ -541,9 +619,16 @@ fn print_summary(lines: &[Vec<Point>]) {
     let baseline = lines
         .iter()
         .filter_map(last)
-        .find(|p| p.backend == ChartBackend::Cpu && p.strategy == Strategy::Mis && !p.denoised)
+        .find(|p| {
+            p.backend == ChartBackend::Cpu
+                && p.schedule == Schedule::Megakernel
+                && p.strategy == Strategy::Mis
+                && !p.denoised
+        })
         .map(|p| p.rmse * p.rmse * p.seconds);
-    println!("| backend | strategy | spp | seconds | RMSE | relMSE | RMSE slope vs time | efficiency vs cpu mis |");
+    println!(
+        "| backend | strategy | spp | seconds | RMSE | relMSE | RMSE slope vs time | efficiency vs cpu mis (megakernel) |"
+    );
     println!("|---|---|---|---|---|---|---|---|");
     for l in lines {
         let Some(p) = last(l) else { continue };
@@ -551,7 +636,7 @@ fn print_summary(lines: &[Vec<Point>]) {
         let efficiency = baseline.map_or("-".into(), |b| format!("{:.2}", b / (p.rmse * p.rmse * p.seconds)));
         println!(
             "| {} | {}{} | {} | {:.3} | {:.3e} | {:.3e} | {} | {efficiency} |",
-            p.backend.name(),
+            p.runtime(),
             p.strategy.name(),
             p.suffix(),
             p.spp,

@@ -8,6 +8,7 @@ use anyhow::{Context, Result};
 use base64::Engine as _;
 use glam::Vec3;
 use tracer::backend::Image;
+use tracer::backend::Schedule;
 use tracer::kernel::Strategy;
 
 use super::{ChartBackend, Point};
@@ -52,9 +53,7 @@ pub(super) fn equal_time_strip(
     std::fs::write(svg, text).with_context(|| format!("writing {}", svg.display()))?;
     Ok(picks
         .iter()
-        .map(|p| {
-            format!("{} {}{} ({} spp, {:.3} s)", p.backend.name(), p.strategy.name(), p.suffix(), p.spp, p.seconds)
-        })
+        .map(|p| format!("{} {}{} ({} spp, {:.3} s)", p.runtime(), p.strategy.name(), p.suffix(), p.spp, p.seconds))
         .collect::<Vec<_>>()
         .join(", "))
 }
@@ -67,16 +66,16 @@ fn equal_time_svg(
     picks: &[&Point],
     budget: f64,
 ) -> Result<String> {
-    // Rows: one per backend, in the order charted; the reference opens the first row.
-    let mut rows: Vec<(ChartBackend, Vec<&Point>)> = Vec::new();
+    // Rows: one per backend and schedule, in the order charted; the reference opens the first row.
+    let mut rows: Vec<(String, Vec<&Point>)> = Vec::new();
     for p in picks {
-        match rows.iter_mut().find(|(b, _)| *b == p.backend) {
+        match rows.iter_mut().find(|(runtime, _)| *runtime == p.runtime()) {
             Some((_, row)) => row.push(p),
-            None => rows.push((p.backend, vec![p])),
+            None => rows.push((p.runtime(), vec![p])),
         }
     }
     if rows.is_empty() {
-        rows.push((ChartBackend::Cpu, Vec::new()));
+        rows.push((String::new(), Vec::new()));
     }
     let columns = 1 + rows.iter().map(|(_, r)| r.len()).max().unwrap_or(0);
     let (tile, gap, label, title) = (size.max(160), 10u32, 34u32, 30u32);
@@ -111,7 +110,7 @@ fn equal_time_svg(
     cell(&mut out, 0, 0, "reference", reference_label, reference)?;
     for (r, (_, row)) in rows.iter().enumerate() {
         for (c, p) in row.iter().enumerate() {
-            let heading = format!("{} · {}{}", p.strategy.name(), p.backend.name(), p.suffix());
+            let heading = format!("{} · {}{}", p.strategy.name(), p.runtime(), p.suffix());
             let detail = format!("{} spp · {}", p.spp, seconds(p.seconds));
             cell(&mut out, r, c + 1, &heading, &detail, &p.image.pixels)?;
         }
@@ -144,6 +143,16 @@ fn png_bytes(image: &Image) -> Result<Vec<u8>> {
     )
     .context("encoding a PNG")?;
     Ok(png)
+}
+
+/// A legend entry at `$at`: the line's stroke, 18 pixels long, and `$marker` (at pixel offsets
+/// from `$at`: its middle is (9, 0)), hollow for a wavefront line, which tells the runtimes apart.
+macro_rules! key {
+    ($at:expr, $stroke_width:expr, $style:expr, $marker:expr) => {
+        EmptyElement::at($at)
+            + PathElement::new(vec![(0, 0), (18, 0)], ShapeStyle { stroke_width: $stroke_width, ..$style })
+            + $marker
+    };
 }
 
 pub(super) fn draw_chart(path: &Path, title: &str, lines: &[Vec<Point>]) -> Result<()> {
@@ -197,40 +206,48 @@ pub(super) fn draw_chart(path: &Path, title: &str, lines: &[Vec<Point>]) -> Resu
             let color = if first.denoised { RGBColor(color.0 / 2, color.1 / 2, color.2 / 2) } else { color };
             let points: Vec<(f64, f64)> =
                 line.iter().map(|p| (p.seconds, metric(p))).filter(|(t, e)| positive(*t) && positive(*e)).collect();
-            let label = format!("{} {}{}", first.strategy.name(), first.backend.name(), first.suffix());
-            let style = ShapeStyle { color: color.to_rgba(), filled: true, stroke_width: 2 };
+            let label = format!("{} {}{}", first.strategy.name(), first.runtime(), first.suffix());
+            // A wavefront line: its runtime's line and markers, hollow (and the CPU's dashed).
+            let wavefront = first.schedule == Schedule::Wavefront;
+            let style = ShapeStyle { color: color.to_rgba(), filled: !wavefront, stroke_width: 2 };
             match first.backend {
+                ChartBackend::Cpu if wavefront => {
+                    chart
+                        .draw_series(DashedLineSeries::new(points.clone(), 4, 3, style))?
+                        .label(label)
+                        .legend(move |(x, y)| key!((x, y), 2, style, Circle::new((9, 0), 3, style)));
+                    chart.draw_series(points.iter().map(|p| Circle::new(*p, 3, style)))?;
+                }
                 ChartBackend::Cpu => {
-                    chart.draw_series(LineSeries::new(points.clone(), style))?.label(label).legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 18, y)], ShapeStyle { stroke_width: 2, ..style })
-                    });
+                    chart
+                        .draw_series(LineSeries::new(points.clone(), style))?
+                        .label(label)
+                        .legend(move |(x, y)| key!((x, y), 2, style, Circle::new((9, 0), 3, style)));
                     chart.draw_series(points.iter().map(|p| Circle::new(*p, 3, style)))?;
                 }
                 ChartBackend::Gl => {
-                    chart.draw_series(DashedLineSeries::new(points.clone(), 6, 4, style))?.label(label).legend(
-                        move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 18, y)], ShapeStyle { stroke_width: 1, ..style })
-                        },
-                    );
+                    chart
+                        .draw_series(DashedLineSeries::new(points.clone(), 6, 4, style))?
+                        .label(label)
+                        .legend(move |(x, y)| key!((x, y), 1, style, TriangleMarker::new((9, 0), 4, style)));
                     chart.draw_series(points.iter().map(|p| TriangleMarker::new(*p, 4, style)))?;
                 }
                 ChartBackend::Wgpu => {
-                    chart.draw_series(DashedLineSeries::new(points.clone(), 10, 3, style))?.label(label).legend(
-                        move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 18, y)], ShapeStyle { stroke_width: 1, ..style })
-                        },
-                    );
+                    let (dash, gap) = if wavefront { (5, 5) } else { (10, 3) };
+                    chart
+                        .draw_series(DashedLineSeries::new(points.clone(), dash, gap, style))?
+                        .label(label)
+                        .legend(move |(x, y)| key!((x, y), 1, style, Rectangle::new([(6, -3), (12, 3)], style)));
                     // Squares: an element anchored at the point, drawn in pixel offsets.
                     chart.draw_series(
                         points.iter().map(|p| EmptyElement::at(*p) + Rectangle::new([(-3, -3), (3, 3)], style)),
                     )?;
                 }
                 ChartBackend::Web => {
-                    chart.draw_series(DashedLineSeries::new(points.clone(), 2, 3, style))?.label(label).legend(
-                        move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 18, y)], ShapeStyle { stroke_width: 1, ..style })
-                        },
-                    );
+                    chart
+                        .draw_series(DashedLineSeries::new(points.clone(), 2, 3, style))?
+                        .label(label)
+                        .legend(move |(x, y)| key!((x, y), 1, style, Cross::new((9, 0), 4, style)));
                     chart.draw_series(points.iter().map(|p| Cross::new(*p, 4, style)))?;
                 }
             }
@@ -239,7 +256,11 @@ pub(super) fn draw_chart(path: &Path, title: &str, lines: &[Vec<Point>]) -> Resu
         // drawn through the first CPU MIS point (or the first point at all).
         let anchor = lines
             .iter()
-            .find(|l| l.first().is_some_and(|p| p.backend == ChartBackend::Cpu && p.strategy == Strategy::Mis))
+            .find(|l| {
+                l.first().is_some_and(|p| {
+                    p.backend == ChartBackend::Cpu && p.schedule == Schedule::Megakernel && p.strategy == Strategy::Mis
+                })
+            })
             .or(lines.first())
             .and_then(|l| l.first())
             .map(|p| (p.seconds, metric(p)))

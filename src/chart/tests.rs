@@ -21,6 +21,7 @@ fn args(scenes: &[&str], out: &Path) -> ChartArgs {
         max_depth: 4,
         backends: vec![ChartBackend::Cpu],
         strategies: vec![ChartStrategy::Bsdf, ChartStrategy::Nee, ChartStrategy::Mis],
+        schedules: vec![ChartSchedule::Megakernel, ChartSchedule::Wavefront],
         out_dir: out.join("chart"),
         reference_dir: out.join("reference"),
         seed: 1,
@@ -36,30 +37,51 @@ fn the_furnace_chart_has_every_line_and_its_error_falls() {
     chart(&a).unwrap();
     let csv = std::fs::read_to_string(a.out_dir.join("furnace.csv")).unwrap();
     let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
-    assert_eq!(rows.len(), 3 * 5, "3 strategies x checkpoints 1, 2, 4, 8, 16:\n{csv}");
+    assert_eq!(rows.len(), 2 * 3 * 5, "2 schedules x 3 strategies x checkpoints 1, 2, 4, 8, 16:\n{csv}");
+    let rmse = |r: &Vec<&str>| r[5].parse::<f64>().unwrap();
     for strategy in ["bsdf", "nee", "mis"] {
-        let line: Vec<&Vec<&str>> = rows.iter().filter(|r| r[2] == strategy).collect();
-        let rmse = |r: &Vec<&str>| r[5].parse::<f64>().unwrap();
-        assert!(line.iter().all(|r| r[8] == "analytic" && r[7] == "0" && rmse(r).is_finite()));
-        // 16x the samples: the RMSE of an unbiased estimate against the exact value falls
-        // 4x (to 0.25, ± ~0.03 over these 192 values). A bias (a wrong reference, a
-        // sampler that stopped converging) keeps it higher.
-        assert!(rmse(line[4]) < 0.35 * rmse(line[0]), "{strategy}: {csv}");
+        let line = |schedule: &str| -> Vec<&Vec<&str>> {
+            rows.iter().filter(|r| r[2] == strategy && r[10] == schedule).collect()
+        };
+        for schedule in ["megakernel", "wavefront"] {
+            let line = line(schedule);
+            assert_eq!(line.len(), 5, "{strategy}, {schedule}: a line of 5 checkpoints:\n{csv}");
+            assert!(line.iter().all(|r| r[8] == "analytic" && r[7] == "0" && rmse(r).is_finite()));
+            // 16x the samples: the RMSE of an unbiased estimate against the exact value falls
+            // 4x (to 0.25, ± ~0.03 over these 192 values). A bias (a wrong reference, a
+            // sampler that stopped converging) keeps it higher.
+            assert!(rmse(line[4]) < 0.35 * rmse(line[0]), "{strategy}, {schedule}: {csv}");
+        }
+        // On the CPU the wavefront adds the megakernel's samples, bit for bit: the same
+        // errors at every checkpoint (its own time).
+        let errors = |schedule| line(schedule).iter().map(|r| (r[3], r[5], r[6])).collect::<Vec<_>>();
+        assert_eq!(errors("wavefront"), errors("megakernel"), "{strategy}:\n{csv}");
     }
     let svg = std::fs::read_to_string(a.out_dir.join("furnace.svg")).unwrap();
-    assert!(svg.starts_with("<svg") && svg.contains("mis cpu") && svg.contains("slope"));
+    assert!(svg.starts_with("<svg") && svg.contains("slope"));
+    for label in ["mis cpu, megakernel", "mis cpu, wavefront", "bsdf cpu, wavefront"] {
+        assert!(svg.contains(label), "the chart's legend names {label:?}");
+    }
     assert!(a.out_dir.join("furnace-equal-time.png").exists());
     let crops = std::fs::read_to_string(a.out_dir.join("furnace-equal-time.svg")).unwrap();
-    for label in ["reference", "exact", "bsdf · cpu", "nee · cpu", "mis · cpu", " spp · "] {
+    for label in [
+        "reference",
+        "exact",
+        "bsdf · cpu, megakernel",
+        "nee · cpu, megakernel",
+        "mis · cpu, megakernel",
+        "mis · cpu, wavefront",
+        " spp · ",
+    ] {
         assert!(crops.contains(label), "the equal-time SVG labels {label:?}");
     }
-    assert_eq!(crops.matches("data:image/png;base64,").count(), 4, "the reference and 3 crops");
+    assert_eq!(crops.matches("data:image/png;base64,").count(), 7, "the reference and 6 crops");
     let _ = std::fs::remove_dir_all(dir);
 }
 
-/// The GPU backends chart the same analytic scene: lines for GL and wgpu whose error falls
-/// as the CPU's does (a backend that rendered another image, or did not accumulate, would
-/// keep its error).
+/// The GPU backends chart the same analytic scene: lines for GL and for wgpu's megakernel and
+/// wavefront whose error falls as the CPU's does (a backend that rendered another image, or did
+/// not accumulate, would keep its error). GL has no wavefront: no line, no failure.
 #[test]
 fn gpu_backends_chart_the_furnace_too() {
     let dir = std::env::temp_dir().join(format!("lightport-chart-gpu-test-{}", std::process::id()));
@@ -69,20 +91,24 @@ fn gpu_backends_chart_the_furnace_too() {
     chart(&a).unwrap();
     let csv = std::fs::read_to_string(a.out_dir.join("furnace.csv")).unwrap();
     let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
-    for backend in ["gl", "wgpu"] {
-        let line: Vec<&Vec<&str>> = rows.iter().filter(|r| r[1] == backend).collect();
-        assert_eq!(line.len(), 5, "{backend}: checkpoints 1, 2, 4, 8, 16:\n{csv}");
+    for (backend, schedule) in [("gl", "megakernel"), ("wgpu", "megakernel"), ("wgpu", "wavefront")] {
+        let line: Vec<&Vec<&str>> = rows.iter().filter(|r| r[1] == backend && r[10] == schedule).collect();
+        assert_eq!(line.len(), 5, "{backend}, {schedule}: checkpoints 1, 2, 4, 8, 16:\n{csv}");
         let rmse = |r: &Vec<&str>| r[5].parse::<f64>().unwrap();
         assert!(line.iter().all(|r| r[7] == "0" && rmse(r).is_finite()), "{csv}");
-        assert!(rmse(line[4]) < 0.35 * rmse(line[0]), "{backend}: {csv}");
+        assert!(rmse(line[4]) < 0.35 * rmse(line[0]), "{backend}, {schedule}: {csv}");
     }
+    assert_eq!(rows.len(), 15, "no GL wavefront:\n{csv}");
     let svg = std::fs::read_to_string(a.out_dir.join("furnace.svg")).unwrap();
-    assert!(svg.contains("mis gl") && svg.contains("mis wgpu"));
+    for label in ["mis gl", "mis wgpu, megakernel", "mis wgpu, wavefront"] {
+        assert!(svg.contains(label), "the chart's legend names {label:?}");
+    }
+    assert!(!svg.contains("gl, wavefront"));
     let _ = std::fs::remove_dir_all(dir);
 }
 
-/// `--denoise`: each native line has a denoised twin, on every runtime, whose relative MSE
-/// at the last checkpoint is below its line's.
+/// `--denoise`: each native line, of either schedule, has a denoised twin, on every runtime,
+/// whose relative MSE at the last checkpoint is below its line's.
 #[test]
 fn denoised_lines_fall_below_their_noisy_twins() {
     let dir = std::env::temp_dir().join(format!("lightport-chart-denoise-test-{}", std::process::id()));
@@ -94,10 +120,16 @@ fn denoised_lines_fall_below_their_noisy_twins() {
     chart(&a).unwrap();
     let csv = std::fs::read_to_string(a.out_dir.join("cornell.csv")).unwrap();
     let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
-    for backend in ["cpu", "gl", "wgpu"] {
+    for (backend, schedule) in [
+        ("cpu", "megakernel"),
+        ("gl", "megakernel"),
+        ("wgpu", "megakernel"),
+        ("cpu", "wavefront"),
+        ("wgpu", "wavefront"),
+    ] {
         let last = |denoised: &str| {
-            let row = rows.iter().rfind(|r| r[1] == backend && r[9] == denoised);
-            let row = row.unwrap_or_else(|| panic!("{backend}: no line (denoised {denoised}):\n{csv}"));
+            let row = rows.iter().rfind(|r| r[1] == backend && r[9] == denoised && r[10] == schedule);
+            let row = row.unwrap_or_else(|| panic!("{backend} {schedule}: no line (denoised {denoised}):\n{csv}"));
             (row[3].parse::<u32>().unwrap(), row[4].parse::<f64>().unwrap(), row[6].parse::<f64>().unwrap())
         };
         let ((spp, noisy_time, noisy), (spp_d, denoised_time, denoised)) = (last("false"), last("true"));
@@ -112,7 +144,10 @@ fn denoised_lines_fall_below_their_noisy_twins() {
         assert!(denoised_time > 0.0 && noisy_time > 0.0, "{backend}: times are recorded:\n{csv}");
     }
     let svg = std::fs::read_to_string(a.out_dir.join("cornell.svg")).unwrap();
-    assert!(svg.contains("mis gl denoised") && svg.contains("mis cpu denoised"), "the legend names the twins");
+    assert!(
+        svg.contains("mis gl denoised") && svg.contains("mis cpu, megakernel denoised"),
+        "the legend names the twins"
+    );
     let _ = std::fs::remove_dir_all(dir);
 }
 

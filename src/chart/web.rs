@@ -237,6 +237,7 @@ fn line_points(
         let image = Image { width: size, height: size, pixels: pixels_rgb };
         points.push(Point {
             backend: ChartBackend::Web,
+            schedule: tracer::backend::Schedule::Megakernel,
             strategy,
             denoised,
             spp,

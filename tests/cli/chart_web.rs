@@ -22,11 +22,14 @@ fn temp_dir(name: &str) -> PathBuf {
     dir
 }
 
-/// Runs `lightport chart cornell` at 16x16 up to `spp`, with `extra` arguments.
+/// Runs `lightport chart cornell` at 16x16 up to `spp`, with `extra` arguments: the megakernel
+/// only (the web line is compared with the CPU's megakernel line; the wavefront lines are
+/// tests/cli/commands.rs's).
 fn chart(dir: &Path, spp: u32, extra: &[&str], env: &[(&str, &str)]) -> Output {
     let mut command = Command::new(env!("CARGO_BIN_EXE_lightport"));
     command
         .args(["chart", "cornell", "--size", &SIZE.to_string(), "--spp", &spp.to_string(), "--reference-spp", "64"])
+        .args(["--schedules", "megakernel"])
         .arg("--out-dir")
         .arg(dir.join("chart"))
         .arg("--reference-dir")

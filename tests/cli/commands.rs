@@ -222,3 +222,54 @@ fn render_schedule_chooses_the_wavefront_or_refuses_it_clearly() {
     let lit = read("wgpu-denoised.exr").iter().filter(|v| **v > 0.0).count();
     assert!(lit > 20 * 16, "the wgpu wavefront denoises the box ({lit} lit values)");
 }
+
+/// `lightport chart` charts the wavefront by default: on the CPU and wgpu each strategy has a
+/// megakernel line and a wavefront line (the CSV's `schedule` column, the summary and the
+/// legend name them); GL has the megakernel only; `--schedules megakernel` leaves them out.
+#[test]
+fn chart_draws_a_wavefront_line_beside_each_megakernel_line() {
+    let dir = scratch("chart-schedules");
+    let chart = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_lightport"))
+            .args(["chart", "furnace", "--size", "8", "--spp", "4", "--strategies", "nee,mis", "--out-dir"])
+            .arg(dir.join("chart"))
+            .args(extra)
+            .output()
+            .expect("run lightport")
+    };
+    let o = chart(&["--backends", "cpu,gl,wgpu"]);
+    let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(dir.join("chart/furnace.csv")).expect("the CSV");
+    assert!(csv.starts_with("scene,backend,strategy,") && csv.lines().next().unwrap().ends_with(",schedule"), "{csv}");
+    let lines = |backend: &str, schedule: &str| {
+        csv.lines()
+            .filter(|l| l.starts_with(&format!("furnace,{backend},")) && l.ends_with(&format!(",{schedule}")))
+            .count()
+    };
+    // 2 strategies x checkpoints 1, 2, 4.
+    for (backend, schedule, rows) in [
+        ("cpu", "megakernel", 6),
+        ("cpu", "wavefront", 6),
+        ("gl", "megakernel", 6),
+        ("gl", "wavefront", 0),
+        ("wgpu", "megakernel", 6),
+        ("wgpu", "wavefront", 6),
+    ] {
+        assert_eq!(lines(backend, schedule), rows, "{backend}, {schedule}:\n{csv}");
+    }
+    for label in ["| cpu, wavefront | mis |", "| wgpu, wavefront | nee |", "| wgpu, megakernel | mis |", "| gl | mis |"]
+    {
+        assert!(stdout.contains(label), "the summary has {label:?}:\n{stdout}");
+    }
+    let svg = std::fs::read_to_string(dir.join("chart/furnace.svg")).expect("the chart");
+    assert!(
+        svg.contains("mis wgpu, wavefront") && svg.contains("nee cpu, wavefront"),
+        "the legend names the wavefront lines"
+    );
+    let o = chart(&["--backends", "cpu", "--schedules", "megakernel"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(dir.join("chart/furnace.csv")).expect("the CSV");
+    assert!(!csv.contains(",wavefront") && csv.lines().count() == 1 + 6, "{csv}");
+    let _ = std::fs::remove_dir_all(dir);
+}

@@ -366,6 +366,7 @@ fn every_kernel_function_has_a_valid_equivalence_harness() {
     let program = tracer_program();
     let mut checked = 0;
     let mut wide = Vec::new();
+    let mut refused_harnesses = 0;
     for module in tracer::kernel::modules() {
         for item in &module.items {
             let kernel_dsl::ir::Item::Fn(f) = item else { continue };
@@ -374,10 +375,23 @@ fn every_kernel_function_has_a_valid_equivalence_harness() {
                     // A compute module's functions (the wavefront's stages) read the pool, in
                     // bind groups 1 and 2, where a harness binds its own arguments: they are
                     // tested through the wavefront renderers, and the steps they call through
-                    // `tests/equivalence/path_segment.rs`. GLSL refuses them at the function.
+                    // `tests/equivalence/path_segment.rs`. GLSL refuses them at the function
+                    // as compute; WGSL refuses their harness, naming the function and the group.
+                    let e = program.emit(target, &Selection::harness(&f.name)).expect_err("no harness in groups 1, 2");
                     if target == Target::GlslEs300 {
-                        let e = program.emit(target, &Selection::harness(&f.name)).expect_err("GLSL refuses compute");
+                        // At the first compute function it reaches (a callee, maybe).
                         assert!(e.message.contains("GLSL ES 3.00") && e.function.is_some(), "{e}");
+                    } else {
+                        let function = format!("{}::{}", module.name, f.name);
+                        assert_eq!(e.function.as_deref(), Some(function.as_str()), "{e}");
+                        let groups =
+                            ["`Paths`, a `#[resources(group = 1)]`", "`Dispatch`, a `#[resources(group = 2)]`"];
+                        assert!(
+                            e.message.contains(&format!("no equivalence harness around `{}`", f.name))
+                                && groups.iter().any(|g| e.message.contains(g)),
+                            "{e}"
+                        );
+                        refused_harnesses += 1;
                     }
                     continue;
                 }
@@ -392,6 +406,9 @@ fn every_kernel_function_has_a_valid_equivalence_harness() {
         }
     }
     assert!(checked > 30, "{checked} functions");
+    // The wavefront's stages and their helpers: plan_generate, generate, plan_extend, extend,
+    // shade, plan_connect, connect, accumulate, write_grid, load_path, store_path.
+    assert!(refused_harnesses >= 11, "{refused_harnesses} compute functions refused a WGSL harness");
     // GLSL ES 3.00 guarantees 4 colour attachments: 16 words per invocation. One function is
     // wider: a path segment's shading (the path, the shadow ray and the denoiser's first hit,
     // 36 words), checked against the CPU on wgpu and WebGPU (`tests/equivalence/path_segment.rs`:

@@ -41,6 +41,9 @@ impl Lowerer<'_> {
         out.push_str(&self.lang.preamble(&header));
         out.push('\n');
         let blocks = self.resource_blocks()?;
+        if let Some(function) = &self.selection.harness {
+            self.refuse_grouped_resources(function, &blocks)?;
+        }
         out.push_str(&self.lang.resources(&blocks));
         let bindings = self.lang.bindings(&blocks);
         self.write_structs(&mut out)?;

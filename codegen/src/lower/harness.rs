@@ -7,7 +7,7 @@ use std::fmt::Write as _;
 use super::{Lowerer, R};
 use crate::infer;
 use crate::ir;
-use crate::language::{HarnessArg, HarnessShader};
+use crate::language::{HarnessArg, HarnessShader, ResourceBlock};
 use crate::names;
 use crate::types::Ty;
 use crate::{CodegenError, Harness, HarnessWord};
@@ -93,6 +93,28 @@ impl Lowerer<'_> {
             other => return Err(self.harness_error(format!("`{other}` cannot cross the harness"))),
         }
         Ok(())
+    }
+
+    /// A harness binds its own arguments, results and count in bind group 1 (WGSL: `lp_args`,
+    /// `lp_results`, `lp_count`), so `function` may only reach resources of group 0: one that
+    /// reads a `#[resources(group = N)]` struct with N >= 1 (the wavefront's stages read `Paths`,
+    /// group 1, and `Dispatch`, group 2) is refused at the function, for every target, instead
+    /// of sharing the harness's bindings. `blocks` are the resources the emitted code uses.
+    pub(super) fn refuse_grouped_resources(&self, function: &str, blocks: &[ResourceBlock]) -> R<()> {
+        let Some(block) = blocks.iter().find(|b| b.group >= 1) else { return Ok(()) };
+        let Some(f) = self.program.fns.get(function) else { return Ok(()) };
+        Err(CodegenError {
+            file: f.file.clone(),
+            span: f.item.span,
+            function: Some(format!("{}::{}", f.module, f.item.name)),
+            message: format!(
+                "no equivalence harness around `{function}`: it reads `{}`, a `#[resources(group = {})]` struct, \
+                 and a harness binds its own arguments and results in bind group 1; only functions whose \
+                 resources are all in group 0 can be harnessed (test this one through the pipeline that binds \
+                 its groups, or harness the group-0 functions it calls)",
+                block.name, block.group
+            ),
+        })
     }
 
     /// The harness shader around `function` and its layout.
