@@ -387,21 +387,24 @@ fn a_scene_beyond_a_webgpu_limit_falls_back_to_webgl2() {
 }
 
 /// WebGPU device loss (the hook destroys the device): the page requests a new device,
-/// recreates the renderer from the scene in memory and keeps rendering.
+/// recreates the renderer (of the same schedule) from the scene in memory and keeps rendering.
 #[test]
 fn the_page_survives_webgpu_device_loss() {
     let server = Server::start(&[]);
-    let report = browse(&server.url, "deviceloss", &[("scene", "cornell-box"), ("size", "16x16"), ("api", "webgpu")]);
-    no_page_error(&report);
-    assert_eq!(report["info"]["api"], "WebGPU", "{report}");
-    assert_eq!(report["before"], 4);
-    let restored = &report["restored"];
-    assert_eq!(restored["recoveries"], 1, "one new device: {restored}");
-    assert_eq!(restored["sppAfterLoss"], 0, "the renderer was recreated: {restored}");
-    assert_eq!(restored["spp"], 3, "rendering continues on the new device: {restored}");
-    assert_eq!(restored["info"]["api"], "WebGPU", "{restored}");
-    assert!(restored["info"]["webGpuLost"].is_null(), "{restored}");
-    assert!(restored["sum"].as_f64().unwrap_or(0.0) > 0.0, "the new renderer draws the scene: {restored}");
+    for schedule in ["megakernel", "wavefront"] {
+        let options = [("scene", "cornell-box"), ("size", "16x16"), ("api", "webgpu"), ("schedule", schedule)];
+        let report = browse(&server.url, "deviceloss", &options);
+        no_page_error(&report);
+        assert_eq!(report["info"]["api"], "WebGPU", "{report}");
+        assert_eq!(report["before"], 4);
+        let restored = &report["restored"];
+        assert_eq!(restored["recoveries"], 1, "{schedule}: one new device: {restored}");
+        assert_eq!(restored["sppAfterLoss"], 0, "{schedule}: the renderer was recreated: {restored}");
+        assert_eq!(restored["spp"], 3, "{schedule}: rendering continues on the new device: {restored}");
+        assert_eq!((&restored["info"]["api"], &restored["info"]["schedule"]), (&"WebGPU".into(), &schedule.into()));
+        assert!(restored["info"]["webGpuLost"].is_null(), "{restored}");
+        assert!(restored["sum"].as_f64().unwrap_or(0.0) > 0.0, "{schedule}: the new renderer draws: {restored}");
+    }
 }
 
 #[test]
