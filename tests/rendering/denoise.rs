@@ -357,20 +357,25 @@ fn every_runtime_accumulates_the_cpus_guide() {
     assert!(cpu.aovs.iter().any(|a| a.emission.max_element() > 1.0), "no pixel sees the light");
     assert!(cpu.variance.iter().all(|v| v.is_finite() && *v >= 0.0) && cpu.variance.iter().any(|v| *v > 0.0));
     for (name, guide) in &guides[1..] {
-        let differs = |a: &Aov, b: &Aov, va: f32, vb: f32| {
-            let close = |x: f32, y: f32| (x - y).abs() <= 1e-3 * x.abs().max(y.abs()).max(1.0);
-            !(a.albedo.to_array().iter().zip(b.albedo.to_array()).all(|(x, y)| close(*x, y))
-                && a.normal.dot(b.normal) > 0.999
-                && close(a.depth, b.depth)
-                && a.emission.to_array().iter().zip(b.emission.to_array()).all(|(x, y)| close(*x, y))
-                && close(va, vb))
-        };
-        let mismatched = (0..cpu.aovs.len())
-            .filter(|&i| differs(&cpu.aovs[i], &guide.aovs[i], cpu.variance[i], guide.variance[i]))
-            .count();
+        let mismatched = guide_pixels_differing(cpu, guide);
         eprintln!("{name}: {mismatched} of {} guide pixels differ from the CPU's", cpu.aovs.len());
         assert!(mismatched * 50 <= cpu.aovs.len(), "{name}: {mismatched} of {} guide pixels differ", cpu.aovs.len());
     }
+}
+
+/// Pixels whose guide differs between `a` and `b` beyond float rounding (relative 1e-3 on
+/// albedo, depth, emission and variance; normals within 2.6°).
+pub(crate) fn guide_pixels_differing(a: &Guide, b: &Guide) -> usize {
+    let close = |x: f32, y: f32| (x - y).abs() <= 1e-3 * x.abs().max(y.abs()).max(1.0);
+    let all_close = |x: Vec3, y: Vec3| x.to_array().iter().zip(y.to_array()).all(|(x, y)| close(*x, y));
+    let differs = |a: &Aov, b: &Aov, va: f32, vb: f32| {
+        !(all_close(a.albedo, b.albedo)
+            && a.normal.dot(b.normal) > 0.999
+            && close(a.depth, b.depth)
+            && all_close(a.emission, b.emission)
+            && close(va, vb))
+    };
+    (0..a.aovs.len()).filter(|&i| differs(&a.aovs[i], &b.aovs[i], a.variance[i], b.variance[i])).count()
 }
 
 /// A renderer created without the guide says so when asked for it, on every runtime.

@@ -6,7 +6,7 @@ use glam::{Vec2, Vec3, Vec4};
 use tracer::backend::cpu::{CpuRenderer, WavefrontRenderer};
 use tracer::backend::wavefront::{pool_size, WavefrontError};
 use tracer::backend::Renderer;
-use tracer::denoise::{Aov, Guide};
+use tracer::denoise::Guide;
 use tracer::kernel::wavefront::{FREE, WORKGROUP};
 use tracer::kernel::{Features, Strategy};
 use tracer::scene::{self, alpha_checker, Camera, Material, Scene, Triangle};
@@ -231,16 +231,7 @@ fn the_wgpu_wavefront_accumulates_the_cpus_denoiser_guide() {
     }
     let (cpu, gpu) = (Guide::read(&cpu).unwrap(), Guide::read(&wave).unwrap());
     assert!(cpu.aovs.iter().any(|a| a.emission.max_element() > 1.0), "no pixel sees the light");
-    let differs = |a: &Aov, b: &Aov, va: f32, vb: f32| {
-        let close = |x: f32, y: f32| (x - y).abs() <= 1e-3 * x.abs().max(y.abs()).max(1.0);
-        !(a.albedo.to_array().iter().zip(b.albedo.to_array()).all(|(x, y)| close(*x, y))
-            && a.normal.dot(b.normal) > 0.999
-            && close(a.depth, b.depth)
-            && a.emission.to_array().iter().zip(b.emission.to_array()).all(|(x, y)| close(*x, y))
-            && close(va, vb))
-    };
-    let mismatched =
-        (0..cpu.aovs.len()).filter(|&i| differs(&cpu.aovs[i], &gpu.aovs[i], cpu.variance[i], gpu.variance[i])).count();
+    let mismatched = crate::denoise::guide_pixels_differing(&cpu, &gpu);
     eprintln!("wgpu wavefront: {mismatched} of {} guide pixels differ from the CPU's", cpu.aovs.len());
     assert!(mismatched * 50 <= cpu.aovs.len(), "{mismatched} of {} guide pixels differ", cpu.aovs.len());
     wave.restart().unwrap();

@@ -48,8 +48,27 @@ pub(crate) use resources::{
 };
 pub use wavefront::WavefrontRenderer;
 
-use crate::backend::{BuildTimes, Renderer};
+use crate::backend::{BuildTimes, RenderError, Renderer};
 use crate::kernel::ShaderError;
+
+/// `read` (queues a read-back on the device) waited for: natively by polling the device until
+/// it arrives; in the browser nothing may block, so an error (await the `read_*` future instead).
+pub(crate) fn wait_for_read<T, F>(renderer: &dyn Renderer, read: impl FnOnce() -> F) -> Result<T, RenderError>
+where
+    F: std::future::Future<Output = Result<T, RenderError>>,
+{
+    #[cfg(not(target_arch = "wasm32"))]
+    {
+        let read = read();
+        renderer.finish()?;
+        pollster::block_on(read)
+    }
+    #[cfg(target_arch = "wasm32")]
+    {
+        let _ = (renderer, read);
+        Err(RenderError::Unsupported { runtime: "wgpu", what: "cannot block for a read-back in the browser" })
+    }
+}
 
 /// A renderer on a wgpu device, whichever schedule runs it (the megakernel's [`WgpuRenderer`],
 /// the [`WavefrontRenderer`]): what a host that draws its image (the display pass, the page's

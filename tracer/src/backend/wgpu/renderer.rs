@@ -125,12 +125,6 @@ impl WgpuRenderer {
         self.uncaptured.check()
     }
 
-    /// The running-sum buffer (rgb: sum of samples, w: finite samples; row-major, row 0 at
-    /// the top), e.g. for a display pass.
-    pub fn accumulation_buffer(&self) -> &wgpu::Buffer {
-        &self.pipeline.accumulation
-    }
-
     /// Queues the copy of the accumulation into the readback buffer and returns the future
     /// that resolves once the device has mapped it. One read at a time: a second before the
     /// first resolved is an error.
@@ -248,17 +242,10 @@ impl Renderer for WgpuRenderer {
         Ok(self.check_uncaptured()?)
     }
 
-    /// Natively, [`read_accumulation`](Renderer::read_accumulation) waited for by polling the
-    /// device. In the browser a read-back cannot block: an error.
+    /// [`read_accumulation`](Renderer::read_accumulation) waited for (natively; an error in the
+    /// browser).
     fn accumulation(&self) -> Result<Vec<Vec4>, RenderError> {
-        #[cfg(not(target_arch = "wasm32"))]
-        {
-            let read = self.read_back();
-            self.finish()?;
-            Ok(pollster::block_on(read)?)
-        }
-        #[cfg(target_arch = "wasm32")]
-        Err(RenderError::Unsupported { runtime: "wgpu", what: "cannot block for a read-back in the browser" })
+        super::wait_for_read(self, || self.read_accumulation())
     }
 
     fn read_accumulation(&self) -> PendingAccumulation {
@@ -266,17 +253,10 @@ impl Renderer for WgpuRenderer {
         Box::pin(async move { Ok(read.await?) })
     }
 
-    /// Natively, [`read_guide_sums`](Renderer::read_guide_sums) waited for by polling the
-    /// device. In the browser a read-back cannot block: an error.
+    /// [`read_guide_sums`](Renderer::read_guide_sums) waited for (natively; an error in the
+    /// browser).
     fn guide_sums(&self) -> Result<GuideSums, RenderError> {
-        #[cfg(not(target_arch = "wasm32"))]
-        {
-            let read = self.read_guide_sums();
-            self.finish()?;
-            pollster::block_on(read)
-        }
-        #[cfg(target_arch = "wasm32")]
-        Err(RenderError::Unsupported { runtime: "wgpu", what: "cannot block for a read-back in the browser" })
+        super::wait_for_read(self, || self.read_guide_sums())
     }
 
     /// The three guide buffers copied into one read-back buffer, mapped, split.

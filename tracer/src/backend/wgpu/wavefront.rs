@@ -609,17 +609,10 @@ impl Renderer for WavefrontRenderer {
         Ok(self.uncaptured.check()?)
     }
 
-    /// Natively, [`read_accumulation`](Renderer::read_accumulation) waited for by polling the
-    /// device. In the browser a read-back cannot block: an error.
+    /// [`read_accumulation`](Renderer::read_accumulation) waited for (natively; an error in the
+    /// browser).
     fn accumulation(&self) -> Result<Vec<Vec4>, RenderError> {
-        #[cfg(not(target_arch = "wasm32"))]
-        {
-            let read = self.read_image();
-            self.finish()?;
-            Ok(pollster::block_on(read)?)
-        }
-        #[cfg(target_arch = "wasm32")]
-        Err(RenderError::Unsupported { runtime: "wgpu", what: "cannot block for a read-back in the browser" })
+        super::wait_for_read(self, || self.read_accumulation())
     }
 
     fn read_accumulation(&self) -> PendingAccumulation {
@@ -627,17 +620,10 @@ impl Renderer for WavefrontRenderer {
         Box::pin(async move { Ok(read.await?) })
     }
 
-    /// Natively, [`read_guide_sums`](Renderer::read_guide_sums) waited for by polling the
-    /// device. In the browser a read-back cannot block: an error.
+    /// [`read_guide_sums`](Renderer::read_guide_sums) waited for (natively; an error in the
+    /// browser).
     fn guide_sums(&self) -> Result<GuideSums, RenderError> {
-        #[cfg(not(target_arch = "wasm32"))]
-        {
-            let read = self.read_guide();
-            self.finish()?;
-            pollster::block_on(read)
-        }
-        #[cfg(target_arch = "wasm32")]
-        Err(RenderError::Unsupported { runtime: "wgpu", what: "cannot block for a read-back in the browser" })
+        super::wait_for_read(self, || self.read_guide_sums())
     }
 
     fn read_guide_sums(&self) -> PendingGuideSums {
