@@ -488,20 +488,27 @@ async function fallback(o) {
     return await withBrowser(profile, async (context) => {
       const { page, error } = await open(context, o.url, { scene: o.scene, size: o.size, paused: '1' });
       if (error) return { error };
-      // Losses are noticed by the frame loop; frames give the device its chances to fail.
+      // Losses are noticed by the frame loop; frames give the device its chances to fail. A
+      // promise of the dying device may reject on the way: recorded, not thrown.
       let settled = false;
-      for (const start = Date.now(); !settled && Date.now() - start < 90000;) {
+      const rejections = [];
+      for (const start = Date.now(); !settled && Date.now() - start < 120000;) {
         settled = await page.evaluate(async () => {
           const l = window.lightport;
           if (l.error || l.info().api === 'WebGL2') return true;
           await l.renderFrames(1);
           await new Promise((resolve) => setTimeout(resolve, 250));
           return false;
-        });
+        }).catch((e) => { rejections.push(String(e)); return false; });
       }
-      await page.evaluate(() => window.lightport.renderFrames(2));
-      const a = await page.evaluate(() => window.lightport.readAccumulation());
+      const rendered = await page.evaluate(async () => {
+        await window.lightport.renderFrames(2);
+        const a = await window.lightport.readAccumulation();
+        return { spp: a.spp, sum: a.data.reduce((x, y) => x + y, 0) };
+      }).catch((e) => ({ rejected: String(e) }));
       return {
+        rejections,
+        rendered,
         settled,
         error: await page.evaluate(() => window.lightport.error),
         notice: await page.evaluate(() => window.lightport.notice || null),
@@ -509,7 +516,6 @@ async function fallback(o) {
         messageKind: await page.evaluate(() => document.getElementById('message').className),
         messageText: await page.textContent('#message'),
         readout: await page.textContent('#api-info'),
-        rendered: { spp: a.spp, sum: a.data.reduce((x, y) => x + y, 0) },
       };
     });
   } finally {
