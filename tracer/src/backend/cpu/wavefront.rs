@@ -60,6 +60,36 @@ impl WavefrontRenderer {
         WavefrontCounts::from_counters(&self.paths.counters.to_vec())
     }
 
+    /// A measurement: renders the next frame as [`render_band`](Renderer::render_band) does,
+    /// timing each stage, and returns each stage's seconds over the frame (in [`ITERATION`]'s
+    /// order) and the paths each iteration extended (its length is the
+    /// iterations the frame took).
+    pub fn profile_frame(&mut self) -> Result<(Vec<(&'static str, f64)>, Vec<u32>), RenderError> {
+        let wanted = self.frames + 1;
+        self.paths.frames_wanted = wanted;
+        let bound = iteration_bound(self.paths.pixels, self.paths.pool, self.packed.scene.max_depth);
+        let mut seconds = [0.0; ITERATION.len()];
+        let mut iterations = 0;
+        let mut extended = Vec::new();
+        let mut segments = self.counts().segments;
+        while self.paths.counters.atomic_load(FRAMES_DONE) < wanted {
+            if iterations == bound {
+                return Err(WavefrontError::Stalled { iterations }.into());
+            }
+            for (stage, s) in ITERATION.into_iter().zip(&mut seconds) {
+                let t = std::time::Instant::now();
+                self.run(stage)?;
+                *s += t.elapsed().as_secs_f64();
+            }
+            iterations += 1;
+            let now = self.counts().segments;
+            extended.push(now.wrapping_sub(segments));
+            segments = now;
+        }
+        self.frames = wanted;
+        Ok((ITERATION.iter().map(|s| s.function).zip(seconds).collect(), extended))
+    }
+
     /// Runs `stage` over its grid: one invocation for a `plan_*` stage, else the grid its plan
     /// wrote, numbered as a GPU numbers it (`x + y * groups_x * WORKGROUP`).
     fn run(&self, stage: Stage) -> Result<(), WavefrontError> {
