@@ -27,7 +27,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
-use tracer::backend::wavefront::{WavefrontCounts, ITERATIONS_PER_SUBMISSION};
+use tracer::backend::wavefront::{FrameProfile, WavefrontCounts, ITERATIONS_PER_SUBMISSION};
 use tracer::backend::{cpu, create_scheduled, wgpu, Renderer, RendererKind, Schedule};
 use tracer::kernel::{RenderSettings, Strategy};
 use tracer::pack::{pack, Packed};
@@ -83,15 +83,15 @@ fn seconds_per_frame(r: &mut dyn Renderer, frames: u32) -> Result<f64> {
 
 /// A wavefront renderer as a concrete type (for its measurement hooks).
 enum Wave {
-    Cpu(cpu::WavefrontRenderer),
-    Wgpu(wgpu::WavefrontRenderer),
+    Cpu(Box<cpu::WavefrontRenderer>),
+    Wgpu(Box<wgpu::WavefrontRenderer>),
 }
 
 impl Wave {
     fn renderer(&mut self) -> &mut dyn Renderer {
         match self {
-            Wave::Cpu(r) => r,
-            Wave::Wgpu(r) => r,
+            Wave::Cpu(r) => r.as_mut(),
+            Wave::Wgpu(r) => r.as_mut(),
         }
     }
 
@@ -102,8 +102,7 @@ impl Wave {
         }
     }
 
-    #[allow(clippy::type_complexity)]
-    fn profile(&mut self) -> Result<(Vec<(&'static str, f64)>, Vec<u32>)> {
+    fn profile(&mut self) -> Result<FrameProfile> {
         Ok(match self {
             Wave::Cpu(r) => r.profile_frame()?,
             Wave::Wgpu(r) => r.profile_frame()?,
@@ -169,12 +168,12 @@ fn main() -> Result<()> {
                     RendererKind::Cpu => {
                         for &pool in &pools {
                             variants.push((format!("pool {pool}"), waves.len(), 0));
-                            waves.push(Wave::Cpu(cpu::WavefrontRenderer::new(packed.clone(), 1, pool)?));
+                            waves.push(Wave::Cpu(Box::new(cpu::WavefrontRenderer::new(packed.clone(), 1, pool)?)));
                         }
                     }
                     _ => {
                         let t = Instant::now();
-                        waves.push(Wave::Wgpu(wgpu::WavefrontRenderer::headless(packed.clone(), 1)?));
+                        waves.push(Wave::Wgpu(Box::new(wgpu::WavefrontRenderer::headless(packed.clone(), 1)?)));
                         waves[0].renderer().render_frame()?;
                         waves[0].renderer().finish()?;
                         first_wave = t.elapsed().as_secs_f64();

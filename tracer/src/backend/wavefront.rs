@@ -40,6 +40,10 @@ pub const ITERATION: [Stage; 8] = [
 /// slower on DamagedHelmet, whose paths mostly end early.
 pub const ITERATIONS_PER_SUBMISSION: u32 = 4;
 
+/// What a host's `profile_frame` measures over one frame: each stage's seconds (in
+/// [`ITERATION`]'s order) and the paths each iteration extended (one entry per iteration).
+pub type FrameProfile = (Vec<(&'static str, f64)>, Vec<u32>);
+
 /// Every stage's function (the entry points of the wavefront's shader; each runs once per iteration).
 pub fn stage_functions() -> Vec<&'static str> {
     ITERATION.iter().map(|s| s.function).collect()

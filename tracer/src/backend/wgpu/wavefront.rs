@@ -23,7 +23,8 @@ use super::{
     UncapturedErrors, UniformLayout, WgpuDevice, WgpuError, WgpuOptions, SCENE_UNIFORM,
 };
 use crate::backend::wavefront::{
-    array_len, iteration_bound, pool_size, Stage, WavefrontCounts, WavefrontError, ITERATION, ITERATIONS_PER_SUBMISSION,
+    array_len, iteration_bound, pool_size, FrameProfile, Stage, WavefrontCounts, WavefrontError, ITERATION,
+    ITERATIONS_PER_SUBMISSION,
 };
 use crate::backend::{
     ms_since, update_uniforms, BuildTimes, GuideSums, PendingAccumulation, PendingGuideSums, RenderError, Renderer,
@@ -333,7 +334,7 @@ impl WavefrontRenderer {
     /// and the paths each iteration extended (its length is the
     /// iterations the frame took). Between frames only (after [`render_frame`](Renderer::render_frame)).
     #[cfg(not(target_arch = "wasm32"))]
-    pub fn profile_frame(&mut self) -> Result<(Vec<(&'static str, f64)>, Vec<u32>), RenderError> {
+    pub fn profile_frame(&mut self) -> Result<FrameProfile, RenderError> {
         let wanted = self.frames + 1;
         self.wanted = wanted;
         self.want_frames(wanted);
