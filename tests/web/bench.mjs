@@ -8,7 +8,10 @@
 // across runs).
 //
 //   node tests/web/bench.mjs --lightport target/release/lightport [--frames 5] [--size 640x480]
-//        [--apis webgl2,webgpu] [--rounds 1] [--scenes cornell-box,LittlestTokyo,...]
+//        [--apis webgl2,webgpu] [--rounds 1] [--scenes cornell-box,LittlestTokyo,...] [--depths 8,32]
+//
+// `--depths 8,32`: the frame time at each path depth (the page's setMaxDepth, in the warm
+// visit; the first frames are at the bundle's depth, 8), a column per API and depth.
 //
 // Each API (the page's `api=`; `webgpu:wavefront` for WebGPU with `schedule=wavefront`) runs
 // every scene; the table puts them side by side with each one's frame-time ratio to the first.
@@ -108,7 +111,7 @@ try {
       const out = join(tmpdir(), `lightport-bench-${process.pid}.json`);
       const [pageApi, schedule] = api.split(':');
       execFileSync('node', [join(here, 'run.mjs'), 'bench', '--url', url, '--out', out, '--size', size, '--frames', frames,
-        '--api', pageApi, ...(schedule ? ['--schedule', schedule] : []),
+        '--api', pageApi, ...(schedule ? ['--schedule', schedule] : []), ...(args.depths ? ['--depths', args.depths] : []),
         '--scenes', scenes.map((s) => s.name).join(',')], { stdio: 'inherit' });
       const { results } = JSON.parse(readFileSync(out, 'utf8'));
       rmSync(out, { force: true });
@@ -121,11 +124,16 @@ try {
     }
   }
   const info = infos[apis[0]];
-  console.log(`\nWeb path tracer, headless Chromium: ${apis.map((a) => `${infos[a].api} on ${infos[a].adapter}`).join('; ')}; ${size}, 1 spp/frame, MIS, depth ${info.maxDepth}, venice_sunset sky; mean of ${frames} frames after 3 warm-up frames; medians of ${rounds} alternated round(s).`);
+  console.log(`\nWeb path tracer, headless Chromium: ${apis.map((a) => `${infos[a].api} on ${infos[a].adapter}`).join('; ')}; ${size}, 1 spp/frame, MIS, depth ${args.depths ? `${args.depths} (the first frames at the bundle's 8)` : info.maxDepth}, venice_sunset sky; mean of ${frames} frames after 3 warm-up frames; medians of ${rounds} alternated round(s).`);
   console.log('Shared, noisy 2-core machine: compare the ratios (same run), not absolute times.\n');
   const head = ['scene', 'triangles', 'bundle (raw)', 'bundle (gzip)'];
   for (const api of apis) head.push(`${api} frame (ms)`, `${api} first frame cold (ms)`, `${api} first frame warm (ms)`);
   for (const api of apis.slice(1)) head.push(`frame ${api} / ${apis[0]}`);
+  const depths = args.depths ? args.depths.split(',').map(Number) : [];
+  if (depths.length) {
+    for (const d of depths) for (const api of apis) head.push(`${api} frame depth ${d} (ms)`);
+    for (const d of depths) for (const api of apis.slice(1)) head.push(`depth ${d}: ${api} / ${apis[0]}`);
+  }
   console.log(`| ${head.join(' | ')} |`);
   console.log(`|${head.map(() => '---').join('|')}|`);
   for (const s of scenes) {
@@ -142,6 +150,9 @@ try {
       }
     }
     for (const api of apis.slice(1)) cells.push(`${(frame[api] / frame[apis[0]]).toFixed(2)}x`);
+    const atDepth = (api, d) => median(runs[api][s.name].map((r) => r.frameMsByDepth[d]));
+    for (const d of depths) for (const api of apis) cells.push(atDepth(api, d).toFixed(0));
+    for (const d of depths) for (const api of apis.slice(1)) cells.push(`${(atDepth(api, d) / atDepth(apis[0], d)).toFixed(2)}x`);
     console.log(`| ${cells.join(' | ')} |`);
   }
 

@@ -593,10 +593,23 @@ async function bench(o) {
           row.bundleBytes = timing.bytes;
           row[`${visit}WallMs`] = Date.now() - navigationStart;
           if (visit === 'warm') {
-            await page.evaluate(() => window.lightport.renderFrames(2)); // warm up
-            const frames = Number(o.frames);
-            row.frameMs = await page.evaluate((n) => window.lightport.renderFrames(n), frames);
-            row.info = await page.evaluate(() => window.lightport.info());
+            // `--depths 8,32`: the frame time at each path depth (setMaxDepth), in this order;
+            // `frameMs` is the first's. Default: the bundle's depth.
+            const depths = o.depths ? o.depths.split(',').map(Number) : [null];
+            row.frameMsByDepth = {};
+            for (const depth of depths) {
+              if (depth !== null) await page.evaluate((d) => window.lightport.setMaxDepth(d), depth);
+              await page.evaluate(() => window.lightport.renderFrames(2)); // warm up
+              const frames = Number(o.frames);
+              const ms = await page.evaluate((n) => window.lightport.renderFrames(n), frames);
+              const info = await page.evaluate(() => window.lightport.info());
+              if (depth !== null && info.maxDepth !== depth) throw new Error(`${scene}: asked for depth ${depth}, the page runs ${info.maxDepth}`);
+              row.frameMsByDepth[info.maxDepth] = ms;
+              if (row.frameMs === undefined) {
+                row.frameMs = ms;
+                row.info = info;
+              }
+            }
           }
         });
       }

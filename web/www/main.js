@@ -116,6 +116,8 @@ const hook = {
     $('exposure-value').textContent = `${stops} EV`;
   }),
   orbit: (yaw, pitch) => guarded(() => viewer.orbit(yaw, pitch)),
+  // Longest path in segments (1..=64; the bundle's depth until set). Restarts the accumulation.
+  setMaxDepth: (depth) => guarded(() => viewer.setMaxDepth(depth)),
   // The denoiser on or off (the Denoise control); `denoise()`: sceneInfo().denoise, what it
   // shows ({ enabled, shownSpp, pendingSpp, filterMs, guideMs, error, readout }).
   setDenoise: (on) => guarded(() => { viewer.setDenoise(on); $('denoise').checked = on; }),

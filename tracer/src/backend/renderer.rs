@@ -232,9 +232,13 @@ pub enum Schedule {
 impl Schedule {
     pub const ALL: [Schedule; 2] = [Schedule::Megakernel, Schedule::Wavefront];
 
-    /// What `--schedule auto` runs: the megakernel, faster on every device measured so far
-    /// (`examples/bench_wavefront.rs`: the CPU by 1.5-2.5x, lavapipe by 1.4-3x at depth 8; see
-    /// `docs/wavefront.md`). A device where the wavefront measures faster changes this rule.
+    /// What `--schedule auto` runs: the megakernel, faster on every native row measured
+    /// (`examples/bench_wavefront.rs`, 640x480, four scenes at depths 8 and 32, median of 5
+    /// alternated rounds: the wavefront took 1.22-2.01x the megakernel's time on the CPU and
+    /// 1.00-1.39x on lavapipe, so `auto` is never more than 5 % slower than the faster schedule
+    /// there; see `docs/wavefront.md`, "Measurements"). In the page on SwiftShader one round
+    /// measured WebGPU's wavefront faster on two of four scenes (0.40-0.80x): a device where
+    /// the wavefront measures faster over alternated rounds changes this rule.
     pub fn auto() -> Schedule {
         Schedule::Megakernel
     }

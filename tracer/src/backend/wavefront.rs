@@ -37,8 +37,15 @@ pub const ITERATION: [Stage; 8] = [
 /// submission's work is at most this many path segments per slot of the pool, whatever the
 /// paths' depth. Measured on lavapipe (`examples/bench_wavefront.rs`, 160x160, depth 8): 2, 4
 /// and 8 per submission within noise of each other (4 the fastest), 10 (`max_depth + 2`) 5-30 %
-/// slower on DamagedHelmet, whose paths mostly end early.
+/// slower on DamagedHelmet, whose paths mostly end early. At 640x480 (`--ips 4,8,16`, four
+/// scenes, depths 8 and 32): 8 took 0.87-1.48x the time of 4, 16 took 0.97-1.82x: a frame ends
+/// at a submission's end, so a longer one adds idle iterations (17-26 ms each on the textured
+/// scenes), and waiting for the counters is not what costs.
 pub const ITERATIONS_PER_SUBMISSION: u32 = 4;
+
+/// What a host's `profile_frame` measures over one frame: each stage's seconds (in
+/// [`ITERATION`]'s order) and the paths each iteration extended (one entry per iteration).
+pub type FrameProfile = (Vec<(&'static str, f64)>, Vec<u32>);
 
 /// Every stage's function (the entry points of the wavefront's shader; each runs once per iteration).
 pub fn stage_functions() -> Vec<&'static str> {

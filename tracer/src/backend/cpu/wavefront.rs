@@ -7,16 +7,20 @@ use glam::Vec4;
 use rayon::prelude::*;
 
 use crate::backend::wavefront::{
-    iteration_bound, new_dispatch, new_paths, reset, Stage, WavefrontCounts, WavefrontError, ITERATION,
+    iteration_bound, new_dispatch, new_paths, reset, FrameProfile, Stage, WavefrontCounts, WavefrontError, ITERATION,
+    MAX_POOL,
 };
 use crate::backend::{update_uniforms, GuideSums, RenderError, Renderer, RendererInfo};
 use crate::kernel::scene_data::Scene;
 use crate::kernel::wavefront::{self as stages, Dispatch, Paths, FRAMES_DONE, WORKGROUP};
 use crate::pack::Packed;
 
-/// Path slots on the CPU: enough for every thread to find work in each stage, few enough that
-/// the pool's state stays around 10 MB (a choice, not yet measured against other sizes).
-pub const CPU_POOL: u32 = 1 << 16;
+/// Path slots on the CPU: one per pixel up to [`MAX_POOL`] (2^20; 164 bytes of state each,
+/// 172 MB at a million pixels and more), so that a frame is one wave of paths. Measured
+/// (`examples/bench_wavefront.rs --pools 65536,307200`, 640x480, median of 5 alternated rounds):
+/// a slot per pixel took 0.79-0.96x the time of 2^16 slots on all eight rows (four scenes,
+/// depths 8 and 32), 0.79x on the Cornell box.
+pub const CPU_POOL: u32 = MAX_POOL;
 
 /// A stage as the CPU calls it: the kernel function with every resource it may take.
 type StageFn = fn(&Scene, &Paths, &Dispatch, u32);
@@ -58,6 +62,36 @@ impl WavefrontRenderer {
     /// What the pool has traced since the last restart.
     pub fn counts(&self) -> WavefrontCounts {
         WavefrontCounts::from_counters(&self.paths.counters.to_vec())
+    }
+
+    /// A measurement: renders the next frame as [`render_band`](Renderer::render_band) does,
+    /// timing each stage, and returns each stage's seconds over the frame (in [`ITERATION`]'s
+    /// order) and the paths each iteration extended (its length is the
+    /// iterations the frame took).
+    pub fn profile_frame(&mut self) -> Result<FrameProfile, RenderError> {
+        let wanted = self.frames + 1;
+        self.paths.frames_wanted = wanted;
+        let bound = iteration_bound(self.paths.pixels, self.paths.pool, self.packed.scene.max_depth);
+        let mut seconds = [0.0; ITERATION.len()];
+        let mut iterations = 0;
+        let mut extended = Vec::new();
+        let mut segments = self.counts().segments;
+        while self.paths.counters.atomic_load(FRAMES_DONE) < wanted {
+            if iterations == bound {
+                return Err(WavefrontError::Stalled { iterations }.into());
+            }
+            for (stage, s) in ITERATION.into_iter().zip(&mut seconds) {
+                let t = std::time::Instant::now();
+                self.run(stage)?;
+                *s += t.elapsed().as_secs_f64();
+            }
+            iterations += 1;
+            let now = self.counts().segments;
+            extended.push(now.wrapping_sub(segments));
+            segments = now;
+        }
+        self.frames = wanted;
+        Ok((ITERATION.iter().map(|s| s.function).zip(seconds).collect(), extended))
     }
 
     /// Runs `stage` over its grid: one invocation for a `plan_*` stage, else the grid its plan

@@ -80,6 +80,10 @@ pub struct WavefrontRenderer {
     wanted: u32,
     /// Iterations submitted for the frame on its way (against [`iteration_bound`]).
     iterations: u32,
+    /// Iterations per submission ([`ITERATIONS_PER_SUBMISSION`] unless set for a measurement).
+    per_submission: u32,
+    /// Iterations the last completed frame took (whole submissions).
+    last_iterations: u32,
     /// Restarts so far: tells a counters read asked for before the latest restart.
     generation: u32,
     /// The counters read on its way, if any.
@@ -193,6 +197,8 @@ impl WavefrontRenderer {
             uncaptured,
             wanted: 0,
             iterations: 0,
+            per_submission: ITERATIONS_PER_SUBMISSION,
+            last_iterations: 0,
             generation: 0,
             counters_read: None,
             counters: Vec::new(),
@@ -249,8 +255,24 @@ impl WavefrontRenderer {
         }
     }
 
+    /// Iterations per submission, [`ITERATIONS_PER_SUBMISSION`] unless set here (at least 1):
+    /// for measurements (`examples/bench_wavefront.rs`).
+    pub fn set_iterations_per_submission(&mut self, iterations: u32) {
+        self.per_submission = iterations.max(1);
+    }
+
+    /// Iterations the last completed frame took (whole submissions; natively).
+    pub fn last_frame_iterations(&self) -> u32 {
+        self.last_iterations
+    }
+
     /// Submits `iterations` iterations as one compute pass.
     fn submit(&self, iterations: u32) {
+        self.submit_stages(iterations, 0..self.stages.len());
+    }
+
+    /// Submits `iterations` times the stages `range` of an iteration as one compute pass.
+    fn submit_stages(&self, iterations: u32, range: std::ops::Range<usize>) {
         let mut encoder = self.device.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -258,7 +280,7 @@ impl WavefrontRenderer {
                 timestamp_writes: None,
             });
             for _ in 0..iterations {
-                for (stage, pipeline) in &self.stages {
+                for (stage, pipeline) in &self.stages[range.clone()] {
                     pass.set_pipeline(pipeline);
                     pass.set_bind_group(0, &self.bind_groups[0], &[]);
                     pass.set_bind_group(1, &self.bind_groups[1], &[]);
@@ -304,6 +326,58 @@ impl WavefrontRenderer {
             self.counters = counters?;
         }
         Ok(())
+    }
+
+    /// A measurement: renders the next frame with each stage in a submission of its own,
+    /// waited for, and returns each stage's seconds over the frame (in [`ITERATION`]'s order)
+    /// and the paths each iteration extended (its length is the
+    /// iterations the frame took). Between frames only (after [`render_frame`](Renderer::render_frame)).
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn profile_frame(&mut self) -> Result<crate::backend::wavefront::FrameProfile, RenderError> {
+        let wanted = self.frames + 1;
+        self.wanted = wanted;
+        self.want_frames(wanted);
+        let scene = &self.packed.scene;
+        let bound = iteration_bound(scene.width * scene.height, self.pool, scene.max_depth);
+        let mut seconds = vec![0.0; self.stages.len()];
+        let mut iterations = 0;
+        let mut extended = Vec::new();
+        let mut segments = self.counts().segments;
+        loop {
+            for (k, s) in seconds.iter_mut().enumerate() {
+                let t = std::time::Instant::now();
+                self.submit_stages(1, k..k + 1);
+                self.finish()?;
+                *s += t.elapsed().as_secs_f64();
+            }
+            iterations += 1;
+            self.request_counters()?;
+            self.take_counters()?;
+            let now = self.counts().segments;
+            extended.push(now.wrapping_sub(segments));
+            segments = now;
+            if self.wanted_done() {
+                break;
+            }
+            if iterations >= bound {
+                return Err(WavefrontError::Stalled { iterations }.into());
+            }
+        }
+        self.frames = wanted;
+        Ok((self.stages.iter().map(|(s, _)| s.function).zip(seconds).collect(), extended))
+    }
+
+    /// A measurement: seconds to submit and wait for `iterations` iterations in which no path
+    /// is started or moves (between frames: every slot is free and no frame is asked for), so
+    /// each dispatch has one invocation (a `plan_*` stage) or none: the fixed cost of the
+    /// iterations' dispatches and barriers.
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn time_idle_iterations(&mut self, iterations: u32) -> Result<f64, RenderError> {
+        self.finish()?;
+        let t = std::time::Instant::now();
+        self.submit(iterations);
+        self.finish()?;
+        Ok(t.elapsed().as_secs_f64())
     }
 
     /// Whether the counters last read say that the frame asked for is complete.
@@ -583,6 +657,7 @@ impl Renderer for WavefrontRenderer {
             self.take_counters()?;
             if self.wanted_done() {
                 self.frames = self.wanted;
+                self.last_iterations = self.iterations;
                 return Ok(true);
             }
             if submit {
@@ -590,8 +665,8 @@ impl Renderer for WavefrontRenderer {
                 if self.iterations >= iteration_bound(scene.width * scene.height, self.pool, scene.max_depth) {
                     return Err(WavefrontError::Stalled { iterations: self.iterations }.into());
                 }
-                self.submit(ITERATIONS_PER_SUBMISSION);
-                self.iterations += ITERATIONS_PER_SUBMISSION;
+                self.submit(self.per_submission);
+                self.iterations += self.per_submission;
                 self.request_counters()?;
             }
         }
