@@ -244,13 +244,27 @@ fn bundle() -> Vec<Seed> {
     if let Ok(t) = textured {
         scenes.push(("textured", t));
     }
-    scenes
+    let mut out: Vec<Seed> = scenes
         .into_iter()
         .filter_map(|(name, scene)| {
             let (_, packed) = build_and_pack(&scene, &settings).ok()?;
             Some((format!("generated_{name}.lpb"), tracer::bundle::encode_named(name, &packed)))
         })
-        .collect()
+        .collect();
+    out.extend(moving_bundle(&settings).map(|bytes| ("generated_moving.lpb".to_string(), bytes)));
+    out
+}
+
+/// The bundle of a scene that moves, with its motion section (`tracer/src/bundle/motion.rs`):
+/// the vendored moving-scene glTF (a skinned, morphed mesh, instances under a moving node, every
+/// interpolation), loaded with its motion kept.
+pub fn moving_bundle(settings: &RenderSettings) -> Option<Vec<u8>> {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/scenes/generated/animated-skinned-instanced.gltf");
+    let options = scene::LoadOptions { keep_motion: true, ..Default::default() };
+    let scene = scene::load_gltf_slice(&std::fs::read(path).ok()?, None, &options).ok()?;
+    let (moving, packed) = tracer::pack::MovingScene::new(scene, settings).ok()?;
+    Some(tracer::bundle::encode_scene("moving", &packed, moving.scene()))
 }
 
 fn http() -> Vec<Seed> {

@@ -134,11 +134,18 @@ pub fn sky(data: &[u8]) {
     }
 }
 
-/// A bundle; one that decodes is rendered as the page would (whatever its image size says,
+/// A bundle; one that decodes is posed (when it moves) and rendered as the page would (whatever its image size says,
 /// 4x3 pixels here, one sample), so that values that decode but make no sense cannot hang or
 /// crash the kernel.
 pub fn bundle(data: &[u8]) {
-    if let Ok(mut packed) = tracer::bundle::decode(data) {
+    if let Ok(tracer::bundle::Bundle { mut packed, moving, .. }) = tracer::bundle::Bundle::decode(data) {
+        // A motion section that decodes poses (or is a clear error) at any time.
+        if let Some(mut moving) = moving {
+            let end = moving.motion.as_ref().map_or(0.0, |m| m.duration());
+            for time in [0.0, 0.37, end, end + 1.0] {
+                let _ = moving.pose(time);
+            }
+        }
         packed.scene.width = 4;
         packed.scene.height = 3;
         CpuRenderer::new(packed, 1).render_frame().expect("the CPU renderer does not fail");

@@ -33,6 +33,11 @@ fn every_file_target_survives_its_seeds_and_mutations() {
             target.name(),
             seeds.len()
         );
+        if target == Target::Bundle {
+            // The motion section (`tracer/src/bundle/motion.rs`) must be among what is mutated.
+            let moving = |bytes: &[u8]| tracer::bundle::Bundle::decode(bytes).is_ok_and(|b| b.moving.is_some());
+            assert!(seeds.iter().any(|(_, bytes)| moving(bytes)), "no bundle seed has a motion section");
+        }
         let options = Options {
             mutations: MUTATIONS,
             max_time: Duration::from_secs(120),

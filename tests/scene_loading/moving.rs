@@ -362,24 +362,7 @@ fn placed_triangles(mut s: Scene) -> Vec<[Vec3; 3]> {
 /// clear error and leaves the scene as it was.
 #[test]
 fn a_kept_motion_poses_the_scene_as_loading_at_that_time_does() {
-    use tracer::scene::AnimationChoice;
-    let skin_animation = r#"{"channels": [{"sampler": 0, "target": {"node": 2, "path": "translation"}}],
-        "samplers": [{"input": 6, "output": 7}]}"#;
-    let turn = r#"[{"channels": [{"sampler": 0, "target": {"node": 0, "path": "rotation"}},
-                              {"sampler": 1, "target": {"node": 0, "path": "translation"}}],
-        "samplers": [{"input": 2, "output": 3}, {"input": 2, "output": 4, "interpolation": "CUBICSPLINE"}]}]"#;
-    let h = std::f32::consts::FRAC_1_SQRT_2;
-    let quarter_turn = [0.0, 0.0, 0.0, 1.0, 0.0, h, 0.0, h];
-    let turn_accessors: Vec<(&str, &[f32])> = vec![
-        ("SCALAR", &[0.0, 2.0]),
-        ("VEC4", &quarter_turn),
-        ("VEC3", &[0.0, 0.0, 0.0, 0.0, 0.0, -5.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -5.0, 0.0, 0.0, 0.0]),
-    ];
-    let cases: Vec<(&str, Vec<u8>)> = vec![
-        ("the moving-scene seed, its instances turning", common::moving_parts_gltf()),
-        ("a skin", skinned_json(None, skin_animation).into_bytes()),
-        ("a node turning", animated_json(turn, &turn_accessors).into_bytes()),
-    ];
+    let cases = moving_cases();
     for (name, bytes) in &cases {
         let load = |time: f32, keep_motion: bool| {
             let options = LoadOptions { time, keep_motion, animation: AnimationChoice::First, ..Default::default() };
@@ -407,4 +390,121 @@ fn a_kept_motion_poses_the_scene_as_loading_at_that_time_does() {
     let mut still = scene::load_gltf_slice(&cases[1].1, None, &LoadOptions::default()).unwrap();
     assert!(still.motion.is_none() && still.instances.is_empty());
     assert!(!still.pose(1.0).unwrap());
+}
+
+use tracer::scene::AnimationChoice;
+
+/// Scenes that move, each with its name: the generated moving seed with its gpu-instanced node
+/// turned too (a skinned, morphed mesh; LINEAR, STEP, CUBICSPLINE), a skin with an animated
+/// joint, and a node with slerp plus CUBICSPLINE.
+fn moving_cases() -> Vec<(&'static str, Vec<u8>)> {
+    let skin_animation = r#"{"channels": [{"sampler": 0, "target": {"node": 2, "path": "translation"}}],
+        "samplers": [{"input": 6, "output": 7}]}"#;
+    let turn = r#"[{"channels": [{"sampler": 0, "target": {"node": 0, "path": "rotation"}},
+                              {"sampler": 1, "target": {"node": 0, "path": "translation"}}],
+        "samplers": [{"input": 2, "output": 3}, {"input": 2, "output": 4, "interpolation": "CUBICSPLINE"}]}]"#;
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    let quarter_turn = [0.0, 0.0, 0.0, 1.0, 0.0, h, 0.0, h];
+    let turn_accessors: Vec<(&str, &[f32])> = vec![
+        ("SCALAR", &[0.0, 2.0]),
+        ("VEC4", &quarter_turn),
+        ("VEC3", &[0.0, 0.0, 0.0, 0.0, 0.0, -5.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -5.0, 0.0, 0.0, 0.0]),
+    ];
+    let cases: Vec<(&str, Vec<u8>)> = vec![
+        ("the moving-scene seed, its instances turning", common::moving_parts_gltf()),
+        ("a skin", skinned_json(None, skin_animation).into_bytes()),
+        ("a node turning", animated_json(turn, &turn_accessors).into_bytes()),
+    ];
+    cases
+}
+
+/// The scene as `keep_motion` loads it at time 0, with its packed pose.
+fn load_moving(bytes: &[u8]) -> (Scene, tracer::pack::Packed) {
+    let options = LoadOptions { keep_motion: true, animation: AnimationChoice::First, ..Default::default() };
+    let scene = scene::load_gltf_slice(bytes, None, &options).unwrap();
+    let settings = tracer::kernel::RenderSettings { width: 16, height: 12, ..Default::default() };
+    let (moving, packed) = tracer::pack::MovingScene::new(scene, &settings).unwrap();
+    (moving.scene().clone(), packed)
+}
+
+/// A bundle of a scene that moves carries its motion section (`tracer/src/bundle/motion.rs`):
+/// read back, its moving parts pose to the very meshes and instances (bit for bit) the loaded
+/// scene poses to, at several times, and encode again to the same bytes; a static scene's
+/// bundle has no such section and is the bytes it always was.
+#[test]
+fn a_bundle_carries_the_motion_and_poses_as_the_scene_does() {
+    use tracer::bundle::{encode_named, encode_scene, Bundle};
+    for (name, bytes) in &moving_cases() {
+        let (mut scene, packed) = load_moving(bytes);
+        let encoded = encode_scene(name, &packed, &scene);
+        let bundle = Bundle::decode(&encoded).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(bundle.encode(), encoded, "{name}: re-encoding differs");
+        let mut moving = bundle.moving.unwrap_or_else(|| panic!("{name}: no motion section"));
+        let (a, b) = (scene.motion.as_ref().unwrap(), moving.motion.as_ref().unwrap());
+        assert_eq!((a.name(), a.duration(), a.describe()), (b.name(), b.duration(), b.describe()), "{name}");
+        for time in [0.0, 0.3, 1.0, 1.7, 9.0, 0.5] {
+            assert!(scene.pose(time).unwrap() && moving.pose(time).unwrap(), "{name}");
+            assert_eq!(moving.meshes, scene.meshes, "{name} at {time}: the posed meshes differ");
+            assert_eq!(moving.instances, scene.instances, "{name} at {time}: the posed instances differ");
+        }
+    }
+    // A static scene: the same bytes as a bundle without a motion section, and none read back.
+    let still = scene::load_gltf_slice(&moving_cases()[1].1, None, &LoadOptions::default()).unwrap();
+    let (_, packed) = tracer::pack::build_and_pack(&still, &Default::default()).unwrap();
+    let bytes = encode_scene("still", &packed, &still);
+    assert_eq!(bytes, encode_named("still", &packed), "a static scene's bundle changed");
+    assert!(Bundle::decode(&bytes).unwrap().moving.is_none());
+    assert!(tracer::bundle::entries(&bytes).unwrap().iter().all(|(n, _)| !n.starts_with("motion.")));
+}
+
+/// The motion section's decoder (`scene::moving_from_streams`) on corrupt streams: every
+/// integer replaced by values around it and by huge ones, every truncation, a NaN in place of
+/// each float: an error or a motion that poses, never a panic or a huge allocation.
+#[test]
+fn a_corrupt_motion_section_is_an_error_never_a_panic() {
+    for (name, bytes) in &moving_cases() {
+        let (scene, _) = load_moving(bytes);
+        let (anim, ints, floats) = scene::motion_streams(&scene).unwrap();
+        assert!(scene::moving_from_streams(&anim, &ints, &floats).is_ok(), "{name}");
+        let mut accepted = 0;
+        for i in 0..ints.len() {
+            for v in [0, 1, ints[i].wrapping_add(1), ints[i].wrapping_sub(1), 1 << 30, u32::MAX] {
+                let mut bad = ints.clone();
+                bad[i] = v;
+                if let Ok(mut moving) = scene::moving_from_streams(&anim, &bad, &floats) {
+                    accepted += 1;
+                    for t in [0.0, 0.7, 5.0] {
+                        let _ = moving.pose(t);
+                    }
+                }
+            }
+        }
+        for len in 0..ints.len() {
+            assert!(scene::moving_from_streams(&anim, &ints[..len], &floats).is_err(), "{name}: {len} ints");
+        }
+        for len in 0..floats.len() {
+            assert!(scene::moving_from_streams(&anim, &ints, &floats[..len]).is_err(), "{name}: {len} floats");
+        }
+        for i in 0..floats.len() {
+            let mut bad = floats.clone();
+            bad[i] = f32::NAN;
+            let err = scene::moving_from_streams(&anim, &ints, &bad).unwrap_err();
+            assert!(err.contains("not finite"), "{name}: {err}");
+            // Huge values (keyframe times out of order, matrices that cannot be inverted).
+            for v in [-1e30, 1e30, 0.0] {
+                bad[i] = v;
+                if let Ok(mut moving) = scene::moving_from_streams(&anim, &ints, &bad) {
+                    for t in [0.0, 0.7, 5.0] {
+                        let _ = moving.pose(t);
+                    }
+                }
+            }
+        }
+        println!(
+            "{name}: {} ints, {} floats, {accepted} of {} changed ints accepted",
+            ints.len(),
+            floats.len(),
+            ints.len() * 6
+        );
+    }
 }

@@ -319,6 +319,11 @@ impl<'a> Reader<'a> {
         Ok(entry)
     }
 
+    /// Whether the bundle has an entry `name` (for optional sections).
+    pub(super) fn has(&self, name: &str) -> bool {
+        self.entries.iter().any(|e| e.name == name)
+    }
+
     /// A single value (count 1).
     pub(super) fn scalar(&mut self, name: &str, element: ElementType, components: u8) -> Result<&[u8], BundleError> {
         let entry = self.take(name, element, components)?;

@@ -40,9 +40,11 @@ mod bounds;
 mod checks;
 mod fields;
 mod format;
+mod motion;
 mod textures;
 
 use crate::pack::Packed;
+use crate::scene::Scene;
 use checks::check_consistency;
 use fields::Field;
 use format::{Reader, Writer};
@@ -123,12 +125,17 @@ pub enum BundleError {
     Inconsistent(String),
 }
 
-/// A bundle's content: the packed scene and its name.
+/// A bundle's content: the packed scene, its name and, for a scene that moves, its moving parts.
 #[derive(Clone, Debug)]
 pub struct Bundle {
     /// What the scene is called (a file stem, `cornell-box`, ...); may be empty.
     pub name: String,
     pub packed: Packed,
+    /// A scene that moves: its kept [`Motion`](crate::scene::Motion) with the meshes and
+    /// instances that posing it rewrites ([`Scene::pose`]), in a scene holding nothing else
+    /// (the motion section, [`motion`]); `None` for a static scene, whose bundle has no
+    /// such section.
+    pub moving: Option<Scene>,
 }
 
 /// Encodes `packed` with an empty name. See [`Bundle::encode`].
@@ -138,14 +145,33 @@ pub fn encode(packed: &Packed) -> Vec<u8> {
 
 /// Encodes `packed` under `name` (names longer than 255 bytes are cut at a character boundary).
 pub fn encode_named(name: &str, packed: &Packed) -> Vec<u8> {
+    encode_parts(short_name(name), packed, None)
+}
+
+/// `name` cut to at most 255 bytes, at a character boundary.
+pub(crate) fn short_name(name: &str) -> &str {
     let mut cut = name.len().min(u8::MAX as usize);
     while !name.is_char_boundary(cut) {
         cut -= 1;
     }
+    &name[..cut]
+}
+
+/// Encodes `packed` under `name` with the motion section of `scene` (the scene `packed` was
+/// packed from, as posed then) when it keeps a motion: the bundle of a static scene is the
+/// same bytes as [`encode_named`]'s.
+pub fn encode_scene(name: &str, packed: &Packed, scene: &Scene) -> Vec<u8> {
+    encode_parts(short_name(name), packed, Some(scene))
+}
+
+fn encode_parts(name: &str, packed: &Packed, scene: Option<&Scene>) -> Vec<u8> {
     let mut w = Writer::new();
-    name[..cut].to_string().write(NAME_FIELD, &mut w);
+    name.to_string().write(NAME_FIELD, &mut w);
     kernel_fingerprint().write(KERNEL_FIELD, &mut w);
     packed.write("", &mut w);
+    if let Some(scene) = scene {
+        motion::write(scene, &mut w);
+    }
     w.finish()
 }
 
@@ -163,7 +189,10 @@ pub fn decode(bytes: &[u8]) -> Result<Packed, BundleError> {
 impl Bundle {
     /// The bundle's bytes. Deterministic: the same content always gives the same bytes.
     pub fn encode(&self) -> Vec<u8> {
-        encode_named(&self.name, &self.packed)
+        match &self.moving {
+            Some(moving) => encode_scene(&self.name, &self.packed, moving),
+            None => encode_named(&self.name, &self.packed),
+        }
     }
 
     /// Reads a bundle written by [`Bundle::encode`] / [`encode`] of the same [`VERSION`].
@@ -175,9 +204,10 @@ impl Bundle {
             return Err(BundleError::OtherKernel { found: kernel, expected: kernel_fingerprint() });
         }
         let packed = Packed::read("", &mut r)?;
+        let moving = motion::read(&mut r)?;
         r.finish()?;
         check_consistency(&packed)?;
-        Ok(Bundle { name, packed })
+        Ok(Bundle { name, packed, moving })
     }
 }
 

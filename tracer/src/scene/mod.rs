@@ -107,7 +107,7 @@ pub fn builtin(name: &str) -> Option<Scene> {
         _ => None,
     }
 }
-pub use gltf_loader::{load_gltf_slice, AnimationChoice, Motion};
+pub use gltf_loader::{load_gltf_slice, motion_streams, moving_from_streams, AnimationChoice, Motion};
 pub use instance::{place_triangle, Instance, InstanceError, Mesh};
 pub use obj_loader::load_obj_slice;
 pub use sky::{load_sky, load_sky_slice, SkyFormat};

@@ -49,9 +49,9 @@ impl NodePose {
 /// A node's own transform components, which channels override (the rest pose).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct RestTransform {
-    translation: Vec3,
-    rotation: Quat,
-    scale: Vec3,
+    pub(super) translation: Vec3,
+    pub(super) rotation: Quat,
+    pub(super) scale: Vec3,
 }
 
 impl RestTransform {
@@ -66,7 +66,7 @@ impl RestTransform {
 
 /// Interpolation of a sampler.
 #[derive(Clone, Copy, Debug, PartialEq)]
-enum Interpolation {
+pub(super) enum Interpolation {
     Step,
     Linear,
     CubicSpline,
@@ -75,11 +75,11 @@ enum Interpolation {
 /// Keyframes of one channel: times and, per keyframe, one value (STEP, LINEAR) or an
 /// in-tangent, a value and an out-tangent (CUBICSPLINE), each of `n` components.
 #[derive(Clone, Debug)]
-struct Keyframes {
-    times: Vec<f32>,
-    values: Vec<f32>,
-    n: usize,
-    interpolation: Interpolation,
+pub(super) struct Keyframes {
+    pub(super) times: Vec<f32>,
+    pub(super) values: Vec<f32>,
+    pub(super) n: usize,
+    pub(super) interpolation: Interpolation,
 }
 
 impl Keyframes {
@@ -141,7 +141,7 @@ pub(super) enum Target {
 pub(super) struct Channel {
     pub(super) node: usize,
     pub(super) target: Target,
-    keys: Keyframes,
+    pub(super) keys: Keyframes,
 }
 
 impl Channel {
@@ -168,15 +168,16 @@ pub(super) fn pose_at(channels: &[Channel], time: f32) -> HashMap<usize, NodePos
 }
 
 impl Loader<'_> {
-    /// The channels of `choice` (none for the rest pose or a file without animations), checked.
+    /// The channels of `choice` (none for the rest pose or a file without animations), checked,
+    /// and the chosen animation's name (empty without one).
     pub(super) fn channels(
         &mut self,
         animations: &[Value],
         choice: &AnimationChoice,
-    ) -> Result<Vec<Channel>, SceneError> {
+    ) -> Result<(Vec<Channel>, String), SceneError> {
         let index = match choice {
-            AnimationChoice::Rest => return Ok(Vec::new()),
-            AnimationChoice::First if animations.is_empty() => return Ok(Vec::new()),
+            AnimationChoice::Rest => return Ok((Vec::new(), String::new())),
+            AnimationChoice::First if animations.is_empty() => return Ok((Vec::new(), String::new())),
             AnimationChoice::First => 0,
             AnimationChoice::Named(name) => {
                 let by_name = animations.iter().position(|a| a.get("name").and_then(Value::as_str) == Some(name));
@@ -230,7 +231,8 @@ impl Loader<'_> {
             let keys = self.keyframes(samplers, channel, n, &what)?;
             out.push(Channel { node, target, keys });
         }
-        Ok(out)
+        let name = animation.get("name").and_then(Value::as_str).unwrap_or_default().to_owned();
+        Ok((out, name))
     }
 
     /// The keyframes of `channel`'s sampler, checked: times non-decreasing, as many values as

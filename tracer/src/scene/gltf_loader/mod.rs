@@ -22,12 +22,14 @@ mod draco;
 mod materials;
 mod morph;
 mod motion;
+mod motion_data;
 mod nodes;
 mod placement;
 mod skin;
 
 pub use animation::AnimationChoice;
 pub use motion::Motion;
+pub use motion_data::{motion_streams, moving_from_streams};
 
 use super::accessor::Buffers;
 use super::texture::{
@@ -349,10 +351,10 @@ impl Loader<'_> {
         if !options.time.is_finite() {
             return Err(malformed(format!("the animation time {} is not a finite number of seconds", options.time)));
         }
-        let channels = self.channels(animations, &options.animation)?;
+        let (channels, name) = self.channels(animations, &options.animation)?;
         self.pose = animation::pose_at(&channels, options.time);
         if options.keep_motion && !channels.is_empty() {
-            self.motion = Some(Motion::new(self.root, &self.parents()?, channels));
+            self.motion = Some(Motion::new(self.root, &self.parents()?, channels, name));
         }
         let roots = self.scene_roots()?;
         self.visit(&roots)?;

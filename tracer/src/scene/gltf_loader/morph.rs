@@ -11,8 +11,8 @@ use super::*;
 /// One morph target's displacements, per vertex.
 #[derive(Clone)]
 pub(super) struct MorphTarget {
-    positions: Option<Vec<Vec3>>,
-    normals: Option<Vec<Vec3>>,
+    pub(super) positions: Option<Vec<Vec3>>,
+    pub(super) normals: Option<Vec<Vec3>>,
 }
 
 impl Loader<'_> {

@@ -34,40 +34,44 @@ pub struct Motion {
     rigid: Vec<RigidPlacement>,
     deformed: Vec<DeformedMesh>,
     duration: f32,
+    /// The chosen animation's name in the file (empty when it has none).
+    name: String,
 }
 
 /// A node of the hierarchy as the pose needs it.
 #[derive(Clone, Debug)]
-struct RigNode {
-    parent: Option<usize>,
-    rest: RestTransform,
+pub(super) struct RigNode {
+    pub(super) parent: Option<usize>,
+    pub(super) rest: RestTransform,
     /// The node's matrix, when it is given by one (channels never move such a node).
-    matrix: Option<Mat4>,
+    pub(super) matrix: Option<Mat4>,
     /// A translation, rotation or scale channel targets it.
-    moved: bool,
+    pub(super) moved: bool,
     /// A weights channel targets it.
-    morphed: bool,
+    pub(super) morphed: bool,
 }
 
 /// An instance whose transform is its node's world transform times `local` (the identity, or
 /// an `EXT_mesh_gpu_instancing` instance's TRS).
 #[derive(Clone, Debug)]
-struct RigidPlacement {
-    instance: usize,
-    node: usize,
-    local: Mat4,
+pub(super) struct RigidPlacement {
+    pub(super) instance: usize,
+    pub(super) node: usize,
+    pub(super) local: Mat4,
 }
 
 /// A mesh made again at each pose, placed by the identity: `Scene::meshes[mesh]`.
 #[derive(Clone)]
-struct DeformedMesh {
-    mesh: usize,
-    node: usize,
-    prims: Vec<LocalPrimitive>,
-    skin: Option<SkinJoints>,
+pub(super) struct DeformedMesh {
+    pub(super) mesh: usize,
+    pub(super) node: usize,
+    /// The glTF mesh it was made from (for messages).
+    pub(super) gltf_mesh: usize,
+    pub(super) prims: Vec<LocalPrimitive>,
+    pub(super) skin: Option<SkinJoints>,
     /// The node's (else the mesh's) morph weights, when no channel animates them.
-    rest_weights: Vec<f32>,
-    what: String,
+    pub(super) rest_weights: Vec<f32>,
+    pub(super) what: String,
 }
 
 impl std::fmt::Debug for Motion {
@@ -79,8 +83,8 @@ impl std::fmt::Debug for Motion {
 impl Motion {
     /// The motion of `channels` over `root`'s node hierarchy (`parents` per node); no part of
     /// the scene follows it until the loader registers them.
-    pub(super) fn new(root: &Root, parents: &[Option<usize>], channels: Vec<Channel>) -> Self {
-        let mut nodes: Vec<RigNode> = root
+    pub(super) fn new(root: &Root, parents: &[Option<usize>], channels: Vec<Channel>, name: String) -> Self {
+        let nodes: Vec<RigNode> = root
             .nodes
             .iter()
             .zip(parents)
@@ -92,6 +96,12 @@ impl Motion {
                 morphed: false,
             })
             .collect();
+        Self::of_nodes(nodes, channels, name)
+    }
+
+    /// The motion of `channels` over `nodes` (their `moved` and `morphed` flags set here, each
+    /// node's parent before it in no particular order: the walk order is made here).
+    pub(super) fn of_nodes(mut nodes: Vec<RigNode>, channels: Vec<Channel>, name: String) -> Self {
         for c in &channels {
             if let Some(node) = nodes.get_mut(c.node) {
                 match c.target {
@@ -101,12 +111,12 @@ impl Motion {
             }
         }
         let mut children: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
-        for (n, p) in parents.iter().enumerate() {
-            if let Some(p) = p {
-                children[*p].push(n);
+        for (n, node) in nodes.iter().enumerate() {
+            if let Some(p) = node.parent {
+                children[p].push(n);
             }
         }
-        let mut order: Vec<usize> = (0..nodes.len()).filter(|&n| parents[n].is_none()).collect();
+        let mut order: Vec<usize> = (0..nodes.len()).filter(|&n| nodes[n].parent.is_none()).collect();
         let mut at = 0;
         while at < order.len() {
             let n = order[at];
@@ -114,12 +124,17 @@ impl Motion {
             at += 1;
         }
         let duration = channels.iter().map(Channel::end).fold(0.0, f32::max);
-        Motion { channels, nodes, order, rigid: Vec::new(), deformed: Vec::new(), duration }
+        Motion { channels, nodes, order, rigid: Vec::new(), deformed: Vec::new(), duration, name }
     }
 
     /// The time of the animation's last keyframe, in seconds (poses after it are its last).
     pub fn duration(&self) -> f32 {
         self.duration
+    }
+
+    /// The chosen animation's name in the file (empty when it has none).
+    pub fn name(&self) -> &str {
+        &self.name
     }
 
     /// Instances whose transforms follow the animation.
@@ -140,6 +155,28 @@ impl Motion {
             self.deformed.len(),
             self.duration
         )
+    }
+
+    /// Its parts, for `motion_data`.
+    pub(super) fn parts(&self) -> (&[RigNode], &[Channel], &[RigidPlacement], &[DeformedMesh]) {
+        (&self.nodes, &self.channels, &self.rigid, &self.deformed)
+    }
+
+    /// Sets what follows the motion (as `motion_data` reads it).
+    pub(super) fn set_parts(&mut self, rigid: Vec<RigidPlacement>, deformed: Vec<DeformedMesh>) {
+        (self.rigid, self.deformed) = (rigid, deformed);
+    }
+
+    /// Whether every placement and deformed mesh names one of `instances` and `meshes`, as
+    /// [`apply`](Self::apply) needs.
+    pub(super) fn check_against(&self, meshes: &[Mesh], instances: &[Instance]) -> Result<(), String> {
+        if let Some(r) = self.rigid.iter().find(|r| r.instance >= instances.len()) {
+            return Err(format!("a moving placement names instance {} of {}", r.instance, instances.len()));
+        }
+        if let Some(d) = self.deformed.iter().find(|d| d.mesh >= meshes.len()) {
+            return Err(format!("a deformed mesh is mesh {} of {}", d.mesh, meshes.len()));
+        }
+        Ok(())
     }
 
     /// Whether node `n` is moved by a channel.
@@ -286,7 +323,7 @@ impl Loader<'_> {
         self.instanced_meshes.push(Mesh::default());
         self.instances.push(Instance { mesh: slot as u32, transform: Mat4::IDENTITY });
         let what = format!("node {n} mesh {mesh}");
-        let d = DeformedMesh { mesh: slot, node: n, prims: base.to_vec(), skin, rest_weights, what };
+        let d = DeformedMesh { mesh: slot, node: n, gltf_mesh: mesh, prims: base.to_vec(), skin, rest_weights, what };
         self.motion.as_mut().expect("a kept motion").deformed.push(d);
         Ok(())
     }

@@ -9,9 +9,9 @@ use super::*;
 pub(super) struct LocalPrimitive {
     pub(super) positions: Vec<Vec3>,
     pub(super) normals: Option<Vec<Vec3>>,
-    uvs: Option<Vec<Vec2>>,
+    pub(super) uvs: Option<Vec<Vec2>>,
     /// `TEXCOORD_1`, read only when the primitive's material samples a texture on it.
-    uvs1: Option<Vec<Vec2>>,
+    pub(super) uvs1: Option<Vec<Vec2>>,
     pub(super) triangles: Vec<[u32; 3]>,
     /// Per corner of `triangles`: the file's `TANGENT`s, else MikkTSpace's; only for a
     /// material with a normal map.

@@ -122,8 +122,8 @@ impl Loader<'_> {
 /// A skin's joint nodes and their inverse bind matrices.
 #[derive(Clone, Debug)]
 pub(super) struct SkinJoints {
-    joints: Vec<usize>,
-    inverse_bind: Vec<Mat4>,
+    pub(super) joints: Vec<usize>,
+    pub(super) inverse_bind: Vec<Mat4>,
 }
 
 impl SkinJoints {
