@@ -1,0 +1,133 @@
+//! Which runtime runs the scene: the API asked for (`setApi`), WebGPU's limits and failures
+//! (auto falls back to WebGL2 with a notice), the canvas for each kind of context, and what an
+//! error of the running renderer does.
+
+use wasm_bindgen::prelude::*;
+use wasm_bindgen::JsCast;
+use web_sys::HtmlCanvasElement;
+
+use tracer::backend::wavefront::WavefrontError;
+use tracer::backend::Schedule;
+use tracer::pack::Packed;
+
+use super::{Viewer, MAX_GPU_RECOVERIES};
+use crate::runtime::{webgl2, Api, GlRuntime, GpuRuntime, Runtime};
+
+impl Viewer {
+    /// A renderer and display pass for `packed`, on the API chosen ([`set_api`](Self::set_api)).
+    pub(super) fn start(&mut self, packed: &Packed) -> Result<Runtime, JsError> {
+        self.notice = None;
+        let gpu_ready = self.gpu.as_ref().is_some_and(|g| g.lost().is_none());
+        match self.api {
+            Api::WebGl2 if self.schedule == Some(Schedule::Wavefront) => {
+                return Err(JsError::new(&WavefrontError::NoCompute { runtime: "WebGL2" }.to_string()));
+            }
+            Api::WebGl2 => {}
+            Api::WebGpu => return self.start_webgpu(packed).map_err(|e| JsError::new(&e)),
+            Api::Auto if gpu_ready => match self.start_webgpu(packed) {
+                Ok(runtime) => return Ok(runtime),
+                Err(e) => self.notice = Some(format!("WebGPU cannot run this scene, so WebGL2 does: {e}")),
+            },
+            Api::Auto => {
+                let why = self.gpu_unavailable.as_deref().unwrap_or("no WebGPU device was requested");
+                self.notice = Some(format!("WebGPU is not available, so WebGL2 runs: {why}"));
+            }
+        }
+        if self.schedule == Some(Schedule::Wavefront) {
+            if let Some(notice) = &mut self.notice {
+                notice.push_str(" (with the megakernel: the wavefront needs WebGPU's compute shaders)");
+            }
+        }
+        self.start_webgl2(packed)
+    }
+
+    pub(super) fn start_webgpu(&mut self, packed: &Packed) -> Result<Runtime, String> {
+        let gpu = self.gpu.clone().ok_or_else(|| {
+            let why = self.gpu_unavailable.as_deref().unwrap_or("requestWebGpu() was not called");
+            format!("WebGPU is not available: {why}")
+        })?;
+        // Limits are checked and the scene uploaded before the canvas gets a WebGPU context.
+        let schedule = self.schedule.unwrap_or_else(Schedule::auto);
+        let prepared = GpuRuntime::prepare(&gpu, packed, self.seed, &self.wgpu_options, schedule)?;
+        let canvas = self.canvas_for(Api::WebGpu)?;
+        canvas.set_width(packed.scene.width);
+        canvas.set_height(packed.scene.height);
+        Ok(Runtime::WebGpu(Box::new(GpuRuntime::attach(prepared, &canvas, self.band_budget_ms)?)))
+    }
+
+    pub(super) fn start_webgl2(&mut self, packed: &Packed) -> Result<Runtime, JsError> {
+        if self.context_lost {
+            return Err(JsError::new("the WebGL context is lost; waiting for the browser to restore it"));
+        }
+        let canvas = self.canvas_for(Api::WebGl2).map_err(|e| JsError::new(&e))?;
+        canvas.set_width(packed.scene.width);
+        canvas.set_height(packed.scene.height);
+        let context = match &self.gl_context {
+            Some(c) => c.clone(),
+            None => {
+                let c = webgl2::context(&canvas).map_err(|e| JsError::new(&e))?;
+                self.gl_context = Some(c.clone());
+                c
+            }
+        };
+        let runtime = GlRuntime::new(&context, packed, self.seed, &self.options, self.band_budget_ms)
+            .map_err(|e| JsError::new(&e))?;
+        Ok(Runtime::WebGl2(Box::new(runtime)))
+    }
+
+    /// The canvas for a context of `api`: the current one, unless it already gave out the
+    /// other kind; then a new canvas element with the same attributes takes its place.
+    pub(super) fn canvas_for(&mut self, api: Api) -> Result<HtmlCanvasElement, String> {
+        if self.canvas_api.is_none_or(|a| a == api) {
+            self.canvas_api = Some(api);
+            return Ok(self.canvas.clone());
+        }
+        let failed = |e: JsValue| format!("replacing the canvas failed: {e:?}");
+        let document = self.canvas.owner_document().ok_or("the canvas is not in a document")?;
+        let fresh: HtmlCanvasElement =
+            document.create_element("canvas").map_err(failed)?.dyn_into().map_err(|_| "not a canvas".to_string())?;
+        for name in self.canvas.get_attribute_names().iter().filter_map(|n| n.as_string()) {
+            if let Some(value) = self.canvas.get_attribute(&name) {
+                fresh.set_attribute(&name, &value).map_err(failed)?;
+            }
+        }
+        if self.canvas.is_connected() {
+            self.canvas.replace_with_with_node_1(&fresh).map_err(failed)?;
+        }
+        // The old canvas's renderer (drawing into the detached element) goes now.
+        self.running = None;
+        self.canvas = fresh;
+        self.canvas_api = Some(api);
+        self.gl_context = None;
+        self.context_lost = false;
+        Ok(self.canvas.clone())
+    }
+
+    /// Whether nothing may be drawn now (a lost WebGL context or WebGPU device).
+    pub(super) fn halted(&self) -> bool {
+        match &self.running {
+            None => true,
+            Some(Runtime::WebGl2(r)) => self.context_lost || r.context_lost(),
+            Some(Runtime::WebGpu(_)) => self.gpu.as_ref().is_none_or(|g| g.lost().is_some()),
+        }
+    }
+
+    /// An error of the running renderer: on WebGPU (an uncaptured device error), the renderer
+    /// is recreated from the scene in memory, a few times, with a notice; then, or at once for
+    /// a shader the device rejected, auto moves to WebGL2 with a notice; else the error.
+    pub(super) fn recover(&mut self, error: String) -> Result<(), JsError> {
+        let Some(Runtime::WebGpu(gpu)) = &self.running else { return Err(JsError::new(&error)) };
+        let rejected = gpu.shader_rejected();
+        if !rejected && self.gpu_recoveries < MAX_GPU_RECOVERIES {
+            self.gpu_recoveries += 1;
+            self.rebuild()?;
+            self.notice = Some(format!("WebGPU reported an error; the renderer was recreated: {error}"));
+            return Ok(());
+        }
+        if self.api == Api::Auto {
+            let why = if rejected { "it rejected the kernel" } else { "it kept reporting errors" };
+            return self.web_gpu_unavailable(format!("{why} ({error})"));
+        }
+        Err(JsError::new(&error))
+    }
+}
