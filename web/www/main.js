@@ -707,6 +707,8 @@ onView('webglcontextrestored', () => {
 let recovering = false;
 // Devices recreated after a loss before auto gives WebGPU up for WebGL2.
 const MAX_DEVICE_RECOVERIES = 2;
+// Tries, a second apart, at moving a scene to WebGL2 after WebGPU failed under auto.
+const WEBGL2_ATTEMPTS = 15;
 
 // The device was lost (GPU reset, driver update, `device.destroy()`): request a new one and
 // recreate the renderer on it from the scene kept in memory, as after a WebGL context restore.
@@ -714,13 +716,26 @@ const MAX_DEVICE_RECOVERIES = 2;
 // to WebGL2 with a notice; with `api=webgpu` a failed recreation is the error.
 async function recoverWebGpu(reason) {
   recovering = true;
-  const fallBack = (why) => {
-    guarded(() => viewer.webGpuUnavailable(why));
+  // Chromium's GPU process may be restarting after the device died, and WebGL2 contexts come
+  // back with it: a failed move to WebGL2 is retried for a while before it is the error.
+  const fallBack = async (why) => {
+    for (let attempt = 1; ; attempt++) {
+      try {
+        viewer.webGpuUnavailable(why);
+        break;
+      } catch (e) {
+        if (attempt >= WEBGL2_ATTEMPTS) {
+          showMessage(String(e.message || e));
+          return;
+        }
+        await new Promise((resolve) => setTimeout(resolve, 1000));
+      }
+    }
     showNotice();
   };
   try {
     if (api === 'auto' && hook.deviceRecoveries >= MAX_DEVICE_RECOVERIES) {
-      fallBack(`the WebGPU device was lost ${hook.deviceRecoveries + 1} times (last: ${reason})`);
+      await fallBack(`the WebGPU device was lost ${hook.deviceRecoveries + 1} times (last: ${reason})`);
       return;
     }
     showMessage(`The WebGPU device was lost (${reason}); requesting a new one…`, 'info');
@@ -731,7 +746,7 @@ async function recoverWebGpu(reason) {
     } catch (e) {
       const why = `a new WebGPU device could not be created after a loss (${reason}): ${e.message || e}`;
       if (api === 'auto') {
-        fallBack(why);
+        await fallBack(why);
       } else {
         showMessage(why);
         paused = true;

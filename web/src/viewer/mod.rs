@@ -177,13 +177,15 @@ impl Viewer {
     }
 
     /// Records why WebGPU cannot be used (`requestWebGpu()` failed, a lost device could not be
-    /// replaced, or was lost too often): auto says so when it runs WebGL2. Under auto a scene
-    /// running on WebGPU moves to WebGL2 now (from the scene in memory).
+    /// replaced, or was lost too often): auto says so when it runs WebGL2. Under auto a loaded
+    /// scene not running on WebGL2 yet moves there now (from the scene in memory); an error
+    /// (e.g. no WebGL2 context while the browser's GPU process restarts) may be retried.
     #[wasm_bindgen(js_name = webGpuUnavailable)]
     pub fn web_gpu_unavailable(&mut self, why: String) -> Result<(), JsError> {
         self.gpu_unavailable = Some(why);
         self.gpu = None;
-        if self.api == Api::Auto && matches!(self.running, Some(Runtime::WebGpu(_))) {
+        let on_webgl2 = matches!(self.running, Some(Runtime::WebGl2(_)));
+        if self.api == Api::Auto && self.loaded.is_some() && !on_webgl2 {
             self.rebuild()?;
         }
         Ok(())
