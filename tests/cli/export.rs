@@ -128,7 +128,15 @@ fn an_export_served_by_nginx_renders_and_caches() {
 
     // The files: the page, the wasm, the list and the content-addressed bundle with its
     // precompressed siblings, each decoding to the bundle's bytes.
-    for file in ["index.html", "main.js", "cache.js", "pkg/lightport_web.js", "pkg/lightport_web_bg.wasm"] {
+    for file in [
+        "index.html",
+        "main.js",
+        "cache.js",
+        "first_frame.js",
+        "webgpu_recovery.js",
+        "pkg/lightport_web.js",
+        "pkg/lightport_web_bg.wasm",
+    ] {
         assert!(site.join(file).is_file(), "{file} is missing");
     }
     let list: serde_json::Value = serde_json::from_slice(&std::fs::read(site.join("scenes.json")).unwrap()).unwrap();

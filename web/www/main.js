@@ -22,10 +22,12 @@
 //   maxTextureSize=N, maxStorageBuffers=N  pretend the device allows at most N (WebGL2's texture
 //                     size; WebGPU's storage buffers per shader stage).
 
-import init, { Viewer, requestWebGpu } from './pkg/lightport_web.js';
+import init, { Viewer } from './pkg/lightport_web.js';
 import { BundleCache, DEFAULT_BUDGET_BYTES } from './cache.js';
 import { movingText, setUpAnimationControls, showAnimation } from './animation.js';
 import { compileProgram } from './compile.js';
+import { FirstFrame } from './first_frame.js';
+import { WebGpuRecovery } from './webgpu_recovery.js';
 
 const params = new URLSearchParams(location.search);
 const $ = (id) => document.getElementById(id);
@@ -162,6 +164,9 @@ const hook = {
 };
 window.lightport = hook;
 
+// The time to the first frame, accounted for (first_frame.js).
+const firstFrame = new FirstFrame(hook, () => viewer, $);
+
 // The scene's geometry in words: its triangles, and for a two-level scene (meshes stored once
 // and placed by instances) how many placements.
 function geometryText(info) {
@@ -247,66 +252,9 @@ let frameMs = null; // moving average of the time between completed frames
 let lastFrameAt = null;
 let pendingRestart = null; // the last restart whose first band is not done yet
 
-let firstFrameWaited = false;
 function frameDone() {
   hook.frames++;
-  if (!firstFrameWaited) {
-    // The first frame counts once it is on screen, not when it is queued.
-    firstFrameWaited = true;
-    viewer.sync().then(() => { hook.firstFrameMs = performance.now(); });
-  }
-  if (loading && !loading.waiting) {
-    loading.waiting = true;
-    const load = loading;
-    viewer.sync().then(() => finishFirstFrame(load, performance.now()));
-  }
-}
-
-// ---- first frame, accounted for -------------------------------------------------------------
-
-// The scene load whose first frame is not finished yet: performance.now() marks of its steps
-// (start, fetchStart, fetched, submitted: the first band or frame submitted).
-let loading = null;
-
-function beginLoad(name, start = performance.now()) {
-  loading = { name, start, fetchStart: null, fetched: null, submitted: null, waiting: false };
-  hook.firstFrame = null;
-  $('first-frame').textContent = '…';
-}
-
-function markSubmitted(at) {
-  if (loading && loading.submitted === null) loading.submitted = at;
-}
-
-// The first frame of `load` is finished on the GPU (at `doneAt`): splits its time from the
-// page's marks and the viewer's own (sceneInfo().startup: decode, upload, compile in wasm, and
-// on WebGPU when the device's verdict on the pipeline arrived).
-async function finishFirstFrame(load, doneAt) {
-  // WebGPU's verdict arrives as a promise: the frame ran after the compile, so it is there.
-  for (let i = 0; i < 50 && viewer.sceneInfo().startup && viewer.sceneInfo().startup.compiledAt === null; i++) {
-    await new Promise((resolve) => setTimeout(resolve, 10));
-  }
-  if (load !== loading) return; // another scene was loaded meanwhile
-  loading = null;
-  const info = viewer.sceneInfo();
-  const s = info.startup;
-  if (!s) return;
-  const compiledAt = Math.min(s.compiledAt ?? doneAt, doneAt);
-  const split = {
-    api: info.api,
-    scene: load.name,
-    totalMs: doneAt - load.start,
-    downloadMs: load.fetched !== null && load.fetchStart !== null ? load.fetched - load.fetchStart : 0,
-    decodeMs: s.decodeMs,
-    uploadMs: s.uploadMs,
-    compileMs: s.codegenMs + s.compileMs + Math.max(0, compiledAt - s.createdAt),
-    gpuMs: doneAt - Math.max(load.submitted ?? doneAt, compiledAt),
-  };
-  split.otherMs = split.totalMs - split.downloadMs - split.decodeMs - split.uploadMs - split.compileMs - split.gpuMs;
-  hook.firstFrame = split;
-  const sec = (ms) => (ms / 1000).toFixed(2);
-  $('first-frame').textContent = `${sec(split.totalMs)} s: download ${sec(split.downloadMs)}, decode ` +
-    `${sec(split.decodeMs)}, upload ${sec(split.uploadMs)}, compile ${sec(split.compileMs)}, GPU ${sec(split.gpuMs)}`;
+  firstFrame.frameDone();
 }
 
 // One whole frame in one submission (the test hook's renderFrames).
@@ -315,7 +263,7 @@ function frame() {
   if (!viewer || lost) return true;
   let done;
   try {
-    markSubmitted(performance.now());
+    firstFrame.markSubmitted(performance.now());
     done = viewer.frame();
   } catch (e) {
     showMessage(String(e.message || e));
@@ -330,22 +278,22 @@ function frame() {
 // previous band's fence, on WebGPU its onSubmittedWorkDone, without blocking), so input runs between bands and a restart waits for
 // one band, not a whole frame.
 function tick(now) {
-  if (viewer && !recovering && viewer.webGpuLost()) recoverWebGpu(viewer.webGpuLost());
+  if (viewer && !webGpu.recovering && viewer.webGpuLost()) webGpu.recover(viewer.webGpuLost());
   // The denoiser's WebGPU promises and due denoises, also while paused (test hook frames).
-  if (!busy && viewer && !lost && !recovering && hasScene) {
+  if (!busy && viewer && !lost && !webGpu.recovering && hasScene) {
     try {
       viewer.pollDenoise();
     } catch (e) {
       showMessage(String(e.message || e));
     }
   }
-  if (!paused && !busy && viewer && !lost && !recovering && hasScene) {
+  if (!paused && !busy && viewer && !lost && !webGpu.recovering && hasScene) {
     applyHeldKeys(now);
     let status = 0;
     const before = performance.now();
     try {
       status = viewer.step(before);
-      if (status > 0) markSubmitted(before);
+      if (status > 0) firstFrame.markSubmitted(before);
     } catch (e) {
       showMessage(String(e.message || e));
       paused = true;
@@ -438,14 +386,14 @@ async function loadServedScene(name) {
   }
   busy = true;
   // The page's first scene counts from the navigation's start.
-  beginLoad(scene.name, hook.startup.fetched === undefined ? 0 : performance.now());
+  firstFrame.begin(scene.name, hook.startup.fetched === undefined ? 0 : performance.now());
   showMessage(`loading ${scene.name} (${formatBytes(scene.bytes.raw)})…`, 'info');
   try {
-    loading.fetchStart = performance.now();
+    firstFrame.fetchStarted();
     const { bytes, fromCache } = await cache.fetch(scene.url, (received) => {
       showMessage(`downloading ${scene.name}: ${formatBytes(received)}`, 'info');
     });
-    loading.fetched = performance.now();
+    firstFrame.fetched();
     hook.bundleSources.push({ name: scene.name, fromCache, bytes: bytes.byteLength });
     hook.startup.fetched ??= performance.now();
     viewer.loadBundle(new Uint8Array(bytes));
@@ -458,7 +406,7 @@ async function loadServedScene(name) {
     showNotice();
   } catch (e) {
     showMessage(`${scene.name}: ${e.message || e}`);
-    loading = null;
+    firstFrame.cancel();
   } finally {
     busy = false;
     frameMs = null;
@@ -468,14 +416,14 @@ async function loadServedScene(name) {
 
 async function loadBundleUrl(url) {
   busy = true;
-  beginLoad(url, hook.startup.fetched === undefined ? 0 : performance.now());
+  firstFrame.begin(url, hook.startup.fetched === undefined ? 0 : performance.now());
   showMessage(`loading ${url}…`, 'info');
   try {
-    loading.fetchStart = performance.now();
+    firstFrame.fetchStarted();
     const response = await fetch(url, { cache: 'no-store' });
     if (!response.ok) throw new Error(`HTTP ${response.status}`);
     const bytes = await response.arrayBuffer();
-    loading.fetched = performance.now();
+    firstFrame.fetched();
     hook.startup.fetched ??= performance.now();
     hook.bundleSources.push({ name: url, fromCache: false, bytes: bytes.byteLength });
     const info = viewer.loadBundle(new Uint8Array(bytes));
@@ -487,7 +435,7 @@ async function loadBundleUrl(url) {
     showNotice();
   } catch (e) {
     showMessage(`${url}: ${e.message || e}`);
-    loading = null;
+    firstFrame.cancel();
   } finally {
     busy = false;
     frameMs = null;
@@ -506,8 +454,7 @@ async function loadFiles(fileList) {
     }
     const info = viewer.loadDropped();
     // Files from the disk: the read-out splits served bundles' first frames only.
-    loading = null;
-    $('first-frame').textContent = '–';
+    firstFrame.notMeasured();
     hasScene = true;
     currentName = info.name;
     $('scene').value = '';
@@ -704,58 +651,16 @@ onView('webglcontextrestored', () => {
 
 // ---- WebGPU device loss ---------------------------------------------------------------------
 
-let recovering = false;
-// Devices recreated after a loss before auto gives WebGPU up for WebGL2.
-const MAX_DEVICE_RECOVERIES = 2;
-// Tries, a second apart, at moving a scene to WebGL2 after WebGPU failed under auto.
-const WEBGL2_ATTEMPTS = 15;
-
-// The device was lost (GPU reset, driver update, `device.destroy()`): request a new one and
-// recreate the renderer on it from the scene kept in memory, as after a WebGL context restore.
-// Under auto, a device that cannot be recreated, or is lost again and again, hands the scene
-// to WebGL2 with a notice; with `api=webgpu` a failed recreation is the error.
-async function recoverWebGpu(reason) {
-  recovering = true;
-  // Chromium's GPU process may be restarting after the device died, and WebGL2 contexts come
-  // back with it: a failed move to WebGL2 is retried for a while before it is the error.
-  const fallBack = async (why) => {
-    for (let attempt = 1; ; attempt++) {
-      try {
-        viewer.webGpuUnavailable(why);
-        break;
-      } catch (e) {
-        if (attempt >= WEBGL2_ATTEMPTS) {
-          showMessage(String(e.message || e));
-          return;
-        }
-        await new Promise((resolve) => setTimeout(resolve, 1000));
-      }
-    }
-    showNotice();
-  };
-  try {
-    if (api === 'auto' && hook.deviceRecoveries >= MAX_DEVICE_RECOVERIES) {
-      await fallBack(`the WebGPU device was lost ${hook.deviceRecoveries + 1} times (last: ${reason})`);
-      return;
-    }
-    showMessage(`The WebGPU device was lost (${reason}); requesting a new one…`, 'info');
-    try {
-      viewer.useWebGpu(await requestWebGpu());
-      hook.deviceRecoveries++;
-      showNotice();
-    } catch (e) {
-      const why = `a new WebGPU device could not be created after a loss (${reason}): ${e.message || e}`;
-      if (api === 'auto') {
-        await fallBack(why);
-      } else {
-        showMessage(why);
-        paused = true;
-      }
-    }
-  } finally {
-    recovering = false;
-  }
-}
+// The first WebGPU device, and a new one after a loss (webgpu_recovery.js).
+const webGpu = new WebGpuRecovery({
+  api,
+  hook,
+  getViewer: () => viewer,
+  showMessage,
+  showNotice,
+  guarded,
+  pause: () => { paused = true; },
+});
 
 // The API and Schedule controls: reload the page with `api=` or `schedule=` (the scene comes
 // back from the cache).
@@ -792,16 +697,7 @@ async function main() {
     return;
   }
   if (params.get('maxStorageBuffers')) viewer.setMaxStorageBuffers(Number(params.get('maxStorageBuffers')));
-  if (api !== 'webgl2') {
-    try {
-      viewer.useWebGpu(await requestWebGpu());
-      hook.startup.device = performance.now();
-    } catch (e) {
-      const why = String(e.message || e);
-      guarded(() => viewer.webGpuUnavailable(why));
-      if (api === 'webgpu') showMessage(`WebGPU was asked for (api=webgpu) but is not available: ${why}`);
-    }
-  }
+  await webGpu.start();
   const [w, h] = renderSize();
   guarded(() => viewer.setSize(w, h));
   if (params.get('maxTextureSize')) viewer.setMaxTextureSize(Number(params.get('maxTextureSize')));
