@@ -1,6 +1,6 @@
 // The page in headless Chromium, as every browser scenario opens it: the flags per API, a
 // fresh profile, and `open` (navigate, wait for the first scene, record requests and console
-// errors). Shared by run.mjs and the scenarios kept in files of their own (animation.mjs).
+// errors). Shared by run.mjs and the scenarios kept in files of their own (animation.mjs, api.mjs).
 
 import { chromium } from 'playwright-core';
 import { mkdtempSync } from 'node:fs';
