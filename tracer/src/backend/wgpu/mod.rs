@@ -35,6 +35,7 @@ mod oneshot;
 mod renderer;
 mod resources;
 mod wavefront;
+mod wavefront_pool;
 
 pub use compile::{compile_pipeline, start_pipeline, start_pipelines, PipelineCheck};
 pub use device::{WgpuDevice, WgpuInfo};
