@@ -2,7 +2,9 @@
 // Reports the animation's read-outs, the accumulation at three poses set while paused
 // (0 s, 0.8 s, 0 s again: the accumulation restarts at each, the same pose renders the same
 // image), and a few seconds of the frame loop playing (the time moves on, the accumulation
-// keeps restarting) then paused (samples accumulate).
+// keeps restarting) then paused (samples accumulate). `--soak SECONDS`: then plays at real
+// speed that long and reports, each second, the poses shown, the module's live heap, the
+// WebAssembly memory and the JS heap (what the page keeps growing, if anything, while it poses the scene again and again).
 
 import { readFileSync, rmSync } from 'node:fs';
 import { freshProfile, open, withBrowser } from './page.mjs';
@@ -13,7 +15,9 @@ export async function animation(o) {
     return await withBrowser(profile, async (context) => {
       const { page, error } = await open(context, o.url, { scene: o.scene, size: o.size, paused: '1' });
       if (error) return { error };
-      const file = { name: o.files.split('/').pop(), mimeType: 'model/gltf+json', buffer: readFileSync(o.files) };
+      const name = o.files.split('/').pop();
+      const mimeType = name.toLowerCase().endsWith('.glb') ? 'model/gltf-binary' : 'model/gltf+json';
+      const file = { name, mimeType, buffer: readFileSync(o.files) };
       await page.setInputFiles('#file-input', [file]);
       await page.waitForFunction(
         (name) => window.lightport.error || window.lightport.info().name === name,
@@ -63,9 +67,38 @@ export async function animation(o) {
         await wait(4000);
         return { start, moved, maxSppWhilePlaying: maxSpp, pausedAt, afterPause: l.spp(), poseMs: l.animation().poseMs };
       });
-      return { loaded, readout, poses, playing, error: await page.evaluate(() => window.lightport.error) };
+      const soak = o.soak ? await page.evaluate(playFor, Number(o.soak)) : null;
+      return { loaded, readout, poses, playing, soak, error: await page.evaluate(() => window.lightport.error) };
     });
   } finally {
     rmSync(profile, { recursive: true, force: true });
   }
+}
+
+// In the page: plays the animation at real speed for `seconds`, sampling once a second what the
+// page holds. The WebAssembly memory only grows (it is never given back), so a pose's arrays
+// kept by mistake show as growth after the first seconds.
+async function playFor(seconds) {
+  const l = window.lightport;
+  const wait = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
+  l.setAnimationSpeed(1);
+  l.setPlaying(true);
+  l.resume();
+  const sample = (t) => ({
+    t,
+    poses: l.animation().poses,
+    animationTime: l.animation().time,
+    poseMs: l.animation().poseMs,
+    wasmBytes: l.wasmMemoryBytes(),
+    heapBytes: l.heapBytes(),
+    jsHeapBytes: performance.memory ? performance.memory.usedJSHeapSize : null,
+  });
+  const samples = [sample(0)];
+  const t0 = performance.now();
+  for (let s = 1; s <= seconds; s++) {
+    await wait(Math.max(0, t0 + s * 1000 - performance.now()));
+    samples.push(sample(s));
+  }
+  l.setPlaying(false);
+  return { seconds, samples, error: l.error };
 }

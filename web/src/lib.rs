@@ -13,6 +13,8 @@ pub mod files;
 #[cfg(target_arch = "wasm32")]
 pub mod harness;
 #[cfg(target_arch = "wasm32")]
+mod heap;
+#[cfg(target_arch = "wasm32")]
 mod js;
 #[cfg(target_arch = "wasm32")]
 pub mod runtime;

@@ -22,7 +22,7 @@
 //   maxTextureSize=N, maxStorageBuffers=N  pretend the device allows at most N (WebGL2's texture
 //                     size; WebGPU's storage buffers per shader stage).
 
-import init, { Viewer } from './pkg/lightport_web.js';
+import init, { Viewer, heapBytes } from './pkg/lightport_web.js';
 import { BundleCache, DEFAULT_BUDGET_BYTES } from './cache.js';
 import { movingText, setUpAnimationControls, showAnimation } from './animation.js';
 import { compileProgram } from './compile.js';
@@ -40,6 +40,7 @@ const schedule = (params.get('schedule') || 'auto').toLowerCase();
 
 const cache = new BundleCache(Number(params.get('budget')) || DEFAULT_BUDGET_BYTES);
 let viewer = null;
+let wasm = null; // the WebAssembly instance's exports (its memory), once loaded
 let scenes = [];
 let currentName = '';
 let paused = params.get('paused') === '1';
@@ -80,6 +81,11 @@ const hook = {
   spp: () => (viewer ? viewer.spp() : 0),
   info: () => (viewer ? viewer.sceneInfo() : null),
   cacheUsage: () => cache.usage(),
+  // The WebAssembly module's linear memory in bytes: it only ever grows, so growth after a
+  // warm-up is memory the page kept (a pose's arrays not freed, say).
+  wasmMemoryBytes: () => (wasm ? wasm.memory.buffer.byteLength : 0),
+  // Bytes the module has allocated and not freed (web/src/heap.rs): a leak shows here at once.
+  heapBytes: () => (wasm ? heapBytes() : 0),
   pause() { paused = true; },
   resume() { paused = false; },
   // Renders `n` frames now and waits for the GPU; resolves to milliseconds per frame. (A
@@ -680,7 +686,7 @@ for (const [id, value, values] of [
 
 async function main() {
   try {
-    await init();
+    wasm = await init();
     hook.startup.wasm = performance.now();
   } catch (e) {
     showMessage(`the WebAssembly module did not load: ${e.message || e}`);

@@ -7,7 +7,8 @@ use crate::common;
 /// the page: the controls show, the read-out says what moves, the accumulation restarts at
 /// each pose set, two poses differ and a pose shown again renders as before; the frame loop
 /// moves the time on while playing (the accumulation restarting, so it stays small) and
-/// accumulates once paused. On WebGL2 and WebGPU.
+/// accumulates once paused. Then it plays 12 s at real speed, posing the scene again and again,
+/// without the page's memory growing (`assert_memory_steady`). On WebGL2 and WebGPU.
 #[test]
 fn a_moving_gltf_plays_on_the_page() {
     let server = Server::start(&[]);
@@ -21,7 +22,7 @@ fn a_moving_gltf_plays_on_the_page() {
         let report = browse(
             &server.url,
             "animation",
-            &[("scene", "cornell-box"), ("size", "16x16"), ("files", &file), ("api", api)],
+            &[("scene", "cornell-box"), ("size", "16x16"), ("files", &file), ("api", api), ("soak", "12")],
         );
         no_page_error(&report);
         let loaded = &report["loaded"];
@@ -52,6 +53,38 @@ fn a_moving_gltf_plays_on_the_page() {
         assert!(playing["maxSppWhilePlaying"].as_u64() <= Some(2), "{api}: it accumulated while moving: {playing}");
         let (paused, after) = (playing["pausedAt"].as_u64().unwrap_or(0), playing["afterPause"].as_u64().unwrap_or(0));
         assert!(after >= paused + 3, "{api}: paused, it did not accumulate: {playing}");
+        assert_memory_steady(api, &report["soak"]);
     }
     let _ = std::fs::remove_file(&path);
 }
+
+/// The soak (`animation.mjs`'s `--soak`): many poses shown, and the module's live heap
+/// (`web/src/heap.rs`) after the last of them no larger than it was in the first seconds (by
+/// more than a pose's slack): a pose's arrays kept by mistake grow it with every pose. The
+/// WebAssembly memory is printed too: it only grows, but a freed block is reused, so it would
+/// show a leak only once the free space ran out.
+fn assert_memory_steady(api: &str, soak: &serde_json::Value) {
+    assert!(soak["error"].is_null(), "{api}: {soak}");
+    let samples = soak["samples"].as_array().expect("soak samples");
+    let at = |i: usize, key: &str| samples[i][key].as_f64().unwrap_or(0.0);
+    let (warm, last) = (4, samples.len() - 1);
+    let poses = at(last, "poses") - at(warm, "poses");
+    let heap: Vec<f64> = (0..=last).map(|i| at(i, "heapBytes")).collect();
+    eprintln!(
+        "{api} soak: {} poses in {last} s; live heap {heap:?} bytes; wasm memory {} -> {} bytes",
+        at(last, "poses"),
+        at(0, "wasmBytes"),
+        at(last, "wasmBytes")
+    );
+    assert!(poses >= 40.0, "{api}: only {poses} poses shown in the soak's last {} s: {soak}", last - warm);
+    let early = heap[1..=warm].iter().copied().fold(0.0, f64::max);
+    let late = heap[last - 2..=last].iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(
+        late <= early + SOAK_SLACK_BYTES,
+        "{api}: the live heap grew from {early} to {late} bytes over {poses} poses: {heap:?}"
+    );
+}
+
+/// What the live heap may differ by between two moments of steady playback (a pose's top
+/// level and geometry arrays are rebuilt each time, and their sizes vary a little).
+const SOAK_SLACK_BYTES: f64 = 64.0 * 1024.0;

@@ -24,11 +24,13 @@ pub struct Playback {
     clock_ms: Option<f64>,
     /// Milliseconds the last pose took: posing, packing and the renderer taking it.
     pose_ms: f64,
+    /// Poses shown since the scene was loaded (a soak test's count of what it exercised).
+    poses: u64,
 }
 
 impl Playback {
     pub fn new(moving: MovingScene) -> Self {
-        Playback { moving, time: 0.0, playing: true, speed: 1.0, clock_ms: None, pose_ms: 0.0 }
+        Playback { moving, time: 0.0, playing: true, speed: 1.0, clock_ms: None, pose_ms: 0.0, poses: 0 }
     }
 
     /// The time at `now_ms` while playing: the shown time advanced by the page's clock times
@@ -45,7 +47,7 @@ impl Playback {
     }
 
     /// `sceneInfo().animation`: { duration, time, playing, speed, moving (what moves, in
-    /// words), poseMs }.
+    /// words), poseMs, poses (shown since the load) }.
     pub fn describe(&self) -> Object {
         let info = Object::new();
         set(&info, "duration", self.moving.duration());
@@ -55,6 +57,7 @@ impl Playback {
         let moving = self.moving.scene().motion.as_ref().map_or(String::new(), |m| m.describe());
         set(&info, "moving", moving);
         set(&info, "poseMs", self.pose_ms);
+        set(&info, "poses", self.poses as f64);
         info
     }
 }
@@ -162,6 +165,7 @@ impl Viewer {
         };
         if let Some(p) = self.playback_mut() {
             p.pose_ms = crate::js::now_ms() - start;
+            p.poses += 1;
         }
         result
     }
