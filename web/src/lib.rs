@@ -16,5 +16,6 @@ pub mod harness;
 mod js;
 #[cfg(target_arch = "wasm32")]
 pub mod runtime;
+pub mod schedule_choice;
 #[cfg(target_arch = "wasm32")]
 pub mod viewer;
