@@ -669,7 +669,15 @@ fn assert_input_restarts_within_the_budget(api: &str) {
     let split = browse(
         &server.url,
         "slow",
-        &[("scene", "cornell-box"), ("size", "640x480"), ("bandBudget", &budget), ("inputs", "7"), ("api", api)],
+        &[
+            ("scene", "cornell-box"),
+            ("size", "640x480"),
+            ("bandBudget", &budget),
+            ("inputs", "7"),
+            ("api", api),
+            // The megakernel's bands; under auto the page may measure and switch to the wavefront.
+            ("schedule", "megakernel"),
+        ],
     );
     no_page_error(&split);
     let info = &split["info"];
@@ -715,6 +723,7 @@ fn assert_input_restarts_within_the_budget(api: &str) {
             ("inputs", "2"),
             ("settle", "2"),
             ("api", api),
+            ("schedule", "megakernel"),
         ],
     );
     no_page_error(&unsplit);
