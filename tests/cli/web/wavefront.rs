@@ -177,7 +177,7 @@ fn the_wavefront_auto_chose_agrees_with_the_cpu() {
 #[test]
 fn auto_keeps_the_megakernel_when_the_measurement_fails_or_is_given_up() {
     let server = Server::start(&[]);
-    let failed = auto_report(&server, &[("maxStorageBuffers", "4")]);
+    let failed = auto_report(&server, &[("maxStorageBuffers", "6")]);
     let choice = &failed["info"]["scheduleChoice"];
     assert_eq!(choice["state"], "failed", "{choice}");
     assert!(choice["error"].as_str().unwrap_or("").contains("max_storage_buffers_per_shader_stage"), "{choice}");
