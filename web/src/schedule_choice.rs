@@ -169,7 +169,7 @@ impl Choice {
     pub fn schedule(&self) -> Schedule {
         match self {
             Choice::Measured { verdict, .. } => verdict.chosen,
-            _ => Schedule::Megakernel,
+            _ => Schedule::auto(),
         }
     }
 
