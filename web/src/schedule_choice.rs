@@ -216,7 +216,7 @@ mod tests {
         let turns = plan();
         assert_eq!(turns.len(), 2 + 2 * ROUNDS);
         assert!(turns[..2].iter().all(|t| t.warm_up && t.frames == 1));
-        assert!(ROUNDS >= 2);
+        const { assert!(ROUNDS >= 2) };
         for (i, turn) in turns[2..].iter().enumerate() {
             let want = if i % 2 == 0 { Schedule::Megakernel } else { Schedule::Wavefront };
             assert_eq!((turn.schedule, turn.frames, turn.warm_up), (want, FRAMES_PER_TURN, false));
