@@ -100,29 +100,43 @@ fn assert_page_agrees_with_cpu(
     api: &str,
     schedule: &str,
 ) {
+    let runs = if schedule == "wavefront" { "wavefront" } else { "megakernel" };
+    assert_page_runs_and_agrees_with_cpu(server, scene_name, scene, strategy, api, schedule, &[], runs);
+}
+
+/// [`assert_page_agrees_with_cpu`] with more of the `accumulate` scenario's options (`extra`),
+/// the page running schedule `runs` once it has started; returns the scenario's report.
+#[allow(clippy::too_many_arguments)]
+fn assert_page_runs_and_agrees_with_cpu(
+    server: &Server,
+    scene_name: &str,
+    scene: &Scene,
+    strategy: Strategy,
+    api: &str,
+    schedule: &str,
+    extra: &[(&str, &str)],
+    runs: &str,
+) -> Value {
     let (batches, frames) = (16usize, 16u32);
     let size = format!("{SIZE}x{SIZE}");
     let (batch_text, frame_text) = (batches.to_string(), frames.to_string());
-    let report = browse(
-        &server.url,
-        "accumulate",
-        &[
-            ("scene", scene_name),
-            ("size", &size),
-            ("strategy", strategy.name()),
-            ("batches", &batch_text),
-            ("frames", &frame_text),
-            ("api", api),
-            ("schedule", schedule),
-        ],
-    );
+    let mut options = vec![
+        ("scene", scene_name),
+        ("size", &size),
+        ("strategy", strategy.name()),
+        ("batches", &batch_text),
+        ("frames", &frame_text),
+        ("api", api),
+        ("schedule", schedule),
+    ];
+    options.extend_from_slice(extra);
+    let report = browse(&server.url, "accumulate", &options);
     no_page_error(&report);
     let info = &report["info"];
     eprintln!("{scene_name}: {} on {}, {} ({})", info["name"], info["api"], info["schedule"], info["adapter"]);
     assert_eq!(info["strategy"], strategy.name());
     let shown = if api == "webgpu" { "WebGPU" } else { "WebGL2" };
     assert_eq!(info["api"], shown, "the page runs the API asked for: {info}");
-    let runs = if schedule == "wavefront" { "wavefront" } else { "megakernel" };
     assert_eq!(info["schedule"], runs, "the page runs the schedule asked for: {info}");
     // The read-out names a two-level scene's placements (the static triangles' one included).
     let placements = info["placements"].as_u64().expect("placements");
@@ -180,6 +194,7 @@ fn assert_page_agrees_with_cpu(
         whole.mean,
         whole.std_err
     );
+    report
 }
 
 const STRATEGIES: [Strategy; 3] = [Strategy::Bsdf, Strategy::Nee, Strategy::Mis];
@@ -654,7 +669,15 @@ fn assert_input_restarts_within_the_budget(api: &str) {
     let split = browse(
         &server.url,
         "slow",
-        &[("scene", "cornell-box"), ("size", "640x480"), ("bandBudget", &budget), ("inputs", "7"), ("api", api)],
+        &[
+            ("scene", "cornell-box"),
+            ("size", "640x480"),
+            ("bandBudget", &budget),
+            ("inputs", "7"),
+            ("api", api),
+            // The megakernel's bands; under auto the page may measure and switch to the wavefront.
+            ("schedule", "megakernel"),
+        ],
     );
     no_page_error(&split);
     let info = &split["info"];
@@ -700,6 +723,7 @@ fn assert_input_restarts_within_the_budget(api: &str) {
             ("inputs", "2"),
             ("settle", "2"),
             ("api", api),
+            ("schedule", "megakernel"),
         ],
     );
     no_page_error(&unsplit);

@@ -122,3 +122,59 @@ export async function deviceLoss(o) {
     rmSync(profile, { recursive: true, force: true });
   }
 }
+
+// `schedule=auto` on WebGPU measured in the page (web/src/viewer/measure.rs): the page opens
+// unpaused, so its frame loop starts the measurement after the scene's first frame; waits until
+// it is over, then pauses and renders two frames. `--autoScheduleTimes MK,WF` injects the times
+// decided on (test only); `--during orbit|lose` turns the camera or loses the WebGPU device once
+// the measurement is under way. Reports the choice, the read-out, notice and what rendered.
+export async function autoSchedule(o) {
+  const profile = freshProfile();
+  try {
+    return await withBrowser(profile, async (context) => {
+      const { page, error, consoleErrors } = await open(context, o.url, {
+        scene: o.scene, size: o.size, autoScheduleTimes: o.autoScheduleTimes, maxStorageBuffers: o.maxStorageBuffers,
+      });
+      if (error) return { error, consoleErrors };
+      const state = () => page.evaluate(() => (window.lightport.info().scheduleChoice || {}).state || null);
+      const over = (s) => s !== 'pending' && s !== 'measuring';
+      if (o.during) {
+        await page.waitForFunction(() => {
+          const c = window.lightport.info().scheduleChoice;
+          return !c || c.state !== 'pending';
+        }, null, { timeout: 300000 });
+        if (o.during === 'orbit') await page.evaluate(() => window.lightport.orbit(0.2, 0));
+        if (o.during === 'lose') {
+          await page.evaluate(() => window.lightport.loseWebGpu());
+          await page.waitForFunction(() => window.lightport.deviceRecoveries > 0 || window.lightport.error, null,
+            { timeout: 120000 });
+        }
+      }
+      const start = Date.now();
+      while (!over(await state()) && Date.now() - start < 600000) await page.waitForTimeout(250);
+      // The read-out is written at the next animation frame.
+      await page.evaluate(() => new Promise((resolve) => requestAnimationFrame(() => requestAnimationFrame(resolve))));
+      const readout = await page.textContent('#api-info');
+      const framesBefore = await page.evaluate(() => window.lightport.frames);
+      const rendered = await page.evaluate(async () => {
+        window.lightport.pause();
+        await window.lightport.renderFrames(2);
+        const a = await window.lightport.readAccumulation();
+        return { spp: a.spp, sum: a.data.reduce((x, y) => x + y, 0) };
+      }).catch((e) => ({ rejected: String(e) }));
+      return {
+        info: await page.evaluate(() => window.lightport.info()),
+        readout,
+        framesBefore,
+        rendered,
+        error: await page.evaluate(() => window.lightport.error),
+        notice: await page.evaluate(() => window.lightport.notice || null),
+        messageKind: await page.evaluate(() => document.getElementById('message').className),
+        deviceRecoveries: await page.evaluate(() => window.lightport.deviceRecoveries),
+        consoleErrors,
+      };
+    });
+  } finally {
+    rmSync(profile, { recursive: true, force: true });
+  }
+}

@@ -5,7 +5,7 @@
 //   node run.mjs SCENARIO --url http://127.0.0.1:PORT/ --out result.json [options]
 //
 // Scenarios: accumulate, cache, camera, slow, drop, limits, context, display, bench,
-// chart, compile, denoise, denoiseedges, toplevel (see each function), animation (animation.mjs), api, fallback, deviceloss (api.mjs); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2), `--schedule auto|megakernel|wavefront` its schedule. `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
+// chart, compile, denoise, denoiseedges, toplevel (see each function), animation (animation.mjs), api, fallback, deviceloss, autoschedule (api.mjs); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2), `--schedule auto|megakernel|wavefront` its schedule. `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
 // long, so that a hung page never hangs the caller. `--exit-on-stdin-eof` (no value): exit 4,
 // closing the browser, when stdin reaches its end: the caller holds the pipe's other end, which
 // the kernel closes when the caller ends however it ends (src/serve_child.rs), so neither this
@@ -16,7 +16,7 @@ import {
   freshProfile, open, pageApi, setBrowserFlags, setPageApi, setPageSchedule, withBrowser,
 } from './page.mjs';
 import { animation } from './animation.mjs';
-import { apiChoice, deviceLoss, fallback } from './api.mjs';
+import { apiChoice, autoSchedule, deviceLoss, fallback } from './api.mjs';
 
 function parseArgs(argv) {
   const [scenario, ...rest] = argv;
@@ -47,14 +47,25 @@ async function accumulate(o) {
   try {
     return await withBrowser(profile, async (context) => {
       const { page, error, info, consoleErrors } =
-        await open(context, o.url, { scene: o.scene, size: o.size, strategy: o.strategy, paused: '1' });
+        await open(context, o.url, {
+          scene: o.scene, size: o.size, strategy: o.strategy, paused: '1', autoScheduleTimes: o.autoScheduleTimes,
+        });
       if (error) return { error, consoleErrors };
+      // `--measure 1`: one frame, then auto's schedule measurement (with `--autoScheduleTimes`:
+      // its outcome injected); the batches follow on the schedule it chose.
+      let choice = null;
+      if (o.measure === '1') {
+        choice = await page.evaluate(async () => {
+          await window.lightport.renderFrames(1);
+          return window.lightport.measureSchedule();
+        });
+      }
       const batches = [];
       for (let b = 0; b < Number(o.batches); b++) {
         await page.evaluate((n) => window.lightport.renderFrames(n), Number(o.frames));
         batches.push(await page.evaluate(() => window.lightport.readAccumulation()));
       }
-      return { info, batches, consoleErrors };
+      return { info: choice ? await page.evaluate(() => window.lightport.info()) : info, choice, batches, consoleErrors };
     });
   } finally {
     rmSync(profile, { recursive: true, force: true });
@@ -685,7 +696,7 @@ async function topLevel(o) {
 
 const SCENARIOS = {
   accumulate, cache, camera, slow, drop, limits, context: contextLoss, display, api: apiChoice, deviceloss: deviceLoss,
-  fallback,
+  fallback, autoschedule: autoSchedule,
   bench, chart, compile, denoise, denoiseedges: denoiseEdges, toplevel: topLevel, animation,
 };
 

@@ -18,5 +18,6 @@ mod heap;
 mod js;
 #[cfg(target_arch = "wasm32")]
 pub mod runtime;
+pub mod schedule_choice;
 #[cfg(target_arch = "wasm32")]
 pub mod viewer;

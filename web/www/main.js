@@ -16,9 +16,11 @@
 //                     50; 0: frames are not split (one submission per frame),
 //   api=auto|webgpu|webgl2  the graphics API (default auto: WebGPU if the browser gives a device
 //                     and the scene fits its limits, else WebGL2; the "API" control reloads with it),
-//   schedule=auto|megakernel|wavefront  how WebGPU organises a frame (default auto: the
-//                     megakernel, measured faster; the wavefront needs WebGPU; the "Schedule"
-//                     control reloads with it),
+//   schedule=auto|megakernel|wavefront  how WebGPU organises a frame (default auto: measured
+//                     per scene load once its first frame shows: see measureSchedule; the
+//                     wavefront needs WebGPU; the "Schedule" control reloads with it),
+//   autoScheduleTimes=MK,WF  test only: auto decides on these ms per frame of the megakernel
+//                     and the wavefront instead of the measured ones (the measurement still runs),
 //   maxTextureSize=N, maxStorageBuffers=N  pretend the device allows at most N (WebGL2's texture
 //                     size; WebGPU's storage buffers per shader stage).
 
@@ -75,6 +77,9 @@ const hook = {
   restarts: [],
   bundleSources: [], // per loaded bundle: { name, fromCache, bytes }
   deviceRecoveries: 0, // WebGPU devices recreated after a loss
+  // Runs auto's measurement of the schedules now if it is due (e.g. on a paused page after a
+  // frame) and resolves to sceneInfo().scheduleChoice once it is over.
+  measureSchedule: () => measureSchedule(),
   // Destroys the WebGPU device (GPUDevice.destroy()), as a GPU reset loses it.
   loseWebGpu: () => viewer.loseWebGpu(),
   get bytesFetched() { return cache.bytesFetched; },
@@ -237,6 +242,14 @@ function apiName(info) {
   return info.api === 'WebGPU' ? `${info.api}, ${info.schedule}` : info.api;
 }
 
+// The API read-out: "WebGPU, wavefront (auto: 0.62x the megakernel's frame time, measured;
+// google / swiftshader)"; without a schedule measurement, the API, schedule and adapter.
+function apiReadout(info) {
+  const choice = info.scheduleChoice;
+  const details = [choice && choice.reason, info.adapter].filter(Boolean).join('; ');
+  return `${apiName(info)} (${details})`;
+}
+
 function formatBytes(n) {
   const units = ['B', 'KB', 'MB', 'GB'];
   let i = 0;
@@ -250,6 +263,45 @@ function formatRate(n) {
   let i = 0;
   while (n >= 1000 && i < units.length - 1) { n /= 1000; i++; }
   return `${n.toFixed(1)}${units[i]}`;
+}
+
+// ---- auto's schedule, measured ----------------------------------------------------------
+
+// `schedule=auto` on WebGPU (web/src/viewer/measure.rs, docs/wavefront.md): once the scene's
+// first frame has shown on the megakernel, the wavefront is built beside it on the same device
+// and the turns the viewer names (a warm-up frame of each, then megakernel and wavefront
+// alternated, rounds of whole frames) are timed as renderFrames times frames: from the first
+// submission until the queue is done after the last. The frame loop and the denoiser wait
+// meanwhile; the megakernel's frames are shown. The viewer then keeps the faster schedule.
+// Resolves to sceneInfo().scheduleChoice.
+async function measureSchedule() {
+  const id = viewer ? viewer.beginScheduleMeasurement() : 0;
+  try {
+    for (let turn = id && viewer.scheduleTurn(id); turn; turn = viewer.scheduleTurn(id)) {
+      const start = performance.now();
+      for (let i = 0; i < turn.frames; i++) {
+        let answer;
+        while ((answer = viewer.measureFrame(id)) === 0) await viewer.sync();
+        if (answer === 2) return over();
+        if (turn.schedule === 'megakernel') frameDone();
+      }
+      await viewer.sync();
+      viewer.recordScheduleTurn(id, (performance.now() - start) / turn.frames);
+    }
+  } catch (e) {
+    viewer.abandonScheduleMeasurement(id, `the page's measuring loop failed (${e.message || e})`);
+    showMessage(String(e.message || e));
+  }
+  return over();
+
+  function over() {
+    frameMs = null;
+    lastFrameAt = null;
+    const info = viewer ? viewer.sceneInfo() : {};
+    // A wavefront that failed while measured: the notice says why the megakernel runs.
+    if (info.scheduleChoice && info.scheduleChoice.state === 'failed') showNotice();
+    return info.scheduleChoice || null;
+  }
 }
 
 // ---- frame loop -------------------------------------------------------------------------
@@ -285,15 +337,17 @@ function frame() {
 // one band, not a whole frame.
 function tick(now) {
   if (viewer && !webGpu.recovering && viewer.webGpuLost()) webGpu.recover(viewer.webGpuLost());
+  // While auto measures the schedules (measureSchedule), its loop renders the frames.
+  const measuring = viewer && viewer.measuringSchedule();
   // The denoiser's WebGPU promises and due denoises, also while paused (test hook frames).
-  if (!busy && viewer && !lost && !webGpu.recovering && hasScene) {
+  if (!busy && viewer && !lost && !webGpu.recovering && hasScene && !measuring) {
     try {
       viewer.pollDenoise();
     } catch (e) {
       showMessage(String(e.message || e));
     }
   }
-  if (!paused && !busy && viewer && !lost && !webGpu.recovering && hasScene) {
+  if (!paused && !busy && viewer && !lost && !webGpu.recovering && hasScene && !measuring) {
     applyHeldKeys(now);
     let status = 0;
     const before = performance.now();
@@ -319,6 +373,8 @@ function tick(now) {
     }
     if (status === 2) {
       frameDone();
+      // The scene's first frame has shown: under schedule=auto on WebGPU, measure the schedules.
+      if (viewer.scheduleMeasurementDue()) measureSchedule();
       if (lastFrameAt !== null) {
         const dt = now - lastFrameAt;
         frameMs = frameMs === null ? dt : 0.9 * frameMs + 0.1 * dt;
@@ -335,7 +391,7 @@ function tick(now) {
 function updateReadouts() {
   if (!viewer) return;
   const info = viewer.sceneInfo();
-  $('api-info').textContent = info.api ? `${apiName(info)} (${info.adapter})` : '–';
+  $('api-info').textContent = info.api ? apiReadout(info) : '–';
   $('api-info').title = info.notice || '';
   $('spp').textContent = info.spp;
   showAnimation($, info);
@@ -703,6 +759,8 @@ async function main() {
     return;
   }
   if (params.get('maxStorageBuffers')) viewer.setMaxStorageBuffers(Number(params.get('maxStorageBuffers')));
+  const injected = /^([\d.]+),([\d.]+)$/.exec(params.get('autoScheduleTimes') || '');
+  if (injected) viewer.setScheduleTimesForTest(Number(injected[1]), Number(injected[2]));
   await webGpu.start();
   const [w, h] = renderSize();
   guarded(() => viewer.setSize(w, h));

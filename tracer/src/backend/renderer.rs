@@ -232,13 +232,18 @@ pub enum Schedule {
 impl Schedule {
     pub const ALL: [Schedule; 2] = [Schedule::Megakernel, Schedule::Wavefront];
 
-    /// What `--schedule auto` runs: the megakernel, faster on every native row measured
-    /// (`examples/bench_wavefront.rs`, 640x480, four scenes at depths 8 and 32, median of 5
-    /// alternated rounds: the wavefront took 1.22-2.01x the megakernel's time on the CPU and
-    /// 1.00-1.39x on lavapipe, so `auto` is never more than 5 % slower than the faster schedule
-    /// there; see `docs/wavefront.md`, "Measurements"). In the page on SwiftShader one round
-    /// measured WebGPU's wavefront faster on two of four scenes (0.40-0.80x): a device where
-    /// the wavefront measures faster over alternated rounds changes this rule.
+    /// What `--schedule auto` runs natively: the megakernel, faster on every native row
+    /// measured (`examples/bench_wavefront.rs`, 640x480, four scenes at depths 8 and 32, median
+    /// of 5 alternated rounds: the wavefront took 1.22-2.01x the megakernel's time on the CPU
+    /// and 1.00-1.39x on lavapipe, so `auto` is never more than 5 % slower than the faster
+    /// schedule there; see `docs/wavefront.md`, "Measurements").
+    ///
+    /// The page's `?schedule=auto` on WebGPU starts with this and then measures: the wavefront
+    /// measured 0.40-0.80x the megakernel's frame time on some scenes and 1.25-2.33x on others
+    /// on SwiftShader, and real GPUs differ again, so no fixed rule fits the browser. Once a
+    /// scene's first frame has shown, the page times both schedules on the device and scene at
+    /// hand (alternated turns, medians) and keeps the wavefront only if it is more than 5 %
+    /// faster (`web/src/schedule_choice.rs`; `docs/wavefront.md`, "auto in the page").
     pub fn auto() -> Schedule {
         Schedule::Megakernel
     }

@@ -153,7 +153,76 @@ fn timed<T>(run: impl FnOnce() -> T) -> (f64, T) {
     (now_ms() - start, out)
 }
 
+/// The device's verdict on a renderer's pipelines: the error, once one arrived.
+type CompileError = Rc<RefCell<Option<String>>>;
+
+/// Awaits the device's verdict on a renderer's pipelines in the background: the error, once one
+/// arrived, and when the verdict did.
+fn watch_verdict(check: PipelineCheck) -> (CompileError, Rc<Cell<Option<f64>>>) {
+    let compile_error = Rc::new(RefCell::new(None));
+    let compiled_at = Rc::new(Cell::new(None));
+    let (slot, at) = (compile_error.clone(), compiled_at.clone());
+    wasm_bindgen_futures::spawn_local(async move {
+        let verdict = check.await;
+        at.set(Some(now_ms()));
+        if let Err(e) = verdict {
+            web_sys::console::error_1(&format!("the WebGPU kernel: {e}").into());
+            *slot.borrow_mut() = Some(e.to_string());
+        }
+    });
+    (compile_error, compiled_at)
+}
+
+/// A second renderer on the running one's device, off the canvas: `auto`'s contender while the
+/// page measures it against the running renderer (`crate::schedule_choice`).
+pub struct Candidate {
+    renderer: Box<dyn DeviceRenderer>,
+    compile_error: CompileError,
+}
+
+impl Candidate {
+    pub fn new(prepared: Prepared) -> Candidate {
+        let Prepared { renderer, check } = prepared;
+        let (compile_error, _) = watch_verdict(check);
+        Candidate { renderer, compile_error }
+    }
+
+    pub fn schedule(&self) -> Schedule {
+        self.renderer.schedule()
+    }
+
+    /// The rest of a frame in one submission, drawn nowhere: whether the frame is done (a
+    /// wavefront's once its counters say so: call again after the device's `done()`). An error
+    /// the device reported since (the compiler's verdict on its pipelines, an uncaptured error:
+    /// the candidate, created last, receives the device's) fails it.
+    pub fn frame(&mut self) -> Result<bool, String> {
+        if let Some(e) = self.compile_error.borrow().as_ref() {
+            return Err(e.clone());
+        }
+        self.renderer.check_uncaptured().map_err(|e| e.to_string())?;
+        self.renderer.render_band(self.renderer.rows_left()).map_err(|e| e.to_string())
+    }
+}
+
 impl GpuRuntime {
+    /// Puts `candidate`'s renderer in the running one's place (same device and canvas), its
+    /// accumulation restarted; the running renderer is dropped.
+    pub fn adopt(&mut self, candidate: Candidate) -> Result<(), String> {
+        let Candidate { mut renderer, compile_error } = candidate;
+        renderer.restart().map_err(|e| e.to_string())?;
+        self.renderer = renderer;
+        self.compile_error = compile_error;
+        self.in_flight = None;
+        self.policy = BandPolicy::new(self.renderer.packed().scene.height, self.policy.budget_ms());
+        Ok(())
+    }
+
+    /// The running renderer watches the device's uncaptured errors again (a candidate created on
+    /// the same device took them over).
+    pub fn watch_uncaptured(&mut self) {
+        self.renderer.watch_uncaptured();
+    }
+
     pub fn prepare(
         gpu: &GpuDevice,
         packed: &Packed,
@@ -202,17 +271,7 @@ impl GpuRuntime {
         surface.configure(&device.device, &config);
         let (display_ms, display) = timed(|| DisplayPass::new(&device.device, config.format));
         let display = display.map_err(|e| e.to_string())?;
-        let compile_error = Rc::new(RefCell::new(None));
-        let compiled_at = Rc::new(Cell::new(None));
-        let (slot, at) = (compile_error.clone(), compiled_at.clone());
-        wasm_bindgen_futures::spawn_local(async move {
-            let verdict = check.await;
-            at.set(Some(now_ms()));
-            if let Err(e) = verdict {
-                web_sys::console::error_1(&format!("the WebGPU kernel: {e}").into());
-                *slot.borrow_mut() = Some(e.to_string());
-            }
-        });
+        let (compile_error, compiled_at) = watch_verdict(check);
         let build = renderer.build_times();
         let startup = Startup {
             codegen_ms: build.codegen_ms,

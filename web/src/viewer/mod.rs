@@ -34,10 +34,13 @@ use crate::denoise::PageDenoiser;
 use crate::files::{self, DroppedFile};
 use crate::js::{camel_case, js_error, now_ms, set};
 mod camera_input;
+mod measure;
 mod playback;
 mod runtime_choice;
 
+use crate::runtime::webgpu::Candidate;
 use crate::runtime::{Api, GpuDevice, Runtime};
+use crate::schedule_choice::Choice;
 use playback::Playback;
 
 /// The loaded scene: the master copy of its packed data (uniforms kept current) and the view.
@@ -61,8 +64,17 @@ pub struct Viewer {
     canvas_api: Option<Api>,
     gl_context: Option<WebGl2RenderingContext>,
     api: Api,
-    /// The schedule asked for (`setSchedule`): `None` for auto ([`Schedule::auto`]).
+    /// The schedule asked for (`setSchedule`): `None` for auto, measured on WebGPU per scene
+    /// load (`measure.rs`; [`Schedule::auto`] until then).
     schedule: Option<Schedule>,
+    /// Where auto's measurement for the loaded scene stands, and what it chose.
+    choice: Choice,
+    /// The wavefront being measured beside the running megakernel.
+    candidate: Option<Candidate>,
+    /// Measurements started (their ids).
+    measurements: u32,
+    /// Test hook: milliseconds per frame (megakernel, wavefront) auto decides on instead.
+    injected_times: Option<(f64, f64)>,
     gpu: Option<GpuDevice>,
     /// Why there is no WebGPU device (`webGpuUnavailable`), for auto's notice.
     gpu_unavailable: Option<String>,
@@ -108,6 +120,10 @@ impl Viewer {
             gl_context: None,
             api: Api::Auto,
             schedule: None,
+            choice: Choice::Pending,
+            candidate: None,
+            measurements: 0,
+            injected_times: None,
             gpu: None,
             gpu_unavailable: None,
             notice: None,
@@ -156,7 +172,9 @@ impl Viewer {
         let auto = matches!(name.to_ascii_lowercase().as_str(), "" | "auto");
         let schedule = (!auto).then(|| Schedule::parse(name)).transpose().map_err(|e| JsError::new(&e))?;
         if schedule != self.schedule {
+            self.abandon_measurement("the schedule was changed");
             self.schedule = schedule;
+            self.choice = Choice::Pending;
             if self.running.is_some() {
                 self.rebuild()?;
             }
@@ -265,7 +283,10 @@ impl Viewer {
         packed.set_denoise_guide(self.denoiser.enabled());
         packed.apply(&RenderSettings { max_depth: bundle_depth, ..self.settings });
         let camera = OrbitCamera::from_uniforms(&packed.scene);
-        let running = self.start(&packed)?;
+        // A new scene is measured again; the old one's choice stays if this one is refused.
+        self.abandon_measurement("another scene was loaded");
+        let previous = std::mem::take(&mut self.choice);
+        let running = self.start(&packed).inspect_err(|_| self.choice = previous)?;
         self.gpu_recoveries = 0;
         self.settings.max_depth = bundle_depth;
         self.running = Some(running);
@@ -280,6 +301,8 @@ impl Viewer {
     /// frame is not done yet (the wavefront's, whose counters arrive with a promise: call again
     /// after `sync()`). Does nothing without a scene or while the context or device is lost.
     pub fn frame(&mut self) -> Result<bool, JsError> {
+        // Its frames would count in the measurement's times.
+        self.abandon_measurement("frames were rendered outside it");
         if self.halted() {
             return Ok(true);
         }
@@ -328,7 +351,8 @@ impl Viewer {
     /// finished for the denoiser, starts a denoise that is due and shows a new denoised image.
     #[wasm_bindgen(js_name = pollDenoise)]
     pub fn poll_denoise(&mut self) {
-        if self.halted() {
+        // Denoising would share the device with the frames measured.
+        if self.halted() || self.measuring_schedule() {
             return;
         }
         let Some(running) = &mut self.running else { return };
@@ -386,6 +410,8 @@ impl Viewer {
     /// band). Returns 0: waited (nothing submitted), 1: a band was submitted, 2: the band
     /// completed a frame (one more sample per pixel).
     pub fn step(&mut self, now_ms: f64) -> Result<u32, JsError> {
+        // The page's loop waits while auto measures; a step meanwhile gives the measurement up.
+        self.abandon_measurement("the frame loop went on");
         if self.halted() {
             return Ok(0);
         }
@@ -501,6 +527,7 @@ impl Viewer {
         set(&info, "bandBudgetMs", budget);
         set(&info, "apiRequested", self.api.name());
         set(&info, "scheduleRequested", self.schedule.map_or("auto", Schedule::name));
+        set(&info, "scheduleChoice", self.describe_schedule_choice());
         set(&info, "notice", self.notice.as_deref().map_or(JsValue::NULL, JsValue::from));
         set(&info, "webGpuLost", self.web_gpu_lost().map_or(JsValue::NULL, JsValue::from));
         if let Some(running) = &self.running {
@@ -539,6 +566,7 @@ impl Viewer {
     /// Recreates the renderer for the current settings and camera (after a resize, a lost
     /// context or device, a new seed or API).
     fn rebuild(&mut self) -> Result<(), JsError> {
+        self.abandon_measurement("the renderer was recreated (a new size, seed, device or setting)");
         self.running = None;
         let Some(loaded) = &mut self.loaded else {
             self.canvas.set_width(self.settings.width);
@@ -601,6 +629,7 @@ impl Viewer {
     /// Writes the camera and settings into the master copy and the renderer's uniforms, and
     /// restarts the accumulation.
     pub(crate) fn update_uniforms(&mut self) -> Result<(), JsError> {
+        self.abandon_measurement("the view or a setting changed");
         let settings = self.settings;
         let Some(loaded) = &mut self.loaded else { return Ok(()) };
         let camera = loaded.camera;

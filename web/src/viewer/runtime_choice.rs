@@ -12,6 +12,7 @@ use tracer::pack::Packed;
 
 use super::{Viewer, MAX_GPU_RECOVERIES};
 use crate::runtime::{webgl2, Api, GlRuntime, GpuRuntime, Runtime};
+use crate::schedule_choice::Choice;
 
 impl Viewer {
     /// A renderer and display pass for `packed`, on the API chosen ([`set_api`](Self::set_api)).
@@ -47,8 +48,16 @@ impl Viewer {
             format!("WebGPU is not available: {why}")
         })?;
         // Limits are checked and the scene uploaded before the canvas gets a WebGPU context.
-        let schedule = self.schedule.unwrap_or_else(Schedule::auto);
-        let prepared = GpuRuntime::prepare(&gpu, packed, self.seed, &self.wgpu_options, schedule)?;
+        // Under auto, what the scene's measurement chose (the megakernel until then).
+        let schedule = self.schedule.unwrap_or_else(|| self.choice.schedule());
+        let prepared = match GpuRuntime::prepare(&gpu, packed, self.seed, &self.wgpu_options, schedule) {
+            Err(e) if self.schedule.is_none() && schedule == Schedule::Wavefront => {
+                // The wavefront auto chose no longer builds (e.g. a size beyond its pool).
+                self.choice = Choice::Failed(format!("recreating it failed: {e}"));
+                GpuRuntime::prepare(&gpu, packed, self.seed, &self.wgpu_options, Schedule::Megakernel)?
+            }
+            prepared => prepared?,
+        };
         let canvas = self.canvas_for(Api::WebGpu)?;
         canvas.set_width(packed.scene.width);
         canvas.set_height(packed.scene.height);

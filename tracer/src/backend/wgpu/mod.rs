@@ -81,6 +81,10 @@ pub trait DeviceRenderer: Renderer {
     fn sums(&self) -> &wgpu::Buffer;
     /// The first error wgpu reported outside an error scope since the renderer was created.
     fn check_uncaptured(&self) -> Result<(), WgpuError>;
+    /// Watches the device's uncaptured errors for this renderer again, from now on: a device
+    /// keeps one handler, so creating another renderer on it (the page's `auto` measuring the
+    /// wavefront beside the megakernel) took them over.
+    fn watch_uncaptured(&mut self);
     /// What creating the renderer took on this thread.
     fn build_times(&self) -> BuildTimes;
     /// "megakernel" or "wavefront".

@@ -155,6 +155,10 @@ impl super::DeviceRenderer for WgpuRenderer {
         self.uncaptured.check()
     }
 
+    fn watch_uncaptured(&mut self) {
+        self.uncaptured = UncapturedErrors::watch(&self.device.device);
+    }
+
     fn build_times(&self) -> BuildTimes {
         self.pipeline.times
     }

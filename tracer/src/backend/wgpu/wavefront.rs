@@ -441,6 +441,10 @@ impl DeviceRenderer for WavefrontRenderer {
         self.uncaptured.check()
     }
 
+    fn watch_uncaptured(&mut self) {
+        self.uncaptured = UncapturedErrors::watch(&self.device.device);
+    }
+
     fn build_times(&self) -> BuildTimes {
         self.times
     }
