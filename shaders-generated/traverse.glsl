@@ -776,6 +776,173 @@ Hit no_hit() {
     return Hit(NONE, 0.0, 0.0, 0.0, 0u);
 }
 
+// traverse::intersect_leaf_visible (lightport-tracer/src/kernel/traverse.rs:1044)
+void intersect_leaf_visible(uint entry, uint instance, vec3 origin, vec3 dir, Hit after, inout Hit hit, inout Hit pending) {
+    uint first = entry >> 8;
+    uint i_end = first + (entry & 255u);
+    for (uint i = first; i < i_end; ++i) {
+        TriangleData tri = fetch_triangle(i);
+        TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+        if (tri.masked) {
+            Hit best = hit;
+            if (pending.triangle != NONE) {
+                best = pending;
+            }
+            if (is_next_candidate(h.t, i, instance, after, best)) {
+                pending = Hit(i, h.t, h.u, h.v, instance);
+            }
+        } else if (is_next_candidate(h.t, i, instance, before_any_hit(), hit)) {
+            hit = Hit(i, h.t, h.u, h.v, instance);
+        }
+    }
+}
+
+// traverse::closest_visible_two_level (lightport-tracer/src/kernel/traverse.rs:1087)
+Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
+    vec3 world_inv_dir = safe_inverse(dir);
+    uvec3 world_near = near_planes(world_inv_dir);
+    vec3 o = origin;
+    vec3 d = dir;
+    vec3 inv_dir = world_inv_dir;
+    uvec3 near = world_near;
+    uint instance = 0u;
+    bool in_instance = false;
+    uint instance_sp = 0u;
+    Hit hit = Hit(NONE, t_max, 0.0, 0.0, 0u);
+    uint stack[64];
+    for (int i = 0; i < 64; ++i) { stack[i] = 0u; }
+    float stack_t[64];
+    for (int i_1 = 0; i_1 < 64; ++i_1) { stack_t[i_1] = 0.0; }
+    uint leaf_limit = scene_leaf_stack_limit;
+    uint sp = 0u;
+    uint entry = stack_entry(0u, 0u);
+    float entry_t = 0.0;
+    bool visiting = true;
+    uint leaves[3];
+    for (int i_2 = 0; i_2 < 3; ++i_2) { leaves[i_2] = 0u; }
+    uint leaf_count = 0u;
+    bool descend = false;
+    Hit pending = no_hit();
+    Hit after = before_any_hit();
+    bool resume = false;
+    uint holes = 0u;
+    while (visiting) {
+        while (visiting && (pending.triangle == NONE)) {
+            if (!resume) {
+                if (!in_instance && is_leaf(entry)) {
+                    uint first = entry >> 8;
+                    if ((entry & 255u) > 1u && sp < STACK_SIZE) {
+                        stack[sp] = stack_entry(first + 1u, (entry & 255u) - 1u);
+                        stack_t[sp] = entry_t;
+                        sp += 1u;
+                    }
+                    InstanceRay r = instance_ray(first, origin, dir);
+                    o = r.origin;
+                    d = r.dir;
+                    inv_dir = safe_inverse(d);
+                    near = near_planes(inv_dir);
+                    instance = first;
+                    in_instance = true;
+                    instance_sp = sp;
+                    entry = stack_entry(r.root, 0u);
+                }
+                bool may_batch = in_instance;
+                descend = false;
+                leaf_count = 0u;
+                if (is_leaf(entry)) {
+                    leaves[0u] = entry;
+                    leaf_count = 1u;
+                } else {
+                    NodeHits sorted = sort_children(intersect_node(entry >> 8, o, inv_dir, near, hit.t));
+                    float t0 = sorted.t.x;
+                    float t1 = sorted.t.y;
+                    float t2 = sorted.t.z;
+                    float t3 = sorted.t.w;
+                    uint e0 = sorted.entries.x;
+                    uint e1 = sorted.entries.y;
+                    uint e2 = sorted.entries.z;
+                    uint e3 = sorted.entries.w;
+                    if (t3 < MISS) {
+                        if (sp >= leaf_limit && is_leaf(e3) && may_batch) {
+                            leaves[leaf_count] = e3;
+                            leaf_count += 1u;
+                        } else if (sp < STACK_SIZE) {
+                            stack[sp] = e3;
+                            stack_t[sp] = t3;
+                            sp += 1u;
+                        }
+                    }
+                    if (t2 < MISS) {
+                        if (sp >= leaf_limit && is_leaf(e2) && may_batch) {
+                            leaves[leaf_count] = e2;
+                            leaf_count += 1u;
+                        } else if (sp < STACK_SIZE) {
+                            stack[sp] = e2;
+                            stack_t[sp] = t2;
+                            sp += 1u;
+                        }
+                    }
+                    if (t1 < MISS) {
+                        if (sp >= leaf_limit && is_leaf(e1) && may_batch) {
+                            leaves[leaf_count] = e1;
+                            leaf_count += 1u;
+                        } else if (sp < STACK_SIZE) {
+                            stack[sp] = e1;
+                            stack_t[sp] = t1;
+                            sp += 1u;
+                        }
+                    }
+                    if (t0 < MISS) {
+                        entry = e0;
+                        entry_t = t0;
+                        descend = true;
+                    }
+                }
+            }
+            resume = false;
+            uint k_end = leaf_count;
+            for (uint k = 0u; k < k_end; ++k) {
+                intersect_leaf_visible(leaves[k], instance, o, d, after, hit, pending);
+            }
+            after = before_any_hit();
+            if ((pending.triangle != NONE) && !is_next_candidate(pending.t, pending.triangle, pending.instance, before_any_hit(), hit)) {
+                pending = no_hit();
+            }
+            if ((pending.triangle == NONE) && !descend) {
+                visiting = false;
+                while (sp > 0u && !visiting) {
+                    if (in_instance && (sp == instance_sp)) {
+                        o = origin;
+                        d = dir;
+                        inv_dir = world_inv_dir;
+                        near = world_near;
+                        in_instance = false;
+                    }
+                    sp -= 1u;
+                    if (!(stack_t[sp] > hit.t)) {
+                        entry = stack[sp];
+                        entry_t = stack_t[sp];
+                        visiting = true;
+                    }
+                }
+            }
+        }
+        if (pending.triangle != NONE) {
+            TriangleData tri = fetch_triangle(pending.triangle);
+            if (holes < MAX_HOLES && is_hole(pending.triangle, tri.material, pending.u, pending.v)) {
+                holes += 1u;
+                after = pending;
+            } else {
+                hit = pending;
+                leaf_count = 0u;
+            }
+            resume = true;
+            pending = no_hit();
+        }
+    }
+    return hit;
+}
+
 // traverse::intersect_leaf_masked (lightport-tracer/src/kernel/traverse.rs:772)
 void intersect_leaf_masked(uint entry, uint instance, vec3 origin, vec3 dir, Hit after, inout Hit hit, inout Hit pending) {
     uint first = entry >> 8;
@@ -920,7 +1087,7 @@ Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
 // traverse::closest_visible (lightport-tracer/src/kernel/traverse.rs:753)
 Hit closest_visible(vec3 origin, vec3 dir, float t_max) {
     if (scene_has_instances != 0u) {
-        return visible_hit(origin, dir, t_max, false);
+        return closest_visible_two_level(origin, dir, t_max);
     } else {
         return closest_visible_one_level(origin, dir, t_max);
     }
@@ -1199,11 +1366,144 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
     }
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:573)
-bool occluded(vec3 origin, vec3 dir, float t_max) {
-    bool blocked = any_hit(origin, dir, t_max);
-    if ((scene_has_alpha_mask != 0u) && (scene_has_instances != 0u) && !blocked) {
-        blocked = visible_hit(origin, dir, t_max, true).triangle != NONE;
+// traverse::occluded_masked_two_level (lightport-tracer/src/kernel/traverse.rs:1245)
+bool occluded_masked_two_level(vec3 origin, vec3 dir, float t_max) {
+    vec3 world_inv_dir = safe_inverse(dir);
+    uvec3 world_near = near_planes(world_inv_dir);
+    vec3 o = origin;
+    vec3 d = dir;
+    vec3 inv_dir = world_inv_dir;
+    uvec3 near = world_near;
+    bool in_instance = false;
+    uint instance_sp = 0u;
+    uint stack[64];
+    for (int i_1 = 0; i_1 < 64; ++i_1) { stack[i_1] = 0u; }
+    stack[0u] = stack_entry(0u, 0u);
+    uint sp = 1u;
+    bool blocked = false;
+    uint leaves[4];
+    for (int i_2 = 0; i_2 < 4; ++i_2) { leaves[i_2] = 0u; }
+    uint leaf_count = 0u;
+    uint k = 0u;
+    uint candidate = NONE;
+    uint hole_material = 0u;
+    float hole_u = 0.0;
+    float hole_v = 0.0;
+    uint holes = 0u;
+    bool searching = true;
+    while (searching) {
+        while ((k < leaf_count || sp > 0u) && !blocked && (candidate == NONE)) {
+            if (k >= leaf_count) {
+                if (in_instance && (sp == instance_sp)) {
+                    o = origin;
+                    d = dir;
+                    inv_dir = world_inv_dir;
+                    near = world_near;
+                    in_instance = false;
+                }
+                sp -= 1u;
+                uint node = stack[sp];
+                if (is_leaf(node)) {
+                    uint first = node >> 8;
+                    if ((node & 255u) > 1u && sp < STACK_SIZE) {
+                        stack[sp] = stack_entry(first + 1u, (node & 255u) - 1u);
+                        sp += 1u;
+                    }
+                    InstanceRay r = instance_ray(first, origin, dir);
+                    o = r.origin;
+                    d = r.dir;
+                    inv_dir = safe_inverse(d);
+                    near = near_planes(inv_dir);
+                    in_instance = true;
+                    instance_sp = sp;
+                    node = stack_entry(r.root, 0u);
+                }
+                bool may_batch = in_instance;
+                NodeHits n = intersect_node(node >> 8, o, inv_dir, near, t_max);
+                leaf_count = 0u;
+                k = 0u;
+                if (n.t.x < MISS) {
+                    if (is_leaf(n.entries.x) && may_batch) {
+                        leaves[leaf_count] = n.entries.x;
+                        leaf_count += 1u;
+                    } else if (sp < STACK_SIZE) {
+                        stack[sp] = n.entries.x;
+                        sp += 1u;
+                    }
+                }
+                if (n.t.y < MISS) {
+                    if (is_leaf(n.entries.y) && may_batch) {
+                        leaves[leaf_count] = n.entries.y;
+                        leaf_count += 1u;
+                    } else if (sp < STACK_SIZE) {
+                        stack[sp] = n.entries.y;
+                        sp += 1u;
+                    }
+                }
+                if (n.t.z < MISS) {
+                    if (is_leaf(n.entries.z) && may_batch) {
+                        leaves[leaf_count] = n.entries.z;
+                        leaf_count += 1u;
+                    } else if (sp < STACK_SIZE) {
+                        stack[sp] = n.entries.z;
+                        sp += 1u;
+                    }
+                }
+                if (n.t.w < MISS) {
+                    if (is_leaf(n.entries.w) && may_batch) {
+                        leaves[leaf_count] = n.entries.w;
+                        leaf_count += 1u;
+                    } else if (sp < STACK_SIZE) {
+                        stack[sp] = n.entries.w;
+                        sp += 1u;
+                    }
+                }
+            }
+            while (k < leaf_count && !blocked && (candidate == NONE)) {
+                uint first_1 = leaves[k] >> 8;
+                uint end = first_1 + (leaves[k] & 255u);
+                uint i = first_1;
+                while (i < end && !blocked && (candidate == NONE)) {
+                    TriangleData tri = fetch_triangle(i);
+                    TriangleHit h = intersect_triangle(o, d, tri.v0, tri.v1, tri.v2);
+                    if (h.t < t_max) {
+                        if (tri.masked) {
+                            candidate = i;
+                            hole_material = tri.material;
+                            hole_u = h.u;
+                            hole_v = h.v;
+                        } else {
+                            blocked = true;
+                        }
+                    }
+                    i += 1u;
+                }
+                if ((candidate != NONE) && i < end) {
+                    leaves[k] = stack_entry(i, end - i);
+                } else {
+                    k += 1u;
+                }
+            }
+        }
+        searching = false;
+        if (candidate != NONE) {
+            if (holes < MAX_HOLES && is_hole(candidate, hole_material, hole_u, hole_v)) {
+                holes += 1u;
+                searching = true;
+            } else {
+                blocked = true;
+            }
+            candidate = NONE;
+        }
     }
     return blocked;
+}
+
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:573)
+bool occluded(vec3 origin, vec3 dir, float t_max) {
+    if ((scene_has_alpha_mask == 0u) || (scene_has_instances == 0u)) {
+        return any_hit(origin, dir, t_max);
+    } else {
+        return occluded_masked_two_level(origin, dir, t_max);
+    }
 }

@@ -746,6 +746,170 @@ fn no_hit() -> Hit {
     return Hit(NONE, 0.0, 0.0, 0.0, 0u);
 }
 
+// traverse::intersect_leaf_visible (lightport-tracer/src/kernel/traverse.rs:1044)
+fn intersect_leaf_visible(entry: u32, instance: u32, origin: vec3<f32>, dir: vec3<f32>, after: Hit, hit: ptr<function, Hit>, pending: ptr<function, Hit>) {
+    let first: u32 = entry >> 8u;
+    let i_end: u32 = first + (entry & 255u);
+    for (var i: u32 = first; i < i_end; i++) {
+        let tri: TriangleData = fetch_triangle(i);
+        let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
+        if tri.masked {
+            var best: Hit = *hit;
+            if (*pending).triangle != NONE {
+                best = *pending;
+            }
+            if is_next_candidate(h.t, i, instance, after, best) {
+                *pending = Hit(i, h.t, h.u, h.v, instance);
+            }
+        } else if is_next_candidate(h.t, i, instance, before_any_hit(), *hit) {
+            *hit = Hit(i, h.t, h.u, h.v, instance);
+        }
+    }
+}
+
+// traverse::closest_visible_two_level (lightport-tracer/src/kernel/traverse.rs:1087)
+fn closest_visible_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
+    let world_inv_dir: vec3<f32> = safe_inverse(dir);
+    let world_near: vec3<u32> = near_planes(world_inv_dir);
+    var o: vec3<f32> = origin;
+    var d: vec3<f32> = dir;
+    var inv_dir: vec3<f32> = world_inv_dir;
+    var near: vec3<u32> = world_near;
+    var instance: u32 = 0u;
+    var in_instance: bool = false;
+    var instance_sp: u32 = 0u;
+    var hit: Hit = Hit(NONE, t_max, 0.0, 0.0, 0u);
+    var stack: array<u32, 64>;
+    var stack_t: array<f32, 64>;
+    let leaf_limit: u32 = scene.leaf_stack_limit;
+    var sp: u32 = 0u;
+    var entry: u32 = stack_entry(0u, 0u);
+    var entry_t: f32 = 0.0;
+    var visiting: bool = true;
+    var leaves: array<u32, 3>;
+    var leaf_count: u32 = 0u;
+    var descend: bool = false;
+    var pending: Hit = no_hit();
+    var after: Hit = before_any_hit();
+    var resume: bool = false;
+    var holes: u32 = 0u;
+    while visiting {
+        while visiting && (pending.triangle == NONE) {
+            if !resume {
+                if !in_instance && is_leaf(entry) {
+                    let first: u32 = entry >> 8u;
+                    if (entry & 255u) > 1u && sp < STACK_SIZE {
+                        stack[sp] = stack_entry(first + 1u, (entry & 255u) - 1u);
+                        stack_t[sp] = entry_t;
+                        sp += 1u;
+                    }
+                    let r: InstanceRay = instance_ray(first, origin, dir);
+                    o = r.origin;
+                    d = r.dir;
+                    inv_dir = safe_inverse(d);
+                    near = near_planes(inv_dir);
+                    instance = first;
+                    in_instance = true;
+                    instance_sp = sp;
+                    entry = stack_entry(r.root, 0u);
+                }
+                let may_batch: bool = in_instance;
+                descend = false;
+                leaf_count = 0u;
+                if is_leaf(entry) {
+                    leaves[0u] = entry;
+                    leaf_count = 1u;
+                } else {
+                    let sorted: NodeHits = sort_children(intersect_node(entry >> 8u, o, inv_dir, near, hit.t));
+                    let t0: f32 = sorted.t.x;
+                    let t1: f32 = sorted.t.y;
+                    let t2: f32 = sorted.t.z;
+                    let t3: f32 = sorted.t.w;
+                    let e0: u32 = sorted.entries.x;
+                    let e1: u32 = sorted.entries.y;
+                    let e2: u32 = sorted.entries.z;
+                    let e3: u32 = sorted.entries.w;
+                    if t3 < MISS {
+                        if sp >= leaf_limit && is_leaf(e3) && may_batch {
+                            leaves[leaf_count] = e3;
+                            leaf_count += 1u;
+                        } else if sp < STACK_SIZE {
+                            stack[sp] = e3;
+                            stack_t[sp] = t3;
+                            sp += 1u;
+                        }
+                    }
+                    if t2 < MISS {
+                        if sp >= leaf_limit && is_leaf(e2) && may_batch {
+                            leaves[leaf_count] = e2;
+                            leaf_count += 1u;
+                        } else if sp < STACK_SIZE {
+                            stack[sp] = e2;
+                            stack_t[sp] = t2;
+                            sp += 1u;
+                        }
+                    }
+                    if t1 < MISS {
+                        if sp >= leaf_limit && is_leaf(e1) && may_batch {
+                            leaves[leaf_count] = e1;
+                            leaf_count += 1u;
+                        } else if sp < STACK_SIZE {
+                            stack[sp] = e1;
+                            stack_t[sp] = t1;
+                            sp += 1u;
+                        }
+                    }
+                    if t0 < MISS {
+                        entry = e0;
+                        entry_t = t0;
+                        descend = true;
+                    }
+                }
+            }
+            resume = false;
+            let k_end: u32 = leaf_count;
+            for (var k: u32 = 0u; k < k_end; k++) {
+                intersect_leaf_visible(leaves[k], instance, o, d, after, &hit, &pending);
+            }
+            after = before_any_hit();
+            if (pending.triangle != NONE) && !is_next_candidate(pending.t, pending.triangle, pending.instance, before_any_hit(), hit) {
+                pending = no_hit();
+            }
+            if (pending.triangle == NONE) && !descend {
+                visiting = false;
+                while sp > 0u && !visiting {
+                    if in_instance && (sp == instance_sp) {
+                        o = origin;
+                        d = dir;
+                        inv_dir = world_inv_dir;
+                        near = world_near;
+                        in_instance = false;
+                    }
+                    sp -= 1u;
+                    if !(stack_t[sp] > hit.t) {
+                        entry = stack[sp];
+                        entry_t = stack_t[sp];
+                        visiting = true;
+                    }
+                }
+            }
+        }
+        if pending.triangle != NONE {
+            let tri: TriangleData = fetch_triangle(pending.triangle);
+            if holes < MAX_HOLES && is_hole(pending.triangle, tri.material, pending.u, pending.v) {
+                holes += 1u;
+                after = pending;
+            } else {
+                hit = pending;
+                leaf_count = 0u;
+            }
+            resume = true;
+            pending = no_hit();
+        }
+    }
+    return hit;
+}
+
 // traverse::intersect_leaf_masked (lightport-tracer/src/kernel/traverse.rs:772)
 fn intersect_leaf_masked(entry: u32, instance: u32, origin: vec3<f32>, dir: vec3<f32>, after: Hit, hit: ptr<function, Hit>, pending: ptr<function, Hit>) {
     let first: u32 = entry >> 8u;
@@ -887,7 +1051,7 @@ fn closest_visible_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
 // traverse::closest_visible (lightport-tracer/src/kernel/traverse.rs:753)
 fn closest_visible(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     if scene.has_instances != 0u {
-        return visible_hit(origin, dir, t_max, false);
+        return closest_visible_two_level(origin, dir, t_max);
     } else {
         return closest_visible_one_level(origin, dir, t_max);
     }
@@ -1160,11 +1324,142 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     }
 }
 
-// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:573)
-fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
-    var blocked: bool = any_hit(origin, dir, t_max);
-    if (scene.has_alpha_mask != 0u) && (scene.has_instances != 0u) && !blocked {
-        blocked = visible_hit(origin, dir, t_max, true).triangle != NONE;
+// traverse::occluded_masked_two_level (lightport-tracer/src/kernel/traverse.rs:1245)
+fn occluded_masked_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+    let world_inv_dir: vec3<f32> = safe_inverse(dir);
+    let world_near: vec3<u32> = near_planes(world_inv_dir);
+    var o: vec3<f32> = origin;
+    var d: vec3<f32> = dir;
+    var inv_dir: vec3<f32> = world_inv_dir;
+    var near: vec3<u32> = world_near;
+    var in_instance: bool = false;
+    var instance_sp: u32 = 0u;
+    var stack: array<u32, 64>;
+    stack[0u] = stack_entry(0u, 0u);
+    var sp: u32 = 1u;
+    var blocked: bool = false;
+    var leaves: array<u32, 4>;
+    var leaf_count: u32 = 0u;
+    var k: u32 = 0u;
+    var candidate: u32 = NONE;
+    var hole_material: u32 = 0u;
+    var hole_u: f32 = 0.0;
+    var hole_v: f32 = 0.0;
+    var holes: u32 = 0u;
+    var searching: bool = true;
+    while searching {
+        while (k < leaf_count || sp > 0u) && !blocked && (candidate == NONE) {
+            if k >= leaf_count {
+                if in_instance && (sp == instance_sp) {
+                    o = origin;
+                    d = dir;
+                    inv_dir = world_inv_dir;
+                    near = world_near;
+                    in_instance = false;
+                }
+                sp -= 1u;
+                var node: u32 = stack[sp];
+                if is_leaf(node) {
+                    let first: u32 = node >> 8u;
+                    if (node & 255u) > 1u && sp < STACK_SIZE {
+                        stack[sp] = stack_entry(first + 1u, (node & 255u) - 1u);
+                        sp += 1u;
+                    }
+                    let r: InstanceRay = instance_ray(first, origin, dir);
+                    o = r.origin;
+                    d = r.dir;
+                    inv_dir = safe_inverse(d);
+                    near = near_planes(inv_dir);
+                    in_instance = true;
+                    instance_sp = sp;
+                    node = stack_entry(r.root, 0u);
+                }
+                let may_batch: bool = in_instance;
+                let n: NodeHits = intersect_node(node >> 8u, o, inv_dir, near, t_max);
+                leaf_count = 0u;
+                k = 0u;
+                if n.t.x < MISS {
+                    if is_leaf(n.entries.x) && may_batch {
+                        leaves[leaf_count] = n.entries.x;
+                        leaf_count += 1u;
+                    } else if sp < STACK_SIZE {
+                        stack[sp] = n.entries.x;
+                        sp += 1u;
+                    }
+                }
+                if n.t.y < MISS {
+                    if is_leaf(n.entries.y) && may_batch {
+                        leaves[leaf_count] = n.entries.y;
+                        leaf_count += 1u;
+                    } else if sp < STACK_SIZE {
+                        stack[sp] = n.entries.y;
+                        sp += 1u;
+                    }
+                }
+                if n.t.z < MISS {
+                    if is_leaf(n.entries.z) && may_batch {
+                        leaves[leaf_count] = n.entries.z;
+                        leaf_count += 1u;
+                    } else if sp < STACK_SIZE {
+                        stack[sp] = n.entries.z;
+                        sp += 1u;
+                    }
+                }
+                if n.t.w < MISS {
+                    if is_leaf(n.entries.w) && may_batch {
+                        leaves[leaf_count] = n.entries.w;
+                        leaf_count += 1u;
+                    } else if sp < STACK_SIZE {
+                        stack[sp] = n.entries.w;
+                        sp += 1u;
+                    }
+                }
+            }
+            while k < leaf_count && !blocked && (candidate == NONE) {
+                let first_1: u32 = leaves[k] >> 8u;
+                let end: u32 = first_1 + (leaves[k] & 255u);
+                var i: u32 = first_1;
+                while i < end && !blocked && (candidate == NONE) {
+                    let tri: TriangleData = fetch_triangle(i);
+                    let h: TriangleHit = intersect_triangle(o, d, tri.v0, tri.v1, tri.v2);
+                    if h.t < t_max {
+                        if tri.masked {
+                            candidate = i;
+                            hole_material = tri.material;
+                            hole_u = h.u;
+                            hole_v = h.v;
+                        } else {
+                            blocked = true;
+                        }
+                    }
+                    i += 1u;
+                }
+                if (candidate != NONE) && i < end {
+                    leaves[k] = stack_entry(i, end - i);
+                } else {
+                    k += 1u;
+                }
+            }
+        }
+        searching = false;
+        if candidate != NONE {
+            if holes < MAX_HOLES && is_hole(candidate, hole_material, hole_u, hole_v) {
+                holes += 1u;
+                searching = true;
+            } else {
+                blocked = true;
+            }
+            candidate = NONE;
+        }
     }
     return blocked;
+}
+
+// traverse::occluded (lightport-tracer/src/kernel/traverse.rs:573)
+fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+    if (scene.has_alpha_mask == 0u) || (scene.has_instances == 0u) {
+        return any_hit(origin, dir, t_max);
+    } else {
+        return occluded_masked_two_level(origin, dir, t_max);
+    }
 }

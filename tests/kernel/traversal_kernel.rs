@@ -250,3 +250,108 @@ fn two_level_coincident_placements_without_static_triangles() {
     s.instances.extend(std::iter::repeat_n(first, 40));
     check_two_level(&s, 5_000);
 }
+
+/// The (triangle, t, u, v, instance) of a hit, bit for bit.
+fn hit_bits(h: &tracer::kernel::traverse::Hit) -> (u32, u32, u32, u32, u32) {
+    (h.triangle, h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.instance)
+}
+
+/// Issue 31: two-level scenes with alpha masks find the closest visible hit and answer shadow
+/// rays in one traversal (`closest_visible_two_level`, `occluded_masked_two_level`) where they
+/// searched again from the root behind each hole (`visible_hit`, kept as the reference). On a
+/// generated field of masked leaves (mirrored and non-uniformly scaled placements, coincident
+/// masked quads, an opaque triangle coincident with a masked one, placements twice: holes and
+/// ties at shared distances), 120,000 rays find bit for bit the hit the search again finds
+/// (with leaves pushed and intersected at once), and the shadow test agrees with the unmasked
+/// test then `visible_hit` of the masked triangles, before, at and beyond each hit.
+///
+/// One difference is allowed, and counted: the search again can lose a triangle at exactly the
+/// distance of a candidate it found (a box whose entry rounds above that distance is culled
+/// once that candidate is the closest; behind a hole, triangles before it in (t, instance,
+/// triangle) order are excluded), so it may even see through the opaque twin of a hole. One
+/// traversal culls against visible hits only, never against a hole, and may find that
+/// triangle: a visible one at the distance of a hole passed or of the hit, before it in the
+/// order. Rays that meet `MAX_HOLES` masked triangles or more are left out (past that many
+/// the two may stop apart: `closest_visible_two_level`).
+#[test]
+fn two_level_alpha_masks_take_one_traversal_and_find_what_searching_again_finds() {
+    use tracer::kernel::alpha_mask::is_hole;
+    use tracer::kernel::traverse::{any_hit_two_level, before_any_hit, closest_candidate, visible_hit, Hit, MAX_HOLES};
+    let scene = scene::instanced_masked_leaves(6);
+    let packed = tracer::pack::build_and_pack(&scene, &RenderSettings::default()).expect("pack").1;
+    assert!(packed.features.instances && packed.features.alpha_mask, "{:?}", packed.features);
+    let k = &packed.scene;
+    let mut leaves_at_once = k.clone();
+    leaves_at_once.leaf_stack_limit = 0;
+    let hole = |h: &Hit| {
+        let tri = fetch_triangle(k, h.triangle);
+        tri.masked && is_hole(k, h.triangle, tri.material, h.u, h.v)
+    };
+    let b = scene.bounds();
+    let (lo, hi) = (b.min - b.diagonal() * 0.25, b.max + b.diagonal() * 0.25);
+    let mut rng = XorShift(31);
+    let rays = 120_000;
+    let (mut compared, mut through_holes, mut ties, mut many_masked, mut lost_ties) = (0, 0, 0, 0, 0);
+    for _ in 0..rays {
+        let origin = rng.in_box(lo, hi);
+        let dir = (rng.in_box(b.min, b.max) - origin).normalize();
+        // The masked triangles along the ray, up to MAX_HOLES.
+        let mut after = before_any_hit();
+        let mut masked = 0;
+        while masked < MAX_HOLES {
+            let c = closest_candidate(k, origin, dir, MISS, after, true);
+            if c.triangle == NONE {
+                break;
+            }
+            masked += 1;
+            after = c;
+        }
+        if masked >= MAX_HOLES {
+            many_masked += 1;
+            continue;
+        }
+        compared += 1;
+        // The search again step by step: the holes it passes, then its hit.
+        let mut passed = Vec::new();
+        let mut want = closest_candidate(k, origin, dir, MISS, before_any_hit(), false);
+        while want.triangle != NONE && hole(&want) {
+            passed.push(want);
+            want = closest_candidate(k, origin, dir, MISS, want, false);
+        }
+        assert_eq!(hit_bits(&want), hit_bits(&visible_hit(k, origin, dir, MISS, false)));
+        through_holes += !passed.is_empty() as usize;
+        let first = passed.first().copied().unwrap_or(want);
+        if first.triangle != NONE {
+            ties += (closest_candidate(k, origin, dir, MISS, first, false).t == first.t) as usize;
+        }
+        for traversal in [k, &leaves_at_once] {
+            let got = trace_closest(traversal, origin, dir, MISS);
+            if hit_bits(&got) == hit_bits(&want) {
+                continue;
+            }
+            let lost = got.triangle != NONE
+                && !hole(&got)
+                && passed.iter().chain([&want]).any(|h| {
+                    h.t == got.t && (got.instance, got.triangle) < (h.instance, h.triangle) && got.t <= want.t
+                });
+            assert!(lost, "ray {origin:?} {dir:?}: {got:?}, searching again {want:?} behind {passed:?}");
+            lost_ties += 1;
+        }
+        let t = if want.triangle == NONE { 1.0 } else { want.t };
+        for t_max in [MISS, t * 0.999, t, t * 1.001] {
+            let searched =
+                any_hit_two_level(k, origin, dir, t_max) || visible_hit(k, origin, dir, t_max, true).triangle != NONE;
+            for traversal in [k, &leaves_at_once] {
+                assert_eq!(occluded(traversal, origin, dir, t_max), searched, "ray {origin:?} {dir:?} to {t_max}");
+            }
+        }
+    }
+    println!(
+        "{compared} rays compared: {through_holes} through holes, {ties} first hits tied, {lost_ties} ties the \
+         search again lost, {many_masked} rays left out"
+    );
+    assert!(compared >= 100_000, "{compared} rays compared");
+    assert!(through_holes > compared / 20, "{through_holes} rays through holes");
+    assert!(ties > compared / 100, "{ties} rays with a tie at the first hit");
+    assert!(lost_ties * 200 < compared, "{lost_ties} lost ties");
+}

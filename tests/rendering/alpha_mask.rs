@@ -469,32 +469,42 @@ fn reaches(functions: &[(String, String)], text: &str, callee: &str) -> bool {
 ///   holds one traversal loop (`intersect_node` and `intersect_triangle` once each), and the
 ///   function that runs the hole test is the one that runs the node tests: traversal resumes
 ///   behind a hole instead of starting again.
+///
+/// Both in one-level scenes and in two-level ones (`Features::instances`, whose traversal loop
+/// walks both levels: the search again behind each hole lasted there longer).
 #[test]
 fn the_hole_test_stays_out_of_the_traversal_loop_and_traversal_runs_once() {
     use lightport_codegen::Target;
     let packed = pack(&screen_before_emitter(Some(0.5)), 4, Strategy::Mis, 4);
     assert!(packed.features.alpha_mask && !packed.features.instances);
-    for target in [Target::GlslEs300, Target::Wgsl] {
-        let source = tracer::kernel::path_tracer_shader(&packed.features, target).unwrap().source;
+    let two_level = tracer::kernel::Features { instances: true, ..packed.features };
+    for (target, features) in
+        [Target::GlslEs300, Target::Wgsl].into_iter().flat_map(|t| [(t, packed.features), (t, two_level)])
+    {
+        let target_features = format!("{target:?}, instances {}", features.instances);
+        let source = tracer::kernel::path_tracer_shader(&features, target).unwrap().source;
         let functions = shader_functions(&source);
         for ray in ["trace_closest", "occluded"] {
             for callee in ["is_hole", "intersect_node", "intersect_triangle"] {
-                assert_eq!(inlined_copies(&functions, ray, callee), 1, "{target:?}: {ray}: copies of {callee}");
+                assert_eq!(inlined_copies(&functions, ray, callee), 1, "{target_features}: {ray}: copies of {callee}");
             }
             // The function of this ray that calls `is_hole` itself: it calls `intersect_node`
             // itself too, in a loop that does not reach `is_hole`.
             let mut owners = functions
                 .iter()
                 .filter(|(n, b)| call_sites(b, "is_hole") > 0 && (n == ray || inlined_copies(&functions, ray, n) > 0));
-            let (owner, body) = owners.next().unwrap_or_else(|| panic!("{target:?}: {ray}: no hole test"));
-            assert!(owners.next().is_none(), "{target:?}: {ray}: one function tests holes");
-            assert_eq!(call_sites(body, "intersect_node"), 1, "{target:?}: {ray}: {owner} must traverse itself");
+            let (owner, body) = owners.next().unwrap_or_else(|| panic!("{target_features}: {ray}: no hole test"));
+            assert!(owners.next().is_none(), "{target_features}: {ray}: one function tests holes");
+            assert_eq!(call_sites(body, "intersect_node"), 1, "{target_features}: {ray}: {owner} must traverse itself");
+            // Both levels, in two-level scenes: the same function enters placements.
+            let enters = call_sites(body, "instance_ray");
+            assert_eq!(enters, features.instances as usize, "{target_features}: {ray}: {owner} enters placements");
             let traversal_loops: Vec<String> =
                 loops_of(body).into_iter().filter(|l| call_sites(l, "intersect_node") > 0).collect();
             let innermost = traversal_loops.iter().min_by_key(|l| l.len()).expect("a traversal loop");
             assert!(
                 !reaches(&functions, innermost, "is_hole"),
-                "{target:?}: {ray}: the hole test in {owner}'s traversal loop"
+                "{target_features}: {ray}: the hole test in {owner}'s traversal loop"
             );
         }
     }

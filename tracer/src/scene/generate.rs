@@ -431,6 +431,65 @@ pub fn instanced_shapes(grid: usize) -> Scene {
     }
 }
 
+/// A two-level scene of alpha cut-outs: one mesh of masked "leaves" (two coincident quads
+/// with different checkers, 8 x 8 and 2 x 2, so that their holes overlap at the same distance,
+/// and a crossing quad), an opaque triangle coincident with half of the first quad (an
+/// unmasked and a masked hit at the same distance) and a small opaque ball, placed `grid` x
+/// `grid` times (rotated, scaled non-uniformly, every third mirrored), the first two
+/// placements twice (the same triangle at the same distance in two instances); a static
+/// floor and a static masked wall. Every tie `traverse::is_next_candidate` orders and every
+/// kind of hole: what one traversal per ray must find as searching again behind each hole did.
+pub fn instanced_masked_leaves(grid: usize) -> Scene {
+    use glam::{Mat4, Quat};
+    let masked =
+        |m: Material, texture: u32| Material { base_color_texture: Some(texture), alpha_cutoff: Some(0.5), ..m };
+    let materials = vec![
+        Material::diffuse("floor", Vec3::splat(0.6)),
+        masked(Material::diffuse("leaves8", Vec3::new(0.2, 0.6, 0.2)), 0),
+        masked(Material::diffuse("leaves2", Vec3::new(0.5, 0.6, 0.1)), 1),
+        Material::diffuse("trunk", Vec3::new(0.4, 0.3, 0.2)),
+    ];
+    let mut leaves = Vec::new();
+    let a = [v(-0.4, -0.3, 0.0), v(0.4, -0.3, 0.0), v(0.4, 0.5, 0.0), v(-0.4, 0.5, 0.0)];
+    quad(&mut leaves, a, 1);
+    quad(&mut leaves, a, 2);
+    quad(&mut leaves, [v(0.1, -0.3, -0.4), v(0.1, -0.3, 0.4), v(0.1, 0.5, 0.4), v(0.1, 0.5, -0.4)], 1);
+    // The opaque twin of the first quad's first triangle (the same vertices in the same order).
+    let twin = Triangle { material: 3, ..leaves[0] };
+    leaves.push(twin);
+    uv_sphere(&mut leaves, v(0.0, -0.15, 0.2), 0.12, 3, (8, 5));
+    let half = grid as f32 * 0.5;
+    let mut statics = Vec::new();
+    quad(&mut statics, [v(-half, -0.35, half), v(half, -0.35, half), v(half, -0.35, -half), v(-half, -0.35, -half)], 0);
+    quad(&mut statics, [v(-half, -0.35, -half), v(half, -0.35, -half), v(half, 1.0, -half), v(-half, 1.0, -half)], 2);
+    let mut instances = Vec::with_capacity(grid * grid + 2);
+    for i in 0..grid {
+        for j in 0..grid {
+            let k = (i * grid + j) as f32;
+            let at = v(i as f32 + 0.5 - half, 0.0, j as f32 + 0.5 - half);
+            let mut scale = v(1.0, 0.7 + 0.3 * (k * 0.7).sin().abs(), 1.2 - 0.4 * (k * 1.3).cos().abs());
+            if (i * grid + j) % 3 == 1 {
+                scale.x = -scale.x;
+            }
+            let rotation = Quat::from_rotation_y(k * 0.9) * Quat::from_rotation_x(0.3 * (k * 0.5).sin());
+            let transform = Mat4::from_scale_rotation_translation(scale, rotation, at);
+            instances.push(super::Instance { mesh: 0, transform });
+        }
+    }
+    let twins = instances[..2.min(instances.len())].to_vec();
+    instances.extend(twins);
+    Scene {
+        triangles: statics,
+        meshes: vec![super::Mesh { triangles: leaves }],
+        instances,
+        materials,
+        textures: vec![alpha_checker(8), alpha_checker(2)],
+        sky: Some(super::Sky::uniform(Vec3::splat(0.5))),
+        camera: Camera::look_at(v(0.0, half * 1.2 + 1.0, half * 1.6 + 1.0), v(0.0, -0.3, 0.0), Vec3::Y, 0.8),
+        ..Scene::default()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -86,7 +86,7 @@ use glam::{Vec2, Vec3, Vec4};
 
 pub use generate::{
     alpha_checker, alpha_masked_screen, checker_floor, cornell_box, diffuse_plane, glass_cornell, instanced_field,
-    instanced_shapes, metal_rough_spheres, terrain_and_spheres, white_furnace,
+    instanced_masked_leaves, instanced_shapes, metal_rough_spheres, terrain_and_spheres, white_furnace,
 };
 pub use material::Material;
 
