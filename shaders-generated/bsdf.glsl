@@ -45,7 +45,7 @@ struct GlassData {
     vec3 sigma_a;
 };
 
-// traverse::Hit (lightport-tracer/src/kernel/traverse.rs:24)
+// traverse::Hit (lightport-tracer/src/kernel/traverse.rs:26)
 struct Hit {
     uint triangle;
     float t;

@@ -46,7 +46,7 @@ struct GlassData {
     sigma_a: vec3<f32>,
 }
 
-// traverse::Hit (lightport-tracer/src/kernel/traverse.rs:24)
+// traverse::Hit (lightport-tracer/src/kernel/traverse.rs:26)
 struct Hit {
     triangle: u32,
     t: f32,

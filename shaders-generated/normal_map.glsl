@@ -20,7 +20,7 @@ uniform uint scene_has_texture_transform;
 uniform uint scene_has_texcoord1;
 uniform uint scene_has_instances;
 
-// traverse::Hit (lightport-tracer/src/kernel/traverse.rs:24)
+// traverse::Hit (lightport-tracer/src/kernel/traverse.rs:26)
 struct Hit {
     uint triangle;
     float t;

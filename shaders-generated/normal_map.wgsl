@@ -21,7 +21,7 @@ struct SceneUniforms {
 @group(0) @binding(1) var<storage, read> lp_scene_vec4f: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> lp_scene_vec4u: array<vec4<u32>>;
 
-// traverse::Hit (lightport-tracer/src/kernel/traverse.rs:24)
+// traverse::Hit (lightport-tracer/src/kernel/traverse.rs:26)
 struct Hit {
     triangle: u32,
     t: f32,

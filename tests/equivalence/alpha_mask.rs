@@ -1,9 +1,9 @@
-//! Alpha masks (`alpha_mask::is_hole` and the functions it uses, `traverse::visible_hit`),
+//! Alpha masks (`alpha_mask::is_hole` and the functions it uses, `traverse_masked::visible_hit`),
 //! and the traversal and light sampling that call them, on the generated alpha-masked scene
 //! (`scene::alpha_masked_screen`): every input stated once and run on every runtime.
 
 use super::*;
-use tracer::kernel::{alpha_mask, lights};
+use tracer::kernel::{alpha_mask, lights, traverse_masked};
 
 /// Coverage is a bilinear texture lookup times a factor: `sample_texture`'s tolerance.
 const COVERAGE: Tolerance = Tolerance::ulps(16).with_absolute(1e-6).flushing_subnormals();
@@ -148,11 +148,11 @@ fn alpha_mask_functions_agree() {
     // `occluded_masked_one_level`, issue 31) finds what searching again from the root behind
     // each hole (`visible_hit`, the design before) finds, on the CPU.
     for &(o, d, t) in &rays {
-        assert_eq!(traverse::trace_closest(&k, o, d, t), traverse::visible_hit(&k, o, d, t, false), "{o} {d}");
+        assert_eq!(traverse::trace_closest(&k, o, d, t), traverse_masked::visible_hit(&k, o, d, t, false), "{o} {d}");
     }
     for &(o, d, t) in &shadow {
         let searched =
-            traverse::any_hit_one_level(&k, o, d, t) || traverse::visible_hit(&k, o, d, t, true).triangle != NONE;
+            traverse::any_hit_one_level(&k, o, d, t) || traverse_masked::visible_hit(&k, o, d, t, true).triangle != NONE;
         assert_eq!(traverse::occluded(&k, o, d, t), searched, "{o} {d} {t}");
     }
 
@@ -178,7 +178,7 @@ fn alpha_mask_functions_agree() {
         &mut eq,
         "visible_hit",
         &masked_only,
-        |s, &(o, d, t, only_masked)| (traverse::visible_hit(s, o, d, t, only_masked),),
+        |s, &(o, d, t, only_masked)| (traverse_masked::visible_hit(s, o, d, t, only_masked),),
         Tolerance::ulps(16).with_absolute(1e-6).flushing_subnormals(),
     );
     let masked_hits = visible.output(Backend::Cpu).unwrap().iter().filter(|(h,)| h.triangle != NONE).count();
@@ -214,7 +214,7 @@ fn alpha_mask_functions_agree() {
 }
 
 /// Two levels with alpha masks (`Features::instances` and `alpha_mask`, issue 31): one
-/// traversal per ray (`traverse::closest_visible_two_level`, `occluded_masked_two_level`) on
+/// traversal per ray (`traverse_masked::closest_visible_two_level`, `occluded_masked_two_level`) on
 /// every runtime, over the generated field of masked leaves (mirrored and non-uniformly scaled
 /// placements, coincident masked quads, placements twice). Rays whose masked crossings are all
 /// away from a cutoff (where rounding decides) find on each GPU runtime the CPU's hit (the same
@@ -231,7 +231,7 @@ fn two_level_alpha_masks_agree() {
     let k = eq.scene().clone();
     // Every masked triangle the segment crosses is hit away from its cutoff.
     let away_from_edges = |o: Vec3, d: Vec3, t_max: f32| {
-        let mut after = traverse::before_any_hit();
+        let mut after = traverse_masked::before_any_hit();
         for _ in 0..64 {
             let c = traverse::closest_candidate(&k, o, d, t_max, after, true);
             if c.triangle == NONE {
@@ -268,7 +268,7 @@ fn two_level_alpha_masks_agree() {
     let through = rays
         .iter()
         .zip(cpu)
-        .filter(|(&(o, d, t), (h,))| traverse::closest_candidate(&k, o, d, t, traverse::before_any_hit(), false) != *h)
+        .filter(|(&(o, d, t), (h,))| traverse::closest_candidate(&k, o, d, t, traverse_masked::before_any_hit(), false) != *h)
         .count();
     let placed = cpu.iter().filter(|(h,)| h.triangle != NONE && h.instance != cpu[0].0.instance).count();
     println!("two levels with masks: {} rays, {through} through holes, {placed} on other placements", rays.len());

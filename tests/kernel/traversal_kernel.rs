@@ -276,7 +276,8 @@ fn hit_bits(h: &tracer::kernel::traverse::Hit) -> (u32, u32, u32, u32, u32) {
 #[test]
 fn two_level_alpha_masks_take_one_traversal_and_find_what_searching_again_finds() {
     use tracer::kernel::alpha_mask::is_hole;
-    use tracer::kernel::traverse::{any_hit_two_level, before_any_hit, closest_candidate, visible_hit, Hit, MAX_HOLES};
+    use tracer::kernel::traverse::{any_hit_two_level, closest_candidate, Hit};
+    use tracer::kernel::traverse_masked::{before_any_hit, visible_hit, MAX_HOLES};
     let scene = scene::instanced_masked_leaves(6);
     let packed = tracer::pack::build_and_pack(&scene, &RenderSettings::default()).expect("pack").1;
     assert!(packed.features.instances && packed.features.alpha_mask, "{:?}", packed.features);

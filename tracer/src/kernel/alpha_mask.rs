@@ -5,9 +5,9 @@ pub mod alpha_mask {
     //! glTF `alphaMode` MASK (`Features::alpha_mask`): texels whose coverage (base colour
     //! alpha, `baseColorFactor.a` times the base colour texture's alpha at the hit) is below
     //! the material's `alphaCutoff` are holes for every ray. The test runs in traversal, out of
-    //! its loop (`traverse::closest_visible_one_level`, `traverse::occluded_masked_one_level`),
-    //! so a rejected hit lets the ray go on to the next candidate, and in light sampling (a
-    //! point sampled in a hole of an emitter emits nothing).
+    //! its loop (`traverse_masked::closest_visible_one_level`, `occluded_masked_one_level`), so
+    //! a rejected hit lets the ray go on to the next candidate, and in light sampling (a point
+    //! sampled in a hole of an emitter emits nothing).
     //!
     //! Layout (only packed for scenes with masked materials; `Scene::alpha_mask_first` is 0
     //! without): per triangle, the w of its third texel in `triangles` is 1 when its material is

@@ -46,6 +46,8 @@ mod textures_src;
 // digits beyond f32 included, so they can be checked against those sources by eye.
 #[allow(clippy::excessive_precision)]
 mod tonemap_src;
+#[path = "traverse_masked.rs"]
+mod traverse_masked_src;
 #[path = "traverse.rs"]
 mod traverse_src;
 #[path = "wavefront.rs"]
@@ -70,6 +72,7 @@ pub use scene_data_src::scene_data;
 pub use texture_ref_src::texture_ref;
 pub use textures_src::textures;
 pub use tonemap_src::tonemap;
+pub use traverse_masked_src::traverse_masked;
 pub use traverse_src::traverse;
 pub use wavefront_src::wavefront;
 
@@ -87,6 +90,7 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
         textures::kernel_ir(),
         alpha_mask::kernel_ir(),
         traverse::kernel_ir(),
+        traverse_masked::kernel_ir(),
         camera::kernel_ir(),
         lights::kernel_ir(),
         metal_rough::kernel_ir(),
@@ -102,7 +106,7 @@ pub fn modules() -> Vec<kernel_dsl::ir::Module> {
 
 /// Every kernel module's captured description, as the macro serialised it (what
 /// [`modules`] parses): a stable text to fingerprint the kernel with.
-pub fn ir_json() -> [&'static str; 18] {
+pub fn ir_json() -> [&'static str; 19] {
     [
         rng::KERNEL_IR_JSON,
         sampling::KERNEL_IR_JSON,
@@ -112,6 +116,7 @@ pub fn ir_json() -> [&'static str; 18] {
         textures::KERNEL_IR_JSON,
         alpha_mask::KERNEL_IR_JSON,
         traverse::KERNEL_IR_JSON,
+        traverse_masked::KERNEL_IR_JSON,
         camera::KERNEL_IR_JSON,
         lights::KERNEL_IR_JSON,
         metal_rough::KERNEL_IR_JSON,

@@ -437,8 +437,9 @@ pub fn instanced_shapes(grid: usize) -> Scene {
 /// unmasked and a masked hit at the same distance) and a small opaque ball, placed `grid` x
 /// `grid` times (rotated, scaled non-uniformly, every third mirrored), the first two
 /// placements twice (the same triangle at the same distance in two instances); a static
-/// floor and a static masked wall. Every tie `traverse::is_next_candidate` orders and every
-/// kind of hole: what one traversal per ray must find as searching again behind each hole did.
+/// floor and a static masked wall. Every tie `traverse_masked::is_next_candidate` orders and
+/// every kind of hole: what one traversal per ray must find as searching again behind each hole
+/// did.
 pub fn instanced_masked_leaves(grid: usize) -> Scene {
     use glam::{Mat4, Quat};
     let masked =
