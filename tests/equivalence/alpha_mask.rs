@@ -151,8 +151,8 @@ fn alpha_mask_functions_agree() {
         assert_eq!(traverse::trace_closest(&k, o, d, t), traverse_masked::visible_hit(&k, o, d, t, false), "{o} {d}");
     }
     for &(o, d, t) in &shadow {
-        let searched =
-            traverse::any_hit_one_level(&k, o, d, t) || traverse_masked::visible_hit(&k, o, d, t, true).triangle != NONE;
+        let searched = traverse::any_hit_one_level(&k, o, d, t)
+            || traverse_masked::visible_hit(&k, o, d, t, true).triangle != NONE;
         assert_eq!(traverse::occluded(&k, o, d, t), searched, "{o} {d} {t}");
     }
 
@@ -268,7 +268,9 @@ fn two_level_alpha_masks_agree() {
     let through = rays
         .iter()
         .zip(cpu)
-        .filter(|(&(o, d, t), (h,))| traverse::closest_candidate(&k, o, d, t, traverse_masked::before_any_hit(), false) != *h)
+        .filter(|(&(o, d, t), (h,))| {
+            traverse::closest_candidate(&k, o, d, t, traverse_masked::before_any_hit(), false) != *h
+        })
         .count();
     let placed = cpu.iter().filter(|(h,)| h.triangle != NONE && h.instance != cpu[0].0.instance).count();
     println!("two levels with masks: {} rays, {through} through holes, {placed} on other placements", rays.len());
