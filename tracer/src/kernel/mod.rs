@@ -78,40 +78,20 @@ pub use wavefront_src::wavefront;
 
 pub use features::{Features, RenderSettings, Strategy};
 
-/// Every kernel module's IR, in link order.
+/// Every kernel module's IR, in link order (parsed from [`ir_json`], the one list of them).
 pub fn modules() -> Vec<kernel_dsl::ir::Module> {
-    vec![
-        rng::kernel_ir(),
-        sampling::kernel_ir(),
-        intersect::kernel_ir(),
-        scene_data::kernel_ir(),
-        instances::kernel_ir(),
-        texture_ref::kernel_ir(),
-        textures::kernel_ir(),
-        alpha_mask::kernel_ir(),
-        traverse::kernel_ir(),
-        traverse_masked::kernel_ir(),
-        camera::kernel_ir(),
-        lights::kernel_ir(),
-        metal_rough::kernel_ir(),
-        dielectric::kernel_ir(),
-        normal_map::kernel_ir(),
-        bsdf::kernel_ir(),
-        integrator::kernel_ir(),
-        tonemap::kernel_ir(),
-        denoise::kernel_ir(),
-        wavefront::kernel_ir(),
-    ]
+    ir_json().into_iter().map(kernel_dsl::ir::Module::from_json).collect()
 }
 
 /// Every kernel module's captured description, as the macro serialised it (what
 /// [`modules`] parses): a stable text to fingerprint the kernel with.
-pub fn ir_json() -> [&'static str; 19] {
+pub fn ir_json() -> [&'static str; 20] {
     [
         rng::KERNEL_IR_JSON,
         sampling::KERNEL_IR_JSON,
         intersect::KERNEL_IR_JSON,
         scene_data::KERNEL_IR_JSON,
+        instances::KERNEL_IR_JSON,
         texture_ref::KERNEL_IR_JSON,
         textures::KERNEL_IR_JSON,
         alpha_mask::KERNEL_IR_JSON,
