@@ -11,6 +11,13 @@
 //! [`BandPolicy`] (pure logic) chooses the band height from measured band times: bands aim at
 //! [`TARGET_FRACTION`] of the budget ([`DEFAULT_BUDGET_MS`], 50 ms), start small
 //! ([`FIRST_ROWS`]), at most double per band, and shrink at once when a band was slow.
+//! Where even a band of one row takes more than [`FIXED_COST_BUDGETS`] budgets (the fastest of
+//! [`THIN_SAMPLES`] such bands: a band's measured time only errs upwards), the cost is the
+//! band's, not its rows' (a driver's work per draw, a fence's round trip): no split keeps
+//! submissions short, and one-row bands would only multiply that cost by the height. Bands are
+//! then sized so that it is at most half of each (LittlestTokyo posed by its animation, WebGL2
+//! on SwiftShader at 320x240: ~250 ms per band whatever its height, a whole frame ~2 s; its
+//! one-row bands made a frame take a minute, so the animation stood still).
 //! The GL runtime's `Pacer` (`backend/gl/pacing.rs`) measures: it puts a fence (`glFenceSync`, core in WebGL2 and OpenGL ES 3.0) behind
 //! each band and polls it without blocking (`glClientWaitSync` with a zero timeout, the only
 //! timeout WebGL allows); a band's time is from its submission to the poll that sees the fence
@@ -30,6 +37,13 @@ pub const TARGET_FRACTION: f64 = 0.7;
 pub const FIRST_ROWS: u32 = 8;
 /// A band is at most this many times the rows of the band measured before it.
 pub const MAX_GROWTH: u32 = 2;
+/// One-row bands slower than this many budgets (the fastest of [`THIN_SAMPLES`]) mean a cost
+/// per band that splitting cannot avoid.
+pub const FIXED_COST_BUDGETS: f64 = 2.0;
+/// One-row bands measured before their fastest is believed as the cost of any band.
+pub const THIN_SAMPLES: usize = 6;
+/// Rows of the band that measures the cost per row once a fixed cost is known.
+const PROBE_ROWS: u32 = FIRST_ROWS;
 
 /// How many rows each band of a frame covers, adapted from measured band times.
 #[derive(Clone, Debug, PartialEq)]
@@ -40,6 +54,30 @@ pub struct BandPolicy {
     rows: u32,
     /// Milliseconds per row of the last band measured.
     ms_per_row: Option<f64>,
+    /// The last one-row bands' times.
+    thin: ThinBands,
+    /// Where a band's own cost rules ([`FIXED_COST_BUDGETS`]), the cost per row beyond the
+    /// first, once a thicker band measured it.
+    per_row: Option<f64>,
+}
+
+/// The times of the last [`THIN_SAMPLES`] one-row bands.
+#[derive(Clone, Debug, Default, PartialEq)]
+struct ThinBands {
+    times: [f64; THIN_SAMPLES],
+    count: usize,
+}
+
+impl ThinBands {
+    fn push(&mut self, ms: f64) {
+        self.times[self.count % THIN_SAMPLES] = ms;
+        self.count += 1;
+    }
+
+    /// The fastest, once [`THIN_SAMPLES`] were measured.
+    fn fastest(&self) -> Option<f64> {
+        (self.count >= THIN_SAMPLES).then(|| self.times.iter().copied().fold(f64::INFINITY, f64::min))
+    }
 }
 
 impl BandPolicy {
@@ -49,7 +87,7 @@ impl BandPolicy {
         let height = height.max(1);
         let budget_ms = budget_ms.filter(|b| b.is_finite() && *b > 0.0);
         let rows = if budget_ms.is_some() { FIRST_ROWS.min(height) } else { height };
-        BandPolicy { height, budget_ms, rows, ms_per_row: None }
+        BandPolicy { height, budget_ms, rows, ms_per_row: None, thin: ThinBands::default(), per_row: None }
     }
 
     /// Rows of the next band (the last band of a frame may cover fewer: those left).
@@ -89,6 +127,14 @@ impl BandPolicy {
             return;
         }
         let ms = if at_most > budget { at_most } else { at_least.min(at_most) };
+        if rows == 1 {
+            self.thin.push(ms);
+        }
+        if let Some(one_row) = self.thin.fastest().filter(|t| *t > FIXED_COST_BUDGETS * budget) {
+            if self.amortise(one_row, rows, ms, budget) {
+                return;
+            }
+        }
         // The latest band is believed: a slow one shrinks the next at once (it must fit), and a
         // fast one (a lucky band, or one after the slow first draw) grows it at most MAX_GROWTH
         // times, so one outlier neither overshoots the budget far nor keeps bands tiny.
@@ -97,6 +143,34 @@ impl BandPolicy {
         let target = budget * TARGET_FRACTION;
         let wanted = if estimate > 0.0 { (target / estimate).floor().min(u32::MAX as f64) as u32 } else { u32::MAX };
         self.rows = wanted.min(rows.saturating_mul(MAX_GROWTH)).clamp(1, self.height);
+    }
+
+    /// Band heights where a band costs `one_row` ms or more whatever its rows: a band of `rows`
+    /// took `ms`. The first one-row band is followed by a thicker probe; a thicker band gives
+    /// the cost per row beyond the first, and bands grow to the height at which the band's own
+    /// cost is half of each (at most [`MAX_GROWTH`]² times the last, so that one outlier does
+    /// not make whole frames). A thicker band within the budget shows that the cost was not the
+    /// band's: the one-row times are forgotten and the budget rules again (false).
+    fn amortise(&mut self, one_row: f64, rows: u32, ms: f64, budget: f64) -> bool {
+        if rows > 1 && ms <= budget {
+            self.thin = ThinBands::default();
+            self.per_row = None;
+            return false;
+        }
+        if rows > 1 {
+            self.per_row = Some(((ms - one_row) / (rows - 1) as f64).max(0.0));
+        }
+        let Some(per_row) = self.per_row else {
+            self.rows = PROBE_ROWS.clamp(1, self.height);
+            self.ms_per_row = Some(one_row);
+            return true;
+        };
+        let fixed = one_row - per_row;
+        let limit = rows.saturating_mul(MAX_GROWTH * MAX_GROWTH);
+        let wanted = if per_row > 0.0 { (fixed / per_row).ceil().min(u32::MAX as f64) as u32 } else { limit };
+        self.rows = wanted.min(limit).clamp(1, self.height);
+        self.ms_per_row = Some((fixed + per_row * self.rows as f64) / self.rows as f64);
+        true
     }
 }
 
@@ -189,6 +263,60 @@ mod tests {
         assert_eq!(p.rows(), 2, "floor(35 / 15)");
         p.record_between(2, f64::NAN, 10.0);
         assert_eq!(p.rows(), 2, "ignored");
+    }
+
+    /// Feeds `policy` bands of a device taking `fixed + per_row * rows` ms; returns the heights.
+    fn run_affine(policy: &mut BandPolicy, fixed: f64, per_row: f64, bands: usize) -> Vec<u32> {
+        (0..bands)
+            .map(|_| {
+                let rows = policy.rows();
+                policy.record(rows, fixed + rows as f64 * per_row);
+                rows
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_cost_per_band_past_the_budget_is_amortised_not_split_finer() {
+        // LittlestTokyo posed, WebGL2 on SwiftShader, 320x240: ~250 ms per band whatever its
+        // height, ~5 ms per row. One-row bands made a frame 240 x 255 ms = 61 s.
+        let mut p = BandPolicy::new(240, Some(DEFAULT_BUDGET_MS));
+        let rows = run_affine(&mut p, 250.0, 5.0, 12);
+        assert_eq!(&rows[..9], &[8, 1, 1, 1, 1, 1, 1, 8, 32], "six one-row bands, a probe, then growth");
+        assert_eq!(p.rows(), 50, "ceil(250 / 5): the band's own cost half of each band");
+        let frame_ms = p.bands() as f64 * (250.0 + 5.0 * p.rows() as f64);
+        assert!(frame_ms <= 2.0 * (250.0 + 240.0 * 5.0), "{frame_ms} ms per frame split, 1450 unsplit");
+        assert!((p.band_ms().unwrap() - 500.0).abs() < 1e-6, "{:?}", p.band_ms());
+        // A cost per band alone (no cost per row measurable): whole frames, growing 4x a band.
+        let mut p = BandPolicy::new(240, Some(DEFAULT_BUDGET_MS));
+        let rows = run_affine(&mut p, 250.0, 0.0, 11);
+        assert_eq!(&rows[7..], &[8, 32, 128, 240]);
+    }
+
+    #[test]
+    fn slow_rows_or_a_slow_moment_are_not_a_cost_per_band() {
+        // A device slow per row (one row 120 ms, eight 960): rows, not bands, cost; one probe,
+        // then one-row bands.
+        let mut p = BandPolicy::new(240, Some(DEFAULT_BUDGET_MS));
+        let rows = run_affine(&mut p, 0.0, 120.0, 20);
+        assert_eq!(&rows[6..9], &[1, 8, 1]);
+        assert!(rows[9..].iter().all(|&r| r == 1), "{rows:?}");
+        // One-row bands of 20 ms but for a moment (a busy machine, a late poll) of 200: the
+        // fastest of the last six is believed, so bands stay within the budget.
+        let mut p = BandPolicy::new(480, Some(DEFAULT_BUDGET_MS));
+        p.record(8, 4000.0);
+        for ms in [200.0, 20.0, 200.0, 200.0, 200.0, 200.0, 200.0] {
+            p.record(1, ms);
+        }
+        assert_eq!(p.rows(), 1, "35 ms at 200 ms per row");
+        // A thicker band within the budget after a fixed cost was believed: the budget rules.
+        let mut p = BandPolicy::new(480, Some(DEFAULT_BUDGET_MS));
+        for _ in 0..6 {
+            p.record(1, 150.0);
+        }
+        assert_eq!(p.rows(), PROBE_ROWS);
+        p.record(PROBE_ROWS, 16.0);
+        assert_eq!(p.rows(), 16, "floor(35 / 2) = 17, at most 2 x 8");
     }
 
     #[test]
