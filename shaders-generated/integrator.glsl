@@ -818,7 +818,7 @@ uint stack_entry(uint first, uint count) {
     return (first << 8) | count;
 }
 
-// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:89)
+// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:103)
 Hit no_hit() {
     return Hit(NONE, 0.0, 0.0, 0.0, 0u);
 }
@@ -933,6 +933,15 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
     return NodeHits(t, e);
 }
 
+// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:94)
+float cull_distance(float t) {
+    float widened = t;
+    if (t < 1e30) {
+        widened = t * 1.0000008;
+    }
+    return widened;
+}
+
 // scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:146)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
@@ -978,7 +987,7 @@ bool is_next_candidate(float t, uint triangle, uint instance, Hit after, Hit bes
     return before_best && past_after;
 }
 
-// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:371)
+// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:116)
 void intersect_leaf_visible(uint entry, uint instance, vec3 origin, vec3 dir, Hit after, inout Hit hit, inout Hit pending) {
     uint first = entry >> 8;
     uint i_end = first + (entry & 255u);
@@ -1029,7 +1038,7 @@ bool is_hole(uint triangle, uint material, float u, float v) {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:414)
+// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:403)
 Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
     vec3 world_inv_dir = safe_inverse(dir);
     uvec3 world_near = near_planes(world_inv_dir);
@@ -1085,7 +1094,7 @@ Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
                     leaves[0u] = entry;
                     leaf_count = 1u;
                 } else {
-                    NodeHits sorted = sort_children(intersect_node(entry >> 8, o, inv_dir, near, hit.t));
+                    NodeHits sorted = sort_children(intersect_node(entry >> 8, o, inv_dir, near, cull_distance(hit.t)));
                     float t0 = sorted.t.x;
                     float t1 = sorted.t.y;
                     float t2 = sorted.t.z;
@@ -1151,7 +1160,7 @@ Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
                         in_instance = false;
                     }
                     sp -= 1u;
-                    if (!(stack_t[sp] > hit.t)) {
+                    if (!(stack_t[sp] > cull_distance(hit.t))) {
                         entry = stack[sp];
                         entry_t = stack_t[sp];
                         visiting = true;
@@ -1175,28 +1184,7 @@ Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
     return hit;
 }
 
-// traverse_masked::intersect_leaf_masked (lightport-tracer/src/kernel/traverse_masked.rs:99)
-void intersect_leaf_masked(uint entry, uint instance, vec3 origin, vec3 dir, Hit after, inout Hit hit, inout Hit pending) {
-    uint first = entry >> 8;
-    uint i_end = first + (entry & 255u);
-    for (uint i = first; i < i_end; ++i) {
-        TriangleData tri = fetch_triangle(i);
-        TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if (tri.masked) {
-            Hit best = hit;
-            if (pending.triangle != NONE) {
-                best = pending;
-            }
-            if (is_next_candidate(h.t, i, instance, after, best)) {
-                pending = Hit(i, h.t, h.u, h.v, instance);
-            }
-        } else if (h.t < hit.t) {
-            hit = Hit(i, h.t, h.u, h.v, instance);
-        }
-    }
-}
-
-// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:137)
+// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:154)
 Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -1226,7 +1214,7 @@ Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
                     leaves[0u] = entry;
                     leaf_count = 1u;
                 } else {
-                    NodeHits sorted = sort_children(intersect_node(entry >> 8, origin, inv_dir, near, hit.t));
+                    NodeHits sorted = sort_children(intersect_node(entry >> 8, origin, inv_dir, near, cull_distance(hit.t)));
                     float t0 = sorted.t.x;
                     float t1 = sorted.t.y;
                     float t2 = sorted.t.z;
@@ -1274,7 +1262,7 @@ Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
             rescan = false;
             uint k_end = leaf_count;
             for (uint k = 0u; k < k_end; ++k) {
-                intersect_leaf_masked(leaves[k], 0u, origin, dir, after, hit, pending);
+                intersect_leaf_visible(leaves[k], 0u, origin, dir, after, hit, pending);
             }
             after = before_any_hit();
             if ((pending.triangle != NONE) && !is_next_candidate(pending.t, pending.triangle, 0u, before_any_hit(), hit)) {
@@ -1284,7 +1272,7 @@ Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
                 visiting = false;
                 while (sp > 0u && !visiting) {
                     sp -= 1u;
-                    if (!(stack_t[sp] > hit.t)) {
+                    if (!(stack_t[sp] > cull_distance(hit.t))) {
                         entry = stack[sp];
                         visiting = true;
                     }
@@ -1303,7 +1291,7 @@ Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
                     visiting = false;
                     while (sp > 0u && !visiting) {
                         sp -= 1u;
-                        if (!(stack_t[sp] > hit.t)) {
+                        if (!(stack_t[sp] > cull_distance(hit.t))) {
                             entry = stack[sp];
                             visiting = true;
                         }
@@ -2412,7 +2400,7 @@ bool any_hit_two_level(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:262)
+// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:286)
 bool occluded_masked_one_level(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -2586,7 +2574,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
     }
 }
 
-// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:572)
+// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:562)
 bool occluded_masked_two_level(vec3 origin, vec3 dir, float t_max) {
     vec3 world_inv_dir = safe_inverse(dir);
     uvec3 world_near = near_planes(world_inv_dir);

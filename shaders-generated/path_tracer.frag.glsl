@@ -479,7 +479,7 @@ uint stack_entry(uint first, uint count) {
     return (first << 8) | count;
 }
 
-// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:89)
+// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:103)
 Hit no_hit() {
     return Hit(NONE, 0.0, 0.0, 0.0, 0u);
 }
@@ -604,6 +604,15 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
     return NodeHits(t, e);
 }
 
+// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:94)
+float cull_distance(float t) {
+    float widened = t;
+    if (t < 1e30) {
+        widened = t * 1.0000008;
+    }
+    return widened;
+}
+
 // scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
@@ -652,7 +661,7 @@ bool is_next_candidate(float t, uint triangle, uint instance, Hit after, Hit bes
     return before_best && past_after;
 }
 
-// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:371)
+// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:116)
 void intersect_leaf_visible(uint entry, uint instance, vec3 origin, vec3 dir, Hit after, inout Hit hit, inout Hit pending) {
     uint first = entry >> 8;
     uint i_end = first + (entry & 255u);
@@ -824,7 +833,7 @@ bool is_hole(uint triangle, uint material, float u, float v) {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:414)
+// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:403)
 Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
     vec3 world_inv_dir = safe_inverse(dir);
     uvec3 world_near = near_planes(world_inv_dir);
@@ -880,7 +889,7 @@ Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
                     leaves[0u] = entry;
                     leaf_count = 1u;
                 } else {
-                    NodeHits sorted = sort_children(intersect_node(entry >> 8, o, inv_dir, near, hit.t));
+                    NodeHits sorted = sort_children(intersect_node(entry >> 8, o, inv_dir, near, cull_distance(hit.t)));
                     float t0 = sorted.t.x;
                     float t1 = sorted.t.y;
                     float t2 = sorted.t.z;
@@ -946,7 +955,7 @@ Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
                         in_instance = false;
                     }
                     sp -= 1u;
-                    if (!(stack_t[sp] > hit.t)) {
+                    if (!(stack_t[sp] > cull_distance(hit.t))) {
                         entry = stack[sp];
                         entry_t = stack_t[sp];
                         visiting = true;
@@ -1815,7 +1824,7 @@ bool shade_hit(inout PathState path, Hit hit, inout FirstHit first, inout Shadow
     return true;
 }
 
-// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:572)
+// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:562)
 bool occluded_masked_two_level(vec3 origin, vec3 dir, float t_max) {
     vec3 world_inv_dir = safe_inverse(dir);
     uvec3 world_near = near_planes(world_inv_dir);

@@ -455,7 +455,7 @@ fn stack_entry(first: u32, count: u32) -> u32 {
     return (first << 8u) | count;
 }
 
-// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:89)
+// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:103)
 fn no_hit() -> Hit {
     return Hit(NONE, 0.0, 0.0, 0.0, 0u);
 }
@@ -580,6 +580,15 @@ fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u
     return NodeHits(t, e);
 }
 
+// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:94)
+fn cull_distance(t: f32) -> f32 {
+    var widened: f32 = t;
+    if t < 1e30 {
+        widened = t * 1.0000008;
+    }
+    return widened;
+}
+
 // scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
@@ -628,7 +637,7 @@ fn is_next_candidate(t: f32, triangle: u32, instance: u32, after: Hit, best: Hit
     return before_best && past_after;
 }
 
-// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:371)
+// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:116)
 fn intersect_leaf_visible(entry: u32, instance: u32, origin: vec3<f32>, dir: vec3<f32>, after: Hit, hit: ptr<function, Hit>, pending: ptr<function, Hit>) {
     let first: u32 = entry >> 8u;
     let i_end: u32 = first + (entry & 255u);
@@ -800,7 +809,7 @@ fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:414)
+// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:403)
 fn closest_visible_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let world_inv_dir: vec3<f32> = safe_inverse(dir);
     let world_near: vec3<u32> = near_planes(world_inv_dir);
@@ -853,7 +862,7 @@ fn closest_visible_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
                     leaves[0u] = entry;
                     leaf_count = 1u;
                 } else {
-                    let sorted: NodeHits = sort_children(intersect_node(entry >> 8u, o, inv_dir, near, hit.t));
+                    let sorted: NodeHits = sort_children(intersect_node(entry >> 8u, o, inv_dir, near, cull_distance(hit.t)));
                     let t0: f32 = sorted.t.x;
                     let t1: f32 = sorted.t.y;
                     let t2: f32 = sorted.t.z;
@@ -919,7 +928,7 @@ fn closest_visible_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
                         in_instance = false;
                     }
                     sp -= 1u;
-                    if !(stack_t[sp] > hit.t) {
+                    if !(stack_t[sp] > cull_distance(hit.t)) {
                         entry = stack[sp];
                         entry_t = stack_t[sp];
                         visiting = true;
@@ -1788,7 +1797,7 @@ fn shade_hit(path: ptr<function, PathState>, hit: Hit, first: ptr<function, Firs
     return true;
 }
 
-// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:572)
+// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:562)
 fn occluded_masked_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let world_inv_dir: vec3<f32> = safe_inverse(dir);
     let world_near: vec3<u32> = near_planes(world_inv_dir);

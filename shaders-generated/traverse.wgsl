@@ -270,7 +270,7 @@ fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:89)
+// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:103)
 fn no_hit() -> Hit {
     return Hit(NONE, 0.0, 0.0, 0.0, 0u);
 }
@@ -362,7 +362,16 @@ fn sort_children(n: NodeHits) -> NodeHits {
     return NodeHits(vec4<f32>(t0, t1, t2, t3), vec4<u32>(e0, e1, e2, e3));
 }
 
-// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:371)
+// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:94)
+fn cull_distance(t: f32) -> f32 {
+    var widened: f32 = t;
+    if t < 1e30 {
+        widened = t * 1.0000008;
+    }
+    return widened;
+}
+
+// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:116)
 fn intersect_leaf_visible(entry: u32, instance: u32, origin: vec3<f32>, dir: vec3<f32>, after: Hit, hit: ptr<function, Hit>, pending: ptr<function, Hit>) {
     let first: u32 = entry >> 8u;
     let i_end: u32 = first + (entry & 255u);
@@ -540,7 +549,7 @@ fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:414)
+// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:403)
 fn closest_visible_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let world_inv_dir: vec3<f32> = safe_inverse(dir);
     let world_near: vec3<u32> = near_planes(world_inv_dir);
@@ -593,7 +602,7 @@ fn closest_visible_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
                     leaves[0u] = entry;
                     leaf_count = 1u;
                 } else {
-                    let sorted: NodeHits = sort_children(intersect_node(entry >> 8u, o, inv_dir, near, hit.t));
+                    let sorted: NodeHits = sort_children(intersect_node(entry >> 8u, o, inv_dir, near, cull_distance(hit.t)));
                     let t0: f32 = sorted.t.x;
                     let t1: f32 = sorted.t.y;
                     let t2: f32 = sorted.t.z;
@@ -659,7 +668,7 @@ fn closest_visible_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
                         in_instance = false;
                     }
                     sp -= 1u;
-                    if !(stack_t[sp] > hit.t) {
+                    if !(stack_t[sp] > cull_distance(hit.t)) {
                         entry = stack[sp];
                         entry_t = stack_t[sp];
                         visiting = true;
@@ -683,28 +692,7 @@ fn closest_visible_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
     return hit;
 }
 
-// traverse_masked::intersect_leaf_masked (lightport-tracer/src/kernel/traverse_masked.rs:99)
-fn intersect_leaf_masked(entry: u32, instance: u32, origin: vec3<f32>, dir: vec3<f32>, after: Hit, hit: ptr<function, Hit>, pending: ptr<function, Hit>) {
-    let first: u32 = entry >> 8u;
-    let i_end: u32 = first + (entry & 255u);
-    for (var i: u32 = first; i < i_end; i++) {
-        let tri: TriangleData = fetch_triangle(i);
-        let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if tri.masked {
-            var best: Hit = *hit;
-            if (*pending).triangle != NONE {
-                best = *pending;
-            }
-            if is_next_candidate(h.t, i, instance, after, best) {
-                *pending = Hit(i, h.t, h.u, h.v, instance);
-            }
-        } else if h.t < (*hit).t {
-            *hit = Hit(i, h.t, h.u, h.v, instance);
-        }
-    }
-}
-
-// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:137)
+// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:154)
 fn closest_visible_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -731,7 +719,7 @@ fn closest_visible_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
                     leaves[0u] = entry;
                     leaf_count = 1u;
                 } else {
-                    let sorted: NodeHits = sort_children(intersect_node(entry >> 8u, origin, inv_dir, near, hit.t));
+                    let sorted: NodeHits = sort_children(intersect_node(entry >> 8u, origin, inv_dir, near, cull_distance(hit.t)));
                     let t0: f32 = sorted.t.x;
                     let t1: f32 = sorted.t.y;
                     let t2: f32 = sorted.t.z;
@@ -779,7 +767,7 @@ fn closest_visible_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
             rescan = false;
             let k_end: u32 = leaf_count;
             for (var k: u32 = 0u; k < k_end; k++) {
-                intersect_leaf_masked(leaves[k], 0u, origin, dir, after, &hit, &pending);
+                intersect_leaf_visible(leaves[k], 0u, origin, dir, after, &hit, &pending);
             }
             after = before_any_hit();
             if (pending.triangle != NONE) && !is_next_candidate(pending.t, pending.triangle, 0u, before_any_hit(), hit) {
@@ -789,7 +777,7 @@ fn closest_visible_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
                 visiting = false;
                 while sp > 0u && !visiting {
                     sp -= 1u;
-                    if !(stack_t[sp] > hit.t) {
+                    if !(stack_t[sp] > cull_distance(hit.t)) {
                         entry = stack[sp];
                         visiting = true;
                     }
@@ -808,7 +796,7 @@ fn closest_visible_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
                     visiting = false;
                     while sp > 0u && !visiting {
                         sp -= 1u;
-                        if !(stack_t[sp] > hit.t) {
+                        if !(stack_t[sp] > cull_distance(hit.t)) {
                             entry = stack[sp];
                             visiting = true;
                         }
@@ -1133,7 +1121,7 @@ fn any_hit_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     return blocked;
 }
 
-// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:262)
+// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:286)
 fn occluded_masked_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -1303,7 +1291,7 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     }
 }
 
-// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:572)
+// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:562)
 fn occluded_masked_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let world_inv_dir: vec3<f32> = safe_inverse(dir);
     let world_near: vec3<u32> = near_planes(world_inv_dir);

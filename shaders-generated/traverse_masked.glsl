@@ -755,12 +755,21 @@ Hit visible_hit(vec3 origin, vec3 dir, float t_max, bool only_masked) {
     return hit;
 }
 
-// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:89)
+// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:103)
 Hit no_hit() {
     return Hit(NONE, 0.0, 0.0, 0.0, 0u);
 }
 
-// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:371)
+// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:94)
+float cull_distance(float t) {
+    float widened = t;
+    if (t < 1e30) {
+        widened = t * 1.0000008;
+    }
+    return widened;
+}
+
+// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:116)
 void intersect_leaf_visible(uint entry, uint instance, vec3 origin, vec3 dir, Hit after, inout Hit hit, inout Hit pending) {
     uint first = entry >> 8;
     uint i_end = first + (entry & 255u);
@@ -781,7 +790,7 @@ void intersect_leaf_visible(uint entry, uint instance, vec3 origin, vec3 dir, Hi
     }
 }
 
-// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:414)
+// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:403)
 Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
     vec3 world_inv_dir = safe_inverse(dir);
     uvec3 world_near = near_planes(world_inv_dir);
@@ -837,7 +846,7 @@ Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
                     leaves[0u] = entry;
                     leaf_count = 1u;
                 } else {
-                    NodeHits sorted = sort_children(intersect_node(entry >> 8, o, inv_dir, near, hit.t));
+                    NodeHits sorted = sort_children(intersect_node(entry >> 8, o, inv_dir, near, cull_distance(hit.t)));
                     float t0 = sorted.t.x;
                     float t1 = sorted.t.y;
                     float t2 = sorted.t.z;
@@ -903,7 +912,7 @@ Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
                         in_instance = false;
                     }
                     sp -= 1u;
-                    if (!(stack_t[sp] > hit.t)) {
+                    if (!(stack_t[sp] > cull_distance(hit.t))) {
                         entry = stack[sp];
                         entry_t = stack_t[sp];
                         visiting = true;
@@ -927,28 +936,7 @@ Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
     return hit;
 }
 
-// traverse_masked::intersect_leaf_masked (lightport-tracer/src/kernel/traverse_masked.rs:99)
-void intersect_leaf_masked(uint entry, uint instance, vec3 origin, vec3 dir, Hit after, inout Hit hit, inout Hit pending) {
-    uint first = entry >> 8;
-    uint i_end = first + (entry & 255u);
-    for (uint i = first; i < i_end; ++i) {
-        TriangleData tri = fetch_triangle(i);
-        TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if (tri.masked) {
-            Hit best = hit;
-            if (pending.triangle != NONE) {
-                best = pending;
-            }
-            if (is_next_candidate(h.t, i, instance, after, best)) {
-                pending = Hit(i, h.t, h.u, h.v, instance);
-            }
-        } else if (h.t < hit.t) {
-            hit = Hit(i, h.t, h.u, h.v, instance);
-        }
-    }
-}
-
-// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:137)
+// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:154)
 Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -978,7 +966,7 @@ Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
                     leaves[0u] = entry;
                     leaf_count = 1u;
                 } else {
-                    NodeHits sorted = sort_children(intersect_node(entry >> 8, origin, inv_dir, near, hit.t));
+                    NodeHits sorted = sort_children(intersect_node(entry >> 8, origin, inv_dir, near, cull_distance(hit.t)));
                     float t0 = sorted.t.x;
                     float t1 = sorted.t.y;
                     float t2 = sorted.t.z;
@@ -1026,7 +1014,7 @@ Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
             rescan = false;
             uint k_end = leaf_count;
             for (uint k = 0u; k < k_end; ++k) {
-                intersect_leaf_masked(leaves[k], 0u, origin, dir, after, hit, pending);
+                intersect_leaf_visible(leaves[k], 0u, origin, dir, after, hit, pending);
             }
             after = before_any_hit();
             if ((pending.triangle != NONE) && !is_next_candidate(pending.t, pending.triangle, 0u, before_any_hit(), hit)) {
@@ -1036,7 +1024,7 @@ Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
                 visiting = false;
                 while (sp > 0u && !visiting) {
                     sp -= 1u;
-                    if (!(stack_t[sp] > hit.t)) {
+                    if (!(stack_t[sp] > cull_distance(hit.t))) {
                         entry = stack[sp];
                         visiting = true;
                     }
@@ -1055,7 +1043,7 @@ Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
                     visiting = false;
                     while (sp > 0u && !visiting) {
                         sp -= 1u;
-                        if (!(stack_t[sp] > hit.t)) {
+                        if (!(stack_t[sp] > cull_distance(hit.t))) {
                             entry = stack[sp];
                             visiting = true;
                         }
@@ -1077,7 +1065,7 @@ Hit closest_visible(vec3 origin, vec3 dir, float t_max) {
     }
 }
 
-// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:262)
+// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:286)
 bool occluded_masked_one_level(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -1180,7 +1168,7 @@ bool occluded_masked_one_level(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:572)
+// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:562)
 bool occluded_masked_two_level(vec3 origin, vec3 dir, float t_max) {
     vec3 world_inv_dir = safe_inverse(dir);
     uvec3 world_near = near_planes(world_inv_dir);

@@ -85,18 +85,35 @@ pub mod traverse_masked {
         }
     }
 
+    /// The distance boxes are culled against while `t` is the closest hit: a little beyond
+    /// it (1 + 2 * gamma(3), as `intersect_node` widens exits), so that a box whose entry
+    /// rounds above a triangle at exactly `t` (a triangle in the plane of one of its faces) is
+    /// still visited, and a tie with that triangle is broken by the (t, instance, triangle)
+    /// order, as `visible_hit` breaks it, not by the order traversal met the two in.
+    #[inline(always)]
+    pub fn cull_distance(t: f32) -> f32 {
+        let mut widened = t;
+        if t < 1e30 {
+            widened = t * 1.000_000_8;
+        }
+        widened
+    }
+
     /// No hit: the triangle NONE (a masked candidate not yet found).
     pub fn no_hit() -> Hit {
         Hit { triangle: NONE, t: 0.0, u: 0.0, v: 0.0, instance: 0 }
     }
 
-    /// The leaf test of `closest_visible_one_level`: the triangles of leaf `entry` of
-    /// `instance`; an unmasked one closer than `hit` becomes `hit`, a masked one becomes
-    /// `pending` when it is the next candidate after `after` before both (its hole test is the
-    /// caller's, out of the traversal loop).
+    /// The leaf test of `closest_visible_one_level` and `closest_visible_two_level`: the
+    /// triangles of leaf `entry` of `instance` (the ray in its space; instance 0 in one-level
+    /// scenes); an unmasked one before `hit` in (t, instance, triangle) order becomes `hit`, a
+    /// masked one becomes `pending` when it is the next candidate after `after` before both
+    /// (its hole test is the caller's, out of the loop). The order decides ties among unmasked
+    /// triangles too, as in `visible_hit`: a first-found rule would keep whichever of two
+    /// coincident triangles traversal met first, where `visible_hit` keeps the lower index.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    pub fn intersect_leaf_masked(
+    pub fn intersect_leaf_visible(
         scene: &Scene,
         entry: u32,
         instance: u32,
@@ -118,7 +135,7 @@ pub mod traverse_masked {
                 if is_next_candidate(scene, h.t, i, instance, after, best) {
                     *pending = Hit { triangle: i, t: h.t, u: h.u, v: h.v, instance };
                 }
-            } else if h.t < hit.t {
+            } else if is_next_candidate(scene, h.t, i, instance, before_any_hit(), *hit) {
                 *hit = Hit { triangle: i, t: h.t, u: h.u, v: h.v, instance };
             }
         }
@@ -162,7 +179,14 @@ pub mod traverse_masked {
                         leaves[0] = entry;
                         leaf_count = 1;
                     } else {
-                        let sorted = sort_children(intersect_node(scene, entry >> 8, origin, inv_dir, near, hit.t));
+                        let sorted = sort_children(intersect_node(
+                            scene,
+                            entry >> 8,
+                            origin,
+                            inv_dir,
+                            near,
+                            cull_distance(hit.t),
+                        ));
                         let t0 = sorted.t.x;
                         let t1 = sorted.t.y;
                         let t2 = sorted.t.z;
@@ -209,7 +233,7 @@ pub mod traverse_masked {
                 }
                 rescan = false;
                 for k in 0..leaf_count {
-                    intersect_leaf_masked(scene, leaves[k], 0, origin, dir, after, &mut hit, &mut pending);
+                    intersect_leaf_visible(scene, leaves[k], 0, origin, dir, after, &mut hit, &mut pending);
                 }
                 after = before_any_hit();
                 if pending.triangle != NONE
@@ -222,7 +246,7 @@ pub mod traverse_masked {
                     visiting = false;
                     while sp > 0 && !visiting {
                         sp -= 1;
-                        if !(stack_t[sp] > hit.t) {
+                        if !(stack_t[sp] > cull_distance(hit.t)) {
                             entry = stack[sp];
                             visiting = true;
                         }
@@ -241,7 +265,7 @@ pub mod traverse_masked {
                         visiting = false;
                         while sp > 0 && !visiting {
                             sp -= 1;
-                            if !(stack_t[sp] > hit.t) {
+                            if !(stack_t[sp] > cull_distance(hit.t)) {
                                 entry = stack[sp];
                                 visiting = true;
                             }
@@ -361,41 +385,6 @@ pub mod traverse_masked {
         blocked
     }
 
-    /// The leaf test of `closest_visible_two_level`: the triangles of leaf `entry` of
-    /// `instance` (the ray in its space); an unmasked one before `hit` in (t, instance,
-    /// triangle) order becomes `hit`, a masked one becomes `pending` when it is the next
-    /// candidate after `after` before both (its hole test is the caller's, out of the loop).
-    /// The order decides ties among unmasked triangles too, as in `visible_hit`.
-    #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
-    pub fn intersect_leaf_visible(
-        scene: &Scene,
-        entry: u32,
-        instance: u32,
-        origin: Vec3,
-        dir: Vec3,
-        after: Hit,
-        hit: &mut Hit,
-        pending: &mut Hit,
-    ) {
-        let first = entry >> 8;
-        for i in first..first + (entry & 255) {
-            let tri = fetch_triangle(scene, i);
-            let h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-            if tri.masked {
-                let mut best = *hit;
-                if pending.triangle != NONE {
-                    best = *pending;
-                }
-                if is_next_candidate(scene, h.t, i, instance, after, best) {
-                    *pending = Hit { triangle: i, t: h.t, u: h.u, v: h.v, instance };
-                }
-            } else if is_next_candidate(scene, h.t, i, instance, before_any_hit(), *hit) {
-                *hit = Hit { triangle: i, t: h.t, u: h.u, v: h.v, instance };
-            }
-        }
-    }
-
     /// `closest_visible_one_level` for two-level scenes: `closest_candidate_two_level`'s loop
     /// (one stack over both levels, the ray moved into an instance's space at a top-level leaf
     /// and back when the stack drops below it) with the pending candidate of the one-level
@@ -466,7 +455,8 @@ pub mod traverse_masked {
                         leaves[0] = entry;
                         leaf_count = 1;
                     } else {
-                        let sorted = sort_children(intersect_node(scene, entry >> 8, o, inv_dir, near, hit.t));
+                        let sorted =
+                            sort_children(intersect_node(scene, entry >> 8, o, inv_dir, near, cull_distance(hit.t)));
                         let t0 = sorted.t.x;
                         let t1 = sorted.t.y;
                         let t2 = sorted.t.z;
@@ -536,7 +526,7 @@ pub mod traverse_masked {
                             in_instance = false;
                         }
                         sp -= 1;
-                        if !(stack_t[sp] > hit.t) {
+                        if !(stack_t[sp] > cull_distance(hit.t)) {
                             entry = stack[sp];
                             entry_t = stack_t[sp];
                             visiting = true;
