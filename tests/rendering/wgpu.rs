@@ -31,7 +31,8 @@ fn a_scene_beyond_the_storage_buffer_limit_is_a_clear_error() {
     let message = err.to_string();
     assert!(matches!(err, WgpuError::SceneTooLarge { max: 256, .. }), "{message}");
     assert!(
-        message.contains("max_storage_buffer_binding_size is 256") && message.contains("lp_scene_vec4f (triangles + "),
+        message.contains("max_storage_buffer_binding_size is 256")
+            && message.contains("lp_scene_vec4f (materials + triangles + "),
         "{message}"
     );
 

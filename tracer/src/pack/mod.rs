@@ -258,19 +258,34 @@ impl Packed {
     /// needs another kernel variant is [`PackError::KernelChanged`], and nothing changes; a
     /// kernel with a larger traversal stack than the pose needs draws it (the pose's
     /// `leaf_stack_limit` keeps its pushes within its own need).
-    pub fn take_geometry(&mut self, moved: Packed) -> Result<(), PackError> {
+    pub fn take_geometry(&mut self, mut moved: Packed) -> Result<(), PackError> {
+        self.exchange_geometry(&mut moved)
+    }
+
+    /// [`take_geometry`](Self::take_geometry) that hands back what it replaced: `moved` then
+    /// holds this scene's former geometry, and exchanging again restores it exactly (a renderer
+    /// that cannot upload the moved arrays undoes the take, without copying the scene first).
+    pub fn exchange_geometry(&mut self, moved: &mut Packed) -> Result<(), PackError> {
         let stack = self.features.traversal_stack;
         let now = Features { denoise_guide: self.features.denoise_guide, ..moved.features };
         let fits = now.traversal_stack <= stack || stack == 0;
         if (Features { traversal_stack: stack, ..now }) != self.features || !fits {
             return Err(PackError::KernelChanged { was: Box::new(self.features), now: Box::new(now) });
         }
-        let (s, m) = (&mut self.scene, moved.scene);
-        (s.triangles, s.shading, s.nodes, s.node_children, s.lights) =
-            (m.triangles, m.shading, m.nodes, m.node_children, m.lights);
-        (s.tangent_first, s.texcoord1_first, s.instance_first) = (m.tangent_first, m.texcoord1_first, m.instance_first);
-        (s.light_count, s.scene_scale, s.leaf_stack_limit) = (m.light_count, m.scene_scale, m.leaf_stack_limit);
-        (self.triangle_count, self.light_count) = (moved.triangle_count, moved.light_count);
+        let (s, m) = (&mut self.scene, &mut moved.scene);
+        std::mem::swap(&mut s.triangles, &mut m.triangles);
+        std::mem::swap(&mut s.shading, &mut m.shading);
+        std::mem::swap(&mut s.nodes, &mut m.nodes);
+        std::mem::swap(&mut s.node_children, &mut m.node_children);
+        std::mem::swap(&mut s.lights, &mut m.lights);
+        std::mem::swap(&mut s.tangent_first, &mut m.tangent_first);
+        std::mem::swap(&mut s.texcoord1_first, &mut m.texcoord1_first);
+        std::mem::swap(&mut s.instance_first, &mut m.instance_first);
+        std::mem::swap(&mut s.light_count, &mut m.light_count);
+        std::mem::swap(&mut s.scene_scale, &mut m.scene_scale);
+        std::mem::swap(&mut s.leaf_stack_limit, &mut m.leaf_stack_limit);
+        std::mem::swap(&mut self.triangle_count, &mut moved.triangle_count);
+        std::mem::swap(&mut self.light_count, &mut moved.light_count);
         Ok(())
     }
 

@@ -112,6 +112,41 @@ impl GlRenderer {
         Ok(renderer)
     }
 
+    /// Uploads the packed scene's geometry (just taken) as new data textures.
+    fn upload_geometry(&mut self) -> Result<(), GlError> {
+        let packed = &self.packed;
+        let max_texture_size = self.pipeline.info.max_texture_size;
+        packed.arrays(max_texture_size).map_err(|reason| GlError::SceneTooLarge { max_texture_size, reason })?;
+        let gl = &self.gl;
+        let program = self.pipeline.program;
+        let mut fresh = Objects::default();
+        // SAFETY: the program was linked on this context, which is current.
+        unsafe { gl.use_program(Some(program)) };
+        let reuse = Some(Reuse { textures: &self.pipeline.data_textures, upload: &Packed::GEOMETRY_ARRAYS });
+        let bound = bind_scene(gl, program, &packed.scene.fields(), max_texture_size, &mut fresh, reuse);
+        // SAFETY: as above.
+        unsafe { gl.use_program(None) };
+        let bound = match bound {
+            Ok(bound) if bound.data_textures.len() == self.pipeline.data_textures.len() => bound,
+            other => {
+                fresh.delete(gl);
+                let detail = "its arrays do not bind to the kernel's data textures".to_string();
+                return Err(other.err().unwrap_or(GlError::Gl { what: "uploading a moved scene", detail }));
+            }
+        };
+        let kept: Vec<glow::Texture> = bound.data_textures.iter().map(|&(_, t)| t).collect();
+        let old: Vec<glow::Texture> =
+            self.pipeline.data_textures.iter().map(|&(_, t)| t).filter(|t| !kept.contains(t)).collect();
+        self.objects.textures.retain(|t| !old.contains(t));
+        // SAFETY: the old data textures belong to this context and no longer to the pipeline.
+        unsafe { old.iter().for_each(|&t| gl.delete_texture(t)) };
+        self.objects.textures.append(&mut fresh.textures);
+        self.pipeline.data_textures = bound.data_textures;
+        self.pipeline.frame_seed_location = bound.frame_seed_location;
+        self.pipeline.frame_index_location = bound.frame_index_location;
+        Ok(())
+    }
+
     /// Makes the renderer's own EGL context current if another one is.
     fn activate(&self) -> Result<(), GlError> {
         #[cfg(feature = "gl")]
@@ -282,41 +317,16 @@ impl Renderer for GlRenderer {
 
     /// Uploads the moved arrays (`Packed::GEOMETRY_ARRAYS`) as new data textures on the same
     /// units (the kernel variant is the same), keeps the others (textures, materials, sky) and
-    /// sets every uniform; the program is kept.
-    fn take_geometry(&mut self, moved: Packed) -> Result<(), RenderError> {
+    /// sets every uniform; the program is kept, and nothing is copied on the host. A pose the
+    /// context refuses leaves the renderer as it was.
+    fn take_geometry(&mut self, mut moved: Packed) -> Result<(), RenderError> {
         self.activate()?;
-        let mut packed = self.packed.clone();
-        packed.take_geometry(moved)?;
-        let max_texture_size = self.pipeline.info.max_texture_size;
-        packed.arrays(max_texture_size).map_err(|reason| GlError::SceneTooLarge { max_texture_size, reason })?;
-        let gl = &self.gl;
-        let program = self.pipeline.program;
-        let mut fresh = Objects::default();
-        // SAFETY: the program was linked on this context, which is current.
-        unsafe { gl.use_program(Some(program)) };
-        let reuse = Some(Reuse { textures: &self.pipeline.data_textures, upload: &Packed::GEOMETRY_ARRAYS });
-        let bound = bind_scene(gl, program, &packed.scene.fields(), max_texture_size, &mut fresh, reuse);
-        // SAFETY: as above.
-        unsafe { gl.use_program(None) };
-        let bound = match bound {
-            Ok(bound) if bound.data_textures.len() == self.pipeline.data_textures.len() => bound,
-            other => {
-                fresh.delete(gl);
-                let detail = "its arrays do not bind to the kernel's data textures".to_string();
-                return Err(other.err().unwrap_or(GlError::Gl { what: "uploading a moved scene", detail }).into());
-            }
-        };
-        let kept: Vec<glow::Texture> = bound.data_textures.iter().map(|&(_, t)| t).collect();
-        let old: Vec<glow::Texture> =
-            self.pipeline.data_textures.iter().map(|&(_, t)| t).filter(|t| !kept.contains(t)).collect();
-        self.objects.textures.retain(|t| !old.contains(t));
-        // SAFETY: the old data textures belong to this context and no longer to the pipeline.
-        unsafe { old.iter().for_each(|&t| gl.delete_texture(t)) };
-        self.objects.textures.append(&mut fresh.textures);
-        self.pipeline.data_textures = bound.data_textures;
-        self.pipeline.frame_seed_location = bound.frame_seed_location;
-        self.pipeline.frame_index_location = bound.frame_index_location;
-        self.packed = packed;
+        self.packed.exchange_geometry(&mut moved)?;
+        if let Err(e) = self.upload_geometry() {
+            // Back to the geometry the textures hold (the exchange was just checked).
+            let _ = self.packed.exchange_geometry(&mut moved);
+            return Err(e.into());
+        }
         self.restart()
     }
 

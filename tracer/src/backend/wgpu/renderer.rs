@@ -6,10 +6,10 @@ use lightport_codegen::Target;
 use wgpu::util::DeviceExt;
 
 use super::{
-    bind_group_layouts, bind_groups, check_scene_limits, map_readback, reflect, scene_uniform_bytes, start_pipeline,
-    storage_limit, u32_uniform_bytes, upload_scene, BufferEntry, OwnResource, PipelineCheck, ShaderLayout,
-    UncapturedErrors, UniformLayout, WgpuDevice, WgpuError, WgpuFilter, WgpuInfo, WgpuOptions, ACCUMULATION_BUFFER,
-    SCENE_UNIFORM, TARGET_UNIFORM, WORKGROUP_SIZE,
+    bind_group_layouts, bind_groups, check_scene_limits, map_readback, most_buffer_bytes, reflect, scene_room,
+    scene_uniform_bytes, start_pipeline, storage_limit, take_scene_geometry, u32_uniform_bytes, upload_scene_with_room,
+    BufferEntry, OwnResource, PipelineCheck, ShaderLayout, UncapturedErrors, UniformLayout, WgpuDevice, WgpuError,
+    WgpuFilter, WgpuInfo, WgpuOptions, ACCUMULATION_BUFFER, SCENE_UNIFORM, TARGET_UNIFORM, WORKGROUP_SIZE,
 };
 use crate::backend::{
     frame_seed, ms_since, update_uniforms, BuildTimes, GuideSums, PendingAccumulation, PendingGuideSums, RenderError,
@@ -28,6 +28,8 @@ struct Pipeline {
     layout: ShaderLayout,
     group_layouts: Vec<wgpu::BindGroupLayout>,
     own_entries: Vec<BufferEntry>,
+    /// The scene's uniform and texel buffers, which a moved scene's geometry is written over.
+    scene_entries: Vec<BufferEntry>,
     scene_uniform: Option<(wgpu::Buffer, UniformLayout)>,
     accumulation: wgpu::Buffer,
     readback: wgpu::Buffer,
@@ -139,6 +141,23 @@ impl WgpuRenderer {
             uncaptured?;
             read.await
         }
+    }
+}
+
+impl WgpuRenderer {
+    /// Writes the packed scene's geometry (just taken) to the device.
+    fn upload_geometry(&mut self) -> Result<(), WgpuError> {
+        let p = &mut self.pipeline;
+        let scene = &self.packed.scene;
+        check_scene_limits(&self.device.limits, &self.options, scene, &p.layout)?;
+        let d = &self.device.device;
+        let max_bytes = most_buffer_bytes(&self.device.limits, &self.options);
+        let (entries, uniform) = (&mut p.scene_entries, &mut p.scene_uniform);
+        if take_scene_geometry(d, &self.device.queue, &p.layout, scene, max_bytes, entries, uniform)? {
+            let entries: Vec<BufferEntry> = p.scene_entries.iter().chain(&p.own_entries).cloned().collect();
+            p.bind_groups = bind_groups(d, &p.group_layouts, &entries);
+        }
+        Ok(())
     }
 }
 
@@ -293,20 +312,18 @@ impl Renderer for WgpuRenderer {
         self.restart()
     }
 
-    /// New scene buffers (their layout may differ: a moved scene's arrays can change length)
-    /// bound with the pipeline's own; the pipeline is kept.
-    fn take_geometry(&mut self, moved: Packed) -> Result<(), RenderError> {
+    /// The moved arrays written over the tails of the scene's buffers (`take_scene_geometry`:
+    /// in place while they fit, else new buffers bound with the pipeline's own); the pipeline
+    /// and every other array (textures, materials, sky) are kept, and nothing is copied on
+    /// the host. A pose the device's limits refuse leaves the renderer as it was.
+    fn take_geometry(&mut self, mut moved: Packed) -> Result<(), RenderError> {
         self.check_uncaptured()?;
-        let mut packed = self.packed.clone();
-        packed.take_geometry(moved)?;
-        let p = &mut self.pipeline;
-        let d = &self.device.device;
-        check_scene_limits(&self.device.limits, &self.options, &packed.scene, &p.layout)?;
-        let (mut entries, scene_uniform) = upload_scene(d, &p.layout, &packed.scene)?;
-        entries.extend(p.own_entries.iter().cloned());
-        p.bind_groups = bind_groups(d, &p.group_layouts, &entries);
-        p.scene_uniform = scene_uniform;
-        self.packed = packed;
+        self.packed.exchange_geometry(&mut moved)?;
+        if let Err(e) = self.upload_geometry() {
+            // Back to the geometry the buffers hold (the exchange was just checked).
+            let _ = self.packed.exchange_geometry(&mut moved);
+            return Err(e.into());
+        }
         self.restart()
     }
 
@@ -424,7 +441,9 @@ fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<
     let workgroups = check_image_limits(&device.limits, options, scene)?;
     let d = &device.device;
     let uploading = web_time::Instant::now();
-    let (mut entries, scene_uniform) = upload_scene(d, &layout, scene)?;
+    let (mut entries, scene_uniform) =
+        upload_scene_with_room(d, &layout, scene, scene_room(&device.limits, options, &packed.features))?;
+    let scene_entries = entries.clone();
 
     let (width, height) = (scene.width as u64, scene.height as u64);
     let accumulation = d.create_buffer(&wgpu::BufferDescriptor {
@@ -482,6 +501,7 @@ fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<
         layout,
         group_layouts,
         own_entries,
+        scene_entries,
         scene_uniform,
         accumulation,
         readback,

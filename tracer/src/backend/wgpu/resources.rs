@@ -14,6 +14,8 @@ use wgpu::util::DeviceExt;
 
 use super::compile::{annotate_messages, Message};
 use super::{WgpuError, WgpuOptions};
+use crate::kernel::Features;
+use crate::pack::Packed;
 use kernel_dsl::{Resource, Resources};
 
 /// Where each resource of the generated shader is bound, as the shader declares it: the
@@ -59,7 +61,9 @@ pub(crate) struct PlacedArray<'a> {
 }
 
 /// The texel arrays the shader reads (the `scene` uniform's `lp_start_*` members, in their
-/// order), each placed after the previous array of its element type.
+/// order), each placed after the previous array of its element type; the arrays a moved scene
+/// replaces ([`Packed::GEOMETRY_ARRAYS`]) last, so that taking a pose rewrites only the tail of
+/// each buffer ([`take_scene_geometry`]).
 pub(crate) fn place_arrays<'a>(
     uniform: Option<&UniformLayout>,
     global: &str,
@@ -68,14 +72,16 @@ pub(crate) fn place_arrays<'a>(
     let bindings = scene.fields();
     let mut ends = [0u64; 2];
     let mut placed = Vec::new();
-    for (member, _) in uniform.map_or(&[][..], |u| &u.members) {
-        let Some(field) = member.strip_prefix(START_PREFIX) else { continue };
+    let members: Vec<&str> = uniform.map_or(Vec::new(), |u| u.members.iter().map(|(m, _)| m.as_str()).collect());
+    let (moving, steady): (Vec<&str>, Vec<&str>) =
+        members.iter().filter_map(|m| m.strip_prefix(START_PREFIX)).partition(|f| is_moving(f));
+    for field in steady.into_iter().chain(moving) {
         let (name, bytes, unsigned): (&'static str, &[u8], bool) = match bindings.iter().find(|(n, _)| *n == field) {
             Some((n, Resource::Vec4s(t))) => (n, bytemuck::cast_slice(t.as_slice()), false),
             Some((n, Resource::UVec4s(t))) => (n, bytemuck::cast_slice(t.as_slice()), true),
             other => {
                 return Err(WgpuError::UnboundResource {
-                    name: format!("{global}.{member}"),
+                    name: format!("{global}.{START_PREFIX}{field}"),
                     detail: other.map_or(String::new(), |(_, b)| {
                         format!(" as a texel array's start (the field is {})", b.dsl_type())
                     }),
@@ -87,6 +93,11 @@ pub(crate) fn place_arrays<'a>(
         *end += bytes.len() as u64 / 16;
     }
     Ok(placed)
+}
+
+/// Whether a moved scene replaces texel array `field` ([`Packed::GEOMETRY_ARRAYS`]).
+fn is_moving(field: &str) -> bool {
+    Packed::GEOMETRY_ARRAYS.contains(&field)
 }
 
 /// The bytes of the texel buffer of one element type: its arrays one after another (one zero
@@ -316,6 +327,18 @@ pub(crate) fn upload_scene(
     layout: &ShaderLayout,
     scene: &dyn Resources,
 ) -> Result<(Vec<BufferEntry>, Option<SceneUniform>), WgpuError> {
+    upload_scene_with_room(d, layout, scene, None)
+}
+
+/// [`upload_scene`] with `room`: each texel buffer then has an eighth of its moving tail's size
+/// to spare (up to `room` bytes in all), so that the next poses, whose top level and remade
+/// meshes may need a few more nodes, are written in place.
+pub(crate) fn upload_scene_with_room(
+    d: &wgpu::Device,
+    layout: &ShaderLayout,
+    scene: &dyn Resources,
+    room: Option<u64>,
+) -> Result<(Vec<BufferEntry>, Option<SceneUniform>), WgpuError> {
     let mut entries = Vec::new();
     let mut scene_uniform = None;
     if let Some(u) = &layout.scene_uniform {
@@ -330,10 +353,18 @@ pub(crate) fn upload_scene(
     }
     let placed = place_arrays(layout.scene_uniform.as_ref(), &layout.global, scene)?;
     for texels in &layout.texel_buffers {
+        let bytes = texel_buffer_bytes(&placed, texels.unsigned);
+        let tail: u64 = placed
+            .iter()
+            .filter(|a| a.unsigned == texels.unsigned && is_moving(a.field))
+            .map(|a| a.bytes.len() as u64)
+            .sum();
+        let size = room.map_or(bytes, |max| (bytes + tail / 8).next_multiple_of(16).min(max).max(bytes));
         let buffer = d.create_buffer(&wgpu::BufferDescriptor {
             label: Some(&texel_buffer_name(&layout.global, texels.unsigned)),
-            size: texel_buffer_bytes(&placed, texels.unsigned),
-            // COPY_DST: an image pass's output becomes the next pass's input in place.
+            size,
+            // COPY_DST: an image pass's output becomes the next pass's input in place, and a
+            // moved scene's geometry is written over the tail.
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: true,
         });
@@ -352,6 +383,61 @@ pub(crate) fn upload_scene(
         entries.push(BufferEntry { group: texels.group, binding: texels.binding, buffer, ty });
     }
     Ok((entries, scene_uniform))
+}
+
+/// The room a renderer's scene buffers get ([`upload_scene_with_room`]): the most bytes a
+/// buffer may have, for a two-level scene (`Features::instances`, the only kind that moves);
+/// `None` (exact sizes) for a one-level one.
+pub(crate) fn scene_room(limits: &wgpu::Limits, options: &WgpuOptions, features: &Features) -> Option<u64> {
+    features.instances.then(|| most_buffer_bytes(limits, options))
+}
+
+/// The most bytes one storage buffer the shader binds whole may have.
+pub(crate) fn most_buffer_bytes(limits: &wgpu::Limits, options: &WgpuOptions) -> u64 {
+    storage_limit(limits, options).min(limits.max_buffer_size)
+}
+
+/// Takes `scene`, the scene `entries` and `uniform` were uploaded for with another pose's
+/// geometry (only [`Packed::GEOMETRY_ARRAYS`] differ, placed last): its geometry is written
+/// over each texel buffer's tail and its uniform (the arrays' starts) rewritten, in place,
+/// when every buffer has room; otherwise the scene is uploaded again with room to spare, at
+/// most `max_bytes` a buffer, into new buffers. Returns whether the buffers are new (bind
+/// groups must be made again). Limits are the caller's to check first (`check_scene_limits`).
+pub(crate) fn take_scene_geometry(
+    d: &wgpu::Device,
+    queue: &wgpu::Queue,
+    layout: &ShaderLayout,
+    scene: &dyn Resources,
+    max_bytes: u64,
+    entries: &mut Vec<BufferEntry>,
+    uniform: &mut Option<SceneUniform>,
+) -> Result<bool, WgpuError> {
+    let placed = place_arrays(layout.scene_uniform.as_ref(), &layout.global, scene)?;
+    let buffer_of = |t: &TexelBuffer| {
+        entries.iter().find(|e| (e.group, e.binding) == (t.group, t.binding)).map(|e| e.buffer.clone())
+    };
+    let buffers: Option<Vec<(bool, wgpu::Buffer)>> =
+        layout.texel_buffers.iter().map(|t| buffer_of(t).map(|b| (t.unsigned, b))).collect();
+    let fits = buffers
+        .as_ref()
+        .is_some_and(|buffers| buffers.iter().all(|(unsigned, b)| b.size() >= texel_buffer_bytes(&placed, *unsigned)));
+    match (buffers, fits) {
+        (Some(buffers), true) => {
+            for a in placed.iter().filter(|a| is_moving(a.field) && !a.bytes.is_empty()) {
+                if let Some((_, buffer)) = buffers.iter().find(|(unsigned, _)| *unsigned == a.unsigned) {
+                    queue.write_buffer(buffer, a.start * 16, a.bytes);
+                }
+            }
+            if let Some((buffer, u)) = uniform.as_ref() {
+                queue.write_buffer(buffer, 0, &scene_uniform_bytes(u, &layout.global, scene)?);
+            }
+            Ok(false)
+        }
+        _ => {
+            (*entries, *uniform) = upload_scene_with_room(d, layout, scene, Some(max_bytes))?;
+            Ok(true)
+        }
+    }
 }
 
 /// The bind group layouts of `entries` (groups 0, 1, ... as the shader numbers them) and the

@@ -17,9 +17,10 @@ use glam::Vec4;
 
 use super::wavefront_pool::{pool_resources, PoolBuffer, PoolResources};
 use super::{
-    bind_group_layouts, bind_groups, check_scene_limits, map_readback, reflect, scene_uniform_bytes, start_pipelines,
-    storage_limit, upload_scene, BufferEntry, DeviceRenderer, PipelineCheck, ShaderLayout, UncapturedErrors,
-    UniformLayout, WgpuDevice, WgpuError, WgpuOptions, SCENE_UNIFORM,
+    bind_group_layouts, bind_groups, check_scene_limits, map_readback, most_buffer_bytes, reflect, scene_room,
+    scene_uniform_bytes, start_pipelines, storage_limit, take_scene_geometry, upload_scene_with_room, BufferEntry,
+    DeviceRenderer, PipelineCheck, ShaderLayout, UncapturedErrors, UniformLayout, WgpuDevice, WgpuError, WgpuOptions,
+    SCENE_UNIFORM,
 };
 use crate::backend::wavefront::{
     iteration_bound, pool_size, Stage, WavefrontCounts, WavefrontError, ITERATION, ITERATIONS_PER_SUBMISSION,
@@ -47,6 +48,8 @@ pub struct WavefrontRenderer {
     /// The pool's and the dispatch sizes' buffers (groups 1 and 2), bound again with a moved
     /// scene's.
     pool_entries: Vec<BufferEntry>,
+    /// The scene's uniform and texel buffers, which a moved scene's geometry is written over.
+    scene_entries: Vec<BufferEntry>,
     bind_groups: Vec<wgpu::BindGroup>,
     scene_uniform: Option<(wgpu::Buffer, UniformLayout)>,
     paths_uniform: (wgpu::Buffer, UniformLayout),
@@ -80,6 +83,20 @@ struct CountersRead {
 }
 
 impl WavefrontRenderer {
+    /// Writes the packed scene's geometry (just taken) to the device.
+    fn upload_geometry(&mut self) -> Result<(), WgpuError> {
+        let scene = &self.packed.scene;
+        check_scene_limits(&self.device.limits, &self.options, scene, &self.layout)?;
+        let d = &self.device.device;
+        let max_bytes = most_buffer_bytes(&self.device.limits, &self.options);
+        let (entries, uniform) = (&mut self.scene_entries, &mut self.scene_uniform);
+        if take_scene_geometry(d, &self.device.queue, &self.layout, scene, max_bytes, entries, uniform)? {
+            let entries: Vec<BufferEntry> = self.scene_entries.iter().chain(&self.pool_entries).cloned().collect();
+            self.bind_groups = bind_groups(d, &self.group_layouts, &entries);
+        }
+        Ok(())
+    }
+
     /// A wavefront renderer on `device` for `packed` with `seed` (the megakernel's random
     /// sequence), its pool sized from the device's storage binding limit.
     pub async fn new(
@@ -116,12 +133,13 @@ impl WavefrontRenderer {
         let scene = &packed.scene;
         check_scene_limits(&device.limits, options, scene, &layout)?;
         let pixels = scene.width * scene.height;
-        let max_binding = storage_limit(&device.limits, options).min(device.limits.max_buffer_size);
+        let max_binding = most_buffer_bytes(&device.limits, options);
         let pool = pool_size(pixels, max_binding, &packed.features)?;
 
         let uploading = web_time::Instant::now();
         let d = &device.device;
-        let (mut entries, scene_uniform) = upload_scene(d, &layout, scene)?;
+        let (mut entries, scene_uniform) =
+            upload_scene_with_room(d, &layout, scene, scene_room(&device.limits, options, &packed.features))?;
         let scene_entries = entries.len();
         let pool_resources = pool_resources(d, &generated, &layout, pool, pixels, seed)?;
         entries.extend(pool_resources.entries.iter().cloned());
@@ -158,6 +176,7 @@ impl WavefrontRenderer {
         let (pipelines, check) = start_pipelines(d, &generated, &entry_points);
         let times = BuildTimes { codegen_ms, compile_ms: ms_since(compiling), upload_ms };
         let pool_entries = entries.split_off(scene_entries);
+        let scene_entries = entries;
         let renderer = WavefrontRenderer {
             options: options.clone(),
             frames: 0,
@@ -166,6 +185,7 @@ impl WavefrontRenderer {
             layout,
             group_layouts,
             pool_entries,
+            scene_entries,
             bind_groups,
             scene_uniform,
             paths_uniform,
@@ -572,18 +592,16 @@ impl Renderer for WavefrontRenderer {
         self.restart()
     }
 
-    /// New scene buffers bound with the pool's; the pipelines are kept.
-    fn take_geometry(&mut self, moved: Packed) -> Result<(), RenderError> {
+    /// The moved arrays written over the tails of the scene's buffers, as the megakernel's
+    /// renderer does (new buffers are bound with the pool's); the pipelines are kept.
+    fn take_geometry(&mut self, mut moved: Packed) -> Result<(), RenderError> {
         self.uncaptured.check()?;
-        let mut packed = self.packed.clone();
-        packed.take_geometry(moved)?;
-        let d = &self.device.device;
-        check_scene_limits(&self.device.limits, &self.options, &packed.scene, &self.layout)?;
-        let (mut entries, scene_uniform) = upload_scene(d, &self.layout, &packed.scene)?;
-        entries.extend(self.pool_entries.iter().cloned());
-        self.bind_groups = bind_groups(d, &self.group_layouts, &entries);
-        self.scene_uniform = scene_uniform;
-        self.packed = packed;
+        self.packed.exchange_geometry(&mut moved)?;
+        if let Err(e) = self.upload_geometry() {
+            // Back to the geometry the buffers hold (the exchange was just checked).
+            let _ = self.packed.exchange_geometry(&mut moved);
+            return Err(e.into());
+        }
         self.restart()
     }
 
