@@ -208,45 +208,38 @@ impl Posing {
         // The nodes: the top level, then each level moved behind it, then the placements.
         let old = &self.first.scene;
         let (top_planes, top_children) = pack_nodes(&top_wide);
-        let (mut planes, mut children) = (top_planes.as_slice().to_vec(), top_children.as_slice().to_vec());
         let mut roots = Vec::with_capacity(self.levels.len());
+        let mut pieces = Vec::with_capacity(self.levels.len());
         let mut bottom = (0u32, 0u32);
+        let mut node_count = top_children.len();
         for (level, rebuilt) in self.levels.iter().zip(&rebuilt) {
-            let root = children.len();
-            roots.push(root as u32);
-            match (&level.kind, rebuilt) {
+            roots.push(node_count as u32);
+            let piece = match (&level.kind, rebuilt) {
                 (LevelKind::Kept { nodes, need }, _) => {
-                    let shift = root as i64 - nodes.start as i64;
-                    let texels = nodes.start * NODE_TEXELS as usize..nodes.end * NODE_TEXELS as usize;
-                    planes.extend_from_slice(&old.nodes.as_slice()[texels]);
-                    children.extend(old.node_children.as_slice()[nodes.clone()].iter().map(|c| shifted(*c, shift)));
                     bottom = (bottom.0.max(need.0), bottom.1.max(need.1));
+                    let texels = nodes.start * NODE_TEXELS as usize..nodes.end * NODE_TEXELS as usize;
+                    let shift = node_count as i64 - nodes.start as i64;
+                    Piece::Kept(&old.nodes.as_slice()[texels], &old.node_children.as_slice()[nodes.clone()], shift)
                 }
                 (LevelKind::Deformed { .. }, Some((_, wide))) => {
-                    let moved = crate::bvh::WideBvh {
-                        nodes: wide
-                            .nodes
-                            .iter()
-                            .map(|n| rebase(n, root as u32, level.triangles.start as u32))
-                            .collect(),
-                        ..wide.clone()
-                    };
-                    let (p, c) = pack_nodes(&moved);
-                    planes.extend_from_slice(p.as_slice());
-                    children.extend_from_slice(c.as_slice());
                     bottom = (bottom.0.max(wide.stack_needed), bottom.1.max(wide.stack_needed_with_leaves));
+                    let (root, first_triangle) = (node_count as u32, level.triangles.start as u32);
+                    let nodes = wide.nodes.iter().map(|n| rebase(n, root, first_triangle)).collect();
+                    let (planes, children) = pack_nodes(&crate::bvh::WideBvh { nodes, ..wide.clone() });
+                    Piece::Made(planes, children)
                 }
                 (LevelKind::Deformed { .. }, None) => unreachable!("every deformed level is rebuilt above"),
-            }
+            };
+            node_count += piece.children_len();
+            pieces.push(piece);
         }
-        if children.len() >= MAX_EXACT {
+        if node_count >= MAX_EXACT {
             return Err(PackError::TooManyTriangles(self.first.triangle_count));
         }
-        let instance_first = planes.len() as u32;
         let has_static = self.static_box.is_some() as usize;
+        let mut placement_texels = Vec::with_capacity(top.triangle_order.len() * INSTANCE_TEXELS as usize);
         for &p in &top.triangle_order {
-            let p = p as usize;
-            let texels = match p.checked_sub(has_static) {
+            let texels = match (p as usize).checked_sub(has_static) {
                 None => instance_texels(Mat4::IDENTITY, roots[0], true),
                 Some(i) => {
                     let instance = &parts.instances[i];
@@ -257,48 +250,78 @@ impl Posing {
                     instance_texels(instance.transform, roots[level], instance.transform == Mat4::IDENTITY)
                 }
             };
-            planes.extend_from_slice(&texels);
+            placement_texels.extend_from_slice(&texels);
         }
         let top_need = top_wide.stack_needed_with_leaves + 1;
         let (traversal_stack, leaf_stack_limit) = check_stack(top_need, bottom.0, bottom.1)?;
+        let instance_first = node_count * NODE_TEXELS as usize;
+        // Written in place (one copy of each kept level).
+        let planes = Texels::par_from_fill(instance_first + placement_texels.len(), |out| {
+            let mut at = 0;
+            let mut copy = |from: &[Vec4]| {
+                out[at..at + from.len()].copy_from_slice(from);
+                at += from.len();
+            };
+            copy(top_planes.as_slice());
+            pieces.iter().for_each(|p| copy(p.planes()));
+            copy(&placement_texels);
+        });
+        let children = Texels::par_from_fill(node_count, |out| {
+            out[..top_children.len()].copy_from_slice(top_children.as_slice());
+            let mut at = top_children.len();
+            for piece in &pieces {
+                let to = &mut out[at..at + piece.children_len()];
+                match piece {
+                    Piece::Kept(_, from, shift) => to.iter_mut().zip(*from).for_each(|(o, c)| *o = shifted(*c, *shift)),
+                    Piece::Made(_, from) => to.copy_from_slice(from.as_slice()),
+                }
+                at += to.len();
+            }
+        });
 
         // The deformed meshes' triangles, in their new order, over the first pose's.
         let mut packed = self.first.clone();
         let s = &mut packed.scene;
         if rebuilt.iter().any(Option::is_some) {
             let f = &packed.features;
-            let mut triangles = s.triangles.as_slice().to_vec();
-            let mut shading = f.shading.then(|| s.shading.as_slice().to_vec());
-            for (level, rebuilt) in self.levels.iter().zip(&rebuilt) {
-                let (LevelKind::Deformed { alpha_tested }, Some((bvh, _)), Some(m)) =
-                    (&level.kind, rebuilt, level.mesh)
-                else {
-                    continue;
-                };
-                for (j, &source) in bvh.triangle_order.iter().enumerate() {
-                    let (t, i) = (&parts.meshes[m].triangles[source as usize], level.triangles.start + j);
-                    let alpha = f.alpha_mask && alpha_tested[source as usize];
-                    put(&mut triangles, i, TRIANGLE_TEXELS, 0, &triangle_texels(t, None, alpha));
-                    if let Some(shading) = shading.as_mut() {
-                        put(shading, i, SHADING_TEXELS, 0, &shading_texels(t));
+            // Each deformed triangle: its index, the triangle, whether it is alpha-tested.
+            let each = |write: &mut dyn FnMut(usize, &crate::scene::Triangle, bool)| {
+                for (level, rebuilt) in self.levels.iter().zip(&rebuilt) {
+                    let (LevelKind::Deformed { alpha_tested }, Some((bvh, _)), Some(m)) =
+                        (&level.kind, rebuilt, level.mesh)
+                    else {
+                        continue;
+                    };
+                    for (j, &source) in bvh.triangle_order.iter().enumerate() {
+                        let t = &parts.meshes[m].triangles[source as usize];
+                        write(level.triangles.start + j, t, f.alpha_mask && alpha_tested[source as usize]);
+                    }
+                }
+            };
+            s.triangles = Texels::par_from_fill(s.triangles.len(), |out| {
+                out.copy_from_slice(s.triangles.as_slice());
+                each(&mut |i, t, alpha| put(out, i, TRIANGLE_TEXELS, 0, &triangle_texels(t, None, alpha)));
+            });
+            if f.shading {
+                let (tangent_first, texcoord1_first) = (s.tangent_first, s.texcoord1_first);
+                s.shading = Texels::par_from_fill(s.shading.len(), |out| {
+                    out.copy_from_slice(s.shading.as_slice());
+                    each(&mut |i, t, _| {
+                        put(out, i, SHADING_TEXELS, 0, &shading_texels(t));
                         if f.normal_map {
-                            put(shading, i, TANGENT_TEXELS, s.tangent_first, &t.tangents);
+                            put(out, i, TANGENT_TEXELS, tangent_first, &t.tangents);
                         }
                         if f.texcoord1 {
                             let uvs1 = super::texture_refs::texcoord1_texels(&t.uvs1);
-                            put(shading, i, TEXCOORD1_TEXELS, s.texcoord1_first, &uvs1);
+                            put(out, i, TEXCOORD1_TEXELS, texcoord1_first, &uvs1);
                         }
-                    }
-                }
-            }
-            s.triangles = Texels::new(triangles);
-            if let Some(shading) = shading {
-                s.shading = Texels::new(shading);
+                    });
+                });
             }
         }
-        s.nodes = Texels::new(planes);
-        s.node_children = Texels::new(children);
-        s.instance_first = instance_first;
+        s.nodes = planes;
+        s.node_children = children;
+        s.instance_first = instance_first as u32;
         s.leaf_stack_limit = leaf_stack_limit;
         let mut bounds = Aabb::EMPTY;
         for b in boxes.iter().filter(|b| b.min.cmple(b.max).all()) {
@@ -309,6 +332,29 @@ impl Posing {
         s.scene_scale = if scene_scale.is_finite() { scene_scale } else { 1.0 };
         packed.features.traversal_stack = traversal_stack;
         Ok(packed)
+    }
+}
+
+/// A level's nodes in a pose: a kept level's (its planes, its child entries and how far its
+/// child nodes move) or a rebuilt one's.
+enum Piece<'a> {
+    Kept(&'a [Vec4], &'a [UVec4], i64),
+    Made(Texels<Vec4>, Texels<UVec4>),
+}
+
+impl Piece<'_> {
+    fn planes(&self) -> &[Vec4] {
+        match self {
+            Piece::Kept(planes, _, _) => planes,
+            Piece::Made(planes, _) => planes.as_slice(),
+        }
+    }
+
+    fn children_len(&self) -> usize {
+        match self {
+            Piece::Kept(_, children, _) => children.len(),
+            Piece::Made(_, children) => children.len(),
+        }
     }
 }
 
