@@ -243,7 +243,8 @@ impl Posing {
                 None => instance_texels(Mat4::IDENTITY, roots[0], true),
                 Some(i) => {
                     let instance = &parts.instances[i];
-                    let level = self.level_of_mesh[instance.mesh as usize].ok_or(PackError::NotThisPose(format!(
+                    let level = self.level_of_mesh.get(instance.mesh as usize).copied().flatten();
+                    let level = level.ok_or(PackError::NotThisPose(format!(
                         "instance {i} names mesh {}, which had no placement",
                         instance.mesh
                     )))?;
@@ -360,8 +361,11 @@ impl Piece<'_> {
 
 /// Writes triangle `i`'s `N` texels of a section of `per` texels per triangle from `first`.
 fn put<const N: usize>(out: &mut [Vec4], i: usize, per: u32, first: u32, texels: &[Vec4; N]) {
+    // Within the array (a decoded bundle's lengths are checked against its counts).
     let at = first as usize + i * per as usize;
-    out[at..at + N].copy_from_slice(texels);
+    if let Some(slots) = out.get_mut(at..at + N) {
+        slots.copy_from_slice(texels);
+    }
 }
 
 /// A node's child entries with its child nodes' indices moved by `shift` (leaves and unused
