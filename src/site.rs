@@ -171,11 +171,15 @@ impl Site {
         let mut failures = Vec::new();
         for (name, path) in scene_names(&args.scenes) {
             let t0 = Instant::now();
-            let packed = (|| -> Result<tracer::pack::Packed> {
+            // A scene whose animation moves something keeps its motion (unless flattened): its
+            // bundle carries the motion section, and its pose is packed as a moving scene's.
+            let packed = (|| -> Result<(tracer::pack::Packed, Option<tracer::scene::Scene>)> {
                 let builtin = path.filter(|p| !p.exists()).and_then(|p| tracer::scene::builtin(p.to_str()?));
+                let mut options = args.pose.load_options(args.strict)?;
+                options.keep_motion = !args.pose.flatten;
                 let mut scene = match (path, builtin) {
                     (_, Some(generated)) => generated,
-                    (Some(path), None) => tracer::scene::load_with(path, &args.pose.load_options(args.strict)?)?,
+                    (Some(path), None) => tracer::scene::load_with(path, &options)?,
                     (None, None) => tracer::scene::cornell_box(),
                 };
                 args.pose.apply_to_generated(&mut scene)?;
@@ -183,10 +187,15 @@ impl Site {
                     scene.sky = sky.clone();
                 }
                 crate::report_warnings(&scene, &format!("{name}: "), args.strict)?;
+                let settings = tracer::kernel::RenderSettings::default();
+                if scene.motion.is_some() {
+                    let (moving, packed) = tracer::pack::MovingScene::new(scene, &settings).context("packing")?;
+                    return Ok((packed, Some(moving.scene().clone())));
+                }
                 let bvh = tracer::pack::static_bvh(&scene).context("building the BVH")?;
-                tracer::pack::pack(&scene, &bvh, &tracer::kernel::RenderSettings::default()).context("packing")
+                Ok((tracer::pack::pack(&scene, &bvh, &settings).context("packing")?, None))
             })();
-            let packed = match packed {
+            let (packed, moving) = match packed {
                 Ok(p) => p,
                 Err(e) => {
                     failures.push(format!("{}: {e:#}", path.map_or(name.clone(), |p| p.display().to_string())));
@@ -195,7 +204,10 @@ impl Site {
             };
             let prepare = t0.elapsed();
             let t1 = Instant::now();
-            let bytes = tracer::bundle::encode_named(&name, &packed);
+            let bytes = match &moving {
+                Some(scene) => tracer::bundle::encode_scene(&name, &packed, scene),
+                None => tracer::bundle::encode_named(&name, &packed),
+            };
             let encode = t1.elapsed();
             // What the page will do (in wasm): a bundle that does not decode is a bug worth
             // stopping for, and the time is a hint of the page's load time.

@@ -270,7 +270,8 @@ fn an_installed_binary_serves_and_exports_its_built_in_page() {
 
 /// `export` (and `serve`, which share the scene options) poses a scene as `render` does: the
 /// bundle of an animated scene at `--time 0` differs from the one at `--time 1`, the Cornell
-/// box's does not, and a time that is not a number is refused.
+/// box's does not, and a time that is not a number is refused. The animated scene's bundle
+/// carries its motion section (`tracer/src/bundle/motion.rs`).
 #[test]
 fn export_poses_the_scene_at_the_time_asked() {
     let scene = crate::common::test_data("scenes/generated/animated-skinned-instanced.gltf");
@@ -292,6 +293,13 @@ fn export_poses_the_scene_at_the_time_asked() {
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
             .collect();
         names.sort();
+        // The moving scene's bundle carries its motion section, the Cornell box's none.
+        let moving = names
+            .iter()
+            .map(|n| std::fs::read(out_dir.join("bundles").join(n)).unwrap())
+            .filter(|b| tracer::bundle::Bundle::decode(b).unwrap().moving.is_some())
+            .count();
+        assert_eq!(moving, 1, "one bundle with a motion section: {names:?}");
         names
     };
     let (at_0, at_1) = (bundles_at("0"), bundles_at("1"));

@@ -92,3 +92,74 @@ fn a_renderer_takes_pose_after_pose_and_refuses_another_kernel() {
         assert!(frames_bits(r.as_mut(), 1) == before, "{kind:?}: the refused scene changed the image");
     }
 }
+
+/// The moving-parts glTF (a skinned, morphed mesh and three placements turning) inside a larger
+/// scene: `instanced_shapes(3)`'s static floor and light, its sphere placed 9 times (a static
+/// level of many nodes, kept levels of shared meshes, a top level of 13 placements whose size
+/// changes from pose to pose), and its sky or none.
+fn moving_in_a_larger_scene(sky: bool) -> Scene {
+    let options = LoadOptions { keep_motion: true, ..Default::default() };
+    let mut scene: Scene = load_gltf_slice(&crate::common::moving_parts_gltf(), None, &options).expect("loads");
+    let more = tracer::scene::instanced_shapes(3);
+    let (materials, meshes) = (scene.materials.len() as u32, scene.meshes.len() as u32);
+    scene
+        .triangles
+        .extend(more.triangles.iter().map(|t| tracer::scene::Triangle { material: t.material + materials, ..*t }));
+    scene.meshes.extend(more.meshes.iter().map(|m| tracer::scene::Mesh {
+        triangles:
+            m.triangles.iter().map(|t| tracer::scene::Triangle { material: t.material + materials, ..*t }).collect(),
+    }));
+    scene.instances.extend(more.instances.iter().map(|i| tracer::scene::Instance { mesh: i.mesh + meshes, ..*i }));
+    scene.materials.extend(more.materials);
+    scene.sky = if sky { more.sky } else { None };
+    scene
+}
+
+/// A served moving scene poses from what its bundle carries (`tracer::pack::Posing`: the
+/// packed first pose and the motion section's moving parts) to the same packed arrays, bit for
+/// bit (compared as encoded bundles), as the loaded scene's `MovingScene` at several times; and
+/// both are what packing the posed scene whole gives, except the light list, which stays the
+/// first pose's (with a sky, only the sky's share of the light samples could differ). With
+/// and without a sky; a bundle whose moving parts do not match its arrays is refused.
+#[test]
+fn a_bundle_poses_as_the_loaded_scene_and_as_packing_it_whole() {
+    use tracer::bundle::{encode, encode_scene, Bundle};
+    use tracer::pack::MovingScene;
+    let settings = RenderSettings { width: 20, height: 16, strategy: Strategy::Mis, max_depth: 3 };
+    for sky in [false, true] {
+        let scene = moving_in_a_larger_scene(sky);
+        let (bvh, textures) = (static_bvh(&scene).expect("BVH"), pack_textures(&scene));
+        let (mut loaded, first) = MovingScene::new(scene.clone(), &settings).expect("packs");
+        let bytes = encode_scene("moving", &first, loaded.scene());
+        let bundle = Bundle::decode(&bytes).expect("decodes");
+        let parts = bundle.moving.expect("a motion section");
+        let mut served = MovingScene::from_bundle(&bundle.packed, parts).expect("poses from the bundle");
+        let mut whole = scene.clone();
+        let mut top_sizes = std::collections::BTreeSet::new();
+        for time in [0.0, 0.3, 0.8, 1.7, 0.05, 9.0] {
+            assert!(loaded.pose(time).expect("poses") && served.pose(time).expect("poses"));
+            whole.pose(time).expect("poses");
+            let (a, b) = (loaded.pack().expect("packs"), served.pack().expect("packs"));
+            assert!(encode(&a) == encode(&b), "sky {sky}, {time} s: the bundle's pose differs from the loaded scene's");
+            let mut reference = pack_with_textures(&whole, &bvh, &textures, &settings).expect("packs");
+            assert_eq!(reference.features, a.features, "sky {sky}, {time} s");
+            if !sky {
+                assert!(reference.scene.lights == a.scene.lights, "{time} s: without a sky the lights never change");
+            }
+            reference.scene.lights = first.scene.lights.clone();
+            assert!(encode(&reference) == encode(&a), "sky {sky}, {time} s: the pose differs from packing it whole");
+            top_sizes.insert(a.scene.instance_first);
+        }
+        assert!(top_sizes.len() > 1, "sky {sky}: the node arrays never changed size: {top_sizes:?}");
+    }
+    // Moving parts that are not the packed scene's: refused with a reason, not a panic.
+    let (_, other) = MovingScene::new(moving_in_a_larger_scene(false), &settings).expect("packs");
+    let small = load_gltf_slice(
+        &crate::common::moving_parts_gltf(),
+        None,
+        &LoadOptions { keep_motion: true, ..Default::default() },
+    )
+    .expect("loads");
+    let err = Bundle::decode(&encode_scene("mixed", &other, &small)).expect_err("mismatched parts");
+    assert!(err.to_string().contains("do not match"), "{err}");
+}

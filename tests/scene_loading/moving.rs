@@ -463,19 +463,27 @@ fn a_bundle_carries_the_motion_and_poses_as_the_scene_does() {
 #[test]
 fn a_corrupt_motion_section_is_an_error_never_a_panic() {
     for (name, bytes) in &moving_cases() {
-        let (scene, _) = load_moving(bytes);
+        let (scene, packed) = load_moving(bytes);
         let (anim, ints, floats) = scene::motion_streams(&scene).unwrap();
+        // What the page does with accepted parts: pose them over the bundle's packed arrays.
+        let pose_over_packed = |mut moving: Scene| {
+            if let Ok(posing) = tracer::pack::Posing::new(&packed, &moving) {
+                for t in [0.0, 0.7, 5.0] {
+                    if moving.pose(t).is_ok() {
+                        let _ = posing.pack(&moving);
+                    }
+                }
+            }
+        };
         assert!(scene::moving_from_streams(&anim, &ints, &floats).is_ok(), "{name}");
         let mut accepted = 0;
         for i in 0..ints.len() {
             for v in [0, 1, ints[i].wrapping_add(1), ints[i].wrapping_sub(1), 1 << 30, u32::MAX] {
                 let mut bad = ints.clone();
                 bad[i] = v;
-                if let Ok(mut moving) = scene::moving_from_streams(&anim, &bad, &floats) {
+                if let Ok(moving) = scene::moving_from_streams(&anim, &bad, &floats) {
                     accepted += 1;
-                    for t in [0.0, 0.7, 5.0] {
-                        let _ = moving.pose(t);
-                    }
+                    pose_over_packed(moving);
                 }
             }
         }
@@ -493,10 +501,8 @@ fn a_corrupt_motion_section_is_an_error_never_a_panic() {
             // Huge values (keyframe times out of order, matrices that cannot be inverted).
             for v in [-1e30, 1e30, 0.0] {
                 bad[i] = v;
-                if let Ok(mut moving) = scene::moving_from_streams(&anim, &ints, &bad) {
-                    for t in [0.0, 0.7, 5.0] {
-                        let _ = moving.pose(t);
-                    }
+                if let Ok(moving) = scene::moving_from_streams(&anim, &ints, &bad) {
+                    pose_over_packed(moving);
                 }
             }
         }

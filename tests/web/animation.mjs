@@ -1,4 +1,6 @@
-// The `animation` scenario: a moving glTF (`--files PATH`) opened on the page, which plays it.
+// The `animation` scenario: a moving glTF (`--files PATH`) opened on the page, which plays it;
+// without `--files`, the served scene `--scene NAME` (a bundle with a motion section), which
+// plays the same way.
 // Reports the animation's read-outs, the accumulation at three poses set while paused
 // (0 s, 0.8 s, 0 s again: the accumulation restarts at each, the same pose renders the same
 // image), and a few seconds of the frame loop playing (the time moves on, the accumulation
@@ -15,13 +17,16 @@ export async function animation(o) {
     return await withBrowser(profile, async (context) => {
       const { page, error } = await open(context, o.url, { scene: o.scene, size: o.size, paused: '1' });
       if (error) return { error };
-      const name = o.files.split('/').pop();
-      const mimeType = name.toLowerCase().endsWith('.glb') ? 'model/gltf-binary' : 'model/gltf+json';
-      const file = { name, mimeType, buffer: readFileSync(o.files) };
-      await page.setInputFiles('#file-input', [file]);
+      let name = o.scene;
+      if (o.files) {
+        name = o.files.split('/').pop();
+        const mimeType = name.toLowerCase().endsWith('.glb') ? 'model/gltf-binary' : 'model/gltf+json';
+        const file = { name, mimeType, buffer: readFileSync(o.files) };
+        await page.setInputFiles('#file-input', [file]);
+      }
       await page.waitForFunction(
         (name) => window.lightport.error || window.lightport.info().name === name,
-        file.name,
+        name,
         { timeout: 120000 },
       );
       // The controls show with the loaded scene (or at the next read-out update).
@@ -33,7 +38,8 @@ export async function animation(o) {
         controlsShown: !document.getElementById('animation').hidden,
         api: window.lightport.info().api,
       }));
-      if (loaded.error) return loaded;
+      // A scene that does not play (no `animation`): what was loaded, for the caller to say so.
+      if (loaded.error || !loaded.animation) return { loaded, error: loaded.error };
       const readout = await page.textContent('#scene-info');
       const poses = await page.evaluate(async () => {
         const l = window.lightport;

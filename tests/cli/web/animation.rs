@@ -58,6 +58,46 @@ fn a_moving_gltf_plays_on_the_page() {
     let _ = std::fs::remove_file(&path);
 }
 
+/// A moving glTF served by `lightport serve` (its bundle carries the motion section, and the
+/// page poses it from the bundle's arrays and moving parts, `tracer::pack::Posing`) plays as a
+/// dropped one does: `sceneInfo().animation` names what moves and its length, two poses set
+/// differ and a pose set again renders as before (each restarting the accumulation), the time
+/// moves on while it plays (the accumulation restarting) and samples accumulate once paused.
+/// On WebGL2 and WebGPU.
+#[test]
+fn a_served_moving_gltf_plays_on_the_page() {
+    let dir = std::env::temp_dir().join(format!("lightport-served-moving-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a directory");
+    let path = dir.join("moving-parts.gltf");
+    std::fs::write(&path, common::moving_parts_gltf()).expect("writes the scene");
+    let options = tracer::scene::LoadOptions { keep_motion: true, ..Default::default() };
+    let native = tracer::scene::load_with(&path, &options).expect("loads natively");
+    let motion = native.motion.as_ref().expect("it moves");
+    let server = Server::start(&[&path.to_string_lossy()]);
+    for api in ["webgl2", "webgpu"] {
+        let report = browse(&server.url, "animation", &[("scene", "moving-parts"), ("size", "16x16"), ("api", api)]);
+        no_page_error(&report);
+        let animation = &report["loaded"]["animation"];
+        assert_eq!(animation["moving"].as_str(), Some(motion.describe().as_str()), "{api}: {animation}");
+        assert!((animation["duration"].as_f64().unwrap_or(0.0) - motion.duration() as f64).abs() < 1e-6, "{api}");
+        assert_eq!(animation["playing"], true, "{api}: plays by default");
+        assert_eq!(report["loaded"]["controlsShown"], true, "{api}: {}", report["loaded"]);
+        let poses = report["poses"].as_array().expect("poses");
+        for p in poses {
+            assert_eq!((p["restarted"].as_u64(), p["spp"].as_u64()), (Some(0), Some(2)), "{api}: {}", p["t"]);
+        }
+        assert!(poses[0]["data"] != poses[1]["data"], "{api}: the poses at 0 and 0.8 s render the same image");
+        assert!(poses[0]["data"] == poses[2]["data"], "{api}: the pose at 0 s renders differently again");
+        let playing = &report["playing"];
+        let (start, moved) = (playing["start"].as_f64().unwrap_or(0.0), playing["moved"].as_f64().unwrap_or(0.0));
+        assert!(moved != start, "{api}: the time did not move while playing: {playing}");
+        assert!(playing["maxSppWhilePlaying"].as_u64() <= Some(2), "{api}: it accumulated while moving: {playing}");
+        let (paused, after) = (playing["pausedAt"].as_u64().unwrap_or(0), playing["afterPause"].as_u64().unwrap_or(0));
+        assert!(after >= paused + 3, "{api}: paused, it did not accumulate: {playing}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// The soak (`animation.mjs`'s `--soak`): many poses shown, and the module's live heap
 /// (`web/src/heap.rs`) after the last of them no larger than it was in the first seconds (by
 /// more than a pose's slack): a pose's arrays kept by mistake grow it with every pose. The

@@ -207,6 +207,11 @@ impl Bundle {
         let moving = motion::read(&mut r)?;
         r.finish()?;
         check_consistency(&packed)?;
+        if let Some(parts) = &moving {
+            // The moving parts must pose over these arrays (`pack::Posing`).
+            crate::pack::Posing::new(&packed, parts)
+                .map_err(|e| BundleError::InvalidValue { field: "motion".into(), reason: e.to_string() })?;
+        }
         Ok(Bundle { name, packed, moving })
     }
 }

@@ -116,11 +116,7 @@ pub(super) fn pack_geometry(
     let tri_count = ordered.triangles.len();
     let triangles = Texels::par_from_groups::<{ TRIANGLE_TEXELS as usize }>(tri_count, |i| {
         let t = ordered.triangles[i];
-        [
-            t.positions[0].extend(t.material as f32),
-            t.positions[1].extend(index_value(emissive.light_of(i, t))),
-            t.positions[2].extend(if features.alpha_mask && alpha_tested[i] { 1.0 } else { 0.0 }),
-        ]
+        triangle_texels(t, emissive.light_of(i, t), features.alpha_mask && alpha_tested[i])
     });
     let shading = if features.shading { pack_shading(&ordered.triangles, features) } else { Texels::default() };
     let tangent_first = if features.normal_map { (tri_count * SHADING_TEXELS as usize) as u32 } else { 0 };
@@ -139,19 +135,35 @@ pub(super) fn pack_geometry(
     PackedGeometry { triangles, shading, nodes, node_children, tangent_first, texcoord1_first, instance_first }
 }
 
+/// A triangle's texels: its corners with its material, its light (or -1) and whether it is
+/// alpha-tested.
+pub(super) fn triangle_texels(
+    t: &Triangle,
+    light: Option<u32>,
+    alpha_tested: bool,
+) -> [Vec4; TRIANGLE_TEXELS as usize] {
+    [
+        t.positions[0].extend(t.material as f32),
+        t.positions[1].extend(index_value(light)),
+        t.positions[2].extend(if alpha_tested { 1.0 } else { 0.0 }),
+    ]
+}
+
+/// A triangle's shading texels: its normals and UVs.
+pub(super) fn shading_texels(t: &Triangle) -> [Vec4; SHADING_TEXELS as usize] {
+    [
+        t.normals[0].extend(t.uvs[0].x),
+        t.normals[1].extend(t.uvs[0].y),
+        t.normals[2].extend(t.uvs[1].x),
+        Vec4::new(t.uvs[1].y, t.uvs[2].x, t.uvs[2].y, 0.0),
+    ]
+}
+
 /// Normals and UVs per triangle; tangents and the second UV set extend the shading array
 /// (`kernel::normal_map`, `kernel::texture_ref`): no new binding.
 fn pack_shading(ordered: &[&Triangle], features: &Features) -> Texels<Vec4> {
     let tri_count = ordered.len();
-    let shading = Texels::par_from_groups::<{ SHADING_TEXELS as usize }>(tri_count, |i| {
-        let t = ordered[i];
-        [
-            t.normals[0].extend(t.uvs[0].x),
-            t.normals[1].extend(t.uvs[0].y),
-            t.normals[2].extend(t.uvs[1].x),
-            Vec4::new(t.uvs[1].y, t.uvs[2].x, t.uvs[2].y, 0.0),
-        ]
-    });
+    let shading = Texels::par_from_groups::<{ SHADING_TEXELS as usize }>(tri_count, |i| shading_texels(ordered[i]));
     let tangents = features
         .normal_map
         .then(|| Texels::par_from_groups::<{ TANGENT_TEXELS as usize }>(tri_count, |i| ordered[i].tangents));
@@ -169,7 +181,7 @@ fn pack_shading(ordered: &[&Triangle], features: &Features) -> Texels<Vec4> {
 }
 
 /// The wide BVH's nodes: their children's bounds, and each child's stack entry.
-fn pack_nodes(wide: &WideBvh) -> (Texels<Vec4>, Texels<UVec4>) {
+pub(super) fn pack_nodes(wide: &WideBvh) -> (Texels<Vec4>, Texels<UVec4>) {
     let nodes = Texels::par_from_groups::<{ NODE_TEXELS as usize }>(wide.nodes.len(), |i| {
         let n = &wide.nodes[i];
         [

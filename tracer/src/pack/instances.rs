@@ -135,7 +135,7 @@ pub fn top_level(boxes: &[(Vec3, Vec3)]) -> Result<(Bvh, WideBvh), crate::bvh::B
 }
 
 /// The traversal stack carries a leaf's count in 8 bits.
-fn check_leaves(bvh: &Bvh) -> Result<(), PackError> {
+pub(super) fn check_leaves(bvh: &Bvh) -> Result<(), PackError> {
     let max_leaf = crate::kernel::traverse::MAX_LEAF_TRIANGLES;
     match bvh.nodes.iter().find(|n| n.count > max_leaf) {
         Some(leaf) => Err(PackError::LeafTooLarge { triangles: leaf.count, max: max_leaf }),
@@ -144,7 +144,7 @@ fn check_leaves(bvh: &Bvh) -> Result<(), PackError> {
 }
 
 /// A bottom level's node moved to `node_offset`, its leaves to `tri_offset`.
-fn rebase(n: &WideNode, node_offset: u32, tri_offset: u32) -> WideNode {
+pub(super) fn rebase(n: &WideNode, node_offset: u32, tri_offset: u32) -> WideNode {
     let mut out = *n;
     for c in 0..n.children as usize {
         out.first[c] += if n.count[c] > 0 { tri_offset } else { node_offset };
@@ -154,7 +154,7 @@ fn rebase(n: &WideNode, node_offset: u32, tri_offset: u32) -> WideNode {
 
 /// A placement's texels (`kernel::instances`): world-to-mesh rows, mesh-to-world rows, then
 /// `[root node, handedness, identity, 0]`.
-fn instance_texels(m: Mat4, root: u32, identity: bool) -> [Vec4; INSTANCE_TEXELS as usize] {
+pub(super) fn instance_texels(m: Mat4, root: u32, identity: bool) -> [Vec4; INSTANCE_TEXELS as usize] {
     let inv = m.inverse();
     let handedness = if m.determinant() < 0.0 { -1.0 } else { 1.0 };
     [

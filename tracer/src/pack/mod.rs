@@ -24,6 +24,8 @@ mod lights;
 mod materials;
 mod moving;
 pub use moving::{MovingScene, PoseError};
+mod posing;
+pub use posing::Posing;
 mod sky;
 #[cfg(test)]
 mod tests;
@@ -70,6 +72,9 @@ pub enum PackError {
     TexturesMismatch,
     /// [`Packed::take_geometry`] of a pose that needs another kernel variant (a deeper
     /// traversal stack, say): the renderer must be created again for it.
+    /// [`Posing`]: the moving parts (a bundle's motion section) do not match the packed scene.
+    #[error("the moving parts do not match the packed scene: {0}")]
+    NotThisPose(String),
     #[error("the moved scene needs another kernel variant ({now:?}, was {was:?}): create the renderer again")]
     KernelChanged { was: Box<Features>, now: Box<Features> },
 }

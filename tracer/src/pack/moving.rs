@@ -1,10 +1,10 @@
-//! A scene that moves ([`Scene::motion`]), packed again at each pose: what no pose changes (the
-//! static level's BVH and the textures) is built once; a pose rebuilds the placed meshes'
-//! bottom levels, the top level over the placements and the texel arrays. A renderer takes
-//! the result with `Renderer::take_geometry`, without recompiling its kernel.
+//! A scene that moves ([`Scene::motion`]), packed again at each pose: the first pose is packed
+//! whole; a pose then rebuilds only what moves (the placed meshes that deform, the top level
+//! over the placements) over the first pose's arrays ([`Posing`]). A renderer takes the result
+//! with `Renderer::take_geometry`, without recompiling its kernel. A bundle's moving scene
+//! ([`MovingScene::from_bundle`]) poses the same way from its packed arrays and moving parts.
 
-use super::{pack_textures, pack_with_textures, static_bvh, BuildAndPackError, PackError, Packed, PackedTextures};
-use crate::bvh::Bvh;
+use super::{pack_textures, pack_with_textures, static_bvh, BuildAndPackError, PackError, Packed, Posing};
 use crate::kernel::RenderSettings;
 use crate::scene::{Scene, SceneError};
 
@@ -13,10 +13,9 @@ pub const STACK_HEADROOM: u32 = 4;
 
 /// A scene that keeps its motion, with what packing it at any pose reuses.
 pub struct MovingScene {
+    /// The scene, or (from a bundle) its moving parts: meshes, instances and motion.
     scene: Scene,
-    bvh: Bvh,
-    textures: PackedTextures,
-    settings: RenderSettings,
+    posing: Posing,
 }
 
 /// Why a pose could not be packed.
@@ -33,9 +32,19 @@ impl MovingScene {
     /// ([`pack_for_kernel`](Self::pack_for_kernel)), and what packs it again at other poses.
     pub fn new(scene: Scene, settings: &RenderSettings) -> Result<(Self, Packed), BuildAndPackError> {
         let (bvh, textures) = rayon::join(|| static_bvh(&scene), || pack_textures(&scene));
-        let moving = MovingScene { scene, bvh: bvh?, textures, settings: *settings };
+        let first = pack_with_textures(&scene, &bvh?, &textures, settings)?;
+        let posing = Posing::new(&first, &scene)?;
+        let moving = MovingScene { scene, posing };
         let packed = moving.pack_for_kernel()?;
         Ok((moving, packed))
+    }
+
+    /// A bundle's moving scene: `packed` (the bundle's scene, packed at some pose) and `parts`
+    /// (its motion section's moving parts, `Bundle::moving`, at the same pose). A `parts` that
+    /// does not match `packed` is [`PackError::NotThisPose`].
+    pub fn from_bundle(packed: &Packed, parts: Scene) -> Result<Self, PackError> {
+        let posing = Posing::new(packed, &parts)?;
+        Ok(MovingScene { scene: parts, posing })
     }
 
     /// The scene as posed now, packed for creating a renderer: its kernel's traversal stack
@@ -51,6 +60,7 @@ impl MovingScene {
         Ok(packed)
     }
 
+    /// The scene (from a bundle: its moving parts), as posed now.
     pub fn scene(&self) -> &Scene {
         &self.scene
     }
@@ -65,9 +75,10 @@ impl MovingScene {
         self.scene.pose(time)
     }
 
-    /// The scene as posed now, packed (for `Renderer::take_geometry`).
+    /// The scene as posed now, packed (for `Renderer::take_geometry`): the first pose's
+    /// arrays with what moves made again ([`Posing::pack`]).
     pub fn pack(&self) -> Result<Packed, PackError> {
-        pack_with_textures(&self.scene, &self.bvh, &self.textures, &self.settings)
+        self.posing.pack(&self.scene)
     }
 
     /// [`pose`](Self::pose) then [`pack`](Self::pack).

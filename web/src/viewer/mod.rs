@@ -237,8 +237,16 @@ impl Viewer {
     pub fn load_bundle(&mut self, bytes: &[u8]) -> Result<JsValue, JsError> {
         let start = now_ms();
         let bundle = tracer::bundle::Bundle::decode(bytes).map_err(js_error)?;
+        // A scene that moves (its motion section) plays as a dropped one does, posed from
+        // what the bundle carries (`tracer::pack::Posing`).
+        let playback = match bundle.moving {
+            Some(parts) => Some(Playback::new(MovingScene::from_bundle(&bundle.packed, parts).map_err(js_error)?)),
+            None => None,
+        };
         let decode_ms = now_ms() - start;
-        self.install(bundle.name, bundle.packed, decode_ms)
+        self.install(bundle.name, bundle.packed, decode_ms)?;
+        self.playback = playback;
+        Ok(self.scene_info())
     }
 
     /// Adds one dropped file (a `.glb`, a `.gltf`, or a file a `.gltf` references);

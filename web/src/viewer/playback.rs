@@ -1,5 +1,7 @@
 //! Scenes that move, in the page: a dropped glTF whose animation moves something is loaded
-//! with its motion kept (`tracer::pack::MovingScene`) and plays by default. While it plays,
+//! with its motion kept (`tracer::pack::MovingScene`), and a served bundle with a motion
+//! section poses from its arrays and moving parts (`MovingScene::from_bundle`); either plays
+//! by default. While it plays,
 //! each frame the loop starts shows the scene posed at the page's clock (times the speed,
 //! wrapped over the animation's length): the renderer takes the pose's geometry
 //! (`Renderer::take_geometry`, no recompile) and the accumulation restarts; paused, the pose

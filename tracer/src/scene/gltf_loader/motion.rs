@@ -147,6 +147,11 @@ impl Motion {
         self.deformed.len()
     }
 
+    /// The scene's meshes (indices into `Scene::meshes`) made again at each pose.
+    pub fn deformed_mesh_indices(&self) -> Vec<usize> {
+        self.deformed.iter().map(|d| d.mesh).collect()
+    }
+
     /// What moves, in words (for read-outs).
     pub fn describe(&self) -> String {
         format!(
