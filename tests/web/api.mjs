@@ -137,7 +137,8 @@ export async function autoSchedule(o) {
       });
       if (error) return { error, consoleErrors };
       const state = () => page.evaluate(() => (window.lightport.info().scheduleChoice || {}).state || null);
-      const over = (s) => s !== 'pending' && s !== 'measuring';
+      // An interrupted measurement starts again once the view stays put: not over yet.
+      const over = (s) => s !== 'pending' && s !== 'measuring' && s !== 'interrupted';
       if (o.during) {
         await page.waitForFunction(() => {
           const c = window.lightport.info().scheduleChoice;

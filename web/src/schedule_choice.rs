@@ -158,8 +158,12 @@ pub enum Choice {
     },
     /// Building or running the wavefront failed: the megakernel runs.
     Failed(String),
-    /// Given up on (the view or a setting changed, the device was lost...): the megakernel runs.
+    /// Given up on (the device was lost, frames rendered outside it...): the megakernel runs.
     Abandoned(String),
+    /// Interrupted by a change of the view or a setting (`why`): the megakernel runs, and the
+    /// measurement starts again once the view has stayed put for [`SETTLED_FRAMES`] frames (at
+    /// most [`MAX_TRIES`] measurements per scene; past them an interruption gives it up).
+    Interrupted(String),
     /// Not measured, and why (a scene that moves): the megakernel runs.
     Skipped(String),
 }
@@ -181,6 +185,7 @@ impl Choice {
             Choice::Measured { .. } => "measured",
             Choice::Failed(_) => "failed",
             Choice::Abandoned(_) => "abandoned",
+            Choice::Interrupted(_) => "interrupted",
             Choice::Skipped(_) => "skipped",
         }
     }
@@ -193,6 +198,7 @@ impl Choice {
             Choice::Measured { verdict, .. } => Some(verdict.reason()),
             Choice::Failed(_) => Some("auto: the wavefront failed while measured".into()),
             Choice::Abandoned(why) | Choice::Skipped(why) => Some(format!("auto: not measured, {why}")),
+            Choice::Interrupted(why) => Some(format!("auto: measuring again once the view stays put ({why})")),
         }
     }
 
@@ -205,7 +211,37 @@ impl Choice {
         }
         false
     }
+
+    /// Ends a measurement in progress because the view or a setting changed (`why`): measured
+    /// again once the view stays put, when `tries` (measurements begun for this scene) is
+    /// below [`MAX_TRIES`], else given up. Anything else stays.
+    pub fn interrupt(&mut self, why: &str, tries: u32) -> bool {
+        if !self.abandon(why) {
+            return false;
+        }
+        if tries < MAX_TRIES {
+            *self = Choice::Interrupted(why.to_string());
+        }
+        true
+    }
+
+    /// Whether a measurement is due once the accumulation holds `spp` samples: a scene's
+    /// first after its first frame, a retry after an interruption once the view has stayed
+    /// put for [`SETTLED_FRAMES`] frames (each change restarts the accumulation).
+    pub fn due_at(&self, spp: u32) -> bool {
+        match self {
+            Choice::Pending => spp >= 1,
+            Choice::Interrupted(_) => spp >= SETTLED_FRAMES,
+            _ => false,
+        }
+    }
 }
+
+/// Frames the view must stay put before an interrupted measurement starts again.
+pub const SETTLED_FRAMES: u32 = 4;
+
+/// Most measurements per scene load: a view that keeps changing keeps the megakernel.
+pub const MAX_TRIES: u32 = 3;
 
 #[cfg(test)]
 mod tests {
@@ -274,5 +310,25 @@ mod tests {
         assert!(!measured.abandon("the view changed"));
         assert_eq!(measured.schedule(), Schedule::Wavefront);
         assert_eq!(Choice::Pending.reason(), None);
+    }
+
+    #[test]
+    fn an_interrupted_measurement_starts_again_once_the_view_stays_put_up_to_max_tries() {
+        let mut choice = Choice::Pending;
+        assert!(!choice.due_at(0) && choice.due_at(1));
+        for tries in 1..=MAX_TRIES {
+            choice = Choice::Measuring(Measurement::new(tries));
+            assert!(!choice.due_at(100), "no second measurement while one runs");
+            assert!(choice.interrupt("the view or a setting changed", tries));
+            if tries < MAX_TRIES {
+                assert_eq!(choice.state(), "interrupted");
+                assert!(!choice.due_at(SETTLED_FRAMES - 1) && choice.due_at(SETTLED_FRAMES));
+                assert!(choice.reason().unwrap().contains("measuring again"), "{:?}", choice.reason());
+            }
+        }
+        assert_eq!(choice.state(), "abandoned", "past MAX_TRIES an interruption gives up");
+        assert!(!choice.due_at(1000));
+        let mut skipped = Choice::Skipped("the scene moves".into());
+        assert!(!skipped.interrupt("the view changed", 1) && skipped.state() == "skipped");
     }
 }

@@ -32,7 +32,8 @@ impl Viewer {
     /// that moves is not measured (recorded as skipped, the megakernel runs).
     #[wasm_bindgen(js_name = scheduleMeasurementDue)]
     pub fn schedule_measurement_due(&mut self) -> bool {
-        if self.schedule.is_some() || !matches!(self.choice, Choice::Pending) || self.halted() {
+        if self.schedule.is_some() || !matches!(self.choice, Choice::Pending | Choice::Interrupted(_)) || self.halted()
+        {
             return false;
         }
         let Some(Runtime::WebGpu(_)) = &self.running else { return false };
@@ -40,7 +41,7 @@ impl Viewer {
             self.choice = Choice::Skipped("the scene moves".into());
             return false;
         }
-        self.spp() >= 1
+        self.choice.due_at(self.spp())
     }
 
     /// Starts the measurement: the wavefront for the running scene on the same device. Returns
@@ -56,6 +57,7 @@ impl Viewer {
         match GpuRuntime::prepare(&gpu, &packed, self.seed, &self.wgpu_options, Schedule::Wavefront) {
             Ok(prepared) => {
                 self.measurements += 1;
+                self.measurement_tries += 1;
                 self.candidate = Some(Candidate::new(prepared));
                 self.choice = Choice::Measuring(Measurement::new(self.measurements));
                 self.measurements
@@ -190,6 +192,15 @@ impl Viewer {
         }
     }
 
+    /// The view or a setting changed during a measurement: it starts again once the view
+    /// stays put (`Choice::interrupt`), or is given up after `schedule_choice::MAX_TRIES`.
+    pub(super) fn interrupt_measurement(&mut self, why: &str) {
+        if self.choice.interrupt(why, self.measurement_tries) {
+            self.candidate = None;
+            self.watch_uncaptured();
+        }
+    }
+
     /// The wavefront failed while measured: the megakernel stays, with a notice.
     fn fail_measurement(&mut self, error: String) {
         self.candidate = None;
@@ -208,11 +219,12 @@ impl Viewer {
 
     /// `sceneInfo().scheduleChoice`: `auto`'s measurement (null unless the schedule is auto and
     /// the scene runs on WebGPU): `{ state: pending | measuring | measured | failed | abandoned |
-    /// skipped, chosen, reason (the read-out's words), megakernelMs, wavefrontMs (the medians
+    /// interrupted | skipped, chosen, reason (the read-out's words), megakernelMs, wavefrontMs (the medians
     /// decided on), ratio (wavefront / megakernel), injected (a test's times decided),
     /// measuredMegakernelMs, measuredWavefrontMs (the measured medians), megakernelTurnsMs,
     /// wavefrontTurnsMs (ms per frame of each counted turn), warmUpMs: { megakernel,
-    /// wavefront }, rounds, framesPerTurn, error }`.
+    /// wavefront }, rounds, framesPerTurn, tries (measurements begun for this scene: an
+    /// interrupted one, state `interrupted`, starts again once the view stays put), error }`.
     pub(super) fn describe_schedule_choice(&self) -> JsValue {
         if self.schedule.is_some() || !matches!(self.running, Some(Runtime::WebGpu(_))) {
             return JsValue::NULL;
@@ -224,6 +236,7 @@ impl Viewer {
         set(&o, "reason", choice.reason().map_or(JsValue::NULL, JsValue::from));
         set(&o, "rounds", crate::schedule_choice::ROUNDS as u32);
         set(&o, "framesPerTurn", crate::schedule_choice::FRAMES_PER_TURN);
+        set(&o, "tries", self.measurement_tries);
         let measurement = match choice {
             Choice::Measuring(m) => Some(m),
             Choice::Measured { verdict, measured, injected } => {

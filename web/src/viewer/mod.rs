@@ -73,6 +73,9 @@ pub struct Viewer {
     candidate: Option<Candidate>,
     /// Measurements started (their ids).
     measurements: u32,
+    /// Measurements started for the loaded scene (an interrupted one is retried up to
+    /// `schedule_choice::MAX_TRIES`).
+    measurement_tries: u32,
     /// Test hook: milliseconds per frame (megakernel, wavefront) auto decides on instead.
     injected_times: Option<(f64, f64)>,
     gpu: Option<GpuDevice>,
@@ -123,6 +126,7 @@ impl Viewer {
             choice: Choice::Pending,
             candidate: None,
             measurements: 0,
+            measurement_tries: 0,
             injected_times: None,
             gpu: None,
             gpu_unavailable: None,
@@ -295,6 +299,7 @@ impl Viewer {
         self.abandon_measurement("another scene was loaded");
         let previous = std::mem::take(&mut self.choice);
         let running = self.start(&packed).inspect_err(|_| self.choice = previous)?;
+        self.measurement_tries = 0;
         self.gpu_recoveries = 0;
         self.settings.max_depth = bundle_depth;
         self.running = Some(running);
@@ -574,7 +579,7 @@ impl Viewer {
     /// Recreates the renderer for the current settings and camera (after a resize, a lost
     /// context or device, a new seed or API).
     fn rebuild(&mut self) -> Result<(), JsError> {
-        self.abandon_measurement("the renderer was recreated (a new size, seed, device or setting)");
+        self.interrupt_measurement("the renderer was recreated (a new size, seed, device or setting)");
         self.running = None;
         let Some(loaded) = &mut self.loaded else {
             self.canvas.set_width(self.settings.width);
@@ -637,7 +642,7 @@ impl Viewer {
     /// Writes the camera and settings into the master copy and the renderer's uniforms, and
     /// restarts the accumulation.
     pub(crate) fn update_uniforms(&mut self) -> Result<(), JsError> {
-        self.abandon_measurement("the view or a setting changed");
+        self.interrupt_measurement("the view or a setting changed");
         let settings = self.settings;
         let Some(loaded) = &mut self.loaded else { return Ok(()) };
         let camera = loaded.camera;
