@@ -29,6 +29,7 @@ import { BundleCache, DEFAULT_BUDGET_BYTES } from './cache.js';
 import { movingText, setUpAnimationControls, showAnimation } from './animation.js';
 import { compileProgram } from './compile.js';
 import { FirstFrame } from './first_frame.js';
+import { measureSchedules } from './schedule_measure.js';
 import { WebGpuRecovery } from './webgpu_recovery.js';
 
 const params = new URLSearchParams(location.search);
@@ -265,43 +266,16 @@ function formatRate(n) {
   return `${n.toFixed(1)}${units[i]}`;
 }
 
-// ---- auto's schedule, measured ----------------------------------------------------------
+// ---- auto's schedule, measured (schedule_measure.js) ------------------------------------
 
-// `schedule=auto` on WebGPU (web/src/viewer/measure.rs, docs/wavefront.md): once the scene's
-// first frame has shown on the megakernel, the wavefront is built beside it on the same device
-// and the turns the viewer names (a warm-up frame of each, then megakernel and wavefront
-// alternated, rounds of whole frames) are timed as renderFrames times frames: from the first
-// submission until the queue is done after the last. The frame loop and the denoiser wait
-// meanwhile; the megakernel's frames are shown. The viewer then keeps the faster schedule.
-// Resolves to sceneInfo().scheduleChoice.
-async function measureSchedule() {
-  const id = viewer ? viewer.beginScheduleMeasurement() : 0;
-  try {
-    for (let turn = id && viewer.scheduleTurn(id); turn; turn = viewer.scheduleTurn(id)) {
-      const start = performance.now();
-      for (let i = 0; i < turn.frames; i++) {
-        let answer;
-        while ((answer = viewer.measureFrame(id)) === 0) await viewer.sync();
-        if (answer === 2) return over();
-        if (turn.schedule === 'megakernel') frameDone();
-      }
-      await viewer.sync();
-      viewer.recordScheduleTurn(id, (performance.now() - start) / turn.frames);
-    }
-  } catch (e) {
-    viewer.abandonScheduleMeasurement(id, `the page's measuring loop failed (${e.message || e})`);
-    showMessage(String(e.message || e));
-  }
-  return over();
-
-  function over() {
-    frameMs = null;
-    lastFrameAt = null;
-    const info = viewer ? viewer.sceneInfo() : {};
-    // A wavefront that failed while measured: the notice says why the megakernel runs.
-    if (info.scheduleChoice && info.scheduleChoice.state === 'failed') showNotice();
-    return info.scheduleChoice || null;
-  }
+function measureSchedule() {
+  return measureSchedules(viewer, {
+    frameDone,
+    showMessage,
+    showNotice,
+    // The frame loop's frame time starts again after the measurement's frames.
+    over: () => { frameMs = null; lastFrameAt = null; },
+  });
 }
 
 // ---- frame loop -------------------------------------------------------------------------
