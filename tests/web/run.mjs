@@ -473,12 +473,17 @@ async function bench(o) {
         await withBrowser(profile, async (context) => {
           // Frame times without the denoiser (its time is measured by the denoise scenario).
           const { page, error, navigationStart } =
-            await open(context, o.url, { scene, size: o.size, paused: '1', denoise: '0' });
+            await open(context, o.url, { scene, size: o.size, paused: '1', denoise: '0', preview: o.preview });
           if (error) throw new Error(`${scene}: ${error}`);
+          // The first image: the preview, as the frame loop renders it after a load (`--preview
+          // 0`: none; the page's own `preview=0`), then the first full frame in one submission.
+          if (o.preview !== '0') await page.evaluate(() => window.lightport.renderPreview());
           await page.evaluate(() => window.lightport.renderFrames(1));
           // The page splits the first frame's time once the frame is finished on the GPU.
           await page.waitForFunction(() => window.lightport.firstFrame, null, { timeout: 60000 });
           const timing = await page.evaluate(() => ({
+            firstImageMs: window.lightport.firstImageMs,
+            firstImage: window.lightport.firstImage,
             firstFrameMs: window.lightport.firstFrameMs,
             startup: window.lightport.startup,
             split: window.lightport.firstFrame,
@@ -486,6 +491,8 @@ async function bench(o) {
             bytes: window.lightport.bundleSources.at(-1).bytes,
           }));
           row[`${visit}FirstFrameMs`] = timing.firstFrameMs;
+          row[`${visit}FirstImageMs`] = timing.firstImageMs;
+          row[`${visit}FirstImage`] = timing.firstImage;
           row[`${visit}Startup`] = timing.startup;
           row[`${visit}Split`] = timing.split;
           row[`${visit}FromCache`] = timing.fromCache;

@@ -11,9 +11,10 @@
 //! until the first full-resolution frame is complete.
 //!
 //! The size: [`PREVIEW_DIVISOR`] per side (a quarter of the width and height, 1/16 of the
-//! pixels), as three.js's path tracers' `lowResScale` (0.25) does. The preview costs ~1/16 of a
-//! frame (the kernel's cost is per pixel) and is submitted whole: 0.2-0.3 s for the Cornell box
-//! on SwiftShader, where 1/4 of the pixels would cost ~1 s; 160x120 of a 640x480 image is
+//! pixels), the largest of three-gpu-pathtracer's `lowResScale` defaults (0.1-0.25 of each
+//! side across its versions). The preview costs ~1/16 of a frame's GPU time (the kernel's cost
+//! is per pixel) plus a submission's fixed costs, and is submitted whole: 0.6-1.1 s for the
+//! Cornell box at 640x480 on SwiftShader (docs/web.md), where a frame takes 3-5 s; 160x120 is
 //! enough to see the scene, its framing and its lighting. No cost estimate exists before the
 //! first frame (the band policy measures frames, and the first draw on WebGL2 also pays the
 //! driver's shader JIT), so the rule is a fixed fraction, not a budget.
