@@ -10,6 +10,7 @@
 mod animation;
 mod denoise;
 mod fallback;
+mod preview;
 mod wavefront;
 
 use crate::common;
@@ -358,6 +359,9 @@ fn the_page_splits_the_time_to_its_first_frame() {
             assert!(ms(key) > 0.0, "api={api}: {key} is measured: {split}");
         }
         let total = ms("totalMs");
+        // The page is paused (frames from the test hook): no preview, whose GPU time would be a
+        // part of its own (tests/cli/web/preview.rs).
+        assert_eq!(ms("previewMs"), 0.0, "{split}");
         let sum: f64 = parts.iter().map(|k| ms(k)).sum();
         assert!(
             sum <= total + 1.0,

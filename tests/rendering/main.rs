@@ -14,6 +14,7 @@ mod instancing;
 mod metal_rough;
 mod moving;
 mod normal_maps;
+mod preview;
 mod stability;
 mod texture_transform;
 mod wavefront;

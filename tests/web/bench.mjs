@@ -1,14 +1,18 @@
 // Benchmark of the web path tracer in headless Chromium (SwiftShader here): frame time at
-// 640x480, 1 sample per pixel per frame, and navigation-to-first-frame with a cold and a warm
-// client cache, per scene, with bundle sizes; the first frame's time split into download,
-// decode, upload, compile and the first frame's GPU time (the page's own accounting,
-// window.lightport.firstFrame); and what alpha masks cost: LittlestTokyo as shipped against a
+// 640x480, 1 sample per pixel per frame, and navigation to the first image (the preview, a
+// quarter of each side: web/src/runtime/preview.rs) and to the first full-resolution frame with
+// a cold and a warm client cache, per scene, with bundle sizes; the first frame's time split
+// into download, decode, upload, compile, the preview's GPU time and the first frame's GPU time
+// (the page's own accounting, window.lightport.firstImage and firstFrame); and what alpha masks cost: LittlestTokyo as shipped against a
 // copy made here with every material's alphaMode removed (opaque), frame time per API. Ratios
 // are measured in the same run (the machine is shared: compare ratios, not absolute times,
 // across runs).
 //
 //   node tests/web/bench.mjs --lightport target/release/lightport [--frames 5] [--size 640x480]
 //        [--apis webgl2,webgpu] [--rounds 1] [--scenes cornell-box,LittlestTokyo,...] [--depths 8,32]
+//        [--preview 0]
+//
+// `--preview 0`: the page without the preview (`preview=0`): the first image is the first frame.
 //
 // `--depths 8,32`: the frame time at each path depth (the page's setMaxDepth, in the warm
 // visit; the first frames are at the bundle's depth, 8), a column per API and depth.
@@ -112,6 +116,7 @@ try {
       const [pageApi, schedule] = api.split(':');
       execFileSync('node', [join(here, 'run.mjs'), 'bench', '--url', url, '--out', out, '--size', size, '--frames', frames,
         '--api', pageApi, ...(schedule ? ['--schedule', schedule] : []), ...(args.depths ? ['--depths', args.depths] : []),
+        ...(args.preview ? ['--preview', args.preview] : []),
         '--scenes', scenes.map((s) => s.name).join(',')], { stdio: 'inherit' });
       const { results } = JSON.parse(readFileSync(out, 'utf8'));
       rmSync(out, { force: true });
@@ -127,7 +132,10 @@ try {
   console.log(`\nWeb path tracer, headless Chromium: ${apis.map((a) => `${infos[a].api} on ${infos[a].adapter}`).join('; ')}; ${size}, 1 spp/frame, MIS, depth ${args.depths ? `${args.depths} (the first frames at the bundle's 8)` : info.maxDepth}, venice_sunset sky; mean of ${frames} frames after 3 warm-up frames; medians of ${rounds} alternated round(s).`);
   console.log('Shared, noisy 2-core machine: compare the ratios (same run), not absolute times.\n');
   const head = ['scene', 'triangles', 'bundle (raw)', 'bundle (gzip)'];
-  for (const api of apis) head.push(`${api} frame (ms)`, `${api} first frame cold (ms)`, `${api} first frame warm (ms)`);
+  for (const api of apis) {
+    head.push(`${api} frame (ms)`, `${api} first image cold (ms)`, `${api} first frame cold (ms)`,
+      `${api} first image warm (ms)`, `${api} first frame warm (ms)`);
+  }
   for (const api of apis.slice(1)) head.push(`frame ${api} / ${apis[0]}`);
   const depths = args.depths ? args.depths.split(',').map(Number) : [];
   if (depths.length) {
@@ -143,8 +151,11 @@ try {
     for (const api of apis) {
       const rows = runs[api][s.name];
       frame[api] = median(rows.map((r) => r.frameMs));
-      cells.push(frame[api].toFixed(0), median(rows.map((r) => r.coldFirstFrameMs)).toFixed(0),
-        median(rows.map((r) => r.warmFirstFrameMs)).toFixed(0));
+      cells.push(frame[api].toFixed(0));
+      for (const visit of ['cold', 'warm']) {
+        cells.push(median(rows.map((r) => r[`${visit}FirstImageMs`])).toFixed(0),
+          median(rows.map((r) => r[`${visit}FirstFrameMs`])).toFixed(0));
+      }
       for (const r of rows) {
         if (r.coldFromCache || !r.warmFromCache) console.log(`  (unexpected: ${api} ${s.name}: cold visit from cache ${r.coldFromCache}, warm visit from cache ${r.warmFromCache})`);
       }
@@ -163,7 +174,8 @@ try {
   // until it is finished), and the rest (page, wasm and WebGPU device start, scenes.json, the
   // driver's round trips). Medians over the rounds, each column on its own.
   const parts = [['downloadMs', 'download'], ['decodeMs', 'decode'], ['uploadMs', 'upload'], ['compileMs', 'compile'],
-    ['gpuMs', 'first frame GPU'], ['otherMs', 'other'], ['totalMs', 'total']];
+    ['previewMs', 'preview GPU'], ['gpuMs', 'first frame GPU'], ['otherMs', 'other'],
+    ['firstImageMs', 'first image'], ['totalMs', 'first full frame']];
   console.log('\nTime to the first frame, split (ms from navigation start; median over rounds):\n');
   const splitHead = ['scene', 'api', 'cache', ...parts.map(([, label]) => label)];
   console.log(`| ${splitHead.join(' | ')} |`);

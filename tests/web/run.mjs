@@ -5,7 +5,7 @@
 //   node run.mjs SCENARIO --url http://127.0.0.1:PORT/ --out result.json [options]
 //
 // Scenarios: accumulate, cache, camera, slow, drop, limits, context, display, bench,
-// chart, compile, denoise, denoiseedges, toplevel (see each function), animation (animation.mjs), api, fallback, deviceloss, autoschedule (api.mjs); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2), `--schedule auto|megakernel|wavefront` its schedule. `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
+// chart, compile, denoise, denoiseedges, toplevel (see each function), animation (animation.mjs), preview (preview.mjs), api, fallback, deviceloss, autoschedule (api.mjs); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2), `--schedule auto|megakernel|wavefront` its schedule. `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
 // long, so that a hung page never hangs the caller. `--exit-on-stdin-eof` (no value): exit 4,
 // closing the browser, when stdin reaches its end: the caller holds the pipe's other end, which
 // the kernel closes when the caller ends however it ends (src/serve_child.rs), so neither this
@@ -17,6 +17,7 @@ import {
 } from './page.mjs';
 import { animation } from './animation.mjs';
 import { apiChoice, autoSchedule, deviceLoss, fallback } from './api.mjs';
+import { preview } from './preview.mjs';
 
 function parseArgs(argv) {
   const [scenario, ...rest] = argv;
@@ -51,6 +52,9 @@ async function accumulate(o) {
           scene: o.scene, size: o.size, strategy: o.strategy, paused: '1', autoScheduleTimes: o.autoScheduleTimes,
         });
       if (error) return { error, consoleErrors };
+      // `--preview 1`: first the preview, as the frame loop renders it after a load (it must
+      // leave the accumulation alone).
+      const previewShown = o.preview === '1' ? await page.evaluate(() => window.lightport.renderPreview()) : null;
       // `--measure 1`: one frame, then auto's schedule measurement (with `--autoScheduleTimes`:
       // its outcome injected); the batches follow on the schedule it chose.
       let choice = null;
@@ -65,7 +69,8 @@ async function accumulate(o) {
         await page.evaluate((n) => window.lightport.renderFrames(n), Number(o.frames));
         batches.push(await page.evaluate(() => window.lightport.readAccumulation()));
       }
-      return { info: choice ? await page.evaluate(() => window.lightport.info()) : info, choice, batches, consoleErrors };
+      const shownInfo = choice ? await page.evaluate(() => window.lightport.info()) : info;
+      return { info: shownInfo, choice, preview: previewShown, batches, consoleErrors };
     });
   } finally {
     rmSync(profile, { recursive: true, force: true });
@@ -468,12 +473,17 @@ async function bench(o) {
         await withBrowser(profile, async (context) => {
           // Frame times without the denoiser (its time is measured by the denoise scenario).
           const { page, error, navigationStart } =
-            await open(context, o.url, { scene, size: o.size, paused: '1', denoise: '0' });
+            await open(context, o.url, { scene, size: o.size, paused: '1', denoise: '0', preview: o.preview });
           if (error) throw new Error(`${scene}: ${error}`);
+          // The first image: the preview, as the frame loop renders it after a load (`--preview
+          // 0`: none; the page's own `preview=0`), then the first full frame in one submission.
+          if (o.preview !== '0') await page.evaluate(() => window.lightport.renderPreview());
           await page.evaluate(() => window.lightport.renderFrames(1));
           // The page splits the first frame's time once the frame is finished on the GPU.
           await page.waitForFunction(() => window.lightport.firstFrame, null, { timeout: 60000 });
           const timing = await page.evaluate(() => ({
+            firstImageMs: window.lightport.firstImageMs,
+            firstImage: window.lightport.firstImage,
             firstFrameMs: window.lightport.firstFrameMs,
             startup: window.lightport.startup,
             split: window.lightport.firstFrame,
@@ -481,6 +491,8 @@ async function bench(o) {
             bytes: window.lightport.bundleSources.at(-1).bytes,
           }));
           row[`${visit}FirstFrameMs`] = timing.firstFrameMs;
+          row[`${visit}FirstImageMs`] = timing.firstImageMs;
+          row[`${visit}FirstImage`] = timing.firstImage;
           row[`${visit}Startup`] = timing.startup;
           row[`${visit}Split`] = timing.split;
           row[`${visit}FromCache`] = timing.fromCache;
@@ -697,7 +709,7 @@ async function topLevel(o) {
 const SCENARIOS = {
   accumulate, cache, camera, slow, drop, limits, context: contextLoss, display, api: apiChoice, deviceloss: deviceLoss,
   fallback, autoschedule: autoSchedule,
-  bench, chart, compile, denoise, denoiseedges: denoiseEdges, toplevel: topLevel, animation,
+  bench, chart, compile, denoise, denoiseedges: denoiseEdges, toplevel: topLevel, animation, preview,
 };
 
 const options = parseArgs(process.argv.slice(2));

@@ -11,6 +11,9 @@
 //   denoise=0|1       the denoiser (default 1: the canvas shows the accumulation denoised at 4
 //                     spp, then each time the spp double; web/src/denoise/mod.rs),
 //   paused=1          no frame loop: frames only through the test hook,
+//   preview=0|1       the preview (default 1: a new renderer's first image is rendered at a
+//                     quarter of each side and shown upscaled until the first full-resolution
+//                     frame is complete; never accumulated: web/src/runtime/preview.rs),
 //   budget=BYTES      the cache budget,
 //   bandBudget=MS     the longest one GPU submission (a band of a frame) should take, default
 //                     50; 0: frames are not split (one submission per frame),
@@ -29,6 +32,8 @@ import { BundleCache, DEFAULT_BUDGET_BYTES } from './cache.js';
 import { movingText, setUpAnimationControls, showAnimation } from './animation.js';
 import { compileProgram } from './compile.js';
 import { FirstFrame } from './first_frame.js';
+import { measureSchedules } from './schedule_measure.js';
+import { apiReadout, formatBytes, formatRate } from './readouts.js';
 import { WebGpuRecovery } from './webgpu_recovery.js';
 
 const params = new URLSearchParams(location.search);
@@ -70,6 +75,13 @@ const hook = {
   // submission, or the compile's end if later, until it is finished on the GPU), otherMs (the
   // rest: page and wasm start, device request, scene list, waits between steps) }.
   firstFrame: null,
+  // The last loaded scene's first image on screen, once it is: { preview (whether it was one),
+  // scene, width, height (its size), totalMs (as firstFrame's), gpuMs }; and the page's first
+  // image on screen (performance.now(), as firstFrameMs).
+  firstImage: null,
+  firstImageMs: null,
+  // Per preview shown by this page: { at (performance.now() at its submission), width, height }.
+  previews: [],
   bands: 0, // bands submitted by the frame loop
   // Per camera input that restarted the accumulation, once the restarted accumulation's first
   // band is done on the GPU: { inputAt (the event's timeStamp), handledAt, submittedAt (its
@@ -92,6 +104,14 @@ const hook = {
   // Bytes the module has allocated and not freed (web/src/heap.rs): a leak shows here at once.
   heapBytes: () => (wasm ? heapBytes() : 0),
   pause() { paused = true; },
+  // Renders the pending preview now, as the frame loop's first step does, and waits for the
+  // GPU; resolves to sceneInfo().preview ({ state, showing, width, height, ... }).
+  async renderPreview() {
+    const at = performance.now();
+    if (viewer.renderPreview()) previewShown(at);
+    await viewer.sync();
+    return viewer.sceneInfo().preview;
+  },
   resume() { paused = false; },
   // Renders `n` frames now and waits for the GPU; resolves to milliseconds per frame. (A
   // wavefront frame is done once its counters, read after each submission, say so.)
@@ -237,71 +257,16 @@ function guarded(action) {
   }
 }
 
-// The API and, on WebGPU, the schedule that runs: "WebGPU, wavefront".
-function apiName(info) {
-  return info.api === 'WebGPU' ? `${info.api}, ${info.schedule}` : info.api;
-}
+// ---- auto's schedule, measured (schedule_measure.js) ------------------------------------
 
-// The API read-out: "WebGPU, wavefront (auto: 0.62x the megakernel's frame time, measured;
-// google / swiftshader)"; without a schedule measurement, the API, schedule and adapter.
-function apiReadout(info) {
-  const choice = info.scheduleChoice;
-  const details = [choice && choice.reason, info.adapter].filter(Boolean).join('; ');
-  return `${apiName(info)} (${details})`;
-}
-
-function formatBytes(n) {
-  const units = ['B', 'KB', 'MB', 'GB'];
-  let i = 0;
-  while (n >= 1000 && i < units.length - 1) { n /= 1000; i++; }
-  return `${n.toFixed(i === 0 ? 0 : 1)} ${units[i]}`;
-}
-
-function formatRate(n) {
-  if (!Number.isFinite(n) || n <= 0) return '–';
-  const units = ['', 'k', 'M', 'G'];
-  let i = 0;
-  while (n >= 1000 && i < units.length - 1) { n /= 1000; i++; }
-  return `${n.toFixed(1)}${units[i]}`;
-}
-
-// ---- auto's schedule, measured ----------------------------------------------------------
-
-// `schedule=auto` on WebGPU (web/src/viewer/measure.rs, docs/wavefront.md): once the scene's
-// first frame has shown on the megakernel, the wavefront is built beside it on the same device
-// and the turns the viewer names (a warm-up frame of each, then megakernel and wavefront
-// alternated, rounds of whole frames) are timed as renderFrames times frames: from the first
-// submission until the queue is done after the last. The frame loop and the denoiser wait
-// meanwhile; the megakernel's frames are shown. The viewer then keeps the faster schedule.
-// Resolves to sceneInfo().scheduleChoice.
-async function measureSchedule() {
-  const id = viewer ? viewer.beginScheduleMeasurement() : 0;
-  try {
-    for (let turn = id && viewer.scheduleTurn(id); turn; turn = viewer.scheduleTurn(id)) {
-      const start = performance.now();
-      for (let i = 0; i < turn.frames; i++) {
-        let answer;
-        while ((answer = viewer.measureFrame(id)) === 0) await viewer.sync();
-        if (answer === 2) return over();
-        if (turn.schedule === 'megakernel') frameDone();
-      }
-      await viewer.sync();
-      viewer.recordScheduleTurn(id, (performance.now() - start) / turn.frames);
-    }
-  } catch (e) {
-    viewer.abandonScheduleMeasurement(id, `the page's measuring loop failed (${e.message || e})`);
-    showMessage(String(e.message || e));
-  }
-  return over();
-
-  function over() {
-    frameMs = null;
-    lastFrameAt = null;
-    const info = viewer ? viewer.sceneInfo() : {};
-    // A wavefront that failed while measured: the notice says why the megakernel runs.
-    if (info.scheduleChoice && info.scheduleChoice.state === 'failed') showNotice();
-    return info.scheduleChoice || null;
-  }
+function measureSchedule() {
+  return measureSchedules(viewer, {
+    frameDone,
+    showMessage,
+    showNotice,
+    // The frame loop's frame time starts again after the measurement's frames.
+    over: () => { frameMs = null; lastFrameAt = null; },
+  });
 }
 
 // ---- frame loop -------------------------------------------------------------------------
@@ -313,6 +278,13 @@ let pendingRestart = null; // the last restart whose first band is not done yet
 function frameDone() {
   hook.frames++;
   firstFrame.frameDone();
+}
+
+// A preview was submitted and drawn at `at`.
+function previewShown(at) {
+  const p = viewer.sceneInfo().preview;
+  hook.previews.push({ at, width: p.width, height: p.height });
+  firstFrame.previewSubmitted(at);
 }
 
 // One whole frame in one submission (the test hook's renderFrames).
@@ -353,12 +325,13 @@ function tick(now) {
     const before = performance.now();
     try {
       status = viewer.step(before);
-      if (status > 0) firstFrame.markSubmitted(before);
+      if (status === 3) previewShown(before);
+      else if (status > 0) firstFrame.markSubmitted(before);
     } catch (e) {
       showMessage(String(e.message || e));
       paused = true;
     }
-    if (status > 0) {
+    if (status === 1 || status === 2) {
       const at = performance.now();
       hook.bands++;
       if (pendingRestart && pendingRestart.submittedAt !== null) {
@@ -395,7 +368,9 @@ function updateReadouts() {
   $('api-info').title = info.notice || '';
   $('spp').textContent = info.spp;
   showAnimation($, info);
-  $('denoise-info').textContent = info.denoise.readout;
+  $('denoise-info').textContent = info.preview && info.preview.showing
+    ? `preview ${info.preview.width}×${info.preview.height}, upscaled (full resolution on the way)`
+    : info.denoise.readout;
   $('size').textContent = `${info.width}×${info.height}`;
   if (frameMs !== null) {
     const samples = (info.width * info.height * 1000) / frameMs;
@@ -766,6 +741,11 @@ async function main() {
   guarded(() => viewer.setSize(w, h));
   if (params.get('maxTextureSize')) viewer.setMaxTextureSize(Number(params.get('maxTextureSize')));
   if (params.has('bandBudget')) guarded(() => viewer.setBandBudget(Number(params.get('bandBudget'))));
+  if (params.has('preview')) {
+    const on = params.get('preview');
+    if (on === '0' || on === '1') viewer.setPreview(on === '1');
+    else showMessage(`invalid preview=${on} (0: off, 1: on, the default)`);
+  }
   if (params.get('strategy')) hook.setStrategy(params.get('strategy'));
   if (params.get('tonemap')) hook.setToneMap(params.get('tonemap'));
   if (params.has('exposure')) hook.setExposure(Number(params.get('exposure')));

@@ -181,6 +181,9 @@ pub enum Step {
     Waiting,
     /// A band was submitted; `frame_done`: it was the frame's last (a sample per pixel was added).
     Submitted { frame_done: bool },
+    /// A preview was submitted and shown (the web runtimes' first step after a scene loads:
+    /// `backend::preview`), no band of the frame.
+    Preview,
 }
 
 #[cfg(test)]

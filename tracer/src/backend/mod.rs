@@ -7,6 +7,7 @@ pub mod cpu;
 pub mod frame_split;
 pub mod gl;
 pub mod harness;
+pub mod preview;
 mod renderer;
 pub mod wavefront;
 #[cfg(feature = "wgpu")]

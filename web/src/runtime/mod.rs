@@ -4,6 +4,7 @@
 //! concerns the renderer through its [`Renderer`] trait object, what concerns the canvas (the
 //! display pass, frame pacing, the context) through the runtime itself.
 
+pub mod preview;
 pub mod webgl2;
 pub mod webgpu;
 
@@ -21,6 +22,7 @@ use wasm_bindgen::JsValue;
 
 use crate::js::set;
 
+pub use preview::{Preview, PreviewState};
 pub use webgl2::GlRuntime;
 pub use webgpu::{GpuDevice, GpuRuntime};
 
@@ -141,6 +143,40 @@ impl Runtime {
         }
     }
 
+    /// Its preview (`preview.rs`).
+    pub fn preview(&self) -> &Preview {
+        match self {
+            Runtime::WebGl2(r) => r.preview(),
+            Runtime::WebGpu(r) => r.preview(),
+        }
+    }
+
+    fn preview_mut(&mut self) -> &mut Preview {
+        match self {
+            Runtime::WebGl2(r) => r.preview_mut(),
+            Runtime::WebGpu(r) => r.preview_mut(),
+        }
+    }
+
+    /// Asks for a preview (`on`) before the accumulation's first frame, or for none.
+    pub fn set_preview(&mut self, on: bool) {
+        let (state, fresh) = (self.preview().state, self.frames() == 0);
+        match (on, state) {
+            (true, PreviewState::Off) if fresh => *self.preview_mut() = Preview::new(true),
+            (false, PreviewState::Pending | PreviewState::Shown) => *self.preview_mut() = Preview::new(false),
+            _ => {}
+        }
+    }
+
+    /// Renders the pending preview now (the test hook's `renderPreview`) if the accumulation
+    /// has not begun, and shows it: whether it did.
+    pub fn preview_now(&mut self, now_ms: f64, display: &Display) -> bool {
+        match self {
+            Runtime::WebGl2(r) => r.preview_now(now_ms, display),
+            Runtime::WebGpu(r) => r.preview_now(now_ms, display),
+        }
+    }
+
     /// Whether the runtime's context or device is gone (nothing may be drawn).
     pub fn lost(&self) -> bool {
         match self {
@@ -194,11 +230,13 @@ impl Runtime {
 
     /// Sets uniforms through `update` and restarts the accumulation.
     pub fn set_uniforms(&mut self, mut update: impl FnMut(&mut Scene)) -> Result<(), String> {
+        self.preview_mut().restarted();
         self.renderer_mut().set_uniforms(&mut update).map_err(|e| e.to_string())
     }
 
     /// Takes a moved scene's geometry (`Renderer::take_geometry`) and restarts the accumulation.
     pub fn take_geometry(&mut self, moved: Packed) -> Result<(), tracer::backend::RenderError> {
+        self.preview_mut().restarted();
         self.renderer_mut().take_geometry(moved)
     }
 
@@ -232,6 +270,7 @@ impl Runtime {
         set(info, "bandRows", policy.rows());
         set(info, "bandMs", policy.band_ms().map_or(JsValue::NULL, JsValue::from));
         set(info, "gpuBusy", busy);
+        set(info, "preview", self.preview().describe());
         match self {
             Runtime::WebGl2(r) => {
                 let gl = r.renderer().info();

@@ -6,6 +6,7 @@ use glow::HasContext;
 use tracer::backend::frame_split::Step;
 use tracer::backend::gl::Pacer;
 use tracer::backend::gl::{GlDisplay, GlFilter, GlOptions, GlRenderer, QueuedFilter};
+use tracer::backend::preview::preview_size;
 use tracer::backend::{Image, Renderer};
 use tracer::kernel::denoise::FilterImage;
 use tracer::output::Display;
@@ -13,6 +14,7 @@ use tracer::pack::Packed;
 use wasm_bindgen::JsCast;
 use web_sys::{HtmlCanvasElement, WebGl2RenderingContext, WebGlContextAttributes};
 
+use super::preview::Preview;
 use super::Startup;
 use crate::denoise::show::GlImageDisplay;
 use crate::js::now_ms;
@@ -52,6 +54,9 @@ pub struct GlRuntime {
     /// while they run, no band is submitted (one job on the GPU at a time, as bands are).
     filter: Option<GlFilter>,
     queued: Option<QueuedFilter>,
+    /// The preview (`super::preview`) and its image, once rendered.
+    preview: Preview,
+    preview_image: Option<glow::Texture>,
 }
 
 impl GlRuntime {
@@ -91,7 +96,42 @@ impl GlRuntime {
             image_display: None,
             filter: None,
             queued: None,
+            preview: Preview::default(),
+            preview_image: None,
         })
+    }
+
+    pub fn preview(&self) -> &Preview {
+        &self.preview
+    }
+
+    pub fn preview_mut(&mut self) -> &mut Preview {
+        &mut self.preview
+    }
+
+    /// Renders the pending preview now, if the accumulation has not begun, and shows it:
+    /// whether it did. The band in flight is forgotten (the caller waits with `sync`).
+    pub fn preview_now(&mut self, now_ms: f64, settings: &Display) -> bool {
+        let (_, h) = self.size();
+        let start = self.renderer.frames() == 0 && self.renderer.rows_left() == h as u32;
+        if self.preview.state != super::preview::PreviewState::Pending || !start {
+            return false;
+        }
+        self.pacer.forget(self.renderer.gl());
+        let (w, h) = self.size();
+        let size = preview_size(w as u32, h as u32);
+        match self.renderer.render_preview(size.0, size.1) {
+            Ok(texture) => {
+                self.preview_image = Some(texture);
+                self.preview.shown(size, now_ms);
+                self.draw(settings);
+                true
+            }
+            Err(e) => {
+                self.preview.failed(e.to_string());
+                false
+            }
+        }
     }
 
     pub fn renderer(&self) -> &GlRenderer {
@@ -119,11 +159,13 @@ impl GlRuntime {
         (s.width as i32, s.height as i32)
     }
 
-    /// Draws the current image through `settings`.
+    /// Draws the current image through `settings`: the preview, upscaled, while it shows.
     pub fn draw(&self, settings: &Display) {
         let (w, h) = self.size();
-        if let Some(display) = &self.display {
-            display.draw(&self.renderer, None, [w, h], settings);
+        let Some(display) = &self.display else { return };
+        match self.preview_image.filter(|_| self.preview.showing()) {
+            Some(image) => display.draw_texture(self.renderer.gl(), image, None, [w, h], 1.0, settings),
+            None => display.draw(&self.renderer, None, [w, h], settings),
         }
     }
 
@@ -169,6 +211,7 @@ impl GlRuntime {
         // The band in flight would be timed with this whole frame.
         self.pacer.forget(self.renderer.gl());
         self.renderer.render_frame().map_err(|e| e.to_string())?;
+        self.preview.frame_done();
         self.draw(settings);
         Ok(())
     }
@@ -179,15 +222,33 @@ impl GlRuntime {
             return Ok(Step::Waiting);
         }
         let (w, h) = self.size();
+        if self.preview.state == super::preview::PreviewState::Pending {
+            // First the preview, alone on the GPU: its draw waits for the band in flight.
+            if !self.pacer.poll(self.renderer.gl(), now_ms) {
+                return Ok(Step::Waiting);
+            }
+            if self.preview_now(now_ms, settings) {
+                self.pacer.track(self.renderer.gl(), now_ms);
+                return Ok(Step::Preview);
+            }
+        }
         let display = self.display.as_ref();
-        self.pacer
+        let previewing = self.preview.showing();
+        let step = self
+            .pacer
             .step(&mut self.renderer, now_ms, |renderer, frame_done| {
-                // Each band of the first frame after a restart shows; later, each whole frame.
-                if let (true, Some(display)) = (frame_done || renderer.frames() == 0, display) {
+                // Each band of the first frame after a restart shows (unless the preview does
+                // until the frame is complete); later, each whole frame.
+                let first = renderer.frames() == 0 && !previewing;
+                if let (true, Some(display)) = (frame_done || first, display) {
                     display.draw(renderer, None, [w, h], settings);
                 }
             })
-            .map_err(|e| e.to_string())
+            .map_err(|e| e.to_string())?;
+        if step == (Step::Submitted { frame_done: true }) {
+            self.preview.frame_done();
+        }
+        Ok(step)
     }
 
     pub fn set_band_budget(&mut self, budget_ms: Option<f64>) {

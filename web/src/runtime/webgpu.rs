@@ -17,6 +17,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 use tracer::backend::frame_split::{BandPolicy, Step};
+use tracer::backend::preview::preview_size;
 use tracer::backend::wgpu::{
     DeviceRenderer, DisplayPass, PipelineCheck, WavefrontRenderer, WgpuDevice, WgpuError, WgpuOptions, WgpuRenderer,
 };
@@ -27,6 +28,7 @@ use wasm_bindgen::prelude::*;
 use wasm_bindgen::JsCast;
 use web_sys::HtmlCanvasElement;
 
+use super::preview::{Preview, PreviewState};
 use super::Startup;
 use crate::denoise::show::GpuImageDisplay;
 use crate::js::now_ms;
@@ -127,6 +129,9 @@ pub struct GpuRuntime {
     compiled_at: Rc<Cell<Option<f64>>>,
     /// The denoised image, as the display pass reads it.
     image_display: GpuImageDisplay,
+    /// The preview (`super::preview`) and its pixels, once rendered.
+    preview: Preview,
+    preview_image: Option<wgpu::Buffer>,
 }
 
 /// A band submitted to the queue and not yet seen done.
@@ -136,6 +141,7 @@ struct InFlight {
     submitted_ms: f64,
     /// The last step that found it not done.
     pending_at_ms: Option<f64>,
+    /// Its rows; 0: a preview (waited for, not measured).
     rows: u32,
 }
 
@@ -291,7 +297,46 @@ impl GpuRuntime {
             startup,
             compiled_at,
             image_display: GpuImageDisplay::default(),
+            preview: Preview::default(),
+            preview_image: None,
         })
+    }
+
+    pub fn preview(&self) -> &Preview {
+        &self.preview
+    }
+
+    pub fn preview_mut(&mut self) -> &mut Preview {
+        &mut self.preview
+    }
+
+    /// Renders the pending preview now, if the accumulation has not begun, and shows it:
+    /// whether it did (the wavefront renders none). The band in flight is forgotten.
+    pub fn preview_now(&mut self, now_ms: f64, settings: &Display) -> bool {
+        let scene = &self.renderer.packed().scene;
+        let (width, height) = (scene.width, scene.height);
+        let start = self.renderer.frames() == 0 && self.renderer.rows_left() == height;
+        if self.preview.state != PreviewState::Pending || !start {
+            return false;
+        }
+        let size = preview_size(width, height);
+        match self.renderer.render_preview(size.0, size.1) {
+            Ok(Some(buffer)) => {
+                self.in_flight = None;
+                self.preview_image = Some(buffer);
+                self.preview.shown(size, now_ms);
+                self.draw(settings);
+                true
+            }
+            Ok(None) => {
+                self.preview.state = PreviewState::Skipped;
+                false
+            }
+            Err(e) => {
+                self.preview.failed(e.to_string());
+                false
+            }
+        }
     }
 
     pub fn renderer(&self) -> &dyn DeviceRenderer {
@@ -341,7 +386,16 @@ impl GpuRuntime {
             _ => return,
         };
         let view = texture.texture.create_view(&Default::default());
-        self.display.draw(self.renderer.as_ref(), &view, settings);
+        match self.preview_image.as_ref().filter(|_| self.preview.showing()) {
+            Some(image) => {
+                let device = self.renderer.device();
+                let scene = &self.renderer.packed().scene;
+                let size = self.preview.size.map_or([1, 1], |(w, h)| [w, h]);
+                let target = [scene.width, scene.height];
+                self.display.draw_upscaled(&device.device, &device.queue, &view, image, size, target, 1.0, settings);
+            }
+            None => self.display.draw(self.renderer.as_ref(), &view, settings),
+        }
         self.renderer.device().queue.present(texture);
     }
 
@@ -367,6 +421,7 @@ impl GpuRuntime {
         self.in_flight = None;
         let done = self.renderer.render_band(self.renderer.rows_left()).map_err(|e| e.to_string())?;
         if done {
+            self.preview.frame_done();
             self.draw(settings);
         }
         Ok(done)
@@ -385,12 +440,21 @@ impl GpuRuntime {
             // Never seen pending: the step came late, so the time to it is what the band took.
             let at_most = now_ms - band.submitted_ms;
             let at_least = band.pending_at_ms.map_or(at_most, |t| t - band.submitted_ms);
-            self.policy.record_between(band.rows, at_least, at_most);
+            if band.rows > 0 {
+                self.policy.record_between(band.rows, at_least, at_most);
+            }
             self.in_flight = None;
         }
+        // First the preview, alone on the GPU.
+        let previewed = self.preview_now(now_ms, settings);
         let rows = self.policy.rows().min(self.renderer.rows_left());
-        let frame_done = self.renderer.render_band(rows).map_err(|e| e.to_string())?;
-        if frame_done || self.renderer.frames() == 0 {
+        let frame_done = !previewed && self.renderer.render_band(rows).map_err(|e| e.to_string())?;
+        if frame_done {
+            self.preview.frame_done();
+        }
+        // Each band of the first frame after a restart shows (unless the preview does until the
+        // frame is complete); later, each whole frame.
+        if !previewed && (frame_done || (self.renderer.frames() == 0 && !self.preview.showing())) {
             self.draw(settings);
         }
         let done = Arc::new(AtomicBool::new(false));
@@ -400,8 +464,9 @@ impl GpuRuntime {
             finished.await;
             flag.store(true, Ordering::Release);
         });
+        let rows = if previewed { 0 } else { rows };
         self.in_flight = Some(InFlight { done, submitted_ms: now_ms, pending_at_ms: None, rows });
-        Ok(Step::Submitted { frame_done })
+        Ok(if previewed { Step::Preview } else { Step::Submitted { frame_done } })
     }
 
     /// Resolves once the queued work is done.

@@ -36,6 +36,7 @@ use crate::js::{camel_case, js_error, now_ms, set};
 mod camera_input;
 mod measure;
 mod playback;
+mod preview;
 mod runtime_choice;
 
 use crate::runtime::webgpu::Candidate;
@@ -104,6 +105,8 @@ pub struct Viewer {
     denoiser: PageDenoiser,
     /// The loaded scene's animation, when it moves (`crate::playback`).
     playback: Option<Playback>,
+    /// Whether a new renderer's first image is a preview (`setPreview`; on by default).
+    preview: bool,
 }
 
 /// Renderers recreated after uncaptured WebGPU errors before the error is shown instead.
@@ -144,6 +147,7 @@ impl Viewer {
             display: Display::default(),
             denoiser: PageDenoiser::new(true),
             playback: None,
+            preview: true,
         }
     }
 
@@ -421,7 +425,8 @@ impl Viewer {
     /// blocking), submits the next, and when that completes the frame, draws the image (on
     /// WebGL2, during the first frame after a restart: after every band, the new view band by
     /// band). Returns 0: waited (nothing submitted), 1: a band was submitted, 2: the band
-    /// completed a frame (one more sample per pixel).
+    /// completed a frame (one more sample per pixel), 3: a preview was submitted and shown (a
+    /// new renderer's first step: `preview.rs`).
     pub fn step(&mut self, now_ms: f64) -> Result<u32, JsError> {
         // The page's loop waits while auto measures; a step meanwhile gives the measurement up.
         self.abandon_measurement("the frame loop went on");
@@ -445,6 +450,7 @@ impl Viewer {
             Step::Waiting => 0,
             Step::Submitted { frame_done: false } => 1,
             Step::Submitted { frame_done: true } => 2,
+            Step::Preview => 3,
         })
     }
 

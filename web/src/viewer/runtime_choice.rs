@@ -15,8 +15,15 @@ use crate::runtime::{webgl2, Api, GlRuntime, GpuRuntime, Runtime};
 use crate::schedule_choice::Choice;
 
 impl Viewer {
-    /// A renderer and display pass for `packed`, on the API chosen ([`set_api`](Self::set_api)).
+    /// A renderer and display pass for `packed`, on the API chosen ([`set_api`](Self::set_api)),
+    /// its first image a preview unless turned off (`setPreview`).
     pub(super) fn start(&mut self, packed: &Packed) -> Result<Runtime, JsError> {
+        let mut runtime = self.start_runtime(packed)?;
+        runtime.set_preview(self.preview);
+        Ok(runtime)
+    }
+
+    fn start_runtime(&mut self, packed: &Packed) -> Result<Runtime, JsError> {
         self.notice = None;
         let gpu_ready = self.gpu.as_ref().is_some_and(|g| g.lost().is_none());
         match self.api {

@@ -13,15 +13,19 @@ use crate::output::Display;
 
 /// The display pass's entry point, appended to the generated display transform. Accumulation
 /// row y is image row y from the top; `gl_FragCoord.y` counts from the framebuffer's bottom.
+/// The image is stretched over the viewport (`lp_display_viewport`): a smaller image (a preview)
+/// shows upscaled, each of its pixels a block; one of the viewport's size maps pixel to pixel
+/// exactly ((x + 0.5) * n / n is exact in floats).
 const DISPLAY_MAIN: &str = r#"
 uniform highp sampler2D lp_display_accumulation;
 uniform float lp_display_inverse_frames;
 uniform uint lp_display_operator;
 uniform float lp_display_exposure_scale;
+uniform vec2 lp_display_viewport;
 out vec4 lp_display_color;
 void main() {
     ivec2 size = textureSize(lp_display_accumulation, 0);
-    ivec2 p = ivec2(gl_FragCoord.xy);
+    ivec2 p = min(ivec2(gl_FragCoord.xy * vec2(size) / lp_display_viewport), size - 1);
     vec3 c = texelFetch(lp_display_accumulation, ivec2(p.x, size.y - 1 - p.y), 0).rgb * lp_display_inverse_frames;
     lp_display_color = vec4(display_srgb(c, lp_display_operator, lp_display_exposure_scale), 1.0);
 }
@@ -42,6 +46,7 @@ pub struct GlDisplay {
     inverse_frames: Option<glow::UniformLocation>,
     operator: Option<glow::UniformLocation>,
     exposure_scale: Option<glow::UniformLocation>,
+    viewport: Option<glow::UniformLocation>,
 }
 
 impl GlDisplay {
@@ -64,6 +69,7 @@ impl GlDisplay {
                 inverse_frames: gl.get_uniform_location(program, "lp_display_inverse_frames"),
                 operator: gl.get_uniform_location(program, "lp_display_operator"),
                 exposure_scale: gl.get_uniform_location(program, "lp_display_exposure_scale"),
+                viewport: gl.get_uniform_location(program, "lp_display_viewport"),
                 program,
                 vertex_array,
             })
@@ -87,7 +93,8 @@ impl GlDisplay {
 
     /// Draws the RGBA32F `texture` (a running sum, or an image with `inverse_frames` 1, row y
     /// = image row y from the top) through `display` into `framebuffer` over a `width` x
-    /// `height` viewport, on `gl` (the context the pass was created on).
+    /// `height` viewport, on `gl` (the context the pass was created on). A texture smaller than
+    /// the viewport (a preview) is stretched over it.
     pub fn draw_texture(
         &self,
         gl: &glow::Context,
@@ -109,6 +116,7 @@ impl GlDisplay {
             gl.uniform_1_f32(self.inverse_frames.as_ref(), inverse_frames);
             gl.uniform_1_u32(self.operator.as_ref(), display.tone_map.kernel_id());
             gl.uniform_1_f32(self.exposure_scale.as_ref(), display.exposure.exp2());
+            gl.uniform_2_f32(self.viewport.as_ref(), width as f32, height as f32);
             gl.bind_vertex_array(Some(self.vertex_array));
             gl.draw_arrays(glow::TRIANGLES, 0, 3);
             gl.bind_vertex_array(None);

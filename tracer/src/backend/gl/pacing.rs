@@ -12,6 +12,7 @@ struct InFlight {
     submitted_ms: f64,
     /// The last poll that found the fence unsignalled.
     pending_at_ms: Option<f64>,
+    /// The band's rows; 0: other work, waited for but not measured ([`track`](Pacer::track)).
     rows: u32,
 }
 
@@ -54,7 +55,9 @@ impl Pacer {
                 // for the busy GPU), so the time to it is what the band took.
                 let at_most = now_ms - band.submitted_ms;
                 let at_least = band.pending_at_ms.map_or(at_most, |t| t - band.submitted_ms);
-                self.policy.record_between(band.rows, at_least, at_most)
+                if band.rows > 0 {
+                    self.policy.record_between(band.rows, at_least, at_most);
+                }
             }
             // WAIT_FAILED (e.g. a lost context): no time to record, and nothing to wait for.
             _ => {}
@@ -92,6 +95,22 @@ impl Pacer {
             self.in_flight = Some(InFlight { fence, submitted_ms: now_ms, pending_at_ms: None, rows });
         }
         Ok(Step::Submitted { frame_done })
+    }
+
+    /// Puts a fence behind work the caller just submitted that is no band (a preview), so that
+    /// the next band waits for it as for a band in flight; its time is not measured. Call it
+    /// when [`poll`](Self::poll) said nothing is in flight.
+    pub fn track(&mut self, gl: &glow::Context, now_ms: f64) {
+        self.forget(gl);
+        // SAFETY: a fence and a flush on the caller's current context.
+        let fence = unsafe {
+            let fence = gl.fence_sync(glow::SYNC_GPU_COMMANDS_COMPLETE, 0);
+            gl.flush();
+            fence
+        };
+        if let Ok(fence) = fence {
+            self.in_flight = Some(InFlight { fence, submitted_ms: now_ms, pending_at_ms: None, rows: 0 });
+        }
     }
 
     /// Drops the band in flight without measuring it (before the renderer's context goes, or

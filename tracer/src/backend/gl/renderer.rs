@@ -23,6 +23,16 @@ use crate::kernel::denoise::FilterImage;
 use crate::kernel::scene_data::Scene;
 use crate::pack::Packed;
 
+/// Where a preview is drawn: RGBA32F images of its size (the kernel's outputs) and their
+/// framebuffer, objects of the renderer's.
+#[derive(Clone, Copy)]
+struct PreviewTarget {
+    width: u32,
+    height: u32,
+    texture: glow::Texture,
+    framebuffer: glow::Framebuffer,
+}
+
 /// The state [`GlRenderer`] keeps besides its objects.
 struct Pipeline {
     program: glow::Program,
@@ -60,6 +70,9 @@ pub struct GlRenderer {
     band_row: u32,
     /// The denoiser's pass, compiled when first asked for.
     filter: Option<GlFilter>,
+    /// The preview's image and framebuffer ([`render_preview`](Self::render_preview)), created
+    /// at the first preview.
+    preview: Option<PreviewTarget>,
     /// The EGL context this renderer created ([`headless`](Self::headless)); dropped last.
     #[cfg(feature = "gl")]
     headless: Option<HeadlessContext>,
@@ -86,6 +99,7 @@ impl GlRenderer {
                 current: 0,
                 band_row: 0,
                 filter: None,
+                preview: None,
                 #[cfg(feature = "gl")]
                 headless: None,
                 _not_send: PhantomData,
@@ -184,6 +198,93 @@ impl GlRenderer {
     /// shows the new view band by band instead of the old one for a whole slow frame.
     pub fn first_frame_in_progress(&self) -> Option<glow::Texture> {
         (self.frames == 0 && self.band_row > 0).then_some(self.pipeline.accumulation[1 - self.current][0])
+    }
+}
+
+impl GlRenderer {
+    /// A preview (see [`preview`](crate::backend::preview)): one sample per pixel of the current
+    /// view at `width` x `height` (at most the image's size), drawn by the same program into an
+    /// image of its own, which is returned (row y = image row y from the top, as the
+    /// accumulation; one sample, so its mean). Only before the accumulation's first frame
+    /// (nothing of it drawn since the last restart): the pass reads the accumulation, zero
+    /// then, as the running sum it adds to, and writes only the preview's image, so the
+    /// accumulation is untouched. For that one draw the scene's `width` and `height` uniforms
+    /// are the preview's; they are set back after it. One submission.
+    pub fn render_preview(&mut self, width: u32, height: u32) -> Result<glow::Texture, RenderError> {
+        if self.frames != 0 || self.band_row != 0 {
+            return Err(RenderError::Unsupported {
+                runtime: "gl",
+                what: "renders a preview only before the accumulation's first frame (after a restart)",
+            });
+        }
+        self.activate()?;
+        let (full_width, full_height) = (self.packed.scene.width, self.packed.scene.height);
+        let (width, height) = (width.clamp(1, full_width), height.clamp(1, full_height));
+        let target = match self.preview {
+            Some(t) if (t.width, t.height) == (width, height) => t,
+            _ => {
+                let outputs = self.pipeline.accumulation[0].len();
+                let (textures, framebuffer) = render_targets(&self.gl, width, height, outputs, &mut self.objects)?;
+                let target = PreviewTarget { width, height, texture: textures[0], framebuffer };
+                self.preview = Some(target);
+                target
+            }
+        };
+        let gl = &self.gl;
+        let p = &self.pipeline;
+        // SAFETY: every object belongs to this context, which is current; the draw reads the
+        // accumulation textures (zero: no frame since the restart) and writes the preview's.
+        unsafe {
+            gl.use_program(Some(p.program));
+            let size_locations = ["width", "height"]
+                .map(|name| gl.get_uniform_location(p.program, &format!("{SCENE_UNIFORM_PREFIX}{name}")));
+            let [Some(width_location), Some(height_location)] = &size_locations else {
+                gl.use_program(None);
+                return Err(RenderError::Unsupported {
+                    runtime: "gl",
+                    what: "has no image size uniforms to preview with",
+                });
+            };
+            for &(unit, texture) in &p.data_textures {
+                gl.active_texture(glow::TEXTURE0 + unit);
+                gl.bind_texture(glow::TEXTURE_2D, Some(texture));
+            }
+            for (k, &texture) in p.accumulation[self.current].iter().enumerate() {
+                gl.active_texture(glow::TEXTURE0 + p.accumulation_unit + k as u32);
+                gl.bind_texture(glow::TEXTURE_2D, Some(texture));
+            }
+            gl.uniform_1_u32(p.frame_seed_location.as_ref(), frame_seed(0, self.seed));
+            gl.uniform_1_u32(p.frame_index_location.as_ref(), 0);
+            gl.uniform_1_u32(Some(width_location), width);
+            gl.uniform_1_u32(Some(height_location), height);
+            gl.bind_framebuffer(glow::FRAMEBUFFER, Some(target.framebuffer));
+            gl.viewport(0, 0, width as i32, height as i32);
+            gl.disable(glow::BLEND);
+            gl.disable(glow::DEPTH_TEST);
+            gl.disable(glow::SCISSOR_TEST);
+            gl.bind_vertex_array(Some(p.vertex_array));
+            gl.draw_arrays(glow::TRIANGLES, 0, 3);
+            gl.bind_vertex_array(None);
+            gl.bind_framebuffer(glow::FRAMEBUFFER, None);
+            gl.uniform_1_u32(Some(width_location), full_width);
+            gl.uniform_1_u32(Some(height_location), full_height);
+            gl.use_program(None);
+            let error = gl.get_error();
+            if error != glow::NO_ERROR {
+                let detail = format!("{width}x{height}: error {error:#06x}");
+                return Err(GlError::Gl { what: "drawing a preview", detail }.into());
+            }
+        }
+        Ok(target.texture)
+    }
+
+    /// The last preview's pixels (one sample each, row-major from the top).
+    pub fn read_preview(&self) -> Result<Vec<Vec4>, RenderError> {
+        let Some(target) = self.preview else {
+            return Err(RenderError::Unsupported { runtime: "gl", what: "has rendered no preview" });
+        };
+        self.activate()?;
+        Ok(read_image(&self.gl, target.framebuffer, 0, target.width, target.height)?)
     }
 }
 

@@ -22,6 +22,9 @@ struct LpDisplay {
     inverse_frames: f32,
     operator_: u32,
     exposure_scale: f32,
+    // The image's size over the target's: 1 where they match; a smaller image (a preview)
+    // is stretched over the target, each of its pixels a block.
+    scale: vec2<f32>,
 }
 @group(0) @binding(0) var<storage, read> lp_display_accumulation: array<vec4<f32>>;
 @group(0) @binding(1) var<uniform> lp_display: LpDisplay;
@@ -34,7 +37,7 @@ fn lp_display_vertex(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f
 
 @fragment
 fn lp_display_fragment(@builtin(position) position: vec4<f32>) -> @location(0) vec4<f32> {
-    let p = vec2<u32>(position.xy);
+    let p = vec2<u32>(position.xy * lp_display.scale);
     let sum = lp_display_accumulation[p.y * lp_display.width + p.x];
     let c = display_srgb(sum.xyz * lp_display.inverse_frames, lp_display.operator_, lp_display.exposure_scale);
     return vec4<f32>(c, 1.0);
@@ -105,7 +108,7 @@ impl DisplayPass {
         });
         let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("lightport display uniforms"),
-            contents: &[0u8; 16],
+            contents: &[0u8; 32],
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         });
         Ok(DisplayPass { pipeline, layout, uniform })
@@ -122,7 +125,8 @@ impl DisplayPass {
     }
 
     /// Draws `pixels` (a storage buffer of `vec4<f32>`, `width` per row, row 0 at the top: a
-    /// running sum, or an image with `inverse_frames` 1) through `settings` into `target`.
+    /// running sum, or an image with `inverse_frames` 1) through `settings` into `target`, of
+    /// the image's size.
     #[allow(clippy::too_many_arguments)]
     pub fn draw_buffer(
         &self,
@@ -134,8 +138,49 @@ impl DisplayPass {
         inverse_frames: f32,
         settings: &Display,
     ) {
-        let words: [u32; 4] =
-            [width, inverse_frames.to_bits(), settings.tone_map.kernel_id(), settings.exposure.exp2().to_bits()];
+        self.draw_stretched(device, queue, target, pixels, width, [1.0, 1.0], inverse_frames, settings);
+    }
+
+    /// [`draw_buffer`](Self::draw_buffer) of an image of `size` stretched over a `target` of
+    /// `target_size` (a preview, upscaled: each of its pixels a block).
+    #[allow(clippy::too_many_arguments)]
+    pub fn draw_upscaled(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        target: &wgpu::TextureView,
+        pixels: &wgpu::Buffer,
+        size: [u32; 2],
+        target_size: [u32; 2],
+        inverse_frames: f32,
+        settings: &Display,
+    ) {
+        let scale = [0, 1].map(|i| size[i] as f32 / target_size[i].max(1) as f32);
+        self.draw_stretched(device, queue, target, pixels, size[0], scale, inverse_frames, settings);
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn draw_stretched(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        target: &wgpu::TextureView,
+        pixels: &wgpu::Buffer,
+        width: u32,
+        scale: [f32; 2],
+        inverse_frames: f32,
+        settings: &Display,
+    ) {
+        let words: [u32; 8] = [
+            width,
+            inverse_frames.to_bits(),
+            settings.tone_map.kernel_id(),
+            settings.exposure.exp2().to_bits(),
+            scale[0].to_bits(),
+            scale[1].to_bits(),
+            0,
+            0,
+        ];
         queue.write_buffer(&self.uniform, 0, bytemuck::cast_slice(&words));
         let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("lightport display"),

@@ -89,6 +89,14 @@ pub trait DeviceRenderer: Renderer {
     fn build_times(&self) -> BuildTimes;
     /// "megakernel" or "wavefront".
     fn schedule(&self) -> crate::backend::Schedule;
+    /// A preview of the current view at `width` x `height` (see
+    /// [`preview`](crate::backend::preview)), queued: the storage buffer holding it (one
+    /// sample per pixel, `width` per row, row 0 at the top), which the accumulation never sees.
+    /// `None`: this renderer renders no preview (the wavefront's).
+    fn render_preview(&mut self, width: u32, height: u32) -> Result<Option<wgpu::Buffer>, RenderError> {
+        let _ = (width, height);
+        Ok(None)
+    }
 }
 
 /// The read-write storage buffer holding the running sum (written by codegen's entry point).

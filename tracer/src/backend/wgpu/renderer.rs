@@ -64,6 +64,8 @@ pub struct WgpuRenderer {
     filter: Option<WgpuFilter>,
     /// The first error wgpu reported outside an error scope (e.g. a lost device).
     uncaptured: UncapturedErrors,
+    /// The last preview's buffer and its size ([`render_preview`](super::DeviceRenderer::render_preview)).
+    preview: Option<(wgpu::Buffer, [u32; 2])>,
 }
 
 impl WgpuRenderer {
@@ -90,8 +92,18 @@ impl WgpuRenderer {
         let mut device = device;
         device.info.max_storage_buffer_binding_size = storage_limit(&device.limits, options);
         let options = options.clone();
-        let renderer =
-            WgpuRenderer { device, options, packed, seed, frames: 0, band_row: 0, pipeline, filter: None, uncaptured };
+        let renderer = WgpuRenderer {
+            device,
+            options,
+            packed,
+            seed,
+            frames: 0,
+            band_row: 0,
+            pipeline,
+            filter: None,
+            uncaptured,
+            preview: None,
+        };
         Ok((renderer, check))
     }
 
@@ -125,6 +137,28 @@ impl WgpuRenderer {
     /// The first error wgpu reported outside an error scope since the renderer was created.
     pub fn check_uncaptured(&self) -> Result<(), WgpuError> {
         self.uncaptured.check()
+    }
+
+    /// The last preview's pixels (one sample each, row-major from the top), waited for
+    /// (natively).
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn read_preview(&self) -> Result<Vec<Vec4>, RenderError> {
+        let Some((buffer, _)) = &self.preview else {
+            return Err(RenderError::Unsupported { runtime: "wgpu", what: "has rendered no preview" });
+        };
+        let readback = self.device.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("preview readback"),
+            size: buffer.size(),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(buffer, 0, &readback, 0, buffer.size());
+        self.device.queue.submit([encoder.finish()]);
+        super::wait_for_read(self, || {
+            let read = map_readback(readback);
+            async move { Ok(read.await?) }
+        })
     }
 
     /// Queues the copy of the accumulation into the readback buffer and returns the future
@@ -184,6 +218,73 @@ impl super::DeviceRenderer for WgpuRenderer {
 
     fn schedule(&self) -> crate::backend::Schedule {
         crate::backend::Schedule::Megakernel
+    }
+
+    /// The frame's dispatch over `width` x `height` pixels with the scene's `width` and
+    /// `height` uniforms set to those for it, into the first `width` x `height` sums of the
+    /// accumulation (and the guide's), copied to the preview's own buffer, after which the
+    /// accumulation and the guide are cleared again: all in one submission, so the
+    /// accumulation is zero again before any frame runs. Only before the accumulation's first
+    /// frame (nothing of it dispatched since the last restart). The uniforms are written back
+    /// for the next submission.
+    fn render_preview(&mut self, width: u32, height: u32) -> Result<Option<wgpu::Buffer>, RenderError> {
+        self.check_uncaptured()?;
+        if self.frames != 0 || self.band_row != 0 {
+            return Err(RenderError::Unsupported {
+                runtime: "wgpu",
+                what: "renders a preview only before the accumulation's first frame (after a restart)",
+            });
+        }
+        let scene = &self.packed.scene;
+        let (width, height) = (width.clamp(1, scene.width), height.clamp(1, scene.height));
+        let p = &self.pipeline;
+        let Some((uniform, layout)) = &p.scene_uniform else {
+            return Err(RenderError::Unsupported {
+                runtime: "wgpu",
+                what: "has no image size uniforms to preview with",
+            });
+        };
+        let queue = &self.device.queue;
+        let write = |values: &[(&str, u32)]| {
+            for &(member, value) in values {
+                if let Some((_, offset)) = layout.members.iter().find(|(n, _)| n == member) {
+                    queue.write_buffer(uniform, *offset as u64, &value.to_le_bytes());
+                }
+            }
+        };
+        write(&[("width", width), ("height", height), ("frame_seed", frame_seed(0, self.seed)), ("frame_index", 0)]);
+        let (target, target_layout) = &p.target;
+        queue.write_buffer(target, 0, &target_bytes(target_layout, width, 0, height)?);
+        let bytes = width as u64 * height as u64 * 16;
+        let buffer = match &self.preview {
+            Some((buffer, size)) if *size == [width, height] => buffer.clone(),
+            _ => self.device.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("preview"),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+        };
+        let mut encoder = self.device.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("lightport preview"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&p.pipeline);
+            for (i, group) in p.bind_groups.iter().enumerate() {
+                pass.set_bind_group(i as u32, group, &[]);
+            }
+            pass.dispatch_workgroups(width.div_ceil(WORKGROUP_SIZE[0]), height.div_ceil(WORKGROUP_SIZE[1]), 1);
+        }
+        encoder.copy_buffer_to_buffer(&p.accumulation, 0, &buffer, 0, bytes);
+        for sums in std::iter::once(&p.accumulation).chain(&p.guide) {
+            encoder.clear_buffer(sums, 0, None);
+        }
+        queue.submit([encoder.finish()]);
+        write(&[("width", scene.width), ("height", scene.height)]);
+        self.preview = Some((buffer.clone(), [width, height]));
+        Ok(Some(buffer))
     }
 }
 

@@ -1,0 +1,108 @@
+//! Where a runtime's preview stands (`tracer::backend::preview`): after a renderer is created
+//! (a scene loaded, a resize, a new device...) the frame loop's first step renders the current
+//! view at a quarter of each side with the same kernel into an image of its own and shows it
+//! upscaled; the full-resolution frame follows in bands, and the preview stays on the canvas
+//! until that frame is complete. The accumulation never sees the preview's samples.
+
+use js_sys::Object;
+use wasm_bindgen::JsValue;
+
+use crate::js::set;
+
+/// The preview's state.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PreviewState {
+    /// No preview was asked for (`?preview=0`).
+    #[default]
+    Off,
+    /// Asked for: the frame loop's next step renders it (before the accumulation's first frame).
+    Pending,
+    /// Rendered and on the canvas, until the first full-resolution frame is complete.
+    Shown,
+    /// The first full-resolution frame replaced it.
+    Replaced,
+    /// The accumulation started without one, or left it behind: a whole frame from the test
+    /// hook, a camera move while it showed (it shows the old view), a renderer that renders no
+    /// preview (the wavefront), or an error rendering it (`error`).
+    Skipped,
+}
+
+impl PreviewState {
+    pub fn name(self) -> &'static str {
+        match self {
+            PreviewState::Off => "off",
+            PreviewState::Pending => "pending",
+            PreviewState::Shown => "shown",
+            PreviewState::Replaced => "replaced",
+            PreviewState::Skipped => "skipped",
+        }
+    }
+}
+
+/// A runtime's preview: its state, size and when it was submitted.
+#[derive(Clone, Debug, Default)]
+pub struct Preview {
+    pub state: PreviewState,
+    /// Its size (once rendered).
+    pub size: Option<(u32, u32)>,
+    /// `performance.now()` at its submission.
+    pub submitted_at: Option<f64>,
+    /// Why it was not rendered, if it failed.
+    pub error: Option<String>,
+}
+
+impl Preview {
+    /// A preview for a new renderer: pending if asked for.
+    pub fn new(on: bool) -> Self {
+        Preview { state: if on { PreviewState::Pending } else { PreviewState::Off }, ..Default::default() }
+    }
+
+    /// Whether it is on the canvas now.
+    pub fn showing(&self) -> bool {
+        self.state == PreviewState::Shown
+    }
+
+    pub fn shown(&mut self, size: (u32, u32), at: f64) {
+        self.state = PreviewState::Shown;
+        self.size = Some(size);
+        self.submitted_at = Some(at);
+    }
+
+    pub fn failed(&mut self, error: String) {
+        web_sys::console::warn_1(&format!("no preview: {error}").into());
+        self.state = PreviewState::Skipped;
+        self.error = Some(error);
+    }
+
+    /// A frame of the accumulation was completed: a preview on show is replaced; one not
+    /// rendered yet is not rendered any more.
+    pub fn frame_done(&mut self) {
+        match self.state {
+            PreviewState::Shown => self.state = PreviewState::Replaced,
+            PreviewState::Pending => self.state = PreviewState::Skipped,
+            _ => {}
+        }
+    }
+
+    /// The accumulation restarted (a camera or setting change): a preview on show shows the old
+    /// view, so the new one is drawn band by band instead. A pending one stays pending.
+    pub fn restarted(&mut self) {
+        if self.state == PreviewState::Shown {
+            self.state = PreviewState::Skipped;
+        }
+    }
+
+    /// `sceneInfo().preview`: `{ state, showing, width, height, submittedAt, error }` (size and
+    /// time null until rendered).
+    pub fn describe(&self) -> Object {
+        let o = Object::new();
+        set(&o, "state", self.state.name());
+        set(&o, "showing", self.showing());
+        let (width, height) = self.size.map_or((JsValue::NULL, JsValue::NULL), |(w, h)| (w.into(), h.into()));
+        set(&o, "width", width);
+        set(&o, "height", height);
+        set(&o, "submittedAt", self.submitted_at.map_or(JsValue::NULL, JsValue::from));
+        set(&o, "error", self.error.as_deref().map_or(JsValue::NULL, JsValue::from));
+        o
+    }
+}
