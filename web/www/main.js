@@ -433,13 +433,13 @@ async function loadServedScene(name) {
     firstFrame.fetched();
     hook.bundleSources.push({ name: scene.name, fromCache, bytes: bytes.byteLength });
     hook.startup.fetched ??= performance.now();
-    viewer.loadBundle(new Uint8Array(bytes));
+    const info = viewer.loadBundle(new Uint8Array(bytes));
     hook.startup.installed ??= performance.now();
     hasScene = true;
     currentName = scene.name;
     $('scene').value = scene.name;
     $('screenshot').disabled = false;
-    $('scene-info').textContent = `${scene.name}: ${scene.triangles.toLocaleString()} triangles${fromCache ? ' (cached)' : ''}`;
+    $('scene-info').textContent = `${scene.name}: ${geometryText(info)}${fromCache ? ' (cached)' : ''}`;
     showNotice();
   } catch (e) {
     showMessage(`${scene.name}: ${e.message || e}`);

@@ -79,6 +79,8 @@ fn a_served_moving_gltf_plays_on_the_page() {
         no_page_error(&report);
         let animation = &report["loaded"]["animation"];
         assert_eq!(animation["moving"].as_str(), Some(motion.describe().as_str()), "{api}: {animation}");
+        let readout = report["readout"].as_str().unwrap_or("");
+        assert!(readout.contains(&format!("animated: {}", motion.describe())), "{api}: the read-out {readout:?}");
         assert!((animation["duration"].as_f64().unwrap_or(0.0) - motion.duration() as f64).abs() < 1e-6, "{api}");
         assert_eq!(animation["playing"], true, "{api}: plays by default");
         assert_eq!(report["loaded"]["controlsShown"], true, "{api}: {}", report["loaded"]);
