@@ -10,6 +10,11 @@
 //
 //   node tests/web/bench.mjs --lightport target/release/lightport [--frames 5] [--size 640x480]
 //        [--apis webgl2,webgpu] [--rounds 1] [--scenes cornell-box,LittlestTokyo,...] [--depths 8,32]
+//        [--auto 1]
+//
+// `--auto 1`: on WebGPU (`schedule=auto`, the page's default), what the page's own measurement
+// of the two schedules chooses per scene (its medians, ratio and choice), after the warm visit's
+// frames, one row per round.
 //        [--preview 0]
 //
 // `--preview 0`: the page without the preview (`preview=0`): the first image is the first frame.
@@ -117,6 +122,7 @@ try {
       execFileSync('node', [join(here, 'run.mjs'), 'bench', '--url', url, '--out', out, '--size', size, '--frames', frames,
         '--api', pageApi, ...(schedule ? ['--schedule', schedule] : []), ...(args.depths ? ['--depths', args.depths] : []),
         ...(args.preview ? ['--preview', args.preview] : []),
+        ...(args.auto ? ['--auto', args.auto] : []),
         '--scenes', scenes.map((s) => s.name).join(',')], { stdio: 'inherit' });
       const { results } = JSON.parse(readFileSync(out, 'utf8'));
       rmSync(out, { force: true });
@@ -186,6 +192,23 @@ try {
         const rows = runs[api][s.name].map((r) => r[`${visit}Split`]).filter(Boolean);
         const cell = (key) => (rows.length ? median(rows.map((r) => r[key])).toFixed(0) : '–');
         console.log(`| ${s.name} | ${api} | ${visit} | ${parts.map(([key]) => cell(key)).join(' | ')} |`);
+      }
+    }
+  }
+
+  // `--auto 1`: what `schedule=auto` chose per scene on WebGPU, each round's measurement.
+  if (args.auto === '1') {
+    console.log('\nschedule=auto on WebGPU, measured by the page (median ms per frame of each schedule\'s turns):\n');
+    console.log('| scene | round | state | megakernel (ms) | wavefront (ms) | wavefront / megakernel | chosen |');
+    console.log('|---|---|---|---|---|---|---|');
+    for (const s of scenes) {
+      for (const api of apis.filter((a) => a === 'webgpu')) {
+        runs[api][s.name].forEach((r, round) => {
+          const c = r.scheduleChoice || {};
+          const ms = (v) => (typeof v === 'number' ? v.toFixed(0) : '–');
+          const ratio = typeof c.ratio === 'number' ? `${c.ratio.toFixed(2)}x` : '–';
+          console.log(`| ${s.name} | ${round + 1} | ${c.state || '–'} | ${ms(c.measuredMegakernelMs)} | ${ms(c.measuredWavefrontMs)} | ${ratio} | ${c.chosen || '–'} |`);
+        });
       }
     }
   }

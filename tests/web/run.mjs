@@ -516,6 +516,11 @@ async function bench(o) {
                 row.info = info;
               }
             }
+            // `--auto 1`: what `schedule=auto` measures and chooses for this scene on WebGPU (the
+            // page's own measurement, web/src/viewer/measure.rs), after the frames above.
+            if (o.auto === '1' && row.info.api === 'WebGPU' && row.info.scheduleRequested === 'auto') {
+              row.scheduleChoice = await page.evaluate(() => window.lightport.measureSchedule());
+            }
           }
         });
       }
