@@ -52,6 +52,39 @@ struct Pipeline {
     times: BuildTimes,
 }
 
+impl Pipeline {
+    /// Makes the kernel's program current with everything a draw of frame `frame` reads: the
+    /// data textures, the running sums of side `current` and the frame's seed and index.
+    ///
+    /// # Safety
+    /// The pipeline's objects must belong to `gl`, which must be current.
+    unsafe fn bind_inputs(&self, gl: &glow::Context, current: usize, frame: u32, seed: u32) {
+        gl.use_program(Some(self.program));
+        for &(unit, texture) in &self.data_textures {
+            gl.active_texture(glow::TEXTURE0 + unit);
+            gl.bind_texture(glow::TEXTURE_2D, Some(texture));
+        }
+        for (k, &texture) in self.accumulation[current].iter().enumerate() {
+            gl.active_texture(glow::TEXTURE0 + self.accumulation_unit + k as u32);
+            gl.bind_texture(glow::TEXTURE_2D, Some(texture));
+        }
+        gl.uniform_1_u32(self.frame_seed_location.as_ref(), frame_seed(frame, seed));
+        gl.uniform_1_u32(self.frame_index_location.as_ref(), frame);
+        gl.disable(glow::BLEND);
+        gl.disable(glow::DEPTH_TEST);
+    }
+
+    /// The kernel's full-screen triangle, into the bound framebuffer.
+    ///
+    /// # Safety
+    /// As [`bind_inputs`](Self::bind_inputs), after it.
+    unsafe fn draw(&self, gl: &glow::Context) {
+        gl.bind_vertex_array(Some(self.vertex_array));
+        gl.draw_arrays(glow::TRIANGLES, 0, 3);
+        gl.bind_vertex_array(None);
+    }
+}
+
 /// The kernel on a GL context. Create it from a [`Packed`] scene; [`render_frame`](Self::render_frame)
 /// adds one sample per pixel; [`image`](Self::image) reads the mean back, as
 /// [`CpuRenderer`](super::cpu::CpuRenderer) does.
@@ -235,7 +268,7 @@ impl GlRenderer {
         // SAFETY: every object belongs to this context, which is current; the draw reads the
         // accumulation textures (zero: no frame since the restart) and writes the preview's.
         unsafe {
-            gl.use_program(Some(p.program));
+            p.bind_inputs(gl, self.current, 0, self.seed);
             let size_locations = ["width", "height"]
                 .map(|name| gl.get_uniform_location(p.program, &format!("{SCENE_UNIFORM_PREFIX}{name}")));
             let [Some(width_location), Some(height_location)] = &size_locations else {
@@ -245,26 +278,12 @@ impl GlRenderer {
                     what: "has no image size uniforms to preview with",
                 });
             };
-            for &(unit, texture) in &p.data_textures {
-                gl.active_texture(glow::TEXTURE0 + unit);
-                gl.bind_texture(glow::TEXTURE_2D, Some(texture));
-            }
-            for (k, &texture) in p.accumulation[self.current].iter().enumerate() {
-                gl.active_texture(glow::TEXTURE0 + p.accumulation_unit + k as u32);
-                gl.bind_texture(glow::TEXTURE_2D, Some(texture));
-            }
-            gl.uniform_1_u32(p.frame_seed_location.as_ref(), frame_seed(0, self.seed));
-            gl.uniform_1_u32(p.frame_index_location.as_ref(), 0);
             gl.uniform_1_u32(Some(width_location), width);
             gl.uniform_1_u32(Some(height_location), height);
             gl.bind_framebuffer(glow::FRAMEBUFFER, Some(target.framebuffer));
             gl.viewport(0, 0, width as i32, height as i32);
-            gl.disable(glow::BLEND);
-            gl.disable(glow::DEPTH_TEST);
             gl.disable(glow::SCISSOR_TEST);
-            gl.bind_vertex_array(Some(p.vertex_array));
-            gl.draw_arrays(glow::TRIANGLES, 0, 3);
-            gl.bind_vertex_array(None);
+            p.draw(gl);
             gl.bind_framebuffer(glow::FRAMEBUFFER, None);
             gl.uniform_1_u32(Some(width_location), full_width);
             gl.uniform_1_u32(Some(height_location), full_height);
@@ -325,27 +344,13 @@ impl Renderer for GlRenderer {
         // SAFETY: every object belongs to this context, which is current; the draw reads the
         // textures bound here and writes the other accumulation texture (no feedback loop).
         unsafe {
-            gl.use_program(Some(p.program));
-            for &(unit, texture) in &p.data_textures {
-                gl.active_texture(glow::TEXTURE0 + unit);
-                gl.bind_texture(glow::TEXTURE_2D, Some(texture));
-            }
-            for (k, &texture) in p.accumulation[self.current].iter().enumerate() {
-                gl.active_texture(glow::TEXTURE0 + p.accumulation_unit + k as u32);
-                gl.bind_texture(glow::TEXTURE_2D, Some(texture));
-            }
-            gl.uniform_1_u32(p.frame_seed_location.as_ref(), frame_seed(self.frames, self.seed));
-            gl.uniform_1_u32(p.frame_index_location.as_ref(), self.frames);
+            p.bind_inputs(gl, self.current, self.frames, self.seed);
             gl.bind_framebuffer(glow::FRAMEBUFFER, Some(p.framebuffers[1 - self.current]));
             gl.viewport(0, 0, width, height);
-            gl.disable(glow::BLEND);
-            gl.disable(glow::DEPTH_TEST);
             // Framebuffer row y is kernel row y (gl_FragCoord is unchanged by the scissor).
             gl.enable(glow::SCISSOR_TEST);
             gl.scissor(0, self.band_row as i32, width, rows);
-            gl.bind_vertex_array(Some(p.vertex_array));
-            gl.draw_arrays(glow::TRIANGLES, 0, 3);
-            gl.bind_vertex_array(None);
+            p.draw(gl);
             gl.disable(glow::SCISSOR_TEST);
             gl.bind_framebuffer(glow::FRAMEBUFFER, None);
         }

@@ -43,9 +43,9 @@ pub use display::{display_shader, DisplayPass};
 pub use filter::WgpuFilter;
 pub use renderer::WgpuRenderer;
 pub(crate) use resources::{
-    bind_group_layouts, bind_groups, check_scene_limits, map_readback, most_buffer_bytes, pipeline_bind_groups,
-    place_arrays, reflect, scene_room, scene_uniform_bytes, storage_limit, take_scene_geometry, u32_uniform_bytes,
-    upload_scene, upload_scene_with_room, BufferEntry, OwnResource, ShaderLayout, UncapturedErrors, UniformLayout,
+    bind_group_layouts, check_scene_limits, map_readback, most_buffer_bytes, pipeline_bind_groups, place_arrays,
+    reflect, scene_room, scene_uniform_bytes, storage_limit, u32_uniform_bytes, upload_scene, upload_scene_with_room,
+    Bindings, BufferEntry, OwnResource, ShaderLayout, UncapturedErrors, UniformLayout,
 };
 pub use wavefront::WavefrontRenderer;
 

@@ -6,10 +6,10 @@ use lightport_codegen::Target;
 use wgpu::util::DeviceExt;
 
 use super::{
-    bind_group_layouts, bind_groups, check_scene_limits, map_readback, most_buffer_bytes, reflect, scene_room,
-    scene_uniform_bytes, start_pipeline, storage_limit, take_scene_geometry, u32_uniform_bytes, upload_scene_with_room,
-    BufferEntry, OwnResource, PipelineCheck, ShaderLayout, UncapturedErrors, UniformLayout, WgpuDevice, WgpuError,
-    WgpuFilter, WgpuInfo, WgpuOptions, ACCUMULATION_BUFFER, SCENE_UNIFORM, TARGET_UNIFORM, WORKGROUP_SIZE,
+    bind_group_layouts, check_scene_limits, map_readback, reflect, scene_room, scene_uniform_bytes, start_pipeline,
+    storage_limit, u32_uniform_bytes, upload_scene_with_room, Bindings, BufferEntry, OwnResource, PipelineCheck,
+    UncapturedErrors, WgpuDevice, WgpuError, WgpuFilter, WgpuInfo, WgpuOptions, ACCUMULATION_BUFFER, SCENE_UNIFORM,
+    TARGET_UNIFORM, WORKGROUP_SIZE,
 };
 use crate::backend::{
     frame_seed, ms_since, update_uniforms, BuildTimes, GuideSums, PendingAccumulation, PendingGuideSums, RenderError,
@@ -22,15 +22,8 @@ use crate::pack::Packed;
 /// The GPU objects a renderer draws with.
 struct Pipeline {
     pipeline: wgpu::ComputePipeline,
-    bind_groups: Vec<wgpu::BindGroup>,
-    /// The shader's resources, its bind group layouts and the entries of its own buffers
-    /// (accumulation, guide, target): what binding a moved scene's buffers takes.
-    layout: ShaderLayout,
-    group_layouts: Vec<wgpu::BindGroupLayout>,
-    own_entries: Vec<BufferEntry>,
-    /// The scene's uniform and texel buffers, which a moved scene's geometry is written over.
-    scene_entries: Vec<BufferEntry>,
-    scene_uniform: Option<(wgpu::Buffer, UniformLayout)>,
+    /// The scene's buffers and the renderer's own (accumulation, guide, target), bound.
+    bindings: Bindings,
     accumulation: wgpu::Buffer,
     readback: wgpu::Buffer,
     /// With the denoiser's guide, its three running sums (`lp_accumulation1..3`) and one
@@ -181,17 +174,7 @@ impl WgpuRenderer {
 impl WgpuRenderer {
     /// Writes the packed scene's geometry (just taken) to the device.
     fn upload_geometry(&mut self) -> Result<(), WgpuError> {
-        let p = &mut self.pipeline;
-        let scene = &self.packed.scene;
-        check_scene_limits(&self.device.limits, &self.options, scene, &p.layout)?;
-        let d = &self.device.device;
-        let max_bytes = most_buffer_bytes(&self.device.limits, &self.options);
-        let (entries, uniform) = (&mut p.scene_entries, &mut p.scene_uniform);
-        if take_scene_geometry(d, &self.device.queue, &p.layout, scene, max_bytes, entries, uniform)? {
-            let entries: Vec<BufferEntry> = p.scene_entries.iter().chain(&p.own_entries).cloned().collect();
-            p.bind_groups = bind_groups(d, &p.group_layouts, &entries);
-        }
-        Ok(())
+        self.pipeline.bindings.take_geometry(&self.device, &self.options, &self.packed.scene)
     }
 }
 
@@ -238,7 +221,7 @@ impl super::DeviceRenderer for WgpuRenderer {
         let scene = &self.packed.scene;
         let (width, height) = (width.clamp(1, scene.width), height.clamp(1, scene.height));
         let p = &self.pipeline;
-        let Some((uniform, layout)) = &p.scene_uniform else {
+        let Some((uniform, layout)) = &p.bindings.scene_uniform else {
             return Err(RenderError::Unsupported {
                 runtime: "wgpu",
                 what: "has no image size uniforms to preview with",
@@ -272,7 +255,7 @@ impl super::DeviceRenderer for WgpuRenderer {
                 timestamp_writes: None,
             });
             pass.set_pipeline(&p.pipeline);
-            for (i, group) in p.bind_groups.iter().enumerate() {
+            for (i, group) in p.bindings.groups.iter().enumerate() {
                 pass.set_bind_group(i as u32, group, &[]);
             }
             pass.dispatch_workgroups(width.div_ceil(WORKGROUP_SIZE[0]), height.div_ceil(WORKGROUP_SIZE[1]), 1);
@@ -324,7 +307,7 @@ impl Renderer for WgpuRenderer {
         let queue = &self.device.queue;
         let rows = rows.clamp(1, self.rows_left());
         let (first_row, end_row) = (self.band_row, self.band_row + rows);
-        if let Some((buffer, layout)) = &p.scene_uniform {
+        if let Some((buffer, layout)) = &p.bindings.scene_uniform {
             for (member, value) in [("frame_seed", frame_seed(self.frames, self.seed)), ("frame_index", self.frames)] {
                 if let Some((_, offset)) = layout.members.iter().find(|(n, _)| n == member) {
                     queue.write_buffer(buffer, *offset as u64, &value.to_le_bytes());
@@ -340,7 +323,7 @@ impl Renderer for WgpuRenderer {
                 timestamp_writes: None,
             });
             pass.set_pipeline(&p.pipeline);
-            for (i, group) in p.bind_groups.iter().enumerate() {
+            for (i, group) in p.bindings.groups.iter().enumerate() {
                 pass.set_bind_group(i as u32, group, &[]);
             }
             pass.dispatch_workgroups(p.workgroups_x, rows.div_ceil(WORKGROUP_SIZE[1]), 1);
@@ -407,7 +390,7 @@ impl Renderer for WgpuRenderer {
     /// Rewrites the `scene` uniform; the storage buffers stay as uploaded.
     fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
         update_uniforms(&mut self.packed.scene, update)?;
-        if let Some((buffer, layout)) = &self.pipeline.scene_uniform {
+        if let Some((buffer, layout)) = &self.pipeline.bindings.scene_uniform {
             self.device.queue.write_buffer(buffer, 0, &scene_uniform_bytes(layout, SCENE_UNIFORM, &self.packed.scene)?);
         }
         self.restart()
@@ -544,7 +527,6 @@ fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<
     let uploading = web_time::Instant::now();
     let (mut entries, scene_uniform) =
         upload_scene_with_room(d, &layout, scene, scene_room(&device.limits, options, &packed.features))?;
-    let scene_entries = entries.clone();
 
     let (width, height) = (scene.width as u64, scene.height as u64);
     let accumulation = d.create_buffer(&wgpu::BufferDescriptor {
@@ -587,30 +569,14 @@ fn build(device: &WgpuDevice, packed: &Packed, options: &WgpuOptions) -> Result<
     });
     entries.push(BufferEntry::uniform(&target, target_buffer.clone()));
     let (group_layouts, pipeline_layout) = bind_group_layouts(d, &entries);
-    let bind_groups = bind_groups(d, &group_layouts, &entries);
-    // What `take_geometry` binds again: the buffers that are not the scene's.
-    let own_entries = entries.split_off(entries.len() - own.len());
+    let bindings = Bindings::new(d, layout, group_layouts, entries, own.len(), scene_uniform);
     let upload_ms = ms_since(uploading);
     let compiling = web_time::Instant::now();
     let (pipeline, check) = start_pipeline(d, &generated, Some(&pipeline_layout));
     let times = BuildTimes { codegen_ms, compile_ms: ms_since(compiling), upload_ms };
     let target = (target_buffer, target);
     let workgroups_x = workgroups[0];
-    let pipeline = Pipeline {
-        pipeline,
-        bind_groups,
-        layout,
-        group_layouts,
-        own_entries,
-        scene_entries,
-        scene_uniform,
-        accumulation,
-        readback,
-        guide,
-        guide_readback,
-        target,
-        workgroups_x,
-        times,
-    };
+    let pipeline =
+        Pipeline { pipeline, bindings, accumulation, readback, guide, guide_readback, target, workgroups_x, times };
     Ok((pipeline, check))
 }

@@ -403,7 +403,7 @@ pub(crate) fn most_buffer_bytes(limits: &wgpu::Limits, options: &WgpuOptions) ->
 /// when every buffer has room; otherwise the scene is uploaded again with room to spare, at
 /// most `max_bytes` a buffer, into new buffers. Returns whether the buffers are new (bind
 /// groups must be made again). Limits are the caller's to check first (`check_scene_limits`).
-pub(crate) fn take_scene_geometry(
+fn take_scene_geometry(
     d: &wgpu::Device,
     queue: &wgpu::Queue,
     layout: &ShaderLayout,
@@ -437,6 +437,54 @@ pub(crate) fn take_scene_geometry(
             (*entries, *uniform) = upload_scene_with_room(d, layout, scene, Some(max_bytes))?;
             Ok(true)
         }
+    }
+}
+
+/// What a renderer's shader is bound to: the scene's uniform and texel buffers (a moved scene's
+/// geometry is written over them, or they are replaced), the renderer's own buffers, and the
+/// bind groups over both. The megakernel and the wavefront keep one each.
+pub(crate) struct Bindings {
+    pub(crate) layout: ShaderLayout,
+    pub(crate) group_layouts: Vec<wgpu::BindGroupLayout>,
+    pub(crate) scene: Vec<BufferEntry>,
+    pub(crate) scene_uniform: Option<SceneUniform>,
+    pub(crate) own: Vec<BufferEntry>,
+    pub(crate) groups: Vec<wgpu::BindGroup>,
+}
+
+impl Bindings {
+    /// Binds `entries` (the scene's first, then `own_count` of the renderer's own) with
+    /// `group_layouts`.
+    pub(crate) fn new(
+        d: &wgpu::Device,
+        layout: ShaderLayout,
+        group_layouts: Vec<wgpu::BindGroupLayout>,
+        mut entries: Vec<BufferEntry>,
+        own_count: usize,
+        scene_uniform: Option<SceneUniform>,
+    ) -> Bindings {
+        let groups = bind_groups(d, &group_layouts, &entries);
+        let own = entries.split_off(entries.len() - own_count);
+        Bindings { layout, group_layouts, scene: entries, scene_uniform, own, groups }
+    }
+
+    /// Takes `scene`, the scene bound here with another pose's geometry: checked against the
+    /// device's limits, then written in place or uploaded again (see [`take_scene_geometry`]),
+    /// and bound again if its buffers are new.
+    pub(crate) fn take_geometry(
+        &mut self,
+        device: &super::WgpuDevice,
+        options: &WgpuOptions,
+        scene: &dyn Resources,
+    ) -> Result<(), WgpuError> {
+        check_scene_limits(&device.limits, options, scene, &self.layout)?;
+        let (d, max_bytes) = (&device.device, most_buffer_bytes(&device.limits, options));
+        let (entries, uniform) = (&mut self.scene, &mut self.scene_uniform);
+        if take_scene_geometry(d, &device.queue, &self.layout, scene, max_bytes, entries, uniform)? {
+            let entries: Vec<BufferEntry> = self.scene.iter().chain(&self.own).cloned().collect();
+            self.groups = bind_groups(d, &self.group_layouts, &entries);
+        }
+        Ok(())
     }
 }
 
@@ -475,11 +523,7 @@ pub(crate) fn bind_group_layouts(
 }
 
 /// The bind groups of `entries` on `layouts` ([`bind_group_layouts`] of entries like them).
-pub(crate) fn bind_groups(
-    d: &wgpu::Device,
-    layouts: &[wgpu::BindGroupLayout],
-    entries: &[BufferEntry],
-) -> Vec<wgpu::BindGroup> {
+fn bind_groups(d: &wgpu::Device, layouts: &[wgpu::BindGroupLayout], entries: &[BufferEntry]) -> Vec<wgpu::BindGroup> {
     (0..layouts.len() as u32)
         .map(|group| {
             let group_entries: Vec<wgpu::BindGroupEntry> = entries

@@ -17,10 +17,9 @@ use glam::Vec4;
 
 use super::wavefront_pool::{pool_resources, PoolBuffer, PoolResources};
 use super::{
-    bind_group_layouts, bind_groups, check_scene_limits, map_readback, most_buffer_bytes, reflect, scene_room,
-    scene_uniform_bytes, start_pipelines, storage_limit, take_scene_geometry, upload_scene_with_room, BufferEntry,
-    DeviceRenderer, PipelineCheck, ShaderLayout, UncapturedErrors, UniformLayout, WgpuDevice, WgpuError, WgpuOptions,
-    SCENE_UNIFORM,
+    bind_group_layouts, check_scene_limits, map_readback, most_buffer_bytes, reflect, scene_room, scene_uniform_bytes,
+    start_pipelines, storage_limit, upload_scene_with_room, Bindings, DeviceRenderer, PipelineCheck, UncapturedErrors,
+    UniformLayout, WgpuDevice, WgpuError, WgpuOptions, SCENE_UNIFORM,
 };
 use crate::backend::wavefront::{
     iteration_bound, pool_size, Stage, WavefrontCounts, WavefrontError, ITERATION, ITERATIONS_PER_SUBMISSION,
@@ -43,15 +42,9 @@ pub struct WavefrontRenderer {
     pool: u32,
     /// Each stage of an iteration with its pipeline.
     stages: Vec<(Stage, wgpu::ComputePipeline)>,
-    layout: ShaderLayout,
-    group_layouts: Vec<wgpu::BindGroupLayout>,
-    /// The pool's and the dispatch sizes' buffers (groups 1 and 2), bound again with a moved
-    /// scene's.
-    pool_entries: Vec<BufferEntry>,
-    /// The scene's uniform and texel buffers, which a moved scene's geometry is written over.
-    scene_entries: Vec<BufferEntry>,
-    bind_groups: Vec<wgpu::BindGroup>,
-    scene_uniform: Option<(wgpu::Buffer, UniformLayout)>,
+    /// The scene's buffers and the renderer's own: the pool's and the dispatch sizes' (groups
+    /// 1 and 2), bound.
+    bindings: Bindings,
     paths_uniform: (wgpu::Buffer, UniformLayout),
     buffers: Vec<PoolBuffer>,
     dispatch_args: wgpu::Buffer,
@@ -85,16 +78,7 @@ struct CountersRead {
 impl WavefrontRenderer {
     /// Writes the packed scene's geometry (just taken) to the device.
     fn upload_geometry(&mut self) -> Result<(), WgpuError> {
-        let scene = &self.packed.scene;
-        check_scene_limits(&self.device.limits, &self.options, scene, &self.layout)?;
-        let d = &self.device.device;
-        let max_bytes = most_buffer_bytes(&self.device.limits, &self.options);
-        let (entries, uniform) = (&mut self.scene_entries, &mut self.scene_uniform);
-        if take_scene_geometry(d, &self.device.queue, &self.layout, scene, max_bytes, entries, uniform)? {
-            let entries: Vec<BufferEntry> = self.scene_entries.iter().chain(&self.pool_entries).cloned().collect();
-            self.bind_groups = bind_groups(d, &self.group_layouts, &entries);
-        }
-        Ok(())
+        self.bindings.take_geometry(&self.device, &self.options, &self.packed.scene)
     }
 
     /// A wavefront renderer on `device` for `packed` with `seed` (the megakernel's random
@@ -140,12 +124,11 @@ impl WavefrontRenderer {
         let d = &device.device;
         let (mut entries, scene_uniform) =
             upload_scene_with_room(d, &layout, scene, scene_room(&device.limits, options, &packed.features))?;
-        let scene_entries = entries.len();
         let pool_resources = pool_resources(d, &generated, &layout, pool, pixels, seed)?;
+        let pool_entries = pool_resources.entries.len();
         entries.extend(pool_resources.entries.iter().cloned());
         let PoolResources { buffers, paths_uniform, dispatch_args, .. } = pool_resources;
         let (group_layouts, plan_layout) = bind_group_layouts(d, &entries);
-        let bind_groups = bind_groups(d, &group_layouts, &entries);
         // The stages dispatched indirectly see groups 0 and 1 only.
         let stage_refs: Vec<Option<&wgpu::BindGroupLayout>> = group_layouts.iter().take(2).map(Some).collect();
         let stage_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -153,6 +136,7 @@ impl WavefrontRenderer {
             bind_group_layouts: &stage_refs,
             immediate_size: 0,
         });
+        let bindings = Bindings::new(d, layout, group_layouts, entries, pool_entries, scene_uniform);
         let counters_readback = d.create_buffer(&wgpu::BufferDescriptor {
             label: Some("wavefront counters readback"),
             size: COUNTERS as u64 * 4,
@@ -175,19 +159,12 @@ impl WavefrontRenderer {
             .collect();
         let (pipelines, check) = start_pipelines(d, &generated, &entry_points);
         let times = BuildTimes { codegen_ms, compile_ms: ms_since(compiling), upload_ms };
-        let pool_entries = entries.split_off(scene_entries);
-        let scene_entries = entries;
         let renderer = WavefrontRenderer {
             options: options.clone(),
             frames: 0,
             pool,
             stages: ITERATION.iter().copied().zip(pipelines).collect(),
-            layout,
-            group_layouts,
-            pool_entries,
-            scene_entries,
-            bind_groups,
-            scene_uniform,
+            bindings,
             paths_uniform,
             buffers,
             dispatch_args,
@@ -283,11 +260,11 @@ impl WavefrontRenderer {
             for _ in 0..iterations {
                 for (stage, pipeline) in &self.stages[range.clone()] {
                     pass.set_pipeline(pipeline);
-                    pass.set_bind_group(0, &self.bind_groups[0], &[]);
-                    pass.set_bind_group(1, &self.bind_groups[1], &[]);
+                    pass.set_bind_group(0, &self.bindings.groups[0], &[]);
+                    pass.set_bind_group(1, &self.bindings.groups[1], &[]);
                     match stage.args {
                         None => {
-                            pass.set_bind_group(2, &self.bind_groups[2], &[]);
+                            pass.set_bind_group(2, &self.bindings.groups[2], &[]);
                             pass.dispatch_workgroups(1, 1, 1);
                         }
                         Some(at) => pass.dispatch_workgroups_indirect(&self.dispatch_args, at as u64 * 4),
@@ -586,7 +563,7 @@ impl Renderer for WavefrontRenderer {
 
     fn set_uniforms(&mut self, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
         update_uniforms(&mut self.packed.scene, update)?;
-        if let Some((buffer, layout)) = &self.scene_uniform {
+        if let Some((buffer, layout)) = &self.bindings.scene_uniform {
             self.device.queue.write_buffer(buffer, 0, &scene_uniform_bytes(layout, SCENE_UNIFORM, &self.packed.scene)?);
         }
         self.restart()
