@@ -13,6 +13,7 @@ use tracer::output::{Display, Image};
 use tracer::pack::{MovingScene, PackError};
 use tracer::scene::Scene;
 
+use crate::bundle_scene::BundleScene;
 use crate::RenderArgs;
 
 /// Renders `scene` (loaded with its motion kept) as `args.frames` poses from `--time` to
@@ -22,15 +23,38 @@ pub fn render_frames(args: &RenderArgs, scene: Scene, settings: &RenderSettings)
         bail!("--frames needs an animated scene: this one has no animation that moves anything");
     };
     let what = motion.describe();
-    let (from, until) = (args.pose.time, args.until.unwrap_or(motion.duration()));
+    let started = Instant::now();
+    let (moving, packed) = MovingScene::new(scene, settings).context("building the BVH and packing")?;
+    let name = args.scene.as_ref().map_or(String::new(), |p| p.display().to_string());
+    println!("scene        {name} ({what})");
+    println!("first pack   {:.1} ms (the static level's BVH and the textures, built once)", ms(started));
+    render_poses(args, moving, packed)
+}
+
+/// Renders a bundle's moving scene (posed at `--time`) as `args.frames` poses from `--time` to
+/// `--until`, as [`render_frames`] renders a scene file's.
+pub fn render_bundle_frames(args: &RenderArgs, bundle: BundleScene, settings: &RenderSettings) -> Result<()> {
+    let what = bundle.describe_motion();
+    let (Some(moving), Some(what)) = (bundle.moving, what) else {
+        bail!("--frames needs an animated scene: this bundle has no motion section (its scene does not move)");
+    };
+    let started = Instant::now();
+    let mut packed = moving.pack_for_kernel().context("packing the bundle's first pose")?;
+    packed.apply(settings);
+    let name = args.scene.as_ref().map_or(String::new(), |p| p.display().to_string());
+    println!("scene        {name} (bundle \"{}\": {what})", bundle.name);
+    println!("first pack   {:.1} ms (the bundle's arrays posed at --time)", ms(started));
+    render_poses(args, moving, packed)
+}
+
+/// Renders `moving` (posed at `--time`, `packed` that pose for the kernel) at `args.frames`
+/// times from `--time` to `--until`.
+fn render_poses(args: &RenderArgs, mut moving: MovingScene, mut packed: tracer::pack::Packed) -> Result<()> {
+    let (from, until) = (args.pose.time, args.until.unwrap_or(moving.duration()));
     if !until.is_finite() {
         bail!("--until must be a finite number of seconds");
     }
-    let started = Instant::now();
-    let (mut moving, mut packed) = MovingScene::new(scene, settings).context("building the BVH and packing")?;
     packed.set_denoise_guide(args.denoise);
-    println!("scene        {} ({what})", args.scene.as_ref().map_or(String::new(), |p| p.display().to_string()));
-    println!("first pack   {:.1} ms (the static level's BVH and the textures, built once)", ms(started));
     let kind = args.backend.kind();
     let mut renderer =
         create(kind, packed, args.seed).with_context(|| format!("starting the {} backend", kind.name()))?;
@@ -96,6 +120,8 @@ fn take(
     match renderer.take_geometry(moved) {
         Err(e @ RenderError::Pack(PackError::KernelChanged { .. })) => {
             let mut packed = moving.pack_for_kernel()?;
+            // A bundle's first pose was packed for another image size, strategy and depth.
+            packed.apply(&crate::render_settings(args));
             packed.set_denoise_guide(args.denoise);
             eprintln!("note: this pose needs another kernel variant: the renderer is created again ({e})");
             *renderer = create(args.backend.kind(), packed, args.seed)?;
