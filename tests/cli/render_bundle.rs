@@ -102,6 +102,11 @@ fn render(scene: Option<&Path>, out: &Path, args: &[&str]) -> Result<Vec<f32>, S
     Ok(image::open(out).expect("an EXR").into_rgb32f().into_raw())
 }
 
+/// The error of a render that must be refused.
+fn refused(result: Result<Vec<f32>, String>, what: &str) -> String {
+    result.err().unwrap_or_else(|| panic!("{what}: rendered instead of being refused"))
+}
+
 /// Means of the channels over the image's 4 x 4 blocks of 6 x 6 pixels, then over the whole
 /// (24 x 24) image.
 fn region_means(image: &[f32]) -> Vec<f64> {
@@ -160,10 +165,13 @@ fn an_animated_bundle_renders_at_the_time_asked_as_its_scene_file() {
     assert!(apart > 5.0, "the poses at 0 s and 0.7 s look alike (z {apart}): the test would prove nothing");
 
     // --frames on the bundle: each frame as the scene file's, bit for bit.
-    let frames = ["--spp", "4", "--seed", "3", "--time", "0.2", "--frames", "3", "--until", "1"];
+    let frames = ["--spp", "4", "--seed", "3", "--time", "0.2", "--frames", "3", "--until", "1", "--width", "20"];
+    let frames = [&frames[..], &["--height", "12", "--strategy", "nee"]].concat();
     run(Some(bundle), &out("bf.exr"), &frames).unwrap();
     run(Some(&gltf), &out("ff.exr"), &frames).unwrap();
     let read = |name: &str| image::open(out(name)).expect("a frame").into_rgb32f().into_raw();
+    let size = image::image_dimensions(out("bf-000.exr")).unwrap();
+    assert_eq!(size, (20, 12), "the bundle's frames are rendered at the size asked");
     for k in 0..3 {
         let (b, f) = (read(&format!("bf-{k:03}.exr")), read(&format!("ff-{k:03}.exr")));
         assert!(b.iter().any(|v| *v > 0.0), "frame {k} is black");
@@ -215,12 +223,12 @@ fn options_that_need_the_scene_file_are_refused_on_a_bundle() {
         (cornell, vec!["--animation", "all"], "--animation all"),
         (moving, vec!["--time", "NaN"], "--time"),
     ] {
-        let err = render(Some(bundle), &out, &args).unwrap_err();
+        let err = refused(render(Some(bundle), &out, &args), &format!("{args:?}"));
         assert!(err.starts_with("error: ") && err.contains(says), "{args:?}: {err}");
     }
     // The animation the bundle carries may be named.
     render(Some(moving), &out, &["--animation", "all", "--spp", "1"]).unwrap();
-    let err = render(Some(&dir.0.join("absent.lpb")), &out, &[]).unwrap_err();
+    let err = refused(render(Some(&dir.0.join("absent.lpb")), &out, &[]), "a missing bundle");
     assert!(err.contains("absent.lpb"), "{err}");
 }
 
@@ -243,7 +251,7 @@ fn a_damaged_bundle_is_an_error_not_a_panic() {
     let damaged = dir.0.join("damaged.lpb");
     for len in [0, 7, 100, good.len() / 2, good.len() - 1] {
         std::fs::write(&damaged, &good[..len]).unwrap();
-        let err = render(Some(&damaged), &out, &args).unwrap_err();
+        let err = refused(render(Some(&damaged), &out, &args), &format!("{len} bytes"));
         assert!(err.starts_with("error: ") && err.contains("truncated"), "{len} bytes: {err}");
     }
     // Flips in the header and in the first entry's name and type are refused; a flip anywhere
@@ -252,7 +260,7 @@ fn a_damaged_bundle_is_an_error_not_a_panic() {
         let mut bad = good.clone();
         bad[at] ^= 0x5a;
         std::fs::write(&damaged, &bad).unwrap();
-        let err = render(Some(&damaged), &out, &args).unwrap_err();
+        let err = refused(render(Some(&damaged), &out, &args), &format!("byte {at} flipped"));
         assert!(err.starts_with("error: ") && err.contains("bundle"), "byte {at}: {err}");
     }
     let (mut refused, mut rendered) = (0, 0);
