@@ -279,3 +279,66 @@ fn a_damaged_bundle_is_an_error_not_a_panic() {
     println!("bytes flipped one at a time: {refused} refused, {rendered} rendered");
     assert!(refused > 0);
 }
+
+/// `lightport chart SCENE --reference-dir DIR`, CPU MIS only, 16x16: its reference image (EXR
+/// floats) and the reference's own mean squared error per pixel and channel.
+fn chart_reference(scene: &Path, dir: &Path, args: &[&str]) -> (Vec<f32>, f64) {
+    let o = Command::new(env!("CARGO_BIN_EXE_lightport"))
+        .arg("chart")
+        .arg(scene)
+        .args(["--backends", "cpu", "--strategies", "mis", "--schedules", "megakernel", "--size", "16"])
+        .args(["--spp", "2", "--reference-spp", "64", "--out-dir"])
+        .arg(dir.join("chart"))
+        .arg("--reference-dir")
+        .arg(dir.join("reference"))
+        .args(args)
+        .output()
+        .expect("run lightport chart");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let exr = std::fs::read_dir(dir.join("reference"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "exr"))
+        .expect("a reference image");
+    let key = std::fs::read_to_string(exr.with_extension("txt")).unwrap();
+    let noise: f64 = key.rsplit("noise_mse: ").next().unwrap().trim().parse().unwrap();
+    (image::open(&exr).unwrap().into_rgb32f().into_raw(), noise)
+}
+
+/// `chart` takes a bundle as `render` does: posed at `--time`, its reference (a long CPU MIS
+/// render) is the scene file's at that time, within the references' own noise (the RMS of
+/// their difference under 3 x what two independent references would differ by); the pose at
+/// 0 s is far from it. `--sky` is refused.
+#[test]
+fn chart_takes_a_bundle_posed_at_the_time_asked() {
+    let dir = TempDir::new("chart");
+    let gltf = dir.0.join("moving.gltf");
+    std::fs::write(&gltf, moving_gltf_with_camera()).unwrap();
+    let bundles = export(&gltf, &dir.0, &[]);
+    let bundle = bundle_of(&bundles, "moving");
+    let (b, noise_b) = chart_reference(bundle, &dir.0.join("bundle"), &["--time", "0.7"]);
+    let (f, noise_f) = chart_reference(&gltf, &dir.0.join("file"), &["--time", "0.7"]);
+    let (z, _) = chart_reference(&gltf, &dir.0.join("zero"), &["--time", "0"]);
+    let rms = |a: &[f32], c: &[f32]| {
+        (a.iter().zip(c).map(|(x, y)| ((x - y) as f64).powi(2)).sum::<f64>() / a.len() as f64).sqrt()
+    };
+    let bound = 3.0 * (noise_b + noise_f).sqrt();
+    let (agree, apart) = (rms(&b, &f), rms(&b, &z));
+    println!(
+        "chart references: bundle vs file at 0.7 s RMS {agree:.2e}, vs the file at 0 s {apart:.2e}; bound {bound:.2e}"
+    );
+    assert!(b.iter().any(|v| *v > 0.0), "a black reference would prove nothing");
+    assert!(agree < bound, "the bundle's chart at 0.7 s is not the scene file's (RMS {agree:e}, bound {bound:e})");
+    assert!(apart > bound, "the poses at 0 s and 0.7 s look alike (RMS {apart:e}): the test would prove nothing");
+    let sky = common::test_data("scenes/hdri/venice_sunset_1k.hdr");
+    let o = Command::new(env!("CARGO_BIN_EXE_lightport"))
+        .arg("chart")
+        .arg(bundle)
+        .arg("--sky")
+        .arg(&sky)
+        .args(["--backends", "cpu", "--out-dir"])
+        .arg(dir.0.join("sky"))
+        .output()
+        .expect("run lightport chart");
+    assert!(!o.status.success() && stderr(&o).contains("--sky"), "{}", stderr(&o));
+}
