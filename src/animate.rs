@@ -99,7 +99,9 @@ fn next_pose(
     args: &RenderArgs,
 ) -> Result<(f64, f64, f64)> {
     let posing = Instant::now();
+    let known = moving.scene().warnings.len();
     moving.pose(time)?;
+    report_pose_warnings(moving.scene(), known, args.strict)?;
     let pose_ms = ms(posing);
     let packing = Instant::now();
     let moved = moving.pack()?;
@@ -152,4 +154,17 @@ fn side_by_side(frames: &[Image]) -> Image {
 
 fn ms(since: Instant) -> f64 {
     since.elapsed().as_secs_f64() * 1e3
+}
+
+/// Prints the warnings a pose added to `scene`'s (those from `known` on: a placement the
+/// animation drops there, `Scene::pose`); with `strict`, any is an error.
+pub fn report_pose_warnings(scene: &Scene, known: usize, strict: bool) -> Result<()> {
+    let new = scene.warnings.get(known..).unwrap_or_default();
+    if strict && !new.is_empty() {
+        bail!("--strict: posing the scene gave {} warning(s): {}", new.len(), new.join("; "));
+    }
+    for w in new {
+        eprintln!("warning: {w}");
+    }
+    Ok(())
 }

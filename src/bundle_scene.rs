@@ -45,8 +45,9 @@ impl BundleScene {
 }
 
 /// Reads, decodes and poses the bundle at `path` with `pose` (its `--time`; `--flatten` and
-/// another `--animation` are refused).
-pub fn load(path: &Path, pose: &PoseArgs) -> Result<BundleScene> {
+/// another `--animation` are refused). A placement the pose drops is warned about (an error
+/// with `strict`).
+pub fn load(path: &Path, pose: &PoseArgs, strict: bool) -> Result<BundleScene> {
     if pose.flatten {
         bail!("--flatten cannot apply to a bundle (it is packed already): export the scene with --flatten");
     }
@@ -79,7 +80,9 @@ pub fn load(path: &Path, pose: &PoseArgs) -> Result<BundleScene> {
         return Ok(BundleScene { name, packed, moving: None });
     };
     let mut moving = MovingScene::from_bundle(&packed, parts).context("posing the bundle's scene")?;
+    let known = moving.scene().warnings.len();
     moving.pose(pose.time).with_context(|| format!("posing the bundle's scene at {} s", pose.time))?;
+    crate::animate::report_pose_warnings(moving.scene(), known, strict)?;
     let packed = moving.pack().with_context(|| format!("packing the bundle's scene at {} s", pose.time))?;
     Ok(BundleScene { name, packed, moving: Some(moving) })
 }

@@ -234,7 +234,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     let prepared = match bundle_path {
         Some(path) => {
             bundle_scene::refuse_sky(args.sky.is_some(), args.sky_intensity, args.sky_rotation)?;
-            let bundle = bundle_scene::load(path, &args.pose)?;
+            let bundle = bundle_scene::load(path, &args.pose, args.strict)?;
             if args.frames > 1 {
                 return animate::render_bundle_frames(args, bundle, &settings);
             }

@@ -311,7 +311,7 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
 /// and `--sky-intensity` are refused (its sky is packed in it), as `render` refuses them.
 fn bundle_chart_scene(path: &Path, args: &ChartArgs) -> Result<ChartScene> {
     crate::bundle_scene::refuse_sky(args.sky.is_some(), args.sky_intensity, 0.0)?;
-    let bundle = crate::bundle_scene::load(path, &args.pose)?;
+    let bundle = crate::bundle_scene::load(path, &args.pose, false)?;
     let slug = path.file_stem().map_or("scene".into(), |s| slugify(&s.to_string_lossy()));
     let slug = match bundle.name.is_empty() {
         true => slug,

@@ -342,3 +342,113 @@ fn chart_takes_a_bundle_posed_at_the_time_asked() {
         .expect("run lightport chart");
     assert!(!o.status.success() && stderr(&o).contains("--sky"), "{}", stderr(&o));
 }
+
+/// A floor, a point light, a camera and a triangle (node 1) whose animation scales it from 1
+/// at 0 s to `scale_at_1` at 1 s (LINEAR), under a node of scale `parent_scale`.
+fn scaled_gltf(scale_at_1: f32, parent_scale: f32) -> Vec<u8> {
+    use base64::Engine;
+    let floor =
+        [[-2.0, 0.0, -2.0], [2.0, 0.0, -2.0], [2.0, 0.0, 2.0], [-2.0, 0.0, -2.0], [2.0, 0.0, 2.0], [-2.0, 0.0, 2.0]];
+    let triangle = [[0.0, 0.5, 0.0], [1.0, 0.5, 0.0], [0.0, 1.5, 0.0f32]];
+    let mut bytes: Vec<u8> = floor.iter().chain(&triangle).flatten().flat_map(|v: &f32| v.to_le_bytes()).collect();
+    let keys = [0.0f32, 1.0, 1.0, 1.0, 1.0, scale_at_1, scale_at_1, scale_at_1];
+    bytes.extend(keys.iter().flat_map(|v| v.to_le_bytes()));
+    let uri =
+        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes));
+    let json = serde_json::json!({
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 4, 2, 3]}],
+        "nodes": [
+            {"mesh": 0},
+            {"mesh": 1, "name": "shrinking"},
+            {"translation": [0.5, 3, 3], "extensions": {"KHR_lights_punctual": {"light": 0}}},
+            {"camera": 0, "translation": [0, 1.5, 6]},
+            {"children": [1], "scale": [parent_scale, parent_scale, parent_scale]}
+        ],
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensions": {"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 60}]}},
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.01}}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}, {"primitives": [{"attributes": {"POSITION": 1}}]}],
+        "animations": [{"name": "scale", "channels": [{"sampler": 0, "target": {"node": 1, "path": "scale"}}],
+                        "samplers": [{"input": 2, "output": 3}]}],
+        "buffers": [{"byteLength": bytes.len(), "uri": uri}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 72}, {"buffer": 0, "byteOffset": 72, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 108, "byteLength": 8}, {"buffer": 0, "byteOffset": 116, "byteLength": 24}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 6, "type": "VEC3", "min": [-2, 0, -2], "max": [2, 0, 2]},
+            {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0.5, 0], "max": [1, 1.5, 0]},
+            {"bufferView": 2, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0], "max": [1]},
+            {"bufferView": 3, "componentType": 5126, "count": 2, "type": "VEC3"}
+        ]
+    });
+    serde_json::to_vec(&json).unwrap()
+}
+
+/// A pose whose transform for a placement cannot be inverted (the animation scales the node
+/// to zero at 1 s) or is not finite (scaled by 1e30 under a parent of scale 1e10: the product
+/// overflows) drops that placement with one warning, and `--strict` refuses it, whichever
+/// path poses it: the scene file at `--time 1` (flattened at load), `--frames` on it (a kept
+/// motion posed frame by frame) and its bundle at `--time 1` (posed from the motion section).
+/// Never a panic or a non-finite pixel; where the pose places it nothing is said.
+#[test]
+fn a_placement_a_pose_cannot_place_is_dropped_with_one_warning() {
+    let dir = TempDir::new("dropped");
+    for (name, gltf, why, placed_at) in [
+        ("zero", scaled_gltf(0.0, 1.0), "cannot be inverted", "0.5"),
+        ("overflow", scaled_gltf(1e30, 1e10), "is not finite", "0"),
+    ] {
+        let sub = dir.0.join(name);
+        std::fs::create_dir_all(&sub).unwrap();
+        let file = sub.join(format!("{name}.gltf"));
+        std::fs::write(&file, gltf).unwrap();
+        let bundles = export(&file, &sub, &["--time", "0"]);
+        let bundle = bundle_of(&bundles, name).to_owned();
+        let small = ["--width", "12", "--height", "12", "--spp", "2"];
+        let ways: [(&str, &Path, Vec<&str>); 3] = [
+            ("the file", &file, vec!["--time", "1"]),
+            ("--frames", &file, vec!["--frames", "3", "--until", "1"]),
+            ("the bundle", &bundle, vec!["--time", "1"]),
+        ];
+        for (way, scene, args) in ways {
+            let out = sub.join("out.exr");
+            let o = Command::new(env!("CARGO_BIN_EXE_lightport"))
+                .arg("render")
+                .arg(scene)
+                .args(small)
+                .args(&args)
+                .arg("--out")
+                .arg(&out)
+                .output()
+                .unwrap();
+            let err = stderr(&o);
+            assert!(o.status.success(), "{name}, {way}: {err}");
+            let warnings: Vec<&str> = err.lines().filter(|l| l.starts_with("warning: ")).collect();
+            assert!(
+                warnings.len() == 1 && warnings[0].contains("node 1") && warnings[0].contains(why),
+                "{name}, {way}: one warning: {err}"
+            );
+            let stdout = String::from_utf8_lossy(&o.stdout);
+            assert!(!stdout.contains("non-finite"), "{name}, {way}: {stdout}");
+            let last = if way == "--frames" { sub.join("out-002.exr") } else { out };
+            let image = image::open(&last).unwrap().into_rgb32f().into_raw();
+            assert!(image.iter().all(|v| v.is_finite()) && image.iter().any(|v| *v > 0.0), "{name}, {way}");
+            let strict = Command::new(env!("CARGO_BIN_EXE_lightport"))
+                .arg("render")
+                .arg(scene)
+                .args(small)
+                .args(&args)
+                .arg("--strict")
+                .arg("--out")
+                .arg(sub.join("strict.exr"))
+                .output()
+                .unwrap();
+            let err = stderr(&strict);
+            assert!(!strict.status.success() && err.contains("--strict") && err.contains(why), "{name}, {way}: {err}");
+            assert!(!err.contains("panicked"), "{err}");
+        }
+        let before =
+            run(Some(&bundle), &sub.join("before.exr"), &[&small[..], &["--time", placed_at, "--strict"]].concat());
+        assert!(before.is_ok(), "{name}: at {placed_at} s nothing is dropped: {before:?}");
+    }
+}
