@@ -13,6 +13,7 @@ use tracer::output::{Display, Image};
 use tracer::pack::{MovingScene, PackError};
 use tracer::scene::Scene;
 
+use crate::bundle_scene::BundleScene;
 use crate::RenderArgs;
 
 /// Renders `scene` (loaded with its motion kept) as `args.frames` poses from `--time` to
@@ -22,15 +23,38 @@ pub fn render_frames(args: &RenderArgs, scene: Scene, settings: &RenderSettings)
         bail!("--frames needs an animated scene: this one has no animation that moves anything");
     };
     let what = motion.describe();
-    let (from, until) = (args.pose.time, args.until.unwrap_or(motion.duration()));
+    let started = Instant::now();
+    let (moving, packed) = MovingScene::new(scene, settings).context("building the BVH and packing")?;
+    let name = args.scene.as_ref().map_or(String::new(), |p| p.display().to_string());
+    println!("scene        {name} ({what})");
+    println!("first pack   {:.1} ms (the static level's BVH and the textures, built once)", ms(started));
+    render_poses(args, moving, packed)
+}
+
+/// Renders a bundle's moving scene (posed at `--time`) as `args.frames` poses from `--time` to
+/// `--until`, as [`render_frames`] renders a scene file's.
+pub fn render_bundle_frames(args: &RenderArgs, bundle: BundleScene, settings: &RenderSettings) -> Result<()> {
+    let what = bundle.describe_motion();
+    let (Some(moving), Some(what)) = (bundle.moving, what) else {
+        bail!("--frames needs an animated scene: this bundle has no motion section (its scene does not move)");
+    };
+    let started = Instant::now();
+    let mut packed = moving.pack_for_kernel().context("packing the bundle's first pose")?;
+    packed.apply(settings);
+    let name = args.scene.as_ref().map_or(String::new(), |p| p.display().to_string());
+    println!("scene        {name} (bundle \"{}\": {what})", bundle.name);
+    println!("first pack   {:.1} ms (the bundle's arrays posed at --time)", ms(started));
+    render_poses(args, moving, packed)
+}
+
+/// Renders `moving` (posed at `--time`, `packed` that pose for the kernel) at `args.frames`
+/// times from `--time` to `--until`.
+fn render_poses(args: &RenderArgs, mut moving: MovingScene, mut packed: tracer::pack::Packed) -> Result<()> {
+    let (from, until) = (args.pose.time, args.until.unwrap_or(moving.duration()));
     if !until.is_finite() {
         bail!("--until must be a finite number of seconds");
     }
-    let started = Instant::now();
-    let (mut moving, mut packed) = MovingScene::new(scene, settings).context("building the BVH and packing")?;
     packed.set_denoise_guide(args.denoise);
-    println!("scene        {} ({what})", args.scene.as_ref().map_or(String::new(), |p| p.display().to_string()));
-    println!("first pack   {:.1} ms (the static level's BVH and the textures, built once)", ms(started));
     let kind = args.backend.kind();
     let mut renderer =
         create(kind, packed, args.seed).with_context(|| format!("starting the {} backend", kind.name()))?;
@@ -75,7 +99,9 @@ fn next_pose(
     args: &RenderArgs,
 ) -> Result<(f64, f64, f64)> {
     let posing = Instant::now();
+    let known = moving.scene().warnings.len();
     moving.pose(time)?;
+    report_pose_warnings(moving.scene(), known, args.strict)?;
     let pose_ms = ms(posing);
     let packing = Instant::now();
     let moved = moving.pack()?;
@@ -96,6 +122,8 @@ fn take(
     match renderer.take_geometry(moved) {
         Err(e @ RenderError::Pack(PackError::KernelChanged { .. })) => {
             let mut packed = moving.pack_for_kernel()?;
+            // A bundle's first pose was packed for another image size, strategy and depth.
+            packed.apply(&crate::render_settings(args));
             packed.set_denoise_guide(args.denoise);
             eprintln!("note: this pose needs another kernel variant: the renderer is created again ({e})");
             *renderer = create(args.backend.kind(), packed, args.seed)?;
@@ -126,4 +154,17 @@ fn side_by_side(frames: &[Image]) -> Image {
 
 fn ms(since: Instant) -> f64 {
     since.elapsed().as_secs_f64() * 1e3
+}
+
+/// Prints the warnings a pose added to `scene`'s (those from `known` on: a placement the
+/// animation drops there, `Scene::pose`); with `strict`, any is an error.
+pub fn report_pose_warnings(scene: &Scene, known: usize, strict: bool) -> Result<()> {
+    let new = scene.warnings.get(known..).unwrap_or_default();
+    if strict && !new.is_empty() {
+        bail!("--strict: posing the scene gave {} warning(s): {}", new.len(), new.join("; "));
+    }
+    for w in new {
+        eprintln!("warning: {w}");
+    }
+    Ok(())
 }

@@ -1,6 +1,7 @@
 //! The `lightport` command line.
 
 mod animate;
+mod bundle_scene;
 mod chart;
 mod export;
 mod pose;
@@ -24,7 +25,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Path-trace a scene (glTF, GLB, OBJ or FBX; without SCENE, a built-in Cornell box) to an image.
+    /// Path-trace a scene (glTF, GLB, OBJ or FBX, or an exported bundle `.lpb`; without SCENE, a
+    /// built-in Cornell box) to an image.
     Render(RenderArgs),
     /// Speed against accuracy: render scenes with each strategy on each backend at increasing
     /// sample counts; write error-against-time charts (SVG), CSV and equal-time crops.
@@ -71,9 +73,11 @@ fn main() -> ExitCode {
 
 #[derive(clap::Args)]
 struct RenderArgs {
-    /// Scene file (.gltf, .glb, .obj, .fbx), or a scene generated in code: `cornell` (the
-    /// default), `metal-rough-spheres`, `glass-cornell`, `instanced-shapes` or `instanced-field`
-    /// (10,000 placements, 102 M triangles; a file of that name takes precedence).
+    /// Scene file (.gltf, .glb, .obj, .fbx), a bundle `lightport export` wrote (.lpb, or any
+    /// file that starts as one: rendered as packed, posed at --time when it moves), or a scene
+    /// generated in code: `cornell` (the default), `metal-rough-spheres`, `glass-cornell`,
+    /// `instanced-shapes` or `instanced-field` (10,000 placements, 102 M triangles; a file of
+    /// that name takes precedence).
     scene: Option<PathBuf>,
     /// Equirectangular sky (.hdr or .exr).
     #[arg(long)]
@@ -224,21 +228,40 @@ fn render(args: &RenderArgs) -> Result<()> {
         bail!("--exposure must be a finite number of stops within ±64");
     }
     let t0 = Instant::now();
-    let scene = load_scene(args)?;
-    let load_time = t0.elapsed();
     let settings = render_settings(args);
-    if args.frames > 1 {
-        return animate::render_frames(args, scene, &settings);
-    }
-    // Textures are packed while the BVH builds.
-    let t1 = Instant::now();
-    let (bvh, mut packed) = tracer::pack::build_and_pack(&scene, &settings).context("building the BVH and packing")?;
+    let bundle_path = args.scene.as_deref().filter(|p| bundle_scene::is_bundle(p));
+    // Textures are packed while the BVH builds; a bundle is packed already.
+    let prepared = match bundle_path {
+        Some(path) => {
+            bundle_scene::refuse_sky(args.sky.is_some(), args.sky_intensity, args.sky_rotation)?;
+            let bundle = bundle_scene::load(path, &args.pose, args.strict)?;
+            if args.frames > 1 {
+                return animate::render_bundle_frames(args, bundle, &settings);
+            }
+            let load_time = t0.elapsed();
+            let read_out = Prepared::of_bundle(&bundle);
+            let mut packed = bundle.packed;
+            packed.apply(&settings);
+            (packed, load_time, std::time::Duration::ZERO, read_out)
+        }
+        None => {
+            let scene = load_scene(args)?;
+            let load_time = t0.elapsed();
+            if args.frames > 1 {
+                return animate::render_frames(args, scene, &settings);
+            }
+            let t1 = Instant::now();
+            let (bvh, packed) =
+                tracer::pack::build_and_pack(&scene, &settings).context("building the BVH and packing")?;
+            let read_out = Prepared::of_scene(&scene, &bvh, &packed);
+            (packed, load_time, t1.elapsed(), read_out)
+        }
+    };
+    let (mut packed, load_time, build_time, read_out) = prepared;
     // --denoise: the path tracer sums the filter's guide beside the image, in the same pass.
     packed.set_denoise_guide(args.denoise);
-    let build_time = t1.elapsed();
     let features = packed.features;
     let lights = packed.light_count;
-    let stored_triangles = packed.triangle_count;
 
     let bar = indicatif::ProgressBar::new(args.spp as u64);
     bar.set_style(
@@ -275,19 +298,10 @@ fn render(args: &RenderArgs) -> Result<()> {
 
     let samples = args.spp as f64 * args.width as f64 * args.height as f64;
     println!("scene        {}", args.scene.as_ref().map_or("built-in Cornell box".into(), |p| p.display().to_string()));
-    println!("triangles    {}", scene.triangles.len());
+    println!("triangles    {}", read_out.triangles);
     println!("lights       {lights} (features: {features:?})");
-    println!("load         {:.1} ms", load_time.as_secs_f64() * 1e3);
-    let levels = match scene.instances.len() {
-        0 => format!("{} BVH nodes", bvh.nodes.len()),
-        n => format!(
-            "two levels: {n} placements of {} meshes, {} triangles stored, {} placed",
-            scene.meshes.len(),
-            stored_triangles,
-            scene.placed_triangle_count()
-        ),
-    };
-    println!("BVH + pack   {:.1} ms ({levels})", build_time.as_secs_f64() * 1e3);
+    println!("load         {:.1} ms{}", load_time.as_secs_f64() * 1e3, read_out.load);
+    println!("BVH + pack   {:.1} ms ({})", build_time.as_secs_f64() * 1e3, read_out.levels);
     println!(
         "render       {:.2} s, {} spp at {}x{}, {:.2} M samples/s ({:?} backend, {}, {:?} strategy)",
         render_time.as_secs_f64(),
@@ -323,6 +337,42 @@ fn render(args: &RenderArgs) -> Result<()> {
     }
     println!("wrote        {}", args.out.display());
     Ok(())
+}
+
+/// What `render` prints about the scene it packed: its triangles, how its BVH is laid out, and
+/// what loading it was (a bundle: decoded and posed).
+struct Prepared {
+    triangles: String,
+    levels: String,
+    load: String,
+}
+
+impl Prepared {
+    fn of_scene(scene: &tracer::scene::Scene, bvh: &tracer::bvh::Bvh, packed: &tracer::pack::Packed) -> Prepared {
+        let levels = match scene.instances.len() {
+            0 => format!("{} BVH nodes", bvh.nodes.len()),
+            n => format!(
+                "two levels: {n} placements of {} meshes, {} triangles stored, {} placed",
+                scene.meshes.len(),
+                packed.triangle_count,
+                scene.placed_triangle_count()
+            ),
+        };
+        Prepared { triangles: scene.triangles.len().to_string(), levels, load: String::new() }
+    }
+
+    fn of_bundle(bundle: &bundle_scene::BundleScene) -> Prepared {
+        let p = &bundle.packed;
+        let levels = match p.features.instances {
+            false => format!("one level of {} wide BVH nodes, as the bundle carries it", p.scene.node_children.len()),
+            true => format!("two levels: {} placements, as the bundle carries them", p.placement_count()),
+        };
+        let load = match bundle.describe_motion() {
+            Some(motion) => format!(" (bundle \"{}\" decoded and posed: {motion})", bundle.name),
+            None => format!(" (bundle \"{}\" decoded)", bundle.name),
+        };
+        Prepared { triangles: format!("{} stored", p.triangle_count), levels, load }
+    }
 }
 
 /// The scene `render` renders: loaded (with its motion kept for --frames), or generated, with

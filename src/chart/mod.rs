@@ -54,7 +54,8 @@ const CACHE_VERSION: u32 = 1;
 pub struct ChartArgs {
     /// Scenes: `cornell`, `metal-rough-spheres` (built in), `furnace` (white furnace, analytic reference), `sky-plane`
     /// (diffuse plane under a uniform sky, analytic), a stability scene (`tiny-bright-light`,
-    /// `large-light-close`, `sky-through-opening`, ...), or a .gltf/.glb/.obj/.fbx file. Default: cornell.
+    /// `large-light-close`, `sky-through-opening`, ...), a .gltf/.glb/.obj/.fbx file, or a bundle
+    /// `lightport export` wrote (.lpb: its packed scene, posed at --time). Default: cornell.
     pub scenes: Vec<String>,
     /// Equirectangular sky (.hdr or .exr) for every scene.
     #[arg(long)]
@@ -185,9 +186,16 @@ struct ChartScene {
     slug: String,
     /// What identifies the scene's content in the reference cache key.
     identity: String,
-    scene: Scene,
+    scene: Source,
     /// Exact pixel value everywhere, for scenes that have one at the given depth.
     analytic: Option<Vec3>,
+}
+
+/// What a chart renders: a scene, packed for each strategy; or a bundle's packed scene (posed at
+/// `--time`: `crate::bundle_scene`), whose uniforms are set for each.
+enum Source {
+    Scene(Box<Scene>),
+    Packed(Box<Packed>),
 }
 
 /// One measurement: a line (backend x schedule x strategy) at one sample count.
@@ -257,6 +265,9 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
                         scene::stability::stability_cases().iter().map(|c| c.name).collect::<Vec<_>>().join(", ")
                     );
                 }
+                if crate::bundle_scene::is_bundle(path) {
+                    return bundle_chart_scene(path, args);
+                }
                 let loaded = scene::load_with(path, &args.pose.load_options(false)?)
                     .with_context(|| format!("loading {}", path.display()))?;
                 for w in &loaded.warnings {
@@ -264,12 +275,14 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
                 }
                 let slug = path.file_stem().map_or("scene".into(), |s| slugify(&s.to_string_lossy()));
                 let identity = format!("file {} ({:016x})", path.display(), hash_file(path)?);
-                ChartScene { slug, identity, scene: loaded, analytic: None }
+                ChartScene { slug, identity, scene: Source::Scene(Box::new(loaded)), analytic: None }
             }
         },
     };
     // The pose is part of what a reference was rendered from.
-    args.pose.apply_to_generated(&mut chart_scene.scene)?;
+    if let Source::Scene(scene) = &mut chart_scene.scene {
+        args.pose.apply_to_generated(scene)?;
+    }
     let pose = args.pose.describe();
     if !pose.is_empty() {
         write!(chart_scene.identity, ", posed: {pose}")?;
@@ -277,7 +290,9 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
     if let Some(sky_path) = &args.sky {
         let sky = scene::load_sky(sky_path, args.sky_intensity, 0.0)
             .with_context(|| format!("loading sky {}", sky_path.display()))?;
-        chart_scene.scene.sky = Some(sky);
+        if let Source::Scene(scene) = &mut chart_scene.scene {
+            scene.sky = Some(sky);
+        }
         chart_scene.analytic = None;
         let stem = sky_path.file_stem().map_or("sky".into(), |s| slugify(&s.to_string_lossy()));
         chart_scene.slug = format!("{}-{stem}", chart_scene.slug);
@@ -292,11 +307,34 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
     Ok(chart_scene)
 }
 
+/// A bundle to chart (`lightport export` wrote it): its packed scene posed at `--time`; `--sky`
+/// and `--sky-intensity` are refused (its sky is packed in it), as `render` refuses them.
+fn bundle_chart_scene(path: &Path, args: &ChartArgs) -> Result<ChartScene> {
+    crate::bundle_scene::refuse_sky(args.sky.is_some(), args.sky_intensity, 0.0)?;
+    let bundle = crate::bundle_scene::load(path, &args.pose, false)?;
+    let slug = path.file_stem().map_or("scene".into(), |s| slugify(&s.to_string_lossy()));
+    let slug = match bundle.name.is_empty() {
+        true => slug,
+        false => slugify(&bundle.name),
+    };
+    let mut identity = format!("bundle {} ({:016x})", path.display(), hash_file(path)?);
+    let pose = args.pose.describe();
+    if !pose.is_empty() {
+        write!(identity, ", posed: {pose}")?;
+    }
+    Ok(ChartScene { slug, identity, scene: Source::Packed(Box::new(bundle.packed)), analytic: None })
+}
+
 impl ChartScene {
     fn builtin(name: &str, scene: Scene, analytic: Option<Vec3>) -> Self {
         // Built-in scenes are identified by name: the kernel hash covers their generators only
         // indirectly, so the cache version must be bumped when a generator changes.
-        ChartScene { slug: slugify(name), identity: format!("built-in {name}"), scene, analytic }
+        ChartScene {
+            slug: slugify(name),
+            identity: format!("built-in {name}"),
+            scene: Source::Scene(Box::new(scene)),
+            analytic,
+        }
     }
 }
 
@@ -321,9 +359,17 @@ fn kernel_hash() -> Result<u64> {
     Ok(h.finish())
 }
 
-fn packed_scene(scene: &Scene, args: &ChartArgs, strategy: Strategy) -> Result<Packed> {
-    let bvh = tracer::pack::static_bvh(scene).context("building the BVH")?;
+fn packed_scene(scene: &Source, args: &ChartArgs, strategy: Strategy) -> Result<Packed> {
     let settings = RenderSettings { width: args.size, height: args.size, strategy, max_depth: args.max_depth };
+    let scene = match scene {
+        Source::Scene(scene) => scene,
+        Source::Packed(packed) => {
+            let mut packed = packed.as_ref().clone();
+            packed.apply(&settings);
+            return Ok(packed);
+        }
+    };
+    let bvh = tracer::pack::static_bvh(scene).context("building the BVH")?;
     pack(scene, &bvh, &settings).context("packing the scene")
 }
 

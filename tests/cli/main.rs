@@ -10,5 +10,6 @@ mod common;
 mod export;
 mod fuzz_http;
 mod load;
+mod render_bundle;
 mod serve;
 mod web;

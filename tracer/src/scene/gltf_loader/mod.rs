@@ -133,6 +133,7 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>, options: &LoadOpti
         material_label: String::new(),
         mesh_instances: 0,
         pose: HashMap::new(),
+        time: 0.0,
         pending: Vec::new(),
         instanced_meshes: Vec::new(),
         instances: Vec::new(),
@@ -333,6 +334,8 @@ struct Loader<'a> {
     mesh_instances: usize,
     /// The node transforms of the chosen animation at the chosen time.
     pose: HashMap<usize, NodePose>,
+    /// The time `pose` is at, in seconds.
+    time: f32,
     /// Placements of meshes met while walking the nodes (`placement.rs`).
     pending: Vec<placement::Pending>,
     /// The meshes placed by `instances`, in mesh space.
@@ -353,6 +356,7 @@ impl Loader<'_> {
         }
         let (channels, name) = self.channels(animations, &options.animation)?;
         self.pose = animation::pose_at(&channels, options.time);
+        self.time = options.time;
         if options.keep_motion && !channels.is_empty() {
             self.motion = Some(Motion::new(self.root, &self.parents()?, channels, name));
         }
@@ -405,7 +409,9 @@ impl Loader<'_> {
                 Camera::framing(&bounds)
             }
         };
-        scene.warnings = self.warnings.into_vec();
+        // The pose's own (a placement it drops) after the loader's.
+        let posed = std::mem::replace(&mut scene.warnings, self.warnings.into_vec());
+        scene.warnings.extend(posed);
         scene.validate()?;
         Ok(scene)
     }

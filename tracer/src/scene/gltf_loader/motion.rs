@@ -213,12 +213,22 @@ impl Motion {
         }
         let pose = pose_at(&self.channels, time);
         let world = self.world_matrices(&pose);
-        let transforms = self
+        let mut drops = Vec::new();
+        let transforms: Vec<Mat4> = self
             .rigid
             .iter()
-            .map(|r| placeable(world[r.node] * r.local, &format!("node {}", r.node)))
-            .collect::<Result<Vec<_>, _>>()?;
-        let meshes = self.deformed.iter().map(|d| d.posed(&pose, &world)).collect::<Result<Vec<_>, _>>()?;
+            .map(|r| {
+                let (m, why) = placeable(world[r.node] * r.local, &format!("node {}", r.node));
+                drops.extend(why);
+                m
+            })
+            .collect();
+        let mut meshes = Vec::with_capacity(self.deformed.len());
+        for d in &self.deformed {
+            let (triangles, why) = d.posed(&pose, &world)?;
+            meshes.push(triangles);
+            drops.extend(why);
+        }
         let mismatch = || malformed("the scene's instances no longer match its motion (was it changed?)".into());
         if self.rigid.iter().any(|r| r.instance >= scene.instances.len())
             || self.deformed.iter().any(|d| d.mesh >= scene.meshes.len())
@@ -231,6 +241,13 @@ impl Motion {
         for (d, triangles) in self.deformed.iter().zip(meshes) {
             scene.meshes[d.mesh].triangles = triangles;
         }
+        // One warning per placement, at the first pose that drops it.
+        for (what, why) in drops {
+            let prefix = format!("{what}: at ");
+            if !scene.warnings.iter().any(|w| w.starts_with(&prefix)) {
+                scene.warnings.push(dropped(&what, why, time));
+            }
+        }
         Ok(())
     }
 }
@@ -238,7 +255,12 @@ impl Motion {
 impl DeformedMesh {
     /// The mesh's world-space triangles in `pose` (every triangle kept, so that their number
     /// and order never change from one pose to the next).
-    fn posed(&self, pose: &HashMap<usize, NodePose>, world: &[Mat4]) -> Result<Vec<Triangle>, SceneError> {
+    /// A transform that drops the mesh ([`placeable`]) is named with why.
+    fn posed(
+        &self,
+        pose: &HashMap<usize, NodePose>,
+        world: &[Mat4],
+    ) -> Result<(Vec<Triangle>, Option<Dropped>), SceneError> {
         let weights = pose.get(&self.node).and_then(|p| p.weights.as_deref()).unwrap_or(&self.rest_weights);
         if let Some(bad) = weights.iter().find(|w| !w.is_finite()) {
             return Err(malformed(format!("{}: morph weight {bad} is not finite", self.what)));
@@ -247,31 +269,52 @@ impl DeformedMesh {
             true => Cow::Borrowed(&self.prims),
             false => Cow::Owned(self.prims.iter().map(|p| morph_primitive(p, weights)).collect()),
         };
+        let mut dropped = None;
         let (prims, placed_by) = match &self.skin {
             Some(skin) => {
                 let joints = skin.matrices(|j| Ok(world[j]), &self.what)?;
                 let skinned = morphed.iter().map(|p| skin_primitive(p, &joints, &self.what));
                 (Cow::Owned(skinned.collect::<Result<Vec<_>, _>>()?), Mat4::IDENTITY)
             }
-            None => (morphed, placeable(world[self.node], &self.what)?),
+            None => {
+                let (m, why) = placeable(world[self.node], &self.what);
+                dropped = why;
+                (morphed, m)
+            }
         };
         let mut triangles = Vec::new();
         place_primitives(self.mesh, &prims, &placed_by, &mut |_| true, &mut triangles)?;
-        Ok(triangles)
+        Ok((triangles, dropped))
     }
 }
 
-/// `m` as an instance may carry it: a transform that cannot be inverted (a scale animated to
-/// zero, which hides a part) becomes a millionth of a unit's scale at the same place, so that
-/// rays can still be moved into the mesh's space; a non-finite one is an error.
-fn placeable(m: Mat4, what: &str) -> Result<Mat4, SceneError> {
-    if !m.is_finite() {
-        return Err(malformed(format!("{what}: the animation gives a non-finite transform")));
-    }
+/// A placement a pose drops: what ("node 3") and why ([`SINGULAR`], [`NOT_FINITE`]).
+type Dropped = (String, &'static str);
+
+/// Why a pose drops a placement ([`dropped`]).
+pub(super) const SINGULAR: &str = "cannot be inverted (a scale of zero?)";
+pub(super) const NOT_FINITE: &str = "is not finite";
+
+/// The warning for a placement (`what`: "node 3") that the pose at `time` drops because its
+/// transform `why` ([`SINGULAR`], [`NOT_FINITE`]); `--strict` refuses it.
+pub(super) fn dropped(what: &str, why: &str, time: f32) -> String {
+    format!("{what}: at {time} s the animation gives it a transform that {why}: it is dropped where it does")
+}
+
+/// `m` as an instance may carry it, or, when it cannot be (a transform that cannot be inverted,
+/// as a scale animated to zero gives; or one that is not finite, as a CUBICSPLINE's tangents
+/// may give), the placement dropped from the image and what (`what`) and why: it becomes a
+/// millionth of a unit's scale at its place (the origin, when that is not finite either), so
+/// that rays can still be moved into the mesh's space, no ray practically meets it, and the
+/// scene keeps its number of placements from pose to pose (which posing over packed arrays,
+/// `pack::Posing`, relies on).
+fn placeable(m: Mat4, what: &str) -> (Mat4, Option<Dropped>) {
     if (Instance { mesh: 0, transform: m }).has_valid_transform() {
-        return Ok(m);
+        return (m, None);
     }
-    Ok(Mat4::from_translation(m.w_axis.truncate()) * Mat4::from_scale(Vec3::splat(1e-6)))
+    let why = if m.is_finite() { SINGULAR } else { NOT_FINITE };
+    let at = Some(m.w_axis.truncate()).filter(|t| t.is_finite()).unwrap_or(Vec3::ZERO);
+    (Mat4::from_translation(at) * Mat4::from_scale(Vec3::splat(1e-6)), Some((what.to_owned(), why)))
 }
 
 impl Loader<'_> {
@@ -368,7 +411,8 @@ impl Loader<'_> {
             None => vec![Mat4::IDENTITY],
         };
         for local in locals {
-            let transform = placeable(world * local, &format!("node {n}"))?;
+            // A placement this pose drops is warned about by `Motion::apply`, which poses it next.
+            let (transform, _) = placeable(world * local, &format!("node {n}"));
             let instance = self.instances.len();
             self.instances.push(Instance { mesh: slot as u32, transform });
             self.motion.as_mut().expect("a kept motion").rigid.push(RigidPlacement { instance, node: n, local });

@@ -47,7 +47,22 @@ impl Loader<'_> {
             }
             *seen = true;
             let world = parent * self.posed_local(node, n)?;
-            let moving = parent_moves || self.channel_moves(n);
+            // Without a kept motion, "moving": posed by a channel at the load time (here or above).
+            let posed = self.motion.is_none() && self.pose.contains_key(&n);
+            let moving = parent_moves || self.channel_moves(n) || posed;
+            // A pose that drops a placement: warned about once, as `Motion::apply` does (which
+            // warns for a kept motion); a non-finite one drops the node and everything below.
+            let finite = world.is_finite();
+            let singular = node.mesh.is_some() && Mat3::from_mat4(world).determinant() == 0.0;
+            if moving && self.motion.is_none() && (!finite || singular) {
+                let why = if finite { super::motion::SINGULAR } else { super::motion::NOT_FINITE };
+                let time = self.time;
+                self.warnings
+                    .once(&format!("dropped node {n}"), || super::motion::dropped(&format!("node {n}"), why, time));
+                if !finite {
+                    continue;
+                }
+            }
             if !world.is_finite() {
                 return Err(malformed(format!("node {n} has a non-finite world transform")));
             }
