@@ -18,7 +18,7 @@ use std::path::PathBuf;
 use glam::{DVec3, Vec2, Vec3, Vec4, Vec4Swizzles};
 use tracer::backend::cpu::CpuRenderer;
 use tracer::backend::Renderer;
-use tracer::denoise::{denoise, Guide};
+use tracer::denoise::{denoise, denoise_remodulated, Guide};
 use tracer::kernel::lights::luminance;
 use tracer::kernel::{RenderSettings, Strategy};
 use tracer::output::Image;
@@ -70,7 +70,11 @@ struct Rendered {
 }
 
 fn renderer(scene: &Scene, size: u32, seed: u32) -> CpuRenderer {
-    let settings = RenderSettings { width: size, height: size, strategy: Strategy::Mis, max_depth: 6 };
+    renderer_to_depth(scene, size, seed, 6)
+}
+
+fn renderer_to_depth(scene: &Scene, size: u32, seed: u32, max_depth: u32) -> CpuRenderer {
+    let settings = RenderSettings { width: size, height: size, strategy: Strategy::Mis, max_depth };
     let mut p = build_and_pack(scene, &settings).expect("pack").1;
     p.set_denoise_guide(true);
     CpuRenderer::new(p, seed)
@@ -154,7 +158,9 @@ struct Params {
     sigma_luminance: f32,
 }
 
-const SHIPPED: Params = Params { iterations: 4, sigma_normal: 128.0, sigma_depth: 1.0, sigma_luminance: 4.0 };
+const SHIPPED: Params = Params { iterations: 4, sigma_normal: 1024.0, sigma_depth: 1.0, sigma_luminance: 4.0 };
+/// Before σn went from 128 to 1024.
+const BEFORE: Params = Params { sigma_normal: 128.0, ..SHIPPED };
 
 struct Img {
     color: Vec<Vec4>,
@@ -311,7 +317,9 @@ fn main() {
     eprintln!("renders {:.1} s", t.elapsed().as_secs_f64());
     // A denser guide (what extra first-hit rays would give): K more first hits per sample,
     // from another seed, summed with the path's own.
-    let ks: Vec<u32> = if std::env::var("DQ_DENSE").is_ok() { vec![1, 3, 15] } else { vec![] };
+    let ks: Vec<u32> = std::env::var("DQ_DENSE")
+        .map(|v| v.split(',').map(|k| k.parse().expect("DQ_DENSE: first hits per sample, e.g. 1,3,15")).collect())
+        .unwrap_or_default();
     let mut dense_counts: Vec<u32> = counts.iter().flat_map(|c| ks.iter().map(move |k| c * k)).collect();
     dense_counts.retain(|c| *c <= 1024);
     dense_counts.sort();
@@ -325,6 +333,31 @@ fn main() {
         g.variance = r.guide.variance.clone();
         Some(g)
     };
+    // What `denoise_remodulated` is given: K first hits per sample from a second renderer at
+    // max_depth 2 (another seed), and what its frames cost against the image's.
+    let max = *counts.iter().max().expect("a sample count");
+    let fk: u32 = std::env::var("DQ_FIRST_HITS").ok().and_then(|v| v.parse().ok()).unwrap_or(3);
+    let mut first_hits = Vec::new();
+    let mut fr = renderer_to_depth(&scene, size, 11, 2);
+    let t = std::time::Instant::now();
+    for frame in 1..=fk * max {
+        fr.render_frame().expect("frame");
+        if counts.contains(&(frame / fk)) && frame % fk == 0 {
+            first_hits.push(Guide::read(&fr).unwrap().aovs);
+        }
+    }
+    let first_hit_frame = t.elapsed().as_secs_f64() / (fk * max) as f64;
+    let mut pr = renderer(&scene, size, 5);
+    let t = std::time::Instant::now();
+    for _ in 0..8 {
+        pr.render_frame().expect("frame");
+    }
+    let path_frame = t.elapsed().as_secs_f64() / 8.0;
+    println!(
+        "{name}: a max_depth-2 frame with the guide costs {:.2}x a max_depth-6 frame with the guide ({fk} per sample: {:.2}x)",
+        first_hit_frame / path_frame,
+        fk as f64 * first_hit_frame / path_frame
+    );
     println!("{name} {size}x{size}, reference {ref_spp} spp; each cell: PSNR dB (displayed) / relMSE gain dB vs noisy");
     for (spp, r) in counts.iter().zip(&steps) {
         let (rel_n, psnr_n) = error(&r.image, &reference);
@@ -334,6 +367,8 @@ fn main() {
             row += &format!(" | {label} {:+.2}/{:+.2}", psnr - psnr_n, 10.0 * (rel_n / rel).log10());
         };
         cell("shipped", &denoise(&r.image, &r.guide).unwrap().image);
+        let k = counts.iter().position(|c| c == spp).unwrap();
+        cell(&format!("remodulated x{fk}"), &denoise_remodulated(&r.image, &r.guide, &first_hits[k]).unwrap().image);
         let inp = input_mean(&r.image, &r.guide);
         let f = filter(inp.img, SHIPPED);
         cell("copy", &remodulate(&r.image, &f, &inp.modulation));
@@ -342,6 +377,21 @@ fn main() {
             let dmod: Vec<(Vec3, Vec3)> = dg.aovs.iter().map(|a| (demodulation(a.albedo), a.emission)).collect();
             cell(&format!("remod d{k}"), &remodulate(&r.image, &f, &dmod));
             cell(&format!("both d{k}"), &denoise(&r.image, &dg).unwrap().image);
+            // Only the emission dense (the albedo the path's own); then also the albedo scaled
+            // by the surface coverage the dense guide sees over the path's own (from the depth
+            // sums: the sky's depth dominates them).
+            let sky = |g: &Guide, i: usize| (g.aovs[i].depth as f64 / 1.0e20).clamp(0.0, 1.0) as f32;
+            let emod: Vec<(Vec3, Vec3)> =
+                r.guide.aovs.iter().zip(&dg.aovs).map(|(c, d)| (demodulation(c.albedo), d.emission)).collect();
+            cell(&format!("e d{k}"), &remodulate(&r.image, &f, &emod));
+            let cmod: Vec<(Vec3, Vec3)> = (0..emod.len())
+                .map(|i| {
+                    let (sc, sd) = (sky(&r.guide, i), sky(&dg, i));
+                    let s = if sc < 1.0 { (1.0 - sd) / (1.0 - sc) } else { 1.0 };
+                    (demodulation(r.guide.aovs[i].albedo) * s, dg.aovs[i].emission)
+                })
+                .collect();
+            cell(&format!("e+cov d{k}"), &remodulate(&r.image, &f, &cmod));
         }
         if std::env::var("DQ_PER_SAMPLE").is_ok() {
             let inp = input_per_sample(&r.image, &r.guide, &r.per_sample, *spp);
@@ -349,14 +399,12 @@ fn main() {
             cell("per-sample", &remodulate(&r.image, &f2, &inp.modulation));
         }
         for (label, p) in [
-            ("sn256", Params { sigma_normal: 256.0, ..SHIPPED }),
-            ("sn512", Params { sigma_normal: 512.0, ..SHIPPED }),
-            ("sn1024", Params { sigma_normal: 1024.0, ..SHIPPED }),
-            ("sn2048", Params { sigma_normal: 2048.0, ..SHIPPED }),
-            ("sn512sl3", Params { sigma_normal: 512.0, sigma_luminance: 3.0, ..SHIPPED }),
-            ("sn1024sl3", Params { sigma_normal: 1024.0, sigma_luminance: 3.0, ..SHIPPED }),
-            ("sn512sd.5", Params { sigma_normal: 512.0, sigma_depth: 0.5, ..SHIPPED }),
-            ("sn512it5", Params { sigma_normal: 512.0, iterations: 5, ..SHIPPED }),
+            ("σn128 (before)", BEFORE),
+            ("σn512", Params { sigma_normal: 512.0, ..SHIPPED }),
+            ("σn2048", Params { sigma_normal: 2048.0, ..SHIPPED }),
+            ("σl3", Params { sigma_luminance: 3.0, ..SHIPPED }),
+            ("σz.5", Params { sigma_depth: 0.5, ..SHIPPED }),
+            ("it5", Params { iterations: 5, ..SHIPPED }),
         ] {
             let inp = input_mean(&r.image, &r.guide);
             let f = filter(inp.img, p);
