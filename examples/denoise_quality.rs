@@ -6,9 +6,21 @@
 //! - `shipped`: `tracer::denoise::denoise` as it is;
 //! - `per-sample`: each sample's reflected light divided by its own first hit's albedo, summed
 //!   (the illumination the filter sees), remodulated by the mean albedo;
-//! - `guide xK`: an oracle: the same filter, remodulated by a guide of K times the samples (a
-//!   denser first-hit guide: what it would buy);
-//! - parameter sweeps (iterations, σl, σn).
+//! - `remodulated xK`: the same filtered illumination remodulated by the albedo and emission of
+//!   K first hits per sample from a second renderer at max_depth 2 (what any runtime can do
+//!   today), and what those frames cost;
+//! - with `DQ_DENSE=1,3,15`, oracles: remodulated (`remod dK`) or demodulated and remodulated
+//!   (`both dK`) by the image's guide plus K first hits per sample, and only the emission dense
+//!   (`e dK`, `e+cov dK`); with `DQ_PER_SAMPLE=1`, each sample demodulated by its own first hit;
+//! - parameter sweeps (σn, σl, σz, iterations); `σn128 (before)` is the filter before σn 1024.
+//!
+//! Found (2026-12-05, DamagedHelmet under a sky, 16 spp): the filter's own parameters move
+//! nothing at 16 spp (±0.3 dB): the error left is coverage within pixels. Remodulating by 3
+//! first hits per sample gains +2.7 dB PSNR at 48x48 (+2.5 at 128x128), but a max_depth-2
+//! frame costs 0.6-1.1x a path-traced frame here, and 64 spp of plain path tracing (R2
+//! stratified: coverage converges faster than 1/N) is 9 dB better than 16: at equal time it
+//! loses. Demodulating by the denser guide too (`both`) gains only +0.1-0.8 dB; per-sample
+//! demodulation loses 1.2-1.7 dB.
 //!
 //! `cargo run --release --example denoise_quality [-- helmet|helmet-venice|cornell|box [size]]`
 //! References are cached under the system's temporary directory.
@@ -18,7 +30,7 @@ use std::path::PathBuf;
 use glam::{DVec3, Vec2, Vec3, Vec4, Vec4Swizzles};
 use tracer::backend::cpu::CpuRenderer;
 use tracer::backend::Renderer;
-use tracer::denoise::{denoise, denoise_remodulated, Guide};
+use tracer::denoise::{denoise, Aov, Guide};
 use tracer::kernel::lights::luminance;
 use tracer::kernel::{RenderSettings, Strategy};
 use tracer::output::Image;
@@ -282,7 +294,13 @@ fn input_per_sample(image: &Image, guide: &Guide, ps: &PerSample, spp: u32) -> I
 }
 
 fn remodulate(image: &Image, filtered: &[Vec4], modulation: &[(Vec3, Vec3)]) -> Image {
-    let reflected: DVec3 = image.pixels.iter().zip(modulation).map(|(c, (_, e))| (*c - *e).as_dvec3()).sum();
+    remodulate_keeping(image, filtered, modulation, modulation)
+}
+
+/// The filtered illumination times `modulation`'s albedo plus its emission, the reflected light
+/// scaled to the noisy image's total less `own`'s emission (the image's own first hits).
+fn remodulate_keeping(image: &Image, filtered: &[Vec4], modulation: &[(Vec3, Vec3)], own: &[(Vec3, Vec3)]) -> Image {
+    let reflected: DVec3 = image.pixels.iter().zip(own).map(|(c, (_, e))| (*c - *e).as_dvec3()).sum();
     let rem: Vec<Vec3> = filtered.iter().zip(modulation).map(|(f, (d, _))| f.xyz() * *d).collect();
     let total: DVec3 = rem.iter().map(|r| r.as_dvec3()).sum();
     let scale = DVec3::select(total.cmpgt(DVec3::ZERO), reflected / total, DVec3::ONE).as_vec3();
@@ -291,6 +309,25 @@ fn remodulate(image: &Image, filtered: &[Vec4], modulation: &[(Vec3, Vec3)]) -> 
         height: image.height,
         pixels: rem.iter().zip(modulation).map(|(r, (_, e))| *r * scale + *e).collect(),
     }
+}
+
+/// The shipped filter's illumination (demodulated by the image's own guide: its samples'
+/// colour and first hits agree) remodulated by `first_hits`' albedo (where the image's own was
+/// divided out) and emission.
+fn remodulated(image: &Image, guide: &Guide, first_hits: &[Aov]) -> Image {
+    let inp = input_mean(image, guide);
+    let modulation: Vec<(Vec3, Vec3)> = inp
+        .modulation
+        .iter()
+        .zip(first_hits)
+        .zip(&guide.aovs)
+        .map(|((&(d, _), dense), own)| {
+            let divided = own.albedo.cmpge(Vec3::splat(MIN_ALBEDO));
+            (Vec3::select(divided, dense.albedo.max(Vec3::ZERO), d), dense.emission)
+        })
+        .collect();
+    let f = filter(inp.img, SHIPPED);
+    remodulate_keeping(image, &f, &modulation, &inp.modulation)
 }
 
 fn error(image: &Image, reference: &Image) -> (f64, f64) {
@@ -333,8 +370,9 @@ fn main() {
         g.variance = r.guide.variance.clone();
         Some(g)
     };
-    // What `denoise_remodulated` is given: K first hits per sample from a second renderer at
-    // max_depth 2 (another seed), and what its frames cost against the image's.
+    // Remodulation by denser first hits, as it could run on any runtime today: K first hits per
+    // sample from a second renderer at max_depth 2 (another seed; at depth 1 the guide has no
+    // metal-roughness albedo), and what its frames cost against the image's.
     let max = *counts.iter().max().expect("a sample count");
     let fk: u32 = std::env::var("DQ_FIRST_HITS").ok().and_then(|v| v.parse().ok()).unwrap_or(3);
     let mut first_hits = Vec::new();
@@ -368,7 +406,7 @@ fn main() {
         };
         cell("shipped", &denoise(&r.image, &r.guide).unwrap().image);
         let k = counts.iter().position(|c| c == spp).unwrap();
-        cell(&format!("remodulated x{fk}"), &denoise_remodulated(&r.image, &r.guide, &first_hits[k]).unwrap().image);
+        cell(&format!("remodulated x{fk}"), &remodulated(&r.image, &r.guide, &first_hits[k]));
         let inp = input_mean(&r.image, &r.guide);
         let f = filter(inp.img, SHIPPED);
         cell("copy", &remodulate(&r.image, &f, &inp.modulation));

@@ -128,59 +128,6 @@ pub fn denoise(image: &Image, guide: &Guide) -> Result<Denoised, DenoiseError> {
     remodulate(image, filter_on_cpu(filter), &modulation, reflected, replaced)
 }
 
-/// [`denoise`], remodulated by a denser estimate of each pixel's first hits: `first_hits`, the
-/// guide's [`Aov`]s from more camera rays per pixel than the image's samples (on any runtime: a
-/// second renderer of the scene at `max_depth` 2, which traces little beyond its camera rays,
-/// with another seed, several frames per frame of the image's; [`Guide::read`]).
-///
-/// Why: at 16 spp most of what is left of a small glossy scene's error (DamagedHelmet under a
-/// sky) is coverage within a pixel, sky or helmet, one texel or the next, which the image's own
-/// first hits estimate from its 16 samples; the filter cannot remove it, however well it
-/// filters the illumination. The illumination is still demodulated by the image's own guide
-/// (the samples' colour and first hits agree there); only what multiplies it back, and the
-/// emission added, come from `first_hits`. Albedo channels the image's guide leaves undivided
-/// (below `MIN_ALBEDO`) stay so. The reflected light is kept at the noisy image's total, as in
-/// [`denoise`]; the emission is `first_hits`' (the image's mean moves by its better coverage).
-pub fn denoise_remodulated(image: &Image, guide: &Guide, first_hits: &[Aov]) -> Result<Denoised, DenoiseError> {
-    let Demodulated { filter, modulation, reflected, replaced } = demodulate(image, guide)?;
-    let modulation = dense_modulation(image, &modulation, guide, first_hits)?;
-    remodulate(image, filter_on_cpu(filter), &modulation, reflected, replaced)
-}
-
-/// The modulation of [`denoise_remodulated`]: per pixel, `first_hits`' albedo (where the image's
-/// own was divided out) and emission; a non-finite first hit keeps the image's own.
-fn dense_modulation(
-    image: &Image,
-    modulation: &[(Vec3, Vec3)],
-    guide: &Guide,
-    first_hits: &[Aov],
-) -> Result<Vec<(Vec3, Vec3)>, DenoiseError> {
-    let (width, height, pixels) = (image.width, image.height, image.pixels.len());
-    if first_hits.len() != pixels {
-        return Err(DenoiseError::SizeMismatch {
-            width,
-            height,
-            pixels,
-            what: "the first hits",
-            len: first_hits.len(),
-        });
-    }
-    Ok(modulation
-        .iter()
-        .zip(first_hits)
-        .zip(&guide.aovs)
-        .map(|((&(d, e), dense), own)| {
-            let own_finite =
-                own.albedo.is_finite() && own.normal.is_finite() && !own.depth.is_nan() && own.emission.is_finite();
-            if !(dense.albedo.is_finite() && dense.emission.is_finite() && own_finite) {
-                return (d, e);
-            }
-            let divided = own.albedo.cmpge(Vec3::splat(MIN_ALBEDO));
-            (Vec3::select(divided, dense.albedo.max(Vec3::ZERO), d), dense.emission)
-        })
-        .collect())
-}
-
 /// [`denoise`] with the filter passes on `renderer`'s runtime
 /// ([`Renderer::denoise_passes`]: fragment passes on GL, compute passes on wgpu).
 pub fn denoise_on(renderer: &mut dyn Renderer, image: &Image, guide: &Guide) -> Result<Denoised, DenoiseError> {
