@@ -5,18 +5,18 @@ precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
-// resources: FilterImage (lightport-tracer/src/kernel/denoise.rs:37)
+// resources: FilterImage (lightport-tracer/src/kernel/denoise.rs:42)
 uniform highp sampler2D filter_image_color;
 uniform highp sampler2D filter_image_guide;
 uniform uint filter_image_width;
 uniform uint filter_image_height;
 uniform uint filter_image_step;
 
-// denoise::SIGMA_NORMAL (lightport-tracer/src/kernel/denoise.rs:24)
-const float SIGMA_NORMAL = 128.0;
-// denoise::SIGMA_DEPTH (lightport-tracer/src/kernel/denoise.rs:26)
+// denoise::SIGMA_NORMAL (lightport-tracer/src/kernel/denoise.rs:29)
+const float SIGMA_NORMAL = 1024.0;
+// denoise::SIGMA_DEPTH (lightport-tracer/src/kernel/denoise.rs:31)
 const float SIGMA_DEPTH = 1.0;
-// denoise::SIGMA_LUMINANCE (lightport-tracer/src/kernel/denoise.rs:28)
+// denoise::SIGMA_LUMINANCE (lightport-tracer/src/kernel/denoise.rs:33)
 const float SIGMA_LUMINANCE = 4.0;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -39,19 +39,19 @@ vec4 lp_fetch_vec4(highp sampler2D t, uint i) {
     return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
 }
 
-// denoise::b3_weight (lightport-tracer/src/kernel/denoise.rs:47)
+// denoise::b3_weight (lightport-tracer/src/kernel/denoise.rs:52)
 float b3_weight(int i) {
     return i == 0 ? 0.375 : (i == 1) || (i == -1) ? 0.25 : 0.0625;
 }
 
-// denoise::guide_depth (lightport-tracer/src/kernel/denoise.rs:58)
+// denoise::guide_depth (lightport-tracer/src/kernel/denoise.rs:63)
 float guide_depth(int x, int y) {
     int cx = clamp(x, 0, int(filter_image_width) - 1);
     int cy = clamp(y, 0, int(filter_image_height) - 1);
     return lp_fetch_vec4(filter_image_guide, uint(cy * int(filter_image_width) + cx)).w;
 }
 
-// denoise::depth_slope (lightport-tracer/src/kernel/denoise.rs:66)
+// denoise::depth_slope (lightport-tracer/src/kernel/denoise.rs:71)
 float depth_slope(int x, int y, int dx, int dy) {
     float z = guide_depth(x, y);
     float ahead = abs(guide_depth(x + dx, y + dy) - z);
@@ -59,7 +59,7 @@ float depth_slope(int x, int y, int dx, int dy) {
     return min(ahead, behind);
 }
 
-// denoise::blurred_variance (lightport-tracer/src/kernel/denoise.rs:76)
+// denoise::blurred_variance (lightport-tracer/src/kernel/denoise.rs:81)
 float blurred_variance(int x, int y) {
     float sum = 0.0;
     float total = 0.0;
@@ -86,7 +86,7 @@ float luminance(vec3 c) {
     return dot(c, vec3(0.2126, 0.7152, 0.0722));
 }
 
-// denoise::atrous_pixel (lightport-tracer/src/kernel/denoise.rs:99)
+// denoise::atrous_pixel (lightport-tracer/src/kernel/denoise.rs:104)
 vec4 atrous_pixel(uint x, uint y) {
     int w = int(filter_image_width);
     int h = int(filter_image_height);

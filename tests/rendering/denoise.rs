@@ -134,7 +134,13 @@ fn denoising_alpha_masked_holes_gains_at_least_6_db() {
 /// with a converged guide (256 spp of first hits) that bound is +21 / +25 dB, but the filter then
 /// gains +2.8 / +1.6 dB (+1.8 / +1.5 of it the guide alone): the helmet's illumination has real
 /// detail (normal maps, glossy reflections) at the noise's size, and wider weights (σn 8-16,
-/// σl 16) lose 1.2-2.1 dB. Held to that as a regression bound: no sample count loses more than 2 dB.
+/// σl 16) lose 1.2-2.1 dB. A tighter normal weight keeps that detail: σn 1024 (was 128, which
+/// lost 1.8 dB here at 256 spp) measured 2026-12-05 +0.05, +0.12, +0.06, -0.10, -0.30 dB PSNR
+/// (+0.06, +0.15, +0.08, +0.04, -0.05 relMSE) at 1, 4, 16, 64, 256 spp. Held to -0.5 dB at
+/// every sample count (σn 128 fails it at 64 and 256 spp). What moves 16 spp is coverage:
+/// remodulating by 3 more first hits per sample (a second renderer at max_depth 2) gains +2.7
+/// dB, but costs 0.6-1.1x a frame each here, and 4x the samples gains 9 dB: not at equal time
+/// (`examples/denoise_quality.rs`, issue #30).
 #[test]
 fn denoising_damaged_helmet_under_a_sky_is_measured() {
     let mut helmet =
@@ -150,7 +156,7 @@ fn denoising_damaged_helmet_under_a_sky_is_measured() {
         let (rel_gain, psnr_gain) = (10.0 * (rel_n / rel_d).log10(), psnr_d - psnr_n);
         eprintln!("DamagedHelmet {spp:>3} spp: relMSE {rel_n:.5} -> {rel_d:.5} ({rel_gain:+.2} dB); PSNR {psnr_n:.2} -> {psnr_d:.2} dB ({psnr_gain:+.2})");
         assert!(
-            psnr_gain >= -2.0 && rel_gain >= -2.0,
+            psnr_gain >= -0.5 && rel_gain >= -0.5,
             "DamagedHelmet loses {psnr_gain:.2} dB of PSNR, {rel_gain:.2} dB of relMSE at {spp} spp"
         );
     }

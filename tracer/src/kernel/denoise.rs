@@ -20,8 +20,13 @@ pub mod denoise {
     /// À-trous passes: steps 1, 2, 4, 8 (a 61-pixel footprint). A fifth pass (step 16) measured
     /// 0.4 dB worse at 256 spp on the Cornell box (relative MSE) and barely better at 16.
     pub const ATROUS_ITERATIONS: u32 = 4;
-    /// Normal weight `max(0, n_p · n_q)^SIGMA_NORMAL` (SVGF's σn).
-    pub const SIGMA_NORMAL: f32 = 128.0;
+    /// Normal weight `max(0, n_p · n_q)^SIGMA_NORMAL` (SVGF's σn; it uses 128). Tight (half
+    /// weight at 2.1°) because the guide's normal is the shading normal: on a normal-mapped,
+    /// glossy surface (DamagedHelmet) the illumination follows the map's bumps, real detail
+    /// that σn 128 blurred (-1.8 dB at 256 spp at 48x48, -2.6 at 128x128 under
+    /// venice_sunset; at 1024, -0.3 and -0.1). Flat walls are not affected (their normals
+    /// agree); the Cornell box lost 0.1 dB at 16 spp (`examples/denoise_quality.rs`).
+    pub const SIGMA_NORMAL: f32 = 1024.0;
     /// Depth weight scale: depth differences against the local depth gradient (SVGF's σz).
     pub const SIGMA_DEPTH: f32 = 1.0;
     /// Luminance weight scale: luminance differences against the noise's standard deviation (SVGF's σl).
