@@ -5,7 +5,7 @@
 // (0 s, 0.8 s, 0 s again: the accumulation restarts at each, the same pose renders the same
 // image), and a few seconds of the frame loop playing (the time moves on, the accumulation
 // keeps restarting) then paused (samples accumulate). `--soak SECONDS`: then plays at real
-// speed that long and reports, each second, the poses shown, the module's live heap, the
+// speed that long (`--preview 0|1`: the page's preview per pose, default on) and reports, each second, the poses shown, the module's live heap, the
 // WebAssembly memory and the JS heap (what the page keeps growing, if anything, while it poses the scene again and again).
 
 import { readFileSync, rmSync } from 'node:fs';
@@ -15,7 +15,7 @@ export async function animation(o) {
   const profile = freshProfile();
   try {
     return await withBrowser(profile, async (context) => {
-      const { page, error } = await open(context, o.url, { scene: o.scene, size: o.size, paused: '1' });
+      const { page, error } = await open(context, o.url, { scene: o.scene, size: o.size, paused: '1', preview: o.preview });
       if (error) return { error };
       let name = o.scene;
       if (o.files) {

@@ -28,37 +28,19 @@ fn ms(value: &Value, what: &str) -> f64 {
 /// block of the 320x240 canvas one colour, not all black) while no full frame is done (0 spp),
 /// the read-out says so; it is finished before the first full-resolution frame, which then
 /// replaces it, and the first-frame accounting reports both (the preview's GPU time a part of
-/// its own).
+/// its own). After a camera move the new view is previewed the same way, then replaced.
 #[test]
 fn the_first_image_after_a_load_is_an_upscaled_preview_before_the_first_full_frame() {
     let server = Server::start(&[]);
     for api in ["webgl2", "webgpu"] {
         let report = opened(&server, api, None);
         let shot = &report["shot"];
-        assert!(shot.is_object(), "api={api}: the canvas showed a preview: {}", report["info"]);
-        assert_eq!((shot["width"].as_u64(), shot["height"].as_u64()), (Some(320), Some(240)), "api={api}");
-        assert_eq!((shot["preview"]["width"].as_u64(), shot["preview"]["height"].as_u64()), (Some(80), Some(60)));
-        assert_eq!(shot["spp"], 0, "api={api}: no full frame was done while the preview showed");
-        let pixels: Vec<u8> =
-            shot["pixels"].as_array().expect("pixels").iter().map(|v| v.as_u64().unwrap() as u8).collect();
-        assert_eq!(pixels.len(), 320 * 240 * 4);
-        let pixel = |x: usize, y: usize| &pixels[(y * 320 + x) * 4..(y * 320 + x) * 4 + 4];
-        let mut blocks_off = 0;
-        for by in 0..60 {
-            for bx in 0..80 {
-                let first = pixel(bx * 4, by * 4);
-                let uniform = (0..16).all(|i| pixel(bx * 4 + i % 4, by * 4 + i / 4) == first);
-                blocks_off += usize::from(!uniform);
-            }
-        }
-        assert_eq!(blocks_off, 0, "api={api}: every 4x4 block of the canvas is one preview pixel");
-        let lit = pixels.chunks_exact(4).filter(|p| p[..3].iter().any(|&c| c > 0)).count();
-        assert!(lit > 320 * 240 / 2, "api={api}: the preview shows the scene ({lit} lit pixels)");
+        assert_preview_on_canvas(shot, api, "the load");
         let readout = shot["readout"].as_str().unwrap_or("");
         assert!(readout.contains("preview 80×60"), "api={api}: the image read-out says so: {readout:?}");
 
-        let previews = report["previews"].as_array().expect("previews");
-        assert_eq!(previews.len(), 1, "api={api}: one preview after the load: {previews:?}");
+        let settled = &report["settled"]["info"]["preview"];
+        assert_eq!(settled["rendered"], 1, "api={api}: one preview after the load: {settled}");
         let image = &report["firstImage"];
         assert_eq!(image["preview"], true, "api={api}: the first image is the preview: {image}");
         assert_eq!((image["width"].as_u64(), image["height"].as_u64()), (Some(80), Some(60)));
@@ -82,7 +64,42 @@ fn the_first_image_after_a_load_is_an_upscaled_preview_before_the_first_full_fra
         assert!(!now.contains("preview"), "api={api}: the full frame is shown: {now:?}");
         let accounted = report["firstFrameReadout"].as_str().unwrap_or("");
         assert!(accounted.starts_with("first image (preview 80×60)"), "api={api}: {accounted:?}");
+
+        // A camera move restarts the accumulation, and the new view is previewed in turn.
+        assert_preview_on_canvas(&report["afterMove"], api, "a camera move");
+        let replaced = &report["replacedAfterMove"];
+        assert_eq!(
+            (replaced["rendered"].as_u64(), replaced["state"].as_str()),
+            (Some(2), Some("replaced")),
+            "{replaced}"
+        );
+        assert_eq!(report["previews"].as_array().map(Vec::len), Some(2), "api={api}: {}", report["previews"]);
     }
+}
+
+/// `shot` (the canvas copied while a preview showed, after `what`) is the preview: 80x60
+/// upscaled on the 320x240 canvas (every 4x4 block one colour, the scene lit), while no full
+/// frame had been done since the restart (0 spp).
+fn assert_preview_on_canvas(shot: &Value, api: &str, what: &str) {
+    assert!(shot.is_object(), "api={api}: the canvas showed a preview after {what}");
+    assert_eq!((shot["width"].as_u64(), shot["height"].as_u64()), (Some(320), Some(240)), "api={api}");
+    assert_eq!((shot["preview"]["width"].as_u64(), shot["preview"]["height"].as_u64()), (Some(80), Some(60)));
+    assert_eq!(shot["spp"], 0, "api={api}, {what}: no full frame was done while the preview showed");
+    let pixels: Vec<u8> =
+        shot["pixels"].as_array().expect("pixels").iter().map(|v| v.as_u64().unwrap() as u8).collect();
+    assert_eq!(pixels.len(), 320 * 240 * 4);
+    let pixel = |x: usize, y: usize| &pixels[(y * 320 + x) * 4..(y * 320 + x) * 4 + 4];
+    let mut blocks_off = 0;
+    for by in 0..60 {
+        for bx in 0..80 {
+            let first = pixel(bx * 4, by * 4);
+            let uniform = (0..16).all(|i| pixel(bx * 4 + i % 4, by * 4 + i / 4) == first);
+            blocks_off += usize::from(!uniform);
+        }
+    }
+    assert_eq!(blocks_off, 0, "api={api}, {what}: every 4x4 block of the canvas is one preview pixel");
+    let lit = pixels.chunks_exact(4).filter(|p| p[..3].iter().any(|&c| c > 0)).count();
+    assert!(lit > 320 * 240 / 2, "api={api}, {what}: the preview shows the scene ({lit} lit pixels)");
 }
 
 /// `?preview=0`: no preview is rendered or shown; the first image is the first full frame.
@@ -93,6 +110,7 @@ fn preview_0_shows_no_preview() {
         let report = opened(&server, api, Some("0"));
         assert!(report["shot"].is_null(), "api={api}: no preview on the canvas");
         assert_eq!(report["previews"].as_array().map(Vec::len), Some(0), "api={api}: {}", report["previews"]);
+        assert!(report["afterMove"].is_null(), "api={api}: no preview after a camera move either");
         assert_eq!(report["info"]["preview"]["state"], "off", "api={api}");
         let (image, split) = (&report["firstImage"], &report["firstFrame"]);
         assert_eq!(image["preview"], false, "api={api}: {image}");

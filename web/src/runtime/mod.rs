@@ -158,14 +158,36 @@ impl Runtime {
         }
     }
 
-    /// Asks for a preview (`on`) before the accumulation's first frame, or for none.
+    /// Asks for previews (`on`: before the accumulation's first frame if it has not begun, and
+    /// after restarts), or for none (a pending one or one on show is dropped).
     pub fn set_preview(&mut self, on: bool) {
         let (state, fresh) = (self.preview().state, self.frames() == 0);
         match (on, state) {
-            (true, PreviewState::Off) if fresh => *self.preview_mut() = Preview::new(true),
-            (false, PreviewState::Pending | PreviewState::Shown) => *self.preview_mut() = Preview::new(false),
+            (true, PreviewState::Off) => {
+                let mut preview = Preview::new(true);
+                if !fresh {
+                    preview.state = PreviewState::Replaced;
+                }
+                *self.preview_mut() = preview;
+            }
+            (false, state) if state != PreviewState::Off => *self.preview_mut() = Preview::new(false),
             _ => {}
         }
+    }
+
+    /// How the frame loop splits frames into bands (`tracer::backend::frame_split`).
+    fn band_policy(&self) -> &tracer::backend::frame_split::BandPolicy {
+        match self {
+            Runtime::WebGl2(r) => r.pacer().policy(),
+            Runtime::WebGpu(r) => r.policy(),
+        }
+    }
+
+    /// The accumulation restarted: the preview follows (`Preview::restarted`), previewing the
+    /// new view where frames are split into bands.
+    fn restarted(&mut self) {
+        let slow = self.band_policy().bands() > 1;
+        self.preview_mut().restarted(slow);
     }
 
     /// Renders the pending preview now (the test hook's `renderPreview`) if the accumulation
@@ -230,14 +252,16 @@ impl Runtime {
 
     /// Sets uniforms through `update` and restarts the accumulation.
     pub fn set_uniforms(&mut self, mut update: impl FnMut(&mut Scene)) -> Result<(), String> {
-        self.preview_mut().restarted();
-        self.renderer_mut().set_uniforms(&mut update).map_err(|e| e.to_string())
+        self.renderer_mut().set_uniforms(&mut update).map_err(|e| e.to_string())?;
+        self.restarted();
+        Ok(())
     }
 
     /// Takes a moved scene's geometry (`Renderer::take_geometry`) and restarts the accumulation.
     pub fn take_geometry(&mut self, moved: Packed) -> Result<(), tracer::backend::RenderError> {
-        self.preview_mut().restarted();
-        self.renderer_mut().take_geometry(moved)
+        self.renderer_mut().take_geometry(moved)?;
+        self.restarted();
+        Ok(())
     }
 
     /// Resolves once the GPU has done the work queued so far (WebGL2: already, by a 1-pixel
@@ -262,9 +286,10 @@ impl Runtime {
     pub fn describe(&self, info: &Object) {
         set(info, "api", self.api());
         set(info, "schedule", self.schedule().name());
-        let (policy, busy) = match self {
-            Runtime::WebGl2(r) => (r.pacer().policy(), r.pacer().busy()),
-            Runtime::WebGpu(r) => (r.policy(), r.busy()),
+        let policy = self.band_policy();
+        let busy = match self {
+            Runtime::WebGl2(r) => r.pacer().busy(),
+            Runtime::WebGpu(r) => r.busy(),
         };
         set(info, "bands", policy.bands());
         set(info, "bandRows", policy.rows());

@@ -1,10 +1,16 @@
 //! Where a runtime's preview stands (`tracer::backend::preview`): after a renderer is created
-//! (a scene loaded, a resize, a new device...) the frame loop's first step renders the current
+//! (a scene loaded, a resize, a new device...) and after each restart of its accumulation (a
+//! camera move, a setting, an animation's pose) the frame loop's first step renders the current
 //! view at a quarter of each side with the same kernel into an image of its own and shows it
 //! upscaled; the full-resolution frame follows in bands, and the preview stays on the canvas
-//! until that frame is complete. The accumulation never sees the preview's samples.
+//! until that frame is complete. The accumulation never sees the preview's samples. A restart
+//! is previewed on a device too slow for whole frames (its frames split into bands): so a drag
+//! or a playing animation, which restarts at every step, shows a preview per step there, a
+//! sixteenth of a frame's work instead of a whole frame; a device that renders whole frames
+//! within the band budget shows full-resolution frames as before.
 
 use js_sys::Object;
+use tracer::backend::preview::preview_size;
 use wasm_bindgen::JsValue;
 
 use crate::js::set;
@@ -15,15 +21,16 @@ pub enum PreviewState {
     /// No preview was asked for (`?preview=0`).
     #[default]
     Off,
-    /// Asked for: the frame loop's next step renders it (before the accumulation's first frame).
+    /// Asked for: the frame loop's next step renders it (before the accumulation's first frame;
+    /// again after each restart).
     Pending,
     /// Rendered and on the canvas, until the first full-resolution frame is complete.
     Shown,
     /// The first full-resolution frame replaced it.
     Replaced,
-    /// The accumulation started without one, or left it behind: a whole frame from the test
-    /// hook, a camera move while it showed (it shows the old view), a renderer that renders no
-    /// preview (the wavefront), or an error rendering it (`error`).
+    /// The accumulation started without one: a whole frame from the test hook, a renderer that
+    /// renders no preview (the wavefront), or an error rendering it (`error`, after which the
+    /// renderer renders none).
     Skipped,
 }
 
@@ -43,10 +50,12 @@ impl PreviewState {
 #[derive(Clone, Debug, Default)]
 pub struct Preview {
     pub state: PreviewState,
-    /// Its size (once rendered).
+    /// The last one's size (once rendered).
     pub size: Option<(u32, u32)>,
-    /// `performance.now()` at its submission.
+    /// `performance.now()` at the last one's submission.
     pub submitted_at: Option<f64>,
+    /// Previews rendered for this renderer (one per restart at most).
+    pub rendered: u64,
     /// Why it was not rendered, if it failed.
     pub error: Option<String>,
 }
@@ -62,16 +71,39 @@ impl Preview {
         self.state == PreviewState::Shown
     }
 
-    pub fn shown(&mut self, size: (u32, u32), at: f64) {
-        self.state = PreviewState::Shown;
-        self.size = Some(size);
-        self.submitted_at = Some(at);
-    }
-
-    pub fn failed(&mut self, error: String) {
-        web_sys::console::warn_1(&format!("no preview: {error}").into());
-        self.state = PreviewState::Skipped;
-        self.error = Some(error);
+    /// Renders the preview of a `full`-sized image with `render` (given the preview's size;
+    /// `None` from a renderer that renders none) if it is pending and the accumulation has not
+    /// begun (`fresh`): the image to show, if it was rendered at `now_ms`.
+    pub fn render_if_due<I>(
+        &mut self,
+        fresh: bool,
+        full: (u32, u32),
+        now_ms: f64,
+        render: impl FnOnce((u32, u32)) -> Result<Option<I>, String>,
+    ) -> Option<I> {
+        if self.state != PreviewState::Pending || !fresh {
+            return None;
+        }
+        let size = preview_size(full.0, full.1);
+        match render(size) {
+            Ok(Some(image)) => {
+                self.state = PreviewState::Shown;
+                self.size = Some(size);
+                self.submitted_at = Some(now_ms);
+                self.rendered += 1;
+                Some(image)
+            }
+            Ok(None) => {
+                self.state = PreviewState::Skipped;
+                None
+            }
+            Err(error) => {
+                web_sys::console::warn_1(&format!("no preview: {error}").into());
+                self.state = PreviewState::Skipped;
+                self.error = Some(error);
+                None
+            }
+        }
     }
 
     /// A frame of the accumulation was completed: a preview on show is replaced; one not
@@ -84,16 +116,21 @@ impl Preview {
         }
     }
 
-    /// The accumulation restarted (a camera or setting change): a preview on show shows the old
-    /// view, so the new one is drawn band by band instead. A pending one stays pending.
-    pub fn restarted(&mut self) {
-        if self.state == PreviewState::Shown {
-            self.state = PreviewState::Skipped;
+    /// The accumulation restarted (a camera or setting change, a pose). On a device whose
+    /// frames are split into bands (`slow`) the new view is previewed too, unless previews are
+    /// off or failed; otherwise a preview on show (of the old view) is dropped, and the new
+    /// view is drawn band by band. A pending one stays pending.
+    pub fn restarted(&mut self, slow: bool) {
+        match self.state {
+            PreviewState::Off => {}
+            _ if slow && self.error.is_none() => self.state = PreviewState::Pending,
+            PreviewState::Shown => self.state = PreviewState::Skipped,
+            _ => {}
         }
     }
 
-    /// `sceneInfo().preview`: `{ state, showing, width, height, submittedAt, error }` (size and
-    /// time null until rendered).
+    /// `sceneInfo().preview`: `{ state, showing, width, height, submittedAt, rendered, error }`
+    /// (the last preview's size and time, null until one is rendered).
     pub fn describe(&self) -> Object {
         let o = Object::new();
         set(&o, "state", self.state.name());
@@ -102,6 +139,7 @@ impl Preview {
         set(&o, "width", width);
         set(&o, "height", height);
         set(&o, "submittedAt", self.submitted_at.map_or(JsValue::NULL, JsValue::from));
+        set(&o, "rendered", self.rendered as f64);
         set(&o, "error", self.error.as_deref().map_or(JsValue::NULL, JsValue::from));
         o
     }

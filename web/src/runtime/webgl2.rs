@@ -6,7 +6,6 @@ use glow::HasContext;
 use tracer::backend::frame_split::Step;
 use tracer::backend::gl::Pacer;
 use tracer::backend::gl::{GlDisplay, GlFilter, GlOptions, GlRenderer, QueuedFilter};
-use tracer::backend::preview::preview_size;
 use tracer::backend::{Image, Renderer};
 use tracer::kernel::denoise::FilterImage;
 use tracer::output::Display;
@@ -112,26 +111,17 @@ impl GlRuntime {
     /// Renders the pending preview now, if the accumulation has not begun, and shows it:
     /// whether it did. The band in flight is forgotten (the caller waits with `sync`).
     pub fn preview_now(&mut self, now_ms: f64, settings: &Display) -> bool {
-        let (_, h) = self.size();
-        let start = self.renderer.frames() == 0 && self.renderer.rows_left() == h as u32;
-        if self.preview.state != super::preview::PreviewState::Pending || !start {
-            return false;
-        }
-        self.pacer.forget(self.renderer.gl());
         let (w, h) = self.size();
-        let size = preview_size(w as u32, h as u32);
-        match self.renderer.render_preview(size.0, size.1) {
-            Ok(texture) => {
-                self.preview_image = Some(texture);
-                self.preview.shown(size, now_ms);
-                self.draw(settings);
-                true
-            }
-            Err(e) => {
-                self.preview.failed(e.to_string());
-                false
-            }
-        }
+        let fresh = self.renderer.frames() == 0 && self.renderer.rows_left() == h as u32;
+        let (renderer, pacer) = (&mut self.renderer, &mut self.pacer);
+        let image = self.preview.render_if_due(fresh, (w as u32, h as u32), now_ms, |(width, height)| {
+            pacer.forget(renderer.gl());
+            renderer.render_preview(width, height).map(Some).map_err(|e| e.to_string())
+        });
+        let Some(texture) = image else { return false };
+        self.preview_image = Some(texture);
+        self.draw(settings);
+        true
     }
 
     pub fn renderer(&self) -> &GlRenderer {

@@ -17,7 +17,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 use tracer::backend::frame_split::{BandPolicy, Step};
-use tracer::backend::preview::preview_size;
 use tracer::backend::wgpu::{
     DeviceRenderer, DisplayPass, PipelineCheck, WavefrontRenderer, WgpuDevice, WgpuError, WgpuOptions, WgpuRenderer,
 };
@@ -28,7 +27,7 @@ use wasm_bindgen::prelude::*;
 use wasm_bindgen::JsCast;
 use web_sys::HtmlCanvasElement;
 
-use super::preview::{Preview, PreviewState};
+use super::preview::Preview;
 use super::Startup;
 use crate::denoise::show::GpuImageDisplay;
 use crate::js::now_ms;
@@ -314,29 +313,17 @@ impl GpuRuntime {
     /// whether it did (the wavefront renders none). The band in flight is forgotten.
     pub fn preview_now(&mut self, now_ms: f64, settings: &Display) -> bool {
         let scene = &self.renderer.packed().scene;
-        let (width, height) = (scene.width, scene.height);
-        let start = self.renderer.frames() == 0 && self.renderer.rows_left() == height;
-        if self.preview.state != PreviewState::Pending || !start {
-            return false;
-        }
-        let size = preview_size(width, height);
-        match self.renderer.render_preview(size.0, size.1) {
-            Ok(Some(buffer)) => {
-                self.in_flight = None;
-                self.preview_image = Some(buffer);
-                self.preview.shown(size, now_ms);
-                self.draw(settings);
-                true
-            }
-            Ok(None) => {
-                self.preview.state = PreviewState::Skipped;
-                false
-            }
-            Err(e) => {
-                self.preview.failed(e.to_string());
-                false
-            }
-        }
+        let full = (scene.width, scene.height);
+        let fresh = self.renderer.frames() == 0 && self.renderer.rows_left() == full.1;
+        let renderer = &mut self.renderer;
+        let image = self.preview.render_if_due(fresh, full, now_ms, |(width, height)| {
+            renderer.render_preview(width, height).map_err(|e| e.to_string())
+        });
+        let Some(buffer) = image else { return false };
+        self.in_flight = None;
+        self.preview_image = Some(buffer);
+        self.draw(settings);
+        true
     }
 
     pub fn renderer(&self) -> &dyn DeviceRenderer {
