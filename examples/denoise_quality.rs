@@ -37,7 +37,7 @@ use tracer::output::Image;
 use tracer::pack::build_and_pack;
 use tracer::scene::{self, Scene};
 
-const MIN_ALBEDO: f32 = 0.01;
+use tracer::kernel::denoise::{ATROUS_ITERATIONS, MIN_ALBEDO, SIGMA_DEPTH, SIGMA_LUMINANCE, SIGMA_NORMAL};
 
 fn data(path: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(path)
@@ -170,7 +170,13 @@ struct Params {
     sigma_luminance: f32,
 }
 
-const SHIPPED: Params = Params { iterations: 4, sigma_normal: 1024.0, sigma_depth: 1.0, sigma_luminance: 4.0 };
+/// The kernel's own filter (`tracer::kernel::denoise`).
+const SHIPPED: Params = Params {
+    iterations: ATROUS_ITERATIONS,
+    sigma_normal: SIGMA_NORMAL,
+    sigma_depth: SIGMA_DEPTH,
+    sigma_luminance: SIGMA_LUMINANCE,
+};
 /// Before σn went from 128 to 1024.
 const BEFORE: Params = Params { sigma_normal: 128.0, ..SHIPPED };
 
@@ -267,7 +273,7 @@ fn input_mean(image: &Image, guide: &Guide) -> Input {
 
 /// Per-sample demodulation: the mean over surface samples of (c - e) / a, its variance from
 /// the samples' moments; remodulated by the mean albedo times the surface share.
-fn input_per_sample(image: &Image, guide: &Guide, ps: &PerSample, spp: u32) -> Input {
+fn input_per_sample(image: &Image, guide: &Guide, ps: &PerSample) -> Input {
     let mut color = Vec::new();
     let mut g = Vec::new();
     let mut modulation = Vec::new();
@@ -285,7 +291,6 @@ fn input_per_sample(image: &Image, guide: &Guide, ps: &PerSample, spp: u32) -> I
             // a = sum over surface samples / n, so the albedo to remodulate by is the surface
             // samples' mean albedo times k/n: aov.albedo as is.
             let d = aov.albedo.max(Vec3::splat(1e-6));
-            let _ = spp;
             modulation.push((d, aov.emission));
         }
         g.push(aov.normal.extend(aov.depth));
@@ -342,8 +347,13 @@ fn main() {
     let name = args.first().map(String::as_str).unwrap_or("helmet");
     let size: u32 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(128);
     let ref_spp: u32 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(2048);
-    let only: Vec<u32> =
-        args.get(3).map(|s| s.split(',').map(|x| x.parse().unwrap()).collect()).unwrap_or(vec![1, 4, 16, 64, 256]);
+    let mut only: Vec<u32> = args
+        .get(3)
+        .map(|s| s.split(',').map(|x| x.parse().expect("sample counts, e.g. 1,4,16")).collect())
+        .unwrap_or(vec![1, 4, 16, 64, 256]);
+    // Rows follow the renders, which come in ascending order, once each.
+    only.sort_unstable();
+    only.dedup();
     let scene = scene_named(name);
     let t = std::time::Instant::now();
     let reference = reference(name, &scene, size, ref_spp);
@@ -432,7 +442,7 @@ fn main() {
             cell(&format!("e+cov d{k}"), &remodulate(&r.image, &f, &cmod));
         }
         if std::env::var("DQ_PER_SAMPLE").is_ok() {
-            let inp = input_per_sample(&r.image, &r.guide, &r.per_sample, *spp);
+            let inp = input_per_sample(&r.image, &r.guide, &r.per_sample);
             let f2 = filter(inp.img, SHIPPED);
             cell("per-sample", &remodulate(&r.image, &f2, &inp.modulation));
         }

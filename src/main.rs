@@ -227,37 +227,10 @@ fn render(args: &RenderArgs) -> Result<()> {
     if !args.exposure.is_finite() || args.exposure.abs() > 64.0 {
         bail!("--exposure must be a finite number of stops within ±64");
     }
-    let t0 = Instant::now();
     let settings = render_settings(args);
-    let bundle_path = args.scene.as_deref().filter(|p| bundle_scene::is_bundle(p));
-    // Textures are packed while the BVH builds; a bundle is packed already.
-    let prepared = match bundle_path {
-        Some(path) => {
-            bundle_scene::refuse_sky(args.sky.is_some(), args.sky_intensity, args.sky_rotation)?;
-            let bundle = bundle_scene::load(path, &args.pose, args.strict)?;
-            if args.frames > 1 {
-                return animate::render_bundle_frames(args, bundle, &settings);
-            }
-            let load_time = t0.elapsed();
-            let read_out = Prepared::of_bundle(&bundle);
-            let mut packed = bundle.packed;
-            packed.apply(&settings);
-            (packed, load_time, std::time::Duration::ZERO, read_out)
-        }
-        None => {
-            let scene = load_scene(args)?;
-            let load_time = t0.elapsed();
-            if args.frames > 1 {
-                return animate::render_frames(args, scene, &settings);
-            }
-            let t1 = Instant::now();
-            let (bvh, packed) =
-                tracer::pack::build_and_pack(&scene, &settings).context("building the BVH and packing")?;
-            let read_out = Prepared::of_scene(&scene, &bvh, &packed);
-            (packed, load_time, t1.elapsed(), read_out)
-        }
+    let Some((mut packed, load_time, build_time, read_out)) = prepare(args, &settings)? else {
+        return Ok(());
     };
-    let (mut packed, load_time, build_time, read_out) = prepared;
     // --denoise: the path tracer sums the filter's guide beside the image, in the same pass.
     packed.set_denoise_guide(args.denoise);
     let features = packed.features;
@@ -337,6 +310,39 @@ fn render(args: &RenderArgs) -> Result<()> {
     }
     println!("wrote        {}", args.out.display());
     Ok(())
+}
+
+/// The packed scene `render` renders, the time loading it took and the time building its BVH
+/// and packing it took, and what to print about it; `None` when `--frames` rendered the
+/// animation instead. Textures are packed while the BVH builds; a bundle is packed already.
+fn prepare(
+    args: &RenderArgs,
+    settings: &tracer::kernel::RenderSettings,
+) -> Result<Option<(tracer::pack::Packed, std::time::Duration, std::time::Duration, Prepared)>> {
+    let t0 = std::time::Instant::now();
+    if let Some(path) = args.scene.as_deref().filter(|p| bundle_scene::is_bundle(p)) {
+        bundle_scene::refuse_sky(args.sky.is_some(), args.sky_intensity, args.sky_rotation)?;
+        let bundle = bundle_scene::load(path, &args.pose, args.strict)?;
+        if args.frames > 1 {
+            animate::render_bundle_frames(args, bundle, settings)?;
+            return Ok(None);
+        }
+        let load_time = t0.elapsed();
+        let read_out = Prepared::of_bundle(&bundle);
+        let mut packed = bundle.packed;
+        packed.apply(settings);
+        return Ok(Some((packed, load_time, std::time::Duration::ZERO, read_out)));
+    }
+    let scene = load_scene(args)?;
+    let load_time = t0.elapsed();
+    if args.frames > 1 {
+        animate::render_frames(args, scene, settings)?;
+        return Ok(None);
+    }
+    let t1 = std::time::Instant::now();
+    let (bvh, packed) = tracer::pack::build_and_pack(&scene, settings).context("building the BVH and packing")?;
+    let read_out = Prepared::of_scene(&scene, &bvh, &packed);
+    Ok(Some((packed, load_time, t1.elapsed(), read_out)))
 }
 
 /// What `render` prints about the scene it packed: its triangles, how its BVH is laid out, and

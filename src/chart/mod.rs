@@ -290,8 +290,10 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
     if let Some(sky_path) = &args.sky {
         let sky = scene::load_sky(sky_path, args.sky_intensity, 0.0)
             .with_context(|| format!("loading sky {}", sky_path.display()))?;
-        if let Source::Scene(scene) = &mut chart_scene.scene {
-            scene.sky = Some(sky);
+        match &mut chart_scene.scene {
+            Source::Scene(scene) => scene.sky = Some(sky),
+            // `bundle_chart_scene` refused the sky.
+            Source::Packed(_) => bail!("--sky cannot be added to a bundle (its sky is packed in it)"),
         }
         chart_scene.analytic = None;
         let stem = sky_path.file_stem().map_or("sky".into(), |s| slugify(&s.to_string_lossy()));
@@ -312,11 +314,13 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
 fn bundle_chart_scene(path: &Path, args: &ChartArgs) -> Result<ChartScene> {
     crate::bundle_scene::refuse_sky(args.sky.is_some(), args.sky_intensity, 0.0)?;
     let bundle = crate::bundle_scene::load(path, &args.pose, false)?;
-    let slug = path.file_stem().map_or("scene".into(), |s| slugify(&s.to_string_lossy()));
-    let slug = match bundle.name.is_empty() {
-        true => slug,
-        false => slugify(&bundle.name),
+    // "-bundle": charted beside its scene file in one run, the two write their own files.
+    let name = if bundle.name.is_empty() {
+        path.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned())
+    } else {
+        bundle.name.clone()
     };
+    let slug = format!("{}-bundle", slugify(&name));
     let mut identity = format!("bundle {} ({:016x})", path.display(), hash_file(path)?);
     let pose = args.pose.describe();
     if !pose.is_empty() {

@@ -405,9 +405,11 @@ fn a_placement_a_pose_cannot_place_is_dropped_with_one_warning() {
         let bundles = export(&file, &sub, &["--time", "0"]);
         let bundle = bundle_of(&bundles, name).to_owned();
         let small = ["--width", "12", "--height", "12", "--spp", "2"];
-        let ways: [(&str, &Path, Vec<&str>); 3] = [
+        let ways: [(&str, &Path, Vec<&str>); 4] = [
             ("the file", &file, vec!["--time", "1"]),
             ("--frames", &file, vec!["--frames", "3", "--until", "1"]),
+            // Loaded at a time the pose drops it (the kept motion's load-time pose).
+            ("--frames from 1 s", &file, vec!["--frames", "3", "--time", "1", "--until", "1"]),
             ("the bundle", &bundle, vec!["--time", "1"]),
         ];
         for (way, scene, args) in ways {
@@ -430,7 +432,7 @@ fn a_placement_a_pose_cannot_place_is_dropped_with_one_warning() {
             );
             let stdout = String::from_utf8_lossy(&o.stdout);
             assert!(!stdout.contains("non-finite"), "{name}, {way}: {stdout}");
-            let last = if way == "--frames" { sub.join("out-002.exr") } else { out };
+            let last = if way.starts_with("--frames") { sub.join("out-002.exr") } else { out };
             let image = image::open(&last).unwrap().into_rgb32f().into_raw();
             assert!(image.iter().all(|v| v.is_finite()) && image.iter().any(|v| *v > 0.0), "{name}, {way}");
             let strict = Command::new(env!("CARGO_BIN_EXE_lightport"))

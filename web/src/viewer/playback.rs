@@ -28,11 +28,15 @@ pub struct Playback {
     pose_ms: f64,
     /// Poses shown since the scene was loaded (a soak test's count of what it exercised).
     poses: u64,
+    /// What posing warned about since the load (a placement a pose cannot place is dropped,
+    /// once each): also on the console.
+    warnings: Vec<String>,
 }
 
 impl Playback {
     pub fn new(moving: MovingScene) -> Self {
-        Playback { moving, time: 0.0, playing: true, speed: 1.0, clock_ms: None, pose_ms: 0.0, poses: 0 }
+        let warnings = Vec::new();
+        Playback { moving, time: 0.0, playing: true, speed: 1.0, clock_ms: None, pose_ms: 0.0, poses: 0, warnings }
     }
 
     /// The time at `now_ms` while playing: the shown time advanced by the page's clock times
@@ -49,7 +53,7 @@ impl Playback {
     }
 
     /// `sceneInfo().animation`: { duration, time, playing, speed, moving (what moves, in
-    /// words), poseMs, poses (shown since the load) }.
+    /// words), poseMs, poses (shown since the load), warnings (posing's, joined) }.
     pub fn describe(&self) -> Object {
         let info = Object::new();
         set(&info, "duration", self.moving.duration());
@@ -60,6 +64,7 @@ impl Playback {
         set(&info, "moving", moving);
         set(&info, "poseMs", self.pose_ms);
         set(&info, "poses", self.poses as f64);
+        set(&info, "warnings", self.warnings.join("; "));
         info
     }
 }
@@ -153,7 +158,12 @@ impl Viewer {
         let start = crate::js::now_ms();
         let Some(p) = self.playback_mut() else { return Ok(()) };
         p.time = time;
+        let known = p.moving.scene().warnings.len();
         p.moving.pose(time).map_err(js_error)?;
+        for warning in p.moving.scene().warnings.iter().skip(known) {
+            web_sys::console::warn_1(&warning.into());
+            p.warnings.push(warning.clone());
+        }
         let moved = p.moving.pack().map_err(js_error)?;
         let taken = self.take_geometry(moved);
         let result = match taken {

@@ -295,6 +295,18 @@ type Dropped = (String, &'static str);
 pub(super) const SINGULAR: &str = "cannot be inverted (a scale of zero?)";
 pub(super) const NOT_FINITE: &str = "is not finite";
 
+/// Why a mesh cannot be placed by `m` ([`SINGULAR`], [`NOT_FINITE`]), or `None` when it can:
+/// the one rule of every posing path (an instance's [`Instance::has_valid_transform`]).
+pub(super) fn unplaceable(m: Mat4) -> Option<&'static str> {
+    if (Instance { mesh: 0, transform: m }).has_valid_transform() {
+        None
+    } else if m.is_finite() {
+        Some(SINGULAR)
+    } else {
+        Some(NOT_FINITE)
+    }
+}
+
 /// The warning for a placement (`what`: "node 3") that the pose at `time` drops because its
 /// transform `why` ([`SINGULAR`], [`NOT_FINITE`]); `--strict` refuses it.
 pub(super) fn dropped(what: &str, why: &str, time: f32) -> String {
@@ -309,10 +321,7 @@ pub(super) fn dropped(what: &str, why: &str, time: f32) -> String {
 /// scene keeps its number of placements from pose to pose (which posing over packed arrays,
 /// `pack::Posing`, relies on).
 fn placeable(m: Mat4, what: &str) -> (Mat4, Option<Dropped>) {
-    if (Instance { mesh: 0, transform: m }).has_valid_transform() {
-        return (m, None);
-    }
-    let why = if m.is_finite() { SINGULAR } else { NOT_FINITE };
+    let Some(why) = unplaceable(m) else { return (m, None) };
     let at = Some(m.w_axis.truncate()).filter(|t| t.is_finite()).unwrap_or(Vec3::ZERO);
     (Mat4::from_translation(at) * Mat4::from_scale(Vec3::splat(1e-6)), Some((what.to_owned(), why)))
 }

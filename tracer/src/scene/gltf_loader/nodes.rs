@@ -51,11 +51,12 @@ impl Loader<'_> {
             let posed = self.motion.is_none() && self.pose.contains_key(&n);
             let moving = parent_moves || self.channel_moves(n) || posed;
             // A pose that drops a placement: warned about once, as `Motion::apply` does (which
-            // warns for a kept motion); a non-finite one drops the node and everything below.
+            // warns for a kept motion, whose moving parts `place_moving` drops); without a kept
+            // motion a non-finite one drops the node and everything below.
             let finite = world.is_finite();
-            let singular = node.mesh.is_some() && Mat3::from_mat4(world).determinant() == 0.0;
-            if moving && self.motion.is_none() && (!finite || singular) {
-                let why = if finite { super::motion::SINGULAR } else { super::motion::NOT_FINITE };
+            let why =
+                if finite { node.mesh.and(super::motion::unplaceable(world)) } else { Some(super::motion::NOT_FINITE) };
+            if let (true, None, Some(why)) = (moving, &self.motion, why) {
                 let time = self.time;
                 self.warnings
                     .once(&format!("dropped node {n}"), || super::motion::dropped(&format!("node {n}"), why, time));
@@ -63,16 +64,19 @@ impl Loader<'_> {
                     continue;
                 }
             }
-            if !world.is_finite() {
+            if !finite && !moving {
                 return Err(malformed(format!("node {n} has a non-finite world transform")));
             }
-            if let Some(ext) = &node.extensions {
+            // (A moving, non-finite node of a kept motion: its lights and camera are skipped,
+            // its mesh dropped by `place_moving`.)
+            let extensions = node.extensions.as_ref().filter(|_| finite);
+            if let Some(ext) = extensions {
                 warn_extensions(&mut self.warnings, Some(&ext.others));
                 if let Some(l) = &ext.khr_lights_punctual {
                     self.light(l.light.value(), n, &world)?;
                 }
             }
-            if let Some(c) = node.camera {
+            if let Some(c) = node.camera.filter(|_| finite) {
                 self.camera(c.value(), &world)?;
             }
             if let Some(m) = node.mesh {
