@@ -38,12 +38,11 @@ pub fn render_bundle_frames(args: &RenderArgs, bundle: BundleScene, settings: &R
     let (Some(moving), Some(what)) = (bundle.moving, what) else {
         bail!("--frames needs an animated scene: this bundle has no motion section (its scene does not move)");
     };
-    let started = Instant::now();
-    let mut packed = moving.pack_for_kernel().context("packing the bundle's first pose")?;
+    // `load` posed the bundle's arrays at --time and packed that pose already.
+    let mut packed = MovingScene::for_kernel(bundle.packed);
     packed.apply(settings);
     let name = args.scene.as_ref().map_or(String::new(), |p| p.display().to_string());
     println!("scene        {name} (bundle \"{}\": {what})", bundle.name);
-    println!("first pack   {:.1} ms (the bundle's arrays posed at --time)", ms(started));
     render_poses(args, moving, packed)
 }
 

@@ -52,12 +52,17 @@ impl MovingScene {
     /// at each pose needs a little more or less (LittlestTokyo: 59 or 60 entries from pose to
     /// pose), and a pose needing more than the kernel's stack would recompile it.
     pub fn pack_for_kernel(&self) -> Result<Packed, PackError> {
-        let mut packed = self.pack()?;
+        Ok(Self::for_kernel(self.pack()?))
+    }
+
+    /// `packed` (a pose [`pack`](Self::pack) gave) made ready for creating a renderer, as
+    /// [`pack_for_kernel`](Self::pack_for_kernel) packs it: without packing the pose again.
+    pub fn for_kernel(mut packed: Packed) -> Packed {
         let stack = &mut packed.features.traversal_stack;
         if *stack > 0 {
             *stack = (*stack + STACK_HEADROOM).min(crate::kernel::traverse::STACK_SIZE as u32);
         }
-        Ok(packed)
+        packed
     }
 
     /// The scene (from a bundle: its moving parts), as posed now.
