@@ -344,7 +344,9 @@ fn chart_takes_a_bundle_posed_at_the_time_asked() {
 }
 
 /// A floor, a point light, a camera and a triangle (node 1) whose animation scales it from 1
-/// at 0 s to `scale_at_1` at 1 s (LINEAR), under a node of scale `parent_scale`.
+/// at 0 s to `scale_at_1` at 1 s (LINEAR), under a node of scale `parent_scale`. The camera
+/// sees the triangle (at rest) against nothing: no sky, and the floor ends before the rays
+/// that pass it could reach it.
 fn scaled_gltf(scale_at_1: f32, parent_scale: f32) -> Vec<u8> {
     use base64::Engine;
     let floor =
@@ -361,7 +363,7 @@ fn scaled_gltf(scale_at_1: f32, parent_scale: f32) -> Vec<u8> {
             {"mesh": 0},
             {"mesh": 1, "name": "shrinking"},
             {"translation": [0.5, 3, 3], "extensions": {"KHR_lights_punctual": {"light": 0}}},
-            {"camera": 0, "translation": [0, 1.5, 6]},
+            {"camera": 0, "translation": [0.4, 1, 2.5]},
             {"children": [1], "scale": [parent_scale, parent_scale, parent_scale]}
         ],
         "extensionsUsed": ["KHR_lights_punctual"],
@@ -385,18 +387,90 @@ fn scaled_gltf(scale_at_1: f32, parent_scale: f32) -> Vec<u8> {
     serde_json::to_vec(&json).unwrap()
 }
 
+/// [`scaled_gltf`] (`parent_scale` 1) with its triangle (node 1) skinned instead of scaled:
+/// one joint (node 5, at (0, 3, 0), its inverse bind matrix undoing that, so that at rest the
+/// triangle is where it is unskinned) that the animation scales from 1 at 0 s to `scale_at_1`
+/// at 1 s. The joint's matrix has (0, 3, 0) + scale x (0, -3, 0) in translation: from a scale
+/// of about 1.1e38 on, it is not finite.
+fn skinned_gltf(scale_at_1: f32) -> Vec<u8> {
+    use base64::Engine;
+    let mut json: serde_json::Value = serde_json::from_slice(&scaled_gltf(scale_at_1, 1.0)).unwrap();
+    let mut bytes = vec![0u8; 12]; // JOINTS_0: joint 0 for every vertex (unsigned bytes)
+    let weights = [1.0f32, 0.0, 0.0, 0.0].repeat(3);
+    let inverse_bind = glam::Mat4::from_translation(glam::Vec3::new(0.0, -3.0, 0.0)).to_cols_array();
+    bytes.extend(weights.iter().chain(&inverse_bind).flat_map(|v| v.to_le_bytes()));
+    let uri =
+        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes));
+    json["buffers"].as_array_mut().unwrap().push(serde_json::json!({"byteLength": bytes.len(), "uri": uri}));
+    json["bufferViews"].as_array_mut().unwrap().extend([
+        serde_json::json!({"buffer": 1, "byteOffset": 0, "byteLength": 12}),
+        serde_json::json!({"buffer": 1, "byteOffset": 12, "byteLength": 48}),
+        serde_json::json!({"buffer": 1, "byteOffset": 60, "byteLength": 64}),
+    ]);
+    json["accessors"].as_array_mut().unwrap().extend([
+        serde_json::json!({"bufferView": 4, "componentType": 5121, "count": 3, "type": "VEC4"}),
+        serde_json::json!({"bufferView": 5, "componentType": 5126, "count": 3, "type": "VEC4"}),
+        serde_json::json!({"bufferView": 6, "componentType": 5126, "count": 1, "type": "MAT4"}),
+    ]);
+    let attributes = &mut json["meshes"][1]["primitives"][0]["attributes"];
+    (attributes["JOINTS_0"], attributes["WEIGHTS_0"]) = (4.into(), 5.into());
+    json["nodes"][1]["skin"] = 0.into();
+    json["nodes"].as_array_mut().unwrap().push(serde_json::json!({"name": "joint", "translation": [0, 3, 0]}));
+    json["skins"] = serde_json::json!([{"joints": [5], "inverseBindMatrices": 6}]);
+    json["animations"][0]["channels"][0]["target"]["node"] = 5.into();
+    serde_json::to_vec(&json).unwrap()
+}
+
 /// A pose whose transform for a placement cannot be inverted (the animation scales the node
 /// to zero at 1 s) or is not finite (scaled by 1e30 under a parent of scale 1e10: the product
-/// overflows) drops that placement with one warning, and `--strict` refuses it, whichever
-/// path poses it: the scene file at `--time 1` (flattened at load), `--frames` on it (a kept
-/// motion posed frame by frame) and its bundle at `--time 1` (posed from the motion section).
-/// Never a panic or a non-finite pixel; where the pose places it nothing is said.
+/// overflows), or that makes a skinned mesh's joint matrix non-finite (its joint scaled by
+/// 3e38: from 0.5 s on), drops that placement or mesh with one warning, and `--strict`
+/// refuses it, whichever path poses it: the scene file at `--time 1` (flattened at load),
+/// `--frames` on it (a kept motion posed frame by frame) and its bundle at `--time 1` (posed
+/// from the motion section). Never a panic or a non-finite pixel; where the pose places it
+/// nothing is said. Dropped means gone from the image: the pixels where the triangle shows at
+/// rest, against nothing (black without it), are black at 1 s.
 #[test]
 fn a_placement_a_pose_cannot_place_is_dropped_with_one_warning() {
     let dir = TempDir::new("dropped");
+    let small = ["--width", "12", "--height", "12", "--spp", "2"];
+    let render_small = |scene: &Path, args: &[&str], out: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_lightport"))
+            .arg("render")
+            .arg(scene)
+            .args(small)
+            .args(args)
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let read = |path: &Path| image::open(path).unwrap().into_rgb32f().into_raw();
+    // Where the triangle shows at rest against nothing: lit with it, black without it.
+    let rest = dir.0.join("rest.gltf");
+    std::fs::write(&rest, scaled_gltf(1.0, 1.0)).unwrap();
+    let mut json: serde_json::Value = serde_json::from_slice(&scaled_gltf(1.0, 1.0)).unwrap();
+    json["nodes"][1].as_object_mut().unwrap().remove("mesh");
+    let without = dir.0.join("without.gltf");
+    std::fs::write(&without, serde_json::to_vec(&json).unwrap()).unwrap();
+    let images: Vec<Vec<f32>> = [&rest, &without]
+        .iter()
+        .map(|scene| {
+            let out = dir.0.join("reference.exr");
+            let o = render_small(scene, &[], &out);
+            assert!(o.status.success(), "{}", stderr(&o));
+            read(&out)
+        })
+        .collect();
+    let pixel = |image: &[f32], i: usize| image[3 * i] + image[3 * i + 1] + image[3 * i + 2];
+    let region: Vec<usize> =
+        (0..12 * 12).filter(|&i| pixel(&images[0], i) > 0.0 && pixel(&images[1], i) == 0.0).collect();
+    println!("the triangle shows against nothing in {} of 144 pixels", region.len());
+    assert!(region.len() >= 8, "the triangle covers too few pixels to tell: {region:?}");
     for (name, gltf, why, placed_at) in [
         ("zero", scaled_gltf(0.0, 1.0), "cannot be inverted", "0.5"),
         ("overflow", scaled_gltf(1e30, 1e10), "is not finite", "0"),
+        ("skin", skinned_gltf(3e38), "is not finite (a joint's matrix", "0"),
     ] {
         let sub = dir.0.join(name);
         std::fs::create_dir_all(&sub).unwrap();
@@ -404,7 +478,6 @@ fn a_placement_a_pose_cannot_place_is_dropped_with_one_warning() {
         std::fs::write(&file, gltf).unwrap();
         let bundles = export(&file, &sub, &["--time", "0"]);
         let bundle = bundle_of(&bundles, name).to_owned();
-        let small = ["--width", "12", "--height", "12", "--spp", "2"];
         let ways: [(&str, &Path, Vec<&str>); 4] = [
             ("the file", &file, vec!["--time", "1"]),
             ("--frames", &file, vec!["--frames", "3", "--until", "1"]),
@@ -414,15 +487,7 @@ fn a_placement_a_pose_cannot_place_is_dropped_with_one_warning() {
         ];
         for (way, scene, args) in ways {
             let out = sub.join("out.exr");
-            let o = Command::new(env!("CARGO_BIN_EXE_lightport"))
-                .arg("render")
-                .arg(scene)
-                .args(small)
-                .args(&args)
-                .arg("--out")
-                .arg(&out)
-                .output()
-                .unwrap();
+            let o = render_small(scene, &args, &out);
             let err = stderr(&o);
             assert!(o.status.success(), "{name}, {way}: {err}");
             let warnings: Vec<&str> = err.lines().filter(|l| l.starts_with("warning: ")).collect();
@@ -433,18 +498,11 @@ fn a_placement_a_pose_cannot_place_is_dropped_with_one_warning() {
             let stdout = String::from_utf8_lossy(&o.stdout);
             assert!(!stdout.contains("non-finite"), "{name}, {way}: {stdout}");
             let last = if way.starts_with("--frames") { sub.join("out-002.exr") } else { out };
-            let image = image::open(&last).unwrap().into_rgb32f().into_raw();
+            let image = read(&last);
             assert!(image.iter().all(|v| v.is_finite()) && image.iter().any(|v| *v > 0.0), "{name}, {way}");
-            let strict = Command::new(env!("CARGO_BIN_EXE_lightport"))
-                .arg("render")
-                .arg(scene)
-                .args(small)
-                .args(&args)
-                .arg("--strict")
-                .arg("--out")
-                .arg(sub.join("strict.exr"))
-                .output()
-                .unwrap();
+            let seen: Vec<usize> = region.iter().copied().filter(|&i| pixel(&image, i) != 0.0).collect();
+            assert!(seen.is_empty(), "{name}, {way}: at 1 s the dropped triangle still shows in pixels {seen:?}");
+            let strict = render_small(scene, &[&args[..], &["--strict"]].concat(), &sub.join("strict.exr"));
             let err = stderr(&strict);
             assert!(!strict.status.success() && err.contains("--strict") && err.contains(why), "{name}, {way}: {err}");
             assert!(!err.contains("panicked"), "{err}");
@@ -452,5 +510,13 @@ fn a_placement_a_pose_cannot_place_is_dropped_with_one_warning() {
         let before =
             run(Some(&bundle), &sub.join("before.exr"), &[&small[..], &["--time", placed_at, "--strict"]].concat());
         assert!(before.is_ok(), "{name}: at {placed_at} s nothing is dropped: {before:?}");
+        let at_rest = render_small(&file, &["--time", "0", "--strict"], &sub.join("at-rest.exr"));
+        assert!(at_rest.status.success(), "{name}: {}", stderr(&at_rest));
+        if name != "overflow" {
+            // At rest (scale 1 under a parent of 1) the triangle shows where it does in rest.gltf.
+            let image = read(&sub.join("at-rest.exr"));
+            let missing: Vec<usize> = region.iter().copied().filter(|&i| pixel(&image, i) == 0.0).collect();
+            assert!(missing.len() < region.len() / 4, "{name}: at 0 s the triangle does not show: {missing:?}");
+        }
     }
 }

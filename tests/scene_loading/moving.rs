@@ -223,6 +223,11 @@ fn animations_pose_the_scene_at_a_time() {
 /// `inverse_bind` gives joint 1's inverse bind translation; `animation` is spliced in as-is
 /// (its samplers may read accessor 6, times [0, 1], and 7, two VEC3s).
 fn skinned_json(inverse_bind: Option<Vec3>, animation: &str) -> String {
+    skinned_json_keyed(inverse_bind, animation, [0.0, 3.0, 0.0, 0.0, 5.0, 0.0])
+}
+
+/// [`skinned_json`] with accessor 7's two VEC3s `keys`.
+fn skinned_json_keyed(inverse_bind: Option<Vec3>, animation: &str, keys: [f32; 6]) -> String {
     let mut buf = f32_bytes(&TRI);
     buf.extend(u16_bytes(&[0, 1, 2, 0]));
     buf.extend([0u8, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0]); // JOINTS_0, unsigned bytes
@@ -231,7 +236,8 @@ fn skinned_json(inverse_bind: Option<Vec3>, animation: &str) -> String {
     let identity = glam::Mat4::IDENTITY.to_cols_array();
     buf.extend(f32_bytes(&identity));
     buf.extend(f32_bytes(&glam::Mat4::from_translation(t).to_cols_array()));
-    buf.extend(f32_bytes(&[0.0, 1.0, 0.0, 3.0, 0.0, 0.0, 5.0, 0.0]));
+    buf.extend(f32_bytes(&[0.0, 1.0]));
+    buf.extend(f32_bytes(&keys));
     let ibm = if inverse_bind.is_some() { r#", "inverseBindMatrices": 5"# } else { "" };
     format!(
         r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0, 1]}}],
@@ -327,6 +333,157 @@ fn morph_targets_follow_their_weights() {
     let bad = base.replace(r#""samplers": [{"input": 3, "output": 4}]"#, r#""samplers": [{"input": 3, "output": 2}]"#);
     let err = load_str(&bad).unwrap_err().to_string();
     assert!(err.contains("output"), "{err}");
+}
+
+/// `json` with one more triangle (node and mesh), static at (0, 0, -7): a scene that keeps
+/// a triangle where a pose drops its others.
+fn with_static_triangle(json: &str) -> String {
+    let mut v: serde_json::Value = serde_json::from_str(json).unwrap();
+    let meshes = v["meshes"].as_array_mut().unwrap();
+    meshes.push(serde_json::json!({"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}));
+    let mesh = meshes.len() - 1;
+    let nodes = v["nodes"].as_array_mut().unwrap();
+    nodes.push(serde_json::json!({"mesh": mesh, "translation": [0, 0, -7]}));
+    let node = nodes.len() - 1;
+    v["scenes"][0]["nodes"].as_array_mut().unwrap().push(node.into());
+    v.to_string()
+}
+
+/// [`skinned_json`] whose joint 1 (node 2, at (0, 3, 0), its inverse bind matrix undoing
+/// that: the rest shape at rest) an animation scales by 1 until 1 s, then by 2e38 (STEP): its
+/// matrix, (0, 3, 0) + scale x (0, -3, 0) in translation, is not finite from 1 s on; with a
+/// static triangle beside it (node 3, mesh 1).
+fn overflowing_skin_json() -> String {
+    let scale = r#"{"channels": [{"sampler": 0, "target": {"node": 2, "path": "scale"}}],
+        "samplers": [{"input": 6, "output": 7, "interpolation": "STEP"}]}"#;
+    let keys = [1.0, 1.0, 1.0, 2e38, 2e38, 2e38];
+    with_static_triangle(&skinned_json_keyed(Some(Vec3::new(0.0, -3.0, 0.0)), scale, keys))
+}
+
+/// [`animated_json`]'s triangle (node 0) with a morph target moving vertex 2 by (0, 0, 2),
+/// its weight animated from 0 until 1 s to 3e38 from 1 s on (STEP): the morphed vertex is not
+/// finite from 1 s on; with a static triangle beside it.
+fn overflowing_morph_json() -> String {
+    let animation = r#"[{"channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}],
+        "samplers": [{"input": 3, "output": 4, "interpolation": "STEP"}]}]"#;
+    // Accessor 5: translations for a channel that moves the static triangle instead.
+    let accessors: Vec<(&str, &[f32])> = vec![
+        ("VEC3", &[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0]),
+        ("SCALAR", &[0.0, 1.0]),
+        ("SCALAR", &[0.0, 3e38]),
+        ("VEC3", &[0.0, 0.0, -7.0, 0.0, 1.0, -7.0]),
+    ];
+    let json = animated_json(animation, &accessors).replace(
+        r#""meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}]"#,
+        r#""meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "targets": [{"POSITION": 2}]}]}]"#,
+    );
+    assert!(json.contains("targets"), "the mesh was rewritten");
+    with_static_triangle(&json)
+}
+
+/// A skinned mesh whose joint's matrix the animation makes non-finite at 1 s, and a morphed
+/// one whose weight overflows its vertex there, are dropped from that pose with one warning
+/// naming the node and mesh, the time and why, on every posing path: loaded at 1 s
+/// (flattened: the static triangle alone), and a kept motion posed there (`Scene::pose`, its
+/// `MovingScene` and its bundle's moving parts: the mesh keeps its number of triangles, a
+/// millionth of its size at the origin, all finite; posed back, the rest shape again); the
+/// warning is not repeated. Where the pose is finite (0 s, 0.5 s) nothing is said.
+#[test]
+fn a_skinned_or_morphed_mesh_a_pose_cannot_make_finite_is_dropped_with_one_warning() {
+    use tracer::bundle::{encode, encode_scene, Bundle};
+    for (name, json, why) in [
+        ("skin", overflowing_skin_json(), "is not finite (a joint's matrix"),
+        ("morph", overflowing_morph_json(), "is not finite (its morph weights"),
+    ] {
+        let load = |time: f32, keep_motion: bool| {
+            let options = LoadOptions { time, keep_motion, animation: AnimationChoice::First, ..Default::default() };
+            scene::load_gltf_slice(json.as_bytes(), None, &options)
+                .unwrap_or_else(|e| panic!("{name}: loading at {time} s (keep_motion {keep_motion}): {e}"))
+        };
+        let one_warning = |s: &Scene, time: &str| {
+            assert_eq!(s.warnings.len(), 1, "{name}: {:?}", s.warnings);
+            let w = &s.warnings[0];
+            assert!(
+                w.starts_with("node 0 mesh 0: at ") && w.contains(&format!("at {time} s")) && w.contains(why),
+                "{name}: {w}"
+            );
+        };
+        // Flattened at a time: the static triangle alone where the mesh cannot be made finite.
+        for time in [0.0, 0.5] {
+            let s = load(time, false);
+            assert!(s.warnings.is_empty(), "{name} at {time}: {:?}", s.warnings);
+            assert_eq!(s.triangles.len(), 2, "{name} at {time}");
+        }
+        let s = load(1.0, false);
+        one_warning(&s, "1");
+        assert_eq!(s.triangles.len(), 1, "{name}: the mesh is dropped");
+        assert_eq!(s.triangles[0].positions[0], Vec3::new(0.0, 0.0, -7.0), "{name}: the static triangle stays");
+
+        // A kept motion, posed.
+        let mut moving = load(0.0, true);
+        assert!(moving.warnings.is_empty(), "{name}: {:?}", moving.warnings);
+        let deformed = moving.motion.as_ref().unwrap().deformed_mesh_indices();
+        assert_eq!(deformed.len(), 1, "{name}");
+        let (d, rest) = (deformed[0], moving.meshes.clone());
+        assert!(moving.pose(0.5).unwrap() && moving.warnings.is_empty(), "{name}: {:?}", moving.warnings);
+        assert!(moving.pose(1.0).unwrap(), "{name}");
+        one_warning(&moving, "1");
+        let dropped = &moving.meshes[d].triangles;
+        assert_eq!(dropped.len(), rest[d].triangles.len(), "{name}: the number of triangles changed");
+        let tiny = dropped.iter().flat_map(|t| t.positions).all(|p| p.is_finite() && p.length() < 1e-5);
+        assert!(tiny, "{name}: the dropped mesh is not a millionth of its size at the origin: {dropped:?}");
+        assert!(dropped.iter().all(|t| t.normals.iter().all(|n| n.is_finite())), "{name}");
+        let packable = moving.clone();
+        assert!(moving.pose(7.0).unwrap(), "{name}");
+        assert_eq!(moving.warnings.len(), 1, "{name}: warned again: {:?}", moving.warnings);
+        assert!(moving.pose(0.0).unwrap(), "{name}");
+        assert_eq!(moving.meshes, rest, "{name}: posed back at 0 s, the mesh is not at rest");
+        // Loaded with its motion at 1 s: dropped by the load-time pose.
+        one_warning(&load(1.0, true), "1");
+
+        // Packed (`MovingScene`) and from its bundle (the first pose's arrays and the moving
+        // parts): the pose at 1 s packs, to the same arrays both ways.
+        let settings = tracer::kernel::RenderSettings { width: 16, height: 12, ..Default::default() };
+        let (mut loaded, first) = tracer::pack::MovingScene::new(load(0.0, true), &settings).unwrap();
+        let bundle = Bundle::decode(&encode_scene(name, &first, loaded.scene())).unwrap();
+        let parts = bundle.moving.unwrap();
+        let mut served = tracer::pack::MovingScene::from_bundle(&bundle.packed, parts).unwrap();
+        let a = loaded.packed_at(1.0).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let b = served.packed_at(1.0).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(loaded.scene().meshes, packable.meshes, "{name}");
+        assert_eq!(served.scene().meshes, packable.meshes, "{name}: the bundle's moving parts pose otherwise");
+        one_warning(served.scene(), "1");
+        assert!(encode(&a) == encode(&b), "{name}: the bundle's pose packs otherwise");
+    }
+}
+
+/// What no animation moves stays an error: a skin whose joint is scaled by 2e38 at rest (its
+/// matrix not finite at any time), loaded without its animation or with one that moves
+/// another node (here the static triangle), kept or not; a morph with the same weight, fixed.
+#[test]
+fn a_skin_or_morph_that_no_pose_can_make_finite_is_an_error() {
+    let mut skin: serde_json::Value = serde_json::from_str(&overflowing_skin_json()).unwrap();
+    skin["nodes"][2]["scale"] = serde_json::json!([2e38, 2e38, 2e38]);
+    skin["animations"][0]["channels"][0]["target"]["node"] = 3.into();
+    let mut morph: serde_json::Value = serde_json::from_str(&overflowing_morph_json()).unwrap();
+    morph["meshes"][0]["weights"] = serde_json::json!([3e38]);
+    morph["animations"][0]["channels"][0]["target"] = serde_json::json!({"node": 1, "path": "translation"});
+    morph["animations"][0]["samplers"][0]["output"] = 5.into();
+    for (name, json, says) in
+        [("skin", skin, "joint node 2 has a non-finite transform"), ("morph", morph, "morphed vertex is not finite")]
+    {
+        let json = json.to_string();
+        for (animation, keep_motion) in
+            [(AnimationChoice::Rest, false), (AnimationChoice::First, false), (AnimationChoice::First, true)]
+        {
+            let options = LoadOptions { animation: animation.clone(), keep_motion, ..Default::default() };
+            let err = match scene::load_gltf_slice(json.as_bytes(), None, &options) {
+                Ok(s) => panic!("{name}, {animation:?}, keep_motion {keep_motion}: loaded ({:?})", s.warnings),
+                Err(e) => e.to_string(),
+            };
+            assert!(err.contains(says), "{name}, {animation:?}, keep_motion {keep_motion}: {err}");
+        }
+    }
 }
 
 /// `tests/data/scenes/generated/animated-skinned-instanced.gltf`, a seed of the glTF fuzz target

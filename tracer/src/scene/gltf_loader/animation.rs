@@ -35,6 +35,12 @@ impl NodePose {
         self.local(&RestTransform::of(node))
     }
 
+    /// Whether it animates the node's transform (a translation, rotation or scale: not only
+    /// its morph weights).
+    pub(super) fn transforms(&self) -> bool {
+        self.translation.is_some() || self.rotation.is_some() || self.scale.is_some()
+    }
+
     /// The local matrix of a node at rest `rest` with the animated components in its place.
     pub(super) fn local(&self, rest: &RestTransform) -> Mat4 {
         let t = self.translation.unwrap_or(rest.translation);

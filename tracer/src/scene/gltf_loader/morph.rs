@@ -44,18 +44,23 @@ impl Loader<'_> {
     }
 
     /// Mesh `mesh`'s primitives as node `n` shows them: morphed by its weights when it has
-    /// targets and a non-zero weight.
+    /// targets and a non-zero weight. `None` where the animation's weights at this pose are
+    /// not finite or make a vertex that is not ([`MORPH_NOT_FINITE`]): the pose drops the mesh
+    /// (the caller warns); the node's or the mesh's own weights that are not finite are an
+    /// error.
     pub(super) fn morphed(
         &mut self,
         mesh: usize,
         node: &gltf::json::scene::Node,
         n: usize,
-    ) -> Result<Rc<Vec<LocalPrimitive>>, SceneError> {
+    ) -> Result<Option<Rc<Vec<LocalPrimitive>>>, SceneError> {
         let prims = self.mesh(mesh)?;
         if prims.iter().all(|p| p.morph.is_empty()) {
-            return Ok(prims);
+            return Ok(Some(prims));
         }
-        let weights = match self.pose.get(&n).and_then(|p| p.weights.clone()) {
+        let animated = self.pose.get(&n).and_then(|p| p.weights.clone());
+        let posed = animated.is_some();
+        let weights = match animated {
             Some(animated) => animated,
             None => node
                 .weights
@@ -63,13 +68,12 @@ impl Loader<'_> {
                 .or_else(|| self.root.meshes.get(mesh).and_then(|m| m.weights.clone()))
                 .unwrap_or_default(),
         };
-        if let Some(bad) = weights.iter().find(|w| !w.is_finite()) {
-            return Err(malformed(format!("node {n}: morph weight {bad} is not finite")));
+        match morph_all(&prims, &weights) {
+            Ok(None) => Ok(Some(prims)),
+            Ok(Some(morphed)) => Ok(Some(Rc::new(morphed))),
+            Err(_) if posed => Ok(None),
+            Err(bad) => Err(malformed(format!("node {n}: {bad}"))),
         }
-        if weights.iter().all(|&w| w == 0.0) {
-            return Ok(prims);
-        }
-        Ok(Rc::new(prims.iter().map(|p| morph_primitive(p, &weights)).collect()))
     }
 
     /// The number of morph targets of node `n`'s mesh (0 without one), for its `weights` channel.
@@ -78,6 +82,26 @@ impl Loader<'_> {
             Some(m) => Ok(self.mesh(m.value())?.iter().map(|p| p.morph.len()).max().unwrap_or(0)),
             None => Ok(0),
         }
+    }
+}
+
+/// Why a pose drops a morphed mesh (`motion::dropped`).
+pub(super) const MORPH_NOT_FINITE: &str = "is not finite (its morph weights, or a vertex they morph)";
+
+/// `prims` morphed by `weights` ([`morph_primitive`]): `None` when every weight is 0 (the
+/// primitives as they are); an error (what is not finite) when a weight or a morphed vertex
+/// is not finite.
+pub(super) fn morph_all(prims: &[LocalPrimitive], weights: &[f32]) -> Result<Option<Vec<LocalPrimitive>>, String> {
+    if let Some(bad) = weights.iter().find(|w| !w.is_finite()) {
+        return Err(format!("morph weight {bad} is not finite"));
+    }
+    if weights.iter().all(|&w| w == 0.0) {
+        return Ok(None);
+    }
+    let morphed: Vec<LocalPrimitive> = prims.iter().map(|p| morph_primitive(p, weights)).collect();
+    match morphed.iter().all(|p| p.positions.iter().all(|v| v.is_finite())) {
+        true => Ok(Some(morphed)),
+        false => Err("a morphed vertex is not finite".into()),
     }
 }
 

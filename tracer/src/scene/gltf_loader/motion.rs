@@ -10,6 +10,11 @@
 //!   made again at each pose (morphed, then skinned or placed by its node) as a mesh placed by
 //!   the identity, whose bottom level is rebuilt.
 //!
+//! A pose that cannot place a moving part drops it there, with one warning ([`dropped`];
+//! `--strict` refuses it), keeping the scene's numbers of placements and triangles: a
+//! placement's transform that cannot be inverted or is not finite ([`placeable`]), a deformed
+//! mesh's joints or morph weights that make a vertex non-finite (`DeformedMesh::dropped`).
+//!
 //! Everything else stays as the loader flattens it, so the static part of a scene keeps its
 //! one BVH. Lights and cameras stay where the load-time pose put them; an emissive mesh under
 //! a moving node stays there too (lights must be static triangles), with a warning.
@@ -18,9 +23,9 @@ use std::borrow::Cow;
 use std::collections::HashMap;
 
 use super::animation::{pose_at, Channel, NodePose, RestTransform, Target};
-use super::morph::morph_primitive;
+use super::morph::{morph_all, MORPH_NOT_FINITE};
 use super::nodes::{place_primitives, LocalPrimitive};
-use super::skin::{skin_primitive, SkinJoints};
+use super::skin::{skin_all, SkinJoints, SKIN_NOT_FINITE};
 use super::*;
 use crate::scene::{Instance, Mesh};
 
@@ -189,6 +194,20 @@ impl Motion {
         self.nodes.get(n).is_some_and(|node| node.moved)
     }
 
+    /// Whether a channel moves node `n` or one of its ancestors (a cycle of parents, which a
+    /// decoded motion could hold, ends the walk).
+    fn moves_above(&self, n: usize) -> bool {
+        let mut at = Some(n);
+        for _ in 0..=self.nodes.len() {
+            match at.and_then(|i| self.nodes.get(i)) {
+                Some(node) if node.moved => return true,
+                Some(node) => at = node.parent,
+                None => return false,
+            }
+        }
+        false
+    }
+
     /// Every node's world transform in `pose` (the identity for nodes no root reaches).
     fn world_matrices(&self, pose: &HashMap<usize, NodePose>) -> Vec<Mat4> {
         let mut world = vec![Mat4::IDENTITY; self.nodes.len()];
@@ -225,7 +244,7 @@ impl Motion {
             .collect();
         let mut meshes = Vec::with_capacity(self.deformed.len());
         for d in &self.deformed {
-            let (triangles, why) = d.posed(&pose, &world)?;
+            let (triangles, why) = d.posed(&pose, &world, |n| self.moves_above(n))?;
             meshes.push(triangles);
             drops.extend(why);
         }
@@ -255,26 +274,33 @@ impl Motion {
 impl DeformedMesh {
     /// The mesh's world-space triangles in `pose` (every triangle kept, so that their number
     /// and order never change from one pose to the next).
-    /// A transform that drops the mesh ([`placeable`]) is named with why.
+    /// A transform that drops the mesh ([`placeable`]), or weights or joints (`moves`: whether
+    /// a channel moves a node or an ancestor) that make a vertex non-finite, drop it
+    /// ([`DeformedMesh::dropped`]), named with why; where nothing animates them, they are an
+    /// error.
     fn posed(
         &self,
         pose: &HashMap<usize, NodePose>,
         world: &[Mat4],
+        moves: impl Fn(usize) -> bool,
     ) -> Result<(Vec<Triangle>, Option<Dropped>), SceneError> {
-        let weights = pose.get(&self.node).and_then(|p| p.weights.as_deref()).unwrap_or(&self.rest_weights);
-        if let Some(bad) = weights.iter().find(|w| !w.is_finite()) {
-            return Err(malformed(format!("{}: morph weight {bad} is not finite", self.what)));
-        }
-        let morphed: Cow<[LocalPrimitive]> = match weights.iter().all(|&w| w == 0.0) {
-            true => Cow::Borrowed(&self.prims),
-            false => Cow::Owned(self.prims.iter().map(|p| morph_primitive(p, weights)).collect()),
+        let animated = pose.get(&self.node).and_then(|p| p.weights.as_deref());
+        let weights = animated.unwrap_or(&self.rest_weights);
+        let morphed: Cow<[LocalPrimitive]> = match morph_all(&self.prims, weights) {
+            Ok(None) => Cow::Borrowed(&self.prims),
+            Ok(Some(morphed)) => Cow::Owned(morphed),
+            Err(_) if animated.is_some() => return self.dropped(MORPH_NOT_FINITE),
+            Err(bad) => return Err(malformed(format!("{}: {bad}", self.what))),
         };
         let mut dropped = None;
         let (prims, placed_by) = match &self.skin {
             Some(skin) => {
-                let joints = skin.matrices(|j| Ok(world[j]), &self.what)?;
-                let skinned = morphed.iter().map(|p| skin_primitive(p, &joints, &self.what));
-                (Cow::Owned(skinned.collect::<Result<Vec<_>, _>>()?), Mat4::IDENTITY)
+                let joints = skin.matrices(|j| Ok(world[j]))?;
+                match skin_all(&morphed, &joints, &self.what)? {
+                    Some(skinned) => (Cow::Owned(skinned), Mat4::IDENTITY),
+                    None if skin.joints.iter().any(|&j| moves(j)) => return self.dropped(SKIN_NOT_FINITE),
+                    None => return Err(skin.not_finite(&joints, &self.what)),
+                }
             }
             None => {
                 let (m, why) = placeable(world[self.node], &self.what);
@@ -285,6 +311,17 @@ impl DeformedMesh {
         let mut triangles = Vec::new();
         place_primitives(self.mesh, &prims, &placed_by, &mut |_| true, &mut triangles)?;
         Ok((triangles, dropped))
+    }
+
+    /// The mesh dropped from a pose because its skin or morph weights `why`: its primitives
+    /// at rest, a millionth of their size about the origin (as [`placeable`] shrinks a
+    /// placement), so that it keeps its number of triangles (which posing over packed arrays,
+    /// `pack::Posing`, relies on), each still a triangle (many zero-area ones at one place
+    /// would make the bottom level's build quadratic), and no ray practically meets it.
+    fn dropped(&self, why: &'static str) -> Result<(Vec<Triangle>, Option<Dropped>), SceneError> {
+        let mut triangles = Vec::new();
+        place_primitives(self.mesh, &self.prims, &shrunk(Vec3::ZERO), &mut |_| true, &mut triangles)?;
+        Ok((triangles, Some((self.what.clone(), why))))
     }
 }
 
@@ -323,7 +360,12 @@ pub(super) fn dropped(what: &str, why: &str, time: f32) -> String {
 fn placeable(m: Mat4, what: &str) -> (Mat4, Option<Dropped>) {
     let Some(why) = unplaceable(m) else { return (m, None) };
     let at = Some(m.w_axis.truncate()).filter(|t| t.is_finite()).unwrap_or(Vec3::ZERO);
-    (Mat4::from_translation(at) * Mat4::from_scale(Vec3::splat(1e-6)), Some((what.to_owned(), why)))
+    (shrunk(at), Some((what.to_owned(), why)))
+}
+
+/// A millionth of a unit's scale at `at`: where a pose puts what it drops.
+fn shrunk(at: Vec3) -> Mat4 {
+    Mat4::from_translation(at) * Mat4::from_scale(Vec3::splat(1e-6))
 }
 
 impl Loader<'_> {

@@ -81,11 +81,23 @@ impl Loader<'_> {
             }
             if let Some(m) = node.mesh {
                 let mesh = m.value();
-                let prims = self.morphed(mesh, node, n)?;
+                // `None`: the pose's morph weights cannot make the mesh finite (a kept motion
+                // morphs it again at each pose, and drops it there: `Motion::apply`).
+                let morphed = self.morphed(mesh, node, n)?;
+                let prims = match &morphed {
+                    Some(prims) => prims.clone(),
+                    None => self.mesh(mesh)?,
+                };
                 // Morphed copies differ per node: only the shared primitives may be instanced.
                 let shared = self.meshes.get(&mesh).is_some_and(|m| Rc::ptr_eq(m, &prims));
                 if self.place_moving(n, node, mesh, &prims, world, moving)? {
                     // a moving part of the kept motion (`motion.rs`)
+                } else if morphed.is_none() {
+                    self.mesh_instances += 1;
+                    let (what, time) = (format!("node {n} mesh {mesh}"), self.time);
+                    self.warnings.once(&format!("dropped {what}"), || {
+                        super::motion::dropped(&what, super::morph::MORPH_NOT_FINITE, time)
+                    });
                 } else if let Some(skin) = node.skin {
                     self.mesh_instances += 1;
                     self.instantiate_skinned(mesh, &prims, skin.value(), n)?;

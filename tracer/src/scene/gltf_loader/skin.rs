@@ -38,7 +38,10 @@ impl Loader<'_> {
     }
 
     /// Appends mesh `mesh` (`prims`, morphed if it has morph targets) as skin `skin` deforms it
-    /// (on node `node`, whose transform the specification ignores for skinned meshes).
+    /// (on node `node`, whose transform the specification ignores for skinned meshes). Where
+    /// the pose makes a skinned vertex non-finite (a joint's matrix that overflows) and the
+    /// animation moves a joint, the mesh is dropped with one warning, as `Motion::apply` drops
+    /// it (`--strict` refuses it); where nothing moves, it is an error.
     pub(super) fn instantiate_skinned(
         &mut self,
         mesh: usize,
@@ -49,10 +52,21 @@ impl Loader<'_> {
         let what = format!("node {node} skin {skin}");
         let skin = self.skin_joints(skin, node)?;
         let parents = self.parents()?;
-        let joints = skin.matrices(|j| self.world_of(j, &parents), &what)?;
-        let skinned: Vec<LocalPrimitive> =
-            prims.iter().map(|p| skin_primitive(p, &joints, &what)).collect::<Result<_, _>>()?;
-        self.defer(mesh, false, Rc::new(skinned), Mat4::IDENTITY)
+        let mut posed = false;
+        let joints = skin.matrices(|j| {
+            let (world, moved) = self.world_of(j, &parents)?;
+            posed |= moved;
+            Ok(world)
+        })?;
+        match skin_all(prims, &joints, &what)? {
+            Some(skinned) => self.defer(mesh, false, Rc::new(skinned), Mat4::IDENTITY),
+            None if posed => {
+                let (what, time) = (format!("node {node} mesh {mesh}"), self.time);
+                self.warnings.once(&format!("dropped {what}"), || super::motion::dropped(&what, SKIN_NOT_FINITE, time));
+                Ok(())
+            }
+            None => Err(skin.not_finite(&joints, &what)),
+        }
     }
 
     /// Skin `skin`'s joints and inverse bind matrices (used by node `node`), checked.
@@ -98,8 +112,9 @@ impl Loader<'_> {
         Ok(parents)
     }
 
-    /// Node `n`'s world transform in the chosen pose (the product down from its root).
-    fn world_of(&self, n: usize, parents: &[Option<usize>]) -> Result<Mat4, SceneError> {
+    /// Node `n`'s world transform in the chosen pose (the product down from its root, finite
+    /// or not), and whether the pose animates it or an ancestor.
+    fn world_of(&self, n: usize, parents: &[Option<usize>]) -> Result<(Mat4, bool), SceneError> {
         let mut chain = vec![n];
         while let Some(p) = parents.get(*chain.last().unwrap_or(&n)).copied().flatten() {
             if chain.len() > parents.len() {
@@ -112,10 +127,8 @@ impl Loader<'_> {
             let node = self.root.nodes.get(i).ok_or_else(|| malformed(format!("node {i} does not exist")))?;
             world *= self.posed_local(node, i)?;
         }
-        if !world.is_finite() {
-            return Err(malformed(format!("joint node {n} has a non-finite world transform")));
-        }
-        Ok(world)
+        let posed = chain.iter().any(|i| self.pose.get(i).is_some_and(|p| p.transforms()));
+        Ok((world, posed))
     }
 }
 
@@ -126,26 +139,41 @@ pub(super) struct SkinJoints {
     pub(super) inverse_bind: Vec<Mat4>,
 }
 
+/// Why a pose drops a skinned mesh (`motion::dropped`): the transform that skins it.
+pub(super) const SKIN_NOT_FINITE: &str = "is not finite (a joint's matrix, or a vertex it skins)";
+
 impl SkinJoints {
     /// Each joint's `world(joint) × inverseBindMatrix(joint)`, `world` giving a node's world
-    /// transform in the pose.
+    /// transform in the pose (finite or not: [`skin_all`] says whether the skinned mesh is).
     pub(super) fn matrices(
         &self,
-        world: impl Fn(usize) -> Result<Mat4, SceneError>,
-        what: &str,
+        mut world: impl FnMut(usize) -> Result<Mat4, SceneError>,
     ) -> Result<Vec<Mat4>, SceneError> {
-        self.joints
-            .iter()
-            .zip(&self.inverse_bind)
-            .map(|(&j, ibm)| {
-                let m = world(j)? * *ibm;
-                match m.is_finite() {
-                    true => Ok(m),
-                    false => Err(malformed(format!("{what}: joint node {j} has a non-finite transform"))),
-                }
-            })
-            .collect()
+        self.joints.iter().zip(&self.inverse_bind).map(|(&j, ibm)| Ok(world(j)? * *ibm)).collect()
     }
+
+    /// The error for a skinned mesh (`what`) that `joints` (from [`matrices`](Self::matrices))
+    /// cannot make finite, where no animation moves its joints.
+    pub(super) fn not_finite(&self, joints: &[Mat4], what: &str) -> SceneError {
+        match self.joints.iter().zip(joints).find(|(_, m)| !m.is_finite()) {
+            Some((j, _)) => malformed(format!("{what}: joint node {j} has a non-finite transform")),
+            None => malformed(format!("{what}: a skinned vertex is not finite")),
+        }
+    }
+}
+
+/// `prims` skinned by `joints` ([`skin_primitive`]), or `None` when a skinned vertex is not
+/// finite (a joint whose matrix is not finite, or one that overflows a vertex; joints no
+/// vertex weighs do not matter).
+pub(super) fn skin_all(
+    prims: &[LocalPrimitive],
+    joints: &[Mat4],
+    what: &str,
+) -> Result<Option<Vec<LocalPrimitive>>, SceneError> {
+    let skinned: Vec<LocalPrimitive> =
+        prims.iter().map(|p| skin_primitive(p, joints, what)).collect::<Result<_, _>>()?;
+    let finite = skinned.iter().all(|p| p.positions.iter().all(|v| v.is_finite()));
+    Ok(finite.then_some(skinned))
 }
 
 /// `p` with its vertices (and normals, tangents) moved by their blended joint matrices; a
