@@ -421,10 +421,37 @@ fn skinned_gltf(scale_at_1: f32) -> Vec<u8> {
     serde_json::to_vec(&json).unwrap()
 }
 
+/// [`scaled_gltf`] (`parent_scale` 1) with its triangle (node 1) morphed instead of scaled: a
+/// morph target moving its top vertex by (0, 2, 0), whose weight the animation holds at 0
+/// until 1 s and sets to `weight_at_1` from then on (STEP): from a weight of 1.7e38 on, the
+/// morphed vertex is not finite.
+fn morphed_gltf(weight_at_1: f32) -> Vec<u8> {
+    use base64::Engine;
+    let mut json: serde_json::Value = serde_json::from_slice(&scaled_gltf(1.0, 1.0)).unwrap();
+    let values = [0.0f32, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, weight_at_1];
+    let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let uri =
+        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes));
+    json["buffers"].as_array_mut().unwrap().push(serde_json::json!({"byteLength": bytes.len(), "uri": uri}));
+    json["bufferViews"].as_array_mut().unwrap().extend([
+        serde_json::json!({"buffer": 1, "byteOffset": 0, "byteLength": 36}),
+        serde_json::json!({"buffer": 1, "byteOffset": 36, "byteLength": 8}),
+    ]);
+    json["accessors"].as_array_mut().unwrap().extend([
+        serde_json::json!({"bufferView": 4, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [0, 2, 0]}),
+        serde_json::json!({"bufferView": 5, "componentType": 5126, "count": 2, "type": "SCALAR"}),
+    ]);
+    json["meshes"][1]["primitives"][0]["targets"] = serde_json::json!([{"POSITION": 4}]);
+    json["animations"][0]["channels"][0]["target"]["path"] = "weights".into();
+    json["animations"][0]["samplers"][0] = serde_json::json!({"input": 2, "output": 5, "interpolation": "STEP"});
+    serde_json::to_vec(&json).unwrap()
+}
+
 /// A pose whose transform for a placement cannot be inverted (the animation scales the node
 /// to zero at 1 s) or is not finite (scaled by 1e30 under a parent of scale 1e10: the product
 /// overflows), or that makes a skinned mesh's joint matrix non-finite (its joint scaled by
-/// 3e38: from 0.5 s on), drops that placement or mesh with one warning, and `--strict`
+/// 3e38: from 0.5 s on) or a morphed vertex non-finite (a weight of 3e38 from 1 s on), drops
+/// that placement or mesh with one warning, and `--strict`
 /// refuses it, whichever path poses it: the scene file at `--time 1` (flattened at load),
 /// `--frames` on it (a kept motion posed frame by frame) and its bundle at `--time 1` (posed
 /// from the motion section). Never a panic or a non-finite pixel; where the pose places it
@@ -471,6 +498,7 @@ fn a_placement_a_pose_cannot_place_is_dropped_with_one_warning() {
         ("zero", scaled_gltf(0.0, 1.0), "cannot be inverted", "0.5"),
         ("overflow", scaled_gltf(1e30, 1e10), "is not finite", "0"),
         ("skin", skinned_gltf(3e38), "is not finite (a joint's matrix", "0"),
+        ("morph", morphed_gltf(3e38), "is not finite (its morph weights", "0.5"),
     ] {
         let sub = dir.0.join(name);
         std::fs::create_dir_all(&sub).unwrap();
