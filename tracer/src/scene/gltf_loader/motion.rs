@@ -260,7 +260,7 @@ impl Motion {
         for (d, triangles) in self.deformed.iter().zip(meshes) {
             scene.meshes[d.mesh].triangles = triangles;
         }
-        // One warning per placement, at the first pose that drops it.
+        // One warning per placement or deformed mesh, at the first pose that drops it.
         for (what, why) in drops {
             let prefix = format!("{what}: at ");
             if !scene.warnings.iter().any(|w| w.starts_with(&prefix)) {
@@ -325,7 +325,8 @@ impl DeformedMesh {
     }
 }
 
-/// A placement a pose drops: what ("node 3") and why ([`SINGULAR`], [`NOT_FINITE`]).
+/// A placement or deformed mesh a pose drops: what ("node 3", "node 3 mesh 1") and why
+/// ([`SINGULAR`], [`NOT_FINITE`], `SKIN_NOT_FINITE`, `MORPH_NOT_FINITE`).
 type Dropped = (String, &'static str);
 
 /// Why a pose drops a placement ([`dropped`]).
@@ -344,8 +345,9 @@ pub(super) fn unplaceable(m: Mat4) -> Option<&'static str> {
     }
 }
 
-/// The warning for a placement (`what`: "node 3") that the pose at `time` drops because its
-/// transform `why` ([`SINGULAR`], [`NOT_FINITE`]); `--strict` refuses it.
+/// The warning for a placement (`what`: "node 3") or a skinned or morphed mesh ("node 3 mesh
+/// 1") that the pose at `time` drops because its transform `why` ([`SINGULAR`],
+/// [`NOT_FINITE`], `skin::SKIN_NOT_FINITE`, `morph::MORPH_NOT_FINITE`); `--strict` refuses it.
 pub(super) fn dropped(what: &str, why: &str, time: f32) -> String {
     format!("{what}: at {time} s the animation gives it a transform that {why}: it is dropped where it does")
 }
