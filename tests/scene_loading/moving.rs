@@ -381,7 +381,8 @@ fn overflowing_morph_json() -> String {
     with_static_triangle(&json)
 }
 
-/// A skinned mesh whose joint's matrix the animation makes non-finite at 1 s, and a morphed
+/// A skinned mesh whose joint's matrix the animation makes non-finite at 1 s (by the joint's
+/// scale, or its parent's: then the joint's own world transform is not finite), and a morphed
 /// one whose weight overflows its vertex there, are dropped from that pose with one warning
 /// naming the node and mesh, the time and why, on every posing path: loaded at 1 s
 /// (flattened: the static triangle alone), and a kept motion posed there (`Scene::pose`, its
@@ -391,8 +392,13 @@ fn overflowing_morph_json() -> String {
 #[test]
 fn a_skinned_or_morphed_mesh_a_pose_cannot_make_finite_is_dropped_with_one_warning() {
     use tracer::bundle::{encode, encode_scene, Bundle};
+    // The root joint (node 1) scaled instead: joint 1's own world transform (node 2, a bare
+    // joint below it) is not finite; only the mesh is warned about.
+    let root_joint = overflowing_skin_json().replace(r#"{"node":2,"path":"scale"}"#, r#"{"node":1,"path":"scale"}"#);
+    assert!(root_joint.contains(r#"{"node":1,"path":"scale"}"#), "the channel was retargeted");
     for (name, json, why) in [
         ("skin", overflowing_skin_json(), "is not finite (a joint's matrix"),
+        ("skin, its joint's own transform", root_joint, "is not finite (a joint's matrix"),
         ("morph", overflowing_morph_json(), "is not finite (its morph weights"),
     ] {
         let load = |time: f32, keep_motion: bool| {
@@ -455,6 +461,35 @@ fn a_skinned_or_morphed_mesh_a_pose_cannot_make_finite_is_dropped_with_one_warni
         one_warning(served.scene(), "1");
         assert!(encode(&a) == encode(&b), "{name}: the bundle's pose packs otherwise");
     }
+}
+
+/// Flattened at a time, a moving node whose world transform is not finite drops itself and
+/// everything below it with one warning naming it where a mesh lies below (here node 1, bare,
+/// above the mesh's node 0; node 2 above it scales by 1e20, node 1 by 1e-20 until 1 s, then by
+/// 1e20: 1e40 overflows); a bare node with nothing below is dropped without a word (a skinned
+/// mesh that needs it as a joint is warned about itself, as above).
+#[test]
+fn a_moving_node_a_pose_cannot_place_is_warned_about_where_a_mesh_lies_below() {
+    let animation = r#"[{"channels": [{"sampler": 0, "target": {"node": 1, "path": "scale"}}],
+        "samplers": [{"input": 2, "output": 3, "interpolation": "STEP"}]}]"#;
+    let accessors: Vec<(&str, &[f32])> =
+        vec![("SCALAR", &[0.0, 1.0]), ("VEC3", &[1e-20, 1e-20, 1e-20, 1e20, 1e20, 1e20])];
+    let mut v: serde_json::Value = serde_json::from_str(&animated_json(animation, &accessors)).unwrap();
+    let nodes = v["nodes"].as_array_mut().unwrap();
+    nodes.push(serde_json::json!({"children": [0]}));
+    nodes.push(serde_json::json!({"children": [1], "scale": [1e20, 1e20, 1e20]}));
+    v["scenes"][0]["nodes"] = serde_json::json!([2]);
+    let json = with_static_triangle(&v.to_string());
+    let load = |time: f32| {
+        let options = LoadOptions { time, ..Default::default() };
+        scene::load_gltf_slice(json.as_bytes(), None, &options).unwrap()
+    };
+    let s = load(0.5);
+    assert!(s.warnings.is_empty() && s.triangles.len() == 2, "{:?}", s.warnings);
+    let s = load(1.0);
+    assert_eq!(s.triangles.len(), 1, "the mesh below is dropped");
+    assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+    assert!(s.warnings[0].starts_with("node 1: at 1 s") && s.warnings[0].contains("is not finite"), "{:?}", s.warnings);
 }
 
 /// What no animation moves stays an error: a skin whose joint is scaled by 2e38 at rest (its

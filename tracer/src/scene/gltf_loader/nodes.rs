@@ -52,14 +52,18 @@ impl Loader<'_> {
             let moving = parent_moves || self.channel_moves(n) || posed;
             // A pose that drops a placement: warned about once, as `Motion::apply` does (which
             // warns for a kept motion, whose moving parts `place_moving` drops); without a kept
-            // motion a non-finite one drops the node and everything below.
+            // motion a non-finite one drops the node and everything below (warned about where
+            // that holds a mesh, a camera or a light: a bare joint's drop is its skinned mesh's,
+            // `instantiate_skinned`).
             let finite = world.is_finite();
             let why =
                 if finite { node.mesh.and(super::motion::unplaceable(world)) } else { Some(super::motion::NOT_FINITE) };
             if let (true, None, Some(why)) = (moving, &self.motion, why) {
-                let time = self.time;
-                self.warnings
-                    .once(&format!("dropped node {n}"), || super::motion::dropped(&format!("node {n}"), why, time));
+                if self.places_something(n) {
+                    let time = self.time;
+                    self.warnings
+                        .once(&format!("dropped node {n}"), || super::motion::dropped(&format!("node {n}"), why, time));
+                }
                 if !finite {
                     continue;
                 }
@@ -118,6 +122,25 @@ impl Loader<'_> {
             }
         }
         Ok(())
+    }
+
+    /// Whether node `n` or a node below it holds a mesh, a camera or a light.
+    fn places_something(&self, n: usize) -> bool {
+        let nodes = &self.root.nodes;
+        let mut seen = vec![false; nodes.len()];
+        let mut stack = vec![n];
+        while let Some(i) = stack.pop() {
+            let Some(node) = nodes.get(i) else { continue };
+            if std::mem::replace(&mut seen[i], true) {
+                continue; // a cycle: refused where the walk reaches it
+            }
+            let light = node.extensions.as_ref().is_some_and(|e| e.khr_lights_punctual.is_some());
+            if node.mesh.is_some() || node.camera.is_some() || light {
+                return true;
+            }
+            stack.extend(node.children.iter().flatten().map(|c| c.value()));
+        }
+        false
     }
 
     /// The instance transforms of node `node`'s `EXT_mesh_gpu_instancing`: per instance
