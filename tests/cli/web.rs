@@ -312,7 +312,14 @@ fn the_page_decodes_a_bundles_images_to_the_native_texels() {
     let native = packed(&scene::load(&helmet).expect("DamagedHelmet"), Strategy::Mis);
     assert!(native.texture_images.len() >= 4, "the scene has JPEG textures");
     assert_eq!(report["info"]["name"], "DamagedHelmet");
-    assert_eq!(report["info"]["textureChecksum"], native.texture_checksum(), "the page's texels differ");
+    assert_eq!(report["textureChecksum"], native.texture_checksum(), "the page's texels differ");
+    // The read-outs run every animation frame: they must not read the texels (the checksum
+    // did, ~100-400 ms a frame on textured scenes, and the frame loop's bands fell to one row).
+    let readouts: Vec<f64> =
+        report["readoutMs"].as_array().expect("readoutMs").iter().filter_map(Value::as_f64).collect();
+    assert!(readouts.len() >= 8, "too few animation frames to judge: {readouts:?}");
+    let median = median(&readouts);
+    assert!(median < 20.0, "the read-outs take {median:.1} ms per animation frame (median): {readouts:?}");
 }
 
 /// The page runs WebGPU when asked, and by default (auto) where the browser offers it, WebGL2

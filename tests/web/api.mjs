@@ -30,6 +30,8 @@ export async function apiChoice(o) {
         firstError: error,
         notice: await page.evaluate(() => window.lightport.notice || null),
         info: await page.evaluate(() => window.lightport.info()),
+        textureChecksum: await page.evaluate(() => window.lightport.textureChecksum()),
+        readoutMs: await page.evaluate(() => window.lightport.readoutMs),
         readout: await page.textContent('#api-info'),
         messageText: await page.textContent('#message'),
         rendered,

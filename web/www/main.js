@@ -83,6 +83,10 @@ const hook = {
   // Per preview shown by this page: { at (performance.now() at its submission), width, height }.
   previews: [],
   bands: 0, // bands submitted by the frame loop
+  // What the read-outs took in the last 64 animation frames (ms). They run every frame, so
+  // anything costly there stalls the frame loop: a checksum of every texel in sceneInfo() once
+  // took ~185 ms a frame on LittlestTokyo, and its bands fell to one row (docs/web.md).
+  readoutMs: [],
   // Per camera input that restarted the accumulation, once the restarted accumulation's first
   // band is done on the GPU: { inputAt (the event's timeStamp), handledAt, submittedAt (its
   // first band), doneAt (that band's fence seen signalled) }, performance.now() times.
@@ -97,6 +101,8 @@ const hook = {
   get bytesFetched() { return cache.bytesFetched; },
   spp: () => (viewer ? viewer.spp() : 0),
   info: () => (viewer ? viewer.sceneInfo() : null),
+  // Viewer.textureChecksum: reads every texel, so it is not in info().
+  textureChecksum: () => (viewer ? viewer.textureChecksum() : null),
   cacheUsage: () => cache.usage(),
   // The WebAssembly module's linear memory in bytes: it only ever grows, so growth after a
   // warm-up is memory the page kept (a pose's arrays not freed, say).
@@ -359,7 +365,10 @@ function tick(now) {
   } else {
     lastFrameAt = null;
   }
+  const readoutsAt = performance.now();
   updateReadouts();
+  hook.readoutMs.push(performance.now() - readoutsAt);
+  if (hook.readoutMs.length > 64) hook.readoutMs.shift();
   requestAnimationFrame(tick);
 }
 

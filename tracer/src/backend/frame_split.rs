@@ -117,16 +117,20 @@ impl BandPolicy {
 
     /// Records a band whose time is only known to lie between `at_least` and `at_most` ms (a
     /// fence polled once per animation frame: not yet signalled at one poll, signalled at the
-    /// next). A band that may have exceeded the budget is taken at its upper bound; one that
-    /// fit at its lower bound, else the polling interval (and, in a browser, the frame the
-    /// fence's status takes to arrive) would keep bands far smaller than the budget allows.
+    /// next; `at_least` 0 when it was already signalled at the first poll). A band that may
+    /// have exceeded the budget is taken at its upper bound; one that fit at its lower bound,
+    /// but no lower than half its upper bound (the middle of what it may have taken, where
+    /// nothing bounds it from below), else the polling interval (and, in a browser, the frame
+    /// the fence's status takes to arrive) would keep bands far smaller than the budget allows:
+    /// a band done by the first poll of a page ticking every 33 ms measured 33 ms whatever its
+    /// rows, which at a 35 ms target kept bands of one row (LittlestTokyo, 320x240: 0.7 frames/s).
     pub fn record_between(&mut self, rows: u32, at_least: f64, at_most: f64) {
         let Some(budget) = self.budget_ms else { return };
         let valid = |ms: f64| ms.is_finite() && ms >= 0.0;
         if rows == 0 || !valid(at_least) || !valid(at_most) {
             return;
         }
-        let ms = if at_most > budget { at_most } else { at_least.min(at_most) };
+        let ms = if at_most > budget { at_most } else { at_least.max(at_most / 2.0).min(at_most) };
         if rows == 1 {
             self.thin.push(ms);
         }
@@ -266,6 +270,56 @@ mod tests {
         assert_eq!(p.rows(), 2, "floor(35 / 15)");
         p.record_between(2, f64::NAN, 10.0);
         assert_eq!(p.rows(), 2, "ignored");
+    }
+
+    /// A frame loop polling each band's fence once per tick of `tick_ms` (the browser's
+    /// animation frames, which do not wait for the GPU here) over a device taking `ms_per_row`:
+    /// a band is seen done at the first poll after it ends, and pending at the polls before.
+    /// Returns each band's rows and the ticks each frame of `height` rows took.
+    fn run_polled(
+        policy: &mut BandPolicy,
+        height: u32,
+        ms_per_row: f64,
+        tick_ms: f64,
+        frames: usize,
+    ) -> (Vec<u32>, Vec<u32>) {
+        let (mut rows_seen, mut ticks_per_frame) = (Vec::new(), Vec::new());
+        for _ in 0..frames {
+            let (mut left, mut ticks) = (height, 0);
+            while left > 0 {
+                let rows = policy.rows().min(left);
+                let polls = (rows as f64 * ms_per_row / tick_ms).floor() as u32 + 1;
+                let at_least = if polls > 1 { (polls - 1) as f64 * tick_ms } else { 0.0 };
+                policy.record_between(rows, at_least, polls as f64 * tick_ms);
+                rows_seen.push(rows);
+                (left, ticks) = (left - rows, ticks + polls);
+            }
+            ticks_per_frame.push(ticks);
+        }
+        (rows_seen, ticks_per_frame)
+    }
+
+    #[test]
+    fn bands_done_by_the_first_poll_grow_past_the_polling_interval() {
+        // LittlestTokyo paused, WebGL2 on SwiftShader, 320x240: ~3 ms per row, a page ticking
+        // every 17-33 ms. Each band was seen done at the first poll, so it measured one tick
+        // whatever its rows: at 33 ms a tick, bands of 1 row, a frame 240 ticks (8 s, 0.7 s of
+        // GPU time). Taken at the middle of what it may have taken, a band grows until it
+        // outlasts a tick.
+        for tick in [16.7, 33.3] {
+            let mut p = BandPolicy::new(240, Some(DEFAULT_BUDGET_MS));
+            p.record_between(1, 0.0, tick);
+            let (rows, ticks) = run_polled(&mut p, 240, 3.0, tick, 12);
+            let gpu_ms = 240.0 * 3.0;
+            let frame_ms = *ticks.last().unwrap() as f64 * tick;
+            assert!(
+                frame_ms <= 2.0 * gpu_ms,
+                "tick {tick}: a frame takes {frame_ms} ms for {gpu_ms} of GPU time: {:?}",
+                &rows[..24]
+            );
+            // No band over twice the budget: growth at most doubles a band that fit.
+            assert!(rows.iter().all(|&r| r as f64 * 3.0 <= 2.0 * DEFAULT_BUDGET_MS), "tick {tick}: {rows:?}");
+        }
     }
 
     /// Feeds `policy` bands of a device taking `fixed + per_row * rows` ms; returns the heights.

@@ -424,9 +424,10 @@ impl GpuRuntime {
                 band.pending_at_ms = Some(now_ms);
                 return Ok(Step::Waiting);
             }
-            // Never seen pending: the step came late, so the time to it is what the band took.
+            // Never seen pending: done by the first step, so it took anything up to the time
+            // to it (the policy takes the middle; `BandPolicy::record_between`).
             let at_most = now_ms - band.submitted_ms;
-            let at_least = band.pending_at_ms.map_or(at_most, |t| t - band.submitted_ms);
+            let at_least = band.pending_at_ms.map_or(0.0, |t| t - band.submitted_ms);
             if band.rows > 0 {
                 self.policy.record_between(band.rows, at_least, at_most);
             }

@@ -507,7 +507,18 @@ impl Viewer {
         self.running.as_ref().map_or(0, Runtime::frames)
     }
 
-    /// The render size, scene and renderer (an object; see the fields set here).
+    /// A checksum of the loaded scene's texels (`Packed::texture_checksum`), for tests that
+    /// check the page decoded a bundle's images to the native loader's texels; `None` without
+    /// a scene. Not part of [`scene_info`](Self::scene_info): it reads every texel (~100-400 ms
+    /// for LittlestTokyo in wasm), and the page calls `sceneInfo` every animation frame, where
+    /// it stalled the frame loop so long that bands fell to one row (docs/web.md, "Slow devices").
+    #[wasm_bindgen(js_name = textureChecksum)]
+    pub fn texture_checksum(&self) -> Option<u32> {
+        self.loaded.as_ref().map(|l| l.packed.texture_checksum())
+    }
+
+    /// The render size, scene and renderer (an object; see the fields set here). The page
+    /// calls it every animation frame: nothing here may cost more than a few microseconds.
     #[wasm_bindgen(js_name = sceneInfo)]
     pub fn scene_info(&self) -> JsValue {
         let info = Object::new();
@@ -535,7 +546,6 @@ impl Viewer {
             set(&info, "triangles", loaded.packed.triangle_count as u32);
             set(&info, "placements", loaded.packed.placement_count() as u32);
             set(&info, "lights", loaded.packed.light_count as u32);
-            set(&info, "textureChecksum", loaded.packed.texture_checksum());
             let features = Object::new();
             for flag in f.flags() {
                 set(&features, &camel_case(flag.name), flag.on);
