@@ -3,8 +3,8 @@
 // preview shows (the first image: each of its pixels a block of the canvas), the read-out then,
 // the page's record of the previews shown, its first-image and first-frame accounting
 // (firstImage, firstFrame, firstImageMs, firstFrameMs), sceneInfo() and the read-outs once the
-// first full-resolution frame is done; then one camera move (`orbit`): the canvas copied if a
-// preview of the new view shows (`afterMove`) and the preview's state once a frame is done.
+// first full-resolution frame is done; then one camera move (`orbit`): the canvas copied while
+// the new view's preview shows (`afterMove`) and the preview's state once it is replaced.
 
 import { rmSync } from 'node:fs';
 import { freshProfile, open, withBrowser } from './page.mjs';
@@ -24,7 +24,7 @@ export async function preview(o) {
       // The read-outs are written by the frame loop: two animation frames later.
       await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
       const settled = await page.evaluate(() => ({ info: window.lightport.info(), spp: window.lightport.spp() }));
-      // A camera move restarts the accumulation (no preview follows: web/src/runtime/preview.rs).
+      // A camera move restarts the accumulation: the new view is previewed too, then replaced.
       await page.evaluate(() => window.lightport.orbit(0.3, 0));
       const afterMove = await shotWhilePreviewShows(page, 2);
       await page.waitForFunction(() => window.lightport.error || window.lightport.spp() >= 1, null, { timeout: 240000 });

@@ -11,9 +11,10 @@
 //   denoise=0|1       the denoiser (default 1: the canvas shows the accumulation denoised at 4
 //                     spp, then each time the spp double; web/src/denoise/mod.rs),
 //   paused=1          no frame loop: frames only through the test hook,
-//   preview=0|1       the preview (default 1: a new renderer's first image is rendered at a
-//                     quarter of each side and shown upscaled until the first full-resolution
-//                     frame is complete; never accumulated: web/src/runtime/preview.rs),
+//   preview=0|1       the preview (default 1: a new renderer's first image, and the first
+//                     after each restart (a camera move, a pose), is rendered at a quarter of
+//                     each side and shown upscaled until the first full-resolution frame is
+//                     complete; never accumulated: web/src/runtime/preview.rs),
 //   budget=BYTES      the cache budget,
 //   bandBudget=MS     the longest one GPU submission (a band of a frame) should take, default
 //                     50; 0: frames are not split (one submission per frame),
@@ -290,7 +291,7 @@ function frameDone() {
 function previewShown(at) {
   const p = viewer.sceneInfo().preview;
   hook.previews.push({ at, width: p.width, height: p.height });
-  // One per renderer (a long session creates many): keep the latest.
+  // One per restart while a drag or an animation plays: keep the latest.
   if (hook.previews.length > 256) hook.previews.shift();
   firstFrame.previewSubmitted(at);
 }

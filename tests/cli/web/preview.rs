@@ -28,7 +28,7 @@ fn ms(value: &Value, what: &str) -> f64 {
 /// block of the 320x240 canvas one colour, not all black) while no full frame is done (0 spp),
 /// the read-out says so; it is finished before the first full-resolution frame, which then
 /// replaces it, and the first-frame accounting reports both (the preview's GPU time a part of
-/// its own). A camera move after it is drawn in full, without another preview.
+/// its own). After a camera move the new view is previewed the same way, then replaced.
 #[test]
 fn the_first_image_after_a_load_is_an_upscaled_preview_before_the_first_full_frame() {
     let server = Server::start(&[]);
@@ -65,12 +65,15 @@ fn the_first_image_after_a_load_is_an_upscaled_preview_before_the_first_full_fra
         let accounted = report["firstFrameReadout"].as_str().unwrap_or("");
         assert!(accounted.starts_with("first image (preview 80×60)"), "api={api}: {accounted:?}");
 
-        // A camera move restarts the accumulation: no new preview (docs/web.md says why), the
-        // new view is drawn in full.
-        assert!(report["afterMove"].is_null(), "api={api}: a preview after a camera move");
-        let after = &report["replacedAfterMove"];
-        assert_eq!(after["rendered"].as_u64(), Some(1), "api={api}: {after}");
-        assert_eq!(report["previews"].as_array().map(Vec::len), Some(1), "api={api}: {}", report["previews"]);
+        // A camera move restarts the accumulation, and the new view is previewed in turn.
+        assert_preview_on_canvas(&report["afterMove"], api, "a camera move");
+        let replaced = &report["replacedAfterMove"];
+        assert_eq!(
+            (replaced["rendered"].as_u64(), replaced["state"].as_str()),
+            (Some(2), Some("replaced")),
+            "{replaced}"
+        );
+        assert_eq!(report["previews"].as_array().map(Vec::len), Some(2), "api={api}: {}", report["previews"]);
     }
 }
 

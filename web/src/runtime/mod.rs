@@ -158,8 +158,8 @@ impl Runtime {
         }
     }
 
-    /// Asks for a preview (`on`: before the accumulation's first frame, if it has not begun),
-    /// or for none (a pending one or one on show is dropped).
+    /// Asks for previews (`on`: before the accumulation's first frame if it has not begun, and
+    /// after restarts), or for none (a pending one or one on show is dropped).
     pub fn set_preview(&mut self, on: bool) {
         let (state, fresh) = (self.preview().state, self.frames() == 0);
         match (on, state) {
@@ -183,9 +183,11 @@ impl Runtime {
         }
     }
 
-    /// The accumulation restarted: the preview follows (`Preview::restarted`).
+    /// The accumulation restarted: the preview follows (`Preview::restarted`), previewing the
+    /// new view where frames are split into bands.
     fn restarted(&mut self) {
-        self.preview_mut().restarted();
+        let slow = self.band_policy().bands() > 1;
+        self.preview_mut().restarted(slow);
     }
 
     /// Renders the pending preview now (the test hook's `renderPreview`) if the accumulation

@@ -1,13 +1,13 @@
 //! Where a runtime's preview stands (`tracer::backend::preview`): after a renderer is created
-//! (a scene loaded, a resize, a new device...) the frame loop's first step renders the current
+//! (a scene loaded, a resize, a new device...) and after each restart of its accumulation (a
+//! camera move, a setting, an animation's pose) the frame loop's first step renders the current
 //! view at a quarter of each side with the same kernel into an image of its own and shows it
 //! upscaled; the full-resolution frame follows in bands, and the preview stays on the canvas
-//! until that frame is complete. The accumulation never sees the preview's samples.
-//!
-//! Not after restarts (yet): previewing each camera move or pose showed a playing LittlestTokyo
-//! at 4-5 poses/s instead of 0.31 on SwiftShader, but once it paused, the frame loop's bands
-//! fell to one row of ~93 ms each (a full frame at 320x240 then took ~20 s), the band-pacing
-//! fault that also follows the denoiser's first image (docs/web.md, "Known faults").
+//! until that frame is complete. The accumulation never sees the preview's samples. A restart
+//! is previewed on a device too slow for whole frames (its frames split into bands): so a drag
+//! or a playing animation, which restarts at every step, shows a preview per step there, a
+//! sixteenth of a frame's work instead of a whole frame; a device that renders whole frames
+//! within the band budget shows full-resolution frames as before.
 
 use js_sys::Object;
 use tracer::backend::preview::preview_size;
@@ -21,15 +21,16 @@ pub enum PreviewState {
     /// No preview was asked for (`?preview=0`).
     #[default]
     Off,
-    /// Asked for: the frame loop's next step renders it (before the accumulation's first frame).
+    /// Asked for: the frame loop's next step renders it (before the accumulation's first frame;
+    /// again after each restart).
     Pending,
     /// Rendered and on the canvas, until the first full-resolution frame is complete.
     Shown,
     /// The first full-resolution frame replaced it.
     Replaced,
-    /// The accumulation started without one, or left it behind: a whole frame from the test
-    /// hook, a camera move while it showed (it shows the old view), a renderer that renders no
-    /// preview (the wavefront), or an error rendering it (`error`).
+    /// The accumulation started without one: a whole frame from the test hook, a renderer that
+    /// renders no preview (the wavefront), or an error rendering it (`error`, after which the
+    /// renderer renders none).
     Skipped,
 }
 
@@ -53,7 +54,7 @@ pub struct Preview {
     pub size: Option<(u32, u32)>,
     /// `performance.now()` at the last one's submission.
     pub submitted_at: Option<f64>,
-    /// Previews rendered for this renderer (at most one).
+    /// Previews rendered for this renderer (one per restart at most).
     pub rendered: u64,
     /// Why it was not rendered, if it failed.
     pub error: Option<String>,
@@ -115,12 +116,16 @@ impl Preview {
         }
     }
 
-    /// The accumulation restarted (a camera or setting change, a pose): a preview on show
-    /// shows the old view, so the new one is drawn band by band instead. A pending one stays
-    /// pending.
-    pub fn restarted(&mut self) {
-        if self.state == PreviewState::Shown {
-            self.state = PreviewState::Skipped;
+    /// The accumulation restarted (a camera or setting change, a pose). On a device whose
+    /// frames are split into bands (`slow`) the new view is previewed too, unless previews are
+    /// off or failed; otherwise a preview on show (of the old view) is dropped, and the new
+    /// view is drawn band by band. A pending one stays pending.
+    pub fn restarted(&mut self, slow: bool) {
+        match self.state {
+            PreviewState::Off => {}
+            _ if slow && self.error.is_none() => self.state = PreviewState::Pending,
+            PreviewState::Shown => self.state = PreviewState::Skipped,
+            _ => {}
         }
     }
 

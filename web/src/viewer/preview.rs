@@ -11,8 +11,9 @@ use crate::js::now_ms;
 impl Viewer {
     /// On (the default): each new renderer (a scene loaded, a resize, a new device...) first
     /// renders a preview at a quarter of each side, shown upscaled until its first
-    /// full-resolution frame is complete. Off: none; a preview pending or on show is dropped
-    /// (the canvas shows the accumulation at the next draw).
+    /// full-resolution frame is complete, and so does each restart (a camera move, a pose) on a
+    /// device whose frames are split into bands. Off: none; a preview pending or on show is
+    /// dropped (the canvas shows the accumulation at the next draw).
     #[wasm_bindgen(js_name = setPreview)]
     pub fn set_preview(&mut self, on: bool) {
         self.preview = on;
