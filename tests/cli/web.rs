@@ -660,7 +660,8 @@ fn median(values: &[f64]) -> f64 {
 /// A slow device (SwiftShader: seconds per 640x480 frame of the Cornell box) stays responsive:
 /// the page splits each frame into bands of at most the budget, one on the GPU at a time, so a
 /// camera drag during a frame restarts the accumulation within a small multiple of the budget
-/// (from the event to the restarted accumulation's first band done on the GPU), not after the
+/// (from the event to the restarted accumulation's first image done on the GPU: its preview, a
+/// sixteenth of a frame, submitted whole; else its first band), not after the
 /// frame in flight. Unsplit (`bandBudget=0`), the same input waits for the whole frame.
 #[test]
 fn camera_input_during_a_slow_frame_restarts_within_the_budget() {

@@ -31,7 +31,12 @@ export async function apiChoice(o) {
         notice: await page.evaluate(() => window.lightport.notice || null),
         info: await page.evaluate(() => window.lightport.info()),
         textureChecksum: await page.evaluate(() => window.lightport.textureChecksum()),
-        readoutMs: await page.evaluate(() => window.lightport.readoutMs),
+        // The read-outs' times over at least 8 more animation frames (the frame loop's).
+        readoutMs: await page.evaluate(() => new Promise((resolve) => {
+          let n = 0;
+          const frame = () => (++n >= 8 ? resolve(window.lightport.readoutMs) : requestAnimationFrame(frame));
+          requestAnimationFrame(frame);
+        })),
         readout: await page.textContent('#api-info'),
         messageText: await page.textContent('#message'),
         rendered,

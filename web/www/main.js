@@ -89,8 +89,9 @@ const hook = {
   // took ~185 ms a frame on LittlestTokyo, and its bands fell to one row (docs/web.md).
   readoutMs: [],
   // Per camera input that restarted the accumulation, once the restarted accumulation's first
-  // band is done on the GPU: { inputAt (the event's timeStamp), handledAt, submittedAt (its
-  // first band), doneAt (that band's fence seen signalled) }, performance.now() times.
+  // image (its preview on a slow device, else its first band) is done on the GPU: { inputAt
+  // (the event's timeStamp), handledAt, submittedAt (that image's submission), doneAt (seen
+  // done) }, performance.now() times.
   restarts: [],
   bundleSources: [], // per loaded bundle: { name, fromCache, bytes }
   deviceRecoveries: 0, // WebGPU devices recreated after a loss
@@ -280,7 +281,7 @@ function measureSchedule() {
 
 let frameMs = null; // moving average of the time between completed frames
 let lastFrameAt = null;
-let pendingRestart = null; // the last restart whose first band is not done yet
+let pendingRestart = null; // the last restart whose first image (preview or band) is not done yet
 
 function frameDone() {
   hook.frames++;
@@ -340,12 +341,12 @@ function tick(now) {
       showMessage(String(e.message || e));
       paused = true;
     }
-    if (status === 1 || status === 2) {
+    if (status > 0) {
       const at = performance.now();
-      hook.bands++;
+      if (status !== 3) hook.bands++;
       if (pendingRestart && pendingRestart.submittedAt !== null) {
-        // The restarted accumulation's first band is done: a new band could only be submitted
-        // after the previous one was seen done.
+        // The restarted accumulation's first image (its preview, on a slow device, or its first
+        // band) is done: nothing new could be submitted before it was seen done.
         pendingRestart.doneAt = at;
         hook.restarts.push(pendingRestart);
         pendingRestart = null;

@@ -184,10 +184,21 @@ impl Runtime {
     }
 
     /// The accumulation restarted: the preview follows (`Preview::restarted`), previewing the
-    /// new view where frames are split into bands.
+    /// new view where whole frames were measured to exceed the band budget (not merely split
+    /// because nothing was measured yet: a fast device would preview every pose of a playing
+    /// animation and never measure a band).
     fn restarted(&mut self) {
-        let slow = self.band_policy().bands() > 1;
+        let slow = self.band_policy().frames_exceed_budget();
         self.preview_mut().restarted(slow);
+    }
+
+    /// Checks, without waiting, whether the GPU is done with what was submitted (a band, a
+    /// preview), recording a band's time if so: true when nothing is in flight.
+    pub fn poll(&mut self, now_ms: f64) -> bool {
+        match self {
+            Runtime::WebGl2(r) => r.poll(now_ms),
+            Runtime::WebGpu(r) => r.poll(now_ms),
+        }
     }
 
     /// Renders the pending preview now (the test hook's `renderPreview`) if the accumulation

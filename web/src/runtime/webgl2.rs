@@ -140,6 +140,12 @@ impl GlRuntime {
         &self.pacer
     }
 
+    /// Checks, without waiting, whether the band or preview in flight is done (`Pacer::poll`):
+    /// true when nothing is in flight (any more).
+    pub fn poll(&mut self, now_ms: f64) -> bool {
+        self.pacer.poll(self.renderer.gl(), now_ms)
+    }
+
     pub fn context_lost(&self) -> bool {
         self.context.is_context_lost()
     }

@@ -16,7 +16,7 @@ use std::rc::Rc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
-use tracer::backend::frame_split::{BandPolicy, Step};
+use tracer::backend::frame_split::{polled_bounds, BandPolicy, Step};
 use tracer::backend::wgpu::{
     DeviceRenderer, DisplayPass, PipelineCheck, WavefrontRenderer, WgpuDevice, WgpuError, WgpuOptions, WgpuRenderer,
 };
@@ -342,6 +342,22 @@ impl GpuRuntime {
         self.in_flight.is_some()
     }
 
+    /// Checks, without waiting, whether the submission in flight is done; records a band's
+    /// time if so. True when nothing is in flight (any more).
+    pub fn poll(&mut self, now_ms: f64) -> bool {
+        let Some(band) = &mut self.in_flight else { return true };
+        if !band.done.load(Ordering::Acquire) {
+            band.pending_at_ms = Some(now_ms);
+            return false;
+        }
+        let (at_least, at_most) = polled_bounds(band.submitted_ms, band.pending_at_ms, now_ms);
+        if band.rows > 0 {
+            self.policy.record_between(band.rows, at_least, at_most);
+        }
+        self.in_flight = None;
+        true
+    }
+
     pub fn policy(&self) -> &BandPolicy {
         &self.policy
     }
@@ -419,19 +435,8 @@ impl GpuRuntime {
     /// after a restart, later each whole frame.
     pub fn step(&mut self, now_ms: f64, settings: &Display) -> Result<Step, String> {
         self.check()?;
-        if let Some(band) = &mut self.in_flight {
-            if !band.done.load(Ordering::Acquire) {
-                band.pending_at_ms = Some(now_ms);
-                return Ok(Step::Waiting);
-            }
-            // Never seen pending: done by the first step, so it took anything up to the time
-            // to it (the policy takes the middle; `BandPolicy::record_between`).
-            let at_most = now_ms - band.submitted_ms;
-            let at_least = band.pending_at_ms.map_or(0.0, |t| t - band.submitted_ms);
-            if band.rows > 0 {
-                self.policy.record_between(band.rows, at_least, at_most);
-            }
-            self.in_flight = None;
+        if !self.poll(now_ms) {
+            return Ok(Step::Waiting);
         }
         // First the preview, alone on the GPU.
         let previewed = self.preview_now(now_ms, settings);

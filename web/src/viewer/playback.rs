@@ -138,14 +138,19 @@ impl Viewer {
         self.rebuild()
     }
 
-    /// Before the frame loop's step: while playing and between frames (no frame half
-    /// rendered in bands), the pose at `now_ms`.
+    /// Before the frame loop's step: while playing, between frames (no frame half rendered in
+    /// bands) and with nothing on the GPU (a preview in flight would otherwise be followed by a
+    /// pose per animation frame that no image shows), the pose at `now_ms`.
     pub(super) fn advance_animation(&mut self, now_ms: f64) -> Result<(), JsError> {
-        let between_frames = self.between_frames();
-        let Some(p) = self.playback_mut() else { return Ok(()) };
-        if !between_frames {
+        let playing = self.playback.as_ref().is_some_and(|p| p.playing);
+        if playing && !self.between_frames() {
             return Ok(());
         }
+        let halted = self.halted();
+        if playing && self.running.as_mut().is_some_and(|r| !halted && !r.poll(now_ms)) {
+            return Ok(());
+        }
+        let Some(p) = self.playback_mut() else { return Ok(()) };
         match p.time_at(now_ms) {
             Some(time) => self.show_pose(time),
             None => Ok(()),

@@ -4,7 +4,7 @@
 use glow::HasContext;
 
 use super::GlRenderer;
-use crate::backend::frame_split::{BandPolicy, Step};
+use crate::backend::frame_split::{polled_bounds, BandPolicy, Step};
 use crate::backend::{RenderError, Renderer};
 
 struct InFlight {
@@ -51,10 +51,7 @@ impl Pacer {
                 return false;
             }
             glow::ALREADY_SIGNALED | glow::CONDITION_SATISFIED => {
-                // Never seen pending: done by the first poll, so it took anything up to the
-                // time to it (the policy takes the middle; `BandPolicy::record_between`).
-                let at_most = now_ms - band.submitted_ms;
-                let at_least = band.pending_at_ms.map_or(0.0, |t| t - band.submitted_ms);
+                let (at_least, at_most) = polled_bounds(band.submitted_ms, band.pending_at_ms, now_ms);
                 if band.rows > 0 {
                     self.policy.record_between(band.rows, at_least, at_most);
                 }
