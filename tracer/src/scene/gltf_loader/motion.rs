@@ -371,6 +371,13 @@ fn shrunk(at: Vec3) -> Mat4 {
 }
 
 impl Loader<'_> {
+    /// Warns once that `what` ("node 3", "node 3 mesh 1"), as posed at the load time, is
+    /// dropped because its transform or vertices `why` ([`dropped`]).
+    pub(super) fn warn_dropped(&mut self, what: String, why: &'static str) {
+        let time = self.time;
+        self.warnings.once(&format!("dropped {what}"), || dropped(&what, why, time));
+    }
+
     /// Places node `n`'s mesh `mesh` (`prims`, as morphed by the load-time pose; `world` its
     /// node's world transform; `moving`: a channel moves the node or an ancestor) as a moving
     /// part of the kept motion, and returns true; false when the mesh is static (or no motion

@@ -60,9 +60,7 @@ impl Loader<'_> {
                 if finite { node.mesh.and(super::motion::unplaceable(world)) } else { Some(super::motion::NOT_FINITE) };
             if let (true, None, Some(why)) = (moving, &self.motion, why) {
                 if self.places_something(n) {
-                    let time = self.time;
-                    self.warnings
-                        .once(&format!("dropped node {n}"), || super::motion::dropped(&format!("node {n}"), why, time));
+                    self.warn_dropped(format!("node {n}"), why);
                 }
                 if !finite {
                     continue;
@@ -98,10 +96,7 @@ impl Loader<'_> {
                     // a moving part of the kept motion (`motion.rs`)
                 } else if morphed.is_none() {
                     self.mesh_instances += 1;
-                    let (what, time) = (format!("node {n} mesh {mesh}"), self.time);
-                    self.warnings.once(&format!("dropped {what}"), || {
-                        super::motion::dropped(&what, super::morph::MORPH_NOT_FINITE, time)
-                    });
+                    self.warn_dropped(format!("node {n} mesh {mesh}"), super::morph::MORPH_NOT_FINITE);
                 } else if let Some(skin) = node.skin {
                     self.mesh_instances += 1;
                     self.instantiate_skinned(mesh, &prims, skin.value(), n)?;

@@ -61,8 +61,7 @@ impl Loader<'_> {
         match skin_all(prims, &joints, &what)? {
             Some(skinned) => self.defer(mesh, false, Rc::new(skinned), Mat4::IDENTITY),
             None if posed => {
-                let (what, time) = (format!("node {node} mesh {mesh}"), self.time);
-                self.warnings.once(&format!("dropped {what}"), || super::motion::dropped(&what, SKIN_NOT_FINITE, time));
+                self.warn_dropped(format!("node {node} mesh {mesh}"), SKIN_NOT_FINITE);
                 Ok(())
             }
             None => Err(skin.not_finite(&joints, &what)),
