@@ -60,6 +60,7 @@ export async function animation(o) {
         l.setPlaying(true);
         l.resume();
         const start = l.animation().time;
+        const [framesBefore, previewsBefore] = [l.frames, l.info().preview.rendered];
         let maxSpp = 0;
         const t0 = performance.now();
         while (performance.now() - t0 < 4000) {
@@ -67,11 +68,16 @@ export async function animation(o) {
           maxSpp = Math.max(maxSpp, l.spp());
         }
         const moved = l.animation().time;
+        const framesWhilePlaying = l.frames - framesBefore;
+        const previewsWhilePlaying = l.info().preview.rendered - previewsBefore;
         l.setPlaying(false);
         await wait(200);
         const pausedAt = l.spp();
         await wait(4000);
-        return { start, moved, maxSppWhilePlaying: maxSpp, pausedAt, afterPause: l.spp(), poseMs: l.animation().poseMs };
+        return {
+          start, moved, maxSppWhilePlaying: maxSpp, framesWhilePlaying, previewsWhilePlaying,
+          pausedAt, afterPause: l.spp(), poseMs: l.animation().poseMs,
+        };
       });
       const soak = o.soak ? await page.evaluate(playFor, Number(o.soak)) : null;
       return { loaded, readout, poses, playing, soak, error: await page.evaluate(() => window.lightport.error) };

@@ -14,7 +14,7 @@ export async function preview(o) {
   try {
     return await withBrowser(profile, async (context) => {
       const { page, error } = await open(context, o.url, {
-        scene: o.scene, size: o.size, denoise: '0', preview: o.preview,
+        scene: o.scene, size: o.size, denoise: '0', preview: o.preview, bandBudget: o.bandBudget,
       });
       if (error) return { error };
       // Each animation frame (after the page's own tick), until the first full frame is

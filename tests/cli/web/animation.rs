@@ -94,6 +94,11 @@ fn a_served_moving_gltf_plays_on_the_page() {
         let (start, moved) = (playing["start"].as_f64().unwrap_or(0.0), playing["moved"].as_f64().unwrap_or(0.0));
         assert!(moved != start, "{api}: the time did not move while playing: {playing}");
         assert!(playing["maxSppWhilePlaying"].as_u64() <= Some(2), "{api}: it accumulated while moving: {playing}");
+        // 16x16 frames fit the band budget even on SwiftShader: each pose is rendered in full,
+        // not previewed (a preview per restart is for devices measured too slow for whole
+        // frames; a policy that took its first, unmeasured bands for that previewed every pose).
+        assert!(playing["framesWhilePlaying"].as_u64() > Some(0), "{api}: no full frame while playing: {playing}");
+        assert_eq!(playing["previewsWhilePlaying"].as_u64(), Some(0), "{api}: poses were previewed: {playing}");
         let (paused, after) = (playing["pausedAt"].as_u64().unwrap_or(0), playing["afterPause"].as_u64().unwrap_or(0));
         assert!(after >= paused + 3, "{api}: paused, it did not accumulate: {playing}");
     }

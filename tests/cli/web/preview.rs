@@ -10,11 +10,9 @@ use tracer::scene;
 use super::{assert_page_runs_and_agrees_with_cpu, browse, no_page_error, Server, SIZE};
 
 /// The page as a person opens it (the frame loop running), the Cornell box at 320x240.
-fn opened(server: &Server, api: &str, preview: Option<&str>) -> Value {
+fn opened(server: &Server, api: &str, extra: &[(&str, &str)]) -> Value {
     let mut options = vec![("scene", "cornell-box"), ("size", "320x240"), ("api", api), ("schedule", "megakernel")];
-    if let Some(p) = preview {
-        options.push(("preview", p));
-    }
+    options.extend_from_slice(extra);
     let report = browse(&server.url, "preview", &options);
     no_page_error(&report);
     report
@@ -33,7 +31,7 @@ fn ms(value: &Value, what: &str) -> f64 {
 fn the_first_image_after_a_load_is_an_upscaled_preview_before_the_first_full_frame() {
     let server = Server::start(&[]);
     for api in ["webgl2", "webgpu"] {
-        let report = opened(&server, api, None);
+        let report = opened(&server, api, &[]);
         let shot = &report["shot"];
         assert_preview_on_canvas(shot, api, "the load");
         let readout = shot["readout"].as_str().unwrap_or("");
@@ -77,6 +75,25 @@ fn the_first_image_after_a_load_is_an_upscaled_preview_before_the_first_full_fra
     }
 }
 
+/// A restart is previewed only where whole frames were measured to exceed the band budget:
+/// unsplit (`bandBudget=0`, one submission per frame) the load's preview shows as ever, but a
+/// camera move is drawn whole, without a second one (a fast device playing an animation would
+/// otherwise preview every pose and never render a full frame).
+#[test]
+fn a_restart_is_not_previewed_where_frames_are_whole() {
+    let server = Server::start(&[]);
+    let report = opened(&server, "webgl2", &[("bandBudget", "0")]);
+    assert_eq!(report["info"]["bands"].as_u64(), Some(1), "not split: {}", report["info"]);
+    // (Unsplit, the full frame follows the preview at the next animation frame: too soon to
+    // copy the canvas reliably, so the preview is known by its count.)
+    let settled = &report["settled"]["info"]["preview"];
+    assert_eq!(settled["rendered"], 1, "one preview after the load: {settled}");
+    assert!(report["afterMove"].is_null(), "a preview after a camera move: {}", report["previews"]);
+    let after = &report["replacedAfterMove"];
+    assert_eq!(after["rendered"].as_u64(), Some(1), "{after}");
+    assert_eq!(report["previews"].as_array().map(Vec::len), Some(1), "{}", report["previews"]);
+}
+
 /// `shot` (the canvas copied while a preview showed, after `what`) is the preview: 80x60
 /// upscaled on the 320x240 canvas (every 4x4 block one colour, the scene lit), while no full
 /// frame had been done since the restart (0 spp).
@@ -107,7 +124,7 @@ fn assert_preview_on_canvas(shot: &Value, api: &str, what: &str) {
 fn preview_0_shows_no_preview() {
     let server = Server::start(&[]);
     for api in ["webgl2", "webgpu"] {
-        let report = opened(&server, api, Some("0"));
+        let report = opened(&server, api, &[("preview", "0")]);
         assert!(report["shot"].is_null(), "api={api}: no preview on the canvas");
         assert_eq!(report["previews"].as_array().map(Vec::len), Some(0), "api={api}: {}", report["previews"]);
         assert!(report["afterMove"].is_null(), "api={api}: no preview after a camera move either");
