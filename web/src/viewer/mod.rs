@@ -456,7 +456,8 @@ impl Viewer {
 
     /// The longest one band of a frame should take on the GPU, in milliseconds (default 50);
     /// 0: do not split frames (one submission per frame). Restarts the band-height adaptation.
-    /// WebGL2 only: WebGPU frames are whole.
+    /// Both runtimes split frames (WebGL2: scissored draws; WebGPU: dispatches over fewer rows;
+    /// the wavefront: submissions of a bounded number of path segments).
     #[wasm_bindgen(js_name = setBandBudget)]
     pub fn set_band_budget(&mut self, ms: f64) -> Result<(), JsError> {
         if !(ms.is_finite() && ms >= 0.0) {
