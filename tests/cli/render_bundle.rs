@@ -343,20 +343,30 @@ fn chart_takes_a_bundle_posed_at_the_time_asked() {
     assert!(!o.status.success() && stderr(&o).contains("--sky"), "{}", stderr(&o));
 }
 
+/// `bytes` as a glTF buffer's data URI.
+fn data_uri(bytes: &[u8]) -> String {
+    use base64::Engine;
+    format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(bytes))
+}
+
+/// Appends `bytes` to the glTF `json`'s buffers, as a data URI.
+fn push_buffer(json: &mut serde_json::Value, bytes: &[u8]) {
+    let buffer = serde_json::json!({"byteLength": bytes.len(), "uri": data_uri(bytes)});
+    json["buffers"].as_array_mut().unwrap().push(buffer);
+}
+
 /// A floor, a point light, a camera and a triangle (node 1) whose animation scales it from 1
 /// at 0 s to `scale_at_1` at 1 s (LINEAR), under a node of scale `parent_scale`. The camera
 /// sees the triangle (at rest) against nothing: no sky, and the floor ends before the rays
 /// that pass it could reach it.
 fn scaled_gltf(scale_at_1: f32, parent_scale: f32) -> Vec<u8> {
-    use base64::Engine;
     let floor =
         [[-2.0, 0.0, -2.0], [2.0, 0.0, -2.0], [2.0, 0.0, 2.0], [-2.0, 0.0, -2.0], [2.0, 0.0, 2.0], [-2.0, 0.0, 2.0]];
     let triangle = [[0.0, 0.5, 0.0], [1.0, 0.5, 0.0], [0.0, 1.5, 0.0f32]];
     let mut bytes: Vec<u8> = floor.iter().chain(&triangle).flatten().flat_map(|v: &f32| v.to_le_bytes()).collect();
     let keys = [0.0f32, 1.0, 1.0, 1.0, 1.0, scale_at_1, scale_at_1, scale_at_1];
     bytes.extend(keys.iter().flat_map(|v| v.to_le_bytes()));
-    let uri =
-        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes));
+    let uri = data_uri(&bytes);
     let json = serde_json::json!({
         "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 4, 2, 3]}],
         "nodes": [
@@ -393,15 +403,12 @@ fn scaled_gltf(scale_at_1: f32, parent_scale: f32) -> Vec<u8> {
 /// at 1 s. The joint's matrix has (0, 3, 0) + scale x (0, -3, 0) in translation: from a scale
 /// of about 1.1e38 on, it is not finite.
 fn skinned_gltf(scale_at_1: f32) -> Vec<u8> {
-    use base64::Engine;
     let mut json: serde_json::Value = serde_json::from_slice(&scaled_gltf(scale_at_1, 1.0)).unwrap();
     let mut bytes = vec![0u8; 12]; // JOINTS_0: joint 0 for every vertex (unsigned bytes)
     let weights = [1.0f32, 0.0, 0.0, 0.0].repeat(3);
     let inverse_bind = glam::Mat4::from_translation(glam::Vec3::new(0.0, -3.0, 0.0)).to_cols_array();
     bytes.extend(weights.iter().chain(&inverse_bind).flat_map(|v| v.to_le_bytes()));
-    let uri =
-        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes));
-    json["buffers"].as_array_mut().unwrap().push(serde_json::json!({"byteLength": bytes.len(), "uri": uri}));
+    push_buffer(&mut json, &bytes);
     json["bufferViews"].as_array_mut().unwrap().extend([
         serde_json::json!({"buffer": 1, "byteOffset": 0, "byteLength": 12}),
         serde_json::json!({"buffer": 1, "byteOffset": 12, "byteLength": 48}),
@@ -426,13 +433,10 @@ fn skinned_gltf(scale_at_1: f32) -> Vec<u8> {
 /// until 1 s and sets to `weight_at_1` from then on (STEP): from a weight of 1.7e38 on, the
 /// morphed vertex is not finite.
 fn morphed_gltf(weight_at_1: f32) -> Vec<u8> {
-    use base64::Engine;
     let mut json: serde_json::Value = serde_json::from_slice(&scaled_gltf(1.0, 1.0)).unwrap();
     let values = [0.0f32, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, weight_at_1];
     let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
-    let uri =
-        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes));
-    json["buffers"].as_array_mut().unwrap().push(serde_json::json!({"byteLength": bytes.len(), "uri": uri}));
+    push_buffer(&mut json, &bytes);
     json["bufferViews"].as_array_mut().unwrap().extend([
         serde_json::json!({"buffer": 1, "byteOffset": 0, "byteLength": 36}),
         serde_json::json!({"buffer": 1, "byteOffset": 36, "byteLength": 8}),
