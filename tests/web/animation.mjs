@@ -53,6 +53,12 @@ export async function animation(o) {
         };
         return [await at(0), await at(0.8), await at(0)];
       });
+      // Under schedule=auto on WebGPU the page measures the schedules once a frame has shown,
+      // and the frame loop (and with it the animation) waits meanwhile: seconds of SwiftShader
+      // on a loaded machine. Measured first, so the playing window times the frame loop alone.
+      const scheduleChoice = await page.evaluate(() => window.lightport.measureSchedule());
+      await page.waitForFunction(() => (window.lightport.info().scheduleChoice || {}).state !== 'measuring', null,
+        { timeout: 120000 });
       const playing = await page.evaluate(async () => {
         const l = window.lightport;
         const wait = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
@@ -60,14 +66,19 @@ export async function animation(o) {
         l.setPlaying(true);
         l.resume();
         const start = l.animation().time;
-        const [framesBefore, previewsBefore] = [l.frames, l.info().preview.rendered];
+        const [framesBefore, previewsBefore, posesBefore] = [l.frames, l.info().preview.rendered, l.animation().poses];
         let maxSpp = 0;
+        // The times shown, sampled: the time wraps over the animation's length, so the time at
+        // the end of the window says nothing (4 s at 0.25x of a 1 s animation ends where it began).
+        const times = new Set();
         const t0 = performance.now();
         while (performance.now() - t0 < 4000) {
           await wait(50);
           maxSpp = Math.max(maxSpp, l.spp());
+          times.add(l.animation().time);
         }
         const moved = l.animation().time;
+        const posesWhilePlaying = l.animation().poses - posesBefore;
         const framesWhilePlaying = l.frames - framesBefore;
         const previewsWhilePlaying = l.info().preview.rendered - previewsBefore;
         l.setPlaying(false);
@@ -75,12 +86,13 @@ export async function animation(o) {
         const pausedAt = l.spp();
         await wait(4000);
         return {
-          start, moved, maxSppWhilePlaying: maxSpp, framesWhilePlaying, previewsWhilePlaying,
+          start, moved, timesShown: times.size, posesWhilePlaying, maxSppWhilePlaying: maxSpp, framesWhilePlaying,
+          previewsWhilePlaying,
           pausedAt, afterPause: l.spp(), poseMs: l.animation().poseMs,
         };
       });
       const soak = o.soak ? await page.evaluate(playFor, Number(o.soak)) : null;
-      return { loaded, readout, poses, playing, soak, error: await page.evaluate(() => window.lightport.error) };
+      return { loaded, readout, poses, scheduleChoice, playing, soak, error: await page.evaluate(() => window.lightport.error) };
     });
   } finally {
     rmSync(profile, { recursive: true, force: true });

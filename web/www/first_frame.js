@@ -75,7 +75,8 @@ export class FirstFrame {
     if (load !== this.loading || !s) return;
     const p = load.preview;
     p.doneAt = doneAt;
-    p.gpuMs = doneAt - Math.max(p.submitted, Math.min(s.compiledAt ?? doneAt, doneAt));
+    p.compiledAt = compileEnd(s, p.submitted, doneAt);
+    p.gpuMs = doneAt - p.compiledAt;
     this.hook.firstImage = {
       preview: true, scene: load.name, width: p.width, height: p.height, totalMs: doneAt - load.start, gpuMs: p.gpuMs,
     };
@@ -130,7 +131,7 @@ export class FirstFrame {
     const info = viewer.sceneInfo();
     if (!s) return;
     const p = load.preview && load.preview.doneAt !== null ? load.preview : null;
-    const compiledAt = Math.min(s.compiledAt ?? doneAt, doneAt);
+    const compiledAt = p ? p.compiledAt : compileEnd(s, load.submitted ?? doneAt, doneAt);
     const split = {
       api: info.api,
       scene: load.name,
@@ -164,4 +165,14 @@ export class FirstFrame {
 
 function sec(ms) {
   return (ms / 1000).toFixed(2);
+}
+
+// When the first work submitted at `submitted` and done at `doneAt` could start: the pipeline's
+// verdict time (sceneInfo().startup.compiledAt) where it came before the work was done, else
+// the submission. WebGPU's verdict can arrive after the work it compiled for is done (a late
+// notification, not a late compile): then when the compile ended is unknown, and the wait
+// counts as the work's GPU time rather than as none.
+function compileEnd(startup, submitted, doneAt) {
+  const verdict = startup.compiledAt;
+  return Math.max(submitted, verdict != null && verdict < doneAt ? verdict : submitted);
 }
