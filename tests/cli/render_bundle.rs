@@ -503,6 +503,11 @@ fn a_placement_a_pose_cannot_place_is_dropped_with_one_warning() {
         ("overflow", scaled_gltf(1e30, 1e10), "is not finite", "0"),
         ("skin", skinned_gltf(3e38), "is not finite (a joint's matrix", "0"),
         ("morph", morphed_gltf(3e38), "is not finite (its morph weights", "0.5"),
+        // Finite, but carried beyond the world (scene::WORLD_LIMIT): at 1e20 the load's camera
+        // framing overflowed ("invalid camera") before.
+        ("beyond", scaled_gltf(1e20, 1.0), "places it beyond 1e12 units", "0"),
+        ("skin-beyond", skinned_gltf(1e20), "is not finite (a joint's matrix", "0"),
+        ("morph-beyond", morphed_gltf(1e20), "is not finite (its morph weights", "0"),
     ] {
         let sub = dir.0.join(name);
         std::fs::create_dir_all(&sub).unwrap();

@@ -649,6 +649,17 @@ fn malformed_gltf_is_refused() {
     let mut inf = TRI;
     inf[0] = f32::INFINITY;
     expect_error("infinite position", load_str(&gltf_json(&inf, &[0, 1, 2], r#"[{"mesh": 0}]"#, "")));
+    // Finite, but where the renderer's f32 arithmetic overflows (it failed as "invalid camera",
+    // the framing's squared diagonal being infinite): refused, naming the limit.
+    let mut far = TRI;
+    far[0] = 1e20;
+    let e = expect_error("a vertex at 1e20", load_str(&gltf_json(&far, &[0, 1, 2], r#"[{"mesh": 0}]"#, "")));
+    assert!(e.to_string().contains(&format!("beyond {:e} units", scene::WORLD_LIMIT)), "{e}");
+    let scaled = r#"[{"mesh": 0, "scale": [1e20, 1e20, 1e20]}, {"mesh": 0}]"#;
+    let e = expect_error("a placement scaled by 1e20", load_str(&gltf_json(&TRI, &[0, 1, 2], scaled, "")));
+    assert!(e.to_string().contains(&format!("beyond {:e} units", scene::WORLD_LIMIT)), "{e}");
+    let near = TRI.map(|v| v * 0.9e12);
+    load_str(&gltf_json(&near, &[0, 1, 2], r#"[{"mesh": 0}]"#, "")).expect("within the limit it loads");
 
     let e = expect_error(
         "huge accessor count",

@@ -31,6 +31,8 @@ pub enum InstanceError {
     NoMesh { instance: usize, mesh: u32, meshes: usize },
     #[error("instance {instance}: its transform is not finite, not affine or not invertible")]
     BadTransform { instance: usize },
+    #[error("instance {instance} places its mesh beyond {limit:e} units of the origin", limit = super::WORLD_LIMIT)]
+    BeyondWorld { instance: usize },
     #[error("mesh {mesh} has no triangles")]
     EmptyMesh { mesh: u32 },
     #[error(
@@ -108,6 +110,7 @@ impl Scene {
     pub fn check_instances(&self) -> Result<(), InstanceError> {
         let emissive = |t: &Triangle| self.materials.get(t.material as usize).is_some_and(|m| m.is_emissive());
         let mut placed = vec![false; self.meshes.len()];
+        let bounds: Vec<Aabb> = self.meshes.iter().map(Mesh::bounds).collect();
         for (i, inst) in self.instances.iter().enumerate() {
             let mesh = self.meshes.get(inst.mesh as usize).ok_or(InstanceError::NoMesh {
                 instance: i,
@@ -116,6 +119,9 @@ impl Scene {
             })?;
             if !inst.has_valid_transform() {
                 return Err(InstanceError::BadTransform { instance: i });
+            }
+            if !inst.world_bounds(bounds[inst.mesh as usize]).in_world() {
+                return Err(InstanceError::BeyondWorld { instance: i });
             }
             // Each placed mesh is checked once.
             if std::mem::replace(&mut placed[inst.mesh as usize], true) {

@@ -369,7 +369,25 @@ impl Default for Aabb {
     }
 }
 
+/// How far from the origin (scene units, each coordinate) a scene's geometry, camera and
+/// lights may lie. Past about this the renderer's f32 arithmetic on world coordinates
+/// overflows (a triangle's edge cross products against a ray's offset, the squared diagonal
+/// that frames the camera), and a scene there would render as NaN or fail as "an invalid
+/// camera". A scene beyond it is refused by [`Scene::validate`]; a pose that carries a
+/// placement or a skinned or morphed mesh beyond it drops that, as one that is not finite.
+pub const WORLD_LIMIT: f32 = 1e12;
+
+/// Whether `p` is finite and within [`WORLD_LIMIT`] of the origin on every axis.
+pub fn in_world(p: Vec3) -> bool {
+    p.is_finite() && p.abs().max_element() <= WORLD_LIMIT
+}
+
 impl Aabb {
+    /// Whether the box is empty or lies within [`WORLD_LIMIT`] ([`in_world`]).
+    pub fn in_world(&self) -> bool {
+        self.is_empty() || (in_world(self.min) && in_world(self.max))
+    }
+
     /// The empty box.
     pub const EMPTY: Self = Self { min: Vec3::INFINITY, max: Vec3::NEG_INFINITY };
 
@@ -601,6 +619,12 @@ impl Scene {
             if !finite {
                 return bad(format!("triangle {i} has non-finite vertex data"));
             }
+            if let Some(p) = t.positions.iter().find(|p| !in_world(**p)) {
+                return bad(format!(
+                    "triangle {i} has a vertex at {p}, beyond {WORLD_LIMIT:e} units of the origin (where the renderer's \
+                     arithmetic overflows)"
+                ));
+            }
         }
         for (i, m) in self.materials.iter().enumerate() {
             if !m.texture_slots().into_iter().all(texture_ok) {
@@ -632,6 +656,9 @@ impl Scene {
             if !l.position.is_finite() || !l.intensity.is_finite() {
                 return bad(format!("point light {i} is not finite"));
             }
+            if !in_world(l.position) {
+                return bad(format!("point light {i} lies beyond {WORLD_LIMIT:e} units of the origin"));
+            }
         }
         if let Some(sky) = &self.sky {
             if sky.width == 0 || sky.height == 0 || sky.texels.len() != sky.width as usize * sky.height as usize {
@@ -643,6 +670,12 @@ impl Scene {
         let fov_ok = c.yfov > 0.0 && c.yfov < std::f32::consts::PI;
         if !finite || !fov_ok || c.position == c.target {
             return bad("invalid camera".into());
+        }
+        // The camera may stand back from the world: the framing of a scene at the limit puts
+        // it up to ~6 limits out (and the kernel's products stay finite to ~10).
+        let camera_limit = 10.0 * WORLD_LIMIT;
+        if [c.position, c.target].iter().any(|p| p.abs().max_element() > camera_limit) {
+            return bad(format!("the camera lies (or looks at a point) beyond {camera_limit:e} units of the origin"));
         }
         Ok(())
     }

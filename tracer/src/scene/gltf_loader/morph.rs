@@ -86,7 +86,8 @@ impl Loader<'_> {
 }
 
 /// Why a pose drops a morphed mesh (`motion::dropped`).
-pub(super) const MORPH_NOT_FINITE: &str = "is not finite (its morph weights, or a vertex they morph)";
+pub(super) const MORPH_NOT_FINITE: &str =
+    "is not finite (its morph weights, or a vertex they morph, or they carry one beyond 1e12 units of the origin)";
 
 /// `prims` morphed by `weights` ([`morph_primitive`]): `None` when every weight is 0 (the
 /// primitives as they are); an error (what is not finite) when a weight or a morphed vertex
@@ -99,9 +100,9 @@ pub(super) fn morph_all(prims: &[LocalPrimitive], weights: &[f32]) -> Result<Opt
         return Ok(None);
     }
     let morphed: Vec<LocalPrimitive> = prims.iter().map(|p| morph_primitive(p, weights)).collect();
-    match morphed.iter().all(|p| p.positions.iter().all(|v| v.is_finite())) {
+    match morphed.iter().all(|p| p.positions.iter().all(|v| crate::scene::in_world(*v))) {
         true => Ok(Some(morphed)),
-        false => Err("a morphed vertex is not finite".into()),
+        false => Err("a morphed vertex is not finite or lies beyond 1e12 units of the origin".into()),
     }
 }
 

@@ -27,7 +27,7 @@ use super::morph::{morph_all, MORPH_NOT_FINITE};
 use super::nodes::{place_primitives, LocalPrimitive};
 use super::skin::{skin_all, SkinJoints, SKIN_NOT_FINITE};
 use super::*;
-use crate::scene::{Instance, Mesh};
+use crate::scene::{Aabb, Instance, Mesh};
 
 /// The chosen animation and what it moves in a loaded scene ([`Scene::motion`]).
 #[derive(Clone)]
@@ -63,6 +63,8 @@ pub(super) struct RigidPlacement {
     pub(super) instance: usize,
     pub(super) node: usize,
     pub(super) local: Mat4,
+    /// The placed mesh's bounds in its own space (what a pose may not carry beyond the world).
+    pub(super) bounds: Aabb,
 }
 
 /// A mesh made again at each pose, placed by the identity: `Scene::meshes[mesh]`.
@@ -177,14 +179,19 @@ impl Motion {
         (self.rigid, self.deformed) = (rigid, deformed);
     }
 
-    /// Whether every placement and deformed mesh names one of `instances` and `meshes`, as
-    /// [`apply`](Self::apply) needs.
-    pub(super) fn check_against(&self, meshes: &[Mesh], instances: &[Instance]) -> Result<(), String> {
+    /// Checks that every placement and deformed mesh names one of `instances` and `meshes`, as
+    /// [`apply`](Self::apply) needs, and takes each moving placement's mesh bounds from them
+    /// (a motion read back from a bundle: `motion_data`).
+    pub(super) fn attach(&mut self, meshes: &[Mesh], instances: &[Instance]) -> Result<(), String> {
         if let Some(r) = self.rigid.iter().find(|r| r.instance >= instances.len()) {
             return Err(format!("a moving placement names instance {} of {}", r.instance, instances.len()));
         }
         if let Some(d) = self.deformed.iter().find(|d| d.mesh >= meshes.len()) {
             return Err(format!("a deformed mesh is mesh {} of {}", d.mesh, meshes.len()));
+        }
+        for r in &mut self.rigid {
+            let mesh = instances[r.instance].mesh as usize;
+            r.bounds = meshes.get(mesh).ok_or_else(|| format!("instance {} names mesh {mesh}", r.instance))?.bounds();
         }
         Ok(())
     }
@@ -237,7 +244,7 @@ impl Motion {
             .rigid
             .iter()
             .map(|r| {
-                let (m, why) = placeable(world[r.node] * r.local, &format!("node {}", r.node));
+                let (m, why) = placeable(world[r.node] * r.local, r.bounds, &format!("node {}", r.node));
                 drops.extend(why);
                 m
             })
@@ -303,7 +310,7 @@ impl DeformedMesh {
                 }
             }
             None => {
-                let (m, why) = placeable(world[self.node], &self.what);
+                let (m, why) = placeable(world[self.node], primitives_bounds(&morphed), &self.what);
                 dropped = why;
                 (morphed, m)
             }
@@ -332,17 +339,33 @@ type Dropped = (String, &'static str);
 /// Why a pose drops a placement ([`dropped`]).
 pub(super) const SINGULAR: &str = "cannot be inverted (a scale of zero?)";
 pub(super) const NOT_FINITE: &str = "is not finite";
+pub(super) const BEYOND_WORLD: &str = "places it beyond 1e12 units of the origin";
 
-/// Why a mesh cannot be placed by `m` ([`SINGULAR`], [`NOT_FINITE`]), or `None` when it can:
-/// the one rule of every posing path (an instance's [`Instance::has_valid_transform`]).
-pub(super) fn unplaceable(m: Mat4) -> Option<&'static str> {
-    if (Instance { mesh: 0, transform: m }).has_valid_transform() {
-        None
-    } else if m.is_finite() {
+/// Why a mesh whose own bounds are `bounds` cannot be placed by `m` ([`SINGULAR`],
+/// [`NOT_FINITE`], [`BEYOND_WORLD`]), or `None` when it can: the one rule of every posing path
+/// (an instance's [`Instance::has_valid_transform`], and its placed bounds within
+/// [`WORLD_LIMIT`](crate::scene::WORLD_LIMIT), as `Scene::check_instances` holds them).
+pub(super) fn unplaceable(m: Mat4, bounds: Aabb) -> Option<&'static str> {
+    // Beyond the world before singular: a scale of 1e20 overflows the determinant.
+    let placed = Instance { mesh: 0, transform: m };
+    if !m.is_finite() {
+        Some(NOT_FINITE)
+    } else if !placed.world_bounds(bounds).in_world() {
+        Some(BEYOND_WORLD)
+    } else if !placed.has_valid_transform() {
         Some(SINGULAR)
     } else {
-        Some(NOT_FINITE)
+        None
     }
+}
+
+/// The bounds of `prims`' vertices (in their own space).
+pub(super) fn primitives_bounds(prims: &[LocalPrimitive]) -> Aabb {
+    let mut b = Aabb::EMPTY;
+    for p in prims.iter().flat_map(|p| &p.positions) {
+        b.extend(*p);
+    }
+    b
 }
 
 /// The warning for a placement (`what`: "node 3") or a skinned or morphed mesh ("node 3 mesh
@@ -359,9 +382,9 @@ pub(super) fn dropped(what: &str, why: &str, time: f32) -> String {
 /// that rays can still be moved into the mesh's space, no ray practically meets it, and the
 /// scene keeps its number of placements from pose to pose (which posing over packed arrays,
 /// `pack::Posing`, relies on).
-fn placeable(m: Mat4, what: &str) -> (Mat4, Option<Dropped>) {
-    let Some(why) = unplaceable(m) else { return (m, None) };
-    let at = Some(m.w_axis.truncate()).filter(|t| t.is_finite()).unwrap_or(Vec3::ZERO);
+fn placeable(m: Mat4, bounds: Aabb, what: &str) -> (Mat4, Option<Dropped>) {
+    let Some(why) = unplaceable(m, bounds) else { return (m, None) };
+    let at = Some(m.w_axis.truncate()).filter(|t| crate::scene::in_world(*t)).unwrap_or(Vec3::ZERO);
     (shrunk(at), Some((what.to_owned(), why)))
 }
 
@@ -466,16 +489,18 @@ impl Loader<'_> {
                 slot
             }
         };
+        let bounds = self.instanced_meshes[slot].bounds();
         let locals = match node.extensions.as_ref().and_then(|e| e.others.get("EXT_mesh_gpu_instancing")) {
             Some(instancing) => self.gpu_instances(instancing, n)?,
             None => vec![Mat4::IDENTITY],
         };
         for local in locals {
             // A placement this pose drops is warned about by `Motion::apply`, which poses it next.
-            let (transform, _) = placeable(world * local, &format!("node {n}"));
+            let (transform, _) = placeable(world * local, bounds, &format!("node {n}"));
             let instance = self.instances.len();
             self.instances.push(Instance { mesh: slot as u32, transform });
-            self.motion.as_mut().expect("a kept motion").rigid.push(RigidPlacement { instance, node: n, local });
+            let rigid = RigidPlacement { instance, node: n, local, bounds };
+            self.motion.as_mut().expect("a kept motion").rigid.push(rigid);
         }
         Ok(())
     }

@@ -34,7 +34,7 @@ use super::motion::{DeformedMesh, RigNode, RigidPlacement};
 use super::nodes::{LocalPrimitive, VertexSkin};
 use super::skin::SkinJoints;
 use super::*;
-use crate::scene::{Instance, Mesh};
+use crate::scene::{Aabb, Instance, Mesh};
 
 /// A moving scene's parts as streams (`None` for a scene without motion): the animation's name,
 /// the integers, the floats.
@@ -68,7 +68,7 @@ pub fn moving_from_streams(name: &str, ints: &[u32], floats: &[f32]) -> Result<S
         return Err(format!("float {at} ({}) is not finite", floats[at]));
     }
     let mut r = Read { ints, floats, i: 0, f: 0 };
-    let motion = Motion::read(&mut r, name.to_owned())?;
+    let mut motion = Motion::read(&mut r, name.to_owned())?;
     let mut meshes = Vec::new();
     for _ in 0..r.count(1, 0)? {
         let count = r.count(1, 42)?;
@@ -106,7 +106,7 @@ pub fn moving_from_streams(name: &str, ints: &[u32], floats: &[f32]) -> Result<S
             floats.len() - r.f
         ));
     }
-    motion.check_against(&meshes, &instances)?;
+    motion.attach(&meshes, &instances)?;
     Ok(Scene { meshes, instances, motion: Some(motion), ..Scene::default() })
 }
 
@@ -286,7 +286,8 @@ impl Motion {
         for _ in 0..r.count(2, 16)? {
             let instance = r.int()? as usize; // checked against the instances once they are read
             let node = r.index(nodes.len(), "a placement's node")?;
-            rigid.push(RigidPlacement { instance, node, local: r.matrix()? });
+            // Its bounds come with the meshes (`Motion::attach`).
+            rigid.push(RigidPlacement { instance, node, local: r.matrix()?, bounds: Aabb::EMPTY });
         }
         let mut deformed = Vec::new();
         for _ in 0..r.count(6, 0)? {

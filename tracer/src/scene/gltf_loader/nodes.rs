@@ -56,9 +56,18 @@ impl Loader<'_> {
             // that holds a mesh, a camera or a light: a bare joint's drop is its skinned mesh's,
             // `instantiate_skinned`).
             let finite = world.is_finite();
-            let why =
-                if finite { node.mesh.and(super::motion::unplaceable(world)) } else { Some(super::motion::NOT_FINITE) };
-            if let (true, None, Some(why)) = (moving, &self.motion, why) {
+            let why = match (finite, node.mesh) {
+                _ if !moving || self.motion.is_some() => None,
+                (false, _) => Some(super::motion::NOT_FINITE),
+                (true, Some(m)) => {
+                    super::motion::unplaceable(world, super::motion::primitives_bounds(&self.mesh(m.value())?))
+                }
+                (true, None) => None,
+            };
+            // A dropped node's mesh is left out (carried beyond the world or made singular, its
+            // children may still come back).
+            let drop_mesh = why.is_some();
+            if let Some(why) = why {
                 if self.places_something(n) {
                     self.warn_dropped(format!("node {n}"), why);
                 }
@@ -81,7 +90,7 @@ impl Loader<'_> {
             if let Some(c) = node.camera.filter(|_| finite) {
                 self.camera(c.value(), &world)?;
             }
-            if let Some(m) = node.mesh {
+            if let Some(m) = node.mesh.filter(|_| !drop_mesh) {
                 let mesh = m.value();
                 // `None`: the pose's morph weights cannot make the mesh finite (a kept motion
                 // morphs it again at each pose, and drops it there: `Motion::apply`).

@@ -139,7 +139,8 @@ pub(super) struct SkinJoints {
 }
 
 /// Why a pose drops a skinned mesh (`motion::dropped`): the transform that skins it.
-pub(super) const SKIN_NOT_FINITE: &str = "is not finite (a joint's matrix, or a vertex it skins)";
+pub(super) const SKIN_NOT_FINITE: &str =
+    "is not finite (a joint's matrix, or a vertex it skins, or it carries one beyond 1e12 units of the origin)";
 
 impl SkinJoints {
     /// Each joint's `world(joint) × inverseBindMatrix(joint)`, `world` giving a node's world
@@ -163,7 +164,7 @@ impl SkinJoints {
 
 /// `prims` skinned by `joints` ([`skin_primitive`]), or `None` when a skinned vertex is not
 /// finite (a joint whose matrix is not finite, or one that overflows a vertex; joints no
-/// vertex weighs do not matter).
+/// vertex weighs do not matter) or lies beyond [`WORLD_LIMIT`](crate::scene::WORLD_LIMIT).
 pub(super) fn skin_all(
     prims: &[LocalPrimitive],
     joints: &[Mat4],
@@ -171,7 +172,7 @@ pub(super) fn skin_all(
 ) -> Result<Option<Vec<LocalPrimitive>>, SceneError> {
     let skinned: Vec<LocalPrimitive> =
         prims.iter().map(|p| skin_primitive(p, joints, what)).collect::<Result<_, _>>()?;
-    let finite = skinned.iter().all(|p| p.positions.iter().all(|v| v.is_finite()));
+    let finite = skinned.iter().all(|p| p.positions.iter().all(|v| crate::scene::in_world(*v)));
     Ok(finite.then_some(skinned))
 }
 
