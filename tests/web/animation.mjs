@@ -71,11 +71,16 @@ export async function animation(o) {
         // The times shown, sampled: the time wraps over the animation's length, so the time at
         // the end of the window says nothing (4 s at 0.25x of a 1 s animation ends where it began).
         const times = new Set();
+        // The band policy's estimate of a whole frame (its cost per row times the rows): a
+        // restart is previewed only where it exceeds the budget.
+        let maxFrameMsEstimate = null;
         const t0 = performance.now();
         while (performance.now() - t0 < 4000) {
           await wait(50);
           maxSpp = Math.max(maxSpp, l.spp());
           times.add(l.animation().time);
+          const i = l.info();
+          if (i.bandMs !== null) maxFrameMsEstimate = Math.max(maxFrameMsEstimate ?? 0, i.bandMs / i.bandRows * i.height);
         }
         const moved = l.animation().time;
         const posesWhilePlaying = l.animation().poses - posesBefore;
@@ -87,7 +92,7 @@ export async function animation(o) {
         await wait(4000);
         return {
           start, moved, timesShown: times.size, posesWhilePlaying, maxSppWhilePlaying: maxSpp, framesWhilePlaying,
-          previewsWhilePlaying,
+          previewsWhilePlaying, maxFrameMsEstimate, bandBudgetMs: l.info().bandBudgetMs,
           pausedAt, afterPause: l.spp(), poseMs: l.animation().poseMs,
         };
       });
@@ -125,4 +130,40 @@ async function playFor(seconds) {
   }
   l.setPlaying(false);
   return { seconds, samples, error: l.error };
+}
+
+// The bench's `--play SECONDS` (bench.mjs): in the page, the frame loop run with the animation
+// playing at real speed for `seconds`, then paused as long, twice, alternated (play, pause,
+// play, pause; half a second's settling before each turn, not counted). Per turn: poses shown,
+// previews and whole frames completed per second, and the median time of a pose on the host.
+export async function playAndPause(seconds) {
+  const l = window.lightport;
+  const wait = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
+  const median = (v) => [...v].sort((x, y) => x - y)[Math.floor(v.length / 2)];
+  const turns = [];
+  l.setAnimationSpeed(1);
+  for (const playing of [true, false, true, false]) {
+    l.setPlaying(playing);
+    l.resume();
+    await wait(500);
+    const before = { frames: l.frames, poses: l.animation().poses, previews: l.info().preview.rendered };
+    const poseMs = [];
+    const t0 = performance.now();
+    while (performance.now() - t0 < seconds * 1000) {
+      await wait(100);
+      poseMs.push(l.animation().poseMs);
+    }
+    const s = (performance.now() - t0) / 1000;
+    turns.push({
+      playing,
+      seconds: s,
+      framesPerS: (l.frames - before.frames) / s,
+      posesPerS: (l.animation().poses - before.poses) / s,
+      previewsPerS: (l.info().preview.rendered - before.previews) / s,
+      poseMs: median(poseMs),
+    });
+  }
+  l.setPlaying(false);
+  l.pause();
+  return turns;
 }

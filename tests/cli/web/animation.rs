@@ -92,11 +92,18 @@ fn a_served_moving_gltf_plays_on_the_page() {
         let playing = &report["playing"];
         assert_time_moves(api, playing);
         assert!(playing["maxSppWhilePlaying"].as_u64() <= Some(2), "{api}: it accumulated while moving: {playing}");
-        // 16x16 frames fit the band budget even on SwiftShader: each pose is rendered in full,
-        // not previewed (a preview per restart is for devices measured too slow for whole
-        // frames; a policy that took its first, unmeasured bands for that previewed every pose).
+        // A preview per restart is for devices measured too slow for whole frames: poses are
+        // previewed only where the band policy's estimate of a frame exceeded the budget (a
+        // policy that took its first, unmeasured bands for that previewed every pose). 16x16
+        // frames fit the budget on SwiftShader when the machine is idle, and no pose is
+        // previewed; CI, loaded, measured them slower (fences answered late) and previewed.
+        let estimate = playing["maxFrameMsEstimate"].as_f64();
+        let budget = playing["bandBudgetMs"].as_f64().expect("the band budget");
+        assert!(
+            playing["previewsWhilePlaying"].as_u64() == Some(0) || estimate.is_some_and(|ms| ms > budget),
+            "{api}: poses were previewed though frames were not measured beyond the budget: {playing}"
+        );
         assert!(playing["framesWhilePlaying"].as_u64() > Some(0), "{api}: no full frame while playing: {playing}");
-        assert_eq!(playing["previewsWhilePlaying"].as_u64(), Some(0), "{api}: poses were previewed: {playing}");
         let (paused, after) = (playing["pausedAt"].as_u64().unwrap_or(0), playing["afterPause"].as_u64().unwrap_or(0));
         assert!(after >= paused + 3, "{api}: paused, it did not accumulate: {playing}");
     }
