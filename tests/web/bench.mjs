@@ -15,9 +15,14 @@
 // `--auto 1`: on WebGPU (`schedule=auto`, the page's default), what the page's own measurement
 // of the two schedules chooses per scene (its medians, ratio and choice), after the warm visit's
 // frames, one row per round.
-//        [--preview 0]
+//        [--preview 0] [--play SECONDS]
 //
 // `--preview 0`: the page without the preview (`preview=0`): the first image is the first frame.
+//
+// `--play SECONDS`: for each scene that moves (LittlestTokyo), in the warm visit, the frame loop
+// with the animation playing at real speed and paused, in turns of that long, alternated
+// (animation.mjs's playAndPause): poses, previews and whole frames per second, and the pose's
+// host time; medians over turns and rounds.
 //
 // `--depths 8,32`: the frame time at each path depth (the page's setMaxDepth, in the warm
 // visit; the first frames are at the bundle's depth, 8), a column per API and depth.
@@ -122,7 +127,7 @@ try {
       execFileSync('node', [join(here, 'run.mjs'), 'bench', '--url', url, '--out', out, '--size', size, '--frames', frames,
         '--api', pageApi, ...(schedule ? ['--schedule', schedule] : []), ...(args.depths ? ['--depths', args.depths] : []),
         ...(args.preview ? ['--preview', args.preview] : []),
-        ...(args.auto ? ['--auto', args.auto] : []),
+        ...(args.auto ? ['--auto', args.auto] : []), ...(args.play ? ['--play', args.play] : []),
         '--scenes', scenes.map((s) => s.name).join(',')], { stdio: 'inherit' });
       const { results } = JSON.parse(readFileSync(out, 'utf8'));
       rmSync(out, { force: true });
@@ -209,6 +214,21 @@ try {
           const ratio = typeof c.ratio === 'number' ? `${c.ratio.toFixed(2)}x` : '–';
           console.log(`| ${s.name} | ${round + 1} | ${c.state || '–'} | ${ms(c.measuredMegakernelMs)} | ${ms(c.measuredWavefrontMs)} | ${ratio} | ${c.chosen || '–'} |`);
         });
+      }
+    }
+  }
+
+  // `--play SECONDS`: the page's frame loop while a scene plays, against paused.
+  if (args.play) {
+    console.log(`\nPlaying at real speed against paused, the frame loop for ${args.play} s turns, alternated (medians over turns and rounds; per second):\n`);
+    console.log('| scene | api | playing: poses | playing: previews | playing: whole frames | paused: whole frames | pose on the host (ms) |');
+    console.log('|---|---|---|---|---|---|---|');
+    for (const s of scenes) {
+      for (const api of apis) {
+        const turns = runs[api][s.name].flatMap((r) => r.play || []);
+        if (!turns.length) continue;
+        const of = (playing, key) => median(turns.filter((t) => t.playing === playing).map((t) => t[key]));
+        console.log(`| ${s.name} | ${api} | ${of(true, 'posesPerS').toFixed(1)} | ${of(true, 'previewsPerS').toFixed(1)} | ${of(true, 'framesPerS').toFixed(2)} | ${of(false, 'framesPerS').toFixed(2)} | ${of(true, 'poseMs').toFixed(1)} |`);
       }
     }
   }

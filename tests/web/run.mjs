@@ -15,7 +15,7 @@ import { rmSync, writeFileSync, readFileSync } from 'node:fs';
 import {
   freshProfile, open, pageApi, setBrowserFlags, setPageApi, setPageSchedule, withBrowser,
 } from './page.mjs';
-import { animation } from './animation.mjs';
+import { animation, playAndPause } from './animation.mjs';
 import { apiChoice, autoSchedule, deviceLoss, fallback } from './api.mjs';
 import { preview } from './preview.mjs';
 
@@ -516,6 +516,8 @@ async function bench(o) {
                 row.info = info;
               }
             }
+            // `--play SECONDS`: a scene that moves, played by the frame loop and paused in turn.
+            if (o.play && row.info.animation) row.play = await page.evaluate(playAndPause, Number(o.play));
             // `--auto 1`: what `schedule=auto` measures and chooses for this scene on WebGPU (the
             // page's own measurement, web/src/viewer/measure.rs), after the frames above.
             if (o.auto === '1' && row.info.api === 'WebGPU' && row.info.scheduleRequested === 'auto') {
