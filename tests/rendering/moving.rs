@@ -163,3 +163,91 @@ fn a_bundle_poses_as_the_loaded_scene_and_as_packing_it_whole() {
     let err = Bundle::decode(&encode_scene("mixed", &other, &small)).expect_err("mismatched parts");
     assert!(err.to_string().contains("do not match"), "{err}");
 }
+
+/// A glTF grid of `n` x `n` quads (2n² triangles) facing +Z, whose one morph target slides
+/// strips of it apart, its weight animated from 0 at 0 s to 1 at 1 s (LINEAR).
+fn morphed_grid_gltf(n: usize) -> Vec<u8> {
+    use base64::Engine;
+    let mut positions = Vec::new();
+    let mut bulge = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let (x, y) = (i as f32 / n as f32 * 2.0 - 1.0, j as f32 / n as f32 * 2.0 - 1.0);
+            positions.extend([x, y, 0.0]);
+            // Strips of columns slid apart along Y: at weight 0.1 a refit stays close to a
+            // build, at 1 it is far worse (examples/bench_refit.rs's torn grid).
+            let strip = (i * 16 / (n + 1)) as f32;
+            bulge.extend([0.0, if strip % 2.0 == 0.0 { strip / 8.0 } else { -strip / 8.0 }, 0.0]);
+        }
+    }
+    let mut indices: Vec<u32> = Vec::new();
+    for j in 0..n as u32 {
+        for i in 0..n as u32 {
+            let at = |i: u32, j: u32| j * (n as u32 + 1) + i;
+            indices.extend([at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+        }
+    }
+    let floats = |v: &[f32]| v.iter().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
+    let mut bytes = floats(&positions);
+    let offsets = [0, bytes.len()];
+    bytes.extend(floats(&bulge));
+    let index_at = bytes.len();
+    bytes.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
+    let keys_at = bytes.len();
+    bytes.extend(floats(&[0.0, 1.0, 0.0, 1.0]));
+    let uri =
+        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes));
+    let vertices = (n + 1) * (n + 1);
+    let json = serde_json::json!({
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "weights": [0.0]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 2, "targets": [{"POSITION": 1}]}]}],
+        "animations": [{"channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}],
+                        "samplers": [{"input": 3, "output": 4}]}],
+        "buffers": [{"byteLength": bytes.len(), "uri": uri}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": offsets[0], "byteLength": vertices * 12},
+            {"buffer": 0, "byteOffset": offsets[1], "byteLength": vertices * 12},
+            {"buffer": 0, "byteOffset": index_at, "byteLength": indices.len() * 4},
+            {"buffer": 0, "byteOffset": keys_at, "byteLength": 16}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": vertices, "type": "VEC3", "min": [-1, -1, 0], "max": [1, 1, 0]},
+            {"bufferView": 1, "componentType": 5126, "count": vertices, "type": "VEC3", "min": [0, -2, 0], "max": [0, 2, 0]},
+            {"bufferView": 2, "componentType": 5125, "count": indices.len(), "type": "SCALAR"},
+            {"bufferView": 3, "byteOffset": 0, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0], "max": [1]},
+            {"bufferView": 3, "byteOffset": 8, "componentType": 5126, "count": 2, "type": "SCALAR"}
+        ]
+    });
+    serde_json::to_vec(&json).unwrap()
+}
+
+/// A deformed mesh of `pack::REFIT_MIN_TRIANGLES` or more (a 48 x 48 morphed grid, 4,608
+/// triangles) is posed with its first pose's bottom level refitted, not built again: its node
+/// arrays differ from packing the posed scene whole, yet the CPU renders the two bit for bit
+/// alike (the closest hit does not depend on the hierarchy); where the refit degrades past
+/// `REFIT_BOUND` (strips torn apart at 1 s) the pose builds it again, as packing whole does. Below the threshold (the
+/// moving-parts scene above) poses stay bit for bit what packing whole gives.
+#[test]
+fn a_large_deformed_mesh_is_refitted_and_renders_as_packing_it_whole() {
+    use tracer::pack::MovingScene;
+    let options = LoadOptions { keep_motion: true, ..Default::default() };
+    let mut scene: Scene = load_gltf_slice(&morphed_grid_gltf(48), None, &options).expect("loads");
+    scene.sky = Some(Sky::uniform(Vec3::splat(0.8)));
+    assert!(scene.meshes.iter().any(|m| m.triangles.len() >= tracer::pack::REFIT_MIN_TRIANGLES));
+    let settings = RenderSettings { width: 24, height: 24, strategy: Strategy::Mis, max_depth: 3 };
+    let (bvh, textures) = (static_bvh(&scene).expect("BVH"), pack_textures(&scene));
+    let (mut moving, _) = MovingScene::new(scene.clone(), &settings).expect("packs");
+    let mut whole = scene.clone();
+    let mut refitted = Vec::new();
+    for time in [0.1, 0.05, 1.0] {
+        assert!(moving.pose(time).expect("poses"));
+        whole.pose(time).expect("poses");
+        let posed = moving.pack().expect("packs");
+        let reference = pack_with_textures(&whole, &bvh, &textures, &settings).expect("packs");
+        refitted.push(posed.scene.nodes != reference.scene.nodes);
+        let image = |packed: Packed| frames_bits(create(RendererKind::Cpu, packed, 3).expect("renderer").as_mut(), 2);
+        assert!(image(posed) == image(reference), "{time} s: the refitted pose renders differently");
+    }
+    assert_eq!(refitted, [true, true, false], "refitted at 0.1 and 0.05 s, torn past the bound at 1 s: built again");
+}

@@ -135,6 +135,9 @@ pub enum BvhError {
     /// panicking).
     #[error("internal BVH error: {0}")]
     Internal(String),
+    /// A refit was given another number of triangles than the hierarchy holds.
+    #[error("refitting a BVH over {1} triangles to {0}")]
+    Refit(usize, usize),
 }
 
 /// Most triangles a BVH may hold (node indices are u32 and there are up to 2n - 1 nodes).
@@ -485,6 +488,37 @@ impl Bvh {
             need[i] = (bound(k, most), bound(n.children, most_with_leaves));
         }
         Ok(WideBvh { nodes, depth, stack_needed: need[0].0, stack_needed_with_leaves: need[0].1 })
+    }
+
+    /// The same hierarchy over `triangles` moved (the triangles it was built over, each where
+    /// a pose put it; the same count): every box made tight again, leaves from their
+    /// triangles and interior nodes from their children (children follow their parent, so one
+    /// pass from the back). The topology and the triangle order are kept, so its quality
+    /// ([`sah_cost`](Self::sah_cost)) degrades as the triangles move apart from where they were
+    /// built; a caller rebuilds past a bound (`pack::posing::REFIT_BOUND`).
+    pub fn refit(&mut self, triangles: &[Triangle]) -> Result<(), BvhError> {
+        if triangles.len() != self.triangle_order.len() {
+            return Err(BvhError::Refit(triangles.len(), self.triangle_order.len()));
+        }
+        if let Some(i) = triangles.iter().position(|t| !t.positions.iter().all(|p| p.is_finite())) {
+            return Err(BvhError::NonFinite(i));
+        }
+        for i in (0..self.nodes.len()).rev() {
+            let n = self.nodes[i];
+            let (first, count) = (n.first as usize, n.count as usize);
+            let (min, max) = if n.is_leaf() {
+                let order = &self.triangle_order[first..first + count];
+                order
+                    .iter()
+                    .flat_map(|&t| triangles[t as usize].positions)
+                    .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)))
+            } else {
+                let (a, b) = (self.nodes[first], self.nodes[first + 1]);
+                (a.min.min(b.min), a.max.max(b.max))
+            };
+            (self.nodes[i].min, self.nodes[i].max) = (min, max);
+        }
+        Ok(())
     }
 
     /// Surface-area-heuristic cost with unit traversal and intersection costs:

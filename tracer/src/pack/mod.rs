@@ -25,7 +25,7 @@ mod materials;
 mod moving;
 pub use moving::{MovingScene, PoseError};
 mod posing;
-pub use posing::Posing;
+pub use posing::{Posing, REFIT_BOUND, REFIT_MIN_TRIANGLES};
 mod sky;
 #[cfg(test)]
 mod tests;

@@ -66,9 +66,25 @@ enum LevelKind {
     /// leaves too).
     Kept { nodes: Range<usize>, need: (u32, u32) },
     /// Made again at each pose: per triangle of the mesh (in mesh order), whether the kernel
-    /// alpha-tests it.
-    Deformed { alpha_tested: Vec<bool> },
+    /// alpha-tests it; for a mesh of [`REFIT_MIN_TRIANGLES`] or more, its bottom level at the
+    /// first pose and that level's SAH cost, which each pose refits.
+    Deformed { alpha_tested: Vec<bool>, refit: Option<(crate::bvh::Bvh, f32)> },
 }
+
+/// A deformed mesh of at least this many triangles has its first pose's bottom level refitted
+/// at each pose ([`crate::bvh::Bvh::refit`]: boxes made tight again over the same topology)
+/// instead of built again: a build costs ~0.3 µs a triangle here (release, 2 cores: 30 ms for
+/// 100k), a refit a tenth of that. A smaller mesh is built again (about a millisecond or less:
+/// LittlestTokyo's 8 skinned meshes have 758 triangles in all), so its pose stays bit for bit
+/// what packing the posed scene gives.
+pub const REFIT_MIN_TRIANGLES: usize = 4096;
+
+/// A refitted bottom level whose SAH cost grew past this many times its first pose's is built
+/// again for that pose. Measured (`examples/bench_refit.rs`, a 100k-triangle grid): bulged
+/// and twisted as skins and morphs deform, the ratio reached 2.07 while the refitted level
+/// traced as fast as a rebuilt one (0.94-1.23x the rays/s) for a tenth of the time (3 ms
+/// against 30); torn apart, it was 3.75 and more, tracing at 0.38x and less.
+pub const REFIT_BOUND: f32 = 2.5;
 
 /// Why the moving parts do not match the packed scene.
 fn mismatch<T>(what: impl std::fmt::Display) -> Result<T, PackError> {
@@ -146,7 +162,14 @@ impl Posing {
             let triangles = next_triangle..next_triangle + count;
             next_triangle += count;
             let kind = match mesh.filter(|m| deformed.contains(m)) {
-                Some(m) => LevelKind::Deformed { alpha_tested: deformed_flags(first, parts, m, &triangles)? },
+                Some(m) => {
+                    let (alpha_tested, bvh) = deformed_flags(first, parts, m, &triangles)?;
+                    let refit = (count >= REFIT_MIN_TRIANGLES).then(|| {
+                        let cost = bvh.sah_cost();
+                        (bvh, cost)
+                    });
+                    LevelKind::Deformed { alpha_tested, refit }
+                }
                 None => LevelKind::Kept { need: kept_need(first, &nodes, &triangles)?, nodes },
             };
             if let Some(m) = mesh {
@@ -180,7 +203,7 @@ impl Posing {
             .levels
             .par_iter()
             .map(|level| match (&level.kind, level.mesh) {
-                (LevelKind::Deformed { .. }, Some(m)) => {
+                (LevelKind::Deformed { refit, .. }, Some(m)) => {
                     let mesh = &parts.meshes[m];
                     if mesh.triangles.len() != level.triangles.len() {
                         return mismatch(format!(
@@ -189,7 +212,7 @@ impl Posing {
                             level.triangles.len()
                         ));
                     }
-                    let bvh = crate::bvh::build(&mesh.triangles).map_err(PackError::Bvh)?;
+                    let bvh = deformed_level(refit.as_ref(), &mesh.triangles).map_err(PackError::Bvh)?;
                     check_leaves(&bvh)?;
                     let wide = bvh.widen().map_err(PackError::Bvh)?;
                     Ok(Some((bvh, wide)))
@@ -288,7 +311,7 @@ impl Posing {
             // Each deformed triangle: its index, the triangle, whether it is alpha-tested.
             let each = |write: &mut dyn FnMut(usize, &crate::scene::Triangle, bool)| {
                 for (level, rebuilt) in self.levels.iter().zip(&rebuilt) {
-                    let (LevelKind::Deformed { alpha_tested }, Some((bvh, _)), Some(m)) =
+                    let (LevelKind::Deformed { alpha_tested, .. }, Some((bvh, _)), Some(m)) =
                         (&level.kind, rebuilt, level.mesh)
                     else {
                         continue;
@@ -415,10 +438,31 @@ fn kept_need(first: &Packed, nodes: &Range<usize>, triangles: &Range<usize>) -> 
     need.first().copied().map_or_else(|| mismatch("a level without nodes"), Ok)
 }
 
-/// A deformed mesh's alpha-test flags per triangle in mesh order: its level in `first` is its
+/// A deformed mesh's bottom level at a pose (`triangles`): its first pose's `refit` (the level
+/// and its SAH cost), refitted, unless that degraded it past [`REFIT_BOUND`]; else built.
+fn deformed_level(
+    refit: Option<&(crate::bvh::Bvh, f32)>,
+    triangles: &[crate::scene::Triangle],
+) -> Result<crate::bvh::Bvh, crate::bvh::BvhError> {
+    if let Some((first, cost)) = refit {
+        let mut bvh = first.clone();
+        bvh.refit(triangles)?;
+        if bvh.sah_cost() <= REFIT_BOUND * cost {
+            return Ok(bvh);
+        }
+    }
+    crate::bvh::build(triangles)
+}
+
+/// A deformed mesh's alpha-test flags per triangle in mesh order (and its bottom level): its level in `first` is its
 /// triangles in the order of its bottom level, built again here from `parts` (the same pose)
 /// and checked against the packed corners.
-fn deformed_flags(first: &Packed, parts: &Scene, m: usize, triangles: &Range<usize>) -> Result<Vec<bool>, PackError> {
+fn deformed_flags(
+    first: &Packed,
+    parts: &Scene,
+    m: usize,
+    triangles: &Range<usize>,
+) -> Result<(Vec<bool>, crate::bvh::Bvh), PackError> {
     let mesh = &parts.meshes[m];
     let bvh = crate::bvh::build(&mesh.triangles).map_err(PackError::Bvh)?;
     let packed = first.scene.triangles.as_slice();
@@ -435,7 +479,7 @@ fn deformed_flags(first: &Packed, parts: &Scene, m: usize, triangles: &Range<usi
         }
         flags[t] = texels[2].w == 1.0;
     }
-    Ok(flags)
+    Ok((flags, bvh))
 }
 
 /// The static placement's world box: its top-level leaf's box in `first` (the placement whose
