@@ -138,6 +138,9 @@ async function playFor(seconds) {
 // previews and whole frames completed per second, and the median time of a pose on the host.
 export async function playAndPause(seconds) {
   const l = window.lightport;
+  // Under schedule=auto on WebGPU a measurement due would stall the turns (a moving scene's is
+  // skipped: its result is null at once).
+  await l.measureSchedule();
   const wait = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
   const median = (v) => [...v].sort((x, y) => x - y)[Math.floor(v.length / 2)];
   const turns = [];

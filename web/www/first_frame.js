@@ -75,8 +75,8 @@ export class FirstFrame {
     if (load !== this.loading || !s) return;
     const p = load.preview;
     p.doneAt = doneAt;
-    p.compiledAt = compileEnd(s, p.submitted, doneAt);
-    p.gpuMs = doneAt - p.compiledAt;
+    p.verdictAt = verdictBefore(s, doneAt);
+    p.gpuMs = doneAt - Math.max(p.submitted, p.verdictAt ?? p.submitted);
     this.hook.firstImage = {
       preview: true, scene: load.name, width: p.width, height: p.height, totalMs: doneAt - load.start, gpuMs: p.gpuMs,
     };
@@ -131,7 +131,7 @@ export class FirstFrame {
     const info = viewer.sceneInfo();
     if (!s) return;
     const p = load.preview && load.preview.doneAt !== null ? load.preview : null;
-    const compiledAt = p ? p.compiledAt : compileEnd(s, load.submitted ?? doneAt, doneAt);
+    const verdictAt = p ? p.verdictAt : verdictBefore(s, doneAt);
     const split = {
       api: info.api,
       scene: load.name,
@@ -139,10 +139,10 @@ export class FirstFrame {
       downloadMs: load.fetched !== null && load.fetchStart !== null ? load.fetched - load.fetchStart : 0,
       decodeMs: s.decodeMs,
       uploadMs: s.uploadMs,
-      compileMs: s.codegenMs + s.compileMs + Math.max(0, compiledAt - s.createdAt),
+      compileMs: s.codegenMs + s.compileMs + Math.max(0, (verdictAt ?? s.createdAt) - s.createdAt),
       // The preview's GPU time (0 without one), then the full frame's, from its first band.
       previewMs: p ? p.gpuMs : 0,
-      gpuMs: doneAt - Math.max(load.submitted ?? doneAt, compiledAt, p ? p.doneAt : 0),
+      gpuMs: doneAt - Math.max(load.submitted ?? doneAt, verdictAt ?? 0, p ? p.doneAt : 0),
       // The first image on screen: the preview (its size), or this frame.
       firstImageMs: p ? p.doneAt - load.start : doneAt - load.start,
       preview: p ? { width: p.width, height: p.height } : null,
@@ -167,12 +167,12 @@ function sec(ms) {
   return (ms / 1000).toFixed(2);
 }
 
-// When the first work submitted at `submitted` and done at `doneAt` could start: the pipeline's
-// verdict time (sceneInfo().startup.compiledAt) where it came before the work was done, else
-// the submission. WebGPU's verdict can arrive after the work it compiled for is done (a late
-// notification, not a late compile): then when the compile ended is unknown, and the wait
-// counts as the work's GPU time rather than as none.
-function compileEnd(startup, submitted, doneAt) {
+// The pipeline's verdict time (sceneInfo().startup.compiledAt) where it came before the work
+// done at `doneAt` was (it then bounds the compile's end and the work's start); else null.
+// WebGPU's verdict can arrive after the work it compiled for is done (a late notification, not
+// a late compile): then when the compile ended is unknown, the compile counts only what was
+// measured of it, and the wait counts as the work's GPU time rather than as none.
+function verdictBefore(startup, doneAt) {
   const verdict = startup.compiledAt;
-  return Math.max(submitted, verdict != null && verdict < doneAt ? verdict : submitted);
+  return verdict != null && verdict < doneAt ? verdict : null;
 }

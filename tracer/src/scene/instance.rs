@@ -120,7 +120,7 @@ impl Scene {
             if !inst.has_valid_transform() {
                 return Err(InstanceError::BadTransform { instance: i });
             }
-            if !inst.world_bounds(bounds[inst.mesh as usize]).in_world() {
+            if !mesh.triangles.is_empty() && !inst.world_bounds(bounds[inst.mesh as usize]).in_world() {
                 return Err(InstanceError::BeyondWorld { instance: i });
             }
             // Each placed mesh is checked once.

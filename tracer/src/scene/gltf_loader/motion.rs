@@ -8,12 +8,13 @@
 //!   level over them;
 //! - a skinned mesh, or one whose morph weights are animated, is *deformed*: its triangles are
 //!   made again at each pose (morphed, then skinned or placed by its node) as a mesh placed by
-//!   the identity, whose bottom level is rebuilt.
+//!   the identity, whose bottom level is rebuilt or refitted (`pack::posing`).
 //!
 //! A pose that cannot place a moving part drops it there, with one warning ([`dropped`];
 //! `--strict` refuses it), keeping the scene's numbers of placements and triangles: a
-//! placement's transform that cannot be inverted or is not finite ([`placeable`]), a deformed
-//! mesh's joints or morph weights that make a vertex non-finite (`DeformedMesh::dropped`).
+//! placement's transform that cannot be inverted, is not finite or carries its mesh beyond
+//! `scene::WORLD_LIMIT` ([`placeable`]), a deformed mesh's joints or morph weights that make a
+//! vertex non-finite or carry it beyond the limit (`DeformedMesh::dropped`).
 //!
 //! Everything else stays as the loader flattens it, so the static part of a scene keeps its
 //! one BVH. Lights and cameras stay where the load-time pose put them; an emissive mesh under
@@ -189,9 +190,11 @@ impl Motion {
         if let Some(d) = self.deformed.iter().find(|d| d.mesh >= meshes.len()) {
             return Err(format!("a deformed mesh is mesh {} of {}", d.mesh, meshes.len()));
         }
+        let mut bounds: Vec<Option<Aabb>> = vec![None; meshes.len()];
         for r in &mut self.rigid {
             let mesh = instances[r.instance].mesh as usize;
-            r.bounds = meshes.get(mesh).ok_or_else(|| format!("instance {} names mesh {mesh}", r.instance))?.bounds();
+            let known = bounds.get_mut(mesh).ok_or_else(|| format!("instance {} names mesh {mesh}", r.instance))?;
+            r.bounds = *known.get_or_insert_with(|| meshes[mesh].bounds());
         }
         Ok(())
     }
@@ -333,7 +336,7 @@ impl DeformedMesh {
 }
 
 /// A placement or deformed mesh a pose drops: what ("node 3", "node 3 mesh 1") and why
-/// ([`SINGULAR`], [`NOT_FINITE`], `SKIN_NOT_FINITE`, `MORPH_NOT_FINITE`).
+/// ([`SINGULAR`], [`NOT_FINITE`], [`BEYOND_WORLD`], `SKIN_NOT_FINITE`, `MORPH_NOT_FINITE`).
 type Dropped = (String, &'static str);
 
 /// Why a pose drops a placement ([`dropped`]).
@@ -508,5 +511,17 @@ impl Loader<'_> {
     /// Whether a channel of the kept motion moves node `n`.
     pub(super) fn channel_moves(&self, n: usize) -> bool {
         self.motion.as_ref().is_some_and(|m| m.moves(n))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// The drop reasons that name the world's limit name `scene::WORLD_LIMIT` as it is.
+    #[test]
+    fn the_reasons_name_the_world_limit() {
+        let limit = format!("{:e} units", crate::scene::WORLD_LIMIT);
+        for why in [super::BEYOND_WORLD, super::SKIN_NOT_FINITE, super::MORPH_NOT_FINITE] {
+            assert!(why.contains(&limit), "{why:?} does not say {limit:?}");
+        }
     }
 }

@@ -56,14 +56,7 @@ impl Loader<'_> {
             // that holds a mesh, a camera or a light: a bare joint's drop is its skinned mesh's,
             // `instantiate_skinned`).
             let finite = world.is_finite();
-            let why = match (finite, node.mesh) {
-                _ if !moving || self.motion.is_some() => None,
-                (false, _) => Some(super::motion::NOT_FINITE),
-                (true, Some(m)) => {
-                    super::motion::unplaceable(world, super::motion::primitives_bounds(&self.mesh(m.value())?))
-                }
-                (true, None) => None,
-            };
+            let why = if moving && self.motion.is_none() { self.posed_drop(node, &world)? } else { None };
             // A dropped node's mesh is left out (carried beyond the world or made singular, its
             // children may still come back).
             let drop_mesh = why.is_some();
@@ -129,6 +122,23 @@ impl Loader<'_> {
     }
 
     /// Whether node `n` or a node below it holds a mesh, a camera or a light.
+    /// Why the pose at the load time drops a moving node (`world` its transform there), without
+    /// a kept motion: not finite (it and everything below), or its mesh unplaceable
+    /// (`motion::unplaceable`). A skinned mesh is placed by its joints, not its node's
+    /// transform, so only a non-finite one drops its node.
+    fn posed_drop(&mut self, node: &gltf::json::scene::Node, world: &Mat4) -> Result<Option<&'static str>, SceneError> {
+        if !world.is_finite() {
+            return Ok(Some(super::motion::NOT_FINITE));
+        }
+        match node.mesh.filter(|_| node.skin.is_none()) {
+            Some(m) => {
+                let bounds = super::motion::primitives_bounds(&self.mesh(m.value())?);
+                Ok(super::motion::unplaceable(*world, bounds))
+            }
+            None => Ok(None),
+        }
+    }
+
     fn places_something(&self, n: usize) -> bool {
         let nodes = &self.root.nodes;
         let mut seen = vec![false; nodes.len()];

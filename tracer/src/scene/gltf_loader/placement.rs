@@ -11,7 +11,7 @@
 
 use super::nodes::LocalPrimitive;
 use super::*;
-use crate::scene::{Instance, Mesh};
+use crate::scene::{Aabb, Instance, Mesh};
 
 /// Least number of triangles instancing a mesh must save for it to be instanced: below it the
 /// copies cost less memory than a second level costs time (`examples/bench_instancing.rs`).
@@ -56,6 +56,8 @@ impl Loader<'_> {
         }
         // glTF mesh -> its index in `self.instanced_meshes`, for meshes the rule instances.
         let mut mesh_slot: HashMap<usize, Option<u32>> = HashMap::new();
+        // Slot -> its mesh's bounds (what a placement may not carry beyond the world).
+        let mut slot_bounds: HashMap<u32, Aabb> = HashMap::new();
         for p in pending {
             let slot = match (p.shared && !flatten, mesh_slot.get(&p.mesh)) {
                 (false, _) => None,
@@ -69,6 +71,16 @@ impl Loader<'_> {
             match slot {
                 Some(slot) => {
                     let instance = Instance { mesh: slot, transform: p.world };
+                    let bounds =
+                        *slot_bounds.entry(slot).or_insert_with(|| self.instanced_meshes[slot as usize].bounds());
+                    if p.world.is_finite() && !instance.world_bounds(bounds).in_world() {
+                        // As flattened geometry there is refused (`Scene::validate`).
+                        return Err(malformed(format!(
+                            "mesh {} is placed beyond {:e} units of the origin (where the renderer's arithmetic overflows)",
+                            p.mesh,
+                            crate::scene::WORLD_LIMIT
+                        )));
+                    }
                     if instance.has_valid_transform() {
                         self.instances.push(instance);
                     } else {

@@ -157,7 +157,10 @@ impl SkinJoints {
     pub(super) fn not_finite(&self, joints: &[Mat4], what: &str) -> SceneError {
         match self.joints.iter().zip(joints).find(|(_, m)| !m.is_finite()) {
             Some((j, _)) => malformed(format!("{what}: joint node {j} has a non-finite transform")),
-            None => malformed(format!("{what}: a skinned vertex is not finite")),
+            None => malformed(format!(
+                "{what}: a skinned vertex is not finite or lies beyond {:e} units of the origin",
+                crate::scene::WORLD_LIMIT
+            )),
         }
     }
 }
