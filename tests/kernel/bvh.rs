@@ -326,7 +326,8 @@ fn better_presets_have_lower_sah_cost() {
 /// refitted hierarchy holds every structural invariant against the moved triangles and finds
 /// the brute-force closest hit on every ray; refitted to the triangles it was built over it is
 /// the built one exactly; and its SAH cost against a hierarchy built for the moved triangles
-/// grows with the deformation (what `REFIT_BOUND` bounds). A wrong count is an error.
+/// grows with the deformation (what `REFIT_BOUND` bounds). A wrong count, or a corrupt
+/// hierarchy, is an error.
 #[test]
 fn a_refitted_bvh_over_moved_triangles_matches_brute_force() {
     let rest = triangle_soup(4000, 11);
@@ -355,4 +356,11 @@ fn a_refitted_bvh_over_moved_triangles_matches_brute_force() {
     // Against a hierarchy built for the moved triangles (measured: 1.00, 1.05, 1.28, 1.51).
     assert!(costs[0] == 1.0 && costs.windows(2).all(|w| w[1] > w[0]), "refitted / rebuilt SAH: {costs:?}");
     assert!(built.clone().refit(&rest[1..]).is_err(), "one triangle short");
+    // A corrupt hierarchy is an error, not a panic: a child index past the nodes, a leaf past
+    // the triangle order, a child before its parent.
+    for (node, first) in [(0, u32::MAX - 1), (built.nodes.len() - 1, u32::MAX - 1), (1, 0)] {
+        let mut bad = built.clone();
+        bad.nodes[node].first = first;
+        assert!(bad.refit(&rest).is_err(), "node {node} naming {first}");
+    }
 }

@@ -503,18 +503,25 @@ impl Bvh {
         if let Some(i) = triangles.iter().position(|t| !t.positions.iter().all(|p| p.is_finite())) {
             return Err(BvhError::NonFinite(i));
         }
+        let corrupt = |i: usize| BvhError::Internal(format!("refit: node {i} names what it cannot hold"));
         for i in (0..self.nodes.len()).rev() {
             let n = self.nodes[i];
             let (first, count) = (n.first as usize, n.count as usize);
             let (min, max) = if n.is_leaf() {
-                let order = &self.triangle_order[first..first + count];
-                order
-                    .iter()
-                    .flat_map(|&t| triangles[t as usize].positions)
-                    .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)))
+                let order = self.triangle_order.get(first..first + count).ok_or_else(|| corrupt(i))?;
+                let mut b = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+                for &t in order {
+                    for p in triangles.get(t as usize).ok_or_else(|| corrupt(i))?.positions {
+                        b = (b.0.min(p), b.1.max(p));
+                    }
+                }
+                b
             } else {
-                let (a, b) = (self.nodes[first], self.nodes[first + 1]);
-                (a.min.min(b.min), a.max.max(b.max))
+                // Children follow their parent: refitted already, in one pass from the back.
+                match (first > i, self.nodes.get(first), self.nodes.get(first + 1)) {
+                    (true, Some(a), Some(b)) => (a.min.min(b.min), a.max.max(b.max)),
+                    _ => return Err(corrupt(i)),
+                }
             };
             (self.nodes[i].min, self.nodes[i].max) = (min, max);
         }

@@ -9,10 +9,12 @@
 //! (skinned, morphed) meshes again with the same number of triangles, so:
 //!
 //! - the triangles of every level keep their place; a deformed mesh's are written again in
-//!   the order of its rebuilt bottom level (its alpha-test flags follow its triangles);
+//!   the order of its bottom level at this pose (its alpha-test flags follow its triangles);
 //! - a level that never changes (the static one, a rigid or shared mesh's) keeps its nodes,
 //!   moved as a block behind the rebuilt top level (its child entries shifted by the change in
-//!   the top level's size); a deformed mesh's level is built again;
+//!   the top level's size); a deformed mesh's level is built again, or, from
+//!   [`REFIT_MIN_TRIANGLES`] triangles, its first pose's level refitted (built again past
+//!   [`REFIT_BOUND`]);
 //! - the top level is built again over the placements' boxes (the static placement's box is
 //!   read from the first pose's top level), and the placements' texels written in its order.
 //!
@@ -22,7 +24,11 @@
 //! alpha-test flags. The light list stays the first pose's: lights are sampled from the static
 //! triangles, and only the sky's share of the light samples (which depends on the scene's size)
 //! could change, which changes no expected value. Every other array is what packing the posed
-//! scene again gives, bit for bit (`tests/rendering/moving.rs`).
+//! scene again gives, bit for bit (`tests/rendering/moving.rs`), except a refitted level's
+//! nodes and triangle order: those render the same closest hits, but for exact ties in
+//! distance (shared edges, coincident faces), which the kernel settles by the order it meets
+//! or packs triangles in; and they depend on the first pose (a bundle exported at another time
+//! refits from that time's level).
 
 use std::ops::Range;
 
@@ -444,7 +450,7 @@ fn deformed_level(
     refit: Option<&(crate::bvh::Bvh, f32)>,
     triangles: &[crate::scene::Triangle],
 ) -> Result<crate::bvh::Bvh, crate::bvh::BvhError> {
-    if let Some((first, cost)) = refit {
+    if let Some((first, cost)) = refit.filter(|(_, cost)| cost.is_finite() && *cost > 0.0) {
         let mut bvh = first.clone();
         bvh.refit(triangles)?;
         if bvh.sah_cost() <= REFIT_BOUND * cost {

@@ -121,7 +121,6 @@ impl Loader<'_> {
         Ok(())
     }
 
-    /// Whether node `n` or a node below it holds a mesh, a camera or a light.
     /// Why the pose at the load time drops a moving node (`world` its transform there), without
     /// a kept motion: not finite (it and everything below), or its mesh unplaceable
     /// (`motion::unplaceable`). A skinned mesh is placed by its joints, not its node's
@@ -139,6 +138,7 @@ impl Loader<'_> {
         }
     }
 
+    /// Whether node `n` or a node below it holds a mesh, a camera or a light.
     fn places_something(&self, n: usize) -> bool {
         let nodes = &self.root.nodes;
         let mut seen = vec![false; nodes.len()];
