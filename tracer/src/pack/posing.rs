@@ -204,7 +204,8 @@ impl Posing {
         if parts.instances.len() != self.instances || parts.meshes.len() != self.level_of_mesh.len() {
             return mismatch("the moving parts changed their instances or meshes");
         }
-        // The deformed meshes' bottom levels, built again (in parallel, as packing does).
+        // The deformed meshes' bottom levels, built again or refitted (in parallel, as packing
+        // does).
         let rebuilt: Vec<Option<(crate::bvh::Bvh, crate::bvh::WideBvh)>> = self
             .levels
             .par_iter()
