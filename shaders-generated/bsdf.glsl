@@ -118,6 +118,14 @@ float lp_u32_to_f32(uint x) {
     return float(x >> 16u) * 65536.0 + float(x & 65535u);
 }
 
+// i32 as f32 (magnitude through lp_u32_to_f32, so i32::MIN works).
+float lp_i32_to_f32(int x) {
+    if (x < 0) {
+        return -lp_u32_to_f32(0u - uint(x));
+    }
+    return lp_u32_to_f32(uint(x));
+}
+
 // f32 as u32 saturates like Rust: NaN and negatives give 0, too large gives u32::MAX.
 uint lp_f32_to_u32(float x) {
     if (x >= 4294967296.0) {
@@ -141,19 +149,6 @@ int lp_f32_to_i32(float x) {
         return -2147483647 - 1;
     }
     return 0;
-}
-
-// i32 division truncating toward zero like Rust (GLSL ES leaves negative operands undefined).
-int lp_div_i32(int a, int b) {
-    uint ua = a < 0 ? 0u - uint(a) : uint(a);
-    uint ub = b < 0 ? 0u - uint(b) : uint(b);
-    uint q = ua / ub;
-    return (a < 0) != (b < 0) ? int(0u - q) : int(q);
-}
-
-// i32 remainder with the sign of the dividend, like Rust.
-int lp_rem_i32(int a, int b) {
-    return a - lp_div_i32(a, b) * b;
 }
 
 // From the bits: drivers may fold isnan() away under fast-math.
@@ -243,9 +238,28 @@ vec2 texture_uv(uint texture_, uint triangle, float u, float v) {
     }
 }
 
-// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:136)
+// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:162)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
+}
+
+// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:36)
+int euclid_remainder(int i, int n) {
+    float d = lp_i32_to_f32(n);
+    int q = lp_f32_to_i32(floor(lp_i32_to_f32(i) / d));
+    int r = i - q * n;
+    int q2 = lp_f32_to_i32(floor(lp_i32_to_f32(r) / d));
+    int m = r - q2 * n;
+    if (m < 0) {
+        m = m + n;
+    }
+    if (m >= n) {
+        m = m - n;
+    }
+    if (n == 1) {
+        m = 0;
+    }
+    return m;
 }
 
 // textures::wrap_coordinate (lightport-tracer/src/kernel/textures.rs:13)
@@ -254,14 +268,14 @@ int wrap_coordinate(int i, int size, uint mode) {
         return clamp(i, 0, size - 1);
     } else if (mode == WRAP_MIRROR) {
         int period = 2 * size;
-        int m = lp_rem_i32(lp_rem_i32(i, period) + period, period);
+        int m = euclid_remainder(i, period);
         return m < size ? m : period - 1 - m;
     } else {
-        return lp_rem_i32(lp_rem_i32(i, size) + size, size);
+        return euclid_remainder(i, size);
     }
 }
 
-// textures::texel_word (lightport-tracer/src/kernel/textures.rs:51)
+// textures::texel_word (lightport-tracer/src/kernel/textures.rs:77)
 uint texel_word(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -273,7 +287,7 @@ uint texel_word(uvec4 info, int x, int y) {
     return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
 }
 
-// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:71)
+// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:97)
 vec4 decode_unorm8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -282,12 +296,12 @@ vec4 decode_unorm8(uint word) {
     return vec4(r, g, b, a);
 }
 
-// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:30)
+// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:56)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:39)
+// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:65)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -296,7 +310,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// textures::texel_as (lightport-tracer/src/kernel/textures.rs:85)
+// textures::texel_as (lightport-tracer/src/kernel/textures.rs:111)
 vec4 texel_as(uvec4 info, int x, int y, bool data) {
     uint word = texel_word(info, x, y);
     if (data) {
@@ -306,7 +320,7 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// textures::bilinear (lightport-tracer/src/kernel/textures.rs:116)
+// textures::bilinear (lightport-tracer/src/kernel/textures.rs:142)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -320,12 +334,12 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:106)
+// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:132)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }
 
-// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:96)
+// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:122)
 vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
     vec3 base = material.base_color;
     if ((scene_has_textures != 0u) && (material.base_texture != NONE)) {
@@ -335,7 +349,7 @@ vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
     return base;
 }
 
-// textures::sample_data_texture (lightport-tracer/src/kernel/textures.rs:111)
+// textures::sample_data_texture (lightport-tracer/src/kernel/textures.rs:137)
 vec4 sample_data_texture(uint index, vec2 uv) {
     return bilinear(index, uv, true);
 }

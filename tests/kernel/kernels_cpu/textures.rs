@@ -36,3 +36,33 @@ fn texel_reads_its_lane_of_the_packed_element() {
         }
     }
 }
+
+/// `euclid_remainder` (the repeat and mirror wraps without integer division) is `rem_euclid`
+/// for every divisor a texture's axis or mirror period can have (up to 2 x 16,384) and every
+/// i32: both ends, around multiples of the divisor, and random values in between.
+#[test]
+fn euclid_remainder_is_rem_euclid_for_every_texture_size() {
+    use tracer::kernel::textures::euclid_remainder;
+    let max = 2 * tracer::scene::MAX_TEXTURE_DIMENSION as i32;
+    let mut state = 0x9e37_79b9u32;
+    let mut next = || {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        state
+    };
+    let mut divisors: Vec<i32> = (1..=64).chain([255, 256, 257, 1000, 4095, 4096, 16384, max - 1, max]).collect();
+    divisors.extend((0..200).map(|_| 1 + (next() % max as u32) as i32));
+    for &n in &divisors {
+        let mut values: Vec<i32> = vec![i32::MIN, i32::MIN + 1, i32::MAX, i32::MAX - 1, -1, 0, 1];
+        for k in [-(1 << 20), -3, -2, -1, 0, 1, 2, 3, 1 << 20, i32::MAX / n, i32::MIN / n] {
+            let base = k.wrapping_mul(n);
+            values.extend((-2..=2).map(|d| base.wrapping_add(d)));
+        }
+        values.extend((0..2000).map(|_| next() as i32));
+        values.extend((0..2000).map(|_| (next() % 200_000) as i32 - 100_000));
+        for i in values {
+            assert_eq!(euclid_remainder(i, n), i.rem_euclid(n), "{i} rem_euclid {n}");
+        }
+    }
+}

@@ -15,15 +15,41 @@ pub mod textures {
             i.clamp(0, size - 1)
         } else if mode == WRAP_MIRROR {
             let period = 2 * size;
-            let m = ((i % period) + period) % period;
+            let m = euclid_remainder(i, period);
             if m < size {
                 m
             } else {
                 period - 1 - m
             }
         } else {
-            ((i % size) + size) % size
+            euclid_remainder(i, size)
         }
+    }
+
+    /// `i.rem_euclid(n)` for 1 <= n <= 2^18, without integer division: SIMD drivers (llvmpipe,
+    /// SwiftShader) have no vector integer division and divide lane by lane, which made every
+    /// texel lookup of a repeating texture cost two divisions per lane and coordinate (issue
+    /// 31). A quotient estimated in f32 is within 33 + 128 / n of the true one (i's rounding to
+    /// f32, the division's), so the remainder from it (exact: wrapping arithmetic, and its true
+    /// value is small) is within 34 n + 128 of [0, n): exact in f32, so a second estimate is
+    /// within one, and one correction each way ends in [0, n).
+    pub fn euclid_remainder(i: i32, n: i32) -> i32 {
+        let d = n as f32;
+        // |i / n| <= 2^30 for n >= 2 fits an i32; n = 1 (where it may not) is answered apart.
+        let q = (i as f32 / d).floor() as i32;
+        let r = i.wrapping_sub(q.wrapping_mul(n));
+        let q2 = (r as f32 / d).floor() as i32;
+        let mut m = r.wrapping_sub(q2.wrapping_mul(n));
+        if m < 0 {
+            m = m.wrapping_add(n);
+        }
+        if m >= n {
+            m = m.wrapping_sub(n);
+        }
+        if n == 1 {
+            m = 0;
+        }
+        m
     }
 
     /// The sRGB transfer function's inverse (IEC 61966-2-1) for one channel in [0, 1].
