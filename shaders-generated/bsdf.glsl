@@ -238,12 +238,12 @@ vec2 texture_uv(uint texture_, uint triangle, float u, float v) {
     }
 }
 
-// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:161)
+// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:162)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
 
-// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:35)
+// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:36)
 int euclid_remainder(int i, int n) {
     float d = lp_i32_to_f32(n);
     int q = lp_f32_to_i32(floor(lp_i32_to_f32(i) / d));
@@ -262,15 +262,20 @@ int euclid_remainder(int i, int n) {
     return m;
 }
 
-// textures::wrap_coordinate (lightport-tracer/src/kernel/textures.rs:15)
+// textures::wrap_coordinate (lightport-tracer/src/kernel/textures.rs:13)
 int wrap_coordinate(int i, int size, uint mode) {
-    bool mirror = mode == WRAP_MIRROR;
-    int period = mirror ? 2 * size : size;
-    int m = euclid_remainder(i, period);
-    return mode == WRAP_CLAMP ? clamp(i, 0, size - 1) : mirror && m >= size ? period - 1 - m : m;
+    if (mode == WRAP_CLAMP) {
+        return clamp(i, 0, size - 1);
+    } else if (mode == WRAP_MIRROR) {
+        int period = 2 * size;
+        int m = euclid_remainder(i, period);
+        return m < size ? m : period - 1 - m;
+    } else {
+        return euclid_remainder(i, size);
+    }
 }
 
-// textures::texel_word (lightport-tracer/src/kernel/textures.rs:76)
+// textures::texel_word (lightport-tracer/src/kernel/textures.rs:77)
 uint texel_word(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -282,7 +287,7 @@ uint texel_word(uvec4 info, int x, int y) {
     return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
 }
 
-// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:96)
+// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:97)
 vec4 decode_unorm8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -291,12 +296,12 @@ vec4 decode_unorm8(uint word) {
     return vec4(r, g, b, a);
 }
 
-// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:55)
+// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:56)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:64)
+// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:65)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -305,7 +310,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// textures::texel_as (lightport-tracer/src/kernel/textures.rs:110)
+// textures::texel_as (lightport-tracer/src/kernel/textures.rs:111)
 vec4 texel_as(uvec4 info, int x, int y, bool data) {
     uint word = texel_word(info, x, y);
     if (data) {
@@ -315,7 +320,7 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// textures::bilinear (lightport-tracer/src/kernel/textures.rs:141)
+// textures::bilinear (lightport-tracer/src/kernel/textures.rs:142)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -329,12 +334,12 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:131)
+// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:132)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }
 
-// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:121)
+// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:122)
 vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
     vec3 base = material.base_color;
     if ((scene_has_textures != 0u) && (material.base_texture != NONE)) {
@@ -344,7 +349,7 @@ vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
     return base;
 }
 
-// textures::sample_data_texture (lightport-tracer/src/kernel/textures.rs:136)
+// textures::sample_data_texture (lightport-tracer/src/kernel/textures.rs:137)
 vec4 sample_data_texture(uint index, vec2 uv) {
     return bilinear(index, uv, true);
 }

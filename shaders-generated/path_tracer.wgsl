@@ -716,12 +716,12 @@ fn texture_uv(texture_: u32, triangle: u32, u: f32, v: f32) -> vec2<f32> {
     return referenced_uv(texture_, triangle, u, v);
 }
 
-// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:161)
+// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:162)
 fn bounded_coordinate(v: f32) -> f32 {
     return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
 }
 
-// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:35)
+// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:36)
 fn euclid_remainder(i: i32, n: i32) -> i32 {
     let d: f32 = lp_i32_to_f32(n);
     let q: i32 = lp_f32_to_i32(floor(lp_i32_to_f32(i) / d));
@@ -740,15 +740,20 @@ fn euclid_remainder(i: i32, n: i32) -> i32 {
     return m;
 }
 
-// textures::wrap_coordinate (lightport-tracer/src/kernel/textures.rs:15)
+// textures::wrap_coordinate (lightport-tracer/src/kernel/textures.rs:13)
 fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
-    let mirror: bool = mode == WRAP_MIRROR;
-    let period: i32 = select(size, 2i * size, mirror);
-    let m: i32 = euclid_remainder(i, period);
-    return select(select(m, period - 1i - m, mirror && m >= size), clamp(i, 0i, size - 1i), mode == WRAP_CLAMP);
+    if mode == WRAP_CLAMP {
+        return clamp(i, 0i, size - 1i);
+    } else if mode == WRAP_MIRROR {
+        let period: i32 = 2i * size;
+        let m: i32 = euclid_remainder(i, period);
+        return select(period - 1i - m, m, m < size);
+    } else {
+        return euclid_remainder(i, size);
+    }
 }
 
-// textures::texel_word (lightport-tracer/src/kernel/textures.rs:76)
+// textures::texel_word (lightport-tracer/src/kernel/textures.rs:77)
 fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     let w: i32 = bitcast<i32>(info.y);
     let h: i32 = bitcast<i32>(info.z);
@@ -760,7 +765,7 @@ fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
 }
 
-// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:96)
+// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:97)
 fn decode_unorm8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -769,12 +774,12 @@ fn decode_unorm8(word: u32) -> vec4<f32> {
     return vec4<f32>(r, g, b, a);
 }
 
-// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:55)
+// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:56)
 fn srgb_to_linear(c: f32) -> f32 {
     return select(pow((c + 0.055) / 1.055, 2.4), c / 12.92, c <= 0.04045);
 }
 
-// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:64)
+// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:65)
 fn decode_srgba8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -783,7 +788,7 @@ fn decode_srgba8(word: u32) -> vec4<f32> {
     return vec4<f32>(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// textures::texel_as (lightport-tracer/src/kernel/textures.rs:110)
+// textures::texel_as (lightport-tracer/src/kernel/textures.rs:111)
 fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     let word: u32 = texel_word(info, x, y);
     if data {
@@ -793,7 +798,7 @@ fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     }
 }
 
-// textures::bilinear (lightport-tracer/src/kernel/textures.rs:141)
+// textures::bilinear (lightport-tracer/src/kernel/textures.rs:142)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
     let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -807,7 +812,7 @@ fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:131)
+// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:132)
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, false);
 }
@@ -1107,7 +1112,7 @@ fn vector_to_world(instance: u32, v: vec3<f32>) -> vec3<f32> {
     return affine_vector(r0, r1, r2, v);
 }
 
-// textures::sample_data_texture (lightport-tracer/src/kernel/textures.rs:136)
+// textures::sample_data_texture (lightport-tracer/src/kernel/textures.rs:137)
 fn sample_data_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, true);
 }
@@ -1205,7 +1210,7 @@ fn fetch_material(index: u32) -> MaterialData {
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:121)
+// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:122)
 fn base_color_at(material: MaterialData, triangle: u32, u: f32, v: f32) -> vec3<f32> {
     var base: vec3<f32> = material.base_color;
     if (1u != 0u) && (material.base_texture != NONE) {

@@ -10,18 +10,19 @@ pub mod textures {
     use crate::kernel::texture_ref::texture_uv;
 
     /// Texel coordinate `i` of an axis of `size` texels under a wrap mode.
-    // One remainder for both repeating modes (the mirror's period is two sizes): SIMD drivers
-    // run every branch of a divergent `if`, so two would cost two.
     pub fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
-        let mirror = mode == WRAP_MIRROR;
-        let period = if mirror { 2 * size } else { size };
-        let m = euclid_remainder(i, period);
         if mode == WRAP_CLAMP {
             i.clamp(0, size - 1)
-        } else if mirror && m >= size {
-            period - 1 - m
+        } else if mode == WRAP_MIRROR {
+            let period = 2 * size;
+            let m = euclid_remainder(i, period);
+            if m < size {
+                m
+            } else {
+                period - 1 - m
+            }
         } else {
-            m
+            euclid_remainder(i, size)
         }
     }
 
