@@ -104,14 +104,6 @@ float lp_u32_to_f32(uint x) {
     return float(x >> 16u) * 65536.0 + float(x & 65535u);
 }
 
-// i32 as f32 (magnitude through lp_u32_to_f32, so i32::MIN works).
-float lp_i32_to_f32(int x) {
-    if (x < 0) {
-        return -lp_u32_to_f32(0u - uint(x));
-    }
-    return lp_u32_to_f32(uint(x));
-}
-
 // f32 as u32 saturates like Rust: NaN and negatives give 0, too large gives u32::MAX.
 uint lp_f32_to_u32(float x) {
     if (x >= 4294967296.0) {
@@ -193,28 +185,17 @@ MaterialData fetch_material(uint index) {
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:162)
+// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:152)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
 
-// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:36)
+// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:34)
 int euclid_remainder(int i, int n) {
-    float d = lp_i32_to_f32(n);
-    int q = lp_f32_to_i32(floor(lp_i32_to_f32(i) / d));
-    int r = i - q * n;
-    int q2 = lp_f32_to_i32(floor(lp_i32_to_f32(r) / d));
-    int m = r - q2 * n;
-    if (m < 0) {
-        m = m + n;
-    }
-    if (m >= n) {
-        m = m - n;
-    }
-    if (n == 1) {
-        m = 0;
-    }
-    return m;
+    bool negative = i < 0;
+    uint a = negative ? uint(i) ^ 0xffffffffu : uint(i);
+    int r = int(a % uint(n));
+    return negative ? n - 1 - r : r;
 }
 
 // textures::wrap_coordinate (lightport-tracer/src/kernel/textures.rs:13)
@@ -230,7 +211,7 @@ int wrap_coordinate(int i, int size, uint mode) {
     }
 }
 
-// textures::texel_word (lightport-tracer/src/kernel/textures.rs:77)
+// textures::texel_word (lightport-tracer/src/kernel/textures.rs:67)
 uint texel_word(uvec4 info, int x, int y) {
     int w = int(info.y);
     int h = int(info.z);
@@ -242,7 +223,7 @@ uint texel_word(uvec4 info, int x, int y) {
     return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
 }
 
-// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:97)
+// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:87)
 vec4 decode_unorm8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -251,12 +232,12 @@ vec4 decode_unorm8(uint word) {
     return vec4(r, g, b, a);
 }
 
-// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:56)
+// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:46)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:65)
+// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:55)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -265,7 +246,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// textures::texel_as (lightport-tracer/src/kernel/textures.rs:111)
+// textures::texel_as (lightport-tracer/src/kernel/textures.rs:101)
 vec4 texel_as(uvec4 info, int x, int y, bool data) {
     uint word = texel_word(info, x, y);
     if (data) {
@@ -275,7 +256,7 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// textures::bilinear (lightport-tracer/src/kernel/textures.rs:142)
+// textures::bilinear (lightport-tracer/src/kernel/textures.rs:132)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -289,7 +270,7 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:132)
+// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:122)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }

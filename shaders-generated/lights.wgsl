@@ -105,14 +105,6 @@ fn lp_u32_to_f32(x: u32) -> f32 {
     return f32(x >> 16u) * 65536.0 + f32(x & 65535u);
 }
 
-// i32 as f32 (magnitude through lp_u32_to_f32, so i32::MIN works).
-fn lp_i32_to_f32(x: i32) -> f32 {
-    if x < 0 {
-        return -lp_u32_to_f32(0u - bitcast<u32>(x));
-    }
-    return lp_u32_to_f32(bitcast<u32>(x));
-}
-
 // f32 as u32 saturates like Rust: NaN and negatives give 0, too large gives u32::MAX.
 fn lp_f32_to_u32(x: f32) -> u32 {
     if x >= 4294967296.0 {
@@ -182,28 +174,17 @@ fn fetch_material(index: u32) -> MaterialData {
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:162)
+// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:152)
 fn bounded_coordinate(v: f32) -> f32 {
     return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
 }
 
-// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:36)
+// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:34)
 fn euclid_remainder(i: i32, n: i32) -> i32 {
-    let d: f32 = lp_i32_to_f32(n);
-    let q: i32 = lp_f32_to_i32(floor(lp_i32_to_f32(i) / d));
-    let r: i32 = i - q * n;
-    let q2: i32 = lp_f32_to_i32(floor(lp_i32_to_f32(r) / d));
-    var m: i32 = r - q2 * n;
-    if m < 0i {
-        m = m + n;
-    }
-    if m >= n {
-        m = m - n;
-    }
-    if n == 1i {
-        m = 0i;
-    }
-    return m;
+    let negative: bool = i < 0i;
+    let a: u32 = select(bitcast<u32>(i), bitcast<u32>(i) ^ 0xffffffffu, negative);
+    let r: i32 = bitcast<i32>(a % bitcast<u32>(n));
+    return select(r, n - 1i - r, negative);
 }
 
 // textures::wrap_coordinate (lightport-tracer/src/kernel/textures.rs:13)
@@ -219,7 +200,7 @@ fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     }
 }
 
-// textures::texel_word (lightport-tracer/src/kernel/textures.rs:77)
+// textures::texel_word (lightport-tracer/src/kernel/textures.rs:67)
 fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     let w: i32 = bitcast<i32>(info.y);
     let h: i32 = bitcast<i32>(info.z);
@@ -231,7 +212,7 @@ fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
     return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
 }
 
-// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:97)
+// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:87)
 fn decode_unorm8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -240,12 +221,12 @@ fn decode_unorm8(word: u32) -> vec4<f32> {
     return vec4<f32>(r, g, b, a);
 }
 
-// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:56)
+// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:46)
 fn srgb_to_linear(c: f32) -> f32 {
     return select(pow((c + 0.055) / 1.055, 2.4), c / 12.92, c <= 0.04045);
 }
 
-// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:65)
+// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:55)
 fn decode_srgba8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -254,7 +235,7 @@ fn decode_srgba8(word: u32) -> vec4<f32> {
     return vec4<f32>(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// textures::texel_as (lightport-tracer/src/kernel/textures.rs:111)
+// textures::texel_as (lightport-tracer/src/kernel/textures.rs:101)
 fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     let word: u32 = texel_word(info, x, y);
     if data {
@@ -264,7 +245,7 @@ fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
     }
 }
 
-// textures::bilinear (lightport-tracer/src/kernel/textures.rs:142)
+// textures::bilinear (lightport-tracer/src/kernel/textures.rs:132)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
     let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
@@ -278,7 +259,7 @@ fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:132)
+// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:122)
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, false);
 }

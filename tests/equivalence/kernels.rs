@@ -272,8 +272,7 @@ fn texture_and_scene_fetches_agree() {
             (i, size, r.next_u32() % 3)
         })
         .chain([(i32::MIN, 7, 0), (i32::MIN, 7, 2), (i32::MAX, 7, 2), (i32::MIN, 1, 1), (-1, 1, 2)])
-        // `euclid_remainder`'s edges: a divisor of 1 (whose f32 quotient may not fit an i32),
-        // the largest axis and mirror period.
+        // A divisor of 1, the largest axis and mirror period, negative multiples.
         .chain([(i32::MAX, 1, 0), (i32::MIN, 1, 0), (i32::MAX, 1, 2), (i32::MIN, 2, 0), (i32::MAX, 16384, 2)])
         .chain([(i32::MIN + 1, 16384, 0), (-16385, 16384, 0), (32767, 16384, 2), (-1, 16384, 2)])
         .collect();

@@ -37,9 +37,9 @@ fn texel_reads_its_lane_of_the_packed_element() {
     }
 }
 
-/// `euclid_remainder` (the repeat and mirror wraps without integer division) is `rem_euclid`
-/// for every divisor a texture's axis or mirror period can have (up to 2 x 16,384) and every
-/// i32: both ends, around multiples of the divisor, and random values in between.
+/// `euclid_remainder` (the repeat and mirror wraps' one division) is `rem_euclid` for every
+/// divisor a texture's axis or mirror period can have (up to 2 x 16,384) and every i32: both
+/// ends, around multiples of the divisor, and random values in between.
 #[test]
 fn euclid_remainder_is_rem_euclid_for_every_texture_size() {
     use tracer::kernel::textures::euclid_remainder;

@@ -26,30 +26,20 @@ pub mod textures {
         }
     }
 
-    /// `i.rem_euclid(n)` for 1 <= n <= 2^18, without integer division: SIMD drivers (llvmpipe,
-    /// SwiftShader) have no vector integer division and divide lane by lane, which made every
-    /// texel lookup of a repeating texture cost two divisions per lane and coordinate (issue
-    /// 31). A quotient estimated in f32 is within 33 + 128 / n of the true one (i's rounding to
-    /// f32, the division's), so the remainder from it (exact: wrapping arithmetic, and its true
-    /// value is small) is within 34 n + 128 of [0, n): exact in f32, so a second estimate is
-    /// within one, and one correction each way ends in [0, n).
+    /// `i.rem_euclid(n)` for n >= 1 with one unsigned division: a negative i is -(a + 1) with
+    /// a = !i >= 0, whose remainder is n - 1 - a % n. SIMD drivers (llvmpipe, SwiftShader) have
+    /// no vector integer division (they divide lane by lane, and SwiftShader's JIT compiles each
+    /// division slowly) and run both wraps' branches: `((i % n) + n) % n` was four signed
+    /// divisions per coordinate of every texel lookup (issue 31).
     pub fn euclid_remainder(i: i32, n: i32) -> i32 {
-        let d = n as f32;
-        // |i / n| <= 2^30 for n >= 2 fits an i32; n = 1 (where it may not) is answered apart.
-        let q = (i as f32 / d).floor() as i32;
-        let r = i.wrapping_sub(q.wrapping_mul(n));
-        let q2 = (r as f32 / d).floor() as i32;
-        let mut m = r.wrapping_sub(q2.wrapping_mul(n));
-        if m < 0 {
-            m = m.wrapping_add(n);
+        let negative = i < 0;
+        let a = if negative { (i as u32) ^ 0xffff_ffff } else { i as u32 };
+        let r = (a % (n as u32)) as i32;
+        if negative {
+            n - 1 - r
+        } else {
+            r
         }
-        if m >= n {
-            m = m.wrapping_sub(n);
-        }
-        if n == 1 {
-            m = 0;
-        }
-        m
     }
 
     /// The sRGB transfer function's inverse (IEC 61966-2-1) for one channel in [0, 1].
