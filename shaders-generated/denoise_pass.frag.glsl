@@ -33,10 +33,20 @@ float lp_i32_to_f32(int x) {
     return lp_u32_to_f32(uint(x));
 }
 
-// Texel `i` of a row-major RGBA32F data texture.
+// Texel `i` of a row-major RGBA32F data texture, its row and column without integer division
+// (SIMD drivers divide lane by lane): an f32 quotient within one of the row, corrected once.
 vec4 lp_fetch_vec4(highp sampler2D t, uint i) {
     uint w = uint(textureSize(t, 0).x);
-    return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
+    uint row = uint(float(i) / float(w));
+    uint column = i - row * w;
+    if (int(column) < 0) {
+        row -= 1u;
+        column += w;
+    } else if (column >= w) {
+        row += 1u;
+        column -= w;
+    }
+    return texelFetch(t, ivec2(int(column), int(row)), 0);
 }
 
 // denoise::guide_depth (lightport-tracer/src/kernel/denoise.rs:63)

@@ -138,16 +138,36 @@ bool lp_is_finite(float x) {
     return (floatBitsToUint(x) & 0x7f800000u) != 0x7f800000u;
 }
 
-// Texel `i` of a row-major RGBA32F data texture.
+// Texel `i` of a row-major RGBA32F data texture, its row and column without integer division
+// (SIMD drivers divide lane by lane): an f32 quotient within one of the row, corrected once.
 vec4 lp_fetch_vec4(highp sampler2D t, uint i) {
     uint w = uint(textureSize(t, 0).x);
-    return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
+    uint row = uint(float(i) / float(w));
+    uint column = i - row * w;
+    if (int(column) < 0) {
+        row -= 1u;
+        column += w;
+    } else if (column >= w) {
+        row += 1u;
+        column -= w;
+    }
+    return texelFetch(t, ivec2(int(column), int(row)), 0);
 }
 
-// Texel `i` of a row-major RGBA32UI data texture.
+// Texel `i` of a row-major RGBA32UI data texture, its row and column without integer division
+// (SIMD drivers divide lane by lane): an f32 quotient within one of the row, corrected once.
 uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     uint w = uint(textureSize(t, 0).x);
-    return texelFetch(t, ivec2(int(i % w), int(i / w)), 0);
+    uint row = uint(float(i) / float(w));
+    uint column = i - row * w;
+    if (int(column) < 0) {
+        row -= 1u;
+        column += w;
+    } else if (column >= w) {
+        row += 1u;
+        column -= w;
+    }
+    return texelFetch(t, ivec2(int(column), int(row)), 0);
 }
 
 // lights::luminance (lightport-tracer/src/kernel/lights.rs:31)
