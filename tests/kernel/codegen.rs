@@ -143,6 +143,41 @@ fn every_generated_file_matches_the_committed_file() {
     }
 }
 
+/// The generated kernels divide no integers by a variable except once per texture wrap (issue
+/// 31): SIMD drivers (llvmpipe, SwiftShader) have no vector integer division, so each one is a
+/// division per lane, and SwiftShader's JIT compiles each slowly. Signed division and
+/// remainder (`lp_div_i32`, `lp_rem_i32`: an unsigned division and sign fixes each) are absent,
+/// the wrap's remainder (`textures::euclid_remainder`) divides once, and the GLSL data-texture
+/// fetch, which every node, triangle and material read goes through, finds its row with an f32
+/// division only.
+#[test]
+fn the_kernels_divide_integers_only_where_a_texture_wraps() {
+    let files = tracer::kernel::generated_shaders().expect("generation and validation succeed");
+    let body = |source: &str, signature: &str| -> String {
+        let start = source.find(signature).unwrap_or_else(|| panic!("{signature} generated"));
+        let end = source[start..].find("\n}\n").expect("function end") + start;
+        source[start..end].to_string()
+    };
+    for name in ["path_tracer.frag.glsl", "path_tracer.wgsl", "path_tracer_wavefront.wgsl"] {
+        let source = &files.iter().find(|f| f.name == name).unwrap_or_else(|| panic!("{name} generated")).source;
+        for helper in ["lp_div_i32", "lp_rem_i32"] {
+            assert!(!source.contains(helper), "{name} divides signed integers ({helper})");
+        }
+        let glsl = name.ends_with(".glsl");
+        let remainder = body(source, if glsl { "int euclid_remainder(" } else { "fn euclid_remainder(" });
+        assert_eq!(remainder.matches(['%', '/']).count(), 1, "{name}: one division per wrap:\n{remainder}");
+        if glsl {
+            for fetch in ["vec4 lp_fetch_vec4(", "uvec4 lp_fetch_uvec4("] {
+                let fetch = body(source, fetch);
+                let code: String = fetch.lines().filter(|l| !l.trim_start().starts_with("//")).collect();
+                assert!(!code.contains('%'), "{name}: the data fetch divides integers:\n{fetch}");
+                assert_eq!(code.matches('/').count(), 1, "{name}: the data fetch's one division:\n{fetch}");
+                assert!(code.contains("float(i) / float(w)"), "{name}: the data fetch's division in f32:\n{fetch}");
+            }
+        }
+    }
+}
+
 #[test]
 fn the_subset_module_generates_valid_glsl_and_wgsl() {
     let program = Program::link(&[subset::kernel_ir()]).expect("links");
