@@ -146,10 +146,11 @@ fn every_generated_file_matches_the_committed_file() {
 /// The generated kernels divide no integers by a variable except once per texture wrap (issue
 /// 31): SIMD drivers (llvmpipe, SwiftShader) have no vector integer division, so each one is a
 /// division per lane, and SwiftShader's JIT compiles each slowly. Signed division and
-/// remainder (`lp_div_i32`, `lp_rem_i32`: an unsigned division and sign fixes each) are absent,
-/// the wrap's remainder (`textures::euclid_remainder`) divides once, and the GLSL data-texture
-/// fetch, which every node, triangle and material read goes through, finds its row with an f32
-/// division only.
+/// remainder (GLSL's `lp_div_i32`, `lp_rem_i32`: an unsigned division and sign fixes each) are
+/// absent, the wrap's remainder (`textures::euclid_remainder`) divides once and `wrap_coordinate`
+/// itself not at all (one per mode: a SIMD driver runs both modes' branches), and the GLSL
+/// data-texture fetch, which every node, triangle and material read goes through, finds its row
+/// with an f32 division only.
 #[test]
 fn the_kernels_divide_integers_only_where_a_texture_wraps() {
     let files = tracer::kernel::generated_shaders().expect("generation and validation succeed");
@@ -166,6 +167,8 @@ fn the_kernels_divide_integers_only_where_a_texture_wraps() {
         let glsl = name.ends_with(".glsl");
         let remainder = body(source, if glsl { "int euclid_remainder(" } else { "fn euclid_remainder(" });
         assert_eq!(remainder.matches(['%', '/']).count(), 1, "{name}: one division per wrap:\n{remainder}");
+        let wrap = body(source, if glsl { "int wrap_coordinate(" } else { "fn wrap_coordinate(" });
+        assert!(!wrap.contains('%'), "{name}: the wrap divides beside its remainder:\n{wrap}");
         if glsl {
             for fetch in ["vec4 lp_fetch_vec4(", "uvec4 lp_fetch_uvec4("] {
                 let fetch = body(source, fetch);
@@ -173,6 +176,39 @@ fn the_kernels_divide_integers_only_where_a_texture_wraps() {
                 assert!(!code.contains('%'), "{name}: the data fetch divides integers:\n{fetch}");
                 assert_eq!(code.matches('/').count(), 1, "{name}: the data fetch's one division:\n{fetch}");
                 assert!(code.contains("float(i) / float(w)"), "{name}: the data fetch's division in f32:\n{fetch}");
+            }
+        }
+    }
+}
+
+/// A model of the GLSL data fetch's row and column (`lp_fetch_*`: an f32 quotient, corrected
+/// once), in f32 as the shader computes it, with the conversion and the division each off by up
+/// to 3 ULP (GLSL ES 3.00 allows 2.5 for division; llvmpipe rounds correctly, so the corrections
+/// never run there): exact for every texel row of every texture a backend makes (power-of-two
+/// scene arrays up to 2^28 texels, image-wide denoiser arrays), first and last columns.
+#[test]
+fn the_data_fetch_row_estimate_is_corrected_to_the_exact_row() {
+    let nudge =
+        |x: f32, ulps: i32| if x == 0.0 && ulps < 0 { x } else { f32::from_bits((x.to_bits() as i32 + ulps) as u32) };
+    let widths: Vec<u32> = (0..=15).map(|k| 1u32 << k).chain([3, 320, 640, 1000, 1920, 4095, 16383]).collect();
+    for w in widths {
+        let rows = ((1u64 << 28) / w as u64).min(32768) as u32;
+        let mut sample: Vec<u32> = (0..rows.min(64)).chain((0..rows).step_by(97)).collect();
+        sample.extend([rows - 1, rows / 2, rows / 3]);
+        for row in sample {
+            for i in [row * w, row * w + w / 2, row * w + w - 1] {
+                for (a, b) in [(0, 0), (1, 3), (-1, -3), (3, 3), (-3, -3), (1, -2), (-2, 1)] {
+                    let mut r = (nudge(nudge(i as f32, a) / w as f32, b)) as u32;
+                    let mut column = i.wrapping_sub(r.wrapping_mul(w));
+                    if (column as i32) < 0 {
+                        r -= 1;
+                        column = column.wrapping_add(w);
+                    } else if column >= w {
+                        r += 1;
+                        column -= w;
+                    }
+                    assert_eq!((r, column), (i / w, i % w), "texel {i} of width {w}, nudged {a} / {b} ULP");
+                }
             }
         }
     }

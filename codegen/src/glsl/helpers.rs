@@ -25,9 +25,24 @@ pub(super) fn text(h: &Helper) -> String {
             let scalar = Glsl.scalar_type(*scalar);
             format!("{scalar} lp_{name}_{suffix}({ty} v) {{\n    return {expr};\n}}\n")
         }
-        Helper::FetchVec4 => "// Texel `i` of a row-major RGBA32F data texture, its row and column without integer division\n// (SIMD drivers divide lane by lane): an f32 quotient within one of the row, corrected once.\nvec4 lp_fetch_vec4(highp sampler2D t, uint i) {\n    uint w = uint(textureSize(t, 0).x);\n    uint row = uint(float(i) / float(w));\n    uint column = i - row * w;\n    if (int(column) < 0) {\n        row -= 1u;\n        column += w;\n    } else if (column >= w) {\n        row += 1u;\n        column -= w;\n    }\n    return texelFetch(t, ivec2(int(column), int(row)), 0);\n}\n".into(),
+        Helper::FetchVec4 => fetch("vec4", "sampler2D", "RGBA32F"),
         // GLSL builds NaN and infinities with uintBitsToFloat in place.
         Helper::FloatFromBits => unreachable!("GLSL never asks for {h:?}"),
-        Helper::FetchUVec4 => "// Texel `i` of a row-major RGBA32UI data texture, its row and column without integer division\n// (SIMD drivers divide lane by lane): an f32 quotient within one of the row, corrected once.\nuvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {\n    uint w = uint(textureSize(t, 0).x);\n    uint row = uint(float(i) / float(w));\n    uint column = i - row * w;\n    if (int(column) < 0) {\n        row -= 1u;\n        column += w;\n    } else if (column >= w) {\n        row += 1u;\n        column -= w;\n    }\n    return texelFetch(t, ivec2(int(column), int(row)), 0);\n}\n".into(),
+        Helper::FetchUVec4 => fetch("uvec4", "usampler2D", "RGBA32UI"),
     }
+}
+
+/// `lp_fetch_{ty}`: texel `i` of a row-major data texture of `format` texels, its row and column
+/// without integer division (SIMD drivers divide lane by lane). The f32 quotient is within one
+/// of the row for every texture a backend makes (`tests/kernel/codegen.rs` models it), and the
+/// column from it, wrapped below zero or at least the width, says which way to correct.
+fn fetch(ty: &str, sampler: &str, format: &str) -> String {
+    format!(
+        "// Texel `i` of a row-major {format} data texture, its row and column without integer division\n\
+         // (SIMD drivers divide lane by lane): an f32 quotient within one of the row, corrected once.\n\
+         {ty} lp_fetch_{ty}(highp {sampler} t, uint i) {{\n    uint w = uint(textureSize(t, 0).x);\n    \
+         uint row = uint(float(i) / float(w));\n    uint column = i - row * w;\n    if (int(column) < 0) {{\n        \
+         row -= 1u;\n        column += w;\n    }} else if (column >= w) {{\n        row += 1u;\n        \
+         column -= w;\n    }}\n    return texelFetch(t, ivec2(int(column), int(row)), 0);\n}}\n"
+    )
 }

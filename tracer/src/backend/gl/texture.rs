@@ -1,5 +1,6 @@
 //! The data textures: the shape a packed array takes as a 2D texture (the shader's `lp_fetch_*`
-//! divides by `textureSize(t, 0).x`), the scene's arrays laid out in it, and their upload.
+//! finds texel i's row i / `textureSize(t, 0).x` from an f32 quotient, corrected once), the
+//! scene's arrays laid out in it, and their upload.
 
 use glow::HasContext;
 
