@@ -5,8 +5,9 @@
 //! pass is read back.
 //!
 //! The filter's texel arrays are bound as image-sized textures (width = the image's width):
-//! the shader's `lp_fetch_vec4` takes the texel index `y * width + x` back to row y and column x
-//! by the texture's width, so texel (x, y) is pixel (x, y), and a framebuffer the pass wrote is read as an array.
+//! the shader's `lp_fetch_vec4` takes the texel index `y * width + x` back to row y and column
+//! x by the texture's width, so texel (x, y) is pixel (x, y), and a framebuffer the pass wrote
+//! is read as an array.
 //!
 //! [`GlFilter::run`] waits for the output; [`GlFilter::queue`] only queues the passes behind a
 //! fence ([`QueuedFilter`]), for a caller that must not block (the browser page polls the fence
