@@ -20,6 +20,14 @@ uniform uint scene_has_texture_transform;
 uniform uint scene_has_texcoord1;
 uniform uint scene_has_instances;
 
+// textures::Footprint (lightport-tracer/src/kernel/textures.rs:167)
+struct Footprint {
+    uvec4 info;
+    ivec2 xs;
+    ivec2 ys;
+    vec2 weight;
+};
+
 // traverse::Hit (lightport-tracer/src/kernel/traverse.rs:26)
 struct Hit {
     uint triangle;
@@ -267,12 +275,12 @@ vec2 texture_uv(uint texture_, uint triangle, float u, float v) {
     }
 }
 
-// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:152)
+// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:225)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
 
-// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:34)
+// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:64)
 int euclid_remainder(int i, int n) {
     bool negative = i < 0;
     uint a = negative ? uint(i) ^ 0xffffffffu : uint(i);
@@ -280,57 +288,67 @@ int euclid_remainder(int i, int n) {
     return negative ? n - 1 - r : r;
 }
 
-// textures::wrap_coordinate (lightport-tracer/src/kernel/textures.rs:13)
-int wrap_coordinate(int i, int size, uint mode) {
+// textures::mirror_fold (lightport-tracer/src/kernel/textures.rs:51)
+int mirror_fold(int m, int size) {
+    return m < size ? m : 2 * size - 1 - m;
+}
+
+// textures::wrap_pair (lightport-tracer/src/kernel/textures.rs:26)
+ivec2 wrap_pair(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
-        return clamp(i, 0, size - 1);
+        int first = clamp(i, 0, size - 1);
+        int second = i < 0 ? 0 : first < size - 1 ? first + 1 : first;
+        return ivec2(first, second);
     } else if (mode == WRAP_MIRROR) {
         int period = 2 * size;
         int m = euclid_remainder(i, period);
-        return m < size ? m : period - 1 - m;
+        int next = m + 1 == period ? 0 : m + 1;
+        return ivec2(mirror_fold(m, size), mirror_fold(next, size));
     } else {
-        return euclid_remainder(i, size);
+        int r = euclid_remainder(i, size);
+        int next_1 = r + 1 == size ? 0 : r + 1;
+        return ivec2(r, next_1);
     }
 }
 
-// textures::texel_word (lightport-tracer/src/kernel/textures.rs:67)
-uint texel_word(uvec4 info, int x, int y) {
-    int w = int(info.y);
-    int h = int(info.z);
-    int tx = wrap_coordinate(x, w, info.w & 255u);
-    int ty = wrap_coordinate(y, h, info.w >> 8);
-    uint i = info.x + uint(ty * w + tx);
-    uvec4 four = lp_fetch_uvec4(scene_texture_texels, i / TEXTURE_TEXELS_PER_ELEMENT);
-    uint lane = i % TEXTURE_TEXELS_PER_ELEMENT;
-    return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
+// textures::footprint (lightport-tracer/src/kernel/textures.rs:175)
+Footprint footprint(uint index, vec2 uv) {
+    uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
+    float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
+    float y = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
+    return Footprint(info, wrap_pair(lp_f32_to_i32(floor(x)), int(info.y), info.w & 255u), wrap_pair(lp_f32_to_i32(floor(y)), int(info.z), info.w >> 8), vec2(x - floor(x), y - floor(y)));
 }
 
-// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:87)
+// textures::word_alpha (lightport-tracer/src/kernel/textures.rs:217)
+float word_alpha(uint word) {
+    return float(word >> 24) / 255.0;
+}
+
+// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:121)
 vec4 decode_unorm8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
     float b = float((word << 8) >> 24) / 255.0;
-    float a = float(word >> 24) / 255.0;
+    float a = word_alpha(word);
     return vec4(r, g, b, a);
 }
 
-// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:46)
+// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:76)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:55)
+// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:85)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
     float b = float((word << 8) >> 24) / 255.0;
-    float a = float(word >> 24) / 255.0;
+    float a = word_alpha(word);
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// textures::texel_as (lightport-tracer/src/kernel/textures.rs:101)
-vec4 texel_as(uvec4 info, int x, int y, bool data) {
-    uint word = texel_word(info, x, y);
+// textures::decode_as (lightport-tracer/src/kernel/textures.rs:135)
+vec4 decode_as(uint word, bool data) {
     if (data) {
         return decode_unorm8(word);
     } else {
@@ -338,21 +356,25 @@ vec4 texel_as(uvec4 info, int x, int y, bool data) {
     }
 }
 
-// textures::bilinear (lightport-tracer/src/kernel/textures.rs:132)
+// textures::stored_word (lightport-tracer/src/kernel/textures.rs:105)
+uint stored_word(uvec4 info, int tx, int ty) {
+    uint i = info.x + uint(ty * int(info.y) + tx);
+    uvec4 four = lp_fetch_uvec4(scene_texture_texels, i / TEXTURE_TEXELS_PER_ELEMENT);
+    uint lane = i % TEXTURE_TEXELS_PER_ELEMENT;
+    return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
+}
+
+// textures::bilinear (lightport-tracer/src/kernel/textures.rs:191)
 vec4 bilinear(uint index, vec2 uv, bool data) {
-    uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
-    float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
-    float y = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
-    float fx = x - floor(x);
-    float fy = y - floor(y);
-    int x0 = lp_f32_to_i32(floor(x));
-    int y0 = lp_f32_to_i32(floor(y));
-    vec4 top = texel_as(info, x0, y0, data) * (1.0 - fx) + texel_as(info, x0 + 1, y0, data) * fx;
-    vec4 bottom = texel_as(info, x0, y0 + 1, data) * (1.0 - fx) + texel_as(info, x0 + 1, y0 + 1, data) * fx;
+    Footprint p = footprint(index, uv);
+    float fx = p.weight.x;
+    float fy = p.weight.y;
+    vec4 top = decode_as(stored_word(p.info, p.xs.x, p.ys.x), data) * (1.0 - fx) + decode_as(stored_word(p.info, p.xs.y, p.ys.x), data) * fx;
+    vec4 bottom = decode_as(stored_word(p.info, p.xs.x, p.ys.y), data) * (1.0 - fx) + decode_as(stored_word(p.info, p.xs.y, p.ys.y), data) * fx;
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// textures::sample_data_texture (lightport-tracer/src/kernel/textures.rs:127)
+// textures::sample_data_texture (lightport-tracer/src/kernel/textures.rs:160)
 vec4 sample_data_texture(uint index, vec2 uv) {
     return bilinear(index, uv, true);
 }

@@ -24,6 +24,14 @@ struct MaterialData {
     emissive_texture: u32,
 }
 
+// textures::Footprint (lightport-tracer/src/kernel/textures.rs:167)
+struct Footprint {
+    info: vec4<u32>,
+    xs: vec2<i32>,
+    ys: vec2<i32>,
+    weight: vec2<f32>,
+}
+
 // scene_data::SHADING_TEXELS (lightport-tracer/src/kernel/scene_data.rs:15)
 const SHADING_TEXELS: u32 = 4u;
 // scene_data::TEXTURE_TEXELS_PER_ELEMENT (lightport-tracer/src/kernel/scene_data.rs:32)
@@ -64,7 +72,12 @@ fn lp_is_nan(x: f32) -> bool {
     return (bitcast<u32>(x) & 0x7fffffffu) > 0x7f800000u;
 }
 
-// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:34)
+// textures::mirror_fold (lightport-tracer/src/kernel/textures.rs:51)
+fn mirror_fold(m: i32, size: i32) -> i32 {
+    return select(2i * size - 1i - m, m, m < size);
+}
+
+// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:64)
 fn euclid_remainder(i: i32, n: i32) -> i32 {
     let negative: bool = i < 0i;
     let a: u32 = select(bitcast<u32>(i), bitcast<u32>(i) ^ 0xffffffffu, negative);
@@ -77,57 +90,80 @@ fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
     if mode == WRAP_CLAMP {
         return clamp(i, 0i, size - 1i);
     } else if mode == WRAP_MIRROR {
-        let period: i32 = 2i * size;
-        let m: i32 = euclid_remainder(i, period);
-        return select(period - 1i - m, m, m < size);
+        return mirror_fold(euclid_remainder(i, 2i * size), size);
     } else {
         return euclid_remainder(i, size);
     }
 }
 
-// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:46)
+// textures::wrap_pair (lightport-tracer/src/kernel/textures.rs:26)
+fn wrap_pair(i: i32, size: i32, mode: u32) -> vec2<i32> {
+    if mode == WRAP_CLAMP {
+        let first: i32 = clamp(i, 0i, size - 1i);
+        let second: i32 = select(select(first, first + 1i, first < size - 1i), 0i, i < 0i);
+        return vec2<i32>(first, second);
+    } else if mode == WRAP_MIRROR {
+        let period: i32 = 2i * size;
+        let m: i32 = euclid_remainder(i, period);
+        let next: i32 = select(m + 1i, 0i, m + 1i == period);
+        return vec2<i32>(mirror_fold(m, size), mirror_fold(next, size));
+    } else {
+        let r: i32 = euclid_remainder(i, size);
+        let next_1: i32 = select(r + 1i, 0i, r + 1i == size);
+        return vec2<i32>(r, next_1);
+    }
+}
+
+// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:76)
 fn srgb_to_linear(c: f32) -> f32 {
     return select(pow((c + 0.055) / 1.055, 2.4), c / 12.92, c <= 0.04045);
 }
 
-// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:55)
+// textures::word_alpha (lightport-tracer/src/kernel/textures.rs:217)
+fn word_alpha(word: u32) -> f32 {
+    return f32(word >> 24u) / 255.0;
+}
+
+// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:85)
 fn decode_srgba8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
     let b: f32 = f32((word << 8u) >> 24u) / 255.0;
-    let a: f32 = f32(word >> 24u) / 255.0;
+    let a: f32 = word_alpha(word);
     return vec4<f32>(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// textures::texel_word (lightport-tracer/src/kernel/textures.rs:67)
-fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
-    let w: i32 = bitcast<i32>(info.y);
-    let h: i32 = bitcast<i32>(info.z);
-    let tx: i32 = wrap_coordinate(x, w, info.w & 255u);
-    let ty: i32 = wrap_coordinate(y, h, info.w >> 8u);
-    let i: u32 = info.x + bitcast<u32>(ty * w + tx);
+// textures::stored_word (lightport-tracer/src/kernel/textures.rs:105)
+fn stored_word(info: vec4<u32>, tx: i32, ty: i32) -> u32 {
+    let i: u32 = info.x + bitcast<u32>(ty * bitcast<i32>(info.y) + tx);
     let four: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_texels + i / TEXTURE_TEXELS_PER_ELEMENT];
     let lane: u32 = i % TEXTURE_TEXELS_PER_ELEMENT;
     return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
 }
 
-// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:87)
+// textures::texel_word (lightport-tracer/src/kernel/textures.rs:97)
+fn texel_word(info: vec4<u32>, x: i32, y: i32) -> u32 {
+    let tx: i32 = wrap_coordinate(x, bitcast<i32>(info.y), info.w & 255u);
+    let ty: i32 = wrap_coordinate(y, bitcast<i32>(info.z), info.w >> 8u);
+    return stored_word(info, tx, ty);
+}
+
+// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:121)
 fn decode_unorm8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
     let b: f32 = f32((word << 8u) >> 24u) / 255.0;
-    let a: f32 = f32(word >> 24u) / 255.0;
+    let a: f32 = word_alpha(word);
     return vec4<f32>(r, g, b, a);
 }
 
-// textures::texel (lightport-tracer/src/kernel/textures.rs:96)
+// textures::texel (lightport-tracer/src/kernel/textures.rs:130)
 fn texel(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
     return decode_srgba8(texel_word(info, x, y));
 }
 
-// textures::texel_as (lightport-tracer/src/kernel/textures.rs:101)
-fn texel_as(info: vec4<u32>, x: i32, y: i32, data: bool) -> vec4<f32> {
-    let word: u32 = texel_word(info, x, y);
+// textures::decode_as (lightport-tracer/src/kernel/textures.rs:135)
+fn decode_as(word: u32, data: bool) -> vec4<f32> {
     if data {
         return decode_unorm8(word);
     } else {
@@ -185,31 +221,35 @@ fn texture_uv(texture_: u32, triangle: u32, u: f32, v: f32) -> vec2<f32> {
     }
 }
 
-// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:152)
+// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:225)
 fn bounded_coordinate(v: f32) -> f32 {
     return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
 }
 
-// textures::bilinear (lightport-tracer/src/kernel/textures.rs:132)
-fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
+// textures::footprint (lightport-tracer/src/kernel/textures.rs:175)
+fn footprint(index: u32, uv: vec2<f32>) -> Footprint {
     let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
     let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
     let y: f32 = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
-    let fx: f32 = x - floor(x);
-    let fy: f32 = y - floor(y);
-    let x0: i32 = lp_f32_to_i32(floor(x));
-    let y0: i32 = lp_f32_to_i32(floor(y));
-    let top: vec4<f32> = texel_as(info, x0, y0, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0, data) * fx;
-    let bottom: vec4<f32> = texel_as(info, x0, y0 + 1i, data) * (1.0 - fx) + texel_as(info, x0 + 1i, y0 + 1i, data) * fx;
+    return Footprint(info, wrap_pair(lp_f32_to_i32(floor(x)), bitcast<i32>(info.y), info.w & 255u), wrap_pair(lp_f32_to_i32(floor(y)), bitcast<i32>(info.z), info.w >> 8u), vec2<f32>(x - floor(x), y - floor(y)));
+}
+
+// textures::bilinear (lightport-tracer/src/kernel/textures.rs:191)
+fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
+    let p: Footprint = footprint(index, uv);
+    let fx: f32 = p.weight.x;
+    let fy: f32 = p.weight.y;
+    let top: vec4<f32> = decode_as(stored_word(p.info, p.xs.x, p.ys.x), data) * (1.0 - fx) + decode_as(stored_word(p.info, p.xs.y, p.ys.x), data) * fx;
+    let bottom: vec4<f32> = decode_as(stored_word(p.info, p.xs.x, p.ys.y), data) * (1.0 - fx) + decode_as(stored_word(p.info, p.xs.y, p.ys.y), data) * fx;
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:122)
+// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:155)
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, false);
 }
 
-// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:112)
+// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:145)
 fn base_color_at(material: MaterialData, triangle: u32, u: f32, v: f32) -> vec3<f32> {
     var base: vec3<f32> = material.base_color;
     if (scene.has_textures != 0u) && (material.base_texture != NONE) {
@@ -219,7 +259,17 @@ fn base_color_at(material: MaterialData, triangle: u32, u: f32, v: f32) -> vec3<
     return base;
 }
 
-// textures::sample_data_texture (lightport-tracer/src/kernel/textures.rs:127)
+// textures::sample_data_texture (lightport-tracer/src/kernel/textures.rs:160)
 fn sample_data_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, true);
+}
+
+// textures::bilinear_alpha (lightport-tracer/src/kernel/textures.rs:205)
+fn bilinear_alpha(index: u32, uv: vec2<f32>) -> f32 {
+    let p: Footprint = footprint(index, uv);
+    let fx: f32 = p.weight.x;
+    let fy: f32 = p.weight.y;
+    let top: f32 = word_alpha(stored_word(p.info, p.xs.x, p.ys.x)) * (1.0 - fx) + word_alpha(stored_word(p.info, p.xs.y, p.ys.x)) * fx;
+    let bottom: f32 = word_alpha(stored_word(p.info, p.xs.x, p.ys.y)) * (1.0 - fx) + word_alpha(stored_word(p.info, p.xs.y, p.ys.y)) * fx;
+    return top * (1.0 - fy) + bottom * fy;
 }

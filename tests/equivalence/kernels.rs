@@ -283,6 +283,7 @@ fn texture_and_scene_fetches_agree() {
         |_, &(i, n, m)| (textures::wrap_coordinate(i, n, m),),
         Tolerance::EXACT,
     );
+    assert_equivalent(&mut eq, "wrap_pair", &wraps, |_, &(i, n, m)| (textures::wrap_pair(i, n, m),), Tolerance::EXACT);
     let texels: Vec<(UVec4, i32, i32)> = (0..1 << 15)
         .map(|_| {
             let mut info = k.texture_info.fetch(r.next_u32() % textures);
@@ -311,6 +312,14 @@ fn texture_and_scene_fetches_agree() {
         &lookups,
         |s, &(i, uv)| (textures::sample_texture(s, i, uv),),
         SRGB.with_absolute(1e-6),
+    );
+    // The alpha-mask test's lookup: alpha alone (linear, no sRGB decode).
+    assert_equivalent(
+        &mut eq,
+        "bilinear_alpha",
+        &lookups,
+        |s, &(i, uv)| (textures::bilinear_alpha(s, i, uv),),
+        Tolerance::ulps(4).with_absolute(1e-6),
     );
 }
 

@@ -147,8 +147,9 @@ fn every_generated_file_matches_the_committed_file() {
 /// 31): SIMD drivers (llvmpipe, SwiftShader) have no vector integer division, so each one is a
 /// division per lane, and SwiftShader's JIT compiles each slowly. Signed division and
 /// remainder (GLSL's `lp_div_i32`, `lp_rem_i32`: an unsigned division and sign fixes each) are
-/// absent, the wrap's remainder (`textures::euclid_remainder`) divides once and `wrap_coordinate`
-/// itself not at all (one per mode: a SIMD driver runs both modes' branches), and the GLSL
+/// absent, the wrap's remainder (`textures::euclid_remainder`) divides once, the wrap
+/// (`wrap_pair`) not at all beside it (one remainder per mode: a SIMD driver runs both modes'
+/// branches), a bilinear lookup (`textures::footprint`) wraps once per axis for both its texels, and the GLSL
 /// data-texture fetch, which every node, triangle and material read goes through, finds its row
 /// with an f32 division only.
 #[test]
@@ -167,8 +168,23 @@ fn the_kernels_divide_integers_only_where_a_texture_wraps() {
         let glsl = name.ends_with(".glsl");
         let remainder = body(source, if glsl { "int euclid_remainder(" } else { "fn euclid_remainder(" });
         assert_eq!(remainder.matches(['%', '/']).count(), 1, "{name}: one division per wrap:\n{remainder}");
-        let wrap = body(source, if glsl { "int wrap_coordinate(" } else { "fn wrap_coordinate(" });
+        let wrap = body(source, if glsl { "ivec2 wrap_pair(" } else { "fn wrap_pair(" });
         assert!(!wrap.contains('%'), "{name}: the wrap divides beside its remainder:\n{wrap}");
+        // A bilinear lookup (colour or alpha alone) wraps each axis once for both its texels.
+        let footprint = body(source, if glsl { "Footprint footprint(" } else { "fn footprint(" });
+        assert_eq!(footprint.matches("wrap_pair(").count(), 2, "{name}: one wrap per axis:\n{footprint}");
+        for lookup in ["bilinear(", "bilinear_alpha("] {
+            let signature = match (glsl, lookup) {
+                (true, "bilinear(") => "vec4 bilinear(".to_string(),
+                (true, _) => format!("float {lookup}"),
+                (false, _) => format!("fn {lookup}"),
+            };
+            let lookup = body(source, &signature);
+            assert!(
+                lookup.contains("footprint(") && !lookup.contains("wrap_"),
+                "{name}: wraps beside its footprint:\n{lookup}"
+            );
+        }
         if glsl {
             for fetch in ["vec4 lp_fetch_vec4(", "uvec4 lp_fetch_uvec4("] {
                 let fetch = body(source, fetch);

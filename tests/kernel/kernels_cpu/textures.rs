@@ -66,3 +66,88 @@ fn euclid_remainder_is_rem_euclid_for_every_texture_size() {
         }
     }
 }
+
+/// `wrap_pair` (a bilinear lookup's two texels on one axis, from one remainder) is the wrap of
+/// `i` and of `i + 1` under each mode, computed here independently in i64 (so `i32::MAX + 1`
+/// too), for axes of 1 texel to the largest, around the multiples of the axis and of the mirror
+/// period where the second texel turns back; and `wrap_coordinate` is its first texel.
+#[test]
+fn wrap_pair_is_the_wrap_of_a_texel_and_the_next() {
+    use tracer::kernel::scene_data::{WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT};
+    use tracer::kernel::textures::{wrap_coordinate, wrap_pair};
+    let wrap = |i: i64, n: i64, mode: u32| -> i32 {
+        (match mode {
+            WRAP_CLAMP => i.clamp(0, n - 1),
+            WRAP_MIRROR => {
+                let m = i.rem_euclid(2 * n);
+                if m < n {
+                    m
+                } else {
+                    2 * n - 1 - m
+                }
+            }
+            _ => i.rem_euclid(n),
+        }) as i32
+    };
+    let max = tracer::scene::MAX_TEXTURE_DIMENSION as i32;
+    let mut state = 0x2545_f491u32;
+    let mut next = || {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        state
+    };
+    let sizes: Vec<i32> = (1..=40).chain([255, 256, 257, 1000, 4096, max - 1, max]).collect();
+    for &n in &sizes {
+        let mut values: Vec<i32> = vec![i32::MIN, i32::MIN + 1, i32::MAX, i32::MAX - 1];
+        for k in [-(1 << 16), -4, -3, -2, -1, 0, 1, 2, 3, 4, 1 << 16, i32::MAX / n, i32::MIN / n] {
+            let base = k.wrapping_mul(n);
+            values.extend((-2..=2).map(|d| base.wrapping_add(d)));
+        }
+        values.extend((0..500).map(|_| next() as i32));
+        values.extend((0..500).map(|_| (next() % 20_000) as i32 - 10_000));
+        for i in values {
+            for mode in [WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT] {
+                let pair = wrap_pair(i, n, mode);
+                let expected = glam::IVec2::new(wrap(i as i64, n as i64, mode), wrap(i as i64 + 1, n as i64, mode));
+                assert_eq!(pair, expected, "texels {i} and {i} + 1 of {n} under wrap mode {mode}");
+                assert_eq!(wrap_coordinate(i, n, mode), expected.x, "texel {i} of {n} under wrap mode {mode}");
+            }
+        }
+    }
+}
+
+/// `bilinear_alpha` (the alpha-mask test's lookup) is the alpha of the full lookup, bit for bit
+/// on the CPU, for both decodings, every wrap mode and uv inside, on the edges of and far
+/// outside a texture whose texels differ in every byte.
+#[test]
+fn bilinear_alpha_is_the_alpha_of_the_full_lookup() {
+    use glam::{UVec4, Vec2};
+    use tracer::kernel::scene_data::Scene;
+    use tracer::kernel::textures::{bilinear, bilinear_alpha};
+    let (w, h) = (5u32, 3u32);
+    let words: Vec<u32> = (0..w * h)
+        .map(|i| u32::from_le_bytes([17 * i as u8, 255 - 9 * i as u8, 3 * i as u8, 11 + 16 * i as u8]))
+        .collect();
+    let mut elements: Vec<UVec4> = words
+        .chunks(4)
+        .map(|c| UVec4::new(c[0], *c.get(1).unwrap_or(&0), *c.get(2).unwrap_or(&0), *c.get(3).unwrap_or(&0)))
+        .collect();
+    elements.push(UVec4::ZERO);
+    let infos: Vec<UVec4> = (0..9).map(|m| UVec4::new(0, w, h, (m % 3) | ((m / 3) << 8))).collect();
+    let scene = Scene {
+        texture_texels: kernel_dsl::Texels::new(elements),
+        texture_info: kernel_dsl::Texels::new(infos.clone()),
+        ..Default::default()
+    };
+    let mut uvs = vec![Vec2::ZERO, Vec2::ONE, Vec2::new(-0.1, 1.1), Vec2::new(-7.3, 9.9), Vec2::splat(1.0e6)];
+    uvs.extend((0..400).map(|k| Vec2::new((k % 20) as f32 * 0.13 - 1.0, (k / 20) as f32 * 0.17 - 1.2)));
+    for index in 0..infos.len() as u32 {
+        for &uv in &uvs {
+            for data in [false, true] {
+                let full = bilinear(&scene, index, uv, data).w;
+                assert_eq!(bilinear_alpha(&scene, index, uv).to_bits(), full.to_bits(), "texture {index} at {uv}");
+            }
+        }
+    }
+}

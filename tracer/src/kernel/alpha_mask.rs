@@ -21,7 +21,7 @@ pub mod alpha_mask {
 
     use crate::kernel::scene_data::{index_of, Scene, NONE};
     use crate::kernel::texture_ref::texture_uv;
-    use crate::kernel::textures::sample_texture;
+    use crate::kernel::textures::bilinear_alpha;
 
     /// A masked material's coverage inputs (`Scene::materials` beyond the base texels).
     #[derive(Clone, Copy, Debug, PartialEq)]
@@ -43,7 +43,7 @@ pub mod alpha_mask {
     pub fn coverage(scene: &Scene, mask: AlphaMaskData, uv: Vec2) -> f32 {
         let mut a = mask.alpha;
         if scene.has_textures != 0 && mask.texture != NONE {
-            a *= sample_texture(scene, mask.texture, uv).w;
+            a *= bilinear_alpha(scene, mask.texture, uv);
         }
         a
     }
