@@ -452,6 +452,7 @@ mod tests {
             ("Shading", top_fields::<crate::kernel::integrator::Shading>()),
             ("NormalMapData", top_fields::<crate::kernel::normal_map::NormalMapData>()),
             ("AlphaMaskData", top_fields::<crate::kernel::alpha_mask::AlphaMaskData>()),
+            ("Footprint", top_fields::<crate::kernel::textures::Footprint>()),
             ("GlassData", top_fields::<crate::kernel::scene_data::GlassData>()),
             ("GuidedSample", top_fields::<crate::kernel::integrator::GuidedSample>()),
             ("FirstHit", top_fields::<crate::kernel::integrator::FirstHit>()),

@@ -151,6 +151,7 @@ mod kernel_structs {
     use crate::kernel::normal_map::NormalMapData;
     use crate::kernel::sampling::Onb;
     use crate::kernel::scene_data::{GlassData, MaterialData, MetalRoughData, TriangleData};
+    use crate::kernel::textures::Footprint;
     use crate::kernel::traverse::{Hit, NodeHits};
 
     harness_struct_words! {
@@ -169,6 +170,7 @@ mod kernel_structs {
         Shading { p, ng, frame, wo, bsdf }
         NormalMapData { texture, scale }
         AlphaMaskData { texture, alpha, cutoff }
+        Footprint { info, xs, ys, weight }
         GlassData { transmission, ior, texture, thin, sigma_a }
         GuidedSample { color, albedo, normal, emission }
         FirstHit { albedo, normal, depth, emission }
