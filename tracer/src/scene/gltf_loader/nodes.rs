@@ -84,39 +84,53 @@ impl Loader<'_> {
                 self.camera(c.value(), &world)?;
             }
             if let Some(m) = node.mesh.filter(|_| !drop_mesh) {
-                let mesh = m.value();
-                // `None`: the pose's morph weights cannot make the mesh finite (a kept motion
-                // morphs it again at each pose, and drops it there: `Motion::apply`).
-                let morphed = self.morphed(mesh, node, n)?;
-                let prims = match &morphed {
-                    Some(prims) => prims.clone(),
-                    None => self.mesh(mesh)?,
-                };
-                // Morphed copies differ per node: only the shared primitives may be instanced.
-                let shared = self.meshes.get(&mesh).is_some_and(|m| Rc::ptr_eq(m, &prims));
-                if self.place_moving(n, node, mesh, &prims, world, moving)? {
-                    // a moving part of the kept motion (`motion.rs`)
-                } else if morphed.is_none() {
-                    self.mesh_instances += 1;
-                    self.warn_dropped(format!("node {n} mesh {mesh}"), super::morph::MORPH_NOT_FINITE);
-                } else if let Some(skin) = node.skin {
-                    self.mesh_instances += 1;
-                    self.instantiate_skinned(mesh, &prims, skin.value(), n)?;
-                } else if let Some(instancing) =
-                    node.extensions.as_ref().and_then(|e| e.others.get("EXT_mesh_gpu_instancing"))
-                {
-                    for instance in self.gpu_instances(instancing, n)? {
-                        self.mesh_instances += 1;
-                        self.defer(mesh, shared, prims.clone(), world * instance)?;
-                    }
-                } else {
-                    self.mesh_instances += 1;
-                    self.defer(mesh, shared, prims, world)?;
-                }
+                self.place_mesh(n, node, m.value(), world, moving)?;
             }
             for child in node.children.iter().flatten().rev() {
                 stack.push((child.value(), world, moving));
             }
+        }
+        Ok(())
+    }
+
+    /// Places node `n`'s mesh `mesh` (world transform `world`; `moving`: a channel moves it or
+    /// an ancestor): as a moving part of the kept motion, skinned, once per
+    /// `EXT_mesh_gpu_instancing` instance, or once; a mesh its pose's morph weights cannot make
+    /// finite is left out with a warning.
+    fn place_mesh(
+        &mut self,
+        n: usize,
+        node: &gltf::json::scene::Node,
+        mesh: usize,
+        world: Mat4,
+        moving: bool,
+    ) -> Result<(), SceneError> {
+        // `None`: the pose's morph weights cannot make the mesh finite (a kept motion
+        // morphs it again at each pose, and drops it there: `Motion::apply`).
+        let morphed = self.morphed(mesh, node, n)?;
+        let prims = match &morphed {
+            Some(prims) => prims.clone(),
+            None => self.mesh(mesh)?,
+        };
+        // Morphed copies differ per node: only the shared primitives may be instanced.
+        let shared = self.meshes.get(&mesh).is_some_and(|m| Rc::ptr_eq(m, &prims));
+        if self.place_moving(n, node, mesh, &prims, world, moving)? {
+            // a moving part of the kept motion (`motion.rs`)
+        } else if morphed.is_none() {
+            self.mesh_instances += 1;
+            self.warn_dropped(format!("node {n} mesh {mesh}"), super::morph::MORPH_NOT_FINITE);
+        } else if let Some(skin) = node.skin {
+            self.mesh_instances += 1;
+            self.instantiate_skinned(mesh, &prims, skin.value(), n)?;
+        } else if let Some(instancing) = node.extensions.as_ref().and_then(|e| e.others.get("EXT_mesh_gpu_instancing"))
+        {
+            for instance in self.gpu_instances(instancing, n)? {
+                self.mesh_instances += 1;
+                self.defer(mesh, shared, prims.clone(), world * instance)?;
+            }
+        } else {
+            self.mesh_instances += 1;
+            self.defer(mesh, shared, prims, world)?;
         }
         Ok(())
     }
