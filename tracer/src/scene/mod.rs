@@ -377,6 +377,10 @@ impl Default for Aabb {
 /// placement or a skinned or morphed mesh beyond it drops that, as one that is not finite.
 pub const WORLD_LIMIT: f32 = 1e12;
 
+/// How far from the origin the camera may stand: back from the world, as the framing of a scene
+/// at [`WORLD_LIMIT`] puts it up to ~6 limits out (and the kernel's products stay finite to ~10).
+pub const CAMERA_LIMIT: f32 = 10.0 * WORLD_LIMIT;
+
 /// Whether `p` is finite and within [`WORLD_LIMIT`] of the origin on every axis.
 pub fn in_world(p: Vec3) -> bool {
     p.is_finite() && p.abs().max_element() <= WORLD_LIMIT
@@ -671,11 +675,8 @@ impl Scene {
         if !finite || !fov_ok || c.position == c.target {
             return bad("invalid camera".into());
         }
-        // The camera may stand back from the world: the framing of a scene at the limit puts
-        // it up to ~6 limits out (and the kernel's products stay finite to ~10).
-        let camera_limit = 10.0 * WORLD_LIMIT;
-        if [c.position, c.target].iter().any(|p| p.abs().max_element() > camera_limit) {
-            return bad(format!("the camera lies (or looks at a point) beyond {camera_limit:e} units of the origin"));
+        if [c.position, c.target].iter().any(|p| p.abs().max_element() > CAMERA_LIMIT) {
+            return bad(format!("the camera lies (or looks at a point) beyond {CAMERA_LIMIT:e} units of the origin"));
         }
         Ok(())
     }

@@ -77,11 +77,11 @@ impl Loader<'_> {
             if let Some(ext) = extensions {
                 warn_extensions(&mut self.warnings, Some(&ext.others));
                 if let Some(l) = &ext.khr_lights_punctual {
-                    self.light(l.light.value(), n, &world)?;
+                    self.light(l.light.value(), n, &world, moving)?;
                 }
             }
             if let Some(c) = node.camera.filter(|_| finite) {
-                self.camera(c.value(), &world)?;
+                self.camera(c.value(), n, &world, moving)?;
             }
             if let Some(m) = node.mesh.filter(|_| !drop_mesh) {
                 self.place_mesh(n, node, m.value(), world, moving)?;
@@ -222,7 +222,11 @@ impl Loader<'_> {
             .collect()
     }
 
-    fn camera(&mut self, index: usize, world: &Mat4) -> Result<(), SceneError> {
+    /// Takes camera `index` at node `node` (world transform `world`) as the scene's, unless one
+    /// was taken: the first perspective camera in the walk. One that the pose carries (`moving`)
+    /// beyond [`CAMERA_LIMIT`](crate::scene::CAMERA_LIMIT) is ignored with a warning, and the
+    /// scene framed instead (a static one there is refused with the scene).
+    fn camera(&mut self, index: usize, node: usize, world: &Mat4, moving: bool) -> Result<(), SceneError> {
         if self.camera.is_some() {
             return Ok(());
         }
@@ -245,11 +249,27 @@ impl Loader<'_> {
                 .once("degenerate camera", || "a camera node has a degenerate transform: it is ignored".into());
             return Ok(());
         }
-        self.camera = Some(FoundCamera { position: world.transform_point3(Vec3::ZERO), forward, up, yfov });
+        let position = world.transform_point3(Vec3::ZERO);
+        if moving && position.abs().max_element() > crate::scene::CAMERA_LIMIT {
+            let time = self.time;
+            self.warnings.once(&format!("camera beyond the world at node {node}"), || {
+                format!(
+                    "node {node}'s camera: the pose at {time} s places it beyond {:e} units of the origin: it is \
+                     ignored and the scene framed instead",
+                    crate::scene::CAMERA_LIMIT
+                )
+            });
+            return Ok(());
+        }
+        self.camera = Some(FoundCamera { position, forward, up, yfov });
         Ok(())
     }
 
-    fn light(&mut self, index: usize, node: usize, world: &Mat4) -> Result<(), SceneError> {
+    /// Adds `KHR_lights_punctual` light `index` at node `node` (world transform `world`) as a
+    /// point light. One that the pose carries (`moving`) beyond the world is left out with a
+    /// warning, as a mesh placement there is (lights stay where the load-time pose puts them;
+    /// a static one there is refused with the scene).
+    fn light(&mut self, index: usize, node: usize, world: &Mat4, moving: bool) -> Result<(), SceneError> {
         let light = self
             .root
             .extensions
@@ -284,7 +304,19 @@ impl Loader<'_> {
                 return Err(malformed(format!("KHR_lights_punctual light {index} has an invalid type")))
             }
         }
-        self.point_lights.push(PointLight { position: world.transform_point3(Vec3::ZERO), intensity });
+        let position = world.transform_point3(Vec3::ZERO);
+        if moving && !crate::scene::in_world(position) {
+            let time = self.time;
+            self.warnings.once(&format!("light beyond the world at node {node}"), || {
+                format!(
+                    "node {node}'s light {index}: the pose at {time} s places it beyond {:e} units of the origin: it \
+                     is left out (lights stay where the load-time pose puts them)",
+                    crate::scene::WORLD_LIMIT
+                )
+            });
+            return Ok(());
+        }
+        self.point_lights.push(PointLight { position, intensity });
         Ok(())
     }
 
