@@ -140,7 +140,7 @@ fn denoising_alpha_masked_holes_gains_at_least_6_db() {
 /// every sample count (σn 128 fails it at 64 and 256 spp). What moves 16 spp is coverage:
 /// remodulating by 3 more first hits per sample (a second renderer at max_depth 2) gains +2.7
 /// dB, but costs 0.6-1.1x a frame each here, and 4x the samples gains 9 dB: not at equal time
-/// (`examples/denoise_quality.rs`, issue #30).
+/// (`examples/denoise_quality/`, issue #30).
 #[test]
 fn denoising_damaged_helmet_under_a_sky_is_measured() {
     let mut helmet =

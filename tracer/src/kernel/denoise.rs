@@ -25,7 +25,7 @@ pub mod denoise {
     /// glossy surface (DamagedHelmet) the illumination follows the map's bumps, real detail
     /// that σn 128 blurred (-1.8 dB at 256 spp at 48x48, -2.6 at 128x128 under
     /// venice_sunset; at 1024, -0.3 and -0.1). Flat walls are not affected (their normals
-    /// agree); the Cornell box lost 0.1 dB at 16 spp (`examples/denoise_quality.rs`).
+    /// agree); the Cornell box lost 0.1 dB at 16 spp (`examples/denoise_quality/`).
     pub const SIGMA_NORMAL: f32 = 1024.0;
     /// Depth weight scale: depth differences against the local depth gradient (SVGF's σz).
     pub const SIGMA_DEPTH: f32 = 1.0;
