@@ -97,7 +97,7 @@ fn a_light_or_camera_the_pose_carries_beyond_the_world_is_left_out_with_a_warnin
         far.warnings
     );
     assert!(
-        far.warnings.iter().any(|w| w.contains("node 2's camera") && w.contains("framed instead")),
+        far.warnings.iter().any(|w| w.contains("node 2's camera") && w.contains("a framing of the scene")),
         "a warning names the camera: {:?}",
         far.warnings
     );

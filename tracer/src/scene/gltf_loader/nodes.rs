@@ -224,8 +224,9 @@ impl Loader<'_> {
 
     /// Takes camera `index` at node `node` (world transform `world`) as the scene's, unless one
     /// was taken: the first perspective camera in the walk. One that the pose carries (`moving`)
-    /// beyond [`CAMERA_LIMIT`](crate::scene::CAMERA_LIMIT) is ignored with a warning, and the
-    /// scene framed instead (a static one there is refused with the scene).
+    /// beyond [`CAMERA_LIMIT`](crate::scene::CAMERA_LIMIT) is ignored with a warning: the next
+    /// camera of the walk is taken, else the scene framed (a static one there is refused with
+    /// the scene).
     fn camera(&mut self, index: usize, node: usize, world: &Mat4, moving: bool) -> Result<(), SceneError> {
         if self.camera.is_some() {
             return Ok(());
@@ -255,7 +256,7 @@ impl Loader<'_> {
             self.warnings.once(&format!("camera beyond the world at node {node}"), || {
                 format!(
                     "node {node}'s camera: the pose at {time} s places it beyond {:e} units of the origin: it is \
-                     ignored and the scene framed instead",
+                     ignored (the file's next camera, else a framing of the scene, is used instead)",
                     crate::scene::CAMERA_LIMIT
                 )
             });
