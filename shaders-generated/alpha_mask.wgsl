@@ -19,7 +19,7 @@ struct SceneUniforms {
 @group(0) @binding(1) var<storage, read> lp_scene_vec4f: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> lp_scene_vec4u: array<vec4<u32>>;
 
-// textures::Footprint (lightport-tracer/src/kernel/textures.rs:167)
+// textures::Footprint (lightport-tracer/src/kernel/textures.rs:161)
 struct Footprint {
     info: vec4<u32>,
     xs: vec2<i32>,
@@ -96,12 +96,12 @@ fn fetch_alpha_mask(material: u32) -> AlphaMaskData {
     return AlphaMaskData(index_of(t.x), t.y, t.z);
 }
 
-// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:225)
+// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:221)
 fn bounded_coordinate(v: f32) -> f32 {
     return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
 }
 
-// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:64)
+// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:58)
 fn euclid_remainder(i: i32, n: i32) -> i32 {
     let negative: bool = i < 0i;
     let a: u32 = select(bitcast<u32>(i), bitcast<u32>(i) ^ 0xffffffffu, negative);
@@ -109,12 +109,12 @@ fn euclid_remainder(i: i32, n: i32) -> i32 {
     return select(r, n - 1i - r, negative);
 }
 
-// textures::mirror_fold (lightport-tracer/src/kernel/textures.rs:51)
+// textures::mirror_fold (lightport-tracer/src/kernel/textures.rs:45)
 fn mirror_fold(m: i32, size: i32) -> i32 {
     return select(2i * size - 1i - m, m, m < size);
 }
 
-// textures::wrap_pair (lightport-tracer/src/kernel/textures.rs:26)
+// textures::wrap_pair (lightport-tracer/src/kernel/textures.rs:20)
 fn wrap_pair(i: i32, size: i32, mode: u32) -> vec2<i32> {
     if mode == WRAP_CLAMP {
         let first: i32 = clamp(i, 0i, size - 1i);
@@ -132,20 +132,22 @@ fn wrap_pair(i: i32, size: i32, mode: u32) -> vec2<i32> {
     }
 }
 
-// textures::footprint (lightport-tracer/src/kernel/textures.rs:175)
+// textures::footprint (lightport-tracer/src/kernel/textures.rs:169)
 fn footprint(index: u32, uv: vec2<f32>) -> Footprint {
     let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
     let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
     let y: f32 = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
-    return Footprint(info, wrap_pair(lp_f32_to_i32(floor(x)), bitcast<i32>(info.y), info.w & 255u), wrap_pair(lp_f32_to_i32(floor(y)), bitcast<i32>(info.z), info.w >> 8u), vec2<f32>(x - floor(x), y - floor(y)));
+    let x0: f32 = floor(x);
+    let y0: f32 = floor(y);
+    return Footprint(info, wrap_pair(lp_f32_to_i32(x0), bitcast<i32>(info.y), info.w & 255u), wrap_pair(lp_f32_to_i32(y0), bitcast<i32>(info.z), info.w >> 8u), vec2<f32>(x - x0, y - y0));
 }
 
-// textures::word_alpha (lightport-tracer/src/kernel/textures.rs:217)
+// textures::word_alpha (lightport-tracer/src/kernel/textures.rs:213)
 fn word_alpha(word: u32) -> f32 {
     return f32(word >> 24u) / 255.0;
 }
 
-// textures::stored_word (lightport-tracer/src/kernel/textures.rs:105)
+// textures::stored_word (lightport-tracer/src/kernel/textures.rs:99)
 fn stored_word(info: vec4<u32>, tx: i32, ty: i32) -> u32 {
     let i: u32 = info.x + bitcast<u32>(ty * bitcast<i32>(info.y) + tx);
     let four: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_texels + i / TEXTURE_TEXELS_PER_ELEMENT];
@@ -153,7 +155,7 @@ fn stored_word(info: vec4<u32>, tx: i32, ty: i32) -> u32 {
     return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
 }
 
-// textures::bilinear_alpha (lightport-tracer/src/kernel/textures.rs:205)
+// textures::bilinear_alpha (lightport-tracer/src/kernel/textures.rs:201)
 fn bilinear_alpha(index: u32, uv: vec2<f32>) -> f32 {
     let p: Footprint = footprint(index, uv);
     let fx: f32 = p.weight.x;

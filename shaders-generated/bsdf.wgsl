@@ -46,7 +46,7 @@ struct GlassData {
     sigma_a: vec3<f32>,
 }
 
-// textures::Footprint (lightport-tracer/src/kernel/textures.rs:167)
+// textures::Footprint (lightport-tracer/src/kernel/textures.rs:161)
 struct Footprint {
     info: vec4<u32>,
     xs: vec2<i32>,
@@ -227,12 +227,12 @@ fn texture_uv(texture_: u32, triangle: u32, u: f32, v: f32) -> vec2<f32> {
     }
 }
 
-// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:225)
+// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:221)
 fn bounded_coordinate(v: f32) -> f32 {
     return select(select(select(v, -1000000000.0, v < -1000000000.0), 1000000000.0, v > 1000000000.0), v, lp_is_nan(v));
 }
 
-// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:64)
+// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:58)
 fn euclid_remainder(i: i32, n: i32) -> i32 {
     let negative: bool = i < 0i;
     let a: u32 = select(bitcast<u32>(i), bitcast<u32>(i) ^ 0xffffffffu, negative);
@@ -240,12 +240,12 @@ fn euclid_remainder(i: i32, n: i32) -> i32 {
     return select(r, n - 1i - r, negative);
 }
 
-// textures::mirror_fold (lightport-tracer/src/kernel/textures.rs:51)
+// textures::mirror_fold (lightport-tracer/src/kernel/textures.rs:45)
 fn mirror_fold(m: i32, size: i32) -> i32 {
     return select(2i * size - 1i - m, m, m < size);
 }
 
-// textures::wrap_pair (lightport-tracer/src/kernel/textures.rs:26)
+// textures::wrap_pair (lightport-tracer/src/kernel/textures.rs:20)
 fn wrap_pair(i: i32, size: i32, mode: u32) -> vec2<i32> {
     if mode == WRAP_CLAMP {
         let first: i32 = clamp(i, 0i, size - 1i);
@@ -263,20 +263,22 @@ fn wrap_pair(i: i32, size: i32, mode: u32) -> vec2<i32> {
     }
 }
 
-// textures::footprint (lightport-tracer/src/kernel/textures.rs:175)
+// textures::footprint (lightport-tracer/src/kernel/textures.rs:169)
 fn footprint(index: u32, uv: vec2<f32>) -> Footprint {
     let info: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_info + index];
     let x: f32 = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
     let y: f32 = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
-    return Footprint(info, wrap_pair(lp_f32_to_i32(floor(x)), bitcast<i32>(info.y), info.w & 255u), wrap_pair(lp_f32_to_i32(floor(y)), bitcast<i32>(info.z), info.w >> 8u), vec2<f32>(x - floor(x), y - floor(y)));
+    let x0: f32 = floor(x);
+    let y0: f32 = floor(y);
+    return Footprint(info, wrap_pair(lp_f32_to_i32(x0), bitcast<i32>(info.y), info.w & 255u), wrap_pair(lp_f32_to_i32(y0), bitcast<i32>(info.z), info.w >> 8u), vec2<f32>(x - x0, y - y0));
 }
 
-// textures::word_alpha (lightport-tracer/src/kernel/textures.rs:217)
+// textures::word_alpha (lightport-tracer/src/kernel/textures.rs:213)
 fn word_alpha(word: u32) -> f32 {
     return f32(word >> 24u) / 255.0;
 }
 
-// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:121)
+// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:115)
 fn decode_unorm8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -285,12 +287,12 @@ fn decode_unorm8(word: u32) -> vec4<f32> {
     return vec4<f32>(r, g, b, a);
 }
 
-// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:76)
+// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:70)
 fn srgb_to_linear(c: f32) -> f32 {
     return select(pow((c + 0.055) / 1.055, 2.4), c / 12.92, c <= 0.04045);
 }
 
-// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:85)
+// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:79)
 fn decode_srgba8(word: u32) -> vec4<f32> {
     let r: f32 = f32((word << 24u) >> 24u) / 255.0;
     let g: f32 = f32((word << 16u) >> 24u) / 255.0;
@@ -299,7 +301,7 @@ fn decode_srgba8(word: u32) -> vec4<f32> {
     return vec4<f32>(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// textures::decode_as (lightport-tracer/src/kernel/textures.rs:135)
+// textures::decode_as (lightport-tracer/src/kernel/textures.rs:129)
 fn decode_as(word: u32, data: bool) -> vec4<f32> {
     if data {
         return decode_unorm8(word);
@@ -308,7 +310,7 @@ fn decode_as(word: u32, data: bool) -> vec4<f32> {
     }
 }
 
-// textures::stored_word (lightport-tracer/src/kernel/textures.rs:105)
+// textures::stored_word (lightport-tracer/src/kernel/textures.rs:99)
 fn stored_word(info: vec4<u32>, tx: i32, ty: i32) -> u32 {
     let i: u32 = info.x + bitcast<u32>(ty * bitcast<i32>(info.y) + tx);
     let four: vec4<u32> = lp_scene_vec4u[scene.lp_start_texture_texels + i / TEXTURE_TEXELS_PER_ELEMENT];
@@ -316,7 +318,7 @@ fn stored_word(info: vec4<u32>, tx: i32, ty: i32) -> u32 {
     return select(select(select(four.w, four.z, lane == 2u), four.y, lane == 1u), four.x, lane == 0u);
 }
 
-// textures::bilinear (lightport-tracer/src/kernel/textures.rs:191)
+// textures::bilinear (lightport-tracer/src/kernel/textures.rs:187)
 fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     let p: Footprint = footprint(index, uv);
     let fx: f32 = p.weight.x;
@@ -326,12 +328,12 @@ fn bilinear(index: u32, uv: vec2<f32>, data: bool) -> vec4<f32> {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:155)
+// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:149)
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, false);
 }
 
-// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:145)
+// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:139)
 fn base_color_at(material: MaterialData, triangle: u32, u: f32, v: f32) -> vec3<f32> {
     var base: vec3<f32> = material.base_color;
     if (scene.has_textures != 0u) && (material.base_texture != NONE) {
@@ -341,7 +343,7 @@ fn base_color_at(material: MaterialData, triangle: u32, u: f32, v: f32) -> vec3<
     return base;
 }
 
-// textures::sample_data_texture (lightport-tracer/src/kernel/textures.rs:160)
+// textures::sample_data_texture (lightport-tracer/src/kernel/textures.rs:154)
 fn sample_data_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return bilinear(index, uv, true);
 }

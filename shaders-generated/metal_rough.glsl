@@ -32,7 +32,7 @@ struct MetalRoughData {
     float specular;
 };
 
-// textures::Footprint (lightport-tracer/src/kernel/textures.rs:167)
+// textures::Footprint (lightport-tracer/src/kernel/textures.rs:161)
 struct Footprint {
     uvec4 info;
     ivec2 xs;
@@ -365,12 +365,12 @@ vec2 texture_uv(uint texture_, uint triangle, float u, float v) {
     }
 }
 
-// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:225)
+// textures::bounded_coordinate (lightport-tracer/src/kernel/textures.rs:221)
 float bounded_coordinate(float v) {
     return lp_is_nan(v) ? v : v > 1000000000.0 ? 1000000000.0 : v < -1000000000.0 ? -1000000000.0 : v;
 }
 
-// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:64)
+// textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:58)
 int euclid_remainder(int i, int n) {
     bool negative = i < 0;
     uint a = negative ? uint(i) ^ 0xffffffffu : uint(i);
@@ -378,12 +378,12 @@ int euclid_remainder(int i, int n) {
     return negative ? n - 1 - r : r;
 }
 
-// textures::mirror_fold (lightport-tracer/src/kernel/textures.rs:51)
+// textures::mirror_fold (lightport-tracer/src/kernel/textures.rs:45)
 int mirror_fold(int m, int size) {
     return m < size ? m : 2 * size - 1 - m;
 }
 
-// textures::wrap_pair (lightport-tracer/src/kernel/textures.rs:26)
+// textures::wrap_pair (lightport-tracer/src/kernel/textures.rs:20)
 ivec2 wrap_pair(int i, int size, uint mode) {
     if (mode == WRAP_CLAMP) {
         int first = clamp(i, 0, size - 1);
@@ -401,20 +401,22 @@ ivec2 wrap_pair(int i, int size, uint mode) {
     }
 }
 
-// textures::footprint (lightport-tracer/src/kernel/textures.rs:175)
+// textures::footprint (lightport-tracer/src/kernel/textures.rs:169)
 Footprint footprint(uint index, vec2 uv) {
     uvec4 info = lp_fetch_uvec4(scene_texture_info, index);
     float x = bounded_coordinate(uv.x * lp_u32_to_f32(info.y) - 0.5);
     float y = bounded_coordinate(uv.y * lp_u32_to_f32(info.z) - 0.5);
-    return Footprint(info, wrap_pair(lp_f32_to_i32(floor(x)), int(info.y), info.w & 255u), wrap_pair(lp_f32_to_i32(floor(y)), int(info.z), info.w >> 8), vec2(x - floor(x), y - floor(y)));
+    float x0 = floor(x);
+    float y0 = floor(y);
+    return Footprint(info, wrap_pair(lp_f32_to_i32(x0), int(info.y), info.w & 255u), wrap_pair(lp_f32_to_i32(y0), int(info.z), info.w >> 8), vec2(x - x0, y - y0));
 }
 
-// textures::word_alpha (lightport-tracer/src/kernel/textures.rs:217)
+// textures::word_alpha (lightport-tracer/src/kernel/textures.rs:213)
 float word_alpha(uint word) {
     return float(word >> 24) / 255.0;
 }
 
-// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:121)
+// textures::decode_unorm8 (lightport-tracer/src/kernel/textures.rs:115)
 vec4 decode_unorm8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -423,12 +425,12 @@ vec4 decode_unorm8(uint word) {
     return vec4(r, g, b, a);
 }
 
-// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:76)
+// textures::srgb_to_linear (lightport-tracer/src/kernel/textures.rs:70)
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
-// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:85)
+// textures::decode_srgba8 (lightport-tracer/src/kernel/textures.rs:79)
 vec4 decode_srgba8(uint word) {
     float r = float((word << 24) >> 24) / 255.0;
     float g = float((word << 16) >> 24) / 255.0;
@@ -437,7 +439,7 @@ vec4 decode_srgba8(uint word) {
     return vec4(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a);
 }
 
-// textures::decode_as (lightport-tracer/src/kernel/textures.rs:135)
+// textures::decode_as (lightport-tracer/src/kernel/textures.rs:129)
 vec4 decode_as(uint word, bool data) {
     if (data) {
         return decode_unorm8(word);
@@ -446,7 +448,7 @@ vec4 decode_as(uint word, bool data) {
     }
 }
 
-// textures::stored_word (lightport-tracer/src/kernel/textures.rs:105)
+// textures::stored_word (lightport-tracer/src/kernel/textures.rs:99)
 uint stored_word(uvec4 info, int tx, int ty) {
     uint i = info.x + uint(ty * int(info.y) + tx);
     uvec4 four = lp_fetch_uvec4(scene_texture_texels, i / TEXTURE_TEXELS_PER_ELEMENT);
@@ -454,7 +456,7 @@ uint stored_word(uvec4 info, int tx, int ty) {
     return lane == 0u ? four.x : lane == 1u ? four.y : lane == 2u ? four.z : four.w;
 }
 
-// textures::bilinear (lightport-tracer/src/kernel/textures.rs:191)
+// textures::bilinear (lightport-tracer/src/kernel/textures.rs:187)
 vec4 bilinear(uint index, vec2 uv, bool data) {
     Footprint p = footprint(index, uv);
     float fx = p.weight.x;
@@ -464,12 +466,12 @@ vec4 bilinear(uint index, vec2 uv, bool data) {
     return top * (1.0 - fy) + bottom * fy;
 }
 
-// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:155)
+// textures::sample_texture (lightport-tracer/src/kernel/textures.rs:149)
 vec4 sample_texture(uint index, vec2 uv) {
     return bilinear(index, uv, false);
 }
 
-// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:145)
+// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:139)
 vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
     vec3 base = material.base_color;
     if ((scene_has_textures != 0u) && (material.base_texture != NONE)) {
@@ -479,7 +481,7 @@ vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
     return base;
 }
 
-// textures::sample_data_texture (lightport-tracer/src/kernel/textures.rs:160)
+// textures::sample_data_texture (lightport-tracer/src/kernel/textures.rs:154)
 vec4 sample_data_texture(uint index, vec2 uv) {
     return bilinear(index, uv, true);
 }

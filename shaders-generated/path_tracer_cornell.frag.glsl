@@ -670,7 +670,7 @@ MaterialData fetch_material(uint index) {
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:145)
+// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:139)
 vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
     vec3 base = material.base_color;
     return base;

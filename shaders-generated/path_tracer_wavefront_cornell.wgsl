@@ -814,7 +814,7 @@ fn fetch_material(index: u32) -> MaterialData {
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:145)
+// textures::base_color_at (lightport-tracer/src/kernel/textures.rs:139)
 fn base_color_at(material: MaterialData, triangle: u32, u: f32, v: f32) -> vec3<f32> {
     var base: vec3<f32> = material.base_color;
     return base;

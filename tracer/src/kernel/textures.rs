@@ -11,13 +11,7 @@ pub mod textures {
 
     /// Texel coordinate `i` of an axis of `size` texels under a wrap mode.
     pub fn wrap_coordinate(i: i32, size: i32, mode: u32) -> i32 {
-        if mode == WRAP_CLAMP {
-            i.clamp(0, size - 1)
-        } else if mode == WRAP_MIRROR {
-            mirror_fold(euclid_remainder(i, 2 * size), size)
-        } else {
-            euclid_remainder(i, size)
-        }
+        wrap_pair(i, size, mode).x
     }
 
     /// `(wrap_coordinate(i, size, mode), wrap_coordinate(i + 1, size, mode))`, a bilinear
@@ -178,12 +172,14 @@ pub mod textures {
         // beyond 2^30 an f32 cannot tell texels apart anyway. NaN stays NaN on every target.
         let x = bounded_coordinate(uv.x * info.y as f32 - 0.5);
         let y = bounded_coordinate(uv.y * info.z as f32 - 0.5);
+        let x0 = x.floor();
+        let y0 = y.floor();
         // Each axis wraps once for both of its texels: two remainders per lookup, not eight.
         Footprint {
             info,
-            xs: wrap_pair(x.floor() as i32, info.y as i32, info.w & 255),
-            ys: wrap_pair(y.floor() as i32, info.z as i32, info.w >> 8),
-            weight: Vec2::new(x - x.floor(), y - y.floor()),
+            xs: wrap_pair(x0 as i32, info.y as i32, info.w & 255),
+            ys: wrap_pair(y0 as i32, info.z as i32, info.w >> 8),
+            weight: Vec2::new(x - x0, y - y0),
         }
     }
 

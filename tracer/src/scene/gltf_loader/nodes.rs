@@ -252,14 +252,8 @@ impl Loader<'_> {
         }
         let position = world.transform_point3(Vec3::ZERO);
         if moving && position.abs().max_element() > crate::scene::CAMERA_LIMIT {
-            let time = self.time;
-            self.warnings.once(&format!("camera beyond the world at node {node}"), || {
-                format!(
-                    "node {node}'s camera: the pose at {time} s places it beyond {:e} units of the origin: it is \
-                     ignored (the file's next camera, else a framing of the scene, is used instead)",
-                    crate::scene::CAMERA_LIMIT
-                )
-            });
+            let outcome = "it is ignored (the file's next camera, else a framing of the scene, is used instead)";
+            self.warn_carried_beyond(format!("node {node}'s camera"), crate::scene::CAMERA_LIMIT, outcome);
             return Ok(());
         }
         self.camera = Some(FoundCamera { position, forward, up, yfov });
@@ -307,18 +301,21 @@ impl Loader<'_> {
         }
         let position = world.transform_point3(Vec3::ZERO);
         if moving && !crate::scene::in_world(position) {
-            let time = self.time;
-            self.warnings.once(&format!("light beyond the world at node {node}"), || {
-                format!(
-                    "node {node}'s light {index}: the pose at {time} s places it beyond {:e} units of the origin: it \
-                     is left out (lights stay where the load-time pose puts them)",
-                    crate::scene::WORLD_LIMIT
-                )
-            });
+            let outcome = "it is left out (lights stay where the load-time pose puts them)";
+            self.warn_carried_beyond(format!("node {node}'s light {index}"), crate::scene::WORLD_LIMIT, outcome);
             return Ok(());
         }
         self.point_lights.push(PointLight { position, intensity });
         Ok(())
+    }
+
+    /// Warns once that the load-time pose carries `what` (a light, a camera) beyond `limit`
+    /// units of the origin, and what becomes of it (`outcome`).
+    fn warn_carried_beyond(&mut self, what: String, limit: f32, outcome: &str) {
+        let time = self.time;
+        self.warnings.once(&format!("{what} beyond the world"), || {
+            format!("{what}: the pose at {time} s places it beyond {limit:e} units of the origin: {outcome}")
+        });
     }
 
     /// Appends `prims` (mesh `mesh`'s primitives, or their skinned copies) under `world`,
