@@ -16,6 +16,7 @@ mod moving;
 mod normal_maps;
 mod preview;
 mod stability;
+mod take_scene;
 mod texture_transform;
 mod wavefront;
 mod wgpu;

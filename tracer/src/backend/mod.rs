@@ -13,9 +13,9 @@ pub mod wavefront;
 #[cfg(feature = "wgpu")]
 pub mod wgpu;
 
-pub(crate) use renderer::update_uniforms;
 #[cfg(not(target_arch = "wasm32"))]
 pub use renderer::{create, create_scheduled};
+pub(crate) use renderer::{exchange_scene, update_uniforms};
 // The image a renderer reads back lives with what writes and displays it (`output`).
 pub use crate::output::Image;
 pub use renderer::{

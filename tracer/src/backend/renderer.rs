@@ -139,6 +139,15 @@ pub trait Renderer {
     /// changes nothing: create a renderer for it.
     fn take_geometry(&mut self, moved: Packed) -> Result<(), RenderError>;
 
+    /// Takes `scene` whole in place of the renderer's (every array and uniform uploaded again),
+    /// keeps the compiled kernel, and restarts the accumulation. `scene` must need the same
+    /// kernel variant ([`PackError::KernelChanged`](crate::pack::PackError::KernelChanged)
+    /// otherwise) at the same image size ([`RenderError::SizeChanged`]); then, as when an
+    /// upload fails, nothing changes. For a renderer created from
+    /// [`Packed::placeholder`](crate::pack::Packed::placeholder), which compiles the kernel
+    /// while the scene is decoded (the page's viewer).
+    fn take_scene(&mut self, scene: Packed) -> Result<(), RenderError>;
+
     /// Drops every accumulated sample: the next frame is sample 1 again (a split frame in
     /// progress is abandoned: the next band is its first row).
     fn restart(&mut self) -> Result<(), RenderError>;
@@ -183,6 +192,17 @@ pub fn rejected_samples(frames: u32, accumulation: &[Vec4]) -> u64 {
 }
 
 /// Applies `update` to `scene`, refusing (and undoing) a change of the image size.
+/// [`Packed::exchange_scene`] for [`Renderer::take_scene`]: refused, and nothing exchanged, for
+/// another image size.
+pub(crate) fn exchange_scene(current: &mut Packed, other: &mut Packed) -> Result<(), RenderError> {
+    let (c, o) = (&current.scene, &other.scene);
+    if (c.width, c.height) != (o.width, o.height) {
+        let wanted = format!("{}x{}", o.width, o.height);
+        return Err(RenderError::SizeChanged { width: c.width, height: c.height, wanted });
+    }
+    Ok(current.exchange_scene(other)?)
+}
+
 pub(crate) fn update_uniforms(scene: &mut Scene, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
     let (width, height) = (scene.width, scene.height);
     update(scene);

@@ -97,7 +97,7 @@ impl<T: Texel> Field for Texels<T> {
         });
     }
     fn read(name: &str, r: &mut Reader) -> Result<Self, BundleError> {
-        Ok(Texels::new(T::get(&r.take(name, T::ELEMENT, T::COMPONENTS)?.data)))
+        Ok(Texels::new(T::get(r.take(name, T::ELEMENT, T::COMPONENTS)?.data()?)))
     }
 }
 
@@ -149,7 +149,7 @@ impl Field for String {
         w.entry(name, ElementType::U8, 1, self.len() as u64, |out| out.extend_from_slice(self.as_bytes()));
     }
     fn read(name: &str, r: &mut Reader) -> Result<Self, BundleError> {
-        let data = &r.take(name, ElementType::U8, 1)?.data;
+        let data = r.take(name, ElementType::U8, 1)?.data()?;
         String::from_utf8(data.to_vec())
             .map_err(|_| BundleError::InvalidValue { field: name.to_string(), reason: "not UTF-8".into() })
     }

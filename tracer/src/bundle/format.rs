@@ -169,9 +169,28 @@ pub(super) struct Entry<'a> {
     count: u64,
     /// The bytes as stored in the bundle (compressed or not).
     stored: &'a [u8],
-    /// The elements (decompressed).
-    pub(super) data: Cow<'a, [u8]>,
+    /// The elements (decompressed), or `None` for a compressed entry left compressed
+    /// ([`Reader::headers`]).
+    data: Option<Cow<'a, [u8]>>,
+    /// Where its header starts in the input.
+    offset: u64,
     taken: bool,
+}
+
+impl<'a> Entry<'a> {
+    /// The elements: an entry left compressed is an error (see [`Reader::headers`]).
+    pub(super) fn data(&self) -> Result<&[u8], BundleError> {
+        self.data.as_deref().ok_or(self.left_compressed())
+    }
+
+    /// [`data`](Self::data) as an owned handle (a copy only where it was decompressed).
+    pub(super) fn data_cow(&self) -> Result<Cow<'a, [u8]>, BundleError> {
+        self.data.clone().ok_or(self.left_compressed())
+    }
+
+    fn left_compressed(&self) -> BundleError {
+        BundleError::BadEntry { offset: self.offset, reason: "compressed, and not decompressed by a peek" }
+    }
 }
 
 pub(super) struct Reader<'a> {
@@ -208,8 +227,21 @@ impl<'a> Cursor<'a> {
 }
 
 impl<'a> Reader<'a> {
-    /// Checks the header and splits the input into entries (no data is converted yet).
+    /// Checks the header and splits the input into entries, decompressing the compressed ones
+    /// (no data is converted yet).
     pub(super) fn parse(bytes: &'a [u8]) -> Result<Reader<'a>, BundleError> {
+        Self::split(bytes, true)
+    }
+
+    /// [`parse`](Self::parse) without decompressing anything: the header and every entry's
+    /// header are checked, the plain entries can be read, and reading a compressed one is an
+    /// error. For peeking at a bundle's small entries (`bundle::peek_features`) in a fraction
+    /// of what decoding it takes.
+    pub(super) fn headers(bytes: &'a [u8]) -> Result<Reader<'a>, BundleError> {
+        Self::split(bytes, false)
+    }
+
+    fn split(bytes: &'a [u8], decompress: bool) -> Result<Reader<'a>, BundleError> {
         let actual = bytes.len() as u64;
         if actual > MAX_BUNDLE_BYTES {
             return Err(BundleError::TooLarge { bytes: actual, max: MAX_BUNDLE_BYTES });
@@ -276,7 +308,7 @@ impl<'a> Reader<'a> {
             let (stored, data) = match encoding {
                 Encoding::Plain => {
                     let data = c.take(len)?;
-                    (data, Cow::Borrowed(data))
+                    (data, Some(Cow::Borrowed(data)))
                 }
                 Encoding::Lzma2 => {
                     decoded = decoded.saturating_add(len);
@@ -285,10 +317,11 @@ impl<'a> Reader<'a> {
                     }
                     let stored_len = u64::from_le_bytes(c.array()?);
                     let stored = c.take(stored_len)?;
-                    (stored, Cow::Owned(unlzma2(stored, len).map_err(bad)?))
+                    let data = if decompress { Some(Cow::Owned(unlzma2(stored, len).map_err(bad)?)) } else { None };
+                    (stored, data)
                 }
             };
-            entries.push(Entry { name, element, components, count, stored, data, taken: false });
+            entries.push(Entry { name, element, components, count, stored, data, offset, taken: false });
         }
         if c.at != bytes.len() {
             return Err(BundleError::BadEntry { offset: c.at as u64, reason: "bytes after the last entry" });
@@ -334,7 +367,7 @@ impl<'a> Reader<'a> {
                 found: describe(entry.element, entry.components, entry.count),
             });
         }
-        Ok(&entry.data)
+        entry.data()
     }
 
     pub(super) fn finish(self) -> Result<(), BundleError> {

@@ -43,6 +43,7 @@ mod format;
 mod motion;
 mod textures;
 
+use crate::kernel::features::Features;
 use crate::pack::Packed;
 use crate::scene::Scene;
 use checks::check_consistency;
@@ -179,6 +180,21 @@ fn encode_parts(name: &str, packed: &Packed, scene: Option<&Scene>) -> Vec<u8> {
 /// interpreted): what the bytes of a bundle are spent on.
 pub fn entries(bytes: &[u8]) -> Result<Vec<(&str, &[u8])>, BundleError> {
     Ok(Reader::parse(bytes)?.entries().collect())
+}
+
+/// The kernel variant a bundle's scene needs (its [`Features`]), read without decoding the
+/// bundle: the header and a few small entries, none decompressed, in well under a millisecond
+/// where [`Bundle::decode`] takes hundreds. A renderer can then compile the kernel while the
+/// rest is decoded (the page's viewer: `Packed::placeholder`, `Renderer::take_scene`). The
+/// header and the entries read are checked as `decode` checks them; the rest is not looked at,
+/// so `decode` may still refuse a bundle this accepts.
+pub fn peek_features(bytes: &[u8]) -> Result<Features, BundleError> {
+    let mut r = Reader::headers(bytes)?;
+    let kernel = u32::read(KERNEL_FIELD, &mut r)?;
+    if kernel != kernel_fingerprint() {
+        return Err(BundleError::OtherKernel { found: kernel, expected: kernel_fingerprint() });
+    }
+    Features::read("features", &mut r)
 }
 
 /// Decodes a bundle's packed scene (its name is dropped; see [`Bundle::decode`]).
@@ -402,6 +418,36 @@ mod tests {
         let mut bad = good;
         bad[data..data + 8].copy_from_slice(&u64::MAX.to_le_bytes());
         assert!(matches!(decode(&bad).unwrap_err(), BundleError::Truncated { .. }));
+    }
+
+    #[test]
+    fn peeking_reads_the_features_without_decompressing_anything() {
+        for p in [cornell(), textured_with_sky()] {
+            let good = encode(&p);
+            assert_eq!(peek_features(&good).unwrap(), decode(&good).unwrap().features);
+        }
+        // The compressed entries are not decompressed: a corrupt one is decode's to find.
+        let p = textured_with_sky();
+        let good = encode(&p);
+        let at = entry_offset(&good, "scene.sky");
+        assert_eq!(good[at + 2], 1, "the sky is large enough to be compressed");
+        let data = (at + 12).next_multiple_of(ALIGN);
+        let stored = u64::from_le_bytes(good[data..data + 8].try_into().unwrap()) as usize;
+        let mut bad = good.clone();
+        bad[data + 8 + stored / 2..data + 8 + stored / 2 + 16].fill(0x55);
+        assert!(matches!(decode(&bad).unwrap_err(), BundleError::BadEntry { .. }));
+        assert_eq!(peek_features(&bad).unwrap(), p.features);
+        // A compressed entry cannot be read from the headers alone.
+        let mut r = Reader::headers(&good).unwrap();
+        let sky = r.take("scene.sky", ElementType::F32, 4).unwrap();
+        assert!(matches!(sky.data(), Err(BundleError::BadEntry { .. })));
+        // The header and the kernel are checked as decode checks them.
+        let mut other = good.clone();
+        let at = (entry_offset(&other, KERNEL_FIELD) + 12).next_multiple_of(ALIGN);
+        other[at] ^= 1;
+        assert!(matches!(peek_features(&other).unwrap_err(), BundleError::OtherKernel { .. }));
+        assert_eq!(peek_features(b"not a bundle at all").unwrap_err(), BundleError::BadMagic);
+        assert!(matches!(peek_features(&good[..good.len() - 1]).unwrap_err(), BundleError::Truncated { .. }));
     }
 
     #[test]

@@ -80,9 +80,9 @@ fn png(atlas: &Texels<UVec4>, first_element: usize, width: u32, height: u32) -> 
 /// textures) and each texture as an image.
 pub(super) fn read(r: &mut Reader) -> Result<(Texels<UVec4>, Vec<AtlasImage>), BundleError> {
     let invalid = |field: &str, reason: String| BundleError::InvalidValue { field: field.to_string(), reason };
-    let bytes = r.take(IMAGES, ElementType::U8, 1)?.data.clone();
-    let ends: Vec<u64> = r.take(IMAGE_ENDS, ElementType::U64, 1)?.data.chunks_exact(8).map(le_u64).collect();
-    let image_of: Vec<u32> = r.take(IMAGE_OF, ElementType::U32, 1)?.data.chunks_exact(4).map(le_u32).collect();
+    let bytes = r.take(IMAGES, ElementType::U8, 1)?.data_cow()?;
+    let ends: Vec<u64> = r.take(IMAGE_ENDS, ElementType::U64, 1)?.data()?.chunks_exact(8).map(le_u64).collect();
+    let image_of: Vec<u32> = r.take(IMAGE_OF, ElementType::U32, 1)?.data()?.chunks_exact(4).map(le_u32).collect();
     let mut images = Vec::with_capacity(ends.len());
     let mut start = 0u64;
     for &end in &ends {

@@ -70,12 +70,13 @@ pub enum PackError {
     Instance(crate::scene::InstanceError),
     #[error("the packed textures were made from another scene (they do not match this scene's textures)")]
     TexturesMismatch,
-    /// [`Packed::take_geometry`] of a pose that needs another kernel variant (a deeper
-    /// traversal stack, say): the renderer must be created again for it.
     /// [`Posing`]: the moving parts (a bundle's motion section) do not match the packed scene.
     #[error("the moving parts do not match the packed scene: {0}")]
     NotThisPose(String),
-    #[error("the moved scene needs another kernel variant ({now:?}, was {was:?}): create the renderer again")]
+    /// [`Packed::take_geometry`] of a pose that needs another kernel variant (a deeper
+    /// traversal stack, say), or [`Packed::exchange_scene`] with a scene of other features:
+    /// the renderer must be created again for it.
+    #[error("the scene taken needs another kernel variant ({now:?}, was {was:?}): create the renderer again")]
     KernelChanged { was: Box<Features>, now: Box<Features> },
 }
 
@@ -291,6 +292,42 @@ impl Packed {
         std::mem::swap(&mut s.leaf_stack_limit, &mut m.leaf_stack_limit);
         std::mem::swap(&mut self.triangle_count, &mut moved.triangle_count);
         std::mem::swap(&mut self.light_count, &mut moved.light_count);
+        Ok(())
+    }
+
+    /// A scene of nothing that needs the kernel variant of `features`, at `width` x `height`
+    /// (at least 1x1): no arrays (a runtime binds each as one zero texel, and reads beyond an
+    /// array are zero on every runtime: node 0 has no children, every ray misses), the camera
+    /// at the origin looking down -z. A renderer created from it compiles the very kernel a
+    /// scene with these features needs, and drawing it once warms that kernel up, while the
+    /// scene itself is still being decoded (`bundle::peek_features`); the renderer then takes
+    /// the scene ([`Renderer::take_scene`](crate::backend::Renderer::take_scene)).
+    pub fn placeholder(features: Features, width: u32, height: u32) -> Packed {
+        let (width, height) = (width.max(1), height.max(1));
+        let mut scene = KernelScene {
+            camera_right: glam::Vec3::X * (width as f32 / height as f32),
+            camera_up: glam::Vec3::Y,
+            camera_forward: glam::Vec3::NEG_Z,
+            focus_distance: 1.0,
+            width,
+            height,
+            max_depth: 1,
+            scene_scale: 1.0,
+            ..Default::default()
+        };
+        features.set_kernel_flags(&mut scene);
+        Packed { scene, features, triangle_count: 0, light_count: 0, texture_images: Vec::new() }
+    }
+
+    /// Exchanges the whole scene (every array and uniform) with `other`, which must need the
+    /// same kernel variant (equal [`Features`]; else [`PackError::KernelChanged`], and nothing
+    /// changes): what a renderer created for one scene needs to draw another without compiling
+    /// again (`Renderer::take_scene`). Exchanging again restores both exactly.
+    pub fn exchange_scene(&mut self, other: &mut Packed) -> Result<(), PackError> {
+        if self.features != other.features {
+            return Err(PackError::KernelChanged { was: Box::new(self.features), now: Box::new(other.features) });
+        }
+        std::mem::swap(self, other);
         Ok(())
     }
 

@@ -1,7 +1,7 @@
 use glam::{Vec3, Vec4, Vec4Swizzles};
 use rayon::prelude::*;
 
-use crate::backend::{frame_seed, update_uniforms, GuideSums, RenderError, Renderer, RendererInfo};
+use crate::backend::{exchange_scene, frame_seed, update_uniforms, GuideSums, RenderError, Renderer, RendererInfo};
 use crate::kernel::integrator::{render_guided_sample, render_sample};
 use crate::kernel::scene_data::Scene;
 use crate::pack::Packed;
@@ -125,6 +125,11 @@ impl Renderer for CpuRenderer {
 
     fn take_geometry(&mut self, moved: Packed) -> Result<(), RenderError> {
         self.packed.take_geometry(moved)?;
+        self.restart()
+    }
+
+    fn take_scene(&mut self, mut scene: Packed) -> Result<(), RenderError> {
+        exchange_scene(&mut self.packed, &mut scene)?;
         self.restart()
     }
 

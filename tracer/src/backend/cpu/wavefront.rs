@@ -10,7 +10,7 @@ use crate::backend::wavefront::{
     iteration_bound, new_dispatch, new_paths, reset, FrameProfile, Stage, WavefrontCounts, WavefrontError, ITERATION,
     MAX_POOL,
 };
-use crate::backend::{update_uniforms, GuideSums, RenderError, Renderer, RendererInfo};
+use crate::backend::{exchange_scene, update_uniforms, GuideSums, RenderError, Renderer, RendererInfo};
 use crate::kernel::scene_data::Scene;
 use crate::kernel::wavefront::{self as stages, Dispatch, Paths, FRAMES_DONE, WORKGROUP};
 use crate::pack::Packed;
@@ -181,6 +181,11 @@ impl Renderer for WavefrontRenderer {
 
     fn take_geometry(&mut self, moved: Packed) -> Result<(), RenderError> {
         self.packed.take_geometry(moved)?;
+        self.restart()
+    }
+
+    fn take_scene(&mut self, mut scene: Packed) -> Result<(), RenderError> {
+        exchange_scene(&mut self.packed, &mut scene)?;
         self.restart()
     }
 

@@ -17,7 +17,7 @@ use super::{
     SCENE_UNIFORM_PREFIX,
 };
 use crate::backend::{
-    frame_seed, ms_since, update_uniforms, BuildTimes, GuideSums, RenderError, Renderer, RendererInfo,
+    exchange_scene, frame_seed, ms_since, update_uniforms, BuildTimes, GuideSums, RenderError, Renderer, RendererInfo,
 };
 use crate::kernel::denoise::FilterImage;
 use crate::kernel::scene_data::Scene;
@@ -161,6 +161,12 @@ impl GlRenderer {
 
     /// Uploads the packed scene's geometry (just taken) as new data textures.
     fn upload_geometry(&mut self) -> Result<(), GlError> {
+        self.upload_arrays(Some(&Packed::GEOMETRY_ARRAYS))
+    }
+
+    /// Uploads the packed scene's arrays named in `only` (every array: `None`) as new data
+    /// textures, keeps the others' textures, and sets every uniform.
+    fn upload_arrays(&mut self, only: Option<&[&'static str]>) -> Result<(), GlError> {
         let packed = &self.packed;
         let max_texture_size = self.pipeline.info.max_texture_size;
         packed.arrays(max_texture_size).map_err(|reason| GlError::SceneTooLarge { max_texture_size, reason })?;
@@ -169,7 +175,7 @@ impl GlRenderer {
         let mut fresh = Objects::default();
         // SAFETY: the program was linked on this context, which is current.
         unsafe { gl.use_program(Some(program)) };
-        let reuse = Some(Reuse { textures: &self.pipeline.data_textures, upload: &Packed::GEOMETRY_ARRAYS });
+        let reuse = only.map(|upload| Reuse { textures: &self.pipeline.data_textures, upload });
         let bound = bind_scene(gl, program, &packed.scene.fields(), max_texture_size, &mut fresh, reuse);
         // SAFETY: as above.
         unsafe { gl.use_program(None) };
@@ -431,6 +437,19 @@ impl Renderer for GlRenderer {
         if let Err(e) = self.upload_geometry() {
             // Back to the geometry the textures hold (the exchange was just checked).
             let _ = self.packed.exchange_geometry(&mut moved);
+            return Err(e.into());
+        }
+        self.restart()
+    }
+
+    /// Every array uploaded as new data textures (the old ones deleted) and every uniform set;
+    /// the program is kept.
+    fn take_scene(&mut self, mut scene: Packed) -> Result<(), RenderError> {
+        self.activate()?;
+        exchange_scene(&mut self.packed, &mut scene)?;
+        if let Err(e) = self.upload_arrays(None) {
+            // Back to the scene the textures hold (the exchange was just checked).
+            let _ = self.packed.exchange_scene(&mut scene);
             return Err(e.into());
         }
         self.restart()

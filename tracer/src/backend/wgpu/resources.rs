@@ -488,6 +488,25 @@ impl Bindings {
     }
 }
 
+/// (`Bindings::take_scene`, below.)
+impl Bindings {
+    /// Takes `scene`, another scene for the same shader, whole: checked against the device's
+    /// limits, every array uploaded into new buffers, and bound again with the renderer's own.
+    pub(crate) fn take_scene(
+        &mut self,
+        device: &super::WgpuDevice,
+        options: &WgpuOptions,
+        scene: &dyn Resources,
+    ) -> Result<(), WgpuError> {
+        check_scene_limits(&device.limits, options, scene, &self.layout)?;
+        let (d, max_bytes) = (&device.device, most_buffer_bytes(&device.limits, options));
+        (self.scene, self.scene_uniform) = upload_scene_with_room(d, &self.layout, scene, Some(max_bytes))?;
+        let entries: Vec<BufferEntry> = self.scene.iter().chain(&self.own).cloned().collect();
+        self.groups = bind_groups(d, &self.group_layouts, &entries);
+        Ok(())
+    }
+}
+
 /// The bind group layouts of `entries` (groups 0, 1, ... as the shader numbers them) and the
 /// pipeline layout they imply.
 pub(crate) fn bind_group_layouts(
