@@ -351,14 +351,27 @@ fn the_page_runs_and_shows_the_api_asked_for() {
 /// The page accounts for its first frame on either API: the time from navigation to the first
 /// finished frame splits into download, decode, upload, compile and the first frame's GPU time,
 /// each measured (non-zero), none overlapping another (their sum is within the total), and the
-/// read-out shows the split.
+/// read-out shows the split. The kernel is compiled while the bundle is decoded
+/// (web/src/viewer/prepare.rs; `prepare=0`: after), and the renderer so made draws exactly
+/// what one made after the decode draws.
 #[test]
 fn the_page_splits_the_time_to_its_first_frame() {
     let server = Server::start(&[]);
     for api in ["webgl2", "webgpu"] {
         let report = api_report(&server, api, &[]);
         no_page_error(&report);
+        let after = api_report(&server, api, &[("prepare", "0")]);
+        no_page_error(&after);
         let split = &report["firstFrame"];
+        assert_eq!(split["compiledWhileDecoding"], true, "api={api}: {split}");
+        assert_eq!(after["firstFrame"]["compiledWhileDecoding"], false, "api={api}: {}", after["firstFrame"]);
+        let sum = |r: &Value| r["rendered"]["sum"].as_f64().unwrap_or(f64::NAN);
+        assert!(
+            sum(&report) > 0.0 && sum(&report) == sum(&after),
+            "api={api}: {} against {}",
+            report["rendered"],
+            after["rendered"]
+        );
         assert!(split.is_object(), "api={api}: the page reports no first-frame split: {report}");
         let ms = |key: &str| split[key].as_f64().unwrap_or_else(|| panic!("api={api}: no {key} in {split}"));
         let parts = ["downloadMs", "decodeMs", "uploadMs", "compileMs", "gpuMs"];

@@ -86,3 +86,24 @@ fn a_scene_of_another_kernel_or_size_is_refused_and_changes_nothing() {
         assert!(frames_bits(r.as_mut(), 1) == before, "{what}: a refused scene changed the image");
     }
 }
+
+/// GL's warm-up (the page's WebGL2 draws it before the decode: a 1x1 preview handed to the
+/// driver without an error query) leaves nothing behind: the renderer then takes the scene and
+/// renders it as a new one, its preview included.
+#[test]
+fn gl_warmed_up_on_a_placeholder_renders_the_scene_taken_as_a_new_one() {
+    use tracer::backend::gl::GlRenderer;
+    let scene = packed(&scene::cornell_box(), 16);
+    let placeholder = Packed::placeholder(scene.features, 16, 16);
+    let mut warmed = GlRenderer::headless(placeholder, 7).expect("GL renderer");
+    warmed.warm_up().expect("warm-up");
+    warmed.take_scene(scene.clone()).expect("takes the scene");
+    let mut fresh = GlRenderer::headless(scene, 7).expect("GL renderer");
+    warmed.render_preview(4, 4).expect("preview");
+    fresh.render_preview(4, 4).expect("preview");
+    let bits = |r: &GlRenderer| -> Vec<u32> {
+        r.read_preview().expect("preview").iter().flat_map(|p| p.to_array()).map(f32::to_bits).collect()
+    };
+    assert!(bits(&warmed) == bits(&fresh), "not the scene's preview");
+    assert!(frames_bits(&mut warmed, 2) == frames_bits(&mut fresh, 2), "not the scene's image");
+}

@@ -5,14 +5,14 @@
 import { rmSync } from 'node:fs';
 import { freshProfile, open, withBrowser } from './page.mjs';
 
-// Which API runs (`--api`, optionally `--maxStorageBuffers N`): the page's info, its API
+// Which API runs (`--api`, optionally `--maxStorageBuffers N` and `--prepare 0`): the page's info, its API
 // read-out and message after two frames, and what the page reported.
 export async function apiChoice(o) {
   const profile = freshProfile();
   try {
     return await withBrowser(profile, async (context) => {
       const { page, error, consoleErrors } = await open(context, o.url, {
-        scene: o.scene, size: o.size, paused: '1', maxStorageBuffers: o.maxStorageBuffers,
+        scene: o.scene, size: o.size, paused: '1', maxStorageBuffers: o.maxStorageBuffers, prepare: o.prepare,
       });
       const rendered = error ? null : await page.evaluate(async () => {
         await window.lightport.renderFrames(2);

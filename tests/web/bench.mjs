@@ -19,6 +19,9 @@
 //
 // `--preview 0`: the page without the preview (`preview=0`): the first image is the first frame.
 //
+// An API entry `webgl2:prepare0` (or `webgpu:prepare0`): the page's `prepare=0`, its kernel
+// compiled after the bundle's decode instead of while it (web/src/viewer/prepare.rs).
+//
 // `--play SECONDS`: for each scene that moves (LittlestTokyo), in the warm visit, the frame loop
 // with the animation playing at real speed and paused, in turns of that long, alternated
 // (animation.mjs's playAndPause): poses, previews and whole frames per second, and the pose's
@@ -123,10 +126,13 @@ try {
   for (let round = 0; round < rounds; round++) {
     for (const api of round % 2 ? [...apis].reverse() : apis) {
       const out = join(tmpdir(), `lightport-bench-${process.pid}.json`);
-      const [pageApi, schedule] = api.split(':');
+      // `webgl2:prepare0`: the page's `prepare=0` (the kernel compiled after the decode).
+      const [pageApi, option] = api.split(':');
+      const prepare = option === 'prepare0' ? '0' : undefined;
+      const schedule = prepare ? undefined : option;
       execFileSync('node', [join(here, 'run.mjs'), 'bench', '--url', url, '--out', out, '--size', size, '--frames', frames,
         '--api', pageApi, ...(schedule ? ['--schedule', schedule] : []), ...(args.depths ? ['--depths', args.depths] : []),
-        ...(args.preview ? ['--preview', args.preview] : []),
+        ...(args.preview ? ['--preview', args.preview] : []), ...(prepare ? ['--prepare', prepare] : []),
         ...(args.auto ? ['--auto', args.auto] : []), ...(args.play ? ['--play', args.play] : []),
         '--scenes', scenes.map((s) => s.name).join(',')], { stdio: 'inherit' });
       const { results } = JSON.parse(readFileSync(out, 'utf8'));

@@ -473,7 +473,7 @@ async function bench(o) {
         await withBrowser(profile, async (context) => {
           // Frame times without the denoiser (its time is measured by the denoise scenario).
           const { page, error, navigationStart } =
-            await open(context, o.url, { scene, size: o.size, paused: '1', denoise: '0', preview: o.preview });
+            await open(context, o.url, { scene, size: o.size, paused: '1', denoise: '0', preview: o.preview, prepare: o.prepare });
           if (error) throw new Error(`${scene}: ${error}`);
           // The first image: the preview, as the frame loop renders it after a load (`--preview
           // 0`: none; the page's own `preview=0`), then the first full frame in one submission.

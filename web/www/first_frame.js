@@ -139,7 +139,10 @@ export class FirstFrame {
       downloadMs: load.fetched !== null && load.fetchStart !== null ? load.fetched - load.fetchStart : 0,
       decodeMs: s.decodeMs,
       uploadMs: s.uploadMs,
+      // With the kernel compiled while the bundle was decoded (web/src/viewer/prepare.rs): the
+      // calls before the decode and what the compile still took after it, not its whole time.
       compileMs: s.codegenMs + s.compileMs + Math.max(0, (verdictAt ?? s.createdAt) - s.createdAt),
+      compiledWhileDecoding: s.compiledWhileDecoding,
       // The preview's GPU time (0 without one), then the full frame's, from its first band.
       previewMs: p ? p.gpuMs : 0,
       gpuMs: doneAt - Math.max(load.submitted ?? doneAt, verdictAt ?? 0, p ? p.doneAt : 0),
@@ -158,7 +161,8 @@ export class FirstFrame {
     }
     const image = p ? `first image (preview ${p.width}×${p.height}) ${sec(split.firstImageMs)} s; ` : '';
     this.$('first-frame').textContent = `${image}${sec(split.totalMs)} s: download ${sec(split.downloadMs)}, ` +
-      `decode ${sec(split.decodeMs)}, upload ${sec(split.uploadMs)}, compile ${sec(split.compileMs)}, ` +
+      `decode ${sec(split.decodeMs)}, upload ${sec(split.uploadMs)}, ` +
+      `compile ${sec(split.compileMs)}${split.compiledWhileDecoding ? ' (beyond the decode)' : ''}, ` +
       `${p ? `preview GPU ${sec(split.previewMs)}, ` : ''}GPU ${sec(split.gpuMs)}`;
   }
 }

@@ -15,6 +15,8 @@
 //                     after each restart (a camera move, a pose), is rendered at a quarter of
 //                     each side and shown upscaled until the first full-resolution frame is
 //                     complete; never accumulated: web/src/runtime/preview.rs),
+//   prepare=0|1       compile a served scene's kernel while its bundle is decoded (default 1;
+//                     web/src/viewer/prepare.rs); 0: after, as a comparison,
 //   budget=BYTES      the cache budget,
 //   bandBudget=MS     the longest one GPU submission (a band of a frame) should take, default
 //                     50; 0: frames are not split (one submission per frame),
@@ -57,6 +59,8 @@ let lost = false;
 let busy = false; // a scene is being loaded
 let hasScene = false;
 const fixedSize = /^(\d+)x(\d+)$/.exec(params.get('size') || '');
+// Whether bundles are loaded with their kernel compiled while they are decoded (`prepare=0`: not).
+const prepareBundles = params.get('prepare') !== '0';
 
 // The test hook: what the browser tests read and drive.
 const hook = {
@@ -429,6 +433,25 @@ function applySize() {
 
 // ---- scenes -------------------------------------------------------------------------------
 
+// Loads a bundle, its kernel compiled while it is decoded (web/src/viewer/prepare.rs): the
+// renderer is created from the bundle's features first, and the browser's GPU process compiles
+// while the bundle is decoded here. On WebGPU the page yields first, so that the GPU process
+// gets the pipeline (WebGPU sends its commands once this task ends); on WebGL2 the commands are
+// sent already, and a yield would wait for the compile (the rendering update between tasks
+// waits for the GPU process). `?prepare=0` loads without (the comparison).
+async function compileWhileDecoding(bytes) {
+  const data = new Uint8Array(bytes);
+  const preparedOn = prepareBundles ? viewer.prepareBundle(data) : undefined;
+  if (preparedOn) hook.startup.prepared ??= performance.now();
+  if (preparedOn === 'WebGPU') {
+    await yieldToBrowser();
+    hook.startup.yielded ??= performance.now();
+  }
+  const info = viewer.loadBundle(data);
+  hook.startup.loaded ??= performance.now();
+  return info;
+}
+
 async function loadServedScene(name) {
   const scene = scenes.find((s) => s.name === name);
   if (!scene) {
@@ -447,7 +470,7 @@ async function loadServedScene(name) {
     firstFrame.fetched();
     hook.bundleSources.push({ name: scene.name, fromCache, bytes: bytes.byteLength });
     hook.startup.fetched ??= performance.now();
-    const info = viewer.loadBundle(new Uint8Array(bytes));
+    const info = await compileWhileDecoding(bytes);
     hook.startup.installed ??= performance.now();
     hasScene = true;
     currentName = scene.name;
@@ -477,7 +500,7 @@ async function loadBundleUrl(url) {
     firstFrame.fetched();
     hook.startup.fetched ??= performance.now();
     hook.bundleSources.push({ name: url, fromCache: false, bytes: bytes.byteLength });
-    const info = viewer.loadBundle(new Uint8Array(bytes));
+    const info = await compileWhileDecoding(bytes);
     hasScene = true;
     currentName = info.name || url;
     $('scene').value = '';
@@ -684,6 +707,9 @@ async function main() {
     const on = params.get('preview');
     if (on === '0' || on === '1') viewer.setPreview(on === '1');
     else showMessage(`invalid preview=${on} (0: off, 1: on, the default)`);
+  }
+  if (params.has('prepare') && !['0', '1'].includes(params.get('prepare'))) {
+    showMessage(`invalid prepare=${params.get('prepare')} (0: compile after the decode, 1: while it, the default)`);
   }
   if (params.get('strategy')) hook.setStrategy(params.get('strategy'));
   if (params.get('tonemap')) hook.setToneMap(params.get('tonemap'));

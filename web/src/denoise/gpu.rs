@@ -156,6 +156,9 @@ impl Renderer for Replay<'_> {
     fn take_geometry(&mut self, _moved: Packed) -> Result<(), RenderError> {
         Err(Self::refuse("has no geometry"))
     }
+    fn take_scene(&mut self, _scene: Packed) -> Result<(), RenderError> {
+        Err(Self::refuse("has no scene of its own"))
+    }
     fn restart(&mut self) -> Result<(), RenderError> {
         Ok(())
     }

@@ -61,7 +61,7 @@ impl Api {
 /// on WebGL2 also the `finish()` that waits for the driver to take it), and for WebGPU, which
 /// compiles asynchronously, when the device's verdict on the kernel's pipeline arrived
 /// (`compiled_at`, a `performance.now()` time, to compare with `created_at`, when the runtime
-/// was ready).
+/// was ready), and whether the compile overlapped the bundle's decode (`compiled_while_decoding`).
 #[derive(Clone, Debug, Default)]
 pub struct Startup {
     pub codegen_ms: f64,
@@ -69,11 +69,15 @@ pub struct Startup {
     pub upload_ms: f64,
     pub created_at: f64,
     pub compiled_at: Option<f64>,
+    /// The kernel was compiled from the bundle's features while the bundle was decoded
+    /// (`viewer::prepare`): `compile_ms` is then the calls made before the decode plus what
+    /// the compile still took after it, not the compile's whole duration.
+    pub compiled_while_decoding: bool,
 }
 
 impl Startup {
-    /// As a JavaScript object: `codegenMs`, `compileMs`, `uploadMs`, `createdAt` and
-    /// `compiledAt` (`null` until the device answered).
+    /// As a JavaScript object: `codegenMs`, `compileMs`, `uploadMs`, `createdAt`,
+    /// `compiledAt` (`null` until the device answered) and `compiledWhileDecoding`.
     pub fn describe(&self) -> Object {
         let o = Object::new();
         set(&o, "codegenMs", self.codegen_ms);
@@ -81,6 +85,7 @@ impl Startup {
         set(&o, "uploadMs", self.upload_ms);
         set(&o, "createdAt", self.created_at);
         set(&o, "compiledAt", self.compiled_at.map_or(JsValue::NULL, JsValue::from));
+        set(&o, "compiledWhileDecoding", self.compiled_while_decoding);
         o
     }
 }

@@ -84,6 +84,7 @@ impl GlRuntime {
             upload_ms: build.upload_ms + (created_at - waiting),
             created_at,
             compiled_at: Some(created_at),
+            compiled_while_decoding: false,
         };
         let pacer = Pacer::new(packed.scene.height, band_budget_ms);
         Ok(GlRuntime {
@@ -102,6 +103,35 @@ impl GlRuntime {
 
     pub fn preview(&self) -> &Preview {
         &self.preview
+    }
+
+    /// Draws the kernel once (`GlRenderer::warm_up`: a 1x1 preview of the placeholder scene it
+    /// was created for, `Packed::placeholder`) and hands that to the GPU process without
+    /// waiting for it.
+    /// SwiftShader compiles a program at its first draw (seconds for the path tracer), which
+    /// so happens while this thread goes on, decoding the scene.
+    pub fn warm_up(&mut self) -> Result<(), String> {
+        self.renderer.warm_up().map_err(|e| format!("warming the kernel up: {e}"))
+    }
+
+    /// Takes the scene whose features the runtime was created for (after
+    /// [`warm_up`](Self::warm_up)): waits for the warm-up draw, which is what is left of the
+    /// compile (counted as compile), then uploads the scene and waits until the GPU process
+    /// has it (counted as upload).
+    pub fn take_scene(&mut self, packed: Packed) -> Result<(), String> {
+        let waiting = now_ms();
+        // SAFETY: a plain synchronisation call on the renderer's current context.
+        unsafe { self.renderer.gl().finish() };
+        let uploading = now_ms();
+        self.renderer.take_scene(packed).map_err(|e| e.to_string())?;
+        // SAFETY: as above.
+        unsafe { self.renderer.gl().finish() };
+        let created_at = now_ms();
+        let s = &mut self.startup;
+        s.compile_ms += uploading - waiting;
+        s.upload_ms = created_at - uploading;
+        (s.created_at, s.compiled_at, s.compiled_while_decoding) = (created_at, Some(created_at), true);
+        Ok(())
     }
 
     pub fn preview_mut(&mut self) -> &mut Preview {

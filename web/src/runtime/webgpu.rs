@@ -41,6 +41,13 @@ pub struct GpuDevice {
     pub(crate) lost: Arc<Mutex<Option<String>>>,
 }
 
+impl GpuDevice {
+    /// Whether `other` is this device (a clone of the same handle).
+    pub fn same_device(&self, other: &GpuDevice) -> bool {
+        Arc::ptr_eq(&self.lost, &other.lost)
+    }
+}
+
 #[wasm_bindgen]
 impl GpuDevice {
     /// The adapter's name, e.g. "google / swiftshader".
@@ -149,6 +156,20 @@ struct InFlight {
 pub struct Prepared {
     renderer: Box<dyn DeviceRenderer>,
     check: PipelineCheck,
+    /// What [`Prepared::take_scene`] took to upload the scene, if it took one.
+    taken_upload_ms: Option<f64>,
+}
+
+impl Prepared {
+    /// Takes the scene whose features the renderer was prepared for (a renderer of
+    /// `Packed::placeholder`, whose pipeline the device compiled meanwhile): uploaded into new
+    /// buffers. The verdict on the pipeline may still be on its way.
+    pub fn take_scene(&mut self, packed: Packed) -> Result<(), String> {
+        let (ms, taken) = timed(|| self.renderer.take_scene(packed));
+        taken.map_err(|e| e.to_string())?;
+        self.taken_upload_ms = Some(ms);
+        Ok(())
+    }
 }
 
 /// Milliseconds `run` took on this thread, and what it returned.
@@ -187,7 +208,7 @@ pub struct Candidate {
 
 impl Candidate {
     pub fn new(prepared: Prepared) -> Candidate {
-        let Prepared { renderer, check } = prepared;
+        let Prepared { renderer, check, .. } = prepared;
         let (compile_error, _) = watch_verdict(check);
         Candidate { renderer, compile_error }
     }
@@ -249,12 +270,12 @@ impl GpuRuntime {
                 (Box::new(r), check)
             }
         };
-        Ok(Prepared { renderer, check })
+        Ok(Prepared { renderer, check, taken_upload_ms: None })
     }
 
     /// The prepared renderer drawing to `canvas` (sized to the image already).
     pub fn attach(prepared: Prepared, canvas: &HtmlCanvasElement, band_budget_ms: Option<f64>) -> Result<Self, String> {
-        let Prepared { renderer, check } = prepared;
+        let Prepared { renderer, check, taken_upload_ms } = prepared;
         let device = renderer.device();
         let surface = device
             .instance
@@ -281,9 +302,10 @@ impl GpuRuntime {
         let startup = Startup {
             codegen_ms: build.codegen_ms,
             compile_ms: build.compile_ms + display_ms,
-            upload_ms: build.upload_ms,
+            upload_ms: taken_upload_ms.unwrap_or(build.upload_ms),
             created_at: now_ms(),
             compiled_at: None,
+            compiled_while_decoding: taken_upload_ms.is_some(),
         };
         let policy = BandPolicy::new(height, band_budget_ms);
         Ok(GpuRuntime {

@@ -36,6 +36,7 @@ use crate::js::{camel_case, js_error, now_ms, set};
 mod camera_input;
 mod measure;
 mod playback;
+mod prepare;
 mod preview;
 mod runtime_choice;
 
@@ -107,6 +108,8 @@ pub struct Viewer {
     playback: Option<Playback>,
     /// Whether a new renderer's first image is a preview (`setPreview`; on by default).
     preview: bool,
+    /// A renderer compiled for the next bundle while it is decoded (`prepareBundle`).
+    prepared: Option<prepare::Prepared>,
 }
 
 /// Renderers recreated after uncaptured WebGPU errors before the error is shown instead.
@@ -148,6 +151,7 @@ impl Viewer {
             denoiser: PageDenoiser::new(true),
             playback: None,
             preview: true,
+            prepared: None,
         }
     }
 
@@ -244,7 +248,7 @@ impl Viewer {
     #[wasm_bindgen(js_name = loadBundle)]
     pub fn load_bundle(&mut self, bytes: &[u8]) -> Result<JsValue, JsError> {
         let start = now_ms();
-        let bundle = tracer::bundle::Bundle::decode(bytes).map_err(js_error)?;
+        let bundle = tracer::bundle::Bundle::decode(bytes).inspect_err(|_| self.prepared = None).map_err(js_error)?;
         // A scene that moves (its motion section) plays as a dropped one does, posed from
         // what the bundle carries (`tracer::pack::Posing`).
         let playback = match bundle.moving {
@@ -302,7 +306,10 @@ impl Viewer {
         // A new scene is measured again; the old one's choice stays if this one is refused.
         self.abandon_measurement("another scene was loaded");
         let previous = std::mem::take(&mut self.choice);
-        let running = self.start(&packed).inspect_err(|_| self.choice = previous)?;
+        let started = self.start(&packed);
+        // A renderer prepared for this scene was taken by `start`; one for another is dropped.
+        self.prepared = None;
+        let running = started.inspect_err(|_| self.choice = previous)?;
         self.measurement_tries = 0;
         self.gpu_recoveries = 0;
         self.settings.max_depth = bundle_depth;

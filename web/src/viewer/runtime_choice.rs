@@ -57,14 +57,16 @@ impl Viewer {
         // Limits are checked and the scene uploaded before the canvas gets a WebGPU context.
         // Under auto, what the scene's measurement chose (the megakernel until then).
         let schedule = self.schedule.unwrap_or_else(|| self.choice.schedule());
-        let prepared = match GpuRuntime::prepare(&gpu, packed, self.seed, &self.wgpu_options, schedule) {
-            Err(e) if self.schedule.is_none() && schedule == Schedule::Wavefront => {
-                // The wavefront auto chose no longer builds (e.g. a size beyond its pool).
-                self.choice = Choice::Failed(format!("recreating it failed: {e}"));
-                GpuRuntime::prepare(&gpu, packed, self.seed, &self.wgpu_options, Schedule::Megakernel)?
-            }
-            prepared => prepared?,
-        };
+        let taken = self.take_prepared_webgpu(packed, &gpu, schedule).map(Ok);
+        let prepared =
+            match taken.unwrap_or_else(|| GpuRuntime::prepare(&gpu, packed, self.seed, &self.wgpu_options, schedule)) {
+                Err(e) if self.schedule.is_none() && schedule == Schedule::Wavefront => {
+                    // The wavefront auto chose no longer builds (e.g. a size beyond its pool).
+                    self.choice = Choice::Failed(format!("recreating it failed: {e}"));
+                    GpuRuntime::prepare(&gpu, packed, self.seed, &self.wgpu_options, Schedule::Megakernel)?
+                }
+                prepared => prepared?,
+            };
         let canvas = self.canvas_for(Api::WebGpu)?;
         canvas.set_width(packed.scene.width);
         canvas.set_height(packed.scene.height);
@@ -76,8 +78,20 @@ impl Viewer {
             return Err(JsError::new("the WebGL context is lost; waiting for the browser to restore it"));
         }
         let canvas = self.canvas_for(Api::WebGl2).map_err(|e| JsError::new(&e))?;
-        canvas.set_width(packed.scene.width);
-        canvas.set_height(packed.scene.height);
+        let size = |canvas: &HtmlCanvasElement| {
+            canvas.set_width(packed.scene.width);
+            canvas.set_height(packed.scene.height);
+        };
+        // The renderer compiled while the bundle was decoded takes the scene before the canvas
+        // is resized (a resize waits for the GPU process: for the compile it is finishing,
+        // which the take counts as compile).
+        if let Some(context) = self.gl_context.clone() {
+            if let Some(runtime) = self.take_prepared_webgl2(packed, &context) {
+                size(&canvas);
+                return Ok(Runtime::WebGl2(Box::new(runtime)));
+            }
+        }
+        size(&canvas);
         let context = match &self.gl_context {
             Some(c) => c.clone(),
             None => {

@@ -250,6 +250,41 @@ impl GlRenderer {
     /// accumulation is untouched. For that one draw the scene's `width` and `height` uniforms
     /// are the preview's; they are set back after it. One submission.
     pub fn render_preview(&mut self, width: u32, height: u32) -> Result<glow::Texture, RenderError> {
+        let texture = self.draw_preview(width, height)?;
+        // SAFETY: a plain query on this renderer's context, current since the draw.
+        let error = unsafe { self.gl.get_error() };
+        if error != glow::NO_ERROR {
+            let detail = format!("{width}x{height}: error {error:#06x}");
+            return Err(GlError::Gl { what: "drawing a preview", detail }.into());
+        }
+        Ok(texture)
+    }
+
+    /// A 1x1 preview handed to the driver without waiting for anything (no error query: in a
+    /// browser each is a round trip to the GPU process, which would wait for the draw): a
+    /// driver that compiles a program at its first draw (SwiftShader) compiles the kernel then,
+    /// while the caller goes on. For a renderer of `Packed::placeholder` before it takes its
+    /// scene (`Renderer::take_scene`). Before the accumulation's first frame only, as
+    /// [`render_preview`](Self::render_preview).
+    pub fn warm_up(&mut self) -> Result<(), RenderError> {
+        self.draw_preview(1, 1)?;
+        // A fence makes ANGLE submit the draw to its Vulkan driver, where SwiftShader compiles
+        // the program (a flush alone did not: the compile then waited for the next
+        // synchronising call, after the decode). Nothing waits for it.
+        // SAFETY: plain calls on this renderer's context, current since the draw; the fence is
+        // deleted once made.
+        unsafe {
+            let fence = self.gl.fence_sync(glow::SYNC_GPU_COMMANDS_COMPLETE, 0);
+            self.gl.flush();
+            if let Ok(fence) = fence {
+                self.gl.delete_sync(fence);
+            }
+        }
+        Ok(())
+    }
+
+    /// [`render_preview`](Self::render_preview) without its error check.
+    fn draw_preview(&mut self, width: u32, height: u32) -> Result<glow::Texture, RenderError> {
         if self.frames != 0 || self.band_row != 0 {
             return Err(RenderError::Unsupported {
                 runtime: "gl",
@@ -294,11 +329,6 @@ impl GlRenderer {
             gl.uniform_1_u32(Some(width_location), full_width);
             gl.uniform_1_u32(Some(height_location), full_height);
             gl.use_program(None);
-            let error = gl.get_error();
-            if error != glow::NO_ERROR {
-                let detail = format!("{width}x{height}: error {error:#06x}");
-                return Err(GlError::Gl { what: "drawing a preview", detail }.into());
-            }
         }
         Ok(target.texture)
     }
