@@ -136,9 +136,12 @@ pub fn sky(data: &[u8]) {
 
 /// A bundle; one that decodes is posed (when it moves) and rendered as the page would (whatever its image size says,
 /// 4x3 pixels here, one sample), so that values that decode but make no sense cannot hang or
-/// crash the kernel.
+/// crash the kernel. The page first peeks at its features (`bundle::peek_features`, on the
+/// same untrusted bytes): that must not fail where decoding succeeds, nor disagree with it.
 pub fn bundle(data: &[u8]) {
+    let peeked = tracer::bundle::peek_features(data);
     if let Ok(tracer::bundle::Bundle { mut packed, moving, .. }) = tracer::bundle::Bundle::decode(data) {
+        assert_eq!(peeked.ok(), Some(packed.features), "peek_features disagrees with decode");
         // A motion section that decodes poses (or is a clear error) at any time.
         if let Some(mut moving) = moving {
             let end = moving.motion.as_ref().map_or(0.0, |m| m.duration());

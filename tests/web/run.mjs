@@ -124,18 +124,21 @@ async function camera(o) {
   const profile = freshProfile();
   try {
     return await withBrowser(profile, async (context) => {
-      const { page, error } = await open(context, o.url, { scene: o.scene, size: o.size, paused: '1' });
+      const { page, error } = await open(context, o.url, { scene: o.scene, size: o.size, paused: '1', prepare: o.prepare });
       if (error) return { error };
       const spp = () => page.evaluate(() => window.lightport.spp());
       const render = (n) => page.evaluate((k) => window.lightport.renderFrames(k), n);
       const image = () => page.evaluate(async () => (await window.lightport.readAccumulation()).data);
-      const box = await page.locator('#view').boundingBox();
-      const cx = box.x + box.width / 2;
-      const cy = box.y + box.height / 2;
       const steps = {};
       await render(8);
       steps.beforeDrag = await spp();
       const before = await image();
+      // Where the canvas is now: the read-outs above it change once the first frame is done
+      // (the first-frame split's line can wrap), which moves a small canvas from under a point
+      // measured earlier.
+      const box = await page.locator('#view').boundingBox();
+      const cx = box.x + box.width / 2;
+      const cy = box.y + box.height / 2;
       await page.mouse.move(cx, cy);
       await page.mouse.down();
       await page.mouse.move(cx + 60, cy + 10, { steps: 4 });
