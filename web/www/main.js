@@ -453,9 +453,7 @@ async function compileWhileDecoding(bytes) {
     await yieldToBrowser();
     hook.startup.yielded ??= performance.now();
   }
-  const info = viewer.loadBundle(data);
-  hook.startup.loaded ??= performance.now();
-  return info;
+  return viewer.loadBundle(data);
 }
 
 async function loadServedScene(name) {

@@ -107,9 +107,8 @@ impl GlRuntime {
 
     /// Draws the kernel once (`GlRenderer::warm_up`: a 1x1 preview of the placeholder scene it
     /// was created for, `Packed::placeholder`) and hands that to the GPU process without
-    /// waiting for it.
-    /// SwiftShader compiles a program at its first draw (seconds for the path tracer), which
-    /// so happens while this thread goes on, decoding the scene.
+    /// waiting for it. SwiftShader compiles a program at its first draw (seconds for the path
+    /// tracer), which so happens while this thread goes on, decoding the scene.
     pub fn warm_up(&mut self) -> Result<(), String> {
         self.renderer.warm_up().map_err(|e| format!("warming the kernel up: {e}"))
     }

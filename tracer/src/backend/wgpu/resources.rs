@@ -481,15 +481,11 @@ impl Bindings {
         let (d, max_bytes) = (&device.device, most_buffer_bytes(&device.limits, options));
         let (entries, uniform) = (&mut self.scene, &mut self.scene_uniform);
         if take_scene_geometry(d, &device.queue, &self.layout, scene, max_bytes, entries, uniform)? {
-            let entries: Vec<BufferEntry> = self.scene.iter().chain(&self.own).cloned().collect();
-            self.groups = bind_groups(d, &self.group_layouts, &entries);
+            self.bind_again(d);
         }
         Ok(())
     }
-}
 
-/// (`Bindings::take_scene`, below.)
-impl Bindings {
     /// Takes `scene`, another scene for the same shader, whole: checked against the device's
     /// limits, every array uploaded into new buffers, and bound again with the renderer's own.
     pub(crate) fn take_scene(
@@ -501,9 +497,14 @@ impl Bindings {
         check_scene_limits(&device.limits, options, scene, &self.layout)?;
         let (d, max_bytes) = (&device.device, most_buffer_bytes(&device.limits, options));
         (self.scene, self.scene_uniform) = upload_scene_with_room(d, &self.layout, scene, Some(max_bytes))?;
+        self.bind_again(d);
+        Ok(())
+    }
+
+    /// New bind groups over the scene's buffers (new ones) and the renderer's own.
+    fn bind_again(&mut self, d: &wgpu::Device) {
         let entries: Vec<BufferEntry> = self.scene.iter().chain(&self.own).cloned().collect();
         self.groups = bind_groups(d, &self.group_layouts, &entries);
-        Ok(())
     }
 }
 
