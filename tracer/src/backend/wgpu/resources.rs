@@ -477,8 +477,7 @@ impl Bindings {
         options: &WgpuOptions,
         scene: &dyn Resources,
     ) -> Result<(), WgpuError> {
-        check_scene_limits(&device.limits, options, scene, &self.layout)?;
-        let (d, max_bytes) = (&device.device, most_buffer_bytes(&device.limits, options));
+        let (d, max_bytes) = (&device.device, self.room_for(device, options, scene)?);
         let (entries, uniform) = (&mut self.scene, &mut self.scene_uniform);
         if take_scene_geometry(d, &device.queue, &self.layout, scene, max_bytes, entries, uniform)? {
             self.bind_again(d);
@@ -494,11 +493,22 @@ impl Bindings {
         options: &WgpuOptions,
         scene: &dyn Resources,
     ) -> Result<(), WgpuError> {
-        check_scene_limits(&device.limits, options, scene, &self.layout)?;
-        let (d, max_bytes) = (&device.device, most_buffer_bytes(&device.limits, options));
+        let (d, max_bytes) = (&device.device, self.room_for(device, options, scene)?);
         (self.scene, self.scene_uniform) = upload_scene_with_room(d, &self.layout, scene, Some(max_bytes))?;
         self.bind_again(d);
         Ok(())
+    }
+
+    /// The most bytes one of `scene`'s buffers may take on `device`, once the scene is checked
+    /// against the device's limits (what taking a scene or a pose checks first).
+    fn room_for(
+        &self,
+        device: &super::WgpuDevice,
+        options: &WgpuOptions,
+        scene: &dyn Resources,
+    ) -> Result<u64, WgpuError> {
+        check_scene_limits(&device.limits, options, scene, &self.layout)?;
+        Ok(most_buffer_bytes(&device.limits, options))
     }
 
     /// New bind groups over the scene's buffers (new ones) and the renderer's own.
