@@ -11,6 +11,7 @@ mod animation;
 mod api;
 mod denoise;
 mod fallback;
+mod layout;
 mod preview;
 mod wavefront;
 

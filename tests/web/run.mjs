@@ -5,7 +5,7 @@
 //   node run.mjs SCENARIO --url http://127.0.0.1:PORT/ --out result.json [options]
 //
 // Scenarios: accumulate, cache, camera, slow, drop, limits, context, display, bench,
-// chart, compile, denoise, denoiseedges, toplevel (see each function), animation (animation.mjs), preview (preview.mjs), api, fallback, deviceloss, autoschedule (api.mjs); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2), `--schedule auto|megakernel|wavefront` its schedule. `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
+// chart, compile, denoise, denoiseedges, toplevel (see each function), animation (animation.mjs), preview (preview.mjs), api, fallback, deviceloss, autoschedule (api.mjs), layout (layout.mjs); `--api auto|webgpu|webgl2` chooses the page's API (default webgl2), `--schedule auto|megakernel|wavefront` its schedule. `--deadline SECONDS` (any scenario): give up, close the browser and exit 3 after that
 // long, so that a hung page never hangs the caller. `--exit-on-stdin-eof` (no value): exit 4,
 // closing the browser, when stdin reaches its end: the caller holds the pipe's other end, which
 // the kernel closes when the caller ends however it ends (src/serve_child.rs), so neither this
@@ -18,6 +18,7 @@ import {
 import { animation, playAndPause } from './animation.mjs';
 import { apiChoice, autoSchedule, deviceLoss, fallback } from './api.mjs';
 import { preview } from './preview.mjs';
+import { layout } from './layout.mjs';
 
 function parseArgs(argv) {
   const [scenario, ...rest] = argv;
@@ -719,7 +720,7 @@ async function topLevel(o) {
 const SCENARIOS = {
   accumulate, cache, camera, slow, drop, limits, context: contextLoss, display, api: apiChoice, deviceloss: deviceLoss,
   fallback, autoschedule: autoSchedule,
-  bench, chart, compile, denoise, denoiseedges: denoiseEdges, toplevel: topLevel, animation, preview,
+  bench, chart, compile, denoise, denoiseedges: denoiseEdges, toplevel: topLevel, animation, preview, layout,
 };
 
 const options = parseArgs(process.argv.slice(2));

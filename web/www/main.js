@@ -631,6 +631,30 @@ if (!fixedSize) {
     clearTimeout(resizeTimer);
     resizeTimer = setTimeout(applySize, 200); // recreating the renderer is not free
   }).observe(stage);
+  holdReadoutHeight();
+}
+
+// The read-outs below the image wrap by their text, and their text changes as the image
+// converges ("preview …" becomes "raw …", the API's line tells the schedule's measurement).
+// A footer that grew and shrank again resized the stage, the new size restarted the
+// accumulation and the restart put the old text back, for ever: DamagedHelmet on WebGPU in a
+// 900x700 window never got past its first sample (tests/cli/web/layout.rs). The footer keeps
+// the tallest height it has had since the window last changed size, so text alone resizes the
+// stage a bounded number of times.
+function holdReadoutHeight() {
+  const footer = document.querySelector('footer');
+  let held = 0;
+  new ResizeObserver(() => {
+    const height = footer.getBoundingClientRect().height;
+    if (height > held) {
+      held = height;
+      footer.style.minHeight = `${height}px`;
+    }
+  }).observe(footer);
+  window.addEventListener('resize', () => {
+    held = 0;
+    footer.style.minHeight = '';
+  });
 }
 
 // ---- context loss -------------------------------------------------------------------------
