@@ -102,7 +102,7 @@ pub fn obj(data: &[u8]) {
         None => (data, None),
     };
     let read = |path: &Path| -> Result<Vec<u8>, SceneError> {
-        let missing = || SceneError::Io { path: path.to_owned(), source: std::io::ErrorKind::NotFound.into() };
+        let missing = || SceneError::Io { path: path.to_owned(), error: std::io::ErrorKind::NotFound.into() };
         let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
         match ext.as_str() {
             "mtl" => mtl.map(<[u8]>::to_vec).ok_or_else(missing),

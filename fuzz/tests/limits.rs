@@ -223,7 +223,7 @@ fn inputs_declaring_huge_sizes_are_refused_before_allocating_them() {
             "an OBJ face with vertex index 2^32 - 1",
             Box::new(|| {
                 let read = |p: &std::path::Path| -> Result<Vec<u8>, SceneError> {
-                    Err(SceneError::Io { path: p.to_owned(), source: std::io::ErrorKind::NotFound.into() })
+                    Err(SceneError::Io { path: p.to_owned(), error: std::io::ErrorKind::NotFound.into() })
                 };
                 scene::load_obj_slice(
                     b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4294967295\n",

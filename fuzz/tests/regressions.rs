@@ -191,7 +191,7 @@ fn every_index_the_kernel_follows_is_checked_at_decode() {
 fn obj_face_indices_tobj_would_overflow_on_are_refused() {
     let input = regression(Target::Obj, "relative-normal-index-overflow.obj");
     let read = |p: &Path| -> Result<Vec<u8>, SceneError> {
-        Err(SceneError::Io { path: p.to_owned(), source: std::io::ErrorKind::NotFound.into() })
+        Err(SceneError::Io { path: p.to_owned(), error: std::io::ErrorKind::NotFound.into() })
     };
     let err = scene::load_obj_slice(&input, "n.obj", &read, &LoadOptions::default()).unwrap_err();
     assert!(
@@ -249,7 +249,7 @@ fn an_mtl_colour_with_two_values_is_refused_with_its_line() {
     let read = |p: &Path| -> Result<Vec<u8>, SceneError> {
         match p.to_str() {
             Some("a.mtl") => Ok(mtl.as_bytes().to_vec()),
-            _ => Err(SceneError::Io { path: p.to_owned(), source: std::io::ErrorKind::NotFound.into() }),
+            _ => Err(SceneError::Io { path: p.to_owned(), error: std::io::ErrorKind::NotFound.into() }),
         }
     };
     let err = scene::load_obj_slice(obj.as_bytes(), "kd.obj", &read, &LoadOptions::default()).unwrap_err();
@@ -290,7 +290,7 @@ fn zero_area_triangles_are_dropped_with_one_warning() {
         obj.push_str("f 1 2 4\nf 1 1 1\n"); // collinear, then coincident
     }
     let read = |p: &Path| -> Result<Vec<u8>, SceneError> {
-        Err(SceneError::Io { path: p.to_owned(), source: std::io::ErrorKind::NotFound.into() })
+        Err(SceneError::Io { path: p.to_owned(), error: std::io::ErrorKind::NotFound.into() })
     };
     let scene = scene::load_obj_slice(obj.as_bytes(), "z.obj", &read, &LoadOptions::default()).expect("one face");
     assert_eq!(scene.triangles.len(), 1);

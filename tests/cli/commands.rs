@@ -52,6 +52,32 @@ fn a_missing_texture_is_a_warning_and_strict_refuses_it() {
     std::fs::remove_dir_all(dir).ok();
 }
 
+/// A file that is not there, or an image that cannot be written, is one error line that names
+/// the file and says the operating system's reason once (it was printed twice: the error's
+/// message held its cause and anyhow's chain printed it again).
+#[test]
+fn a_file_that_cannot_be_read_or_written_is_one_clear_error() {
+    let dir = scratch("unreadable");
+    let missing = render("missing/nothing-here.glb", &[], &dir);
+    let err = stderr(&missing);
+    assert!(!missing.status.success(), "{err}");
+    let reason = "No such file or directory";
+    assert!(err.starts_with("error: ") && err.contains("nothing-here.glb"), "{err}");
+    assert_eq!(err.matches(reason).count(), 1, "the reason once: {err}");
+
+    let unwritable = dir.join("no-such-dir/out.png");
+    let o = Command::new(env!("CARGO_BIN_EXE_lightport"))
+        .args(["render", "--width", "8", "--height", "8", "--spp", "1", "--out"])
+        .arg(&unwritable)
+        .output()
+        .expect("run lightport");
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    let line = err.lines().find(|l| l.starts_with("error: ")).unwrap_or_default();
+    assert!(line.contains("out.png") && line.matches(reason).count() == 1, "{err}");
+    std::fs::remove_dir_all(dir).ok();
+}
+
 #[test]
 fn an_unlit_scene_is_warned_about_and_a_sky_lights_it() {
     let dir = scratch("unlit");

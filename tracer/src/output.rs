@@ -12,8 +12,9 @@ use crate::kernel::tonemap;
 pub enum OutputError {
     #[error("unsupported output format {0:?}: use .png or .exr")]
     Format(String),
-    #[error("writing {path}: {source}")]
-    Write { path: String, source: image::ImageError },
+    /// The image crate's error is in the message, not a `source()` (see `SceneError::Io`).
+    #[error("writing {path}: {error}")]
+    Write { path: String, error: image::ImageError },
 }
 
 /// A tone curve from linear radiance to display values (the kernel's `tonemap` module).
@@ -97,7 +98,7 @@ pub fn to_display_srgb8(image: &Image, display: &Display) -> Vec<u8> {
 /// Writes `image` as PNG (through `display`) or EXR (linear, `display` unused), by extension.
 pub fn write_image(path: &Path, image: &Image, display: &Display) -> Result<(), OutputError> {
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    let err = |source| OutputError::Write { path: path.display().to_string(), source };
+    let err = |error| OutputError::Write { path: path.display().to_string(), error };
     match ext.as_str() {
         "png" => image::save_buffer(
             path,

@@ -425,13 +425,14 @@ impl Aabb {
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     /// A file could not be read.
-    #[error("cannot read {path}: {source}")]
+    // The OS error is in the message and not a `source()`: anyhow's `{:#}` (the CLI) prints a
+    // source after the message, and it was written twice.
+    #[error("cannot read {path}: {error}")]
     Io {
         /// The file.
         path: PathBuf,
         /// The operating system's error.
-        #[source]
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The file extension names no format Lightport reads.
     #[error("unsupported file type {0:?}: expected .gltf, .glb, .obj or .fbx (scenes), .hdr or .exr (skies)")]

@@ -7,7 +7,7 @@ use super::{SceneError, MAX_FILE_BYTES};
 
 /// Reads a whole file, refusing files larger than [`MAX_FILE_BYTES`] before allocating.
 pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, SceneError> {
-    let io = |source| SceneError::Io { path: path.to_owned(), source };
+    let io = |error| SceneError::Io { path: path.to_owned(), error };
     let file = std::fs::File::open(path).map_err(io)?;
     let len = file.metadata().map_err(io)?.len();
     if len > MAX_FILE_BYTES {
