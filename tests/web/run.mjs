@@ -525,7 +525,11 @@ async function bench(o) {
             // `--auto 1`: what `schedule=auto` measures and chooses for this scene on WebGPU (the
             // page's own measurement, web/src/viewer/measure.rs), after the frames above.
             if (o.auto === '1' && row.info.api === 'WebGPU' && row.info.scheduleRequested === 'auto') {
-              row.scheduleChoice = await page.evaluate(() => window.lightport.measureSchedule());
+              // A moving scene is measured paused (its animation playing, each pose restarts).
+              row.scheduleChoice = await page.evaluate(() => {
+                window.lightport.setPlaying(false);
+                return window.lightport.measureSchedule();
+              });
             }
           }
         });

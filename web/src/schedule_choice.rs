@@ -164,7 +164,9 @@ pub enum Choice {
     /// measurement starts again once the view has stayed put for [`SETTLED_FRAMES`] frames (at
     /// most [`MAX_TRIES`] measurements per scene; past them an interruption gives it up).
     Interrupted(String),
-    /// Not measured, and why (a scene that moves): the megakernel runs.
+    /// Not measured for now, and why (a scene whose animation plays: each pose restarts the
+    /// accumulation): the megakernel runs, and the measurement starts once the animation is
+    /// paused and the view has stayed put for [`SETTLED_FRAMES`] frames.
     Skipped(String),
 }
 
@@ -226,12 +228,13 @@ impl Choice {
     }
 
     /// Whether a measurement is due once the accumulation holds `spp` samples: a scene's
-    /// first after its first frame, a retry after an interruption once the view has stayed
-    /// put for [`SETTLED_FRAMES`] frames (each change restarts the accumulation).
+    /// first after its first frame, a retry after an interruption (or a moving scene's first,
+    /// once it is paused) once the view has stayed put for [`SETTLED_FRAMES`] frames (each
+    /// change restarts the accumulation).
     pub fn due_at(&self, spp: u32) -> bool {
         match self {
             Choice::Pending => spp >= 1,
-            Choice::Interrupted(_) => spp >= SETTLED_FRAMES,
+            Choice::Interrupted(_) | Choice::Skipped(_) => spp >= SETTLED_FRAMES,
             _ => false,
         }
     }
@@ -330,5 +333,7 @@ mod tests {
         assert!(!choice.due_at(1000));
         let mut skipped = Choice::Skipped("the scene moves".into());
         assert!(!skipped.interrupt("the view changed", 1) && skipped.state() == "skipped");
+        // A moving scene, paused: measured once the view has stayed put.
+        assert!(!skipped.due_at(SETTLED_FRAMES - 1) && skipped.due_at(SETTLED_FRAMES));
     }
 }

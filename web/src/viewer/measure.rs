@@ -29,16 +29,19 @@ const MEASUREMENT_OVER: u32 = 2;
 impl Viewer {
     /// Whether `auto`'s measurement should start now: the schedule is auto, the scene runs on
     /// WebGPU, its first frame has shown and it was not measured since it was loaded. A scene
-    /// that moves is not measured (recorded as skipped, the megakernel runs).
+    /// whose animation plays is not measured while it plays (each pose restarts the
+    /// accumulation: recorded as skipped, the megakernel runs); paused, it is measured once the
+    /// view has stayed put, as after an interruption. (It was skipped for good: LittlestTokyo
+    /// kept the megakernel where the wavefront took 0.89x its frame time.)
     #[wasm_bindgen(js_name = scheduleMeasurementDue)]
     pub fn schedule_measurement_due(&mut self) -> bool {
-        if self.schedule.is_some() || !matches!(self.choice, Choice::Pending | Choice::Interrupted(_)) || self.halted()
-        {
+        let waiting = matches!(self.choice, Choice::Pending | Choice::Interrupted(_) | Choice::Skipped(_));
+        if self.schedule.is_some() || !waiting || self.halted() {
             return false;
         }
         let Some(Runtime::WebGpu(_)) = &self.running else { return false };
-        if self.playback.is_some() {
-            self.choice = Choice::Skipped("the scene moves".into());
+        if self.playback.as_ref().is_some_and(|p| p.playing()) {
+            self.choice = Choice::Skipped("the scene moves (paused, it is measured)".into());
             return false;
         }
         self.choice.due_at(self.spp())

@@ -39,6 +39,11 @@ impl Playback {
         Playback { moving, time: 0.0, playing: true, speed: 1.0, clock_ms: None, pose_ms: 0.0, poses: 0, warnings }
     }
 
+    /// Whether the animation plays (each pose restarting the accumulation).
+    pub fn playing(&self) -> bool {
+        self.playing
+    }
+
     /// The time at `now_ms` while playing: the shown time advanced by the page's clock times
     /// the speed, wrapped over the animation's length.
     fn time_at(&mut self, now_ms: f64) -> Option<f32> {
