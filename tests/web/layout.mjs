@@ -36,8 +36,8 @@ export async function layout(o) {
         return { sizes, restarts, maxSpp, spp: l.spp() };
       }, Number(o.seconds || '12'));
       const info = await page.evaluate(() => window.lightport.info());
-      const error2 = await page.evaluate(() => window.lightport.error);
-      return { error: error2, ...watched, info };
+      const pageError = await page.evaluate(() => window.lightport.error);
+      return { error: pageError, ...watched, info };
     });
   } finally {
     rmSync(profile, { recursive: true, force: true });

@@ -47,13 +47,7 @@ fn a_moving_gltf_plays_on_the_page() {
             "{api}: the poses at 0 and 0.8 s render the same image: {sums:?}"
         );
         assert!(poses[0]["data"] == poses[2]["data"], "{api}: the pose at 0 s renders differently again: {sums:?}");
-        // Under schedule=auto on WebGPU a moving scene is measured once paused (it was skipped
-        // for good, and kept the megakernel whatever the wavefront's time); the schedule
-        // chosen then plays the animation below.
-        if api == "webgpu" {
-            let choice = &report["scheduleChoice"];
-            assert_eq!(choice["state"], "measured", "{api}: the paused scene is measured: {choice}");
-        }
+        assert_paused_scene_measured(api, &report);
         let playing = &report["playing"];
         assert_time_moves(api, playing);
         assert!(playing["maxSppWhilePlaying"].as_u64() <= Some(2), "{api}: it accumulated while moving: {playing}");
@@ -96,13 +90,7 @@ fn a_served_moving_gltf_plays_on_the_page() {
         }
         assert!(poses[0]["data"] != poses[1]["data"], "{api}: the poses at 0 and 0.8 s render the same image");
         assert!(poses[0]["data"] == poses[2]["data"], "{api}: the pose at 0 s renders differently again");
-        // Under schedule=auto on WebGPU a moving scene is measured once paused (it was skipped
-        // for good, and kept the megakernel whatever the wavefront's time); the schedule
-        // chosen then plays the animation below.
-        if api == "webgpu" {
-            let choice = &report["scheduleChoice"];
-            assert_eq!(choice["state"], "measured", "{api}: the paused scene is measured: {choice}");
-        }
+        assert_paused_scene_measured(api, &report);
         let playing = &report["playing"];
         assert_time_moves(api, playing);
         assert!(playing["maxSppWhilePlaying"].as_u64() <= Some(2), "{api}: it accumulated while moving: {playing}");
@@ -122,6 +110,16 @@ fn a_served_moving_gltf_plays_on_the_page() {
         assert!(after >= paused + 3, "{api}: paused, it did not accumulate: {playing}");
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Under schedule=auto on WebGPU a moving scene is measured once paused (`animation.mjs`
+/// pauses it first; it was skipped for good, and kept the megakernel whatever the wavefront's
+/// time); the schedule chosen then plays the animation.
+fn assert_paused_scene_measured(api: &str, report: &serde_json::Value) {
+    if api == "webgpu" {
+        let choice = &report["scheduleChoice"];
+        assert_eq!(choice["state"], "measured", "{api}: the paused scene is measured: {choice}");
+    }
 }
 
 /// While playing (`animation.mjs`'s four seconds at 0.25x), the time moved on: many poses were
