@@ -191,7 +191,6 @@ pub fn rejected_samples(frames: u32, accumulation: &[Vec4]) -> u64 {
     (frames as u64 * accumulation.len() as u64).saturating_sub(accepted.round() as u64)
 }
 
-/// Applies `update` to `scene`, refusing (and undoing) a change of the image size.
 /// [`Packed::exchange_scene`] for [`Renderer::take_scene`]: refused, and nothing exchanged, for
 /// another image size.
 pub(crate) fn exchange_scene(current: &mut Packed, other: &mut Packed) -> Result<(), RenderError> {
@@ -203,6 +202,7 @@ pub(crate) fn exchange_scene(current: &mut Packed, other: &mut Packed) -> Result
     Ok(current.exchange_scene(other)?)
 }
 
+/// Applies `update` to `scene`, refusing (and undoing) a change of the image size.
 pub(crate) fn update_uniforms(scene: &mut Scene, update: &mut dyn FnMut(&mut Scene)) -> Result<(), RenderError> {
     let (width, height) = (scene.width, scene.height);
     update(scene);

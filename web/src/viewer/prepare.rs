@@ -80,17 +80,6 @@ impl Viewer {
 }
 
 impl Viewer {
-    /// The API `start_runtime` would try first now (`None`: it would refuse).
-    fn planned_api(&self) -> Option<Api> {
-        let gpu_ready = self.gpu.as_ref().is_some_and(|g| g.lost().is_none());
-        match self.api {
-            Api::WebGpu => Some(Api::WebGpu),
-            Api::Auto if gpu_ready => Some(Api::WebGpu),
-            Api::WebGl2 if self.schedule == Some(Schedule::Wavefront) => None,
-            Api::WebGl2 | Api::Auto => Some(Api::WebGl2),
-        }
-    }
-
     fn prepare_webgpu(&self, placeholder: &Packed) -> Option<PreparedRuntime> {
         let gpu = self.gpu.clone()?;
         // A loaded scene starts on the megakernel under auto (its measurement comes later).

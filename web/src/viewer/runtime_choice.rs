@@ -23,23 +23,32 @@ impl Viewer {
         Ok(runtime)
     }
 
-    fn start_runtime(&mut self, packed: &Packed) -> Result<Runtime, JsError> {
-        self.notice = None;
+    /// The API [`start_runtime`](Self::start_runtime) tries first now (`None`: it refuses, a
+    /// wavefront asked of WebGL2); also what a renderer compiled ahead is made for
+    /// (`prepare.rs`).
+    pub(super) fn planned_api(&self) -> Option<Api> {
         let gpu_ready = self.gpu.as_ref().is_some_and(|g| g.lost().is_none());
         match self.api {
-            Api::WebGl2 if self.schedule == Some(Schedule::Wavefront) => {
-                return Err(JsError::new(&WavefrontError::NoCompute { runtime: "WebGL2" }.to_string()));
-            }
-            Api::WebGl2 => {}
-            Api::WebGpu => return self.start_webgpu(packed).map_err(|e| JsError::new(&e)),
-            Api::Auto if gpu_ready => match self.start_webgpu(packed) {
+            Api::WebGpu => Some(Api::WebGpu),
+            Api::Auto if gpu_ready => Some(Api::WebGpu),
+            Api::WebGl2 if self.schedule == Some(Schedule::Wavefront) => None,
+            Api::WebGl2 | Api::Auto => Some(Api::WebGl2),
+        }
+    }
+
+    fn start_runtime(&mut self, packed: &Packed) -> Result<Runtime, JsError> {
+        self.notice = None;
+        let no_compute = || JsError::new(&WavefrontError::NoCompute { runtime: "WebGL2" }.to_string());
+        let planned = self.planned_api().ok_or_else(no_compute)?;
+        if planned == Api::WebGpu {
+            match self.start_webgpu(packed) {
                 Ok(runtime) => return Ok(runtime),
+                Err(e) if self.api == Api::WebGpu => return Err(JsError::new(&e)),
                 Err(e) => self.notice = Some(format!("WebGPU cannot run this scene, so WebGL2 does: {e}")),
-            },
-            Api::Auto => {
-                let why = self.gpu_unavailable.as_deref().unwrap_or("no WebGPU device was requested");
-                self.notice = Some(format!("WebGPU is not available, so WebGL2 runs: {why}"));
             }
+        } else if self.api == Api::Auto {
+            let why = self.gpu_unavailable.as_deref().unwrap_or("no WebGPU device was requested");
+            self.notice = Some(format!("WebGPU is not available, so WebGL2 runs: {why}"));
         }
         if self.schedule == Some(Schedule::Wavefront) {
             if let Some(notice) = &mut self.notice {

@@ -12,8 +12,8 @@ use super::{
     TARGET_UNIFORM, WORKGROUP_SIZE,
 };
 use crate::backend::{
-    exchange_scene, frame_seed, ms_since, update_uniforms, BuildTimes, GuideSums, PendingAccumulation,
-    PendingGuideSums, RenderError, Renderer, RendererInfo,
+    frame_seed, ms_since, update_uniforms, BuildTimes, GuideSums, PendingAccumulation, PendingGuideSums, RenderError,
+    Renderer, RendererInfo,
 };
 use crate::kernel::denoise::FilterImage;
 use crate::kernel::scene_data::Scene;
@@ -412,14 +412,9 @@ impl Renderer for WgpuRenderer {
     }
 
     /// Every array written to new buffers and bound again; the pipeline is kept.
-    fn take_scene(&mut self, mut scene: Packed) -> Result<(), RenderError> {
+    fn take_scene(&mut self, scene: Packed) -> Result<(), RenderError> {
         self.check_uncaptured()?;
-        exchange_scene(&mut self.packed, &mut scene)?;
-        if let Err(e) = self.pipeline.bindings.take_scene(&self.device, &self.options, &self.packed.scene) {
-            // Back to the scene the buffers hold (the exchange was just checked).
-            let _ = self.packed.exchange_scene(&mut scene);
-            return Err(e.into());
-        }
+        self.pipeline.bindings.take_scene(&self.device, &self.options, &mut self.packed, scene)?;
         self.restart()
     }
 

@@ -14,6 +14,7 @@ use wgpu::util::DeviceExt;
 
 use super::compile::{annotate_messages, Message};
 use super::{WgpuError, WgpuOptions};
+use crate::backend::{exchange_scene, RenderError};
 use crate::kernel::Features;
 use crate::pack::Packed;
 use kernel_dsl::{Resource, Resources};
@@ -485,18 +486,34 @@ impl Bindings {
         Ok(())
     }
 
-    /// Takes `scene`, another scene for the same shader, whole: checked against the device's
-    /// limits, every array uploaded into new buffers, and bound again with the renderer's own.
+    /// [`Renderer::take_scene`](crate::backend::Renderer::take_scene) for the renderer whose
+    /// scene, `packed`, is bound here: `scene` exchanged with it (refused for another kernel
+    /// variant or image size), checked against the device's limits, every array uploaded into
+    /// new buffers and bound again with the renderer's own. A failed upload exchanges back:
+    /// nothing changes.
     pub(crate) fn take_scene(
         &mut self,
         device: &super::WgpuDevice,
         options: &WgpuOptions,
-        scene: &dyn Resources,
-    ) -> Result<(), WgpuError> {
-        let (d, max_bytes) = (&device.device, self.room_for(device, options, scene)?);
-        (self.scene, self.scene_uniform) = upload_scene_with_room(d, &self.layout, scene, Some(max_bytes))?;
-        self.bind_again(d);
-        Ok(())
+        packed: &mut Packed,
+        mut scene: Packed,
+    ) -> Result<(), RenderError> {
+        exchange_scene(packed, &mut scene)?;
+        let uploaded = self
+            .room_for(device, options, &packed.scene)
+            .and_then(|max_bytes| upload_scene_with_room(&device.device, &self.layout, &packed.scene, Some(max_bytes)));
+        match uploaded {
+            Ok((entries, uniform)) => {
+                (self.scene, self.scene_uniform) = (entries, uniform);
+                self.bind_again(&device.device);
+                Ok(())
+            }
+            Err(e) => {
+                // Back to the scene the buffers hold (the exchange was just checked).
+                let _ = packed.exchange_scene(&mut scene);
+                Err(e.into())
+            }
+        }
     }
 
     /// The most bytes one of `scene`'s buffers may take on `device`, once the scene is checked

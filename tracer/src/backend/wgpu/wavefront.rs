@@ -25,8 +25,8 @@ use crate::backend::wavefront::{
     iteration_bound, pool_size, Stage, WavefrontCounts, WavefrontError, ITERATION, ITERATIONS_PER_SUBMISSION,
 };
 use crate::backend::{
-    exchange_scene, ms_since, update_uniforms, BuildTimes, GuideSums, PendingAccumulation, PendingGuideSums,
-    RenderError, Renderer, RendererInfo, Schedule,
+    ms_since, update_uniforms, BuildTimes, GuideSums, PendingAccumulation, PendingGuideSums, RenderError, Renderer,
+    RendererInfo, Schedule,
 };
 use crate::kernel::scene_data::Scene;
 use crate::kernel::wavefront::{ARGS_WORDS, COUNTERS, FRAMES_DONE, FREE};
@@ -583,14 +583,9 @@ impl Renderer for WavefrontRenderer {
     }
 
     /// Every array written to new buffers and bound again; the pipeline is kept.
-    fn take_scene(&mut self, mut scene: Packed) -> Result<(), RenderError> {
+    fn take_scene(&mut self, scene: Packed) -> Result<(), RenderError> {
         self.uncaptured.check()?;
-        exchange_scene(&mut self.packed, &mut scene)?;
-        if let Err(e) = self.bindings.take_scene(&self.device, &self.options, &self.packed.scene) {
-            // Back to the scene the buffers hold (the exchange was just checked).
-            let _ = self.packed.exchange_scene(&mut scene);
-            return Err(e.into());
-        }
+        self.bindings.take_scene(&self.device, &self.options, &mut self.packed, scene)?;
         self.restart()
     }
 
