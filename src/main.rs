@@ -7,6 +7,7 @@ mod export;
 mod pose;
 mod serve;
 mod site;
+mod sky;
 
 use lightport::serve_child;
 
@@ -79,9 +80,10 @@ struct RenderArgs {
     /// `instanced-shapes` or `instanced-field` (10,000 placements, 102 M triangles; a file of
     /// that name takes precedence).
     scene: Option<PathBuf>,
-    /// Equirectangular sky (.hdr or .exr).
-    #[arg(long)]
-    sky: Option<PathBuf>,
+    /// Equirectangular sky (.hdr or .exr), or `none`. Without it a scene that nothing lights
+    /// (no emitter, no point light) gets a uniform white sky, with a warning.
+    #[arg(long, value_name = "FILE|none")]
+    sky: Option<sky::SkyArg>,
     /// Sky radiance multiplier.
     #[arg(long, default_value_t = 1.0)]
     sky_intensity: f32,
@@ -321,7 +323,11 @@ fn prepare(
 ) -> Result<Option<(tracer::pack::Packed, std::time::Duration, std::time::Duration, Prepared)>> {
     let t0 = std::time::Instant::now();
     if let Some(path) = args.scene.as_deref().filter(|p| bundle_scene::is_bundle(p)) {
-        bundle_scene::refuse_sky(args.sky.is_some(), args.sky_intensity, args.sky_rotation)?;
+        bundle_scene::refuse_sky(
+            sky::SkyArg::file(args.sky.as_ref()).is_some(),
+            args.sky_intensity,
+            args.sky_rotation,
+        )?;
         let bundle = bundle_scene::load(path, &args.pose, args.strict)?;
         if args.frames > 1 {
             animate::render_bundle_frames(args, bundle, settings)?;
@@ -395,11 +401,12 @@ fn load_scene(args: &RenderArgs) -> Result<tracer::scene::Scene> {
         (None, None) => tracer::scene::cornell_box(),
     };
     args.pose.apply_to_generated(&mut scene)?;
-    if let Some(sky) = &args.sky {
+    if let Some(sky) = sky::SkyArg::file(args.sky.as_ref()) {
         let s = tracer::scene::load_sky(sky, args.sky_intensity, args.sky_rotation.to_radians())
             .with_context(|| format!("loading sky {}", sky.display()))?;
         scene.sky = Some(s);
     }
+    sky::light_unless_told(&mut scene, args.sky.as_ref());
     report_warnings(&scene, "", args.strict)?;
     Ok(scene)
 }

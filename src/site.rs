@@ -16,6 +16,8 @@
 //!       "bytes": { "raw": 5120, "gzip": 1234 },   // uncompressed and gzip-compressed sizes
 //!       "triangles": 36,
 //!       "lights": 2,
+//!       "warnings": [],                  // the loader's (e.g. a missing texture, a scene lit
+//!                                        // by the default sky), shown by the page on load
 //!       "features": { "sky": false, "textures": false, "shading": false,   // every
 //!                     "point_lights": false, "emissive_triangles": true, ... } // `Features` flag
 //!     }
@@ -83,9 +85,10 @@ pub struct SiteArgs {
     /// Scenes to serve (.gltf, .glb, .obj, .fbx, or a built-in name: metal-rough-spheres,
     /// glass-cornell), after the built-in Cornell box.
     pub scenes: Vec<PathBuf>,
-    /// Equirectangular sky (.hdr or .exr) added to every scene.
-    #[arg(long)]
-    pub sky: Option<PathBuf>,
+    /// Equirectangular sky (.hdr or .exr) added to every scene, or `none`. Without it a scene
+    /// that nothing lights (no emitter, no point light) gets a uniform white sky, with a warning.
+    #[arg(long, value_name = "FILE|none")]
+    pub sky: Option<crate::sky::SkyArg>,
     /// Directory holding the page (`www/`) and its wasm build (`pkg/`) to use instead of the
     /// page built into this binary (a page being worked on: no rebuild of lightport needed).
     #[arg(long)]
@@ -161,7 +164,7 @@ impl Site {
 
     /// Loads, builds, packs, encodes and compresses every scene; all failures are reported together.
     fn add_scenes(&mut self, args: &SiteArgs) -> Result<()> {
-        let sky = match &args.sky {
+        let sky = match crate::sky::SkyArg::file(args.sky.as_ref()) {
             Some(path) => Some(
                 tracer::scene::load_sky(path, 1.0, 0.0).with_context(|| format!("loading sky {}", path.display()))?,
             ),
@@ -173,7 +176,7 @@ impl Site {
             let t0 = Instant::now();
             // A scene whose animation moves something keeps its motion (unless flattened): its
             // bundle carries the motion section, and its pose is packed as a moving scene's.
-            let packed = (|| -> Result<(tracer::pack::Packed, Option<tracer::scene::Scene>)> {
+            let packed = (|| -> Result<(tracer::pack::Packed, Option<tracer::scene::Scene>, Vec<String>)> {
                 let builtin = path.filter(|p| !p.exists()).and_then(|p| tracer::scene::builtin(p.to_str()?));
                 let mut options = args.pose.load_options(args.strict)?;
                 options.keep_motion = !args.pose.flatten;
@@ -186,16 +189,19 @@ impl Site {
                 if sky.is_some() {
                     scene.sky = sky.clone();
                 }
+                crate::sky::light_unless_told(&mut scene, args.sky.as_ref());
                 crate::report_warnings(&scene, &format!("{name}: "), args.strict)?;
+                // The page shows them too, as it shows a dropped file's.
+                let warnings = scene.warnings.iter().cloned().chain(scene.unlit_warning()).collect();
                 let settings = tracer::kernel::RenderSettings::default();
                 if scene.motion.is_some() {
                     let (moving, packed) = tracer::pack::MovingScene::new(scene, &settings).context("packing")?;
-                    return Ok((packed, Some(moving.scene().clone())));
+                    return Ok((packed, Some(moving.scene().clone()), warnings));
                 }
                 let bvh = tracer::pack::static_bvh(&scene).context("building the BVH")?;
-                Ok((tracer::pack::pack(&scene, &bvh, &settings).context("packing")?, None))
+                Ok((tracer::pack::pack(&scene, &bvh, &settings).context("packing")?, None, warnings))
             })();
-            let (packed, moving) = match packed {
+            let (packed, moving, warnings) = match packed {
                 Ok(p) => p,
                 Err(e) => {
                     failures.push(format!("{}: {e:#}", path.map_or(name.clone(), |p| p.display().to_string())));
@@ -227,6 +233,7 @@ impl Site {
                 "bytes": { "raw": bundle.identity.len(), "gzip": gzip_bytes },
                 "triangles": packed.triangle_count,
                 "lights": packed.light_count,
+                "warnings": warnings,
                 "features": f.flags().iter().map(|flag| (flag.name.to_string(), flag.on.into())).collect::<serde_json::Map<_, _>>(),
             }));
             self.reports.push(SceneReport {

@@ -57,9 +57,10 @@ pub struct ChartArgs {
     /// `large-light-close`, `sky-through-opening`, ...), a .gltf/.glb/.obj/.fbx file, or a bundle
     /// `lightport export` wrote (.lpb: its packed scene, posed at --time). Default: cornell.
     pub scenes: Vec<String>,
-    /// Equirectangular sky (.hdr or .exr) for every scene.
-    #[arg(long)]
-    pub sky: Option<PathBuf>,
+    /// Equirectangular sky (.hdr or .exr) for every scene, or `none`. Without it a scene that
+    /// nothing lights (no emitter, no point light) gets a uniform white sky, with a warning.
+    #[arg(long, value_name = "FILE|none")]
+    pub sky: Option<crate::sky::SkyArg>,
     #[command(flatten)]
     pub pose: crate::pose::PoseArgs,
     /// Sky radiance multiplier.
@@ -287,7 +288,7 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
     if !pose.is_empty() {
         write!(chart_scene.identity, ", posed: {pose}")?;
     }
-    if let Some(sky_path) = &args.sky {
+    if let Some(sky_path) = crate::sky::SkyArg::file(args.sky.as_ref()) {
         let sky = scene::load_sky(sky_path, args.sky_intensity, 0.0)
             .with_context(|| format!("loading sky {}", sky_path.display()))?;
         match &mut chart_scene.scene {
@@ -306,13 +307,19 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
             args.sky_intensity
         )?;
     }
+    if let (Source::Scene(scene), None) = (&mut chart_scene.scene, &args.sky) {
+        if let Some(warning) = scene.light_if_unlit() {
+            eprintln!("warning: {warning}; `--sky none` keeps it unlit");
+            write!(chart_scene.identity, "; the default white sky")?;
+        }
+    }
     Ok(chart_scene)
 }
 
 /// A bundle to chart (`lightport export` wrote it): its packed scene posed at `--time`; `--sky`
 /// and `--sky-intensity` are refused (its sky is packed in it), as `render` refuses them.
 fn bundle_chart_scene(path: &Path, args: &ChartArgs) -> Result<ChartScene> {
-    crate::bundle_scene::refuse_sky(args.sky.is_some(), args.sky_intensity, 0.0)?;
+    crate::bundle_scene::refuse_sky(crate::sky::SkyArg::file(args.sky.as_ref()).is_some(), args.sky_intensity, 0.0)?;
     let bundle = crate::bundle_scene::load(path, &args.pose, false)?;
     // "-bundle": charted beside its scene file in one run, the two write their own files.
     let name = if bundle.name.is_empty() {

@@ -78,15 +78,31 @@ fn a_file_that_cannot_be_read_or_written_is_one_clear_error() {
     std::fs::remove_dir_all(dir).ok();
 }
 
+/// A scene that nothing lights is lit by the default white sky, with a warning that says so
+/// and names `--sky`; `--sky none` keeps it black (and warns that it will be); `--strict`
+/// refuses it; a sky of its own lights it with no warning.
 #[test]
-fn an_unlit_scene_is_warned_about_and_a_sky_lights_it() {
+fn an_unlit_scene_is_lit_by_the_default_sky_and_warned_about() {
     let dir = scratch("unlit");
     // Khronos' Box: one material, which does not emit, and no sky.
     let unlit = "khronos/Box/glTF-Binary/Box.glb";
-    let dark = render(unlit, &[], &dir);
-    let err = stderr(&dark);
-    assert!(dark.status.success(), "{err}");
-    assert!(err.contains("warning: nothing lights the scene") && err.contains("--sky"), "{err}");
+    let mean = |o: &Output| {
+        assert!(o.status.success(), "{}", stderr(o));
+        let pixels = image::open(dir.join("out.png")).expect("a PNG").into_rgb8().into_raw();
+        pixels.iter().map(|&c| f64::from(c)).sum::<f64>() / pixels.len() as f64
+    };
+    let lit = render(unlit, &[], &dir);
+    let err = stderr(&lit);
+    assert!(err.contains("warning: nothing lights the scene") && err.contains("lit by a uniform white sky"), "{err}");
+    assert!(err.contains("--sky FILE.hdr") && err.contains("--sky none"), "{err}");
+    // The box fills most of the view and reflects the sky: far from black.
+    let lit_mean = mean(&lit);
+    assert!(lit_mean > 60.0, "the default sky lights the box: mean {lit_mean}");
+
+    let dark = render(unlit, &["--sky", "none"], &dir);
+    assert!(stderr(&dark).contains("it will render black"), "{}", stderr(&dark));
+    assert_eq!(mean(&dark), 0.0, "--sky none keeps the scene unlit");
+
     let strict = render(unlit, &["--strict"], &dir);
     assert!(!strict.status.success() && stderr(&strict).contains("nothing lights the scene"), "{}", stderr(&strict));
 

@@ -402,6 +402,15 @@ fn scenes_json_lists_content_addressed_bundles() {
     assert_eq!(scenes[0]["triangles"], 36);
     assert_eq!(scenes[0]["features"]["emissive_triangles"], true);
     assert_eq!(scenes[1]["features"]["textures"], true);
+    // The Cornell box has its light; nothing lights BoxTextured, so it gets the default sky,
+    // and the page is told why (it shows the warnings when it loads the scene).
+    assert_eq!((&scenes[0]["features"]["sky"], &scenes[0]["warnings"]), (&false.into(), &serde_json::json!([])));
+    assert_eq!(scenes[1]["features"]["sky"], true);
+    let warnings = scenes[1]["warnings"].as_array().unwrap();
+    assert!(
+        warnings.len() == 1 && warnings[0].as_str().unwrap().contains("lit by a uniform white sky"),
+        "{warnings:?}"
+    );
     for scene in scenes {
         let hash = scene["hash"].as_str().unwrap();
         // Relative to /scenes.json, so that an exported site works under any path.

@@ -393,6 +393,12 @@ fn a_bad_dropped_file_shows_an_error_and_the_page_keeps_working() {
     assert_eq!(good["info"]["name"], "BoxTextured.gltf", "{good}");
     assert_eq!(good["info"]["triangles"], 12);
     assert_eq!(good["info"]["features"]["textures"], true, "the dropped PNG was found: {good}");
+    // Nothing lights BoxTextured: the page lights it with the default sky, as `serve` does,
+    // and says so.
+    assert_eq!(good["info"]["features"]["sky"], true, "{good}");
+    let warnings = good["warnings"].as_str().unwrap_or_default();
+    assert!(warnings.contains("lit by a uniform white sky"), "{good}");
+    assert!(good["message"].as_str().unwrap_or_default().contains(warnings), "the page shows it: {good}");
     assert_eq!(good["spp"], 2);
 }
 

@@ -255,7 +255,9 @@ async function drop(o) {
         );
         const rendered = await page.evaluate(async () => {
           await window.lightport.renderFrames(2);
-          return { spp: window.lightport.spp(), info: window.lightport.info(), error: window.lightport.error };
+          const l = window.lightport;
+          const message = document.querySelector('#message').textContent;
+          return { spp: l.spp(), info: l.info(), error: l.error, warnings: l.warnings, message };
         });
         good = { ...rendered, readout: await page.textContent('#scene-info') };
       }

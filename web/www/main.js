@@ -73,6 +73,7 @@ const hook = {
   ready: false, // wasm loaded, first scene shown (or failed: see `error`)
   frames: 0, // frames rendered by this page, all scenes together
   error: null, // the last error shown to the user
+  warnings: null, // the last loaded scene's warnings shown (served: scenes.json's; dropped: the loader's)
   firstFrameMs: null, // performance.now() at the first frame drawn (from navigation start)
   // What the time to the first frame went on: performance.now() once the wasm module is
   // ready (wasm), the WebGPU device is (device), scenes.json is read (scenes), the first bundle
@@ -256,6 +257,13 @@ function showNotice() {
   } else {
     hideMessage();
   }
+}
+
+// A loaded scene's warnings (e.g. "lit by a uniform white sky"), or else the notice.
+function showWarningsOrNotice(name, warnings) {
+  hook.warnings = warnings || null;
+  if (warnings) showMessage(`${name}: ${warnings}`, 'info');
+  else showNotice();
 }
 
 // Resolves after the browser has run what was queued (tasks, the GPU process's replies).
@@ -481,7 +489,7 @@ async function loadServedScene(name) {
     $('scene').value = scene.name;
     $('screenshot').disabled = false;
     $('scene-info').textContent = `${scene.name}: ${geometryText(info)}${fromCache ? ' (cached)' : ''}`;
-    showNotice();
+    showWarningsOrNotice(scene.name, (scene.warnings || []).join('; '));
   } catch (e) {
     showMessage(`${scene.name}: ${e.message || e}`);
     firstFrame.cancel();
@@ -510,7 +518,7 @@ async function loadBundleUrl(url) {
     $('scene').value = '';
     $('screenshot').disabled = false;
     $('scene-info').textContent = `${currentName}: ${geometryText(info)}`;
-    showNotice();
+    showWarningsOrNotice(currentName, '');
   } catch (e) {
     showMessage(`${url}: ${e.message || e}`);
     firstFrame.cancel();
@@ -541,8 +549,7 @@ async function loadFiles(fileList) {
       `${info.name}: ${geometryText(info)}, loaded in ${info.loadMs.toFixed(0)} ms, ` +
       `BVH + pack ${info.buildAndPackMs.toFixed(0)} ms`;
     showAnimation($, info);
-    if (info.warnings) showMessage(`${info.name}: ${info.warnings}`, 'info');
-    else showNotice();
+    showWarningsOrNotice(info.name, info.warnings);
   } catch (e) {
     showMessage(`could not open the dropped files: ${e.message || e}`);
   } finally {

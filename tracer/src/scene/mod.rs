@@ -335,6 +335,13 @@ impl Sky {
         Self { width: 1, height: 1, texels: vec![radiance], intensity: 1.0, rotation: 0.0 }
     }
 
+    /// The sky a scene that nothing lights gets ([`Scene::light_if_unlit`]): uniform radiance
+    /// 1, the "white sky" of the web path tracers' benchmarks, so a material's albedo reads
+    /// as its brightness at exposure 0.
+    pub fn default_white() -> Self {
+        Self::uniform(Vec3::ONE)
+    }
+
     /// Texture coordinates of world direction `dir` (see the type docs).
     pub fn direction_to_uv(&self, dir: Vec3) -> Vec2 {
         let d = glam::Quat::from_rotation_y(-self.rotation) * dir.normalize_or(Vec3::Y);
@@ -563,6 +570,22 @@ impl Scene {
              sky (`--sky FILE.hdr`, an equirectangular .hdr or .exr) or add emitters or lights to the file"
                 .to_owned()
         })
+    }
+
+    /// Lights a scene that nothing lights ([`Scene::has_light`]) with [`Sky::default_white`],
+    /// as glTF viewers light a model with a default environment: a file carries no sky, and
+    /// many carry no lights either (LittlestTokyo, Khronos' Box), so it would render black.
+    /// Returns the warning that says so (each interface adds how to choose otherwise); `None`
+    /// (nothing changed) for a scene that is lit.
+    pub fn light_if_unlit(&mut self) -> Option<String> {
+        if self.has_light() {
+            return None;
+        }
+        self.sky = Some(Sky::default_white());
+        Some(
+            "nothing lights the scene (no emissive material, no point light, no sky): lit by a uniform white sky"
+                .to_owned(),
+        )
     }
 
     /// Number of triangles whose material emits light.

@@ -274,7 +274,11 @@ impl Viewer {
     pub fn load_dropped(&mut self) -> Result<JsValue, JsError> {
         let dropped = std::mem::take(&mut self.dropped);
         let start = js_sys::Date::now();
-        let (name, scene) = files::load_dropped(&dropped).map_err(js_error)?;
+        let (name, mut scene) = files::load_dropped(&dropped).map_err(js_error)?;
+        // As `lightport serve` lights such a scene (its warning is in scenes.json).
+        if let Some(warning) = scene.light_if_unlit() {
+            scene.warnings.push(warning);
+        }
         drop(dropped);
         let loaded_at = js_sys::Date::now();
         let warnings = scene.warnings.join("; ");
