@@ -160,10 +160,15 @@ pub enum Choice {
     Failed(String),
     /// Given up on (the device was lost, frames rendered outside it...): the megakernel runs.
     Abandoned(String),
-    /// Interrupted by a change of the view or a setting (`why`): the megakernel runs, and the
-    /// measurement starts again once the view has stayed put for [`SETTLED_FRAMES`] frames (at
-    /// most [`MAX_TRIES`] measurements per scene; past them an interruption gives it up).
-    Interrupted(String),
+    /// Interrupted by a change of the view or a setting (`why`), after `tries` measurements
+    /// begun for this scene: the megakernel runs, and the measurement starts again once the
+    /// view has stayed put for [`settle_frames`]`(tries)` frames, longer after each
+    /// interruption. It is never given up for it: a view that kept changing while a person
+    /// looked around (or resized the window) is measured once it rests.
+    Interrupted {
+        why: String,
+        tries: u32,
+    },
     /// Not measured for now, and why (a scene whose animation plays: each pose restarts the
     /// accumulation): the megakernel runs, and the measurement starts once the animation is
     /// paused and the view has stayed put for [`SETTLED_FRAMES`] frames.
@@ -187,7 +192,7 @@ impl Choice {
             Choice::Measured { .. } => "measured",
             Choice::Failed(_) => "failed",
             Choice::Abandoned(_) => "abandoned",
-            Choice::Interrupted(_) => "interrupted",
+            Choice::Interrupted { .. } => "interrupted",
             Choice::Skipped(_) => "skipped",
         }
     }
@@ -200,7 +205,7 @@ impl Choice {
             Choice::Measured { verdict, .. } => Some(verdict.reason()),
             Choice::Failed(_) => Some("auto: the wavefront failed while measured".into()),
             Choice::Abandoned(why) | Choice::Skipped(why) => Some(format!("auto: not measured, {why}")),
-            Choice::Interrupted(why) => Some(format!("auto: measuring again once the view stays put ({why})")),
+            Choice::Interrupted { why, .. } => Some(format!("auto: measuring again once the view stays put ({why})")),
         }
     }
 
@@ -214,37 +219,45 @@ impl Choice {
         false
     }
 
-    /// Ends a measurement in progress because the view or a setting changed (`why`): measured
-    /// again once the view stays put, when `tries` (measurements begun for this scene) is
-    /// below [`MAX_TRIES`], else given up. Anything else stays.
+    /// Ends a measurement in progress because the view or a setting changed (`why`), after
+    /// `tries` measurements begun for this scene: measured again once the view has stayed put
+    /// for [`settle_frames`]`(tries)` frames. Anything else stays.
     pub fn interrupt(&mut self, why: &str, tries: u32) -> bool {
-        if !self.abandon(why) {
+        if !matches!(self, Choice::Measuring(_)) {
             return false;
         }
-        if tries < MAX_TRIES {
-            *self = Choice::Interrupted(why.to_string());
-        }
+        *self = Choice::Interrupted { why: why.to_string(), tries };
         true
     }
 
     /// Whether a measurement is due once the accumulation holds `spp` samples: a scene's
-    /// first after its first frame, a retry after an interruption (or a moving scene's first,
-    /// once it is paused) once the view has stayed put for [`SETTLED_FRAMES`] frames (each
-    /// change restarts the accumulation).
+    /// first after its first frame, a retry after an interruption once the view has stayed
+    /// put for [`settle_frames`] frames (each change restarts the accumulation), a moving
+    /// scene's first once it is paused and the view has stayed put for [`SETTLED_FRAMES`].
     pub fn due_at(&self, spp: u32) -> bool {
         match self {
             Choice::Pending => spp >= 1,
-            Choice::Interrupted(_) | Choice::Skipped(_) => spp >= SETTLED_FRAMES,
+            Choice::Interrupted { tries, .. } => spp >= settle_frames(*tries),
+            Choice::Skipped(_) => spp >= SETTLED_FRAMES,
             _ => false,
         }
     }
 }
 
-/// Frames the view must stay put before an interrupted measurement starts again.
+/// Frames the view must stay put before a measurement interrupted once starts again.
 pub const SETTLED_FRAMES: u32 = 4;
 
-/// Most measurements per scene load: a view that keeps changing keeps the megakernel.
-pub const MAX_TRIES: u32 = 3;
+/// Doublings of that wait after further interruptions: a view that keeps changing is measured
+/// less and less often (each measurement's wavefront turns pause the image's convergence),
+/// at worst after 64 frames at rest.
+pub const MAX_DOUBLINGS: u32 = 4;
+
+/// Frames the view must stay put before a measurement interrupted after `tries` measurements
+/// starts again: [`SETTLED_FRAMES`], doubled per interruption after the first, up to
+/// [`MAX_DOUBLINGS`] times.
+pub fn settle_frames(tries: u32) -> u32 {
+    SETTLED_FRAMES << tries.saturating_sub(1).min(MAX_DOUBLINGS)
+}
 
 #[cfg(test)]
 mod tests {
@@ -316,21 +329,21 @@ mod tests {
     }
 
     #[test]
-    fn an_interrupted_measurement_starts_again_once_the_view_stays_put_up_to_max_tries() {
+    fn an_interrupted_measurement_starts_again_once_the_view_stays_put_ever_later() {
         let mut choice = Choice::Pending;
         assert!(!choice.due_at(0) && choice.due_at(1));
-        for tries in 1..=MAX_TRIES {
+        let mut waits = Vec::new();
+        for tries in 1..=8 {
             choice = Choice::Measuring(Measurement::new(tries));
-            assert!(!choice.due_at(100), "no second measurement while one runs");
+            assert!(!choice.due_at(1000), "no second measurement while one runs");
             assert!(choice.interrupt("the view or a setting changed", tries));
-            if tries < MAX_TRIES {
-                assert_eq!(choice.state(), "interrupted");
-                assert!(!choice.due_at(SETTLED_FRAMES - 1) && choice.due_at(SETTLED_FRAMES));
-                assert!(choice.reason().unwrap().contains("measuring again"), "{:?}", choice.reason());
-            }
+            assert_eq!(choice.state(), "interrupted", "never given up for an interruption");
+            assert!(choice.reason().unwrap().contains("measuring again"), "{:?}", choice.reason());
+            let wait = settle_frames(tries);
+            assert!(!choice.due_at(wait - 1) && choice.due_at(wait));
+            waits.push(wait);
         }
-        assert_eq!(choice.state(), "abandoned", "past MAX_TRIES an interruption gives up");
-        assert!(!choice.due_at(1000));
+        assert_eq!(waits, [4, 8, 16, 32, 64, 64, 64, 64]);
         let mut skipped = Choice::Skipped("the scene moves".into());
         assert!(!skipped.interrupt("the view changed", 1) && skipped.state() == "skipped");
         // A moving scene, paused: measured once the view has stayed put.

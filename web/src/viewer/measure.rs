@@ -35,7 +35,7 @@ impl Viewer {
     /// kept the megakernel where the wavefront took 0.89x its frame time.)
     #[wasm_bindgen(js_name = scheduleMeasurementDue)]
     pub fn schedule_measurement_due(&mut self) -> bool {
-        let waiting = matches!(self.choice, Choice::Pending | Choice::Interrupted(_) | Choice::Skipped(_));
+        let waiting = matches!(self.choice, Choice::Pending | Choice::Interrupted { .. } | Choice::Skipped(_));
         if self.schedule.is_some() || !waiting || self.halted() {
             return false;
         }
@@ -196,7 +196,7 @@ impl Viewer {
     }
 
     /// The view or a setting changed during a measurement: it starts again once the view
-    /// stays put (`Choice::interrupt`), or is given up after `schedule_choice::MAX_TRIES`.
+    /// stays put, longer after each interruption (`Choice::interrupt`).
     pub(super) fn interrupt_measurement(&mut self, why: &str) {
         if self.choice.interrupt(why, self.measurement_tries) {
             self.candidate = None;

@@ -75,8 +75,8 @@ pub struct Viewer {
     candidate: Option<Candidate>,
     /// Measurements started (their ids).
     measurements: u32,
-    /// Measurements started for the loaded scene (an interrupted one is retried up to
-    /// `schedule_choice::MAX_TRIES`).
+    /// Measurements started for the loaded scene (an interrupted one is retried, later after
+    /// each interruption: `schedule_choice::settle_frames`).
     measurement_tries: u32,
     /// Test hook: milliseconds per frame (megakernel, wavefront) auto decides on instead.
     injected_times: Option<(f64, f64)>,
