@@ -229,6 +229,29 @@ fn textured_scene() -> (Server, Scene) {
     (server, scene)
 }
 
+/// A served scene that nothing lights (Khronos' Box) is lit by the default white sky: the page
+/// renders what the CPU renders of the scene lit so (it was a black canvas, with the warning
+/// printed only by `serve`), and shows the warning.
+#[test]
+fn a_served_unlit_scene_is_lit_by_the_default_sky_as_on_the_cpu() {
+    let path = common::test_data("scenes/khronos/Box/glTF-Binary/Box.glb");
+    let server = Server::start(&[path.to_str().unwrap()]);
+    let mut scene = scene::load(&path).expect("Box");
+    assert!(scene.light_if_unlit().is_some(), "nothing lights Box");
+    let report = assert_page_runs_and_agrees_with_cpu(
+        &server,
+        "Box",
+        &scene,
+        Strategy::Mis,
+        "webgl2",
+        "auto",
+        &[],
+        "megakernel",
+    );
+    let warnings = report["warnings"].as_str().unwrap_or_default();
+    assert!(warnings.contains("lit by a uniform white sky"), "the page shows the warning: {report:.300}");
+}
+
 #[test]
 fn the_browser_agrees_with_the_cpu_on_a_textured_scene() {
     let (server, scene) = textured_scene();

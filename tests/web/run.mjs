@@ -71,7 +71,9 @@ async function accumulate(o) {
         batches.push(await page.evaluate(() => window.lightport.readAccumulation()));
       }
       const shownInfo = choice ? await page.evaluate(() => window.lightport.info()) : info;
-      return { info: shownInfo, choice, preview: previewShown, batches, consoleErrors };
+      // The scene's warnings as the page shows them (served: from scenes.json).
+      const warnings = await page.evaluate(() => window.lightport.warnings);
+      return { info: shownInfo, choice, preview: previewShown, batches, warnings, consoleErrors };
     });
   } finally {
     rmSync(profile, { recursive: true, force: true });
