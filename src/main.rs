@@ -81,7 +81,7 @@ struct RenderArgs {
     /// that name takes precedence).
     scene: Option<PathBuf>,
     /// Equirectangular sky (.hdr or .exr), or `none`. Without it a scene that nothing lights
-    /// (no emitter, no point light) gets a uniform white sky, with a warning.
+    /// (no emitter bright enough, no point light) gets a uniform white sky, with a warning.
     #[arg(long, value_name = "FILE|none")]
     sky: Option<sky::SkyArg>,
     /// Sky radiance multiplier.

@@ -86,7 +86,8 @@ pub struct SiteArgs {
     /// glass-cornell), after the built-in Cornell box.
     pub scenes: Vec<PathBuf>,
     /// Equirectangular sky (.hdr or .exr) added to every scene, or `none`. Without it a scene
-    /// that nothing lights (no emitter, no point light) gets a uniform white sky, with a warning.
+    /// that nothing lights (no emitter bright enough, no point light) gets a uniform white sky,
+    /// with a warning.
     #[arg(long, value_name = "FILE|none")]
     pub sky: Option<crate::sky::SkyArg>,
     /// Directory holding the page (`www/`) and its wasm build (`pkg/`) to use instead of the

@@ -58,7 +58,8 @@ pub struct ChartArgs {
     /// `lightport export` wrote (.lpb: its packed scene, posed at --time). Default: cornell.
     pub scenes: Vec<String>,
     /// Equirectangular sky (.hdr or .exr) for every scene, or `none`. Without it a scene that
-    /// nothing lights (no emitter, no point light) gets a uniform white sky, with a warning.
+    /// nothing lights (no emitter bright enough, no point light) gets a uniform white sky, with a
+    /// warning.
     #[arg(long, value_name = "FILE|none")]
     pub sky: Option<crate::sky::SkyArg>,
     #[command(flatten)]

@@ -6,6 +6,7 @@
 
 #[path = "../common/mod.rs"]
 mod common;
+mod default_sky;
 mod draco;
 mod fbx;
 mod instancing;

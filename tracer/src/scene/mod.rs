@@ -376,6 +376,10 @@ impl Default for Aabb {
     }
 }
 
+/// Below this fraction of a white sky's irradiance, a scene's emitters are too weak to light
+/// it ([`Scene::emitters_too_weak`]).
+pub const WEAK_EMITTERS: f32 = 0.01;
+
 /// How far from the origin (scene units, each coordinate) a scene's geometry, camera and
 /// lights may lie. Past about this the renderer's f32 arithmetic on world coordinates
 /// overflows (a triangle's edge cross products against a ray's offset, the squared diagonal
@@ -572,20 +576,40 @@ impl Scene {
         })
     }
 
-    /// Lights a scene that nothing lights ([`Scene::has_light`]) with [`Sky::default_white`],
-    /// as glTF viewers light a model with a default environment: a file carries no sky, and
-    /// many carry no lights either (LittlestTokyo, Khronos' Box), so it would render black.
-    /// Returns the warning that says so (each interface adds how to choose otherwise); `None`
-    /// (nothing changed) for a scene that is lit.
+    /// Lights a scene with [`Sky::default_white`], as glTF viewers light a model with a default
+    /// environment, where it would otherwise render black at exposure 0: it has no sky and no
+    /// point light, and no emitter either, or emitters too weak to light it
+    /// ([`Scene::emitters_too_weak`]: LittlestTokyo's 88 lamp triangles). A file carries no
+    /// sky, and most carry no lights. Returns the warning that says so (each interface adds how
+    /// to choose otherwise); `None` (nothing changed) for a scene its lights light, or one that
+    /// has a sky or a point light of its own (even a black one: that was asked for).
     pub fn light_if_unlit(&mut self) -> Option<String> {
-        if self.has_light() {
+        let emitters = self.emissive_triangle_count() > 0;
+        if self.sky.is_some() || !self.point_lights.is_empty() || (emitters && !self.emitters_too_weak()) {
             return None;
         }
+        let why = if emitters {
+            format!(
+                "the scene's {} emissive triangles are too weak to light it (no sky, no point light)",
+                self.emissive_triangle_count()
+            )
+        } else {
+            "nothing lights the scene (no emissive material, no point light, no sky)".to_owned()
+        };
         self.sky = Some(Sky::default_white());
-        Some(
-            "nothing lights the scene (no emissive material, no point light, no sky): lit by a uniform white sky"
-                .to_owned(),
-        )
+        Some(format!("{why}: lit by a uniform white sky"))
+    }
+
+    /// Whether the scene's emitters would leave it black at exposure 0: their power spread
+    /// over its bounding box's surface gives under [`WEAK_EMITTERS`] of the irradiance the
+    /// default white sky gives (π). (Such a surface of albedo 0.5 would show radiance under
+    /// 0.005.) The Cornell box's light gives 0.12 of it, DamagedHelmet's (its emissive factor:
+    /// textures are not counted, so a textured emitter errs towards lit) 0.80,
+    /// LittlestTokyo's lamps 0.003. A scene with no extent (a point) is never too weak.
+    pub fn emitters_too_weak(&self) -> bool {
+        let d = self.bounds().diagonal();
+        let area = 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
+        self.emitted_power().max_element() < WEAK_EMITTERS * std::f32::consts::PI * area
     }
 
     /// Number of triangles whose material emits light.
