@@ -466,7 +466,8 @@ fn denoise(
 
 /// Prints a loaded scene's warnings (its loader's, and [`tracer::scene::Scene::unlit_warning`]
 /// once its sky is set), each prefixed with `prefix`; with `strict`, any warning is an error.
-pub(crate) fn report_warnings(scene: &tracer::scene::Scene, prefix: &str, strict: bool) -> Result<()> {
+/// Returns them (unprefixed).
+pub(crate) fn report_warnings(scene: &tracer::scene::Scene, prefix: &str, strict: bool) -> Result<Vec<String>> {
     let warnings: Vec<String> = scene.warnings.iter().cloned().chain(scene.unlit_warning()).collect();
     if strict && !warnings.is_empty() {
         bail!("--strict: the scene has {} warning(s): {}", warnings.len(), warnings.join("; "));
@@ -474,7 +475,7 @@ pub(crate) fn report_warnings(scene: &tracer::scene::Scene, prefix: &str, strict
     for w in &warnings {
         eprintln!("warning: {prefix}{w}");
     }
-    Ok(())
+    Ok(warnings)
 }
 
 fn shaders(dir: &Path, check: bool, quiet: bool) -> Result<()> {

@@ -191,9 +191,8 @@ impl Site {
                     scene.sky = sky.clone();
                 }
                 crate::sky::light_unless_told(&mut scene, args.sky.as_ref());
-                crate::report_warnings(&scene, &format!("{name}: "), args.strict)?;
                 // The page shows them too, as it shows a dropped file's.
-                let warnings = scene.warnings.iter().cloned().chain(scene.unlit_warning()).collect();
+                let warnings = crate::report_warnings(&scene, &format!("{name}: "), args.strict)?;
                 let settings = tracer::kernel::RenderSettings::default();
                 if scene.motion.is_some() {
                     let (moving, packed) = tracer::pack::MovingScene::new(scene, &settings).context("packing")?;

@@ -308,9 +308,9 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
             args.sky_intensity
         )?;
     }
-    if let (Source::Scene(scene), None) = (&mut chart_scene.scene, &args.sky) {
-        if let Some(warning) = scene.light_if_unlit() {
-            eprintln!("warning: {warning}; `--sky none` keeps it unlit");
+    if let Source::Scene(scene) = &mut chart_scene.scene {
+        if crate::sky::light_unless_told(scene, args.sky.as_ref()) {
+            eprintln!("warning: {}", scene.warnings.last().map_or("", String::as_str));
             write!(chart_scene.identity, "; the default white sky")?;
         }
     }
