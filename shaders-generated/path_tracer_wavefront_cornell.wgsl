@@ -22,7 +22,7 @@ struct SceneUniforms {
     lp_start_materials: u32,
     lp_start_lights: u32,
 }
-@group(0) @binding(0) var<uniform> scene: SceneUniforms;
+@group(0) @binding(0) var<storage, read> scene: SceneUniforms;
 @group(0) @binding(1) var<storage, read> lp_scene_vec4f: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> lp_scene_vec4u: array<vec4<u32>>;
 

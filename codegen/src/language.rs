@@ -117,6 +117,9 @@ pub(crate) struct ResourceBlock {
     pub origin: String,
     /// `#[resources(group = N)]`: the bind group of its bindings, where a language has groups.
     pub group: u32,
+    /// Its scalars bound as read-only storage rather than a uniform ([`crate::BindingKind::Scalars`]):
+    /// group 0 of a module with compute stages.
+    pub scalars_in_storage: bool,
     pub fields: Vec<ResourceField>,
 }
 

@@ -173,6 +173,15 @@ pub struct ResourceBinding {
 pub enum BindingKind {
     /// `var<uniform>`: the struct's scalars and vectors and where each array starts.
     Uniform,
+    /// `var<storage, read>`: the same, for the struct in bind group 0 of a module with compute
+    /// stages (the wavefront's `scene`, which every stage reads). lavapipe (Mesa's Vulkan on the
+    /// CPU: CI, and wgpu on machines without a GPU) specialises a shader for the values of the
+    /// uniforms its branches test, and Mesa 22.3 (Debian 12) does it again each time a pipeline
+    /// is bound. A megakernel binds one pipeline per pass and gains from it; a wavefront binds
+    /// one per stage, 8 per iteration, and on a textured scene paid 6 ms per iteration for it
+    /// (`docs/backends.md`). Storage loads are not specialised. The structs of groups 1 and up
+    /// stay uniforms: WebGPU's 8 storage buffers per stage leave the wavefront no room.
+    Scalars,
     /// `var<storage, read>`: `Texels<..>` arrays.
     Texels,
     /// `var<storage, read_write>`: `Storage<..>` arrays of one element type.

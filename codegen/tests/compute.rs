@@ -166,10 +166,11 @@ fn the_layout_is_exposed_in_binding_order_per_group() {
     assert_eq!(
         pool.bindings,
         vec![
+            // Group 0's scalars: read-only storage, not a uniform (`BindingKind::Scalars`).
             binding(
                 0,
                 "pool",
-                BindingKind::Uniform,
+                BindingKind::Scalars,
                 vec![
                     member("count", "u32", "count"),
                     member("gain", "f32", "gain"),

@@ -132,6 +132,7 @@ impl Lowerer<'_> {
                 global: snake(res),
                 origin: format!("{} ({}:{})", res, file, def.span.line),
                 group: def.group,
+                scalars_in_storage: def.group == 0 && !self.selection.compute.is_empty(),
                 fields,
             });
         }

@@ -53,7 +53,8 @@ fn wgsl_element(element: StorageElement) -> &'static str {
 /// 0 within each group in the order the structs are declared (link order). For each struct, in
 /// this order:
 ///
-/// 1. its uniform block `{Struct}Uniforms`: the scalar and vector fields in declaration order,
+/// 1. its struct `{Struct}Uniforms` (a uniform; in group 0 of a compute module a read-only
+///    storage buffer: [`BindingKind::Scalars`]): the scalar and vector fields in declaration order,
 ///    then `lp_start_{field}` (u32) for each texel array in declaration order, then for each
 ///    storage array, then for each `Atomics` array: where the array starts in its buffer (in
 ///    elements);
@@ -113,12 +114,8 @@ pub(super) fn layout(blocks: &[ResourceBlock]) -> Vec<ResourceBindings> {
         members.extend(starts);
         members.extend(storage_starts);
         members.extend(atomic_starts);
-        bindings.push(ResourceBinding {
-            binding: take(),
-            variable: base.clone(),
-            kind: BindingKind::Uniform,
-            fields: members,
-        });
+        let kind = if block.scalars_in_storage { BindingKind::Scalars } else { BindingKind::Uniform };
+        bindings.push(ResourceBinding { binding: take(), variable: base.clone(), kind, fields: members });
         for (unsigned, fields) in [false, true].into_iter().zip(texels) {
             if !fields.is_empty() {
                 let variable = texel_buffer(base, unsigned);
@@ -176,6 +173,9 @@ pub(super) fn resources(blocks: &[ResourceBlock]) -> String {
             let _ = match b.kind {
                 BindingKind::Uniform => {
                     writeln!(out, "@group({group}) @binding({binding}) var<uniform> {name}: {res}Uniforms;")
+                }
+                BindingKind::Scalars => {
+                    writeln!(out, "@group({group}) @binding({binding}) var<storage, read> {name}: {res}Uniforms;")
                 }
                 BindingKind::Texels => {
                     let e = if b.fields[0].ty == "UVec4" { "vec4<u32>" } else { "vec4<f32>" };

@@ -6,8 +6,10 @@
 //! harness ([`crate::backend::harness::WgpuHarness`]) are entry points over them.
 //!
 //! "Scene" below names whichever `#[resources]` struct the shader reads: codegen declares its
-//! scalars as the uniform struct named after it (`scene`, `filter_image`) and its texel arrays
-//! in `lp_{name}_vec4f` / `lp_{name}_vec4u`.
+//! scalars as the struct named after it (`scene`, `filter_image`; a uniform, or for the
+//! wavefront's stages a read-only storage buffer, which lavapipe does not re-specialise the
+//! shader for at each pipeline bind: `lightport_codegen::BindingKind::Scalars`) and its texel
+//! arrays in `lp_{name}_vec4f` / `lp_{name}_vec4u`. "The scene uniform" is that struct.
 
 use lightport_codegen::Generated;
 use wgpu::util::DeviceExt;
@@ -136,6 +138,25 @@ pub(crate) struct UniformLayout {
     pub(crate) binding: u32,
     pub(crate) size: u32,
     pub(crate) members: Vec<(String, u32)>,
+    /// Declared `var<storage, read>` (the scene's scalars) rather than `var<uniform>`.
+    pub(crate) storage: bool,
+}
+
+impl UniformLayout {
+    /// How the buffer holding it is bound.
+    pub(crate) fn binding_type(&self) -> wgpu::BufferBindingType {
+        if self.storage {
+            wgpu::BufferBindingType::Storage { read_only: true }
+        } else {
+            wgpu::BufferBindingType::Uniform
+        }
+    }
+
+    /// What the buffer holding it is created for (written again by the host: the camera).
+    pub(crate) fn usage(&self) -> wgpu::BufferUsages {
+        let bound = if self.storage { wgpu::BufferUsages::STORAGE } else { wgpu::BufferUsages::UNIFORM };
+        bound | wgpu::BufferUsages::COPY_DST
+    }
 }
 
 /// Reads the resource layout of the generated shader with naga (the WGSL front end wgpu uses).
@@ -156,22 +177,28 @@ pub(crate) fn reflect(generated: &Generated, global: &str, own: &[&str]) -> Resu
     let texel_buffers = [false, true].map(|unsigned| (texel_buffer_name(global, unsigned), unsigned));
     for (_, variable) in module.global_variables.iter() {
         let (Some(name), Some(binding)) = (&variable.name, &variable.binding) else { continue };
-        let uniform = || match &module.types[variable.ty].inner {
+        let uniform = |storage| match &module.types[variable.ty].inner {
             naga::TypeInner::Struct { members, span } => Some(UniformLayout {
                 group: binding.group,
                 binding: binding.binding,
                 size: *span,
                 members: members.iter().map(|m| (m.name.clone().unwrap_or_default(), m.offset)).collect(),
+                storage,
             }),
             _ => None,
         };
         match (name.as_str(), variable.space) {
-            (n, naga::AddressSpace::Uniform) if n == global => layout.scene_uniform = uniform(),
+            (n, naga::AddressSpace::Uniform) if n == global => layout.scene_uniform = uniform(false),
+            (n, naga::AddressSpace::Storage { access })
+                if n == global && !access.contains(naga::StorageAccess::STORE) =>
+            {
+                layout.scene_uniform = uniform(true)
+            }
             (n, space) if own.contains(&n) => layout.own.push(OwnResource {
                 name: n.to_string(),
                 group: binding.group,
                 binding: binding.binding,
-                uniform: if space == naga::AddressSpace::Uniform { uniform() } else { None },
+                uniform: if space == naga::AddressSpace::Uniform { uniform(false) } else { None },
             }),
             (n, naga::AddressSpace::Storage { access }) if texel_buffers.iter().any(|(b, _)| b == n) => {
                 if access.contains(naga::StorageAccess::STORE) {
@@ -280,11 +307,12 @@ pub(crate) fn check_scene_limits(
         }
     }
     let own_storage = layout.own.iter().filter(|r| r.uniform.is_none()).count();
-    let storage_buffers = (layout.texel_buffers.len() + own_storage) as u64;
+    let scene_storage = layout.scene_uniform.as_ref().is_some_and(|u| u.storage) as usize;
+    let storage_buffers = (layout.texel_buffers.len() + own_storage + scene_storage) as u64;
     let groups =
         1 + layout.texel_buffers.iter().map(|b| b.group).chain(layout.own.iter().map(|r| r.group)).max().unwrap_or(0)
             as u64;
-    let uniform_size = layout.scene_uniform.as_ref().map_or(0, |u| u.size) as u64;
+    let uniform_size = layout.scene_uniform.as_ref().filter(|u| !u.storage).map_or(0, |u| u.size) as u64;
     for (limit, needed, max) in [
         ("max_storage_buffers_per_shader_stage", storage_buffers, storage_buffers_limit(limits, options) as u64),
         ("max_bind_groups", groups, limits.max_bind_groups as u64),
@@ -346,9 +374,9 @@ pub(crate) fn upload_scene_with_room(
         let buffer = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("scene uniforms"),
             contents: &scene_uniform_bytes(u, &layout.global, scene)?,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: u.usage(),
         });
-        let ty = wgpu::BufferBindingType::Uniform;
+        let ty = u.binding_type();
         entries.push(BufferEntry { group: u.group, binding: u.binding, buffer: buffer.clone(), ty });
         scene_uniform = Some((buffer, u.clone()));
     }

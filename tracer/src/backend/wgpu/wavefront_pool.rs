@@ -128,10 +128,10 @@ pub(super) fn pool_buffers(
                 });
                 storage.push((own, PoolBuffer { buffer, arrays }));
             }
-            BindingKind::Texels => {
+            BindingKind::Texels | BindingKind::Scalars => {
                 return Err(WgpuError::UnboundResource {
                     name: binding.variable.clone(),
-                    detail: ": the wavefront's pool has no read-only arrays".into(),
+                    detail: ": the wavefront's pool has no read-only buffers (it is not in group 0)".into(),
                 })
             }
         }
