@@ -207,6 +207,25 @@ fn the_wgpu_wavefront_gives_every_pixel_its_samples_through_a_small_pool() {
     assert!(sums_lit(&wave.accumulation().unwrap()) > 48 * 48 / 2, "the box is lit");
 }
 
+/// The wgpu wavefront's stages bind the scene's scalars as a storage buffer (not a uniform:
+/// lavapipe re-specialised every stage at every pipeline bind, `docs/backends.md`), so they
+/// bind 8 storage buffers, WebGPU's guaranteed number: a device allowing 8 gets the wavefront,
+/// one allowing 7 refuses it with the limit named, before anything is compiled.
+#[test]
+fn the_wgpu_wavefronts_stages_fit_webgpus_eight_storage_buffers_with_the_scene_scalars_counted() {
+    use tracer::backend::wgpu::{WavefrontRenderer as WgpuWavefront, WgpuDevice, WgpuOptions};
+    let p = packed(&scene::cornell_box(), Strategy::Mis, 16, 4);
+    let device = WgpuDevice::native().unwrap_or_else(|e| panic!("the wgpu backend must run here: {e}"));
+    let eight = WgpuOptions { max_storage_buffers_per_shader_stage: Some(8), ..Default::default() };
+    let mut wave = pollster::block_on(WgpuWavefront::new(device.clone(), p.clone(), 4, &eight)).expect("8 fit");
+    wave.render_frame().unwrap();
+    assert_eq!(wave.accumulation().unwrap().iter().filter(|a| a.w != 1.0).count(), 0, "one sample each");
+    let seven = WgpuOptions { max_storage_buffers_per_shader_stage: Some(7), ..Default::default() };
+    let refused = pollster::block_on(WgpuWavefront::new(device, p, 4, &seven)).err().expect("7 are too few");
+    let message = refused.to_string();
+    assert!(message.contains("max_storage_buffers_per_shader_stage") && message.contains('8'), "{message}");
+}
+
 /// On wgpu the wavefront accumulates the CPU megakernel's denoiser guide (through a pool of
 /// 192 slots under a 48 x 48 image: twelve waves per frame, with the guide's arrays in the
 /// binding limit): the same seed gives the same paths, so the first hits' albedo, normal,
