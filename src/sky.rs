@@ -36,13 +36,13 @@ impl SkyArg {
 }
 
 /// Without `--sky`, lights `scene` with the default sky if nothing lights it, and adds the
-/// warning that says so to its warnings (the last); whether it did. With `--sky` (a file
+/// warning that says so to its warnings; returns that warning if it did. With `--sky` (a file
 /// already set, or `none`) it does nothing.
-pub fn light_unless_told(scene: &mut Scene, sky: Option<&SkyArg>) -> bool {
-    let Some(warning) = sky.is_none().then(|| scene.light_if_unlit()).flatten() else { return false };
+pub fn light_unless_told<'s>(scene: &'s mut Scene, sky: Option<&SkyArg>) -> Option<&'s str> {
+    let warning = sky.is_none().then(|| scene.light_if_unlit()).flatten()?;
     scene.warnings.push(format!(
         "{warning}; give it a sky with `--sky FILE.hdr` (an equirectangular .hdr or .exr), or `--sky none` to keep it \
          unlit"
     ));
-    true
+    scene.warnings.last().map(String::as_str)
 }

@@ -309,8 +309,8 @@ fn chart_scene(name: &str, args: &ChartArgs) -> Result<ChartScene> {
         )?;
     }
     if let Source::Scene(scene) = &mut chart_scene.scene {
-        if crate::sky::light_unless_told(scene, args.sky.as_ref()) {
-            eprintln!("warning: {}", scene.warnings.last().map_or("", String::as_str));
+        if let Some(warning) = crate::sky::light_unless_told(scene, args.sky.as_ref()) {
+            eprintln!("warning: {warning}");
             write!(chart_scene.identity, "; the default white sky")?;
         }
     }
