@@ -95,6 +95,8 @@ pub struct Program {
     pub(crate) fns: BTreeMap<String, Located<ir::FnDef>>,
     pub(crate) structs: BTreeMap<String, Located<ir::StructDef>>,
     pub(crate) consts: BTreeMap<String, Located<ir::ConstDef>>,
+    /// The globals the resource structs become (`Program::resource_globals`), found once.
+    pub(crate) resource_global_names: BTreeSet<String>,
 }
 
 /// What to emit: the functions asked for and everything they reach.
@@ -382,6 +384,7 @@ impl Program {
             fns: BTreeMap::new(),
             structs: BTreeMap::new(),
             consts: BTreeMap::new(),
+            resource_global_names: BTreeSet::new(),
         };
         let mut seen: BTreeMap<String, (String, String)> = BTreeMap::new();
         for m in modules {
@@ -452,12 +455,22 @@ impl Program {
                 }
             }
         }
+        program.resource_global_names = program.resource_globals().into_iter().collect();
         // Type-check every function now, so that errors surface at link time.
         for f in program.fns.values() {
             infer::infer_fn(&program, f)?;
         }
         program.check_no_recursion()?;
         Ok(program)
+    }
+
+    /// Whether `name` is taken program-wide: a function, struct, const or resource global, which
+    /// a local binding must not shadow in the generated code.
+    pub(crate) fn is_global_name(&self, name: &str) -> bool {
+        self.fns.contains_key(name)
+            || self.structs.contains_key(name)
+            || self.consts.contains_key(name)
+            || self.resource_global_names.contains(name)
     }
 
     /// Names of the linked modules, in link order.

@@ -30,12 +30,15 @@ pub(crate) fn safe(name: &str) -> String {
 
 /// A fresh name for a local binding: its Rust name where possible, else numbered
 /// (`x`, `x_1`, ...) so that Rust's shadowing (`let x = ...; let x = x * 2.0;`) survives in
-/// languages that forbid redeclaration in one scope.
-pub(crate) fn unique_local(name: &str, used: &mut BTreeSet<String>) -> String {
+/// languages that forbid redeclaration in one scope. `used` holds the function's names so far;
+/// `global` says whether a name is taken program-wide (a function, struct, ...): asked, not
+/// copied into `used`, since a program has hundreds of such names and a kernel hundreds of
+/// functions.
+pub(crate) fn unique_local(name: &str, used: &mut BTreeSet<String>, global: impl Fn(&str) -> bool) -> String {
     let base = safe(name);
     let mut candidate = base.clone();
     let mut n = 1;
-    while used.contains(&candidate) {
+    while used.contains(&candidate) || global(&candidate) {
         // Never create a double underscore (reserved in shading languages).
         candidate = if base.ends_with('_') { format!("{base}{n}") } else { format!("{base}_{n}") };
         n += 1;

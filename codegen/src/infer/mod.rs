@@ -77,21 +77,8 @@ struct Cx<'a> {
 }
 
 pub(crate) fn infer_fn(program: &Program, func: &Located<ir::FnDef>) -> Result<FnTypes, CodegenError> {
-    let mut cx = Cx {
-        program,
-        func,
-        out: FnTypes::default(),
-        scopes: vec![vec![]],
-        vars: vec![],
-        used_names: program
-            .fns
-            .keys()
-            .chain(program.structs.keys())
-            .chain(program.consts.keys())
-            .cloned()
-            .chain(program.resource_globals())
-            .collect(),
-    };
+    let mut cx =
+        Cx { program, func, out: FnTypes::default(), scopes: vec![vec![]], vars: vec![], used_names: BTreeSet::new() };
     let f = &func.item;
     for p in &f.params {
         let ty = cx.resolve_type(&p.ty, p.span)?;
@@ -139,7 +126,8 @@ impl<'a> Cx<'a> {
     }
 
     fn bind(&mut self, name: &str, ty: Ty, mutable: bool, kind: BindingKind) -> usize {
-        let out_name = names::unique_local(name, &mut self.used_names);
+        let program = self.program;
+        let out_name = names::unique_local(name, &mut self.used_names, |n| program.is_global_name(n));
         let id = self.out.bindings.len();
         self.out.bindings.push(Binding { out_name, ty, mutable, kind });
         self.scopes.last_mut().expect("a scope").push((name.to_string(), id));

@@ -19,6 +19,7 @@ mod specialize;
 mod stmt;
 
 use std::collections::{BTreeMap, BTreeSet};
+use std::rc::Rc;
 
 use crate::infer::FnTypes;
 use crate::ir::{self, BinOp, Expr, ExprKind as K};
@@ -37,8 +38,10 @@ pub(crate) fn emit(program: &Program, target: Target, selection: &Selection) -> 
     if !lang.supports_compute() {
         refuse_compute(program, target, selection, &order)?;
     }
-    // First pass: which calls survive specialisation. Second pass: only what is reached.
-    let first = lower_functions(program, lang, selection, &order)?;
+    // First pass: which calls survive specialisation. Second pass: only what is reached. Both
+    // lower the same functions of the same program, so each function's types are inferred once.
+    let mut types = BTreeMap::new();
+    let first = lower_functions(program, lang, selection, &order, &mut types)?;
     let roots: Vec<String> =
         order.iter().filter(|n| selection.roots.is_empty() || selection.roots.contains(n)).cloned().collect();
     let mut reached = BTreeSet::new();
@@ -49,7 +52,7 @@ pub(crate) fn emit(program: &Program, target: Target, selection: &Selection) -> 
         }
     }
     let order: Vec<String> = order.into_iter().filter(|n| reached.contains(n)).collect();
-    let mut l = lower_functions(program, lang, selection, &order)?;
+    let mut l = lower_functions(program, lang, selection, &order, &mut types)?;
     let (source, source_map, harness, bindings) = l.assemble(&order)?;
     Ok(Generated { target, source, source_map, harness, bindings })
 }
@@ -86,6 +89,7 @@ fn lower_functions<'a>(
     lang: &'a dyn Language,
     selection: &'a Selection,
     order: &[String],
+    types: &mut BTreeMap<String, Rc<FnTypes>>,
 ) -> R<Lowerer<'a>> {
     let mut l = Lowerer {
         program,
@@ -99,13 +103,22 @@ fn lower_functions<'a>(
         consts_used: BTreeSet::new(),
         resources_used: BTreeSet::new(),
         func: None,
-        types: FnTypes::default(),
+        types: Rc::default(),
         used_names: BTreeSet::new(),
         selection,
         calls: BTreeMap::new(),
     };
     for name in order {
-        l.function(&program.fns[name])?;
+        let f = &program.fns[name];
+        l.types = match types.get(name) {
+            Some(t) => Rc::clone(t),
+            None => {
+                let t = Rc::new(crate::infer::infer_fn(program, f)?);
+                types.insert(name.clone(), Rc::clone(&t));
+                t
+            }
+        };
+        l.function(f)?;
     }
     Ok(l)
 }
@@ -154,7 +167,8 @@ struct Lowerer<'a> {
     /// (resource struct, field)
     resources_used: BTreeSet<(String, String)>,
     func: Option<&'a Located<ir::FnDef>>,
-    types: FnTypes,
+    /// The types of the function being lowered (set before `function` is called).
+    types: Rc<FnTypes>,
     used_names: BTreeSet<String>,
     selection: &'a Selection,
     /// Kernel functions each emitted function calls (after specialisation).
@@ -307,7 +321,8 @@ impl<'a> Lowerer<'a> {
     }
 
     fn fresh(&mut self, base: &str) -> String {
-        names::unique_local(base, &mut self.used_names)
+        let fns = &self.program.fns;
+        names::unique_local(base, &mut self.used_names, |n| fns.contains_key(n))
     }
 
     /// Records the structs a type names, so that their declarations are emitted.

@@ -21,9 +21,7 @@ pub(super) enum Dest {
 impl<'a> Lowerer<'a> {
     pub(super) fn function(&mut self, f: &'a Located<ir::FnDef>) -> R<()> {
         self.func = Some(f);
-        self.types = infer::infer_fn(self.program, f)?;
         self.used_names = self.types.bindings.iter().map(|b| b.out_name.clone()).collect();
-        self.used_names.extend(self.program.fns.keys().cloned());
         let def = &f.item;
         self.line(&format!("// {}::{} ({}:{})", f.module, def.name, f.file, def.span.line));
         let mut params = Vec::new();

@@ -161,6 +161,16 @@ fn denoise_pass_shader_for(
     emit_validated(target, lightport_codegen::Selection::image_pass("atrous_pixel", Default::default()), regenerate)
 }
 
+/// The kernel's modules, parsed and linked once per process: every shader a runtime generates
+/// (each scene's megakernel and wavefront, the display and denoiser passes) is emitted from it.
+/// In the page this is a third of what generating the first scene's kernel took.
+pub fn linked_kernel() -> Result<&'static lightport_codegen::Program, ShaderError> {
+    static PROGRAM: std::sync::OnceLock<Result<lightport_codegen::Program, lightport_codegen::CodegenError>> =
+        std::sync::OnceLock::new();
+    let linked = PROGRAM.get_or_init(|| lightport_codegen::Program::link(&modules()));
+    linked.as_ref().map_err(|e| ShaderError::from(e.clone()))
+}
+
 /// `selection` of the linked kernel for `target`, with `regenerate` in its header, validated
 /// (with the `validate` feature).
 fn emit_validated(
@@ -168,7 +178,7 @@ fn emit_validated(
     selection: lightport_codegen::Selection,
     regenerate: Option<&str>,
 ) -> Result<lightport_codegen::Generated, ShaderError> {
-    let program = lightport_codegen::Program::link(&modules())?;
+    let program = linked_kernel()?;
     let selection = lightport_codegen::Selection { regenerate: regenerate.map(str::to_string), ..selection };
     let generated = program.emit(target, &selection)?;
     #[cfg(feature = "validate")]
@@ -180,8 +190,8 @@ fn emit_validated(
 /// what each runtime's display pass wraps its own entry point around, so that the screen shows
 /// what the CLI's PNG output stores.
 pub fn display_transform(target: lightport_codegen::Target) -> Result<lightport_codegen::Generated, ShaderError> {
-    use lightport_codegen::{Program, Selection};
-    let program = Program::link(&modules())?;
+    use lightport_codegen::Selection;
+    let program = linked_kernel()?;
     let selection = Selection { roots: vec!["display_srgb".into()], ..Selection::default() };
     Ok(program.emit(target, &selection)?)
 }
@@ -199,9 +209,9 @@ pub struct GeneratedFile {
 /// (WGSL by naga, GLSL parsed by glsl-lang) before it is returned.
 #[cfg(feature = "validate")]
 pub fn generated_shaders() -> Result<Vec<GeneratedFile>, ShaderError> {
-    use lightport_codegen::{Program, Selection, Target};
+    use lightport_codegen::{Selection, Target};
     let modules = modules();
-    let program = Program::link(&modules)?;
+    let program = linked_kernel()?;
     let mut files = Vec::new();
     for module in program.module_names() {
         let compute = modules.iter().any(|m| m.name == module && m.compute);
@@ -210,7 +220,7 @@ pub fn generated_shaders() -> Result<Vec<GeneratedFile>, ShaderError> {
                 // A compute module has no GLSL ES 3.00 (no storage buffers, atomics or compute).
                 continue;
             }
-            let selection = Selection { regenerate: Some(REGENERATE.into()), ..Selection::module(&program, &module) };
+            let selection = Selection { regenerate: Some(REGENERATE.into()), ..Selection::module(program, &module) };
             let generated = program.emit(target, &selection)?;
             lightport_codegen::validate::validate(&generated)?;
             files.push(GeneratedFile { name: format!("{module}.{}", target.extension()), source: generated.source });

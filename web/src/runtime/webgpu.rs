@@ -77,7 +77,18 @@ pub async fn request_web_gpu() -> Result<GpuDevice, JsError> {
              secure context: https or http://127.0.0.1)",
         ));
     }
-    let label = adapter_label(&gpu).await;
+    // The adapter request goes out now, and the kernel's modules are parsed and linked while
+    // the browser answers it (the first scene's shader is generated from them: a third of its
+    // code generation, which the page would otherwise pay after the bundle's download).
+    let adapter = request_adapter(&gpu);
+    if let Err(e) = tracer::kernel::linked_kernel() {
+        // Reported again, at the scene, by the shader that needs it.
+        web_sys::console::warn_1(&format!("the kernel does not link: {e}").into());
+    }
+    let label = match adapter {
+        Some(promise) => adapter_label(promise).await,
+        None => None,
+    };
     let mut device = WgpuDevice::request(wgpu::Backends::BROWSER_WEBGPU).await.map_err(|e| {
         // wgpu's own words name native drivers and apt packages: speak to a person in a browser.
         JsError::new(&match e {
@@ -101,15 +112,19 @@ pub async fn request_web_gpu() -> Result<GpuDevice, JsError> {
     Ok(GpuDevice { device, lost })
 }
 
-/// "vendor / architecture" (and the description, if any) of the adapter the browser gives for
-/// the same request, from `GPUAdapter.info`; `None` where it tells nothing.
-async fn adapter_label(gpu: &JsValue) -> Option<String> {
-    let get = |o: &JsValue, k: &str| js_sys::Reflect::get(o, &JsValue::from_str(k)).ok();
-    let request: js_sys::Function = get(gpu, "requestAdapter")?.dyn_into().ok()?;
+/// `navigator.gpu.requestAdapter()` with wgpu's options, sent now (not when awaited).
+fn request_adapter(gpu: &JsValue) -> Option<js_sys::Promise> {
+    let request: js_sys::Function = js_sys::Reflect::get(gpu, &"requestAdapter".into()).ok()?.dyn_into().ok()?;
     let options = js_sys::Object::new();
     js_sys::Reflect::set(&options, &"powerPreference".into(), &"high-performance".into()).ok()?;
-    let promise: js_sys::Promise = request.call1(gpu, &options).ok()?.dyn_into().ok()?;
-    let adapter = wasm_bindgen_futures::JsFuture::from(promise).await.ok()?;
+    request.call1(gpu, &options).ok()?.dyn_into().ok()
+}
+
+/// "vendor / architecture" (and the description, if any) of the adapter the browser gives for
+/// the same request (`request_adapter`), from `GPUAdapter.info`; `None` where it tells nothing.
+async fn adapter_label(request: js_sys::Promise) -> Option<String> {
+    let get = |o: &JsValue, k: &str| js_sys::Reflect::get(o, &JsValue::from_str(k)).ok();
+    let adapter = wasm_bindgen_futures::JsFuture::from(request).await.ok()?;
     let info = get(&adapter, "info")?;
     let field = |k: &str| get(&info, k).and_then(|v| v.as_string()).filter(|s| !s.is_empty());
     let mut label = [field("vendor"), field("architecture")].into_iter().flatten().collect::<Vec<_>>().join(" / ");
