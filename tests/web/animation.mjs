@@ -74,6 +74,11 @@ export async function animation(o) {
         // The band policy's estimate of a whole frame (its cost per row times the rows): a
         // restart is previewed only where it exceeds the budget.
         let maxFrameMsEstimate = null;
+        // Sampled from the first pose on: until the frame loop's next tick poses the scene, the
+        // accumulation is still the paused one (on a loaded machine that tick came after the
+        // first sample, which then read the paused samples as accumulated while moving).
+        const waitedFrom = performance.now();
+        while (l.animation().poses === posesBefore && performance.now() - waitedFrom < 10000) await wait(5);
         const t0 = performance.now();
         while (performance.now() - t0 < 4000) {
           await wait(50);
