@@ -1,8 +1,9 @@
 //! A local binding named like something the whole program declares (a kernel function, a
-//! struct, the global a `#[resources]` struct or one of its fields becomes) is renamed
-//! in the generated code, where it would otherwise hide that declaration (Rust resolves the
-//! struct literal and the resource fields after such a local; the shader would not). (Program-wide names are asked of the program, not copied into each
-//! function's set of names: `names::unique_local`.)
+//! struct, the global a `#[resources]` struct or one of its fields becomes) is renamed in the
+//! generated code, where it would otherwise hide that declaration: Rust still resolves the
+//! struct literal and the resource fields after such a local, the shader would not.
+//! Program-wide names are asked of the program, not copied into each function's set of names
+//! (`names::unique_local`).
 
 // The `#[kernel]` module here is read as IR and generated.
 #![allow(dead_code, non_snake_case, clippy::let_and_return)]
