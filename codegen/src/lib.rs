@@ -455,7 +455,7 @@ impl Program {
                 }
             }
         }
-        program.resource_global_names = program.resource_globals().into_iter().collect();
+        program.resource_global_names = program.resource_globals();
         // Type-check every function now, so that errors surface at link time.
         for f in program.fns.values() {
             infer::infer_fn(&program, f)?;
@@ -471,6 +471,12 @@ impl Program {
             || self.structs.contains_key(name)
             || self.consts.contains_key(name)
             || self.resource_global_names.contains(name)
+    }
+
+    /// Whether the linked module `name` is a `#[kernel(compute)]` module (storage, atomics: WGSL
+    /// and the CPU only).
+    pub fn is_compute_module(&self, name: &str) -> bool {
+        self.modules.iter().any(|m| m.name == name && m.compute)
     }
 
     /// Names of the linked modules, in link order.

@@ -64,11 +64,10 @@ fn refuse_compute(program: &Program, target: Target, selection: &Selection, orde
         Target::GlslEs300 => "GLSL ES 3.00",
         Target::Wgsl => "WGSL",
     };
-    let compute_module = |m: &str| program.modules.iter().any(|k| k.name == m && k.compute);
     let refused = selection
         .compute
         .iter()
-        .chain(order.iter().filter(|n| program.fns.get(*n).is_some_and(|f| compute_module(&f.module))))
+        .chain(order.iter().filter(|n| program.fns.get(*n).is_some_and(|f| program.is_compute_module(&f.module))))
         .find_map(|n| program.fns.get(n));
     match refused {
         Some(f) => Err(CodegenError {
@@ -192,13 +191,13 @@ fn snake(name: &str) -> String {
 
 impl Program {
     /// Global names that resource fields take in generated code.
-    pub(crate) fn resource_globals(&self) -> Vec<String> {
-        let mut out = Vec::new();
+    pub(crate) fn resource_globals(&self) -> BTreeSet<String> {
+        let mut out = BTreeSet::new();
         for s in self.structs.values().filter(|s| s.item.resources) {
             let base = snake(&s.item.name);
-            out.push(base.clone());
+            out.insert(base.clone());
             for f in &s.item.fields {
-                out.push(format!("{base}_{}", f.name));
+                out.insert(format!("{base}_{}", f.name));
             }
         }
         out

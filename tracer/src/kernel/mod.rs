@@ -210,11 +210,10 @@ pub struct GeneratedFile {
 #[cfg(feature = "validate")]
 pub fn generated_shaders() -> Result<Vec<GeneratedFile>, ShaderError> {
     use lightport_codegen::{Selection, Target};
-    let modules = modules();
     let program = linked_kernel()?;
     let mut files = Vec::new();
     for module in program.module_names() {
-        let compute = modules.iter().any(|m| m.name == module && m.compute);
+        let compute = program.is_compute_module(&module);
         for target in [Target::GlslEs300, Target::Wgsl] {
             if compute && target == Target::GlslEs300 {
                 // A compute module has no GLSL ES 3.00 (no storage buffers, atomics or compute).
