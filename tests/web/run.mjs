@@ -171,8 +171,9 @@ async function camera(o) {
 // bands were submitted, then drags the mouse on the canvas `--inputs` times, each at a random
 // point of a band, and reports, per input, the page's record of the restart it caused (event
 // time, first band of the restarted accumulation submitted and done on the GPU) and whether
-// the sample counter was reset. Also the time of one whole frame in one submission
-// (renderFrames, paused), the page's split read-out and sceneInfo.
+// the sample counter was reset. Then the frame loop's time per frame (`--loopSeconds`, bands
+// as it submits them), the time of one whole frame in one submission (renderFrames, paused),
+// the page's split read-out and sceneInfo.
 async function slow(o) {
   const profile = freshProfile();
   const inputs = Number(o.inputs || '5');
@@ -202,6 +203,22 @@ async function slow(o) {
         await page.waitForFunction((n) => window.lightport.restarts.length > n, before, { timeout: 300000 });
         restarts.push({ ...(await page.evaluate(() => window.lightport.restarts.at(-1))), sppAfterInput });
       }
+      // The frame loop's own pace (bands queued ahead): whole frames it completes, between
+      // the first and the last completion seen in `--loopSeconds` (default 12).
+      const loopFrameMs = await page.evaluate(async (ms) => {
+        const seen = [];
+        let last = window.lightport.frames;
+        const end = performance.now() + ms;
+        while (performance.now() < end) {
+          await new Promise((resolve) => setTimeout(resolve, 20));
+          if (window.lightport.frames !== last) {
+            last = window.lightport.frames;
+            seen.push([last, performance.now()]);
+          }
+        }
+        if (seen.length < 2) return null;
+        return (seen.at(-1)[1] - seen[0][1]) / (seen.at(-1)[0] - seen[0][0]);
+      }, Number(o.loopSeconds || '12') * 1000);
       const info = await page.evaluate(() => window.lightport.info());
       const readout = await page.textContent('#frame-split');
       // One whole frame in one submission, waited for (after a warm-up frame).
@@ -210,7 +227,7 @@ async function slow(o) {
         await window.lightport.renderFrames(1);
         return window.lightport.renderFrames(1);
       });
-      return { restarts, info, readout, frameMs, error: await page.evaluate(() => window.lightport.error) };
+      return { restarts, info, readout, frameMs, loopFrameMs, error: await page.evaluate(() => window.lightport.error) };
     });
   } finally {
     rmSync(profile, { recursive: true, force: true });

@@ -15,16 +15,18 @@ export function setUpAnimationControls($, getViewer, guarded) {
   $('anim-speed').addEventListener('change', (e) => guarded(() => getViewer().setAnimationSpeed(Number(e.target.value))));
 }
 
-// Shows the controls for `info.animation` (sceneInfo()), or hides them.
+// Shows the controls for `info.animation` (sceneInfo()), or hides them; what is unchanged is not
+// written again (the page would be laid out and painted again at every animation frame).
 export function showAnimation($, info) {
   const a = info.animation;
-  $('animation').hidden = !a;
+  const set = (element, key, value) => { if (element[key] !== value) element[key] = value; };
+  set($('animation'), 'hidden', !a);
   if (!a) return;
-  $('anim-play').textContent = a.playing ? 'Pause' : 'Play';
+  set($('anim-play'), 'textContent', a.playing ? 'Pause' : 'Play');
   const slider = $('anim-time');
-  slider.max = String(a.duration);
-  if (document.activeElement !== slider) slider.value = String(a.time);
-  $('anim-time-value').textContent = `${a.time.toFixed(2)} / ${a.duration.toFixed(2)} s`;
+  set(slider, 'max', String(a.duration));
+  if (document.activeElement !== slider) set(slider, 'value', String(a.time));
+  set($('anim-time-value'), 'textContent', `${a.time.toFixed(2)} / ${a.duration.toFixed(2)} s`);
 }
 
 // What moves, for the scene read-out ('' for a static scene).

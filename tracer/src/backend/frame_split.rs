@@ -24,9 +24,16 @@
 //! timeout WebGL allows); a band's time lies between the last poll that saw it pending and the
 //! poll that sees it signalled ([`polled_bounds`]), so it is known to the caller's polling
 //! interval (an animation frame in the browser). No timer-query extension is needed (WebGL2 has none on SwiftShader and
-//! many phones), nothing blocks the thread, and nothing is read back. The pacer submits nothing
-//! while a band is in flight: at most one band is queued, so new work (a restart) waits for at
-//! most one band.
+//! many phones), nothing blocks the thread, and nothing is read back.
+//!
+//! Bands are queued ahead ([`BandsInFlight`]): each tick of the frame loop tops the GPU's queue up
+//! to [`AHEAD_BUDGETS`] budgets of estimated work. The news that a band is done reaches the page
+//! a tick or more after the GPU finished it (a browser updates a fence's status, and resolves
+//! `onSubmittedWorkDone`, between tasks): with one band in flight the GPU idled that long after
+//! every band, and the delay, counted as the band's time, kept bands at a few rows. A band
+//! queued behind another is timed from that one's news to its own, in which the delay cancels.
+//! A frame's first band waits until the last frame's are seen done (a pose, a denoise or a
+//! restart's preview come between frames), so new work waits for at most the queued bands.
 
 /// The longest a single GPU submission should take (milliseconds), by default.
 pub const DEFAULT_BUDGET_MS: f64 = 50.0;
@@ -53,6 +60,159 @@ const PROBE_ROWS: u32 = FIRST_ROWS;
 pub fn polled_bounds(submitted_ms: f64, pending_at_ms: Option<f64>, now_ms: f64) -> (f64, f64) {
     let at_most = now_ms - submitted_ms;
     (pending_at_ms.map_or(0.0, |t| t - submitted_ms), at_most)
+}
+
+/// The estimated GPU work a frame loop queues ahead, in budgets ([`BandsInFlight`]). Headless
+/// Chromium on SwiftShader learnt of a finished band 2-3 animation frames late: with one band
+/// in flight the Cornell box at 640x480 took 6.0 s a frame in bands of 4 rows (WebGL2), against
+/// 1.8 s in one submission. Queued work must outlast a tick and the news' delay, or the GPU
+/// idles, the idle time is timed as the bands', and bands shrink further.
+pub const AHEAD_BUDGETS: f64 = 3.0;
+/// Submissions in flight, at most (fences are objects of the context).
+pub const MAX_IN_FLIGHT: usize = 16;
+/// Bands timed together when they ran back to back ([`BandsInFlight`]): a band seen done one
+/// tick late or early is then a tick in this many bands' time, not in one's.
+pub const STREAK: usize = 4;
+
+/// The work a frame loop submitted and has not yet seen done, oldest first, each behind its
+/// `F` (a GL fence, a WebGPU done flag): bands of a frame and other work (a preview: waited
+/// for, not timed). Bands seen done are timed into a [`BandPolicy`]. A band queued behind
+/// another ran from when that one was done: it is timed from that one's news to its own, in
+/// which the delay of the news cancels; such bands in a row (up to [`STREAK`]) are timed
+/// together, as the rate of their rows, so that one seen a tick late does not halve or double
+/// the next band. A band submitted to an idle GPU is timed from its submission, the news'
+/// delay included, between bounds ([`polled_bounds`]).
+#[derive(Debug)]
+pub struct BandsInFlight<F> {
+    queued: std::collections::VecDeque<InFlight<F>>,
+    /// The estimated GPU work that may be queued (ms); 0: one submission at a time.
+    ahead_ms: f64,
+    /// When the last work was seen done.
+    last_done_ms: Option<f64>,
+    /// The bands seen done back to back (the latest last, at most [`STREAK`]): their rows and
+    /// when each was seen done, after `streak_from_ms`.
+    streak: std::collections::VecDeque<(u32, f64)>,
+    streak_from_ms: f64,
+}
+
+#[derive(Debug)]
+struct InFlight<F> {
+    marker: F,
+    submitted_ms: f64,
+    /// The last poll that found it not done.
+    pending_at_ms: Option<f64>,
+    /// Its rows; 0: other work (waited for, not timed).
+    rows: u32,
+    /// Its estimated GPU time, if known.
+    estimate_ms: Option<f64>,
+}
+
+impl<F> BandsInFlight<F> {
+    /// A queue of up to `ahead_ms` of estimated GPU work (0: one submission at a time).
+    pub fn new(ahead_ms: f64) -> Self {
+        BandsInFlight {
+            queued: Default::default(),
+            ahead_ms: if ahead_ms.is_finite() { ahead_ms.max(0.0) } else { 0.0 },
+            last_done_ms: None,
+            streak: Default::default(),
+            streak_from_ms: 0.0,
+        }
+    }
+
+    /// A queue for bands sized by `policy`: [`AHEAD_BUDGETS`] of its budget (unsplit frames:
+    /// one at a time).
+    pub fn for_policy(policy: &BandPolicy) -> Self {
+        Self::new(policy.budget_ms().map_or(0.0, |budget| budget * AHEAD_BUDGETS))
+    }
+
+    /// Whether nothing is in flight.
+    pub fn is_empty(&self) -> bool {
+        self.queued.is_empty()
+    }
+
+    /// Whether a band estimated at `next_ms` may be submitted now: anything to an idle GPU; a
+    /// frame's first band (`starts_frame`) only then; another while the estimated work queued
+    /// with it stays within the queue's.
+    pub fn admits(&self, starts_frame: bool, next_ms: Option<f64>) -> bool {
+        if self.queued.is_empty() {
+            return true;
+        }
+        if starts_frame || self.queued.len() >= MAX_IN_FLIGHT {
+            return false;
+        }
+        let queued: Option<f64> = self.queued.iter().map(|band| band.estimate_ms).sum();
+        matches!((queued, next_ms), (Some(q), Some(n)) if q + n <= self.ahead_ms)
+    }
+
+    /// Records work submitted at `submitted_ms` behind `marker`: a band of `rows` rows
+    /// estimated at `estimate_ms`, or other work (`rows` 0) that is waited for and not timed.
+    pub fn push(&mut self, marker: F, submitted_ms: f64, rows: u32, estimate_ms: Option<f64>) {
+        self.queued.push_back(InFlight { marker, submitted_ms, pending_at_ms: None, rows, estimate_ms });
+    }
+
+    /// Asks `done` about the work in flight, oldest first, until some is not done (`done`:
+    /// `Some(true)` done, `Some(false)` not yet, `None` never: a lost context; dropped
+    /// untimed); hands each finished marker to `release` and times the bands among them into
+    /// `policy`. True when nothing is in flight (any more).
+    pub fn poll(
+        &mut self,
+        now_ms: f64,
+        policy: &mut BandPolicy,
+        mut done: impl FnMut(&F) -> Option<bool>,
+        mut release: impl FnMut(F),
+    ) -> bool {
+        let (mut first, mut pending, mut rows, mut timed) = (None, None, 0u32, true);
+        while let Some(oldest) = self.queued.front_mut() {
+            let finished = done(&oldest.marker);
+            if finished == Some(false) {
+                oldest.pending_at_ms = Some(now_ms);
+                break;
+            }
+            let band = self.queued.pop_front().expect("the front is there");
+            first.get_or_insert(band.submitted_ms);
+            pending = band.pending_at_ms;
+            rows = rows.saturating_add(band.rows);
+            timed &= band.rows > 0 && finished.is_some();
+            release(band.marker);
+        }
+        let Some(submitted_ms) = first else { return self.queued.is_empty() };
+        // Queued behind work seen done since (at a later poll than its submission): it ran
+        // from that work's end.
+        let behind = self.last_done_ms.filter(|&t| t > submitted_ms);
+        self.last_done_ms = Some(now_ms);
+        match behind {
+            Some(previous) if timed => {
+                if self.streak.is_empty() {
+                    self.streak_from_ms = previous;
+                }
+                self.streak.push_back((rows, now_ms));
+                if self.streak.len() > STREAK {
+                    let (_, seen) = self.streak.pop_front().expect("longer than STREAK");
+                    self.streak_from_ms = seen;
+                }
+                let streak_rows: u32 = self.streak.iter().map(|&(r, _)| r).sum();
+                let ms_per_row = (now_ms - self.streak_from_ms).max(0.0) / streak_rows.max(1) as f64;
+                policy.record(rows, ms_per_row * rows as f64);
+            }
+            _ => {
+                self.streak.clear();
+                if timed {
+                    let at_most = (now_ms - submitted_ms).max(0.0);
+                    let at_least = pending.map_or(0.0, |p| (p - submitted_ms).clamp(0.0, at_most));
+                    policy.record_between(rows, at_least, at_most);
+                }
+            }
+        }
+        self.queued.is_empty()
+    }
+
+    /// Drops what is in flight untimed, handing each marker to `release` (before the context
+    /// goes, or when other work would be counted in a band's time).
+    pub fn clear(&mut self, release: impl FnMut(F)) {
+        self.queued.drain(..).map(|band| band.marker).for_each(release);
+        self.last_done_ms = None;
+        self.streak.clear();
+    }
 }
 
 /// How many rows each band of a frame covers, adapted from measured band times.
@@ -340,6 +500,113 @@ mod tests {
             // No band over twice the budget: growth at most doubles a band that fit.
             assert!(rows.iter().all(|&r| r as f64 * 3.0 <= 2.0 * DEFAULT_BUDGET_MS), "tick {tick}: {rows:?}");
         }
+    }
+
+    /// A frame loop ticking every `tick_ms` over a device that runs bands in order at
+    /// `ms_per_row` and whose news of a finished band arrives `lag_ms` late, each tick
+    /// submitting what a queue of `ahead_ms` admits: when each frame ended on the GPU, and each
+    /// band's rows.
+    fn run_queued(
+        ahead_ms: f64,
+        height: u32,
+        ms_per_row: f64,
+        tick_ms: f64,
+        lag_ms: f64,
+        frames: usize,
+    ) -> (Vec<f64>, Vec<u32>) {
+        let mut policy = BandPolicy::new(height, Some(DEFAULT_BUDGET_MS));
+        let mut queue = BandsInFlight::new(ahead_ms);
+        let (mut now, mut gpu_free_at, mut left) = (0.0, 0.0f64, height);
+        let (mut frame_ends, mut rows_seen) = (Vec::new(), Vec::new());
+        while frame_ends.len() < frames {
+            // A band's marker: when the GPU finishes it.
+            queue.poll(now, &mut policy, |&end: &f64| Some(end + lag_ms <= now), drop);
+            // Each tick tops the queue up.
+            while queue.admits(left == height, policy.band_ms()) && frame_ends.len() < frames {
+                let rows = policy.rows().min(left);
+                gpu_free_at = gpu_free_at.max(now) + rows as f64 * ms_per_row;
+                queue.push(gpu_free_at, now, rows, policy.band_ms());
+                rows_seen.push(rows);
+                left -= rows;
+                if left == 0 {
+                    (left, frame_ends) = (height, [frame_ends, vec![gpu_free_at]].concat());
+                }
+            }
+            now += tick_ms;
+        }
+        (frame_ends, rows_seen)
+    }
+
+    const AHEAD: f64 = AHEAD_BUDGETS * DEFAULT_BUDGET_MS;
+
+    /// Milliseconds per frame over the second half of `frame_ends`.
+    fn settled_frame_ms(frame_ends: &[f64]) -> f64 {
+        let half = frame_ends.len() / 2;
+        (frame_ends[frame_ends.len() - 1] - frame_ends[half]) / (frame_ends.len() - 1 - half) as f64
+    }
+
+    #[test]
+    fn bands_queued_keep_a_slow_gpu_busy_when_their_news_comes_late() {
+        // The Cornell box, WebGL2 on SwiftShader, 640x480: ~3.7 ms per row (1.8 s a frame in one
+        // submission), 60 animation frames a second, a fence seen signalled ~2 frames after
+        // the GPU finished. One band in flight: bands of a few rows, each followed by the
+        // wait for its news: 6.0 s a frame in the page.
+        let (gpu, tick, lag) = (3.7 * 480.0, 16.7, 33.4);
+        let (one, rows_one) = run_queued(0.0, 480, 3.7, tick, lag, 6);
+        assert!(
+            settled_frame_ms(&one) > 2.0 * gpu,
+            "one in flight: {} ms a frame, {rows_one:?}",
+            settled_frame_ms(&one)
+        );
+        let (queued, rows) = run_queued(AHEAD, 480, 3.7, tick, lag, 6);
+        let frame_ms = settled_frame_ms(&queued);
+        assert!(frame_ms <= 1.2 * gpu, "{frame_ms} ms a frame for {gpu} of GPU time: {rows:?}");
+        // Each band fits the budget once measured: bands timed together (STREAK) keep a band
+        // seen a tick early from doubling the next (timed alone, bands reached 16 rows, 59 ms).
+        let settled = &rows[rows.len() / 2..];
+        assert!(settled.iter().all(|&r| r as f64 * 3.7 <= DEFAULT_BUDGET_MS), "{settled:?}");
+        // A page ticking at 30 Hz, its news ~2 ticks late: within 1.3x.
+        let (slower, rows) = run_queued(AHEAD, 480, 3.7, 33.3, 66.7, 6);
+        assert!(settled_frame_ms(&slower) <= 1.3 * gpu, "{} ms: {rows:?}", settled_frame_ms(&slower));
+    }
+
+    #[test]
+    fn a_fast_gpu_still_grows_to_whole_frames_with_bands_queued() {
+        // 0.01 ms per row, news a tick late: whole frames, one at a time (a frame's first band
+        // waits for the last's). (Where a band's news alone takes longer than the budget, as
+        // with one band in flight, frames stay split.)
+        let (ends, rows) = run_queued(AHEAD, 480, 0.01, 16.7, 16.7, 12);
+        assert_eq!(*rows.last().unwrap(), 480, "{rows:?}");
+        assert!(settled_frame_ms(&ends) <= 4.0 * 16.7, "{} ms: {rows:?}", settled_frame_ms(&ends));
+    }
+
+    #[test]
+    fn work_in_flight_is_released_once_and_other_work_is_not_timed() {
+        let mut policy = BandPolicy::new(100, Some(DEFAULT_BUDGET_MS));
+        let mut queue = BandsInFlight::new(100.0);
+        let mut released = Vec::new();
+        assert!(queue.admits(true, None), "anything goes to an idle GPU");
+        queue.push(1u32, 0.0, 0, None);
+        assert!(!queue.admits(false, Some(1.0)), "nothing queues behind work of unknown cost");
+        // The preview (rows 0) and a band seen done together: not timed.
+        assert!(queue.poll(500.0, &mut policy, |_| Some(true), |m| released.push(m)));
+        queue.push(2, 500.0, 8, Some(40.0));
+        assert!(!queue.admits(true, Some(40.0)), "a frame's first band waits for the last frame's");
+        assert!(queue.admits(false, Some(60.0)) && !queue.admits(false, Some(61.0)), "up to 100 ms queued");
+        queue.push(3, 500.0, 8, Some(40.0));
+        assert!(!queue.poll(520.0, &mut policy, |&m| Some(m == 2), |m| released.push(m)));
+        assert_eq!((released.as_slice(), policy.rows()), (&[1, 2][..], 16), "band 2 alone: 20 ms, bounds 0..20");
+        // Band 3 queued behind 2: timed from 2's news, not its submission: 30 ms.
+        assert!(queue.poll(550.0, &mut policy, |_| Some(true), |m| released.push(m)));
+        let ms_per_row = policy.band_ms().expect("timed") / policy.rows() as f64;
+        assert!((ms_per_row - 30.0 / 8.0).abs() < 1e-9, "{ms_per_row}");
+        // A lost context's fences: released, untimed; clear releases the rest.
+        queue.push(4, 600.0, 8, Some(1.0));
+        queue.push(5, 600.0, 8, Some(1.0));
+        assert!(!queue.poll(700.0, &mut policy, |&m| (m == 4).then_some(true).or(Some(false)), |m| released.push(m)));
+        queue.clear(|m| released.push(m));
+        assert!(queue.is_empty());
+        assert_eq!(released, [1, 2, 3, 4, 5]);
     }
 
     #[test]

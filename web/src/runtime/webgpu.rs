@@ -16,7 +16,7 @@ use std::rc::Rc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
-use tracer::backend::frame_split::{polled_bounds, BandPolicy, Step};
+use tracer::backend::frame_split::{BandPolicy, BandsInFlight, Step};
 use tracer::backend::wgpu::{
     DeviceRenderer, DisplayPass, PipelineCheck, WavefrontRenderer, WgpuDevice, WgpuError, WgpuOptions, WgpuRenderer,
 };
@@ -141,8 +141,8 @@ pub struct GpuRuntime {
     display: DisplayPass,
     /// How many rows each band covers, from the measured band times.
     policy: BandPolicy,
-    /// The band on the GPU.
-    in_flight: Option<InFlight>,
+    /// The bands (and the preview) on the GPU, each with the flag its queue sets when done.
+    in_flight: BandsInFlight<Arc<AtomicBool>>,
     /// The shader compiler's verdict, once it arrived with an error.
     compile_error: Rc<RefCell<Option<String>>>,
     /// What creating it took; `compiled_at` once the verdict arrived.
@@ -155,15 +155,15 @@ pub struct GpuRuntime {
     preview_image: Option<wgpu::Buffer>,
 }
 
-/// A band submitted to the queue and not yet seen done.
-struct InFlight {
-    /// Set by the queue when the band is done.
-    done: Arc<AtomicBool>,
-    submitted_ms: f64,
-    /// The last step that found it not done.
-    pending_at_ms: Option<f64>,
-    /// Its rows; 0: a preview (waited for, not measured).
-    rows: u32,
+/// Work in flight for `renderer`'s bands sized by `policy`: queued ahead for the megakernel;
+/// one submission at a time for the wavefront, whose next submission follows from the last's
+/// counters.
+fn in_flight_for(renderer: &dyn DeviceRenderer, policy: &BandPolicy) -> BandsInFlight<Arc<AtomicBool>> {
+    if renderer.schedule() == Schedule::Wavefront {
+        BandsInFlight::new(0.0)
+    } else {
+        BandsInFlight::for_policy(policy)
+    }
 }
 
 /// A renderer created on the device (limits checked, scene uploaded), not yet on a canvas:
@@ -253,8 +253,8 @@ impl GpuRuntime {
         renderer.restart().map_err(|e| e.to_string())?;
         self.renderer = renderer;
         self.compile_error = compile_error;
-        self.in_flight = None;
         self.policy = BandPolicy::new(self.renderer.packed().scene.height, self.policy.budget_ms());
+        self.in_flight = in_flight_for(self.renderer.as_ref(), &self.policy);
         Ok(())
     }
 
@@ -323,12 +323,13 @@ impl GpuRuntime {
             compiled_while_decoding: taken_upload_ms.is_some(),
         };
         let policy = BandPolicy::new(height, band_budget_ms);
+        let in_flight = in_flight_for(renderer.as_ref(), &policy);
         Ok(GpuRuntime {
             renderer,
             surface,
             display,
             policy,
-            in_flight: None,
+            in_flight,
             compile_error,
             startup,
             compiled_at,
@@ -357,7 +358,7 @@ impl GpuRuntime {
             renderer.render_preview(width, height).map_err(|e| e.to_string())
         });
         let Some(buffer) = image else { return false };
-        self.in_flight = None;
+        self.in_flight.clear(drop);
         self.preview_image = Some(buffer);
         self.draw(settings);
         true
@@ -376,23 +377,13 @@ impl GpuRuntime {
     }
 
     pub fn busy(&self) -> bool {
-        self.in_flight.is_some()
+        !self.in_flight.is_empty()
     }
 
-    /// Checks, without waiting, whether the submission in flight is done; records a band's
-    /// time if so. True when nothing is in flight (any more).
+    /// Checks, without waiting, which work in flight is done; records the bands' times. True
+    /// when nothing is in flight (any more).
     pub fn poll(&mut self, now_ms: f64) -> bool {
-        let Some(band) = &mut self.in_flight else { return true };
-        if !band.done.load(Ordering::Acquire) {
-            band.pending_at_ms = Some(now_ms);
-            return false;
-        }
-        let (at_least, at_most) = polled_bounds(band.submitted_ms, band.pending_at_ms, now_ms);
-        if band.rows > 0 {
-            self.policy.record_between(band.rows, at_least, at_most);
-        }
-        self.in_flight = None;
-        true
+        self.in_flight.poll(now_ms, &mut self.policy, |done| Some(done.load(Ordering::Acquire)), drop)
     }
 
     pub fn policy(&self) -> &BandPolicy {
@@ -401,8 +392,8 @@ impl GpuRuntime {
 
     pub fn set_band_budget(&mut self, budget_ms: Option<f64>) {
         self.policy = BandPolicy::new(self.renderer.packed().scene.height, budget_ms);
-        // The band in flight was sized by the old policy: not measured.
-        self.in_flight = None;
+        // The bands in flight were sized by the old policy: not measured.
+        self.in_flight = in_flight_for(self.renderer.as_ref(), &self.policy);
     }
 
     /// Whether the device rejected the kernel's shader (recreating the renderer would not help).
@@ -457,8 +448,8 @@ impl GpuRuntime {
     /// next submission), then the display pass once the frame is done: whether it is.
     pub fn frame(&mut self, settings: &Display) -> Result<bool, String> {
         self.check()?;
-        // The band in flight would be timed with this whole frame.
-        self.in_flight = None;
+        // The bands in flight would be timed with this whole frame.
+        self.in_flight.clear(drop);
         let done = self.renderer.render_band(self.renderer.rows_left()).map_err(|e| e.to_string())?;
         if done {
             self.preview.frame_done();
@@ -467,26 +458,38 @@ impl GpuRuntime {
         Ok(done)
     }
 
-    /// The frame loop's step: unless the previous band is still on the GPU, records its time,
-    /// submits the next band (of the policy's height) and draws it: each band of the first frame
-    /// after a restart, later each whole frame.
+    /// The frame loop's step: records the times of the bands seen done, then renders the
+    /// pending preview (alone on the GPU) or tops the queue up with bands of the policy's height
+    /// (a frame's first band once the last frame's are done), drawing each band of the first
+    /// frame after a restart, later each whole frame. `Waiting` if nothing was submitted.
     pub fn step(&mut self, now_ms: f64, settings: &Display) -> Result<Step, String> {
         self.check()?;
-        if !self.poll(now_ms) {
-            return Ok(Step::Waiting);
+        if self.poll(now_ms) && self.preview_now(now_ms, settings) {
+            self.track(now_ms, 0);
+            return Ok(Step::Preview);
         }
-        // First the preview, alone on the GPU.
-        let previewed = self.preview_now(now_ms, settings);
-        let rows = self.policy.rows().min(self.renderer.rows_left());
-        let frame_done = !previewed && self.renderer.render_band(rows).map_err(|e| e.to_string())?;
-        if frame_done {
-            self.preview.frame_done();
+        let mut step = Step::Waiting;
+        let height = self.renderer.packed().scene.height;
+        while self.in_flight.admits(self.renderer.rows_left() == height, self.policy.band_ms()) {
+            let rows = self.policy.rows().min(self.renderer.rows_left());
+            let frame_done = self.renderer.render_band(rows).map_err(|e| e.to_string())?;
+            if frame_done {
+                self.preview.frame_done();
+            }
+            // Each band of the first frame after a restart shows (unless the preview does until
+            // the frame is complete); later, each whole frame.
+            if frame_done || (self.renderer.frames() == 0 && !self.preview.showing()) {
+                self.draw(settings);
+            }
+            self.track(now_ms, rows);
+            step = Step::Submitted { frame_done };
         }
-        // Each band of the first frame after a restart shows (unless the preview does until the
-        // frame is complete); later, each whole frame.
-        if !previewed && (frame_done || (self.renderer.frames() == 0 && !self.preview.showing())) {
-            self.draw(settings);
-        }
+        Ok(step)
+    }
+
+    /// Queues what was just submitted behind a flag the device sets when it is done: a band of
+    /// `rows`, or other work (0 rows: waited for, not timed).
+    fn track(&mut self, now_ms: f64, rows: u32) {
         let done = Arc::new(AtomicBool::new(false));
         let flag = done.clone();
         let finished = self.renderer.device().done();
@@ -494,9 +497,8 @@ impl GpuRuntime {
             finished.await;
             flag.store(true, Ordering::Release);
         });
-        let rows = if previewed { 0 } else { rows };
-        self.in_flight = Some(InFlight { done, submitted_ms: now_ms, pending_at_ms: None, rows });
-        Ok(if previewed { Step::Preview } else { Step::Submitted { frame_done } })
+        let estimate = if rows > 0 { self.policy.band_ms() } else { None };
+        self.in_flight.push(done, now_ms, rows, estimate);
     }
 
     /// Resolves once the queued work is done.
