@@ -27,6 +27,11 @@
 // (animation.mjs's playAndPause): poses, previews and whole frames per second, and the pose's
 // host time; medians over turns and rounds.
 //
+// `--loop SECONDS`: a third visit per scene and API (warm cache) with the frame loop running, as
+// a person sees the page (frames in bands; a moving scene's animation paused): its first image
+// and first full frame, and its time per frame over that many seconds, beside the frame in one
+// submission that the other columns time.
+//
 // `--depths 8,32`: the frame time at each path depth (the page's setMaxDepth, in the warm
 // visit; the first frames are at the bundle's depth, 8), a column per API and depth.
 //
@@ -134,6 +139,7 @@ try {
         '--api', pageApi, ...(schedule ? ['--schedule', schedule] : []), ...(args.depths ? ['--depths', args.depths] : []),
         ...(args.preview ? ['--preview', args.preview] : []), ...(prepare ? ['--prepare', prepare] : []),
         ...(args.auto ? ['--auto', args.auto] : []), ...(args.play ? ['--play', args.play] : []),
+        ...(args.loop ? ['--loop', args.loop] : []),
         '--scenes', scenes.map((s) => s.name).join(',')], { stdio: 'inherit' });
       const { results } = JSON.parse(readFileSync(out, 'utf8'));
       rmSync(out, { force: true });
@@ -203,6 +209,26 @@ try {
         const rows = runs[api][s.name].map((r) => r[`${visit}Split`]).filter(Boolean);
         const cell = (key) => (rows.length ? median(rows.map((r) => r[key])).toFixed(0) : '–');
         console.log(`| ${s.name} | ${api} | ${visit} | ${parts.map(([key]) => cell(key)).join(' | ')} |`);
+      }
+    }
+  }
+
+  // `--loop SECONDS`: the page as a person sees it, the frame loop running (bands).
+  if (args.loop) {
+    console.log(`\nThe frame loop, as a person sees the page (warm cache, frames in bands, the animation paused; ms, medians over rounds; frame: between the first and last frame completed in ${args.loop} s):\n`);
+    console.log('| scene | api | first image | first full frame | frame (frame loop) | frame (one submission) | loop / one submission |');
+    console.log('|---|---|---|---|---|---|---|');
+    for (const s of scenes) {
+      for (const api of apis) {
+        const rows = runs[api][s.name];
+        const cell = (key) => {
+          const values = rows.map((r) => r[key]).filter((v) => typeof v === 'number');
+          return values.length ? median(values) : null;
+        };
+        const [loop, whole] = [cell('loopFrameMs'), cell('frameMs')];
+        const show = (v) => (v === null ? '–' : v.toFixed(0));
+        const ratio = loop !== null && whole ? `${(loop / whole).toFixed(2)}x` : '–';
+        console.log(`| ${s.name} | ${api} | ${show(cell('loopFirstImageMs'))} | ${show(cell('loopFirstFrameMs'))} | ${show(loop)} | ${show(whole)} | ${ratio} |`);
       }
     }
   }

@@ -203,22 +203,7 @@ async function slow(o) {
         await page.waitForFunction((n) => window.lightport.restarts.length > n, before, { timeout: 300000 });
         restarts.push({ ...(await page.evaluate(() => window.lightport.restarts.at(-1))), sppAfterInput });
       }
-      // The frame loop's own pace (bands queued ahead): whole frames it completes, between
-      // the first and the last completion seen in `--loopSeconds` (default 12).
-      const loopFrameMs = await page.evaluate(async (ms) => {
-        const seen = [];
-        let last = window.lightport.frames;
-        const end = performance.now() + ms;
-        while (performance.now() < end) {
-          await new Promise((resolve) => setTimeout(resolve, 20));
-          if (window.lightport.frames !== last) {
-            last = window.lightport.frames;
-            seen.push([last, performance.now()]);
-          }
-        }
-        if (seen.length < 2) return null;
-        return (seen.at(-1)[1] - seen[0][1]) / (seen.at(-1)[0] - seen[0][0]);
-      }, Number(o.loopSeconds || '12') * 1000);
+      const loopFrameMs = await loopPace(page, Number(o.loopSeconds || '12') * 1000);
       const info = await page.evaluate(() => window.lightport.info());
       const readout = await page.textContent('#frame-split');
       // One whole frame in one submission, waited for (after a warm-up frame).
@@ -485,6 +470,25 @@ async function denoiseEdges(o) {
   }
 }
 
+// The frame loop's own pace (bands queued ahead): ms per whole frame it completes, between the
+// first and the last completion seen in `ms` (null: fewer than two).
+async function loopPace(page, ms) {
+  return page.evaluate(async (ms) => {
+    const seen = [];
+    let last = window.lightport.frames;
+    const end = performance.now() + ms;
+    while (performance.now() < end) {
+      await new Promise((resolve) => setTimeout(resolve, 20));
+      if (window.lightport.frames !== last) {
+        last = window.lightport.frames;
+        seen.push([last, performance.now()]);
+      }
+    }
+    if (seen.length < 2) return null;
+    return (seen.at(-1)[1] - seen[0][1]) / (seen.at(-1)[0] - seen[0][0]);
+  }, ms);
+}
+
 // Frame time at a fixed size, and navigation-to-first-frame with a cold and a warm cache, with
 // the page's split of that time (window.lightport.firstFrame: download, decode, upload, compile,
 // the first frame's GPU time).
@@ -553,6 +557,20 @@ async function bench(o) {
               });
             }
           }
+        });
+      }
+      // `--loop SECONDS`: the page as a person sees it (warm cache): the frame loop running,
+      // frames in bands (a moving scene's animation paused), to its first full frame, then its
+      // time per frame.
+      if (o.loop) {
+        await withBrowser(profile, async (context) => {
+          const { page, error } = await open(context, o.url, { scene, size: o.size, denoise: '0', preview: o.preview });
+          if (error) throw new Error(`${scene}: ${error}`);
+          await page.evaluate(() => window.lightport.setPlaying(false));
+          await page.waitForFunction(() => window.lightport.firstFrame, null, { timeout: 120000 });
+          const first = await page.evaluate(() => [window.lightport.firstImageMs, window.lightport.firstFrameMs]);
+          [row.loopFirstImageMs, row.loopFirstFrameMs] = first;
+          row.loopFrameMs = await loopPace(page, Number(o.loop) * 1000);
         });
       }
       results.push(row);
