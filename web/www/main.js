@@ -333,9 +333,10 @@ function frame() {
   return done;
 }
 
-// The frame loop: at most one band of a frame on the GPU at a time (Viewer.step polls the
-// previous band's fence, on WebGPU its onSubmittedWorkDone, without blocking), so input runs between bands and a restart waits for
-// one band, not a whole frame.
+// The frame loop: a few bands of a frame queued on the GPU, up to three budgets of work
+// (Viewer.step polls their fences, on WebGPU their onSubmittedWorkDone, without blocking, and
+// tops the queue up), so input runs between bands and a restart waits for those bands, not a
+// whole frame.
 function tick(now) {
   if (viewer && !webGpu.recovering && viewer.webGpuLost()) webGpu.recover(viewer.webGpuLost());
   // While auto measures the schedules (measureSchedule), its loop renders the frames.

@@ -138,7 +138,7 @@ impl GlRuntime {
     }
 
     /// Renders the pending preview now, if the accumulation has not begun, and shows it:
-    /// whether it did. The band in flight is forgotten (the caller waits with `sync`).
+    /// whether it did. The bands in flight are forgotten (the caller waits with `sync`).
     pub fn preview_now(&mut self, now_ms: f64, settings: &Display) -> bool {
         let (w, h) = self.size();
         let fresh = self.renderer.frames() == 0 && self.renderer.rows_left() == h as u32;
@@ -169,7 +169,7 @@ impl GlRuntime {
         &self.pacer
     }
 
-    /// Checks, without waiting, whether the band or preview in flight is done (`Pacer::poll`):
+    /// Checks, without waiting, which bands (or preview) in flight are done (`Pacer::poll`):
     /// true when nothing is in flight (any more).
     pub fn poll(&mut self, now_ms: f64) -> bool {
         self.pacer.poll(self.renderer.gl(), now_ms)
@@ -233,7 +233,7 @@ impl GlRuntime {
 
     /// One whole frame in one submission, then the display pass.
     pub fn frame(&mut self, settings: &Display) -> Result<(), String> {
-        // The band in flight would be timed with this whole frame.
+        // The bands in flight would be timed with this whole frame.
         self.pacer.forget(self.renderer.gl());
         self.renderer.render_frame().map_err(|e| e.to_string())?;
         self.preview.frame_done();
@@ -248,7 +248,7 @@ impl GlRuntime {
         }
         let (w, h) = self.size();
         if self.preview.state == super::preview::PreviewState::Pending {
-            // First the preview, alone on the GPU: its draw waits for the band in flight.
+            // First the preview, alone on the GPU: its draw waits for the bands in flight.
             if !self.pacer.poll(self.renderer.gl(), now_ms) {
                 return Ok(Step::Waiting);
             }

@@ -5,11 +5,12 @@
 //!
 //! Nothing here blocks: the shader compiler's verdict, read-backs and the queue's completion
 //! are promises. The frame loop submits each frame in bands of rows within the time budget, as
-//! the WebGL2 runtime does (`tracer::backend::frame_split`'s [`BandPolicy`]), one band on the
-//! GPU at a time: a band is submitted only once the previous one's `onSubmittedWorkDone` has
-//! resolved, and its time (submission to the animation frame that sees it done) chooses the
-//! next band's height. The wavefront's bands are its submissions (a bounded number of path
-//! segments each); its frame is done when the counters read after one say so.
+//! the WebGL2 runtime does (`tracer::backend::frame_split`'s [`BandPolicy`]), queued ahead
+//! (`BandsInFlight`: up to three budgets of estimated work): each band's `onSubmittedWorkDone`
+//! sets a flag, and its time (from its submission, or the news of the band before it, to the
+//! animation frame that sees it done) chooses the next bands' height. The wavefront's bands are
+//! its submissions (a bounded number of path segments each), one at a time; its frame is done
+//! when the counters read after one say so.
 
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
@@ -348,7 +349,7 @@ impl GpuRuntime {
     }
 
     /// Renders the pending preview now, if the accumulation has not begun, and shows it:
-    /// whether it did (the wavefront renders none). The band in flight is forgotten.
+    /// whether it did (the wavefront renders none). The bands in flight are forgotten.
     pub fn preview_now(&mut self, now_ms: f64, settings: &Display) -> bool {
         let scene = &self.renderer.packed().scene;
         let full = (scene.width, scene.height);

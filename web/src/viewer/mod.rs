@@ -13,8 +13,9 @@
 //! its mean to the canvas through the kernel's display transform (tone curve, exposure, sRGB:
 //! what the CLI's PNG output stores with the same settings), on either API. The frame loop
 //! submits a frame in bands of rows of at most a time budget (50 ms by default;
-//! `tracer::backend::frame_split`), one band at a time, so that input is handled, and a camera
-//! move restarts the accumulation, between bands, also on a GPU that needs seconds per frame.
+//! `tracer::backend::frame_split`), a few bands queued at a time, so that input is handled, and
+//! a camera move restarts the accumulation, between bands, also on a GPU that needs seconds per
+//! frame.
 
 use js_sys::{Float32Array, Object, Uint8Array};
 use tracer::backend::frame_split::{Step, DEFAULT_BUDGET_MS};
