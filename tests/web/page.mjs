@@ -89,3 +89,22 @@ export async function open(context, baseUrl, query, timeoutMs = 240000) {
   const state = await page.evaluate(() => ({ error: window.lightport.error, info: window.lightport.info() }));
   return { page, requests, consoleErrors, navigationStart, ...state };
 }
+
+// The frame loop's own pace (bands queued ahead): ms per whole frame it completes, between the
+// first and the last completion seen in `ms` (null: fewer than two).
+export async function loopPace(page, ms) {
+  return page.evaluate(async (ms) => {
+    const seen = [];
+    let last = window.lightport.frames;
+    const end = performance.now() + ms;
+    while (performance.now() < end) {
+      await new Promise((resolve) => setTimeout(resolve, 20));
+      if (window.lightport.frames !== last) {
+        last = window.lightport.frames;
+        seen.push([last, performance.now()]);
+      }
+    }
+    if (seen.length < 2) return null;
+    return (seen.at(-1)[1] - seen[0][1]) / (seen.at(-1)[0] - seen[0][0]);
+  }, ms);
+}

@@ -13,7 +13,7 @@
 
 import { rmSync, writeFileSync, readFileSync } from 'node:fs';
 import {
-  freshProfile, open, pageApi, setBrowserFlags, setPageApi, setPageSchedule, withBrowser,
+  freshProfile, loopPace, open, pageApi, setBrowserFlags, setPageApi, setPageSchedule, withBrowser,
 } from './page.mjs';
 import { animation, playAndPause } from './animation.mjs';
 import { apiChoice, autoSchedule, deviceLoss, fallback } from './api.mjs';
@@ -468,25 +468,6 @@ async function denoiseEdges(o) {
   } finally {
     rmSync(profile, { recursive: true, force: true });
   }
-}
-
-// The frame loop's own pace (bands queued ahead): ms per whole frame it completes, between the
-// first and the last completion seen in `ms` (null: fewer than two).
-async function loopPace(page, ms) {
-  return page.evaluate(async (ms) => {
-    const seen = [];
-    let last = window.lightport.frames;
-    const end = performance.now() + ms;
-    while (performance.now() < end) {
-      await new Promise((resolve) => setTimeout(resolve, 20));
-      if (window.lightport.frames !== last) {
-        last = window.lightport.frames;
-        seen.push([last, performance.now()]);
-      }
-    }
-    if (seen.length < 2) return null;
-    return (seen.at(-1)[1] - seen[0][1]) / (seen.at(-1)[0] - seen[0][0]);
-  }, ms);
 }
 
 // Frame time at a fixed size, and navigation-to-first-frame with a cold and a warm cache, with

@@ -2,6 +2,8 @@
 // something; see web/src/playback.rs): play/pause, a time slider and the speed. Hidden for a
 // static scene. The viewer plays by default; paused, samples accumulate on the pose shown.
 
+import { setIfChanged } from './readouts.js';
+
 // Wires the controls to the viewer `getViewer()` returns; `guarded` shows a thrown error.
 export function setUpAnimationControls($, getViewer, guarded) {
   $('anim-play').addEventListener('click', () => guarded(() => {
@@ -15,18 +17,17 @@ export function setUpAnimationControls($, getViewer, guarded) {
   $('anim-speed').addEventListener('change', (e) => guarded(() => getViewer().setAnimationSpeed(Number(e.target.value))));
 }
 
-// Shows the controls for `info.animation` (sceneInfo()), or hides them; what is unchanged is not
-// written again (the page would be laid out and painted again at every animation frame).
+// Shows the controls for `info.animation` (sceneInfo()), or hides them (what is unchanged is not
+// written again: setIfChanged).
 export function showAnimation($, info) {
   const a = info.animation;
-  const set = (element, key, value) => { if (element[key] !== value) element[key] = value; };
-  set($('animation'), 'hidden', !a);
+  setIfChanged($('animation'), 'hidden', !a);
   if (!a) return;
-  set($('anim-play'), 'textContent', a.playing ? 'Pause' : 'Play');
+  setIfChanged($('anim-play'), 'textContent', a.playing ? 'Pause' : 'Play');
   const slider = $('anim-time');
-  set(slider, 'max', String(a.duration));
-  if (document.activeElement !== slider) set(slider, 'value', String(a.time));
-  set($('anim-time-value'), 'textContent', `${a.time.toFixed(2)} / ${a.duration.toFixed(2)} s`);
+  setIfChanged(slider, 'max', String(a.duration));
+  if (document.activeElement !== slider) setIfChanged(slider, 'value', String(a.time));
+  setIfChanged($('anim-time-value'), 'textContent', `${a.time.toFixed(2)} / ${a.duration.toFixed(2)} s`);
 }
 
 // What moves, for the scene read-out ('' for a static scene).

@@ -37,7 +37,7 @@ import { setUpCameraInput } from './camera_input.js';
 import { compileProgram } from './compile.js';
 import { FirstFrame } from './first_frame.js';
 import { measureSchedules } from './schedule_measure.js';
-import { apiReadout, formatBytes, formatRate } from './readouts.js';
+import { apiReadout, formatBytes, formatRate, setIfChanged, setText } from './readouts.js';
 import { WebGpuRecovery } from './webgpu_recovery.js';
 
 const params = new URLSearchParams(location.search);
@@ -394,20 +394,11 @@ function tick(now) {
   requestAnimationFrame(tick);
 }
 
-// A read-out rewritten with the text it has still makes the browser lay out and paint the page
-// again: at every animation frame, on a software-rendered page, that is CPU time taken from the
-// renderer.
-function setText(id, text) {
-  const element = $(id);
-  const value = String(text);
-  if (element.textContent !== value) element.textContent = value;
-}
-
 function updateReadouts() {
   if (!viewer) return;
   const info = viewer.sceneInfo();
   setText('api-info', info.api ? apiReadout(info) : '–');
-  if ($('api-info').title !== (info.notice || '')) $('api-info').title = info.notice || '';
+  setIfChanged($('api-info'), 'title', info.notice || '');
   setText('spp', info.spp);
   showAnimation($, info);
   setText('denoise-info', info.preview && info.preview.showing

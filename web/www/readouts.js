@@ -1,4 +1,4 @@
-// The read-outs' words and numbers: the API line, byte counts and rates.
+// The read-outs' words and numbers (the API line, byte counts and rates), and writing them.
 
 // The API and, on WebGPU, the schedule that runs: "WebGPU, wavefront".
 function apiName(info) {
@@ -26,4 +26,16 @@ export function formatRate(n) {
   let i = 0;
   while (n >= 1000 && i < units.length - 1) { n /= 1000; i++; }
   return `${n.toFixed(1)}${units[i]}`;
+}
+
+// Sets `element[key]` unless it holds `value` already: a read-out rewritten with what it shows
+// still makes the browser lay out and paint the page again, at every animation frame (CPU time
+// a software-rendered page takes from its renderer).
+export function setIfChanged(element, key, value) {
+  if (element[key] !== value) element[key] = value;
+}
+
+// The element `id` shows `text` (setIfChanged).
+export function setText(id, text) {
+  setIfChanged(document.getElementById(id), 'textContent', String(text));
 }

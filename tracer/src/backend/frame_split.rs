@@ -197,8 +197,7 @@ impl<F> BandsInFlight<F> {
             _ => {
                 self.streak.clear();
                 if timed {
-                    let at_most = (now_ms - submitted_ms).max(0.0);
-                    let at_least = pending.map_or(0.0, |p| (p - submitted_ms).clamp(0.0, at_most));
+                    let (at_least, at_most) = polled_bounds(submitted_ms, pending, now_ms);
                     policy.record_between(rows, at_least, at_most);
                 }
             }
