@@ -707,13 +707,14 @@ fn a_frame_split_into_bands_is_the_unsplit_frame() {
     common::bands::assert_bands_make_the_whole_frame(&mut renderer(), &mut renderer(), 36);
 
     // The page's loop: fenced bands queued ahead, heights from the measured (here: a
-    // simulated 30 ms per step) times.
+    // simulated 30 ms per step) times, each band whole 2x2 quads (rows left stay even).
     let mut paced = GlRenderer::headless(base.clone(), 3).expect("GL");
     let mut pacer = Pacer::new(36, Some(BAND_BUDGET_MS));
     let (mut now, mut submitted) = (0.0, 0);
+    let even = |r: &GlRenderer, _| assert_eq!(r.rows_left() % tracer::backend::gl::QUAD_ROWS, 0, "a band of odd rows");
     while paced.frames() < 2 {
         now += 30.0;
-        if let Step::Submitted { .. } = pacer.step(&mut paced, now, |_, _| {}).expect("step") {
+        if let Step::Submitted { .. } = pacer.step(&mut paced, now, even).expect("step") {
             submitted += 1;
         }
     }

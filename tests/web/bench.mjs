@@ -32,6 +32,12 @@
 // and first full frame, and its time per frame over that many seconds, beside the frame in one
 // submission that the other columns time.
 //
+// `--band-rows 1,2,4,8`: in the warm visit, a frame in bands of that many rows submitted back to
+// back (the test hook's renderFramesInBands), per value, against the frame in one submission:
+// what a band costs beyond its rows (2x2 fragment quads and 8x8 workgroups: a band across
+// blocks of rows pays for the whole blocks; backend/frame_split.rs). The values are alternated
+// with the whole frame, each `--frames` frames.
+//
 // `--depths 8,32`: the frame time at each path depth (the page's setMaxDepth, in the warm
 // visit; the first frames are at the bundle's depth, 8), a column per API and depth.
 //
@@ -139,7 +145,7 @@ try {
         '--api', pageApi, ...(schedule ? ['--schedule', schedule] : []), ...(args.depths ? ['--depths', args.depths] : []),
         ...(args.preview ? ['--preview', args.preview] : []), ...(prepare ? ['--prepare', prepare] : []),
         ...(args.auto ? ['--auto', args.auto] : []), ...(args.play ? ['--play', args.play] : []),
-        ...(args.loop ? ['--loop', args.loop] : []),
+        ...(args.loop ? ['--loop', args.loop] : []), ...(args['band-rows'] ? ['--band-rows', args['band-rows']] : []),
         '--scenes', scenes.map((s) => s.name).join(',')], { stdio: 'inherit' });
       const { results } = JSON.parse(readFileSync(out, 'utf8'));
       rmSync(out, { force: true });
@@ -229,6 +235,26 @@ try {
         const show = (v) => (v === null ? '–' : v.toFixed(0));
         const ratio = loop !== null && whole ? `${(loop / whole).toFixed(2)}x` : '–';
         console.log(`| ${s.name} | ${api} | ${show(cell('loopFirstImageMs'))} | ${show(cell('loopFirstFrameMs'))} | ${show(loop)} | ${show(whole)} | ${ratio} |`);
+      }
+    }
+  }
+
+  // `--band-rows`: frames in bands of N rows back to back against whole frames.
+  if (args['band-rows']) {
+    const bandRows = args['band-rows'].split(',');
+    console.log('\nA frame in bands of N rows submitted back to back, against the whole frame in one submission (ms per frame, medians over rounds; in parentheses: / the whole frame in the same turns):\n');
+    console.log(`| scene | api | whole frame | ${bandRows.map((n) => `${n} rows`).join(' | ')} |`);
+    console.log(`|---|---|---|${bandRows.map(() => '---').join('|')}|`);
+    for (const s of scenes) {
+      for (const api of apis) {
+        const rows = runs[api][s.name].filter((r) => r.bandRowsMs);
+        if (!rows.length) continue;
+        const whole = median(rows.map((r) => r.bandRowsMs.whole));
+        const cells = bandRows.map((n) => {
+          const ms = median(rows.map((r) => r.bandRowsMs[n]));
+          return `${ms.toFixed(0)} (${(ms / whole).toFixed(2)}x)`;
+        });
+        console.log(`| ${s.name} | ${api} | ${whole.toFixed(0)} | ${cells.join(' | ')} |`);
       }
     }
   }

@@ -526,6 +526,20 @@ async function bench(o) {
                 row.info = info;
               }
             }
+            // `--band-rows 1,2,4`: a frame in bands of N rows submitted back to back, each value
+            // alternated with the whole frame (medians of the turns).
+            if (o['band-rows']) {
+              const turns = { whole: [] };
+              const values = o['band-rows'].split(',').map(Number);
+              for (const turn of [0, 1, 2]) {
+                for (const n of turn % 2 ? [...values].reverse() : values) {
+                  turns.whole.push(await page.evaluate((k) => window.lightport.renderFrames(k), Number(o.frames)));
+                  (turns[n] ||= []).push(await page.evaluate(([k, r]) => window.lightport.renderFramesInBands(k, r), [Number(o.frames), n]));
+                }
+              }
+              const middle = (v) => [...v].sort((x, y) => x - y)[Math.floor(v.length / 2)];
+              row.bandRowsMs = Object.fromEntries(Object.entries(turns).map(([k, v]) => [k, middle(v)]));
+            }
             // `--play SECONDS`: a scene that moves, played by the frame loop and paused in turn.
             if (o.play && row.info.animation) row.play = await page.evaluate(playAndPause, Number(o.play));
             // `--auto 1`: what `schedule=auto` measures and chooses for this scene on WebGPU (the

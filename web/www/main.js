@@ -143,6 +143,16 @@ const hook = {
     await viewer.sync();
     return (performance.now() - start) / Math.max(n, 1);
   },
+  // `renderFrames` with each frame's rows submitted in bands of `rows` back to back (a band's
+  // cost beyond its rows: tests/web/bench.mjs --band-rows).
+  async renderFramesInBands(n, rows) {
+    const start = performance.now();
+    for (let i = 0; i < n; i++) {
+      while (!frame(rows)) await viewer.sync();
+    }
+    await viewer.sync();
+    return (performance.now() - start) / Math.max(n, 1);
+  },
   // Resolves to { width, height, spp, data: number[] (rgba per pixel, rows from the top; rgb
   // sum, a count) }.
   async readAccumulation() {
@@ -316,14 +326,15 @@ function previewShown(at) {
   firstFrame.previewSubmitted(at);
 }
 
-// One whole frame in one submission (the test hook's renderFrames).
-// One frame, or (a wavefront's) the next submission of it: whether it is done (or failed).
-function frame() {
+// One whole frame in one submission (the test hook's renderFrames), or in bands of `rows`
+// submitted back to back; or (a wavefront's) the next submission of it: whether it is done (or
+// failed).
+function frame(rows) {
   if (!viewer || lost) return true;
   let done;
   try {
     firstFrame.markSubmitted(performance.now());
-    done = viewer.frame();
+    done = rows === undefined ? viewer.frame() : viewer.frameInBands(rows);
   } catch (e) {
     showMessage(String(e.message || e));
     paused = true;

@@ -11,10 +11,10 @@
 //! [`BandPolicy`] (pure logic) chooses the band height from measured band times: bands aim at
 //! [`TARGET_FRACTION`] of the budget ([`DEFAULT_BUDGET_MS`], 50 ms), start small
 //! ([`FIRST_ROWS`]), at most double per band, and shrink at once when a band was slow.
-//! Where even a band of one row takes more than [`FIXED_COST_BUDGETS`] budgets (the fastest of
+//! Where even the thinnest band (one row, or one block of rows: below) takes more than [`FIXED_COST_BUDGETS`] budgets (the fastest of
 //! [`THIN_SAMPLES`] such bands: a band's measured time only errs upwards), the cost is the
 //! band's, not its rows' (a driver's work per draw, a fence's round trip): no split keeps
-//! submissions short, and one-row bands would only multiply that cost by the height. Bands are
+//! submissions short, and the thinnest bands would only multiply that cost by the height. Bands are
 //! then sized so that it is at most half of each (written for LittlestTokyo posed by its
 //! animation, WebGL2 on SwiftShader at 320x240: ~250 ms per band whatever its height, which
 //! turned out to be the page's own read-outs hashing every texel each animation frame; a
@@ -25,6 +25,15 @@
 //! poll that sees it signalled ([`polled_bounds`]), so it is known to the caller's polling
 //! interval (an animation frame in the browser). No timer-query extension is needed (WebGL2 has none on SwiftShader and
 //! many phones), nothing blocks the thread, and nothing is read back.
+//!
+//! Bands cover whole blocks of rows ([`BandPolicy::aligned_to`]): a GPU shades fragments in 2x2
+//! quads and a compute megakernel runs 8x8 workgroups, so a band of 1 row costs what 2 (GL) or
+//! 8 (WebGPU) rows do, and a band that starts mid-block pays for the block's other rows twice.
+//! Measured in the page (`tests/web/bench.mjs --band-rows`: the Cornell box at 640x480, a frame
+//! in bands of N rows submitted back to back against the whole frame, SwiftShader): WebGL2 1
+//! row 1.95x, 3 rows 1.29x, while 2, 4, 6, 8 and 16 rows took 0.98-1.04x; WebGPU 1 row 1.60x, 2
+//! rows 1.25x, 3 rows 1.13x, 4 rows 1.05x, 8 rows 0.99x. The frame loop's bands (4-7 rows of any
+//! parity, starting anywhere) had cost it up to 1.6x a whole frame on WebGL2 (docs/web.md).
 //!
 //! Bands are queued ahead ([`BandsInFlight`]): each tick of the frame loop tops the GPU's queue up
 //! to [`AHEAD_BUDGETS`] budgets of estimated work. The news that a band is done reaches the page
@@ -45,10 +54,10 @@ pub const TARGET_FRACTION: f64 = 0.7;
 pub const FIRST_ROWS: u32 = 8;
 /// A band is at most this many times the rows of the band measured before it.
 pub const MAX_GROWTH: u32 = 2;
-/// One-row bands slower than this many budgets (the fastest of [`THIN_SAMPLES`]) mean a cost
+/// Thinnest bands (one block of rows) slower than this many budgets (the fastest of [`THIN_SAMPLES`]) mean a cost
 /// per band that splitting cannot avoid.
 pub const FIXED_COST_BUDGETS: f64 = 2.0;
-/// One-row bands measured before their fastest is believed as the cost of any band.
+/// Thinnest bands measured before their fastest is believed as the cost of any band.
 pub const THIN_SAMPLES: usize = 6;
 /// Rows of the band that measures the cost per row once a fixed cost is known.
 const PROBE_ROWS: u32 = FIRST_ROWS;
@@ -223,14 +232,17 @@ pub struct BandPolicy {
     rows: u32,
     /// Milliseconds per row of the last band measured.
     ms_per_row: Option<f64>,
-    /// The last one-row bands' times.
+    /// The last thinnest bands' times.
     thin: ThinBands,
     /// Where a band's own cost rules ([`FIXED_COST_BUDGETS`]), the cost per row beyond the
-    /// first, once a thicker band measured it.
+    /// thinnest band's, once a thicker band measured it.
     per_row: Option<f64>,
+    /// Bands are whole multiples of this many rows ([`aligned_to`](Self::aligned_to)), but for
+    /// a frame's last band (the rows left).
+    multiple: u32,
 }
 
-/// The times of the last [`THIN_SAMPLES`] one-row bands.
+/// The times of the last [`THIN_SAMPLES`] thinnest bands.
 #[derive(Clone, Debug, Default, PartialEq)]
 struct ThinBands {
     times: [f64; THIN_SAMPLES],
@@ -256,7 +268,28 @@ impl BandPolicy {
         let height = height.max(1);
         let budget_ms = budget_ms.filter(|b| b.is_finite() && *b > 0.0);
         let rows = if budget_ms.is_some() { FIRST_ROWS.min(height) } else { height };
-        BandPolicy { height, budget_ms, rows, ms_per_row: None, thin: ThinBands::default(), per_row: None }
+        BandPolicy { height, budget_ms, rows, ms_per_row: None, thin: ThinBands::default(), per_row: None, multiple: 1 }
+    }
+
+    /// The policy with bands of whole multiples of `rows` rows (the device's block of rows: 2
+    /// for GL's 2x2 fragment quads, the workgroup's height for a compute kernel; see the
+    /// module's comment for what a band across blocks costs), so that every band also starts
+    /// on a block. A frame's last band covers the rows left; `rows` 0 counts as 1.
+    pub fn aligned_to(mut self, rows: u32) -> Self {
+        self.multiple = rows.max(1);
+        self.rows = self.aligned(self.rows);
+        self
+    }
+
+    /// `rows` rounded down to a multiple of the block, at least one block, at most the height.
+    fn aligned(&self, rows: u32) -> u32 {
+        let whole = rows.clamp(1, self.height) / self.multiple * self.multiple;
+        whole.max(self.thinnest())
+    }
+
+    /// The thinnest band: one block of rows (the whole frame if shorter).
+    fn thinnest(&self) -> u32 {
+        self.multiple.min(self.height)
     }
 
     /// Rows of the next band (the last band of a frame may cover fewer: those left).
@@ -309,7 +342,7 @@ impl BandPolicy {
             return;
         }
         let ms = if at_most > budget { at_most } else { at_least.max(at_most / 2.0).min(at_most) };
-        if rows == 1 {
+        if rows == self.thinnest() {
             self.thin.push(ms);
         }
         if let Some(one_row) = self.thin.fastest().filter(|t| *t > FIXED_COST_BUDGETS * budget) {
@@ -324,33 +357,34 @@ impl BandPolicy {
         self.ms_per_row = Some(estimate);
         let target = budget * TARGET_FRACTION;
         let wanted = if estimate > 0.0 { (target / estimate).floor().min(u32::MAX as f64) as u32 } else { u32::MAX };
-        self.rows = wanted.min(rows.saturating_mul(MAX_GROWTH)).clamp(1, self.height);
+        self.rows = self.aligned(wanted.min(rows.saturating_mul(MAX_GROWTH)));
     }
 
-    /// Band heights where a band costs `one_row` ms or more whatever its rows: a band of `rows`
-    /// took `ms`. The first one-row band is followed by a thicker probe; a thicker band gives
-    /// the cost per row beyond the first, and bands grow to the height at which the band's own
+    /// Band heights where a band costs `one_row` ms (the thinnest band's time) or more whatever
+    /// its rows: a band of `rows` took `ms`. The first thinnest band is followed by a thicker
+    /// probe; a thicker band gives the cost per row beyond the thinnest's, and bands grow to the height at which the band's own
     /// cost is half of each (at most [`MAX_GROWTH`]² times the last, so that one outlier does
     /// not make whole frames). A thicker band within the budget shows that the cost was not the
-    /// band's: the one-row times are forgotten and the budget rules again (false).
+    /// band's: the thinnest bands' times are forgotten and the budget rules again (false).
     fn amortise(&mut self, one_row: f64, rows: u32, ms: f64, budget: f64) -> bool {
-        if rows > 1 && ms <= budget {
+        let thinnest = self.thinnest();
+        if rows > thinnest && ms <= budget {
             self.thin = ThinBands::default();
             self.per_row = None;
             return false;
         }
-        if rows > 1 {
-            self.per_row = Some(((ms - one_row) / (rows - 1) as f64).max(0.0));
+        if rows > thinnest {
+            self.per_row = Some(((ms - one_row) / (rows - thinnest) as f64).max(0.0));
         }
         let Some(per_row) = self.per_row else {
-            self.rows = PROBE_ROWS.clamp(1, self.height);
-            self.ms_per_row = Some(one_row);
+            self.rows = self.aligned(PROBE_ROWS.max(2 * thinnest));
+            self.ms_per_row = Some(one_row / thinnest as f64);
             return true;
         };
-        let fixed = one_row - per_row;
+        let fixed = (one_row - per_row * thinnest as f64).max(0.0);
         let limit = rows.saturating_mul(MAX_GROWTH * MAX_GROWTH);
         let wanted = if per_row > 0.0 { (fixed / per_row).ceil().min(u32::MAX as f64) as u32 } else { limit };
-        self.rows = wanted.min(limit).clamp(1, self.height);
+        self.rows = self.aligned(wanted.min(limit));
         self.ms_per_row = Some((fixed + per_row * self.rows as f64) / self.rows as f64);
         true
     }
@@ -707,5 +741,60 @@ mod tests {
         p.record(1, 1e9);
         assert_eq!(p.rows(), 1, "at least one row");
         assert_eq!(BandPolicy::new(0, Some(50.0)).rows(), 1);
+    }
+
+    /// The rows each band of one frame starts at, the policy adapting as it goes.
+    fn band_starts(policy: &mut BandPolicy, ms_per_row: f64, height: u32) -> Vec<(u32, u32)> {
+        let mut bands = Vec::new();
+        let mut row = 0;
+        while row < height {
+            let rows = policy.rows().min(height - row);
+            bands.push((row, rows));
+            policy.record(rows, rows as f64 * ms_per_row);
+            row += rows;
+        }
+        bands
+    }
+
+    #[test]
+    fn aligned_bands_cover_whole_blocks_and_start_on_one() {
+        // Rates that want 1, 3, 5 and 7 rows a band (35 ms target): GL's 2x2 quads and WebGPU's
+        // 8-row workgroups each get whole blocks, at least one, and so start on a block.
+        for multiple in [2, 8] {
+            for ms_per_row in [35.0, 11.0, 6.9, 5.0, 0.3] {
+                let mut p = BandPolicy::new(480, Some(DEFAULT_BUDGET_MS)).aligned_to(multiple);
+                for frame in 0..3 {
+                    for (start, rows) in band_starts(&mut p, ms_per_row, 480) {
+                        assert_eq!(
+                            start % multiple,
+                            0,
+                            "{multiple}-row blocks, {ms_per_row} ms/row, frame {frame}: a band starts at row {start}"
+                        );
+                        assert!(
+                            rows % multiple == 0 || start + rows == 480,
+                            "{multiple}-row blocks: a band of {rows} rows at {start}"
+                        );
+                    }
+                }
+            }
+        }
+        // Where one block takes more than the budget it is still the band (as one row was).
+        let mut p = BandPolicy::new(480, Some(DEFAULT_BUDGET_MS)).aligned_to(8);
+        assert_eq!(run(&mut p, 20.0, 4), [8, 8, 8, 8]);
+        // A block taller than the image: whole frames.
+        assert_eq!(BandPolicy::new(6, Some(DEFAULT_BUDGET_MS)).aligned_to(8).rows(), 6);
+        assert_eq!(BandPolicy::new(6, Some(DEFAULT_BUDGET_MS)).aligned_to(0).rows(), 6);
+    }
+
+    #[test]
+    fn a_cost_per_band_is_amortised_in_whole_blocks() {
+        // As `a_cost_per_band_past_the_budget_is_amortised_not_split_finer`, in 8-row blocks:
+        // the thinnest band is a block, and the bands that amortise its cost are blocks too.
+        let mut p = BandPolicy::new(240, Some(DEFAULT_BUDGET_MS)).aligned_to(8);
+        let rows = run_affine(&mut p, 250.0, 5.0, 12);
+        assert_eq!(rows[0], 8);
+        assert!(rows.iter().all(|r| r % 8 == 0), "{rows:?}");
+        let settled = *rows.last().unwrap();
+        assert!((48..=64).contains(&settled), "bands where the 250 ms per band is about half of each: {rows:?}");
     }
 }

@@ -234,6 +234,14 @@ impl Runtime {
         }
     }
 
+    /// [`frame`](Self::frame) in bands of `rows` rows submitted back to back.
+    pub fn frame_in_bands(&mut self, rows: u32, display: &Display) -> Result<bool, String> {
+        match self {
+            Runtime::WebGl2(r) => r.frame_in_bands(rows, display).map(|()| true),
+            Runtime::WebGpu(r) => r.frame_in_bands(rows, display),
+        }
+    }
+
     /// The display pass alone (a display setting changed).
     pub fn draw(&self, display: &Display) {
         match self {

@@ -241,6 +241,16 @@ impl GlRuntime {
         Ok(())
     }
 
+    /// The rest of the frame in bands of `rows` rows submitted back to back, then the display
+    /// pass (the test hook's `renderFramesInBands`: what a band costs beyond its rows).
+    pub fn frame_in_bands(&mut self, rows: u32, settings: &Display) -> Result<(), String> {
+        self.pacer.forget(self.renderer.gl());
+        while !self.renderer.render_band(rows).map_err(|e| e.to_string())? {}
+        self.preview.frame_done();
+        self.draw(settings);
+        Ok(())
+    }
+
     /// The frame loop's step (see `Viewer::step`).
     pub fn step(&mut self, now_ms: f64, settings: &Display) -> Result<Step, String> {
         if self.queued.as_ref().is_some_and(|q| !q.done(self.renderer.gl())) {

@@ -20,6 +20,7 @@ use std::sync::{Arc, Mutex};
 use tracer::backend::frame_split::{BandPolicy, BandsInFlight, Step};
 use tracer::backend::wgpu::{
     DeviceRenderer, DisplayPass, PipelineCheck, WavefrontRenderer, WgpuDevice, WgpuError, WgpuOptions, WgpuRenderer,
+    WORKGROUP_SIZE,
 };
 use tracer::backend::{Image, Schedule};
 use tracer::output::Display;
@@ -156,6 +157,12 @@ pub struct GpuRuntime {
     preview_image: Option<wgpu::Buffer>,
 }
 
+/// Bands of `height` rows within `budget_ms`, each a whole number of the megakernel's
+/// workgroup rows (a band of 1 row dispatches 8: `BandPolicy::aligned_to`).
+fn policy_for(height: u32, budget_ms: Option<f64>) -> BandPolicy {
+    BandPolicy::new(height, budget_ms).aligned_to(WORKGROUP_SIZE[1])
+}
+
 /// Work in flight for `renderer`'s bands sized by `policy`: queued ahead for the megakernel;
 /// one submission at a time for the wavefront, whose next submission follows from the last's
 /// counters.
@@ -254,7 +261,7 @@ impl GpuRuntime {
         renderer.restart().map_err(|e| e.to_string())?;
         self.renderer = renderer;
         self.compile_error = compile_error;
-        self.policy = BandPolicy::new(self.renderer.packed().scene.height, self.policy.budget_ms());
+        self.policy = policy_for(self.renderer.packed().scene.height, self.policy.budget_ms());
         self.in_flight = in_flight_for(self.renderer.as_ref(), &self.policy);
         Ok(())
     }
@@ -323,7 +330,7 @@ impl GpuRuntime {
             compiled_at: None,
             compiled_while_decoding: taken_upload_ms.is_some(),
         };
-        let policy = BandPolicy::new(height, band_budget_ms);
+        let policy = policy_for(height, band_budget_ms);
         let in_flight = in_flight_for(renderer.as_ref(), &policy);
         Ok(GpuRuntime {
             renderer,
@@ -392,7 +399,7 @@ impl GpuRuntime {
     }
 
     pub fn set_band_budget(&mut self, budget_ms: Option<f64>) {
-        self.policy = BandPolicy::new(self.renderer.packed().scene.height, budget_ms);
+        self.policy = policy_for(self.renderer.packed().scene.height, budget_ms);
         // The bands in flight were sized by the old policy: not measured.
         self.in_flight = in_flight_for(self.renderer.as_ref(), &self.policy);
     }
@@ -452,6 +459,26 @@ impl GpuRuntime {
         // The bands in flight would be timed with this whole frame.
         self.in_flight.clear(drop);
         let done = self.renderer.render_band(self.renderer.rows_left()).map_err(|e| e.to_string())?;
+        if done {
+            self.preview.frame_done();
+            self.draw(settings);
+        }
+        Ok(done)
+    }
+
+    /// The rest of the frame in bands of `rows` rows submitted back to back (a wavefront's
+    /// next submission, whose size is its own), then the display pass once the frame is done:
+    /// whether it is (the test hook's `renderFramesInBands`).
+    pub fn frame_in_bands(&mut self, rows: u32, settings: &Display) -> Result<bool, String> {
+        self.check()?;
+        self.in_flight.clear(drop);
+        let mut done = false;
+        for _ in 0..self.renderer.packed().scene.height {
+            done = self.renderer.render_band(rows).map_err(|e| e.to_string())?;
+            if done || self.renderer.schedule() != Schedule::Megakernel {
+                break;
+            }
+        }
         if done {
             self.preview.frame_done();
             self.draw(settings);

@@ -347,6 +347,26 @@ impl Viewer {
         }
     }
 
+    /// [`frame`](Self::frame) with the frame's rows submitted in bands of `rows` back to back
+    /// (the test hook's `renderFramesInBands`: a band's cost beyond its rows, measured).
+    #[wasm_bindgen(js_name = frameInBands)]
+    pub fn frame_in_bands(&mut self, rows: u32) -> Result<bool, JsError> {
+        self.abandon_measurement("frames were rendered outside it");
+        if self.halted() {
+            return Ok(true);
+        }
+        let Some(running) = &mut self.running else { return Ok(true) };
+        match running.frame_in_bands(rows.max(1), &self.display) {
+            Ok(false) => Ok(false),
+            Ok(true) => {
+                self.denoiser.poll(running);
+                self.show_denoised();
+                Ok(true)
+            }
+            Err(e) => self.recover(e).map(|()| true),
+        }
+    }
+
     /// Draws the denoised image over the raw one, when the current accumulation has one.
     fn show_denoised(&mut self) {
         if self.halted() {

@@ -40,7 +40,7 @@ pub use bindings::gl_type;
 pub use compile::{annotate_log, compile_program, log_line_number};
 pub use display::{display_fragment_shader, GlDisplay};
 pub use filter::{GlFilter, QueuedFilter};
-pub use pacing::Pacer;
+pub use pacing::{Pacer, QUAD_ROWS};
 pub use renderer::GlRenderer;
 pub(crate) use texture::{set_nearest, upload_texels, words_as_bytes, words_as_bytes_mut};
 pub use texture::{texture_shape, ArrayStats};

@@ -12,6 +12,10 @@ use crate::backend::{RenderError, Renderer};
 /// [`BandPolicy`]. Call [`step`](Self::step) from the frame loop (the browser's
 /// `requestAnimationFrame`) with a clock in milliseconds; call [`forget`](Self::forget) before
 /// the renderer goes (the fences are objects of its context).
+/// Rows of the blocks bands cover: fragments are shaded in 2x2 quads, so a band of an odd
+/// number of rows shades a quad row it does not keep (`BandPolicy::aligned_to`).
+pub const QUAD_ROWS: u32 = 2;
+
 pub struct Pacer {
     policy: BandPolicy,
     in_flight: BandsInFlight<glow::Fence>,
@@ -19,7 +23,7 @@ pub struct Pacer {
 
 impl Pacer {
     pub fn new(height: u32, budget_ms: Option<f64>) -> Self {
-        let policy = BandPolicy::new(height, budget_ms);
+        let policy = BandPolicy::new(height, budget_ms).aligned_to(QUAD_ROWS);
         Pacer { in_flight: BandsInFlight::for_policy(&policy), policy }
     }
 
