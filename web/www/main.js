@@ -135,24 +135,10 @@ const hook = {
   resume() { paused = false; },
   // Renders `n` frames now and waits for the GPU; resolves to milliseconds per frame. (A
   // wavefront frame is done once its counters, read after each submission, say so.)
-  async renderFrames(n) {
-    const start = performance.now();
-    for (let i = 0; i < n; i++) {
-      while (!frame()) await viewer.sync();
-    }
-    await viewer.sync();
-    return (performance.now() - start) / Math.max(n, 1);
-  },
+  renderFrames: (n) => timeFrames(n),
   // `renderFrames` with each frame's rows submitted in bands of `rows` back to back (a band's
   // cost beyond its rows: tests/web/bench.mjs --band-rows).
-  async renderFramesInBands(n, rows) {
-    const start = performance.now();
-    for (let i = 0; i < n; i++) {
-      while (!frame(rows)) await viewer.sync();
-    }
-    await viewer.sync();
-    return (performance.now() - start) / Math.max(n, 1);
-  },
+  renderFramesInBands: (n, rows) => timeFrames(n, rows),
   // Resolves to { width, height, spp, data: number[] (rgba per pixel, rows from the top; rgb
   // sum, a count) }.
   async readAccumulation() {
@@ -326,9 +312,20 @@ function previewShown(at) {
   firstFrame.previewSubmitted(at);
 }
 
-// One whole frame in one submission (the test hook's renderFrames), or in bands of `rows`
-// submitted back to back; or (a wavefront's) the next submission of it: whether it is done (or
-// failed).
+// `n` frames rendered now (in bands of `rows` submitted back to back, else each in one
+// submission), waited for on the GPU: milliseconds per frame (renderFrames,
+// renderFramesInBands).
+async function timeFrames(n, rows) {
+  const start = performance.now();
+  for (let i = 0; i < n; i++) {
+    while (!frame(rows)) await viewer.sync();
+  }
+  await viewer.sync();
+  return (performance.now() - start) / Math.max(n, 1);
+}
+
+// One whole frame in one submission (in bands of `rows` submitted back to back); or (a
+// wavefront's) the next submission of it: whether it is done (or failed).
 function frame(rows) {
   if (!viewer || lost) return true;
   let done;

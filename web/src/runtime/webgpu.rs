@@ -455,15 +455,7 @@ impl GpuRuntime {
     /// The rest of the frame in one submission (the megakernel's rows left; the wavefront's
     /// next submission), then the display pass once the frame is done: whether it is.
     pub fn frame(&mut self, settings: &Display) -> Result<bool, String> {
-        self.check()?;
-        // The bands in flight would be timed with this whole frame.
-        self.in_flight.clear(drop);
-        let done = self.renderer.render_band(self.renderer.rows_left()).map_err(|e| e.to_string())?;
-        if done {
-            self.preview.frame_done();
-            self.draw(settings);
-        }
-        Ok(done)
+        self.frame_in_bands(self.renderer.rows_left(), settings)
     }
 
     /// The rest of the frame in bands of `rows` rows submitted back to back (a wavefront's
@@ -471,6 +463,7 @@ impl GpuRuntime {
     /// whether it is (the test hook's `renderFramesInBands`).
     pub fn frame_in_bands(&mut self, rows: u32, settings: &Display) -> Result<bool, String> {
         self.check()?;
+        // The bands in flight would be timed with these.
         self.in_flight.clear(drop);
         let mut done = false;
         for _ in 0..self.renderer.packed().scene.height {

@@ -8,14 +8,14 @@ use super::GlRenderer;
 use crate::backend::frame_split::{BandPolicy, BandsInFlight, Step};
 use crate::backend::{RenderError, Renderer};
 
-/// Submits bands of rows, each behind a fence, and feeds the measured times to a
-/// [`BandPolicy`]. Call [`step`](Self::step) from the frame loop (the browser's
-/// `requestAnimationFrame`) with a clock in milliseconds; call [`forget`](Self::forget) before
-/// the renderer goes (the fences are objects of its context).
 /// Rows of the blocks bands cover: fragments are shaded in 2x2 quads, so a band of an odd
 /// number of rows shades a quad row it does not keep (`BandPolicy::aligned_to`).
 pub const QUAD_ROWS: u32 = 2;
 
+/// Submits bands of rows, each behind a fence, and feeds the measured times to a
+/// [`BandPolicy`]. Call [`step`](Self::step) from the frame loop (the browser's
+/// `requestAnimationFrame`) with a clock in milliseconds; call [`forget`](Self::forget) before
+/// the renderer goes (the fences are objects of its context).
 pub struct Pacer {
     policy: BandPolicy,
     in_flight: BandsInFlight<glow::Fence>,
