@@ -26,7 +26,7 @@
 //! interval (an animation frame in the browser). No timer-query extension is needed (WebGL2 has none on SwiftShader and
 //! many phones), nothing blocks the thread, and nothing is read back.
 //!
-//! Bands cover whole blocks of rows ([`BandPolicy::aligned_to`]): a GPU shades fragments in 2x2
+//! Bands can cover whole blocks of rows ([`BandPolicy::aligned_to`]): a GPU shades fragments in 2x2
 //! quads and a compute megakernel runs 8x8 workgroups, so a band of 1 row costs what 2 (GL) or
 //! 8 (WebGPU) rows do, and a band that starts mid-block pays for the block's other rows twice.
 //! Measured in the page (`tests/web/bench.mjs --band-rows`: the Cornell box at 640x480, a frame
@@ -34,6 +34,8 @@
 //! row 1.95x, 3 rows 1.29x, while 2, 4, 6, 8 and 16 rows took 0.98-1.04x; WebGPU 1 row 1.60x, 2
 //! rows 1.25x, 3 rows 1.13x, 4 rows 1.05x, 8 rows 0.99x. The frame loop's bands (4-7 rows of any
 //! parity, starting anywhere) had cost it up to 1.6x a whole frame on WebGL2 (docs/web.md).
+//! GL's `Pacer` aligns to its quads; the WebGPU page does not align to its workgroups yet
+//! (`policy_for` in `web/src/runtime/webgpu.rs` says why).
 //!
 //! Bands are queued ahead ([`BandsInFlight`]): each tick of the frame loop tops the GPU's queue up
 //! to [`AHEAD_BUDGETS`] budgets of estimated work. The news that a band is done reaches the page
