@@ -330,41 +330,14 @@ impl Viewer {
     /// frame is not done yet (the wavefront's, whose counters arrive with a promise: call again
     /// after `sync()`). Does nothing without a scene or while the context or device is lost.
     pub fn frame(&mut self) -> Result<bool, JsError> {
-        // Its frames would count in the measurement's times.
-        self.abandon_measurement("frames were rendered outside it");
-        if self.halted() {
-            return Ok(true);
-        }
-        let Some(running) = &mut self.running else { return Ok(true) };
-        match running.frame(&self.display) {
-            Ok(false) => Ok(false),
-            Ok(true) => {
-                self.denoiser.poll(running);
-                self.show_denoised();
-                Ok(true)
-            }
-            Err(e) => self.recover(e).map(|()| true),
-        }
+        self.render_frame(None)
     }
 
     /// [`frame`](Self::frame) with the frame's rows submitted in bands of `rows` back to back
     /// (the test hook's `renderFramesInBands`: a band's cost beyond its rows, measured).
     #[wasm_bindgen(js_name = frameInBands)]
     pub fn frame_in_bands(&mut self, rows: u32) -> Result<bool, JsError> {
-        self.abandon_measurement("frames were rendered outside it");
-        if self.halted() {
-            return Ok(true);
-        }
-        let Some(running) = &mut self.running else { return Ok(true) };
-        match running.frame_in_bands(rows.max(1), &self.display) {
-            Ok(false) => Ok(false),
-            Ok(true) => {
-                self.denoiser.poll(running);
-                self.show_denoised();
-                Ok(true)
-            }
-            Err(e) => self.recover(e).map(|()| true),
-        }
+        self.render_frame(Some(rows.max(1)))
     }
 
     /// Draws the denoised image over the raw one, when the current accumulation has one.
@@ -816,5 +789,31 @@ impl Viewer {
         }
         self.context_lost = false;
         self.rebuild()
+    }
+}
+
+impl Viewer {
+    /// [`frame`](Self::frame) (`rows` `None`: the rest of the frame in one submission) or
+    /// [`frame_in_bands`](Self::frame_in_bands).
+    fn render_frame(&mut self, rows: Option<u32>) -> Result<bool, JsError> {
+        // Its frames would count in the measurement's times.
+        self.abandon_measurement("frames were rendered outside it");
+        if self.halted() {
+            return Ok(true);
+        }
+        let Some(running) = &mut self.running else { return Ok(true) };
+        let done = match rows {
+            Some(rows) => running.frame_in_bands(rows, &self.display),
+            None => running.frame(&self.display),
+        };
+        match done {
+            Ok(false) => Ok(false),
+            Ok(true) => {
+                self.denoiser.poll(running);
+                self.show_denoised();
+                Ok(true)
+            }
+            Err(e) => self.recover(e).map(|()| true),
+        }
     }
 }
