@@ -9,7 +9,7 @@
 // WebAssembly memory and the JS heap (what the page keeps growing, if anything, while it poses the scene again and again).
 
 import { readFileSync, rmSync } from 'node:fs';
-import { freshProfile, open, withBrowser } from './page.mjs';
+import { freshProfile, median, open, withBrowser } from './page.mjs';
 
 export async function animation(o) {
   const profile = freshProfile();
@@ -147,7 +147,6 @@ export async function playAndPause(seconds) {
   // skipped: its result is null at once).
   await l.measureSchedule();
   const wait = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
-  const median = (v) => [...v].sort((x, y) => x - y)[Math.floor(v.length / 2)];
   const turns = [];
   l.setAnimationSpeed(1);
   for (const playing of [true, false, true, false]) {

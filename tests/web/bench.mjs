@@ -54,6 +54,7 @@ import { mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join, dirname } from 'node:path';
 import { fileURLToPath } from 'node:url';
+import { median } from './page.mjs';
 
 const here = dirname(fileURLToPath(import.meta.url));
 const root = join(here, '../..');
@@ -125,7 +126,6 @@ const url = await new Promise((resolve, reject) => {
 // `--rounds` times; the table shows per scene and API the median over the rounds.
 const apis = (args.apis || 'webgl2,webgpu').split(',');
 const rounds = Number(args.rounds || '1');
-const median = (v) => [...v].sort((x, y) => x - y)[Math.floor(v.length / 2)];
 
 try {
   // `--scenes a,b`: only those (by name; default every served scene).

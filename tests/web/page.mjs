@@ -90,6 +90,11 @@ export async function open(context, baseUrl, query, timeoutMs = 240000) {
   return { page, requests, consoleErrors, navigationStart, ...state };
 }
 
+// The median of `values` (the upper one of an even count).
+export function median(values) {
+  return [...values].sort((x, y) => x - y)[Math.floor(values.length / 2)];
+}
+
 // The frame loop's own pace (bands queued ahead): ms per whole frame it completes, between the
 // first and the last completion seen in `ms` (null: fewer than two).
 export async function loopPace(page, ms) {

@@ -13,7 +13,7 @@
 
 import { rmSync, writeFileSync, readFileSync } from 'node:fs';
 import {
-  freshProfile, loopPace, open, pageApi, setBrowserFlags, setPageApi, setPageSchedule, withBrowser,
+  freshProfile, loopPace, median, open, pageApi, setBrowserFlags, setPageApi, setPageSchedule, withBrowser,
 } from './page.mjs';
 import { animation, playAndPause } from './animation.mjs';
 import { apiChoice, autoSchedule, deviceLoss, fallback } from './api.mjs';
@@ -537,8 +537,7 @@ async function bench(o) {
                   (turns[n] ||= []).push(await page.evaluate(([k, r]) => window.lightport.renderFramesInBands(k, r), [Number(o.frames), n]));
                 }
               }
-              const middle = (v) => [...v].sort((x, y) => x - y)[Math.floor(v.length / 2)];
-              row.bandRowsMs = Object.fromEntries(Object.entries(turns).map(([k, v]) => [k, middle(v)]));
+              row.bandRowsMs = Object.fromEntries(Object.entries(turns).map(([k, v]) => [k, median(v)]));
             }
             // `--play SECONDS`: a scene that moves, played by the frame loop and paused in turn.
             if (o.play && row.info.animation) row.play = await page.evaluate(playAndPause, Number(o.play));
