@@ -34,8 +34,8 @@
 //! row 1.95x, 3 rows 1.29x, while 2, 4, 6, 8 and 16 rows took 0.98-1.04x; WebGPU 1 row 1.60x, 2
 //! rows 1.25x, 3 rows 1.13x, 4 rows 1.05x, 8 rows 0.99x. The frame loop's bands (4-7 rows of any
 //! parity, starting anywhere) had cost it up to 1.6x a whole frame on WebGL2 (docs/web.md).
-//! GL's `Pacer` aligns to its quads; the WebGPU page does not align to its workgroups yet
-//! (`policy_for` in `web/src/runtime/webgpu.rs` says why).
+//! GL's `Pacer` aligns to its quads, the WebGPU page to its workgroups (`policy_for` in
+//! `web/src/runtime/webgpu.rs`).
 //!
 //! Bands are queued ahead ([`BandsInFlight`]): each tick of the frame loop tops the GPU's queue up
 //! to [`AHEAD_BUDGETS`] budgets of estimated work. The news that a band is done reaches the page
@@ -84,6 +84,9 @@ pub const MAX_IN_FLIGHT: usize = 16;
 /// Bands timed together when they ran back to back ([`BandsInFlight`]): a band seen done one
 /// tick late or early is then a tick in this many bands' time, not in one's.
 pub const STREAK: usize = 4;
+/// The span (ms, from submission to news) over which bands queued back to back bound their
+/// rate from above ([`BandsInFlight`]): long against the news' delay and the wait in the queue.
+pub const WINDOW_MS: f64 = 1000.0;
 
 /// The work a frame loop submitted and has not yet seen done, oldest first, each behind its
 /// `F` (a GL fence, a WebGPU done flag): bands of a frame and other work (a preview: waited
@@ -93,6 +96,14 @@ pub const STREAK: usize = 4;
 /// together, as the rate of their rows, so that one seen a tick late does not halve or double
 /// the next band. A band submitted to an idle GPU is timed from its submission, the news'
 /// delay included, between bounds ([`polled_bounds`]).
+///
+/// News to news assumes the news comes equally late. Under contention (a second browser on
+/// two cores) it came in bursts: held, then a band per poll, so bands that ran for 150 ms
+/// were seen done milliseconds apart and timed at a tenth of that. The bands since the queue
+/// was last idle, over at least [`WINDOW_MS`] of submissions, bound the rate from above
+/// whatever the news does (they cannot have run before they were submitted nor after they
+/// were seen done), and news to news is believed down to half that bound (as a band with no
+/// lower bound is: [`BandPolicy::record_between`]).
 #[derive(Debug)]
 pub struct BandsInFlight<F> {
     queued: std::collections::VecDeque<InFlight<F>>,
@@ -100,10 +111,18 @@ pub struct BandsInFlight<F> {
     ahead_ms: f64,
     /// When the last work was seen done.
     last_done_ms: Option<f64>,
-    /// The bands seen done back to back (the latest last, at most [`STREAK`]): their rows and
-    /// when each was seen done, after `streak_from_ms`.
-    streak: std::collections::VecDeque<(u32, f64)>,
-    streak_from_ms: f64,
+    /// The bands seen done since the queue was last idle (the latest last; trimmed to the last
+    /// [`WINDOW_MS`] of submissions, but at least [`STREAK`] + 1), each poll's bands together.
+    busy: std::collections::VecDeque<Seen>,
+}
+
+/// Bands seen done at one poll.
+#[derive(Clone, Copy, Debug)]
+struct Seen {
+    rows: u32,
+    /// When the first of them was submitted.
+    submitted_ms: f64,
+    seen_ms: f64,
 }
 
 #[derive(Debug)]
@@ -125,8 +144,7 @@ impl<F> BandsInFlight<F> {
             queued: Default::default(),
             ahead_ms: if ahead_ms.is_finite() { ahead_ms.max(0.0) } else { 0.0 },
             last_done_ms: None,
-            streak: Default::default(),
-            streak_from_ms: 0.0,
+            busy: Default::default(),
         }
     }
 
@@ -191,23 +209,16 @@ impl<F> BandsInFlight<F> {
         // from that work's end.
         let behind = self.last_done_ms.filter(|&t| t > submitted_ms);
         self.last_done_ms = Some(now_ms);
+        let seen = Seen { rows, submitted_ms, seen_ms: now_ms };
         match behind {
             Some(previous) if timed => {
-                if self.streak.is_empty() {
-                    self.streak_from_ms = previous;
-                }
-                self.streak.push_back((rows, now_ms));
-                if self.streak.len() > STREAK {
-                    let (_, seen) = self.streak.pop_front().expect("longer than STREAK");
-                    self.streak_from_ms = seen;
-                }
-                let streak_rows: u32 = self.streak.iter().map(|&(r, _)| r).sum();
-                let ms_per_row = (now_ms - self.streak_from_ms).max(0.0) / streak_rows.max(1) as f64;
-                policy.record(rows, ms_per_row * rows as f64);
+                let (news_to_news, bound) = self.busy_rate(seen, previous);
+                policy.record(rows, news_to_news.max(bound / 2.0) * rows as f64);
             }
             _ => {
-                self.streak.clear();
+                self.busy.clear();
                 if timed {
+                    self.busy.push_back(seen);
                     let (at_least, at_most) = polled_bounds(submitted_ms, pending, now_ms);
                     policy.record_between(rows, at_least, at_most);
                 }
@@ -221,7 +232,32 @@ impl<F> BandsInFlight<F> {
     pub fn clear(&mut self, release: impl FnMut(F)) {
         self.queued.drain(..).map(|band| band.marker).for_each(release);
         self.last_done_ms = None;
-        self.streak.clear();
+        self.busy.clear();
+    }
+
+    /// Adds `seen` (queued behind work seen done at `previous`) to the busy queue's bands:
+    /// their rate (ms per row) news to news over the last [`STREAK`], and its upper bound
+    /// from submission to news over the last [`WINDOW_MS`].
+    fn busy_rate(&mut self, seen: Seen, previous: f64) -> (f64, f64) {
+        self.busy.push_back(seen);
+        let now = seen.seen_ms;
+        while self.busy.len() > STREAK + 1 && now - self.busy[1].submitted_ms >= WINDOW_MS {
+            self.busy.pop_front();
+        }
+        let rate = |bands: &mut dyn Iterator<Item = &Seen>, from: f64| {
+            let rows: u32 = bands.map(|band| band.rows).sum();
+            (now - from).max(0.0) / rows.max(1) as f64
+        };
+        // The last STREAK bands (those after the first, which was timed from its submission),
+        // from the news before them.
+        let n = self.busy.len();
+        let streak = STREAK.min(n - 1).max(1);
+        let streak_from = if n > streak { self.busy[n - streak - 1].seen_ms } else { previous };
+        let news_to_news = rate(&mut self.busy.iter().skip(n - streak), streak_from);
+        // The latest band submitted WINDOW_MS or more ago (the oldest if none was).
+        let first = (0..n).rev().find(|&i| now - self.busy[i].submitted_ms >= WINDOW_MS).unwrap_or(0);
+        let bound = rate(&mut self.busy.iter().skip(first), self.busy[first].submitted_ms);
+        (news_to_news, bound)
     }
 }
 

@@ -20,6 +20,7 @@ use std::sync::{Arc, Mutex};
 use tracer::backend::frame_split::{BandPolicy, BandsInFlight, Step};
 use tracer::backend::wgpu::{
     DeviceRenderer, DisplayPass, PipelineCheck, WavefrontRenderer, WgpuDevice, WgpuError, WgpuOptions, WgpuRenderer,
+    WORKGROUP_SIZE,
 };
 use tracer::backend::{Image, Schedule};
 use tracer::output::Display;
@@ -156,14 +157,13 @@ pub struct GpuRuntime {
     preview_image: Option<wgpu::Buffer>,
 }
 
-/// Bands of `height` rows within `budget_ms`. Not aligned to the megakernel's 8-row workgroups
-/// (`BandPolicy::aligned_to`), though a band of 1 row dispatches 8 (1.60x a whole frame's time
-/// on SwiftShader, 8 rows 0.99x): with 8-row blocks the frame loop was faster (LittlestTokyo
-/// 0.46x a frame), but in 2 of 6 runs of `tests/cli/web.rs`'s WebGPU restart test the bands'
-/// measured times were a tenth of their real ones (32 rows "~3 ms" of a 2.3 s frame), and
-/// bands grew past the budget. Until that measurement is understood, bands stay unaligned here.
+/// Bands of `height` rows within `budget_ms`, each a whole number of the megakernel's
+/// workgroup rows (a band of 1 row dispatches 8: 1.60x a whole frame's time on SwiftShader, 8
+/// rows 0.99x; `BandPolicy::aligned_to`). With 8-row blocks one band timed at a fraction of its
+/// time grows by a whole block: `BandsInFlight` bounds its rate from above for that reason
+/// (news that came in bursts had timed 32 rows at "~3 ms" of a 2.3 s frame).
 fn policy_for(height: u32, budget_ms: Option<f64>) -> BandPolicy {
-    BandPolicy::new(height, budget_ms)
+    BandPolicy::new(height, budget_ms).aligned_to(WORKGROUP_SIZE[1])
 }
 
 /// Work in flight for `renderer`'s bands sized by `policy`: queued ahead for the megakernel;
