@@ -119,7 +119,8 @@ fn assert_preview_on_canvas(shot: &Value, api: &str, what: &str) {
     assert!(lit > 320 * 240 / 2, "api={api}, {what}: the preview shows the scene ({lit} lit pixels)");
 }
 
-/// `?preview=0`: no preview is rendered or shown; the first image is the first full frame.
+/// `?preview=0`: no preview is rendered or shown; the first image is the first full frame,
+/// drawn as its bands are done at most every `PROGRESS_MS`.
 #[test]
 fn preview_0_shows_no_preview() {
     let server = Server::start(&[]);
@@ -136,6 +137,18 @@ fn preview_0_shows_no_preview() {
         assert!((ms(&image["totalMs"], "firstImage.totalMs") - ms(&split["totalMs"], "totalMs")).abs() < 1e-6);
         let accounted = report["firstFrameReadout"].as_str().unwrap_or("");
         assert!(!accounted.contains("preview"), "api={api}: {accounted:?}");
+        // Without a preview the first frame shows as its bands are done: its first band at
+        // once, then at most every PROGRESS_MS (a draw per band made every animation frame
+        // wait for the bands queued on SwiftShader: docs/web.md, "The first frame's rows").
+        let info = &report["settled"]["info"];
+        let draws = info["preview"]["bandDraws"].as_f64().expect("bandDraws");
+        let first_frame_ms = ms(&report["firstFrameMs"], "firstFrameMs");
+        let most = (first_frame_ms / tracer::backend::preview::PROGRESS_MS).floor() + 2.0;
+        eprintln!("api={api}: {draws} of the first frame's bands drawn, {} bands by now, first frame at {first_frame_ms:.0} ms", info["bands"]);
+        assert!(
+            draws >= 1.0 && draws <= most,
+            "api={api}: {draws} bands of the first frame drawn in {first_frame_ms:.0} ms (1 to {most}): {info}"
+        );
     }
 }
 

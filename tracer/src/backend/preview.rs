@@ -19,6 +19,38 @@
 //! first frame (the band policy measures frames, and the first draw on WebGL2 also pays the
 //! driver's shader JIT), so the rule is a fixed fraction, not a budget.
 
+/// While no preview is on show, the first frame after a restart shows its rows as its bands
+/// are done: its first band at once, then at most this often (ms), and its last band. Drawn
+/// per band, every animation frame of the first frame was a long task in headless Chromium on
+/// SwiftShader (~130 ms: the canvas, drawn, is composited only once the bands queued on the
+/// GPU are done), so the queue ran dry at each: LittlestTokyo's first frame in the frame loop
+/// (WebGL2, 640x480) took 1.5x as long as drawn every 250 ms (docs/web.md).
+pub const PROGRESS_MS: f64 = 250.0;
+
+/// When the first frame's bands are drawn ([`PROGRESS_MS`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FirstFrameDraws {
+    /// When a band of the first frame was last drawn; `None`: not since the last restart.
+    drawn_at_ms: Option<f64>,
+}
+
+impl FirstFrameDraws {
+    /// The accumulation restarted: its first band is drawn at once.
+    pub fn restarted(&mut self) {
+        self.drawn_at_ms = None;
+    }
+
+    /// Whether a band of the first frame done (submitted) at `now_ms` is drawn; if so, it
+    /// counts as drawn then.
+    pub fn due(&mut self, now_ms: f64) -> bool {
+        let due = self.drawn_at_ms.is_none_or(|t| !(0.0..PROGRESS_MS).contains(&(now_ms - t)));
+        if due {
+            self.drawn_at_ms = Some(now_ms);
+        }
+        due
+    }
+}
+
 /// The preview is this many times smaller than the image on each side.
 pub const PREVIEW_DIVISOR: u32 = 4;
 
@@ -38,5 +70,20 @@ mod tests {
         assert_eq!(preview_size(641, 481), (161, 121));
         assert_eq!(preview_size(32, 32), (8, 8));
         assert_eq!(preview_size(1, 7), (1, 2));
+    }
+
+    #[test]
+    fn the_first_frame_draws_its_first_band_then_at_most_every_progress_ms() {
+        let mut draws = FirstFrameDraws::default();
+        let drawn: Vec<bool> = [0.0, 30.0, 200.0, 250.0, 260.0, 499.0, 520.0].map(|t| draws.due(t)).to_vec();
+        assert_eq!(drawn, [true, false, false, true, false, false, true]);
+        // A restart draws its first band at once, however recent the last draw.
+        draws.restarted();
+        assert!(draws.due(530.0));
+        assert!(!draws.due(540.0));
+        // A clock that went backwards (or NaN) draws rather than waiting for it.
+        assert!(draws.due(100.0));
+        assert!(draws.due(f64::NAN));
+        assert!(draws.due(110.0));
     }
 }

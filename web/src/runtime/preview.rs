@@ -10,7 +10,7 @@
 //! within the band budget shows full-resolution frames as before.
 
 use js_sys::Object;
-use tracer::backend::preview::preview_size;
+use tracer::backend::preview::{preview_size, FirstFrameDraws};
 use wasm_bindgen::JsValue;
 
 use crate::js::set;
@@ -58,6 +58,10 @@ pub struct Preview {
     pub rendered: u64,
     /// Why it was not rendered, if it failed.
     pub error: Option<String>,
+    /// When the first frame's bands are drawn while no preview is on show.
+    draws: FirstFrameDraws,
+    /// Bands of first frames drawn (`shows_band`) for this renderer.
+    pub band_draws: u64,
 }
 
 impl Preview {
@@ -106,6 +110,16 @@ impl Preview {
         }
     }
 
+    /// Whether a band of the accumulation's first frame (`first_frame`), done at `now_ms`, is
+    /// drawn now: not while a preview is on show, else the first band after a (re)start and
+    /// then at most every `PROGRESS_MS` (`tracer::backend::preview`). A frame's last band is
+    /// always drawn by the caller.
+    pub fn shows_band(&mut self, first_frame: bool, now_ms: f64) -> bool {
+        let shows = first_frame && !self.showing() && self.draws.due(now_ms);
+        self.band_draws += shows as u64;
+        shows
+    }
+
     /// A frame of the accumulation was completed: a preview on show is replaced; one not
     /// rendered yet is not rendered any more.
     pub fn frame_done(&mut self) {
@@ -121,6 +135,7 @@ impl Preview {
     /// off or failed; otherwise a preview on show (of the old view) is dropped, and the new
     /// view is drawn band by band. A pending one stays pending.
     pub fn restarted(&mut self, slow: bool) {
+        self.draws.restarted();
         match self.state {
             PreviewState::Off => {}
             _ if slow && self.error.is_none() => self.state = PreviewState::Pending,
@@ -129,7 +144,8 @@ impl Preview {
         }
     }
 
-    /// `sceneInfo().preview`: `{ state, showing, width, height, submittedAt, rendered, error }`
+    /// `sceneInfo().preview`: `{ state, showing, width, height, submittedAt, rendered, bandDraws,
+    /// error }`
     /// (the last preview's size and time, null until one is rendered).
     pub fn describe(&self) -> Object {
         let o = Object::new();
@@ -140,6 +156,7 @@ impl Preview {
         set(&o, "height", height);
         set(&o, "submittedAt", self.submitted_at.map_or(JsValue::NULL, JsValue::from));
         set(&o, "rendered", self.rendered as f64);
+        set(&o, "bandDraws", self.band_draws as f64);
         set(&o, "error", self.error.as_deref().map_or(JsValue::NULL, JsValue::from));
         o
     }

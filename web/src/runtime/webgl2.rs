@@ -267,14 +267,13 @@ impl GlRuntime {
                 return Ok(Step::Preview);
             }
         }
-        let display = self.display.as_ref();
-        let previewing = self.preview.showing();
+        let (display, preview) = (self.display.as_ref(), &mut self.preview);
         let step = self
             .pacer
             .step(&mut self.renderer, now_ms, |renderer, frame_done| {
-                // Each band of the first frame after a restart shows (unless the preview does
-                // until the frame is complete); later, each whole frame.
-                let first = renderer.frames() == 0 && !previewing;
+                // The first frame after a restart shows as its bands are done (unless the
+                // preview does until the frame is complete); later, each whole frame.
+                let first = preview.shows_band(renderer.frames() == 0, now_ms);
                 if let (true, Some(display)) = (frame_done || first, display) {
                     display.draw(renderer, None, [w, h], settings);
                 }

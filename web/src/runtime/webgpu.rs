@@ -500,9 +500,9 @@ impl GpuRuntime {
             if frame_done {
                 self.preview.frame_done();
             }
-            // Each band of the first frame after a restart shows (unless the preview does until
-            // the frame is complete); later, each whole frame.
-            if frame_done || (self.renderer.frames() == 0 && !self.preview.showing()) {
+            // The first frame after a restart shows as its bands are done (unless the preview
+            // does until the frame is complete); later, each whole frame.
+            if frame_done || self.preview.shows_band(self.renderer.frames() == 0, now_ms) {
                 self.draw(settings);
             }
             self.track(now_ms, rows);
