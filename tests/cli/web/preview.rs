@@ -144,7 +144,7 @@ fn preview_0_shows_no_preview() {
         let draws = info["preview"]["bandDraws"].as_f64().expect("bandDraws");
         let first_frame_ms = ms(&report["firstFrameMs"], "firstFrameMs");
         let most = (first_frame_ms / tracer::backend::preview::PROGRESS_MS).floor() + 2.0;
-        eprintln!("api={api}: {draws} of the first frame's bands drawn, {} bands by now, first frame at {first_frame_ms:.0} ms", info["bands"]);
+        eprintln!("api={api}: {draws} of the first frame's bands drawn, {} bands a frame now, first frame at {first_frame_ms:.0} ms", info["bands"]);
         assert!(
             draws >= 1.0 && draws <= most,
             "api={api}: {draws} bands of the first frame drawn in {first_frame_ms:.0} ms (1 to {most}): {info}"

@@ -244,19 +244,16 @@ impl<F> BandsInFlight<F> {
         while self.busy.len() > STREAK + 1 && now - self.busy[1].submitted_ms >= WINDOW_MS {
             self.busy.pop_front();
         }
-        let rate = |bands: &mut dyn Iterator<Item = &Seen>, from: f64| {
-            let rows: u32 = bands.map(|band| band.rows).sum();
-            (now - from).max(0.0) / rows.max(1) as f64
-        };
+        let rows_since = |i: usize| self.busy.range(i..).map(|band| band.rows).sum::<u32>().max(1) as f64;
         // The last STREAK bands (those after the first, which was timed from its submission),
         // from the news before them.
         let n = self.busy.len();
         let streak = STREAK.min(n - 1).max(1);
         let streak_from = if n > streak { self.busy[n - streak - 1].seen_ms } else { previous };
-        let news_to_news = rate(&mut self.busy.iter().skip(n - streak), streak_from);
-        // The latest band submitted WINDOW_MS or more ago (the oldest if none was).
+        let news_to_news = (now - streak_from).max(0.0) / rows_since(n - streak);
+        // From the latest band submitted WINDOW_MS or more ago (the oldest if none was).
         let first = (0..n).rev().find(|&i| now - self.busy[i].submitted_ms >= WINDOW_MS).unwrap_or(0);
-        let bound = rate(&mut self.busy.iter().skip(first), self.busy[first].submitted_ms);
+        let bound = (now - self.busy[first].submitted_ms).max(0.0) / rows_since(first);
         (news_to_news, bound)
     }
 }

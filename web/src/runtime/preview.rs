@@ -133,7 +133,7 @@ impl Preview {
     /// The accumulation restarted (a camera or setting change, a pose). On a device whose
     /// frames are split into bands (`slow`) the new view is previewed too, unless previews are
     /// off or failed; otherwise a preview on show (of the old view) is dropped, and the new
-    /// view is drawn band by band. A pending one stays pending.
+    /// view is drawn as its bands are done (`shows_band`). A pending one stays pending.
     pub fn restarted(&mut self, slow: bool) {
         self.draws.restarted();
         match self.state {
