@@ -30,7 +30,9 @@
 // `--loop SECONDS`: a third visit per scene and API (warm cache) with the frame loop running, as
 // a person sees the page (frames in bands; a moving scene's animation paused): its first image
 // and first full frame, and its time per frame over that many seconds, beside the frame in one
-// submission that the other columns time.
+// submission that the other columns time; and the page's long tasks (a main-thread task over
+// 50 ms: a tick that waited for the GPU): their ms between the first image and the first full
+// frame, their share of the loop's time after it.
 //
 // `--band-rows 1,2,4,8`: in the warm visit, a frame in bands of that many rows submitted back to
 // back (the test hook's renderFramesInBands), per value, against the frame in one submission:
@@ -222,8 +224,8 @@ try {
   // `--loop SECONDS`: the page as a person sees it, the frame loop running (bands).
   if (args.loop) {
     console.log(`\nThe frame loop, as a person sees the page (warm cache, frames in bands, the animation paused; ms, medians over rounds; frame: between the first and last frame completed in ${args.loop} s):\n`);
-    console.log('| scene | api | first image | first full frame | frame (frame loop) | frame (one submission) | loop / one submission |');
-    console.log('|---|---|---|---|---|---|---|');
+    console.log('| scene | api | first image | first full frame | long tasks between | frame (frame loop) | frame (one submission) | loop / one submission | long tasks, share of the loop |');
+    console.log('|---|---|---|---|---|---|---|---|---|');
     for (const s of scenes) {
       for (const api of apis) {
         const rows = runs[api][s.name];
@@ -234,7 +236,10 @@ try {
         const [loop, whole] = [cell('loopFrameMs'), cell('frameMs')];
         const show = (v) => (v === null ? '–' : v.toFixed(0));
         const ratio = loop !== null && whole ? `${(loop / whole).toFixed(2)}x` : '–';
-        console.log(`| ${s.name} | ${api} | ${show(cell('loopFirstImageMs'))} | ${show(cell('loopFirstFrameMs'))} | ${show(loop)} | ${show(whole)} | ${ratio} |`);
+        const share = cell('loopLongTaskShare');
+        console.log(`| ${s.name} | ${api} | ${show(cell('loopFirstImageMs'))} | ${show(cell('loopFirstFrameMs'))} | ` +
+          `${show(cell('loopLongTaskMsToFirstFrame'))} | ${show(loop)} | ${show(whole)} | ${ratio} | ` +
+          `${share === null ? '–' : `${(100 * share).toFixed(0)} %`} |`);
       }
     }
   }
