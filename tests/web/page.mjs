@@ -113,3 +113,22 @@ export async function loopPace(page, ms) {
     return (seen.at(-1)[1] - seen[0][1]) / (seen.at(-1)[0] - seen[0][0]);
   }, ms);
 }
+
+// Records the page's long tasks (a main-thread task over 50 ms: on SwiftShader, a tick that
+// waited for the GPU; docs/web.md "The first frame's rows"), those before the call included.
+export async function watchLongTasks(page) {
+  await page.evaluate(() => {
+    window.longTasks = [];
+    new PerformanceObserver((list) => {
+      for (const e of list.getEntries()) window.longTasks.push([e.startTime, e.duration]);
+    }).observe({ type: 'longtask', buffered: true });
+  });
+}
+
+// The ms of the long tasks recorded by watchLongTasks that started in [from, to)
+// (performance.now() times).
+export async function longTaskMs(page, from, to) {
+  return page.evaluate(([from, to]) => window.longTasks
+    .filter(([t]) => t >= from && t < to)
+    .reduce((sum, [, d]) => sum + d, 0), [from, to]);
+}

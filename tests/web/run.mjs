@@ -13,7 +13,8 @@
 
 import { rmSync, writeFileSync, readFileSync } from 'node:fs';
 import {
-  freshProfile, loopPace, median, open, pageApi, setBrowserFlags, setPageApi, setPageSchedule, withBrowser,
+  freshProfile, longTaskMs, loopPace, median, open, pageApi, setBrowserFlags, setPageApi, setPageSchedule,
+  watchLongTasks, withBrowser,
 } from './page.mjs';
 import { animation, playAndPause } from './animation.mjs';
 import { apiChoice, autoSchedule, deviceLoss, fallback } from './api.mjs';
@@ -560,14 +561,7 @@ async function bench(o) {
         await withBrowser(profile, async (context) => {
           const { page, error } = await open(context, o.url, { scene, size: o.size, denoise: '0', preview: o.preview });
           if (error) throw new Error(`${scene}: ${error}`);
-          // The page's long tasks (over 50 ms on its main thread: a tick that waited for the
-          // GPU, docs/web.md "The first frame's rows"), those before the page opened included.
-          await page.evaluate(() => {
-            window.longTasks = [];
-            new PerformanceObserver((list) => {
-              for (const e of list.getEntries()) window.longTasks.push([e.startTime, e.duration]);
-            }).observe({ type: 'longtask', buffered: true });
-          });
+          await watchLongTasks(page);
           await page.evaluate(() => window.lightport.setPlaying(false));
           await page.waitForFunction(() => window.lightport.firstFrame, null, { timeout: 120000 });
           const first = await page.evaluate(() => [window.lightport.firstImageMs, window.lightport.firstFrameMs]);
@@ -576,11 +570,9 @@ async function bench(o) {
           row.loopFrameMs = await loopPace(page, Number(o.loop) * 1000);
           // Long tasks' ms from the first image to the first full frame (the load's own before
           // it: decode, upload), and their share of the loop's time after it.
-          [row.loopLongTaskMsToFirstFrame, row.loopLongTaskShare] = await page.evaluate(([imageMs, frameMs, from]) => {
-            const to = performance.now();
-            const sum = (a, b) => window.longTasks.filter(([t]) => t >= a && t < b).reduce((s, [, d]) => s + d, 0);
-            return [sum(imageMs, frameMs), sum(from, to) / (to - from)];
-          }, [...first, paceFrom]);
+          const paceTo = await page.evaluate(() => performance.now());
+          row.loopLongTaskMsToFirstFrame = await longTaskMs(page, first[0], first[1]);
+          row.loopLongTaskShare = (await longTaskMs(page, paceFrom, paceTo)) / (paceTo - paceFrom);
         });
       }
       results.push(row);
