@@ -19,7 +19,7 @@
 //                     web/src/viewer/prepare.rs); 0: after, as a comparison,
 //   budget=BYTES      the cache budget,
 //   bandBudget=MS     the longest one GPU submission (a band of a frame) should take, default
-//                     50; 0: frames are not split (one submission per frame),
+//                     100; 0: frames are not split (one submission per frame),
 //   api=auto|webgpu|webgl2  the graphics API (default auto: WebGPU if the browser gives a device
 //                     and the scene fits its limits, else WebGL2; the "API" control reloads with it),
 //   schedule=auto|megakernel|wavefront  how WebGPU organises a frame (default auto: measured

@@ -9,7 +9,7 @@
 //! per-pixel random sequence), as `tests/cli/web.rs` checks.
 //!
 //! [`BandPolicy`] (pure logic) chooses the band height from measured band times: bands aim at
-//! [`TARGET_FRACTION`] of the budget ([`DEFAULT_BUDGET_MS`], 50 ms), start small
+//! [`TARGET_FRACTION`] of the budget ([`DEFAULT_BUDGET_MS`], 100 ms), start small
 //! ([`FIRST_ROWS`]), at most double per band, and shrink at once when a band was slow.
 //! Where even the thinnest band (one row, or one block of rows: below) takes more than [`FIXED_COST_BUDGETS`] budgets (the fastest of
 //! [`THIN_SAMPLES`] such bands: a band's measured time only errs upwards), the cost is the
@@ -46,8 +46,11 @@
 //! A frame's first band waits until the last frame's are seen done (a pose, a denoise or a
 //! restart's preview come between frames), so new work waits for at most the queued bands.
 
-/// The longest a single GPU submission should take (milliseconds), by default.
-pub const DEFAULT_BUDGET_MS: f64 = 50.0;
+/// The longest a single GPU submission should take (milliseconds), by default. 50 until
+/// 2026-12-07: in headless Chromium on SwiftShader the WebGL2 frame loop paid ~8 ms per band
+/// beyond its rows (cause not found; not where bands are submitted back to back), 1.3x a frame
+/// in one submission with 50 ms bands, 1.1x with 100 (docs/web.md, "Fewer, larger bands").
+pub const DEFAULT_BUDGET_MS: f64 = 100.0;
 /// Bands aim at this fraction of the budget: headroom for the variation between bands (rows
 /// that see the sky cost less than rows inside a room) and for the measurement's rounding.
 pub const TARGET_FRACTION: f64 = 0.7;
@@ -78,9 +81,15 @@ pub fn polled_bounds(submitted_ms: f64, pending_at_ms: Option<f64>, now_ms: f64)
 /// in flight the Cornell box at 640x480 took 6.0 s a frame in bands of 4 rows (WebGL2), against
 /// 1.8 s in one submission. Queued work must outlast a tick and the news' delay, or the GPU
 /// idles, the idle time is timed as the bands', and bands shrink further.
-pub const AHEAD_BUDGETS: f64 = 3.0;
+///
+/// 1.5 budgets of 100 ms: the 150 ms that 3 budgets of 50 were, which a restart waits for.
+pub const AHEAD_BUDGETS: f64 = 1.5;
 /// Submissions in flight, at most (fences are objects of the context).
 pub const MAX_IN_FLIGHT: usize = 16;
+/// Work not yet seen done (estimated) is at most this many times the queue's aim: the queue
+/// aims at the work its model says is still to run (news may come late, or in bursts), and
+/// this bounds what the model could hide if bands ran slower than estimated.
+pub const UNSEEN_AHEAD: f64 = 2.0;
 /// Bands timed together when they ran back to back ([`BandsInFlight`]): a band seen done one
 /// tick late or early is then a tick in this many bands' time, not in one's.
 pub const STREAK: usize = 4;
@@ -111,6 +120,9 @@ pub struct BandsInFlight<F> {
     ahead_ms: f64,
     /// When the last work was seen done.
     last_done_ms: Option<f64>,
+    /// When the queued bands end if each takes its estimate, from when the GPU was last
+    /// idle (`None`: work of no estimate is queued): see [`admits`](Self::admits).
+    end_ms: Option<f64>,
     /// The bands seen done since the queue was last idle (the latest last; trimmed to the last
     /// [`WINDOW_MS`] of submissions, but at least [`STREAK`] + 1), each poll's bands together.
     busy: std::collections::VecDeque<Seen>,
@@ -144,6 +156,7 @@ impl<F> BandsInFlight<F> {
             queued: Default::default(),
             ahead_ms: if ahead_ms.is_finite() { ahead_ms.max(0.0) } else { 0.0 },
             last_done_ms: None,
+            end_ms: None,
             busy: Default::default(),
         }
     }
@@ -159,23 +172,38 @@ impl<F> BandsInFlight<F> {
         self.queued.is_empty()
     }
 
-    /// Whether a band estimated at `next_ms` may be submitted now: anything to an idle GPU; a
-    /// frame's first band (`starts_frame`) only then; another while the estimated work queued
-    /// with it stays within the queue's.
-    pub fn admits(&self, starts_frame: bool, next_ms: Option<f64>) -> bool {
+    /// Whether a band estimated at `next_ms` may be submitted at `now_ms`: anything to an
+    /// idle GPU; a frame's first band (`starts_frame`) only then; another while the work still
+    /// to run with it stays within the queue's aim, and all work not seen done within
+    /// [`UNSEEN_AHEAD`] times that.
+    ///
+    /// The work still to run is a model's: the queued bands run back to back from when the GPU
+    /// was last idle, each for its estimate, and none ends after it was seen done. Counting
+    /// every band not yet *seen* done instead, the GPU ran dry wherever the news came later
+    /// than a tick: in headless Chromium on SwiftShader the frame loop took 1.3x a frame in one
+    /// submission with 3 budgets queued, 1.2x with 8 (docs/web.md).
+    pub fn admits(&self, now_ms: f64, starts_frame: bool, next_ms: Option<f64>) -> bool {
         if self.queued.is_empty() {
             return true;
         }
         if starts_frame || self.queued.len() >= MAX_IN_FLIGHT {
             return false;
         }
-        let queued: Option<f64> = self.queued.iter().map(|band| band.estimate_ms).sum();
-        matches!((queued, next_ms), (Some(q), Some(n)) if q + n <= self.ahead_ms)
+        let unseen: Option<f64> = self.queued.iter().map(|band| band.estimate_ms).sum();
+        let (Some(unseen), Some(end), Some(next)) = (unseen, self.end_ms, next_ms) else { return false };
+        let to_run = (end - now_ms).clamp(0.0, unseen);
+        to_run + next <= self.ahead_ms && unseen + next <= UNSEEN_AHEAD * self.ahead_ms
     }
 
     /// Records work submitted at `submitted_ms` behind `marker`: a band of `rows` rows
     /// estimated at `estimate_ms`, or other work (`rows` 0) that is waited for and not timed.
     pub fn push(&mut self, marker: F, submitted_ms: f64, rows: u32, estimate_ms: Option<f64>) {
+        let idle = self.queued.is_empty();
+        self.end_ms = match (estimate_ms, self.end_ms) {
+            (Some(estimate), _) if idle => Some(submitted_ms + estimate),
+            (Some(estimate), Some(end)) => Some(end.max(submitted_ms) + estimate),
+            _ => None,
+        };
         self.queued.push_back(InFlight { marker, submitted_ms, pending_at_ms: None, rows, estimate_ms });
     }
 
@@ -205,6 +233,9 @@ impl<F> BandsInFlight<F> {
             release(band.marker);
         }
         let Some(submitted_ms) = first else { return self.queued.is_empty() };
+        // The bands still queued ran after those seen done now.
+        let left: Option<f64> = self.queued.iter().map(|band| band.estimate_ms).sum();
+        self.end_ms = self.end_ms.zip(left).map(|(end, left)| end.min(now_ms + left));
         // Queued behind work seen done since (at a later poll than its submission): it ran
         // from that work's end.
         let behind = self.last_done_ms.filter(|&t| t > submitted_ms);
@@ -232,6 +263,7 @@ impl<F> BandsInFlight<F> {
     pub fn clear(&mut self, release: impl FnMut(F)) {
         self.queued.drain(..).map(|band| band.marker).for_each(release);
         self.last_done_ms = None;
+        self.end_ms = None;
         self.busy.clear();
     }
 

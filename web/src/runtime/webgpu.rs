@@ -494,7 +494,7 @@ impl GpuRuntime {
         }
         let mut step = Step::Waiting;
         let height = self.renderer.packed().scene.height;
-        while self.in_flight.admits(self.renderer.rows_left() == height, self.policy.band_ms()) {
+        while self.in_flight.admits(now_ms, self.renderer.rows_left() == height, self.policy.band_ms()) {
             let rows = self.policy.rows().min(self.renderer.rows_left());
             let frame_done = self.renderer.render_band(rows).map_err(|e| e.to_string())?;
             if frame_done {

@@ -68,7 +68,7 @@ impl Pacer {
         self.poll(renderer.gl(), now_ms);
         let mut step = Step::Waiting;
         let height = renderer.packed().scene.height;
-        while self.in_flight.admits(renderer.rows_left() == height, self.policy.band_ms()) {
+        while self.in_flight.admits(now_ms, renderer.rows_left() == height, self.policy.band_ms()) {
             let rows = self.policy.rows().min(renderer.rows_left());
             let frame_done = renderer.render_band(rows)?;
             then(renderer, frame_done);
