@@ -179,9 +179,10 @@ impl<F> BandsInFlight<F> {
     ///
     /// The work still to run is a model's: the queued bands run back to back from when the GPU
     /// was last idle, each for its estimate, and none ends after it was seen done. Counting
-    /// every band not yet *seen* done instead, the GPU ran dry wherever the news came later
-    /// than a tick: in headless Chromium on SwiftShader the frame loop took 1.3x a frame in one
-    /// submission with 3 budgets queued, 1.2x with 8 (docs/web.md).
+    /// every band not yet *seen* done instead, the queue held the news' delay less work than
+    /// its aim, and where the news came a few ticks late the GPU ran dry after every band
+    /// (simulated in the unit tests; in headless Chromium on SwiftShader the frame loop's
+    /// remaining cost was not this: docs/web.md, "Fewer, larger bands").
     pub fn admits(&self, now_ms: f64, starts_frame: bool, next_ms: Option<f64>) -> bool {
         if self.queued.is_empty() {
             return true;
