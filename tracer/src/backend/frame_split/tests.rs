@@ -146,26 +146,14 @@ fn run_queued(
     frames: usize,
 ) -> (Vec<f64>, Vec<u32>) {
     let mut policy = BandPolicy::new(height, Some(DEFAULT_BUDGET_MS));
-    run_queued_news(&mut policy, ahead_ms, ms_per_row, tick_ms, |end| end + lag_ms, frames)
+    let (frame_ends, rows, _) = run_queued_news(&mut policy, ahead_ms, ms_per_row, tick_ms, |end| end + lag_ms, frames);
+    (frame_ends, rows)
 }
 
 /// As [`run_queued`], sized by `policy`, the news of a band that ends at `t` arriving at
-/// `news(t)` (never before `t`, in the order the bands ran).
+/// `news(t)` (never before `t`, in the order the bands ran); also the most work the GPU had
+/// still to run after a submission (ms): what a restart then waits for before its first band.
 fn run_queued_news(
-    policy: &mut BandPolicy,
-    ahead_ms: f64,
-    ms_per_row: f64,
-    tick_ms: f64,
-    news: impl Fn(f64) -> f64,
-    frames: usize,
-) -> (Vec<f64>, Vec<u32>) {
-    let (frame_ends, rows_seen, _) = run_queued_deepest(policy, ahead_ms, ms_per_row, tick_ms, news, frames);
-    (frame_ends, rows_seen)
-}
-
-/// As [`run_queued_news`], also returning the most work the GPU had still to run after a
-/// submission (ms): what a restart then waits for before its first band.
-fn run_queued_deepest(
     policy: &mut BandPolicy,
     ahead_ms: f64,
     ms_per_row: f64,
@@ -236,7 +224,7 @@ fn bands_queued_keep_the_gpu_busy_when_news_comes_many_ticks_late() {
     let gpu = 3.7 * 480.0;
     for lag in [60.0, 100.0, 150.0] {
         let mut policy = BandPolicy::new(480, Some(DEFAULT_BUDGET_MS));
-        let (ends, rows, deepest) = run_queued_deepest(&mut policy, AHEAD, 3.7, 16.7, |end| end + lag, 8);
+        let (ends, rows, deepest) = run_queued_news(&mut policy, AHEAD, 3.7, 16.7, |end| end + lag, 8);
         let frame_ms = settled_frame_ms(&ends);
         // A frame's first band still waits for the news of the last frame's: one lag a frame.
         assert!(frame_ms <= 1.05 * gpu + lag, "lag {lag}: {frame_ms} ms a frame for {gpu}: {rows:?}");
@@ -489,7 +477,7 @@ fn news_that_comes_in_bursts_does_not_grow_bands_past_the_budget() {
             }
         };
         let mut p = BandPolicy::new(480, Some(DEFAULT_BUDGET_MS)).aligned_to(8);
-        let (ends, rows) = run_queued_news(&mut p, AHEAD, ms_per_row, 4.0, news, 3);
+        let (ends, rows, _) = run_queued_news(&mut p, AHEAD, ms_per_row, 4.0, news, 3);
         assert!(
             rows.iter().all(|&r| r as f64 * ms_per_row <= 1.5 * DEFAULT_BUDGET_MS),
             "news held {hold} ms every {period} ms: {rows:?}"
