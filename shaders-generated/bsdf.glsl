@@ -20,7 +20,7 @@ uniform uint scene_has_texture_transform;
 uniform uint scene_has_texcoord1;
 uniform uint scene_has_transmission;
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:130)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:131)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -28,7 +28,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:193)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:194)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -36,7 +36,7 @@ struct MetalRoughData {
     float specular;
 };
 
-// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:223)
+// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:224)
 struct GlassData {
     float transmission;
     float ior;
@@ -97,7 +97,7 @@ const uint NONE = 0xffffffffu;
 const uint WRAP_CLAMP = 1u;
 // scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:37)
 const uint WRAP_MIRROR = 2u;
-// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:219)
+// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:220)
 const uint GLASS_TEXELS = 2u;
 // texture_ref::TEXTURE_REF_TEXELS (lightport-tracer/src/kernel/texture_ref.rs:22)
 const uint TEXTURE_REF_TEXELS = 2u;
@@ -197,12 +197,12 @@ uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     return texelFetch(t, ivec2(int(column), int(row)), 0);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:139)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:202)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:203)
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
@@ -216,7 +216,7 @@ vec2 texcoord1(uint triangle, float u, float v) {
     return vec2(a.x, a.y) * (1.0 - u - v) + vec2(a.z, a.w) * u + vec2(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:183)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -733,7 +733,7 @@ BrdfSample bsdf_sample(Bsdf b, vec3 wo, inout uint rng) {
     }
 }
 
-// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:235)
+// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:236)
 GlassData fetch_glass(uint material) {
     vec4 a = lp_fetch_vec4(scene_materials, scene_transmission_first + material * GLASS_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, scene_transmission_first + material * GLASS_TEXELS + 1u);

@@ -21,7 +21,7 @@ struct SceneUniforms {
 @group(0) @binding(1) var<storage, read> lp_scene_vec4f: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> lp_scene_vec4u: array<vec4<u32>>;
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:130)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:131)
 struct MaterialData {
     base_color: vec3<f32>,
     base_texture: u32,
@@ -29,7 +29,7 @@ struct MaterialData {
     emissive_texture: u32,
 }
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:193)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:194)
 struct MetalRoughData {
     metallic: f32,
     roughness: f32,
@@ -37,7 +37,7 @@ struct MetalRoughData {
     specular: f32,
 }
 
-// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:223)
+// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:224)
 struct GlassData {
     transmission: f32,
     ior: f32,
@@ -98,7 +98,7 @@ const NONE: u32 = 0xffffffffu;
 const WRAP_CLAMP: u32 = 1u;
 // scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:37)
 const WRAP_MIRROR: u32 = 2u;
-// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:219)
+// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:220)
 const GLASS_TEXELS: u32 = 2u;
 // texture_ref::TEXTURE_REF_TEXELS (lightport-tracer/src/kernel/texture_ref.rs:22)
 const TEXTURE_REF_TEXELS: u32 = 2u;
@@ -166,12 +166,12 @@ fn lp_round(x: f32) -> f32 {
     return t;
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:139)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:202)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:203)
 fn fetch_metal_rough(index: u32) -> MetalRoughData {
     let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_metal_rough + index];
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
@@ -185,7 +185,7 @@ fn texcoord1(triangle: u32, u: f32, v: f32) -> vec2<f32> {
     return vec2<f32>(a.x, a.y) * (1.0 - u - v) + vec2<f32>(a.z, a.w) * u + vec2<f32>(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:183)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + base].w, lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].w);
@@ -702,7 +702,7 @@ fn bsdf_sample(b: Bsdf, wo: vec3<f32>, rng: ptr<function, u32>) -> BrdfSample {
     }
 }
 
-// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:235)
+// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:236)
 fn fetch_glass(material: u32) -> GlassData {
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.transmission_first + material * GLASS_TEXELS)];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.transmission_first + material * GLASS_TEXELS + 1u)];

@@ -31,7 +31,7 @@ uniform uint scene_has_alpha_mask;
 uniform uint scene_has_texture_transform;
 uniform uint scene_has_texcoord1;
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:119)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -41,7 +41,7 @@ struct TriangleData {
     bool masked;
 };
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:130)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:131)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -183,7 +183,7 @@ float luminance(vec3 c) {
     return dot(c, vec3(0.2126, 0.7152, 0.0722));
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:139)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
@@ -206,7 +206,7 @@ float light_pmf(uint index) {
     return lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS).z;
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:161)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:162)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
@@ -327,7 +327,7 @@ vec2 texcoord1(uint triangle, float u, float v) {
     return vec2(a.x, a.y) * (1.0 - u - v) + vec2(a.z, a.w) * u + vec2(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:183)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -403,9 +403,8 @@ vec2 sky_texel_coords(vec3 dir) {
     return vec2(min(floor(u_1 * w), w - 1.0), min(floor(v * h), h - 1.0));
 }
 
-// lights::sky_radiance (lightport-tracer/src/kernel/lights.rs:95)
-vec3 sky_radiance(vec3 dir) {
-    vec2 c = sky_texel_coords(dir);
+// lights::sky_texel_radiance (lightport-tracer/src/kernel/lights.rs:96)
+vec3 sky_texel_radiance(vec2 c) {
     uint i = lp_f32_to_u32(c.y) * scene_sky_width + lp_f32_to_u32(c.x);
     return lp_fetch_vec4(scene_sky, i).xyz * scene_sky_intensity;
 }
@@ -420,18 +419,26 @@ float sky_texel_pmf(uint col, uint row) {
     return (row_hi - row_lo) * (col_hi - col_lo);
 }
 
-// lights::sky_pdf (lightport-tracer/src/kernel/lights.rs:112)
-float sky_pdf(vec3 dir) {
-    vec2 c = sky_texel_coords(dir);
-    float pmf = sky_texel_pmf(lp_f32_to_u32(c.x), lp_f32_to_u32(c.y));
-    float sin_theta = sqrt(max(1.0 - dir.y * dir.y, 0.0));
-    return sin_theta <= 0.0 ? 0.0 : pmf * lp_u32_to_f32(scene_sky_width * scene_sky_height) / (2.0 * PI * PI * sin_theta);
+// lights::sky_texel_pdf (lightport-tracer/src/kernel/lights.rs:120)
+float sky_texel_pdf(float pmf, float sin_theta) {
+    return !(sin_theta > 0.0) ? 0.0 : pmf * lp_u32_to_f32(scene_sky_width * scene_sky_height) / (2.0 * PI * PI * sin_theta);
 }
 
-// lights::search_sky_row (lightport-tracer/src/kernel/lights.rs:124)
+// lights::sky_pdf (lightport-tracer/src/kernel/lights.rs:113)
+float sky_pdf(vec3 dir, vec2 c) {
+    float pmf = sky_texel_pmf(lp_f32_to_u32(c.x), lp_f32_to_u32(c.y));
+    return sky_texel_pdf(pmf, sqrt(max(1.0 - dir.y * dir.y, 0.0)));
+}
+
+// lights::search_sky_row (lightport-tracer/src/kernel/lights.rs:131)
 uint search_sky_row(float u) {
-    uint lo = 0u;
+    uint buckets = max(lp_f32_to_u32(lp_fetch_vec4(scene_sky_rows, 0u).z), 1u);
+    uint k = min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+    uint lo = index_of(lp_fetch_vec4(scene_sky_rows, k).y);
     uint hi = scene_sky_height - 1u;
+    if (k + 1u < buckets) {
+        hi = index_of(lp_fetch_vec4(scene_sky_rows, k + 1u).y);
+    }
     while (lo < hi) {
         uint mid = (lo + hi) / 2u;
         if (lp_fetch_vec4(scene_sky_rows, mid).x > u) {
@@ -443,11 +450,31 @@ uint search_sky_row(float u) {
     return lo;
 }
 
-// lights::search_sky_column (lightport-tracer/src/kernel/lights.rs:138)
+// lights::sky_column_guide (lightport-tracer/src/kernel/lights.rs:151)
+uint sky_column_guide(uint i) {
+    vec4 t = lp_fetch_vec4(scene_sky_rows, scene_sky_height + i / 4u);
+    uint c = i % 4u;
+    float g = t.x;
+    if (c == 1u) {
+        g = t.y;
+    } else if (c == 2u) {
+        g = t.z;
+    } else if (c == 3u) {
+        g = t.w;
+    }
+    return index_of(g);
+}
+
+// lights::search_sky_column (lightport-tracer/src/kernel/lights.rs:167)
 uint search_sky_column(uint row, float u) {
     uint base = row * scene_sky_width;
-    uint lo = 0u;
+    uint buckets = max(lp_f32_to_u32(lp_fetch_vec4(scene_sky_rows, 0u).w), 1u);
+    uint k = min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+    uint lo = sky_column_guide(row * buckets + k);
     uint hi = scene_sky_width - 1u;
+    if (k + 1u < buckets) {
+        hi = sky_column_guide(row * buckets + k + 1u);
+    }
     while (lo < hi) {
         uint mid = (lo + hi) / 2u;
         if (lp_fetch_vec4(scene_sky, base + mid).w > u) {
@@ -459,7 +486,7 @@ uint search_sky_column(uint row, float u) {
     return lo;
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:146)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:147)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -509,7 +536,7 @@ bool is_hole(uint triangle, uint material, float u, float v) {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// lights::sample_light (lightport-tracer/src/kernel/lights.rs:156)
+// lights::sample_light (lightport-tracer/src/kernel/lights.rs:190)
 LightSample sample_light(vec3 p, vec3 u) {
     LightSample none = LightSample(vec3(0.0, 1.0, 0.0), 0.0, vec3(0.0), 0.0, false);
     uint index = choose_light(u.x);
@@ -553,31 +580,32 @@ LightSample sample_light(vec3 p, vec3 u) {
         uint col = search_sky_column(row, u.z);
         uint base = row * scene_sky_width;
         float lo = col > 0u ? lp_fetch_vec4(scene_sky, base + col - 1u).w : 0.0;
-        float hi = lp_fetch_vec4(scene_sky, base + col).w;
+        vec4 texel_1 = lp_fetch_vec4(scene_sky, base + col);
+        float hi = texel_1.w;
         float fu = hi > lo ? clamp((u.z - lo) / (hi - lo), 0.0, 0.999999) : 0.5;
         float row_lo = row > 0u ? lp_fetch_vec4(scene_sky_rows, row - 1u).x : 0.0;
         float row_hi = lp_fetch_vec4(scene_sky_rows, row).x;
         float fv = row_hi > row_lo ? clamp((u.y - row_lo) / (row_hi - row_lo), 0.0, 0.999999) : 0.5;
         vec2 uv = vec2((lp_u32_to_f32(col) + fu) / lp_u32_to_f32(scene_sky_width), (lp_u32_to_f32(row) + fv) / lp_u32_to_f32(scene_sky_height));
         vec3 dir_1 = sky_direction(uv);
-        float pdf_1 = sky_pdf(dir_1) * pmf;
+        float pdf_1 = sky_texel_pdf((row_hi - row_lo) * (hi - lo), sin(uv.y * PI)) * pmf;
         if (!(pdf_1 > 0.0)) {
             return none;
         }
-        return LightSample(dir_1, MISS, sky_radiance(dir_1), pdf_1, false);
+        return LightSample(dir_1, MISS, texel_1.xyz * scene_sky_intensity, pdf_1, false);
     } else {
         return none;
     }
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:216)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:255)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
     return a2 + b2 > 0.0 ? a2 / (a2 + b2) : 0.0;
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:228)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:267)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

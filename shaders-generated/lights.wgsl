@@ -32,7 +32,7 @@ struct SceneUniforms {
 @group(0) @binding(1) var<storage, read> lp_scene_vec4f: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> lp_scene_vec4u: array<vec4<u32>>;
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:119)
 struct TriangleData {
     v0: vec3<f32>,
     v1: vec3<f32>,
@@ -42,7 +42,7 @@ struct TriangleData {
     masked: bool,
 }
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:130)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:131)
 struct MaterialData {
     base_color: vec3<f32>,
     base_texture: u32,
@@ -152,7 +152,7 @@ fn luminance(c: vec3<f32>) -> f32 {
     return dot(c, vec3<f32>(0.2126, 0.7152, 0.0722));
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:139)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
@@ -175,7 +175,7 @@ fn light_pmf(index: u32) -> f32 {
     return lp_scene_vec4f[scene.lp_start_lights + index * LIGHT_TEXELS].z;
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:161)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:162)
 fn fetch_material(index: u32) -> MaterialData {
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + index * MATERIAL_TEXELS];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (index * MATERIAL_TEXELS + 1u)];
@@ -296,7 +296,7 @@ fn texcoord1(triangle: u32, u: f32, v: f32) -> vec2<f32> {
     return vec2<f32>(a.x, a.y) * (1.0 - u - v) + vec2<f32>(a.z, a.w) * u + vec2<f32>(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:183)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + base].w, lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].w);
@@ -372,9 +372,8 @@ fn sky_texel_coords(dir: vec3<f32>) -> vec2<f32> {
     return vec2<f32>(min(floor(u_1 * w), w - 1.0), min(floor(v * h), h - 1.0));
 }
 
-// lights::sky_radiance (lightport-tracer/src/kernel/lights.rs:95)
-fn sky_radiance(dir: vec3<f32>) -> vec3<f32> {
-    let c: vec2<f32> = sky_texel_coords(dir);
+// lights::sky_texel_radiance (lightport-tracer/src/kernel/lights.rs:96)
+fn sky_texel_radiance(c: vec2<f32>) -> vec3<f32> {
     let i: u32 = lp_f32_to_u32(c.y) * scene.sky_width + lp_f32_to_u32(c.x);
     return lp_scene_vec4f[scene.lp_start_sky + i].xyz * scene.sky_intensity;
 }
@@ -389,18 +388,26 @@ fn sky_texel_pmf(col: u32, row: u32) -> f32 {
     return (row_hi - row_lo) * (col_hi - col_lo);
 }
 
-// lights::sky_pdf (lightport-tracer/src/kernel/lights.rs:112)
-fn sky_pdf(dir: vec3<f32>) -> f32 {
-    let c: vec2<f32> = sky_texel_coords(dir);
-    let pmf: f32 = sky_texel_pmf(lp_f32_to_u32(c.x), lp_f32_to_u32(c.y));
-    let sin_theta: f32 = sqrt(max(1.0 - dir.y * dir.y, 0.0));
-    return select(pmf * lp_u32_to_f32(scene.sky_width * scene.sky_height) / (2.0 * PI * PI * sin_theta), 0.0, sin_theta <= 0.0);
+// lights::sky_texel_pdf (lightport-tracer/src/kernel/lights.rs:120)
+fn sky_texel_pdf(pmf: f32, sin_theta: f32) -> f32 {
+    return select(pmf * lp_u32_to_f32(scene.sky_width * scene.sky_height) / (2.0 * PI * PI * sin_theta), 0.0, !(sin_theta > 0.0));
 }
 
-// lights::search_sky_row (lightport-tracer/src/kernel/lights.rs:124)
+// lights::sky_pdf (lightport-tracer/src/kernel/lights.rs:113)
+fn sky_pdf(dir: vec3<f32>, c: vec2<f32>) -> f32 {
+    let pmf: f32 = sky_texel_pmf(lp_f32_to_u32(c.x), lp_f32_to_u32(c.y));
+    return sky_texel_pdf(pmf, sqrt(max(1.0 - dir.y * dir.y, 0.0)));
+}
+
+// lights::search_sky_row (lightport-tracer/src/kernel/lights.rs:131)
 fn search_sky_row(u: f32) -> u32 {
-    var lo: u32 = 0u;
+    let buckets: u32 = max(lp_f32_to_u32(lp_scene_vec4f[scene.lp_start_sky_rows + 0u].z), 1u);
+    let k: u32 = min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+    var lo: u32 = index_of(lp_scene_vec4f[scene.lp_start_sky_rows + k].y);
     var hi: u32 = scene.sky_height - 1u;
+    if k + 1u < buckets {
+        hi = index_of(lp_scene_vec4f[scene.lp_start_sky_rows + (k + 1u)].y);
+    }
     while lo < hi {
         let mid: u32 = (lo + hi) / 2u;
         if lp_scene_vec4f[scene.lp_start_sky_rows + mid].x > u {
@@ -412,11 +419,31 @@ fn search_sky_row(u: f32) -> u32 {
     return lo;
 }
 
-// lights::search_sky_column (lightport-tracer/src/kernel/lights.rs:138)
+// lights::sky_column_guide (lightport-tracer/src/kernel/lights.rs:151)
+fn sky_column_guide(i: u32) -> u32 {
+    let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_sky_rows + (scene.sky_height + i / 4u)];
+    let c: u32 = i % 4u;
+    var g: f32 = t.x;
+    if c == 1u {
+        g = t.y;
+    } else if c == 2u {
+        g = t.z;
+    } else if c == 3u {
+        g = t.w;
+    }
+    return index_of(g);
+}
+
+// lights::search_sky_column (lightport-tracer/src/kernel/lights.rs:167)
 fn search_sky_column(row: u32, u: f32) -> u32 {
     let base: u32 = row * scene.sky_width;
-    var lo: u32 = 0u;
+    let buckets: u32 = max(lp_f32_to_u32(lp_scene_vec4f[scene.lp_start_sky_rows + 0u].w), 1u);
+    let k: u32 = min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+    var lo: u32 = sky_column_guide(row * buckets + k);
     var hi: u32 = scene.sky_width - 1u;
+    if k + 1u < buckets {
+        hi = sky_column_guide(row * buckets + k + 1u);
+    }
     while lo < hi {
         let mid: u32 = (lo + hi) / 2u;
         if lp_scene_vec4f[scene.lp_start_sky + (base + mid)].w > u {
@@ -428,7 +455,7 @@ fn search_sky_column(row: u32, u: f32) -> u32 {
     return lo;
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:146)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:147)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];
@@ -478,7 +505,7 @@ fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// lights::sample_light (lightport-tracer/src/kernel/lights.rs:156)
+// lights::sample_light (lightport-tracer/src/kernel/lights.rs:190)
 fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     let none: LightSample = LightSample(vec3<f32>(0.0, 1.0, 0.0), 0.0, vec3<f32>(0.0), 0.0, false);
     let index: u32 = choose_light(u.x);
@@ -522,31 +549,32 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         let col: u32 = search_sky_column(row, u.z);
         let base: u32 = row * scene.sky_width;
         let lo: f32 = select(0.0, lp_scene_vec4f[scene.lp_start_sky + (base + col - 1u)].w, col > 0u);
-        let hi: f32 = lp_scene_vec4f[scene.lp_start_sky + (base + col)].w;
+        let texel_1: vec4<f32> = lp_scene_vec4f[scene.lp_start_sky + (base + col)];
+        let hi: f32 = texel_1.w;
         let fu: f32 = select(0.5, clamp((u.z - lo) / (hi - lo), 0.0, 0.999999), hi > lo);
         let row_lo: f32 = select(0.0, lp_scene_vec4f[scene.lp_start_sky_rows + (row - 1u)].x, row > 0u);
         let row_hi: f32 = lp_scene_vec4f[scene.lp_start_sky_rows + row].x;
         let fv: f32 = select(0.5, clamp((u.y - row_lo) / (row_hi - row_lo), 0.0, 0.999999), row_hi > row_lo);
         let uv: vec2<f32> = vec2<f32>((lp_u32_to_f32(col) + fu) / lp_u32_to_f32(scene.sky_width), (lp_u32_to_f32(row) + fv) / lp_u32_to_f32(scene.sky_height));
         let dir_1: vec3<f32> = sky_direction(uv);
-        let pdf_1: f32 = sky_pdf(dir_1) * pmf;
+        let pdf_1: f32 = sky_texel_pdf((row_hi - row_lo) * (hi - lo), sin(uv.y * PI)) * pmf;
         if !(pdf_1 > 0.0) {
             return none;
         }
-        return LightSample(dir_1, MISS, sky_radiance(dir_1), pdf_1, false);
+        return LightSample(dir_1, MISS, texel_1.xyz * scene.sky_intensity, pdf_1, false);
     } else {
         return none;
     }
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:216)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:255)
 fn power_heuristic(a: f32, b: f32) -> f32 {
     let a2: f32 = a * a;
     let b2: f32 = b * b;
     return select(0.0, a2 / (a2 + b2), a2 + b2 > 0.0);
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:228)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:267)
 fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }

@@ -16,7 +16,7 @@ uniform uint scene_has_textures;
 uniform uint scene_has_texture_transform;
 uniform uint scene_has_texcoord1;
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:130)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:131)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -24,7 +24,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:193)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:194)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -304,12 +304,12 @@ vec3 metal_rough_albedo(Surface s, float nv) {
     return (vec3(1.0) - schlick_fresnel(s, c)) * s.diffuse + max(specular, vec3(0.0));
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:139)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:202)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:203)
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
@@ -323,7 +323,7 @@ vec2 texcoord1(uint triangle, float u, float v) {
     return vec2(a.x, a.y) * (1.0 - u - v) + vec2(a.z, a.w) * u + vec2(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:183)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);

@@ -58,7 +58,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:119)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -68,7 +68,7 @@ struct TriangleData {
     bool masked;
 };
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:130)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:131)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -76,7 +76,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:193)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:194)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -84,7 +84,7 @@ struct MetalRoughData {
     float specular;
 };
 
-// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:223)
+// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:224)
 struct GlassData {
     float transmission;
     float ior;
@@ -207,7 +207,7 @@ struct ShadowRay {
     vec3 contribution;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:369)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:372)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -252,13 +252,13 @@ const uint NONE = 0xffffffffu;
 const uint WRAP_CLAMP = 1u;
 // scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:37)
 const uint WRAP_MIRROR = 2u;
-// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:112)
+// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:113)
 const uint STRATEGY_BSDF = 0u;
-// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:113)
+// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:114)
 const uint STRATEGY_NEE = 1u;
-// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:114)
+// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:115)
 const uint STRATEGY_MIS = 2u;
-// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:219)
+// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:220)
 const uint GLASS_TEXELS = 2u;
 // instances::INSTANCE_TEXELS (lightport-tracer/src/kernel/instances.rs:25)
 const uint INSTANCE_TEXELS = 7u;
@@ -628,12 +628,12 @@ float cull_distance(float t) {
     return widened;
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:139)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:146)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:147)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -711,7 +711,7 @@ vec2 texcoord1(uint triangle, float u, float v) {
     return vec2(a.x, a.y) * (1.0 - u - v) + vec2(a.z, a.w) * u + vec2(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:183)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -1017,12 +1017,15 @@ float sky_texel_pmf(uint col, uint row) {
     return (row_hi - row_lo) * (col_hi - col_lo);
 }
 
-// lights::sky_pdf (lightport-tracer/src/kernel/lights.rs:112)
-float sky_pdf(vec3 dir) {
-    vec2 c = sky_texel_coords(dir);
+// lights::sky_texel_pdf (lightport-tracer/src/kernel/lights.rs:120)
+float sky_texel_pdf(float pmf, float sin_theta) {
+    return !(sin_theta > 0.0) ? 0.0 : pmf * lp_u32_to_f32(scene_sky_width * scene_sky_height) / (2.0 * PI * PI * sin_theta);
+}
+
+// lights::sky_pdf (lightport-tracer/src/kernel/lights.rs:113)
+float sky_pdf(vec3 dir, vec2 c) {
     float pmf = sky_texel_pmf(lp_f32_to_u32(c.x), lp_f32_to_u32(c.y));
-    float sin_theta = sqrt(max(1.0 - dir.y * dir.y, 0.0));
-    return sin_theta <= 0.0 ? 0.0 : pmf * lp_u32_to_f32(scene_sky_width * scene_sky_height) / (2.0 * PI * PI * sin_theta);
+    return sky_texel_pdf(pmf, sqrt(max(1.0 - dir.y * dir.y, 0.0)));
 }
 
 // lights::light_pmf (lightport-tracer/src/kernel/lights.rs:49)
@@ -1030,14 +1033,13 @@ float light_pmf(uint index) {
     return lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS).z;
 }
 
-// lights::sky_radiance (lightport-tracer/src/kernel/lights.rs:95)
-vec3 sky_radiance(vec3 dir) {
-    vec2 c = sky_texel_coords(dir);
+// lights::sky_texel_radiance (lightport-tracer/src/kernel/lights.rs:96)
+vec3 sky_texel_radiance(vec2 c) {
     uint i = lp_f32_to_u32(c.y) * scene_sky_width + lp_f32_to_u32(c.x);
     return lp_fetch_vec4(scene_sky, i).xyz * scene_sky_intensity;
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:216)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:255)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
@@ -1082,7 +1084,7 @@ vec3 normal_to_world(uint instance, vec3 n) {
     return r0.xyz * n.x + r1.xyz * n.y + r2.xyz * n.z;
 }
 
-// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:173)
+// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:174)
 vec3 shading_normal(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec3 n0 = lp_fetch_vec4(scene_shading, base).xyz;
@@ -1247,7 +1249,7 @@ SurfaceNormals surface_normals(TriangleData tri, Hit hit, vec3 dir) {
     return SurfaceNormals(ng, ns, flip, area2);
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:161)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:162)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
@@ -1269,14 +1271,14 @@ vec3 base_color_at(MaterialData material, uint triangle, float u, float v) {
     return base;
 }
 
-// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:235)
+// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:236)
 GlassData fetch_glass(uint material) {
     vec4 a = lp_fetch_vec4(scene_materials, scene_transmission_first + material * GLASS_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, scene_transmission_first + material * GLASS_TEXELS + 1u);
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:424)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:427)
 vec3 volume_transmittance(uint material, float t) {
     vec3 sigma = fetch_glass(material).sigma_a;
     return vec3(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -1297,7 +1299,7 @@ vec3 triangle_emission(uint triangle, uint material, float u, float v) {
     return e;
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:202)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:203)
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
@@ -1397,10 +1399,15 @@ vec2 uniform_sample_triangle(float u1, float u2) {
     return vec2(s * (1.0 - u2), s * u2);
 }
 
-// lights::search_sky_row (lightport-tracer/src/kernel/lights.rs:124)
+// lights::search_sky_row (lightport-tracer/src/kernel/lights.rs:131)
 uint search_sky_row(float u) {
-    uint lo = 0u;
+    uint buckets = max(lp_f32_to_u32(lp_fetch_vec4(scene_sky_rows, 0u).z), 1u);
+    uint k = min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+    uint lo = index_of(lp_fetch_vec4(scene_sky_rows, k).y);
     uint hi = scene_sky_height - 1u;
+    if (k + 1u < buckets) {
+        hi = index_of(lp_fetch_vec4(scene_sky_rows, k + 1u).y);
+    }
     while (lo < hi) {
         uint mid = (lo + hi) / 2u;
         if (lp_fetch_vec4(scene_sky_rows, mid).x > u) {
@@ -1412,11 +1419,31 @@ uint search_sky_row(float u) {
     return lo;
 }
 
-// lights::search_sky_column (lightport-tracer/src/kernel/lights.rs:138)
+// lights::sky_column_guide (lightport-tracer/src/kernel/lights.rs:151)
+uint sky_column_guide(uint i) {
+    vec4 t = lp_fetch_vec4(scene_sky_rows, scene_sky_height + i / 4u);
+    uint c = i % 4u;
+    float g = t.x;
+    if (c == 1u) {
+        g = t.y;
+    } else if (c == 2u) {
+        g = t.z;
+    } else if (c == 3u) {
+        g = t.w;
+    }
+    return index_of(g);
+}
+
+// lights::search_sky_column (lightport-tracer/src/kernel/lights.rs:167)
 uint search_sky_column(uint row, float u) {
     uint base = row * scene_sky_width;
-    uint lo = 0u;
+    uint buckets = max(lp_f32_to_u32(lp_fetch_vec4(scene_sky_rows, 0u).w), 1u);
+    uint k = min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+    uint lo = sky_column_guide(row * buckets + k);
     uint hi = scene_sky_width - 1u;
+    if (k + 1u < buckets) {
+        hi = sky_column_guide(row * buckets + k + 1u);
+    }
     while (lo < hi) {
         uint mid = (lo + hi) / 2u;
         if (lp_fetch_vec4(scene_sky, base + mid).w > u) {
@@ -1436,7 +1463,7 @@ vec3 sky_direction(vec2 uv) {
     return vec3(s * sin(phi), cos(theta), -s * cos(phi));
 }
 
-// lights::sample_light (lightport-tracer/src/kernel/lights.rs:156)
+// lights::sample_light (lightport-tracer/src/kernel/lights.rs:190)
 LightSample sample_light(vec3 p, vec3 u) {
     LightSample none = LightSample(vec3(0.0, 1.0, 0.0), 0.0, vec3(0.0), 0.0, false);
     uint index = choose_light(u.x);
@@ -1480,18 +1507,19 @@ LightSample sample_light(vec3 p, vec3 u) {
         uint col = search_sky_column(row, u.z);
         uint base = row * scene_sky_width;
         float lo = col > 0u ? lp_fetch_vec4(scene_sky, base + col - 1u).w : 0.0;
-        float hi = lp_fetch_vec4(scene_sky, base + col).w;
+        vec4 texel_1 = lp_fetch_vec4(scene_sky, base + col);
+        float hi = texel_1.w;
         float fu = hi > lo ? clamp((u.z - lo) / (hi - lo), 0.0, 0.999999) : 0.5;
         float row_lo = row > 0u ? lp_fetch_vec4(scene_sky_rows, row - 1u).x : 0.0;
         float row_hi = lp_fetch_vec4(scene_sky_rows, row).x;
         float fv = row_hi > row_lo ? clamp((u.y - row_lo) / (row_hi - row_lo), 0.0, 0.999999) : 0.5;
         vec2 uv = vec2((lp_u32_to_f32(col) + fu) / lp_u32_to_f32(scene_sky_width), (lp_u32_to_f32(row) + fv) / lp_u32_to_f32(scene_sky_height));
         vec3 dir_1 = sky_direction(uv);
-        float pdf_1 = sky_pdf(dir_1) * pmf;
+        float pdf_1 = sky_texel_pdf((row_hi - row_lo) * (hi - lo), sin(uv.y * PI)) * pmf;
         if (!(pdf_1 > 0.0)) {
             return none;
         }
-        return LightSample(dir_1, MISS, sky_radiance(dir_1), pdf_1, false);
+        return LightSample(dir_1, MISS, texel_1.xyz * scene_sky_intensity, pdf_1, false);
     } else {
         return none;
     }
@@ -1666,7 +1694,7 @@ vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:382)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:385)
 ShadowRay sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     ShadowRay shadow = no_shadow_ray();
@@ -1807,11 +1835,12 @@ bool shade_hit(inout PathState path, Hit hit, inout FirstHit first, inout Shadow
     uint depth = path.depth;
     float scatter_pdf = path.scatter_pdf;
     if (hit.triangle == NONE) {
+        vec2 texel_1 = sky_texel_coords(dir);
         float light_pdf = 0.0;
         if ((scene_strategy == STRATEGY_MIS) && scatter_pdf > 0.0) {
-            light_pdf = sky_pdf(dir) * light_pmf(scene_light_count - 1u);
+            light_pdf = sky_pdf(dir, texel_1) * light_pmf(scene_light_count - 1u);
         }
-        vec3 sky = path.throughput * sky_radiance(dir) * hit_emission_weight(scatter_pdf, light_pdf);
+        vec3 sky = path.throughput * sky_texel_radiance(texel_1) * hit_emission_weight(scatter_pdf, light_pdf);
         path.radiance += sky;
         return false;
     }
@@ -2013,7 +2042,7 @@ bool occluded(vec3 origin, vec3 dir, float t_max) {
     }
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:228)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:267)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

@@ -41,7 +41,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:119)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -51,7 +51,7 @@ struct TriangleData {
     bool masked;
 };
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:130)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:131)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -145,7 +145,7 @@ struct ShadowRay {
     vec3 contribution;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:369)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:372)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -178,11 +178,11 @@ const uint LIGHT_TEXELS = 3u;
 const uint LIGHT_TRIANGLE = 0u;
 // scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:34)
 const uint NONE = 0xffffffffu;
-// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:112)
+// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:113)
 const uint STRATEGY_BSDF = 0u;
-// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:113)
+// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:114)
 const uint STRATEGY_NEE = 1u;
-// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:114)
+// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:115)
 const uint STRATEGY_MIS = 2u;
 // traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:21)
 const uint STACK_SIZE = 11u;
@@ -466,12 +466,12 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
     return NodeHits(t, e);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:139)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:146)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:147)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -624,7 +624,7 @@ float light_pmf(uint index) {
     return lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS).z;
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:216)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:255)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
@@ -663,7 +663,7 @@ SurfaceNormals surface_normals(TriangleData tri, Hit hit, vec3 dir) {
     return SurfaceNormals(ng, ns, flip, area2);
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:161)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:162)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
@@ -742,7 +742,7 @@ vec2 uniform_sample_triangle(float u1, float u2) {
     return vec2(s * (1.0 - u2), s * u2);
 }
 
-// lights::sample_light (lightport-tracer/src/kernel/lights.rs:156)
+// lights::sample_light (lightport-tracer/src/kernel/lights.rs:190)
 LightSample sample_light(vec3 p, vec3 u) {
     LightSample none = LightSample(vec3(0.0, 1.0, 0.0), 0.0, vec3(0.0), 0.0, false);
     uint index = choose_light(u.x);
@@ -787,7 +787,7 @@ vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     return wi.z > 0.0 ? b.surface.diffuse * INV_PI : vec3(0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:382)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:385)
 ShadowRay sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     ShadowRay shadow = no_shadow_ray();
@@ -979,7 +979,7 @@ bool occluded(vec3 origin, vec3 dir, float t_max) {
     return any_hit(origin, dir, t_max);
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:228)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:267)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

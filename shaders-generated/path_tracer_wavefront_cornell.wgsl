@@ -78,7 +78,7 @@ struct TriangleHit {
     v: f32,
 }
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:119)
 struct TriangleData {
     v0: vec3<f32>,
     v1: vec3<f32>,
@@ -88,7 +88,7 @@ struct TriangleData {
     masked: bool,
 }
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:130)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:131)
 struct MaterialData {
     base_color: vec3<f32>,
     base_texture: u32,
@@ -182,7 +182,7 @@ struct ShadowRay {
     contribution: vec3<f32>,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:369)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:372)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -215,11 +215,11 @@ const LIGHT_TEXELS: u32 = 3u;
 const LIGHT_TRIANGLE: u32 = 0u;
 // scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:34)
 const NONE: u32 = 0xffffffffu;
-// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:112)
+// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:113)
 const STRATEGY_BSDF: u32 = 0u;
-// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:113)
+// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:114)
 const STRATEGY_NEE: u32 = 1u;
-// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:114)
+// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:115)
 const STRATEGY_MIS: u32 = 2u;
 // traverse::STACK_SIZE (lightport-tracer/src/kernel/traverse.rs:21)
 const STACK_SIZE: u32 = 11u;
@@ -592,12 +592,12 @@ fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u
     return NodeHits(t, e);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:139)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:146)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:147)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];
@@ -768,7 +768,7 @@ fn light_pmf(index: u32) -> f32 {
     return lp_scene_vec4f[scene.lp_start_lights + index * LIGHT_TEXELS].z;
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:216)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:255)
 fn power_heuristic(a: f32, b: f32) -> f32 {
     let a2: f32 = a * a;
     let b2: f32 = b * b;
@@ -807,7 +807,7 @@ fn surface_normals(tri: TriangleData, hit: Hit, dir: vec3<f32>) -> SurfaceNormal
     return SurfaceNormals(ng, ns, flip, area2);
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:161)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:162)
 fn fetch_material(index: u32) -> MaterialData {
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + index * MATERIAL_TEXELS];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (index * MATERIAL_TEXELS + 1u)];
@@ -886,7 +886,7 @@ fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
     return vec2<f32>(s * (1.0 - u2), s * u2);
 }
 
-// lights::sample_light (lightport-tracer/src/kernel/lights.rs:156)
+// lights::sample_light (lightport-tracer/src/kernel/lights.rs:190)
 fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     let none: LightSample = LightSample(vec3<f32>(0.0, 1.0, 0.0), 0.0, vec3<f32>(0.0), 0.0, false);
     let index: u32 = choose_light(u.x);
@@ -931,7 +931,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     return select(vec3<f32>(0.0), b.surface.diffuse * INV_PI, wi.z > 0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:382)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:385)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> ShadowRay {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var shadow: ShadowRay = no_shadow_ray();
@@ -1173,7 +1173,7 @@ fn connect(invocation: u32) {
     }
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:228)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:267)
 fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }

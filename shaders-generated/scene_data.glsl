@@ -12,7 +12,7 @@ uniform highp sampler2D scene_materials;
 uniform highp sampler2D scene_metal_rough;
 uniform uint scene_transmission_first;
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:119)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -22,7 +22,7 @@ struct TriangleData {
     bool masked;
 };
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:130)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:131)
 struct MaterialData {
     vec3 base_color;
     uint base_texture;
@@ -30,7 +30,7 @@ struct MaterialData {
     uint emissive_texture;
 };
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:193)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:194)
 struct MetalRoughData {
     float metallic;
     float roughness;
@@ -38,7 +38,7 @@ struct MetalRoughData {
     float specular;
 };
 
-// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:223)
+// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:224)
 struct GlassData {
     float transmission;
     float ior;
@@ -55,7 +55,7 @@ const uint SHADING_TEXELS = 4u;
 const uint MATERIAL_TEXELS = 2u;
 // scene_data::NONE (lightport-tracer/src/kernel/scene_data.rs:34)
 const uint NONE = 0xffffffffu;
-// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:219)
+// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:220)
 const uint GLASS_TEXELS = 2u;
 
 // Helpers that keep the DSL's (Rust's) semantics where the shading languages differ.
@@ -86,12 +86,12 @@ vec4 lp_fetch_vec4(highp sampler2D t, uint i) {
     return texelFetch(t, ivec2(int(column), int(row)), 0);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:139)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:146)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:147)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -100,14 +100,14 @@ TriangleData fetch_triangle(uint index) {
     return TriangleData(a.xyz, b.xyz, c.xyz, index_of(a.w), index_of(b.w), c.w > 0.0);
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:161)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:162)
 MaterialData fetch_material(uint index) {
     vec4 a = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, index * MATERIAL_TEXELS + 1u);
     return MaterialData(a.xyz, index_of(a.w), b.xyz, index_of(b.w));
 }
 
-// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:173)
+// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:174)
 vec3 shading_normal(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec3 n0 = lp_fetch_vec4(scene_shading, base).xyz;
@@ -116,7 +116,7 @@ vec3 shading_normal(uint index, float u, float v) {
     return n0 * (1.0 - u - v) + n1 * u + n2 * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:183)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);
@@ -126,13 +126,13 @@ vec2 texcoord(uint index, float u, float v) {
     return uv0 * (1.0 - u - v) + uv1 * u + uv2 * v;
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:202)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:203)
 MetalRoughData fetch_metal_rough(uint index) {
     vec4 t = lp_fetch_vec4(scene_metal_rough, index);
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
 }
 
-// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:235)
+// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:236)
 GlassData fetch_glass(uint material) {
     vec4 a = lp_fetch_vec4(scene_materials, scene_transmission_first + material * GLASS_TEXELS);
     vec4 b = lp_fetch_vec4(scene_materials, scene_transmission_first + material * GLASS_TEXELS + 1u);

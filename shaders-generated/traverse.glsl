@@ -32,7 +32,7 @@ struct TriangleHit {
     float v;
 };
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:119)
 struct TriangleData {
     vec3 v0;
     vec3 v1;
@@ -212,12 +212,12 @@ NodeHits intersect_node(uint node, vec3 origin, vec3 inv_dir, uvec3 near, float 
     return NodeHits(t, e);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:139)
 uint index_of(float x) {
     return x < 0.0 ? NONE : lp_f32_to_u32(x);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:146)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:147)
 TriangleData fetch_triangle(uint index) {
     uint base = index * TRIANGLE_TEXELS;
     vec4 a = lp_fetch_vec4(scene_triangles, base);
@@ -445,7 +445,7 @@ vec2 texcoord1(uint triangle, float u, float v) {
     return vec2(a.x, a.y) * (1.0 - u - v) + vec2(a.z, a.w) * u + vec2(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:183)
 vec2 texcoord(uint index, float u, float v) {
     uint base = index * SHADING_TEXELS;
     vec2 uv0 = vec2(lp_fetch_vec4(scene_shading, base).w, lp_fetch_vec4(scene_shading, base + 1u).w);

@@ -33,7 +33,7 @@ struct TriangleHit {
     v: f32,
 }
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:119)
 struct TriangleData {
     v0: vec3<f32>,
     v1: vec3<f32>,
@@ -295,12 +295,12 @@ fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u
     return NodeHits(t, e);
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:139)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:146)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:147)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];
@@ -569,7 +569,7 @@ fn texcoord1(triangle: u32, u: f32, v: f32) -> vec2<f32> {
     return vec2<f32>(a.x, a.y) * (1.0 - u - v) + vec2<f32>(a.z, a.w) * u + vec2<f32>(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:183)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + base].w, lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].w);

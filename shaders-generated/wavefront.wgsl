@@ -114,7 +114,7 @@ struct TriangleHit {
     v: f32,
 }
 
-// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:118)
+// scene_data::TriangleData (lightport-tracer/src/kernel/scene_data.rs:119)
 struct TriangleData {
     v0: vec3<f32>,
     v1: vec3<f32>,
@@ -124,7 +124,7 @@ struct TriangleData {
     masked: bool,
 }
 
-// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:130)
+// scene_data::MaterialData (lightport-tracer/src/kernel/scene_data.rs:131)
 struct MaterialData {
     base_color: vec3<f32>,
     base_texture: u32,
@@ -132,7 +132,7 @@ struct MaterialData {
     emissive_texture: u32,
 }
 
-// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:193)
+// scene_data::MetalRoughData (lightport-tracer/src/kernel/scene_data.rs:194)
 struct MetalRoughData {
     metallic: f32,
     roughness: f32,
@@ -140,7 +140,7 @@ struct MetalRoughData {
     specular: f32,
 }
 
-// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:223)
+// scene_data::GlassData (lightport-tracer/src/kernel/scene_data.rs:224)
 struct GlassData {
     transmission: f32,
     ior: f32,
@@ -263,7 +263,7 @@ struct ShadowRay {
     contribution: vec3<f32>,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:369)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:372)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -308,13 +308,13 @@ const NONE: u32 = 0xffffffffu;
 const WRAP_CLAMP: u32 = 1u;
 // scene_data::WRAP_MIRROR (lightport-tracer/src/kernel/scene_data.rs:37)
 const WRAP_MIRROR: u32 = 2u;
-// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:112)
+// scene_data::STRATEGY_BSDF (lightport-tracer/src/kernel/scene_data.rs:113)
 const STRATEGY_BSDF: u32 = 0u;
-// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:113)
+// scene_data::STRATEGY_NEE (lightport-tracer/src/kernel/scene_data.rs:114)
 const STRATEGY_NEE: u32 = 1u;
-// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:114)
+// scene_data::STRATEGY_MIS (lightport-tracer/src/kernel/scene_data.rs:115)
 const STRATEGY_MIS: u32 = 2u;
-// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:219)
+// scene_data::GLASS_TEXELS (lightport-tracer/src/kernel/scene_data.rs:220)
 const GLASS_TEXELS: u32 = 2u;
 // instances::INSTANCE_TEXELS (lightport-tracer/src/kernel/instances.rs:25)
 const INSTANCE_TEXELS: u32 = 7u;
@@ -775,12 +775,12 @@ fn cull_distance(t: f32) -> f32 {
     return widened;
 }
 
-// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:138)
+// scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:139)
 fn index_of(x: f32) -> u32 {
     return select(lp_f32_to_u32(x), NONE, x < 0.0);
 }
 
-// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:146)
+// scene_data::fetch_triangle (lightport-tracer/src/kernel/scene_data.rs:147)
 fn fetch_triangle(index: u32) -> TriangleData {
     let base: u32 = index * TRIANGLE_TEXELS;
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_triangles + base];
@@ -860,7 +860,7 @@ fn texcoord1(triangle: u32, u: f32, v: f32) -> vec2<f32> {
     return vec2<f32>(a.x, a.y) * (1.0 - u - v) + vec2<f32>(a.z, a.w) * u + vec2<f32>(b.x, b.y) * v;
 }
 
-// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:182)
+// scene_data::texcoord (lightport-tracer/src/kernel/scene_data.rs:183)
 fn texcoord(index: u32, u: f32, v: f32) -> vec2<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let uv0: vec2<f32> = vec2<f32>(lp_scene_vec4f[scene.lp_start_shading + base].w, lp_scene_vec4f[scene.lp_start_shading + (base + 1u)].w);
@@ -1538,12 +1538,15 @@ fn sky_texel_pmf(col: u32, row: u32) -> f32 {
     return (row_hi - row_lo) * (col_hi - col_lo);
 }
 
-// lights::sky_pdf (lightport-tracer/src/kernel/lights.rs:112)
-fn sky_pdf(dir: vec3<f32>) -> f32 {
-    let c: vec2<f32> = sky_texel_coords(dir);
+// lights::sky_texel_pdf (lightport-tracer/src/kernel/lights.rs:120)
+fn sky_texel_pdf(pmf: f32, sin_theta: f32) -> f32 {
+    return select(pmf * lp_u32_to_f32(scene.sky_width * scene.sky_height) / (2.0 * PI * PI * sin_theta), 0.0, !(sin_theta > 0.0));
+}
+
+// lights::sky_pdf (lightport-tracer/src/kernel/lights.rs:113)
+fn sky_pdf(dir: vec3<f32>, c: vec2<f32>) -> f32 {
     let pmf: f32 = sky_texel_pmf(lp_f32_to_u32(c.x), lp_f32_to_u32(c.y));
-    let sin_theta: f32 = sqrt(max(1.0 - dir.y * dir.y, 0.0));
-    return select(pmf * lp_u32_to_f32(scene.sky_width * scene.sky_height) / (2.0 * PI * PI * sin_theta), 0.0, sin_theta <= 0.0);
+    return sky_texel_pdf(pmf, sqrt(max(1.0 - dir.y * dir.y, 0.0)));
 }
 
 // lights::light_pmf (lightport-tracer/src/kernel/lights.rs:49)
@@ -1551,14 +1554,13 @@ fn light_pmf(index: u32) -> f32 {
     return lp_scene_vec4f[scene.lp_start_lights + index * LIGHT_TEXELS].z;
 }
 
-// lights::sky_radiance (lightport-tracer/src/kernel/lights.rs:95)
-fn sky_radiance(dir: vec3<f32>) -> vec3<f32> {
-    let c: vec2<f32> = sky_texel_coords(dir);
+// lights::sky_texel_radiance (lightport-tracer/src/kernel/lights.rs:96)
+fn sky_texel_radiance(c: vec2<f32>) -> vec3<f32> {
     let i: u32 = lp_f32_to_u32(c.y) * scene.sky_width + lp_f32_to_u32(c.x);
     return lp_scene_vec4f[scene.lp_start_sky + i].xyz * scene.sky_intensity;
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:216)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:255)
 fn power_heuristic(a: f32, b: f32) -> f32 {
     let a2: f32 = a * a;
     let b2: f32 = b * b;
@@ -1611,7 +1613,7 @@ fn normal_to_world(instance: u32, n: vec3<f32>) -> vec3<f32> {
     }
 }
 
-// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:173)
+// scene_data::shading_normal (lightport-tracer/src/kernel/scene_data.rs:174)
 fn shading_normal(index: u32, u: f32, v: f32) -> vec3<f32> {
     let base: u32 = index * SHADING_TEXELS;
     let n0: vec3<f32> = lp_scene_vec4f[scene.lp_start_shading + base].xyz;
@@ -1784,7 +1786,7 @@ fn surface_normals(tri: TriangleData, hit: Hit, dir: vec3<f32>) -> SurfaceNormal
     return SurfaceNormals(ng, ns, flip, area2);
 }
 
-// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:161)
+// scene_data::fetch_material (lightport-tracer/src/kernel/scene_data.rs:162)
 fn fetch_material(index: u32) -> MaterialData {
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + index * MATERIAL_TEXELS];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (index * MATERIAL_TEXELS + 1u)];
@@ -1806,14 +1808,14 @@ fn base_color_at(material: MaterialData, triangle: u32, u: f32, v: f32) -> vec3<
     return base;
 }
 
-// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:235)
+// scene_data::fetch_glass (lightport-tracer/src/kernel/scene_data.rs:236)
 fn fetch_glass(material: u32) -> GlassData {
     let a: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.transmission_first + material * GLASS_TEXELS)];
     let b: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.transmission_first + material * GLASS_TEXELS + 1u)];
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:424)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:427)
 fn volume_transmittance(material: u32, t: f32) -> vec3<f32> {
     let sigma: vec3<f32> = fetch_glass(material).sigma_a;
     return vec3<f32>(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -1834,7 +1836,7 @@ fn triangle_emission(triangle: u32, material: u32, u: f32, v: f32) -> vec3<f32> 
     return e;
 }
 
-// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:202)
+// scene_data::fetch_metal_rough (lightport-tracer/src/kernel/scene_data.rs:203)
 fn fetch_metal_rough(index: u32) -> MetalRoughData {
     let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_metal_rough + index];
     return MetalRoughData(t.x, t.y, index_of(t.z), t.w);
@@ -1972,10 +1974,15 @@ fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
     return vec2<f32>(s * (1.0 - u2), s * u2);
 }
 
-// lights::search_sky_row (lightport-tracer/src/kernel/lights.rs:124)
+// lights::search_sky_row (lightport-tracer/src/kernel/lights.rs:131)
 fn search_sky_row(u: f32) -> u32 {
-    var lo: u32 = 0u;
+    let buckets: u32 = max(lp_f32_to_u32(lp_scene_vec4f[scene.lp_start_sky_rows + 0u].z), 1u);
+    let k: u32 = min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+    var lo: u32 = index_of(lp_scene_vec4f[scene.lp_start_sky_rows + k].y);
     var hi: u32 = scene.sky_height - 1u;
+    if k + 1u < buckets {
+        hi = index_of(lp_scene_vec4f[scene.lp_start_sky_rows + (k + 1u)].y);
+    }
     while lo < hi {
         let mid: u32 = (lo + hi) / 2u;
         if lp_scene_vec4f[scene.lp_start_sky_rows + mid].x > u {
@@ -1987,11 +1994,31 @@ fn search_sky_row(u: f32) -> u32 {
     return lo;
 }
 
-// lights::search_sky_column (lightport-tracer/src/kernel/lights.rs:138)
+// lights::sky_column_guide (lightport-tracer/src/kernel/lights.rs:151)
+fn sky_column_guide(i: u32) -> u32 {
+    let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_sky_rows + (scene.sky_height + i / 4u)];
+    let c: u32 = i % 4u;
+    var g: f32 = t.x;
+    if c == 1u {
+        g = t.y;
+    } else if c == 2u {
+        g = t.z;
+    } else if c == 3u {
+        g = t.w;
+    }
+    return index_of(g);
+}
+
+// lights::search_sky_column (lightport-tracer/src/kernel/lights.rs:167)
 fn search_sky_column(row: u32, u: f32) -> u32 {
     let base: u32 = row * scene.sky_width;
-    var lo: u32 = 0u;
+    let buckets: u32 = max(lp_f32_to_u32(lp_scene_vec4f[scene.lp_start_sky_rows + 0u].w), 1u);
+    let k: u32 = min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+    var lo: u32 = sky_column_guide(row * buckets + k);
     var hi: u32 = scene.sky_width - 1u;
+    if k + 1u < buckets {
+        hi = sky_column_guide(row * buckets + k + 1u);
+    }
     while lo < hi {
         let mid: u32 = (lo + hi) / 2u;
         if lp_scene_vec4f[scene.lp_start_sky + (base + mid)].w > u {
@@ -2011,7 +2038,7 @@ fn sky_direction(uv: vec2<f32>) -> vec3<f32> {
     return vec3<f32>(s * sin(phi), cos(theta), -s * cos(phi));
 }
 
-// lights::sample_light (lightport-tracer/src/kernel/lights.rs:156)
+// lights::sample_light (lightport-tracer/src/kernel/lights.rs:190)
 fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     let none: LightSample = LightSample(vec3<f32>(0.0, 1.0, 0.0), 0.0, vec3<f32>(0.0), 0.0, false);
     let index: u32 = choose_light(u.x);
@@ -2055,18 +2082,19 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         let col: u32 = search_sky_column(row, u.z);
         let base: u32 = row * scene.sky_width;
         let lo: f32 = select(0.0, lp_scene_vec4f[scene.lp_start_sky + (base + col - 1u)].w, col > 0u);
-        let hi: f32 = lp_scene_vec4f[scene.lp_start_sky + (base + col)].w;
+        let texel_1: vec4<f32> = lp_scene_vec4f[scene.lp_start_sky + (base + col)];
+        let hi: f32 = texel_1.w;
         let fu: f32 = select(0.5, clamp((u.z - lo) / (hi - lo), 0.0, 0.999999), hi > lo);
         let row_lo: f32 = select(0.0, lp_scene_vec4f[scene.lp_start_sky_rows + (row - 1u)].x, row > 0u);
         let row_hi: f32 = lp_scene_vec4f[scene.lp_start_sky_rows + row].x;
         let fv: f32 = select(0.5, clamp((u.y - row_lo) / (row_hi - row_lo), 0.0, 0.999999), row_hi > row_lo);
         let uv: vec2<f32> = vec2<f32>((lp_u32_to_f32(col) + fu) / lp_u32_to_f32(scene.sky_width), (lp_u32_to_f32(row) + fv) / lp_u32_to_f32(scene.sky_height));
         let dir_1: vec3<f32> = sky_direction(uv);
-        let pdf_1: f32 = sky_pdf(dir_1) * pmf;
+        let pdf_1: f32 = sky_texel_pdf((row_hi - row_lo) * (hi - lo), sin(uv.y * PI)) * pmf;
         if !(pdf_1 > 0.0) {
             return none;
         }
-        return LightSample(dir_1, MISS, sky_radiance(dir_1), pdf_1, false);
+        return LightSample(dir_1, MISS, texel_1.xyz * scene.sky_intensity, pdf_1, false);
     } else {
         return none;
     }
@@ -2241,7 +2269,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:382)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:385)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> ShadowRay {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var shadow: ShadowRay = no_shadow_ray();
@@ -2389,11 +2417,12 @@ fn shade_hit(path: ptr<function, PathState>, hit: Hit, first: ptr<function, Firs
     }
     if hit.triangle == NONE {
         if scene.has_sky != 0u {
+            let texel_1: vec2<f32> = sky_texel_coords(dir);
             var light_pdf: f32 = 0.0;
             if (scene.strategy == STRATEGY_MIS) && scatter_pdf > 0.0 {
-                light_pdf = sky_pdf(dir) * light_pmf(scene.light_count - 1u);
+                light_pdf = sky_pdf(dir, texel_1) * light_pmf(scene.light_count - 1u);
             }
-            let sky: vec3<f32> = (*path).throughput * sky_radiance(dir) * hit_emission_weight(scatter_pdf, light_pdf);
+            let sky: vec3<f32> = (*path).throughput * sky_texel_radiance(texel_1) * hit_emission_weight(scatter_pdf, light_pdf);
             (*path).radiance += sky;
             if (scene.has_denoise_guide != 0u) && (depth == 0u) {
                 (*first).emission = sky;
@@ -2953,7 +2982,7 @@ fn connect(invocation: u32) {
     }
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:228)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:267)
 fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }

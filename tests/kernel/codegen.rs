@@ -396,7 +396,8 @@ fn specialisation_removes_unused_features_code_and_data() {
     let cornell = Features { emissive_triangles: true, ..Default::default() };
     let small = tracer::kernel::path_tracer_shader(&cornell, Target::GlslEs300).unwrap().source;
     assert!(small.len() < all.len() * 9 / 10, "{} vs {} bytes", small.len(), all.len());
-    for gone in ["scene_sky", "sky_radiance", "sample_texture", "scene_texture_texels", "scene_shading", "LIGHT_POINT"]
+    for gone in
+        ["scene_sky", "sky_texel_radiance", "sample_texture", "scene_texture_texels", "scene_shading", "LIGHT_POINT"]
     {
         assert!(all.contains(gone), "the full kernel has {gone}");
         assert!(!small.contains(gone), "a scene without it must not carry {gone}");

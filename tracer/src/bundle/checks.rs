@@ -4,7 +4,7 @@
 use super::{bounds, BundleError, MAX_DEPTH};
 use crate::kernel::features::Features;
 use crate::kernel::scene_data::{Scene, LIGHT_TEXELS, TRIANGLE_TEXELS};
-use crate::pack::Packed;
+use crate::pack::{sky, Packed};
 
 /// Cross-field checks: what the format alone cannot tell, and what would make a renderer
 /// misbehave (an image size it cannot allocate, counts that disagree with the arrays).
@@ -51,19 +51,34 @@ pub(super) fn check_consistency(p: &Packed) -> Result<(), BundleError> {
         }
     }
     check_material_sections(s, f)?;
-    if f.sky
-        && (s.sky.len() as u64 != s.sky_width as u64 * s.sky_height as u64 || s.sky_rows.len() != s.sky_height as usize)
-    {
-        return fail(format!(
-            "sky {}x{} with {} texels and {} rows",
-            s.sky_width,
-            s.sky_height,
-            s.sky.len(),
-            s.sky_rows.len()
-        ));
+    if f.sky {
+        check_sky(s)?;
     }
     bounds::check_indices(p)?;
     check_texture_images(p)
+}
+
+/// The sky's texels and rows are sized for its width and height, and the rows' guide tables
+/// (`pack::sky`) are those of its CDFs: a guide that disagrees would have the kernel's search
+/// return another texel than the CDFs say (never one out of range: it reads within the rows).
+fn check_sky(s: &Scene) -> Result<(), BundleError> {
+    let (w, h) = (s.sky_width as usize, s.sky_height as usize);
+    if s.sky.len() as u64 != s.sky_width as u64 * s.sky_height as u64 || s.sky_rows.len() != sky::rows_len(w, h) {
+        return Err(BundleError::Inconsistent(format!(
+            "sky {}x{} with {} texels and {} rows (the marginal CDF and guide tables need {})",
+            s.sky_width,
+            s.sky_height,
+            s.sky.len(),
+            s.sky_rows.len(),
+            sky::rows_len(w, h)
+        )));
+    }
+    let rows = s.sky_rows.as_slice();
+    let expected = sky::rows_with_guides(s.sky.as_slice(), &rows[..h], w, h);
+    if expected.iter().zip(rows).any(|(a, b)| a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits)) {
+        return Err(BundleError::Inconsistent("the sky's guide tables do not match its CDFs".to_string()));
+    }
+    Ok(())
 }
 
 /// The image size and the uniforms the kernel takes as they are.

@@ -15,7 +15,7 @@ pub mod integrator {
     use crate::kernel::intersect::MISS;
     use crate::kernel::lights::{
         area_pdf_to_solid_angle, finite_or_zero, light_pmf, luminance, power_heuristic, sample_light, sky_pdf,
-        sky_radiance, triangle_emission,
+        sky_texel_coords, sky_texel_radiance, triangle_emission,
     };
     use crate::kernel::metal_rough::metal_rough_albedo;
     use crate::kernel::normal_map::normal_mapped;
@@ -258,12 +258,15 @@ pub mod integrator {
         }
         if hit.triangle == NONE {
             if scene.has_sky != 0 {
+                // The texel is looked up once, for its pdf and its radiance.
+                let texel = sky_texel_coords(scene, dir);
                 let mut light_pdf = 0.0;
                 if scene.strategy == STRATEGY_MIS && scatter_pdf > 0.0 {
-                    light_pdf = sky_pdf(scene, dir) * light_pmf(scene, scene.light_count - 1);
+                    light_pdf = sky_pdf(scene, dir, texel) * light_pmf(scene, scene.light_count - 1);
                 }
-                let sky =
-                    path.throughput * sky_radiance(scene, dir) * hit_emission_weight(scene, scatter_pdf, light_pdf);
+                let sky = path.throughput
+                    * sky_texel_radiance(scene, texel)
+                    * hit_emission_weight(scene, scatter_pdf, light_pdf);
                 path.radiance += sky;
                 if scene.has_denoise_guide != 0 && depth == 0 {
                     // The sky the camera sees is its emission: not noise, kept out of the filter.

@@ -53,7 +53,8 @@ pub mod scene_data {
         pub texture_texels: Texels<UVec4>,
         /// Per texture (or reference: `kernel::texture_ref`): `[first texel, width, height, wrap_s | wrap_t << 8]`.
         pub texture_info: Texels<UVec4>,
-        /// Equirectangular sky: `[radiance, conditional CDF within the row]`; `sky_rows`: `[marginal CDF, 0, 0, 0]`.
+        /// Equirectangular sky: `[radiance, conditional CDF within the row]`; `sky_rows`: `[marginal CDF,
+        /// row guide, ...]` per row, then the column guides (the layout: `tracer::pack::sky`).
         pub sky: Texels<Vec4>,
         pub sky_rows: Texels<Vec4>,
         /// Per material, `[metallic, roughness, metal-roughness texture or -1, specular (1) or Lambert (0)]`.

@@ -26,7 +26,7 @@ mod moving;
 pub use moving::{MovingScene, PoseError};
 mod posing;
 pub use posing::{Posing, REFIT_BOUND, REFIT_MIN_TRIANGLES};
-mod sky;
+pub(crate) mod sky;
 #[cfg(test)]
 mod tests;
 mod texture_refs;
