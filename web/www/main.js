@@ -30,13 +30,13 @@
 //   maxTextureSize=N, maxStorageBuffers=N  pretend the device allows at most N (WebGL2's texture
 //                     size; WebGPU's storage buffers per shader stage).
 
-import init, { Viewer, heapBytes } from './pkg/lightport_web.js';
+import init, { Viewer } from './pkg/lightport_web.js';
 import { BundleCache, DEFAULT_BUDGET_BYTES } from './cache.js';
 import { movingText, setUpAnimationControls, showAnimation } from './animation.js';
 import { setUpCameraInput } from './camera_input.js';
-import { compileProgram } from './compile.js';
 import { FirstFrame } from './first_frame.js';
 import { measureSchedules } from './schedule_measure.js';
+import { createTestHook } from './test_hook.js';
 import { apiReadout, formatBytes, formatRate, setIfChanged, setText } from './readouts.js';
 import { WebGpuRecovery } from './webgpu_recovery.js';
 
@@ -68,147 +68,22 @@ const fixedSize = /^(\d+)x(\d+)$/.exec(params.get('size') || '');
 // Whether bundles are loaded with their kernel compiled while they are decoded (`prepare=0`: not).
 const prepareBundles = params.get('prepare') !== '0';
 
-// The test hook: what the browser tests read and drive.
-const hook = {
-  ready: false, // wasm loaded, first scene shown (or failed: see `error`)
-  frames: 0, // frames rendered by this page, all scenes together
-  error: null, // the last error shown to the user
-  warnings: null, // the last loaded scene's warnings shown (served: scenes.json's; dropped: the loader's)
-  firstFrameMs: null, // performance.now() at the first frame drawn (from navigation start)
-  // What the time to the first frame went on: performance.now() once the wasm module is
-  // ready (wasm), the WebGPU device is (device), scenes.json is read (scenes), the first bundle
-  // is fetched (fetched) and installed (installed: decoded, uploaded, kernel compile started).
-  startup: {},
-  // Where the time to the last loaded scene's first finished frame went, once it is done
-  // (the read-out "first frame"): { api, scene, totalMs (from navigation start for the page's
-  // first scene, else from the load's start), downloadMs (the bundle's fetch, or its read from
-  // the cache), decodeMs (bundle decode in wasm), uploadMs (scene data to GPU textures or
-  // buffers, until the driver has it), compileMs (shader generation, compile and link, or
-  // pipeline creation until the device's verdict), gpuMs (the first frame: its first
-  // submission, or the compile's end if later, until it is finished on the GPU), otherMs (the
-  // rest: page and wasm start, device request, scene list, waits between steps) }.
-  firstFrame: null,
-  // The last loaded scene's first image on screen, once it is: { preview (whether it was one),
-  // scene, width, height (its size), totalMs (as firstFrame's), gpuMs }; and the page's first
-  // image on screen (performance.now(), as firstFrameMs).
-  firstImage: null,
-  firstImageMs: null,
-  // Per preview shown by this page: { at (performance.now() at its submission), width, height }.
-  previews: [],
-  bands: 0, // bands submitted by the frame loop
-  // What the read-outs took in the last 64 animation frames (ms). They run every frame, so
-  // anything costly there stalls the frame loop: a checksum of every texel in sceneInfo() once
-  // took ~185 ms a frame on LittlestTokyo, and its bands fell to one row (docs/web.md).
-  readoutMs: [],
-  // Per camera input that restarted the accumulation, once the restarted accumulation's first
-  // image (its preview on a slow device, else its first band) is done on the GPU: { inputAt
-  // (the event's timeStamp), handledAt, submittedAt (that image's submission), doneAt (seen
-  // done) }, performance.now() times.
-  restarts: [],
-  bundleSources: [], // per loaded bundle: { name, fromCache, bytes }
-  deviceRecoveries: 0, // WebGPU devices recreated after a loss
-  // Runs auto's measurement of the schedules now if it is due (e.g. on a paused page after a
-  // frame) and resolves to sceneInfo().scheduleChoice once it is over.
-  measureSchedule: () => measureSchedule(),
-  // Destroys the WebGPU device (GPUDevice.destroy()), as a GPU reset loses it.
-  loseWebGpu: () => viewer.loseWebGpu(),
-  get bytesFetched() { return cache.bytesFetched; },
-  spp: () => (viewer ? viewer.spp() : 0),
-  info: () => (viewer ? viewer.sceneInfo() : null),
-  // Viewer.textureChecksum: reads every texel, so it is not in info().
-  textureChecksum: () => (viewer ? viewer.textureChecksum() : null),
-  cacheUsage: () => cache.usage(),
-  // The WebAssembly module's linear memory in bytes: it only ever grows, so growth after a
-  // warm-up is memory the page kept (a pose's arrays not freed, say).
-  wasmMemoryBytes: () => (wasm ? wasm.memory.buffer.byteLength : 0),
-  // Bytes the module has allocated and not freed (web/src/heap.rs): a leak shows here at once.
-  heapBytes: () => (wasm ? heapBytes() : 0),
-  pause() { paused = true; },
-  // Renders the pending preview now, as the frame loop's first step does, and waits for the
-  // GPU; resolves to sceneInfo().preview ({ state, showing, width, height, ... }).
-  async renderPreview() {
-    const at = performance.now();
-    if (viewer.renderPreview()) previewShown(at);
-    await viewer.sync();
-    return viewer.sceneInfo().preview;
-  },
-  resume() { paused = false; },
-  // Renders `n` frames now and waits for the GPU; resolves to milliseconds per frame. (A
-  // wavefront frame is done once its counters, read after each submission, say so.)
-  renderFrames: (n) => timeFrames(n),
-  // `renderFrames` with each frame's rows submitted in bands of `rows` back to back (a band's
-  // cost beyond its rows: tests/web/bench.mjs --band-rows).
-  renderFramesInBands: (n, rows) => timeFrames(n, rows),
-  // Resolves to { width, height, spp, data: number[] (rgba per pixel, rows from the top; rgb
-  // sum, a count) }.
-  async readAccumulation() {
-    const info = viewer.sceneInfo();
-    const spp = viewer.spp();
-    const data = Array.from(await viewer.readAccumulation());
-    return { width: info.width, height: info.height, spp, data };
-  },
-  loadScene: (name) => loadServedScene(name),
-  loadBundleUrl: (url) => loadBundleUrl(url),
-  // Compiles and links `vertex` + `fragment` (GLSL ES 3.00) on a WebGL2 context of its own
-  // and returns { ms, ok, log }: milliseconds from the first compile call until
-  // getProgramParameter(LINK_STATUS) returns, which waits for the link whether or not the
-  // browser compiles in parallel (KHR_parallel_shader_compile is never queried). The program
-  // is deleted. A unique comment is appended to both sources, so that no cache keyed by the
-  // source text (the browser's or the driver's) answers instead of a compile. For
-  // examples/feature_sizes.rs (through tests/web/run.mjs compile).
-  compileProgram: (vertex, fragment) => compileProgram(vertex, fragment),
-  setStrategy: (name) => guarded(() => { viewer.setStrategy(name); $('strategy').value = name; }),
-  setToneMap: (name) => guarded(() => { viewer.setToneMap(name); $('tonemap').value = name; }),
-  setExposure: (stops) => guarded(() => {
-    viewer.setExposure(stops);
-    $('exposure').value = stops;
-    $('exposure-value').textContent = `${stops} EV`;
-  }),
-  orbit: (yaw, pitch) => guarded(() => viewer.orbit(yaw, pitch)),
-  // Longest path in segments (1..=64; the bundle's depth until set). Restarts the accumulation.
-  setMaxDepth: (depth) => guarded(() => viewer.setMaxDepth(depth)),
-  // The denoiser on or off (the Denoise control); `denoise()`: sceneInfo().denoise, what it
-  // shows ({ enabled, shownSpp, pendingSpp, filterMs, guideMs, error, readout }).
-  setDenoise: (on) => guarded(() => { viewer.setDenoise(on); $('denoise').checked = on; }),
-  denoise: () => (viewer ? viewer.sceneInfo().denoise : null),
-  // Whether the page's rule denoises by itself (default true); false: only denoiseNow does.
-  setDenoiseSchedule: (on) => viewer.setDenoiseSchedule(on),
-  // Denoises the accumulation as it is now, whatever the page's rule says, and resolves once
-  // the denoised image shows, to readDenoised()'s object (rejects with the denoiser's error, or
-  // after `timeoutMs`). Polls the denoiser in a loop of its own (a message to itself: neither
-  // an animation frame nor setTimeout's 4 ms clamp), so that filterMs is the denoise's time,
-  // not the wait for the next poll.
-  async denoiseNow(timeoutMs = 120000) {
-    viewer.denoiseNow();
-    const spp = viewer.spp();
-    const start = performance.now();
-    for (;;) {
-      viewer.pollDenoise();
-      const d = viewer.sceneInfo().denoise;
-      if (d.error) throw new Error(`the denoiser failed: ${d.error}`);
-      if (d.shownSpp === spp) return hook.readDenoised();
-      if (performance.now() - start > timeoutMs) throw new Error(`no denoised image after ${timeoutMs} ms`);
-      await yieldToBrowser();
-    }
-  },
-  // The denoised image on show: { spp, width, height, data: number[] (rgb per pixel, rows from
-  // the top: the mean, not a sum), filterMs (the whole denoise: read-backs, passes,
-  // remodulation) }, or null when none shows.
-  readDenoised() {
-    const d = viewer.readDenoised();
-    return d && { ...d, data: Array.from(d.data) };
-  },
-  // Draws the image again (the denoised one where shown): copy the canvas in the same task.
-  draw: () => viewer && viewer.draw(),
-  clearCache: () => clearCache(),
-  // A moving scene's animation (sceneInfo().animation: { duration, time, playing, speed,
-  // moving, poseMs }, or null) and its controls.
-  animation: () => (viewer ? viewer.sceneInfo().animation || null : null),
-  setPlaying: (on) => guarded(() => viewer.setPlaying(on)),
-  setAnimationTime: (seconds) => guarded(() => viewer.setAnimationTime(seconds)),
-  setAnimationSpeed: (speed) => guarded(() => viewer.setAnimationSpeed(speed)),
-  get viewer() { return viewer; },
-};
+// The test hook (test_hook.js): what the browser tests and benchmarks read and drive.
+const hook = createTestHook({
+  viewer: () => viewer,
+  wasm: () => wasm,
+  cache,
+  $,
+  setPaused: (on) => { paused = on; },
+  previewShown,
+  timeFrames,
+  measureSchedule,
+  loadServedScene,
+  loadBundleUrl,
+  guarded,
+  yieldToBrowser,
+  clearCache,
+});
 window.lightport = hook;
 
 // The time to the first frame, accounted for (first_frame.js).
