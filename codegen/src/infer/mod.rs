@@ -246,6 +246,8 @@ impl<'a> Cx<'a> {
         Ok(self.record(e, t))
     }
 
+    /// The type of one expression, before [`Self::expr`] records it: the forms that take a few
+    /// lines here, the others through the helper named after the form.
     fn expr_inner(&mut self, e: &Expr) -> Result<Ty, CodegenError> {
         let span = e.span;
         Ok(match &e.kind {
@@ -259,186 +261,251 @@ impl<'a> Cx<'a> {
             },
             K::Path(path) => self.path(e, path)?,
             K::Paren(inner) => self.expr(inner)?,
-            K::Unary { op, expr } => {
-                let t = self.expr(expr)?;
-                match op {
-                    ir::UnOp::Deref => match self.shallow(&t) {
-                        Ty::RefMut(inner) => *inner,
-                        other => return Err(self.error(span, format!("`*` needs a `&mut` parameter, found `{other}`"))),
-                    },
-                    _ => t,
-                }
-            }
+            // Operators.
+            K::Unary { op, expr } => self.unary_expr(*op, expr, span)?,
             K::Binary { op, lhs, rhs } => {
                 let l = self.expr(lhs)?;
                 let r = self.expr(rhs)?;
                 self.binary(*op, &l, &r, span)?
             }
-            K::Assign { op, place, value } => {
-                let p = self.expr(place)?;
-                let v = self.expr(value)?;
-                let p = self.shallow(&p);
-                let p = p.strip_ref().clone();
-                match op {
-                    Some(ir::BinOp::Shl | ir::BinOp::Shr) => {}
-                    Some(_) if matches!(p, Ty::Vector(..)) && !matches!(self.shallow(&v), Ty::Vector(..)) => {}
-                    _ => {
-                        self.unify(&p, &v, span)?;
-                    }
-                }
-                Ty::Unit
-            }
+            K::Assign { op, place, value } => self.assign_expr(*op, place, value, span)?,
+            K::Cast { expr, ty } => self.cast_expr(expr, ty, span)?,
+            // Calls.
             K::Call { path, args } => self.call(path, args, span)?,
             K::MethodCall { receiver, method, args } => {
                 let r = self.expr(receiver)?;
                 let r = self.shallow(&r).strip_ref().clone();
                 self.method(&r, method, args, span)?
             }
+            // Places and data.
             K::Field { base, field } => {
                 let b = self.expr(base)?;
                 let b = self.shallow(&b).strip_ref().clone();
                 self.field(&b, field, span)?
             }
-            K::Index { base, index } => {
-                let b = self.expr(base)?;
-                let i = self.expr(index)?;
-                self.unify(&i, &USIZE, index.span)?;
-                match self.shallow(&b).strip_ref() {
-                    Ty::Array(elem, _) => (**elem).clone(),
-                    other => return Err(self.error(span, format!("only arrays can be indexed, found `{other}`"))),
-                }
-            }
-            K::Cast { expr, ty } => {
-                let from = self.expr(expr)?;
-                let to = self.resolve_type(ty, span)?;
-                let from = self.shallow(&from);
-                if !matches!(to, Ty::Scalar(_)) || !matches!(from, Ty::Scalar(_) | Ty::IntVar(_)) {
-                    return Err(
-                        self.error(span, format!("`as` casts between scalar types only (found `{from}` as `{to}`)"))
-                    );
-                }
-                to
-            }
-            K::StructLit { name, fields } => {
-                let Some(def) = self.program.structs.get(name) else {
-                    return Err(self.error(span, format!("unknown kernel struct `{name}`")));
-                };
-                if def.item.resources {
-                    return Err(self.error(span, "a `#[resources]` struct is built by the host, not by kernel code"));
-                }
-                let def = def.item.clone();
-                for (fname, value) in fields {
-                    let Some(field) = def.fields.iter().find(|f| &f.name == fname) else {
-                        return Err(self.error(value.span, format!("`{name}` has no field `{fname}`")));
-                    };
-                    let ft = self.resolve_type(&field.ty, field.span)?;
-                    let vt = self.expr(value)?;
-                    self.unify(&ft, &vt, value.span)?;
-                }
-                Ty::Struct(name.clone())
-            }
-            K::Array(elems) => {
-                let mut t = Ty::Never;
-                for el in elems {
-                    let et = self.expr(el)?;
-                    t = self.unify(&t, &et, el.span)?;
-                }
-                Ty::Array(Box::new(t), elems.len() as u32)
-            }
-            K::ArrayRepeat { value, len } => {
-                let t = self.expr(value)?;
-                let n = array_len(self.program, len).map_err(|m| self.error(span, m))?;
-                Ty::Array(Box::new(t), n)
-            }
-            K::AddrOfMut(place) => {
-                let t = self.expr(place)?;
-                match self.shallow(&t) {
-                    // `&mut *state` re-borrows a `&mut` parameter.
-                    Ty::RefMut(inner) => Ty::RefMut(inner),
-                    other => Ty::RefMut(Box::new(other)),
-                }
-            }
-            K::AddrOf(place) => {
-                let t = self.expr(place)?;
-                match t {
-                    Ty::Resource(_) => t,
-                    other => {
-                        return Err(self.error(
-                            span,
-                            format!("shared references are only for the `#[resources]` struct; pass `{other}` by value (it is Copy) or as `&mut`"),
-                        ))
-                    }
-                }
-            }
-            K::If { cond, then, otherwise } => {
-                let c = self.expr(cond)?;
-                self.unify(&c, &BOOL, cond.span)?;
-                let t = self.block(then)?;
-                match otherwise {
-                    Some(o) => {
-                        let ot = self.expr(o)?;
-                        self.unify(&t, &ot, span)?
-                    }
-                    None => Ty::Unit,
-                }
-            }
-            K::Match { scrutinee, arms } => {
-                let s = self.expr(scrutinee)?;
-                if !self.shallow(&s).is_int() {
-                    return Err(self.error(span, "`match` in kernels is on integers only"));
-                }
-                let mut t = Ty::Never;
-                for arm in arms {
-                    for p in &arm.patterns {
-                        let pt = self.expr(p)?;
-                        self.unify(&s, &pt, p.span)?;
-                    }
-                    let bt = self.expr(&arm.body)?;
-                    t = self.unify(&t, &bt, arm.body.span)?;
-                }
-                t
-            }
+            K::Index { base, index } => self.index_expr(base, index, span)?,
+            K::StructLit { name, fields } => self.struct_lit_expr(name, fields, span)?,
+            K::Array(elems) => self.array_expr(elems)?,
+            K::ArrayRepeat { value, len } => self.array_repeat_expr(value, len, span)?,
+            K::AddrOfMut(place) => self.addr_of_mut_expr(place)?,
+            K::AddrOf(place) => self.addr_of_expr(place, span)?,
+            // Control flow.
+            K::If { cond, then, otherwise } => self.if_expr(cond, then, otherwise.as_deref(), span)?,
+            K::Match { scrutinee, arms } => self.match_expr(scrutinee, arms, span)?,
             K::Block(b) => self.block(b)?,
-            K::While { cond, body } => {
-                let c = self.expr(cond)?;
-                self.unify(&c, &BOOL, cond.span)?;
-                self.block(body)?;
-                Ty::Unit
-            }
-            K::Loop { body } => {
-                self.block(body)?;
-                // A `loop` without `break` never ends normally (rustc types it `!`).
-                if loop_has_break(body) {
-                    Ty::Unit
-                } else {
-                    Ty::Never
-                }
-            }
-            K::ForRange { var, start, end, body, .. } => {
-                let s = self.expr(start)?;
-                let en = self.expr(end)?;
-                let t = self.unify(&s, &en, span)?;
-                if !self.shallow(&t).is_int() {
-                    return Err(self.error(span, "`for` ranges are over integers"));
-                }
-                self.scopes.push(vec![]);
-                let id = self.bind(var, t, false, BindingKind::Local);
-                self.out.for_vars.insert(key(e), id);
-                self.block(body)?;
-                self.scopes.pop();
-                Ty::Unit
-            }
+            K::While { cond, body } => self.while_expr(cond, body)?,
+            K::Loop { body } => self.loop_expr(body)?,
+            K::ForRange { var, start, end, body, .. } => self.for_range_expr(e, var, start, end, body)?,
             K::Break | K::Continue => Ty::Never,
-            K::Return(v) => {
-                let t = match v {
-                    Some(v) => self.expr(v)?,
-                    None => Ty::Unit,
-                };
-                let ret = self.out.ret.clone();
-                self.unify(&t, &ret, span)?;
-                Ty::Never
-            }
+            K::Return(v) => self.return_expr(v.as_deref(), span)?,
         })
+    }
+
+    /// `-x`, `!x` (the operand's type) and `*x` (the type behind a `&mut` parameter).
+    fn unary_expr(&mut self, op: ir::UnOp, operand: &Expr, span: Span) -> Result<Ty, CodegenError> {
+        let t = self.expr(operand)?;
+        Ok(match op {
+            ir::UnOp::Deref => match self.shallow(&t) {
+                Ty::RefMut(inner) => *inner,
+                other => return Err(self.error(span, format!("`*` needs a `&mut` parameter, found `{other}`"))),
+            },
+            _ => t,
+        })
+    }
+
+    /// `place = value` and `place op= value`: the value has the place's type, except for shifts
+    /// (any integer amount) and a vector place combined with a scalar (`v *= 2.0`).
+    fn assign_expr(
+        &mut self,
+        op: Option<ir::BinOp>,
+        place: &Expr,
+        value: &Expr,
+        span: Span,
+    ) -> Result<Ty, CodegenError> {
+        let p = self.expr(place)?;
+        let v = self.expr(value)?;
+        let p = self.shallow(&p);
+        let p = p.strip_ref().clone();
+        match op {
+            Some(ir::BinOp::Shl | ir::BinOp::Shr) => {}
+            Some(_) if matches!(p, Ty::Vector(..)) && !matches!(self.shallow(&v), Ty::Vector(..)) => {}
+            _ => {
+                self.unify(&p, &v, span)?;
+            }
+        }
+        Ok(Ty::Unit)
+    }
+
+    /// `x as T`: between scalar types only.
+    fn cast_expr(&mut self, operand: &Expr, ty: &ir::Type, span: Span) -> Result<Ty, CodegenError> {
+        let from = self.expr(operand)?;
+        let to = self.resolve_type(ty, span)?;
+        let from = self.shallow(&from);
+        if !matches!(to, Ty::Scalar(_)) || !matches!(from, Ty::Scalar(_) | Ty::IntVar(_)) {
+            return Err(self.error(span, format!("`as` casts between scalar types only (found `{from}` as `{to}`)")));
+        }
+        Ok(to)
+    }
+
+    /// `base[index]`: an array's element, at a `usize` index.
+    fn index_expr(&mut self, base: &Expr, index: &Expr, span: Span) -> Result<Ty, CodegenError> {
+        let b = self.expr(base)?;
+        let i = self.expr(index)?;
+        self.unify(&i, &USIZE, index.span)?;
+        match self.shallow(&b).strip_ref() {
+            Ty::Array(elem, _) => Ok((**elem).clone()),
+            other => Err(self.error(span, format!("only arrays can be indexed, found `{other}`"))),
+        }
+    }
+
+    /// `Name { field: value, .. }`: a kernel struct (not the host-built `#[resources]` one),
+    /// each value of its field's type.
+    fn struct_lit_expr(&mut self, name: &str, fields: &[(String, Expr)], span: Span) -> Result<Ty, CodegenError> {
+        let Some(def) = self.program.structs.get(name) else {
+            return Err(self.error(span, format!("unknown kernel struct `{name}`")));
+        };
+        if def.item.resources {
+            return Err(self.error(span, "a `#[resources]` struct is built by the host, not by kernel code"));
+        }
+        let def = def.item.clone();
+        for (fname, value) in fields {
+            let Some(field) = def.fields.iter().find(|f| &f.name == fname) else {
+                return Err(self.error(value.span, format!("`{name}` has no field `{fname}`")));
+            };
+            let ft = self.resolve_type(&field.ty, field.span)?;
+            let vt = self.expr(value)?;
+            self.unify(&ft, &vt, value.span)?;
+        }
+        Ok(Ty::Struct(name.to_string()))
+    }
+
+    /// `[a, b, ..]`: every element of one type.
+    fn array_expr(&mut self, elems: &[Expr]) -> Result<Ty, CodegenError> {
+        let mut t = Ty::Never;
+        for el in elems {
+            let et = self.expr(el)?;
+            t = self.unify(&t, &et, el.span)?;
+        }
+        Ok(Ty::Array(Box::new(t), elems.len() as u32))
+    }
+
+    /// `[value; len]`: `len` a literal or a kernel const.
+    fn array_repeat_expr(&mut self, value: &Expr, len: &ir::ArrayLen, span: Span) -> Result<Ty, CodegenError> {
+        let t = self.expr(value)?;
+        let n = array_len(self.program, len).map_err(|m| self.error(span, m))?;
+        Ok(Ty::Array(Box::new(t), n))
+    }
+
+    /// `&mut place`.
+    fn addr_of_mut_expr(&mut self, place: &Expr) -> Result<Ty, CodegenError> {
+        let t = self.expr(place)?;
+        Ok(match self.shallow(&t) {
+            // `&mut *state` re-borrows a `&mut` parameter.
+            Ty::RefMut(inner) => Ty::RefMut(inner),
+            other => Ty::RefMut(Box::new(other)),
+        })
+    }
+
+    /// `&place`: only of the `#[resources]` struct, to pass it on.
+    fn addr_of_expr(&mut self, place: &Expr, span: Span) -> Result<Ty, CodegenError> {
+        let t = self.expr(place)?;
+        match t {
+            Ty::Resource(_) => Ok(t),
+            other => Err(self.error(
+                span,
+                format!("shared references are only for the `#[resources]` struct; pass `{other}` by value (it is Copy) or as `&mut`"),
+            )),
+        }
+    }
+
+    /// `if cond { .. } else ..`: a `bool` condition; both branches of one type, `()` without
+    /// `else`.
+    fn if_expr(
+        &mut self,
+        cond: &Expr,
+        then: &ir::Block,
+        otherwise: Option<&Expr>,
+        span: Span,
+    ) -> Result<Ty, CodegenError> {
+        let c = self.expr(cond)?;
+        self.unify(&c, &BOOL, cond.span)?;
+        let t = self.block(then)?;
+        Ok(match otherwise {
+            Some(o) => {
+                let ot = self.expr(o)?;
+                self.unify(&t, &ot, span)?
+            }
+            None => Ty::Unit,
+        })
+    }
+
+    /// `match scrutinee { .. }`: on an integer, patterns of its type, every arm of one type.
+    fn match_expr(&mut self, scrutinee: &Expr, arms: &[ir::MatchArm], span: Span) -> Result<Ty, CodegenError> {
+        let s = self.expr(scrutinee)?;
+        if !self.shallow(&s).is_int() {
+            return Err(self.error(span, "`match` in kernels is on integers only"));
+        }
+        let mut t = Ty::Never;
+        for arm in arms {
+            for p in &arm.patterns {
+                let pt = self.expr(p)?;
+                self.unify(&s, &pt, p.span)?;
+            }
+            let bt = self.expr(&arm.body)?;
+            t = self.unify(&t, &bt, arm.body.span)?;
+        }
+        Ok(t)
+    }
+
+    /// `while cond { .. }`: a `bool` condition.
+    fn while_expr(&mut self, cond: &Expr, body: &ir::Block) -> Result<Ty, CodegenError> {
+        let c = self.expr(cond)?;
+        self.unify(&c, &BOOL, cond.span)?;
+        self.block(body)?;
+        Ok(Ty::Unit)
+    }
+
+    /// `loop { .. }`.
+    fn loop_expr(&mut self, body: &ir::Block) -> Result<Ty, CodegenError> {
+        self.block(body)?;
+        // A `loop` without `break` never ends normally (rustc types it `!`).
+        Ok(if loop_has_break(body) { Ty::Unit } else { Ty::Never })
+    }
+
+    /// `for var in start..end { .. }` (`e`): both ends of one integer type, the loop variable's,
+    /// bound in a scope of its own and recorded for `e`.
+    fn for_range_expr(
+        &mut self,
+        e: &Expr,
+        var: &str,
+        start: &Expr,
+        end: &Expr,
+        body: &ir::Block,
+    ) -> Result<Ty, CodegenError> {
+        let span = e.span;
+        let s = self.expr(start)?;
+        let en = self.expr(end)?;
+        let t = self.unify(&s, &en, span)?;
+        if !self.shallow(&t).is_int() {
+            return Err(self.error(span, "`for` ranges are over integers"));
+        }
+        self.scopes.push(vec![]);
+        let id = self.bind(var, t, false, BindingKind::Local);
+        self.out.for_vars.insert(key(e), id);
+        self.block(body)?;
+        self.scopes.pop();
+        Ok(Ty::Unit)
+    }
+
+    /// `return value`: the value (`()` without one) of the function's return type.
+    fn return_expr(&mut self, value: Option<&Expr>, span: Span) -> Result<Ty, CodegenError> {
+        let t = match value {
+            Some(v) => self.expr(v)?,
+            None => Ty::Unit,
+        };
+        let ret = self.out.ret.clone();
+        self.unify(&t, &ret, span)?;
+        Ok(Ty::Never)
     }
 
     fn path(&mut self, e: &Expr, path: &[String]) -> Result<Ty, CodegenError> {

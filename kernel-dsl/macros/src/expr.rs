@@ -75,6 +75,9 @@ impl Lowering {
         self.expr(e).map(Box::new)
     }
 
+    /// Lowers one expression: the forms that take a line here, the others through the helper
+    /// named after the form, and everything else the DSL rejects through
+    /// [`Self::report_unsupported_expr`].
     pub(crate) fn expr(&mut self, e: &syn::Expr) -> Option<ir::Expr> {
         let span = span_of(e.span());
         let kind = match e {
@@ -82,273 +85,325 @@ impl Lowering {
             syn::Expr::Path(p) => ir::ExprKind::Path(self.path(&p.qself, &p.path)?),
             syn::Expr::Paren(p) => ir::ExprKind::Paren(self.boxed(&p.expr)?),
             syn::Expr::Group(g) => return self.expr(&g.expr),
-            syn::Expr::Unary(u) => {
-                let op = match u.op {
-                    syn::UnOp::Neg(_) => ir::UnOp::Neg,
-                    syn::UnOp::Not(_) => ir::UnOp::Not,
-                    syn::UnOp::Deref(_) => ir::UnOp::Deref,
-                    _ => {
-                        self.error(err_at(&e, "this operator is not supported in kernels"));
-                        return None;
-                    }
-                };
-                ir::ExprKind::Unary { op, expr: self.boxed(&u.expr)? }
-            }
-            syn::Expr::Binary(b) => {
-                let Some((op, assign)) = bin_op(&b.op) else {
-                    self.error(err_at(&b.op, "this operator is not supported in kernels"));
-                    return None;
-                };
-                if matches!(op, ir::BinOp::Shl | ir::BinOp::Shr) && !is_int_literal(&b.right) {
-                    let (shift, amount) = (&b.op, &b.right);
-                    self.error(err_at(
-                        &quote!(#shift #amount),
-                        "shift amounts that are not literals must use `wrapping_shl`/`wrapping_shr`: a shift by 32 or more panics in Rust and is undefined in GLSL, the DSL masks it to 0..31",
-                    ));
-                    return None;
-                }
-                let lhs = self.boxed(&b.left);
-                let rhs = self.boxed(&b.right);
-                let (lhs, rhs) = (lhs?, rhs?);
-                if assign {
-                    ir::ExprKind::Assign { op: Some(op), place: lhs, value: rhs }
-                } else {
-                    ir::ExprKind::Binary { op, lhs, rhs }
-                }
-            }
-            syn::Expr::Assign(a) => {
-                let place = self.boxed(&a.left);
-                let value = self.boxed(&a.right);
-                ir::ExprKind::Assign { op: None, place: place?, value: value? }
-            }
-            syn::Expr::Call(c) => {
-                let syn::Expr::Path(p) = &*c.func else {
-                    self.error(err_at(
-                        &c.func,
-                        "only calls of named kernel functions are supported (no closures or function values)",
-                    ));
-                    return None;
-                };
-                let path = self.path(&p.qself, &p.path)?;
-                self.check_call_path(&path, &p.path)?;
-                let local = match path.as_slice() {
-                    [name] | [_, name] if path.len() == 1 || path[0] == "self" => Some(name),
-                    _ => None,
-                };
-                if let Some(callee) = local.filter(|n| self.local_fns.contains(*n)) {
-                    if let Some(f) = &self.current_fn {
-                        self.calls.entry(f.clone()).or_default().push((callee.clone(), p.path.span()));
-                    }
-                }
-                let args = self.exprs(c.args.iter())?;
-                ir::ExprKind::Call { path, args }
-            }
-            syn::Expr::MethodCall(m) => {
-                if let Some(t) = &m.turbofish {
-                    self.error(err_at(&t, "turbofish is not supported in kernels"));
-                    return None;
-                }
-                let method = m.method.to_string();
-                if !ir::SUPPORTED_METHODS.contains(&method.as_str()) {
-                    self.error(err_at(&m.method, unsupported_method_message(&method)));
-                    return None;
-                }
-                if ir::COMPUTE_METHODS.contains(&method.as_str()) && !self.compute {
-                    self.error(err_at(&m.method, crate::needs_compute(&format!("`{method}`"))));
-                    return None;
-                }
-                let receiver = self.boxed(&m.receiver);
-                let args = self.exprs(m.args.iter());
-                ir::ExprKind::MethodCall { receiver: receiver?, method, args: args? }
-            }
-            syn::Expr::Field(f) => match &f.member {
-                syn::Member::Named(name) => ir::ExprKind::Field { base: self.boxed(&f.base)?, field: name.to_string() },
-                syn::Member::Unnamed(_) => {
-                    self.error(err_at(
-                        &f.member,
-                        "tuple fields are not supported in kernels: use a struct with named fields",
-                    ));
-                    return None;
-                }
-            },
-            syn::Expr::Index(i) => {
-                let base = self.boxed(&i.expr);
-                let index = self.boxed(&i.index);
-                ir::ExprKind::Index { base: base?, index: index? }
-            }
-            syn::Expr::Cast(c) => {
-                let inner = self.boxed(&c.expr);
-                let ty = self.ty(&c.ty);
-                ir::ExprKind::Cast { expr: inner?, ty: ty? }
-            }
-            syn::Expr::Struct(s) => {
-                if let Some(dot2) = &s.dot2_token {
-                    let rest = &s.rest;
-                    self.error(err_at(
-                        &quote!(#dot2 #rest),
-                        "struct update syntax (`..base`) is not supported in kernels: list every field",
-                    ));
-                    return None;
-                }
-                let name = s.path.segments.last().map(|s| s.ident.to_string())?;
-                let mut fields = Vec::new();
-                for fv in &s.fields {
-                    let syn::Member::Named(fname) = &fv.member else {
-                        self.error(err_at(&fv.member, "use named fields"));
-                        return None;
-                    };
-                    fields.push((fname.to_string(), self.expr(&fv.expr)?));
-                }
-                ir::ExprKind::StructLit { name, fields }
-            }
+            // Operators.
+            syn::Expr::Unary(u) => self.unary_expr(u)?,
+            syn::Expr::Binary(b) => self.binary_expr(b)?,
+            syn::Expr::Assign(a) => self.assign_expr(a)?,
+            syn::Expr::Cast(c) => self.cast_expr(c)?,
+            // Calls.
+            syn::Expr::Call(c) => self.call_expr(c)?,
+            syn::Expr::MethodCall(m) => self.method_call_expr(m)?,
+            // Places and data.
+            syn::Expr::Field(f) => self.field_expr(f)?,
+            syn::Expr::Index(i) => self.index_expr(i)?,
+            syn::Expr::Struct(s) => self.struct_expr(s)?,
             syn::Expr::Array(a) => ir::ExprKind::Array(self.exprs(a.elems.iter())?),
-            syn::Expr::Repeat(r) => {
-                let value = self.boxed(&r.expr)?;
-                let len = self.array_len(&r.len)?;
-                ir::ExprKind::ArrayRepeat { value, len }
-            }
-            syn::Expr::Reference(r) => {
-                let inner = self.boxed(&r.expr)?;
-                if r.mutability.is_some() {
-                    ir::ExprKind::AddrOfMut(inner)
-                } else {
-                    ir::ExprKind::AddrOf(inner)
-                }
-            }
-            syn::Expr::If(i) => {
-                if let syn::Expr::Let(l) = &*i.cond {
-                    self.error(err_at(
-                        l,
-                        "`if let` is not supported in kernels: there are no enums or options; test a value with `if`",
-                    ));
-                    return None;
-                }
-                let cond = self.boxed(&i.cond);
-                let then = self.block(&i.then_branch);
-                let otherwise = match &i.else_branch {
-                    None => None,
-                    Some((_, e)) => Some(self.boxed(e)?),
-                };
-                ir::ExprKind::If { cond: cond?, then: then?, otherwise }
-            }
+            syn::Expr::Repeat(r) => self.repeat_expr(r)?,
+            syn::Expr::Reference(r) => self.reference_expr(r)?,
+            // Control flow.
+            syn::Expr::If(i) => self.if_expr(i)?,
             syn::Expr::Match(m) => self.match_expr(m)?,
-            syn::Expr::Block(b) => {
-                if let Some(l) = &b.label {
-                    self.error(err_at(&l, "labelled blocks are not supported in kernels"));
-                    return None;
-                }
-                ir::ExprKind::Block(self.block(&b.block)?)
-            }
-            syn::Expr::While(w) => {
-                self.no_label(&w.label)?;
-                if let syn::Expr::Let(l) = &*w.cond {
-                    self.error(err_at(l, "`while let` is not supported in kernels: use `while` with a condition"));
-                    return None;
-                }
-                let cond = self.boxed(&w.cond);
-                let body = self.block(&w.body);
-                ir::ExprKind::While { cond: cond?, body: body? }
-            }
-            syn::Expr::Loop(l) => {
-                self.no_label(&l.label)?;
-                ir::ExprKind::Loop { body: self.block(&l.body)? }
-            }
-            syn::Expr::ForLoop(f) => {
-                self.no_label(&f.label)?;
-                let var = match &*f.pat {
-                    syn::Pat::Ident(pi) if pi.mutability.is_none() && pi.by_ref.is_none() => pi.ident.to_string(),
-                    other => {
-                        self.error(err_at(&other, "the loop variable must be a plain name: `for i in 0..n`"));
-                        return None;
-                    }
-                };
-                let range = match &*f.expr {
-                    syn::Expr::Range(r) => Some(r),
-                    syn::Expr::Paren(p) => match &*p.expr {
-                        syn::Expr::Range(r) => Some(r),
-                        _ => None,
-                    },
-                    _ => None,
-                };
-                let Some(syn::ExprRange { start: Some(start), end: Some(end), limits, .. }) = range else {
-                    self.error(err_at(
-                        &f.expr,
-                        "`for` loops run over an integer range with both ends: `for i in 0..n` or `for i in 0..=n` (iterators are not supported)",
-                    ));
-                    return None;
-                };
-                let start = self.boxed(start);
-                let end = self.boxed(end);
-                let body = self.block(&f.body);
-                ir::ExprKind::ForRange {
-                    var,
-                    start: start?,
-                    end: end?,
-                    inclusive: matches!(limits, syn::RangeLimits::Closed(_)),
-                    body: body?,
-                }
-            }
-            syn::Expr::Break(b) => {
-                self.no_label(
-                    &b.label.as_ref().map(|l| syn::Label { name: l.clone(), colon_token: Default::default() }),
-                )?;
-                if let Some(v) = &b.expr {
-                    self.error(err_at(
-                        &v,
-                        "`break` with a value is not supported in kernels: assign to a variable before `break`",
-                    ));
-                    return None;
-                }
-                ir::ExprKind::Break
-            }
-            syn::Expr::Continue(c) => {
-                if let Some(l) = &c.label {
-                    self.error(err_at(&l, "labelled `continue` is not supported in kernels: use a flag variable"));
-                    return None;
-                }
-                ir::ExprKind::Continue
-            }
+            syn::Expr::Block(b) => self.block_expr(b)?,
+            syn::Expr::While(w) => self.while_expr(w)?,
+            syn::Expr::Loop(l) => self.loop_expr(l)?,
+            syn::Expr::ForLoop(f) => self.for_range_expr(f)?,
+            syn::Expr::Break(b) => self.break_expr(b)?,
+            syn::Expr::Continue(c) => self.continue_expr(c)?,
             syn::Expr::Return(r) => ir::ExprKind::Return(match &r.expr {
                 None => None,
                 Some(v) => Some(self.boxed(v)?),
             }),
-            syn::Expr::Closure(c) => {
-                self.error(err_at(c, "closures are not supported in kernels: write a kernel `fn`"));
-                return None;
-            }
-            syn::Expr::Tuple(t) => {
-                self.error(err_at(&t, "tuples are not supported in kernels: declare a struct with named fields"));
-                return None;
-            }
-            syn::Expr::Macro(m) => {
-                self.error(err_at(&m.mac.path, macro_message(&m.mac)));
-                return None;
-            }
-            syn::Expr::Try(t) => {
-                self.error(err(
-                    t.question_token.span,
-                    "`?` is not supported in kernels (there are no Results on a GPU): test the value with `if` and `return` early",
-                ));
-                return None;
-            }
-            syn::Expr::Range(r) => {
-                self.error(err_at(&r, "ranges are only supported as the range of a `for` loop"));
-                return None;
-            }
-            syn::Expr::Unsafe(u) => {
-                self.error(err(u.unsafe_token.span, "`unsafe` is not supported in kernels"));
-                return None;
-            }
-            syn::Expr::Let(l) => {
-                self.error(err_at(l, "`let` expressions are not supported in kernels: test values with `if`"));
-                return None;
-            }
             other => {
-                self.error(err_at(&other, "this expression is not supported in kernels"));
+                self.report_unsupported_expr(other);
                 return None;
             }
         };
         Some(ir::Expr { kind, span })
+    }
+
+    /// `-x`, `!x`, `*x`.
+    fn unary_expr(&mut self, u: &syn::ExprUnary) -> Option<ir::ExprKind> {
+        let op = match u.op {
+            syn::UnOp::Neg(_) => ir::UnOp::Neg,
+            syn::UnOp::Not(_) => ir::UnOp::Not,
+            syn::UnOp::Deref(_) => ir::UnOp::Deref,
+            _ => {
+                self.error(err_at(u, "this operator is not supported in kernels"));
+                return None;
+            }
+        };
+        Some(ir::ExprKind::Unary { op, expr: self.boxed(&u.expr)? })
+    }
+
+    /// `a + b`, and the compound assignments (`a += b`), which syn parses as binary operators.
+    /// Shifts by a non-literal amount are rejected: the DSL masks them through
+    /// `wrapping_shl`/`wrapping_shr`.
+    fn binary_expr(&mut self, b: &syn::ExprBinary) -> Option<ir::ExprKind> {
+        let Some((op, assign)) = bin_op(&b.op) else {
+            self.error(err_at(&b.op, "this operator is not supported in kernels"));
+            return None;
+        };
+        if matches!(op, ir::BinOp::Shl | ir::BinOp::Shr) && !is_int_literal(&b.right) {
+            let (shift, amount) = (&b.op, &b.right);
+            self.error(err_at(
+                &quote!(#shift #amount),
+                "shift amounts that are not literals must use `wrapping_shl`/`wrapping_shr`: a shift by 32 or more panics in Rust and is undefined in GLSL, the DSL masks it to 0..31",
+            ));
+            return None;
+        }
+        // Both sides are lowered before either error ends it, so both report.
+        let lhs = self.boxed(&b.left);
+        let rhs = self.boxed(&b.right);
+        let (lhs, rhs) = (lhs?, rhs?);
+        Some(if assign {
+            ir::ExprKind::Assign { op: Some(op), place: lhs, value: rhs }
+        } else {
+            ir::ExprKind::Binary { op, lhs, rhs }
+        })
+    }
+
+    /// `place = value`.
+    fn assign_expr(&mut self, a: &syn::ExprAssign) -> Option<ir::ExprKind> {
+        let place = self.boxed(&a.left);
+        let value = self.boxed(&a.right);
+        Some(ir::ExprKind::Assign { op: None, place: place?, value: value? })
+    }
+
+    /// `x as T`.
+    fn cast_expr(&mut self, c: &syn::ExprCast) -> Option<ir::ExprKind> {
+        let inner = self.boxed(&c.expr);
+        let ty = self.ty(&c.ty);
+        Some(ir::ExprKind::Cast { expr: inner?, ty: ty? })
+    }
+
+    /// `f(args)`: only named functions; a call of a function of this module is recorded for
+    /// the recursion check.
+    fn call_expr(&mut self, c: &syn::ExprCall) -> Option<ir::ExprKind> {
+        let syn::Expr::Path(p) = &*c.func else {
+            self.error(err_at(
+                &c.func,
+                "only calls of named kernel functions are supported (no closures or function values)",
+            ));
+            return None;
+        };
+        let path = self.path(&p.qself, &p.path)?;
+        self.check_call_path(&path, &p.path)?;
+        let local = match path.as_slice() {
+            [name] | [_, name] if path.len() == 1 || path[0] == "self" => Some(name),
+            _ => None,
+        };
+        if let Some(callee) = local.filter(|n| self.local_fns.contains(*n)) {
+            if let Some(f) = &self.current_fn {
+                self.calls.entry(f.clone()).or_default().push((callee.clone(), p.path.span()));
+            }
+        }
+        let args = self.exprs(c.args.iter())?;
+        Some(ir::ExprKind::Call { path, args })
+    }
+
+    /// `receiver.method(args)`: only the built-in methods, the compute-only ones in compute
+    /// kernels only.
+    fn method_call_expr(&mut self, m: &syn::ExprMethodCall) -> Option<ir::ExprKind> {
+        if let Some(t) = &m.turbofish {
+            self.error(err_at(&t, "turbofish is not supported in kernels"));
+            return None;
+        }
+        let method = m.method.to_string();
+        if !ir::SUPPORTED_METHODS.contains(&method.as_str()) {
+            self.error(err_at(&m.method, unsupported_method_message(&method)));
+            return None;
+        }
+        if ir::COMPUTE_METHODS.contains(&method.as_str()) && !self.compute {
+            self.error(err_at(&m.method, crate::needs_compute(&format!("`{method}`"))));
+            return None;
+        }
+        let receiver = self.boxed(&m.receiver);
+        let args = self.exprs(m.args.iter());
+        Some(ir::ExprKind::MethodCall { receiver: receiver?, method, args: args? })
+    }
+
+    /// `base.field` (named fields only).
+    fn field_expr(&mut self, f: &syn::ExprField) -> Option<ir::ExprKind> {
+        match &f.member {
+            syn::Member::Named(name) => {
+                Some(ir::ExprKind::Field { base: self.boxed(&f.base)?, field: name.to_string() })
+            }
+            syn::Member::Unnamed(_) => {
+                self.error(err_at(
+                    &f.member,
+                    "tuple fields are not supported in kernels: use a struct with named fields",
+                ));
+                None
+            }
+        }
+    }
+
+    /// `base[index]`.
+    fn index_expr(&mut self, i: &syn::ExprIndex) -> Option<ir::ExprKind> {
+        let base = self.boxed(&i.expr);
+        let index = self.boxed(&i.index);
+        Some(ir::ExprKind::Index { base: base?, index: index? })
+    }
+
+    /// `Name { field: value, .. }` with every field listed.
+    fn struct_expr(&mut self, s: &syn::ExprStruct) -> Option<ir::ExprKind> {
+        if let Some(dot2) = &s.dot2_token {
+            let rest = &s.rest;
+            self.error(err_at(
+                &quote!(#dot2 #rest),
+                "struct update syntax (`..base`) is not supported in kernels: list every field",
+            ));
+            return None;
+        }
+        let name = s.path.segments.last().map(|s| s.ident.to_string())?;
+        let mut fields = Vec::new();
+        for fv in &s.fields {
+            let syn::Member::Named(fname) = &fv.member else {
+                self.error(err_at(&fv.member, "use named fields"));
+                return None;
+            };
+            fields.push((fname.to_string(), self.expr(&fv.expr)?));
+        }
+        Some(ir::ExprKind::StructLit { name, fields })
+    }
+
+    /// `[value; len]`.
+    fn repeat_expr(&mut self, r: &syn::ExprRepeat) -> Option<ir::ExprKind> {
+        let value = self.boxed(&r.expr)?;
+        let len = self.array_len(&r.len)?;
+        Some(ir::ExprKind::ArrayRepeat { value, len })
+    }
+
+    /// `&x` and `&mut x`.
+    fn reference_expr(&mut self, r: &syn::ExprReference) -> Option<ir::ExprKind> {
+        let inner = self.boxed(&r.expr)?;
+        Some(if r.mutability.is_some() { ir::ExprKind::AddrOfMut(inner) } else { ir::ExprKind::AddrOf(inner) })
+    }
+
+    /// `if cond { .. } else ..` (no `if let`).
+    fn if_expr(&mut self, i: &syn::ExprIf) -> Option<ir::ExprKind> {
+        if let syn::Expr::Let(l) = &*i.cond {
+            self.error(err_at(
+                l,
+                "`if let` is not supported in kernels: there are no enums or options; test a value with `if`",
+            ));
+            return None;
+        }
+        let cond = self.boxed(&i.cond);
+        let then = self.block(&i.then_branch);
+        let otherwise = match &i.else_branch {
+            None => None,
+            Some((_, e)) => Some(self.boxed(e)?),
+        };
+        Some(ir::ExprKind::If { cond: cond?, then: then?, otherwise })
+    }
+
+    /// `{ .. }` (unlabelled).
+    fn block_expr(&mut self, b: &syn::ExprBlock) -> Option<ir::ExprKind> {
+        if let Some(l) = &b.label {
+            self.error(err_at(&l, "labelled blocks are not supported in kernels"));
+            return None;
+        }
+        Some(ir::ExprKind::Block(self.block(&b.block)?))
+    }
+
+    /// `while cond { .. }` (no `while let`, no label).
+    fn while_expr(&mut self, w: &syn::ExprWhile) -> Option<ir::ExprKind> {
+        self.no_label(&w.label)?;
+        if let syn::Expr::Let(l) = &*w.cond {
+            self.error(err_at(l, "`while let` is not supported in kernels: use `while` with a condition"));
+            return None;
+        }
+        let cond = self.boxed(&w.cond);
+        let body = self.block(&w.body);
+        Some(ir::ExprKind::While { cond: cond?, body: body? })
+    }
+
+    /// `loop { .. }` (no label).
+    fn loop_expr(&mut self, l: &syn::ExprLoop) -> Option<ir::ExprKind> {
+        self.no_label(&l.label)?;
+        Some(ir::ExprKind::Loop { body: self.block(&l.body)? })
+    }
+
+    /// `for i in a..b { .. }` and `for i in a..=b { .. }`: the only `for` loops, over an integer
+    /// range with both ends.
+    fn for_range_expr(&mut self, f: &syn::ExprForLoop) -> Option<ir::ExprKind> {
+        self.no_label(&f.label)?;
+        let var = match &*f.pat {
+            syn::Pat::Ident(pi) if pi.mutability.is_none() && pi.by_ref.is_none() => pi.ident.to_string(),
+            other => {
+                self.error(err_at(&other, "the loop variable must be a plain name: `for i in 0..n`"));
+                return None;
+            }
+        };
+        let range = match &*f.expr {
+            syn::Expr::Range(r) => Some(r),
+            syn::Expr::Paren(p) => match &*p.expr {
+                syn::Expr::Range(r) => Some(r),
+                _ => None,
+            },
+            _ => None,
+        };
+        let Some(syn::ExprRange { start: Some(start), end: Some(end), limits, .. }) = range else {
+            self.error(err_at(
+                &f.expr,
+                "`for` loops run over an integer range with both ends: `for i in 0..n` or `for i in 0..=n` (iterators are not supported)",
+            ));
+            return None;
+        };
+        let start = self.boxed(start);
+        let end = self.boxed(end);
+        let body = self.block(&f.body);
+        Some(ir::ExprKind::ForRange {
+            var,
+            start: start?,
+            end: end?,
+            inclusive: matches!(limits, syn::RangeLimits::Closed(_)),
+            body: body?,
+        })
+    }
+
+    /// `break` (no label, no value).
+    fn break_expr(&mut self, b: &syn::ExprBreak) -> Option<ir::ExprKind> {
+        self.no_label(&b.label.as_ref().map(|l| syn::Label { name: l.clone(), colon_token: Default::default() }))?;
+        if let Some(v) = &b.expr {
+            self.error(err_at(
+                &v,
+                "`break` with a value is not supported in kernels: assign to a variable before `break`",
+            ));
+            return None;
+        }
+        Some(ir::ExprKind::Break)
+    }
+
+    /// `continue` (no label).
+    fn continue_expr(&mut self, c: &syn::ExprContinue) -> Option<ir::ExprKind> {
+        if let Some(l) = &c.label {
+            self.error(err_at(&l, "labelled `continue` is not supported in kernels: use a flag variable"));
+            return None;
+        }
+        Some(ir::ExprKind::Continue)
+    }
+
+    /// Reports an expression form the DSL does not support, with what to write instead where
+    /// there is a kernel equivalent.
+    fn report_unsupported_expr(&mut self, e: &syn::Expr) {
+        let error = match e {
+            syn::Expr::Closure(c) => err_at(c, "closures are not supported in kernels: write a kernel `fn`"),
+            syn::Expr::Tuple(t) => {
+                err_at(&t, "tuples are not supported in kernels: declare a struct with named fields")
+            }
+            syn::Expr::Macro(m) => err_at(&m.mac.path, macro_message(&m.mac)),
+            syn::Expr::Try(t) => err(
+                t.question_token.span,
+                "`?` is not supported in kernels (there are no Results on a GPU): test the value with `if` and `return` early",
+            ),
+            syn::Expr::Range(r) => err_at(&r, "ranges are only supported as the range of a `for` loop"),
+            syn::Expr::Unsafe(u) => err(u.unsafe_token.span, "`unsafe` is not supported in kernels"),
+            syn::Expr::Let(l) => err_at(l, "`let` expressions are not supported in kernels: test values with `if`"),
+            other => err_at(&other, "this expression is not supported in kernels"),
+        };
+        self.error(error);
     }
 
     pub(crate) fn exprs<'a>(&mut self, es: impl Iterator<Item = &'a syn::Expr>) -> Option<Vec<ir::Expr>> {

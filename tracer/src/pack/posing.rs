@@ -204,10 +204,45 @@ impl Posing {
         if parts.instances.len() != self.instances || parts.meshes.len() != self.level_of_mesh.len() {
             return mismatch("the moving parts changed their instances or meshes");
         }
-        // The deformed meshes' bottom levels, built again or refitted (in parallel, as packing
-        // does).
-        let rebuilt: Vec<Option<(crate::bvh::Bvh, crate::bvh::WideBvh)>> = self
-            .levels
+        let remade = self.remade_levels(parts)?;
+
+        // The top level over the placements' boxes: the static one first, then the instances'.
+        let mut boxes: Vec<Aabb> = self.static_box.into_iter().collect();
+        boxes.extend(parts.placement_boxes());
+        let corners: Vec<(Vec3, Vec3)> = boxes.iter().map(|b| (b.min, b.max)).collect();
+        let (top, top_wide) = top_level(&corners).map_err(PackError::Bvh)?;
+        check_leaves(&top)?;
+
+        // The nodes: the top level, then each level moved behind it, then the placements.
+        let (top_planes, top_children) = pack_nodes(&top_wide);
+        let levels = self.level_nodes(&remade, top_children.len());
+        if levels.node_count >= MAX_EXACT {
+            return Err(PackError::TooManyTriangles(self.first.triangle_count));
+        }
+        let placement_texels = self.placement_texels(parts, &top.triangle_order, &levels.roots)?;
+        let top_need = top_wide.stack_needed_with_leaves + 1;
+        let (traversal_stack, leaf_stack_limit) = check_stack(top_need, levels.bottom.0, levels.bottom.1)?;
+        let (planes, children) = node_arrays(&top_planes, &top_children, &levels, &placement_texels);
+
+        let mut packed = self.first.clone();
+        if remade.iter().any(Option::is_some) {
+            self.write_deformed_triangles(&mut packed, parts, &remade);
+        }
+        let s = &mut packed.scene;
+        s.nodes = planes;
+        s.node_children = children;
+        s.instance_first = (levels.node_count * NODE_TEXELS as usize) as u32;
+        s.leaf_stack_limit = leaf_stack_limit;
+        s.scene_scale = scene_scale(&boxes);
+        packed.features.traversal_stack = traversal_stack;
+        Ok(packed)
+    }
+
+    /// Per level, the deformed meshes' bottom levels made again for `parts` (built again or
+    /// refitted, see [`deformed_level`]) and widened, `None` for a kept level: in parallel, as
+    /// packing does. A deformed mesh whose triangle count changed is no pose of this scene.
+    fn remade_levels(&self, parts: &Scene) -> Result<Vec<Remade>, PackError> {
+        self.levels
             .par_iter()
             .map(|level| match (&level.kind, level.mesh) {
                 (LevelKind::Deformed { refit, .. }, Some(m)) => {
@@ -226,25 +261,22 @@ impl Posing {
                 }
                 _ => Ok(None),
             })
-            .collect::<Result<_, _>>()?;
+            .collect()
+    }
 
-        // The top level over the placements' boxes: the static one first, then the instances'.
-        let mut boxes: Vec<Aabb> = self.static_box.into_iter().collect();
-        boxes.extend(parts.placement_boxes());
-        let corners: Vec<(Vec3, Vec3)> = boxes.iter().map(|b| (b.min, b.max)).collect();
-        let (top, top_wide) = top_level(&corners).map_err(PackError::Bvh)?;
-        check_leaves(&top)?;
-
-        // The nodes: the top level, then each level moved behind it, then the placements.
+    /// The bottom levels' nodes behind a top level of `top_nodes` nodes, in level order: a kept
+    /// level's borrowed from the first pose (its child entries to be shifted to where it lands),
+    /// a remade one's packed from `remade` at its new place. Kept apart from writing the arrays
+    /// because the placements need the levels' roots, and the stack check their needs, first.
+    fn level_nodes<'a>(&'a self, remade: &[Remade], top_nodes: usize) -> LevelNodes<'a> {
         let old = &self.first.scene;
-        let (top_planes, top_children) = pack_nodes(&top_wide);
         let mut roots = Vec::with_capacity(self.levels.len());
         let mut pieces = Vec::with_capacity(self.levels.len());
         let mut bottom = (0u32, 0u32);
-        let mut node_count = top_children.len();
-        for (level, rebuilt) in self.levels.iter().zip(&rebuilt) {
+        let mut node_count = top_nodes;
+        for (level, remade) in self.levels.iter().zip(remade) {
             roots.push(node_count as u32);
-            let piece = match (&level.kind, rebuilt) {
+            let piece = match (&level.kind, remade) {
                 (LevelKind::Kept { nodes, need }, _) => {
                     bottom = (bottom.0.max(need.0), bottom.1.max(need.1));
                     let texels = nodes.start * NODE_TEXELS as usize..nodes.end * NODE_TEXELS as usize;
@@ -263,12 +295,16 @@ impl Posing {
             node_count += piece.children_len();
             pieces.push(piece);
         }
-        if node_count >= MAX_EXACT {
-            return Err(PackError::TooManyTriangles(self.first.triangle_count));
-        }
+        LevelNodes { roots, pieces, bottom, node_count }
+    }
+
+    /// The placements' texels in the top level's leaf order (`order`: the static placement,
+    /// when there is one, is item 0, instance `i` item `i + 1`), each naming its level's root
+    /// in `roots`.
+    fn placement_texels(&self, parts: &Scene, order: &[u32], roots: &[u32]) -> Result<Vec<Vec4>, PackError> {
         let has_static = self.static_box.is_some() as usize;
-        let mut placement_texels = Vec::with_capacity(top.triangle_order.len() * INSTANCE_TEXELS as usize);
-        for &p in &top.triangle_order {
+        let mut placement_texels = Vec::with_capacity(order.len() * INSTANCE_TEXELS as usize);
+        for &p in order {
             let texels = match (p as usize).checked_sub(has_static) {
                 None => instance_texels(Mat4::IDENTITY, roots[0], true),
                 Some(i) => {
@@ -283,86 +319,117 @@ impl Posing {
             };
             placement_texels.extend_from_slice(&texels);
         }
-        let top_need = top_wide.stack_needed_with_leaves + 1;
-        let (traversal_stack, leaf_stack_limit) = check_stack(top_need, bottom.0, bottom.1)?;
-        let instance_first = node_count * NODE_TEXELS as usize;
-        // Written in place (one copy of each kept level).
-        let planes = Texels::par_from_fill(instance_first + placement_texels.len(), |out| {
-            let mut at = 0;
-            let mut copy = |from: &[Vec4]| {
-                out[at..at + from.len()].copy_from_slice(from);
-                at += from.len();
-            };
-            copy(top_planes.as_slice());
-            pieces.iter().for_each(|p| copy(p.planes()));
-            copy(&placement_texels);
-        });
-        let children = Texels::par_from_fill(node_count, |out| {
-            out[..top_children.len()].copy_from_slice(top_children.as_slice());
-            let mut at = top_children.len();
-            for piece in &pieces {
-                let to = &mut out[at..at + piece.children_len()];
-                match piece {
-                    Piece::Kept(_, from, shift) => to.iter_mut().zip(*from).for_each(|(o, c)| *o = shifted(*c, *shift)),
-                    Piece::Made(_, from) => to.copy_from_slice(from.as_slice()),
-                }
-                at += to.len();
-            }
-        });
+        Ok(placement_texels)
+    }
 
-        // The deformed meshes' triangles, in their new order, over the first pose's.
-        let mut packed = self.first.clone();
+    /// Writes the deformed meshes' triangles (and their shading, tangent and second-UV
+    /// sections, where `packed` has them) in the order of their `remade` bottom levels over
+    /// the first pose's, which `packed` starts as: every other triangle keeps its place.
+    fn write_deformed_triangles(&self, packed: &mut Packed, parts: &Scene, remade: &[Remade]) {
+        let f = &packed.features;
         let s = &mut packed.scene;
-        if rebuilt.iter().any(Option::is_some) {
-            let f = &packed.features;
-            // Each deformed triangle: its index, the triangle, whether it is alpha-tested.
-            let each = |write: &mut dyn FnMut(usize, &crate::scene::Triangle, bool)| {
-                for (level, rebuilt) in self.levels.iter().zip(&rebuilt) {
-                    let (LevelKind::Deformed { alpha_tested, .. }, Some((bvh, _)), Some(m)) =
-                        (&level.kind, rebuilt, level.mesh)
-                    else {
-                        continue;
-                    };
-                    for (j, &source) in bvh.triangle_order.iter().enumerate() {
-                        let t = &parts.meshes[m].triangles[source as usize];
-                        write(level.triangles.start + j, t, f.alpha_mask && alpha_tested[source as usize]);
-                    }
+        // Each deformed triangle: its index, the triangle, whether it is alpha-tested.
+        let each = |write: &mut dyn FnMut(usize, &crate::scene::Triangle, bool)| {
+            for (level, remade) in self.levels.iter().zip(remade) {
+                let (LevelKind::Deformed { alpha_tested, .. }, Some((bvh, _)), Some(m)) =
+                    (&level.kind, remade, level.mesh)
+                else {
+                    continue;
+                };
+                for (j, &source) in bvh.triangle_order.iter().enumerate() {
+                    let t = &parts.meshes[m].triangles[source as usize];
+                    write(level.triangles.start + j, t, f.alpha_mask && alpha_tested[source as usize]);
                 }
-            };
-            s.triangles = Texels::par_from_fill(s.triangles.len(), |out| {
-                out.copy_from_slice(s.triangles.as_slice());
-                each(&mut |i, t, alpha| put(out, i, TRIANGLE_TEXELS, 0, &triangle_texels(t, None, alpha)));
-            });
-            if f.shading {
-                let (tangent_first, texcoord1_first) = (s.tangent_first, s.texcoord1_first);
-                s.shading = Texels::par_from_fill(s.shading.len(), |out| {
-                    out.copy_from_slice(s.shading.as_slice());
-                    each(&mut |i, t, _| {
-                        put(out, i, SHADING_TEXELS, 0, &shading_texels(t));
-                        if f.normal_map {
-                            put(out, i, TANGENT_TEXELS, tangent_first, &t.tangents);
-                        }
-                        if f.texcoord1 {
-                            let uvs1 = super::texture_refs::texcoord1_texels(&t.uvs1);
-                            put(out, i, TEXCOORD1_TEXELS, texcoord1_first, &uvs1);
-                        }
-                    });
-                });
             }
+        };
+        s.triangles = Texels::par_from_fill(s.triangles.len(), |out| {
+            out.copy_from_slice(s.triangles.as_slice());
+            each(&mut |i, t, alpha| put(out, i, TRIANGLE_TEXELS, 0, &triangle_texels(t, None, alpha)));
+        });
+        if f.shading {
+            let (tangent_first, texcoord1_first) = (s.tangent_first, s.texcoord1_first);
+            s.shading = Texels::par_from_fill(s.shading.len(), |out| {
+                out.copy_from_slice(s.shading.as_slice());
+                each(&mut |i, t, _| {
+                    put(out, i, SHADING_TEXELS, 0, &shading_texels(t));
+                    if f.normal_map {
+                        put(out, i, TANGENT_TEXELS, tangent_first, &t.tangents);
+                    }
+                    if f.texcoord1 {
+                        let uvs1 = super::texture_refs::texcoord1_texels(&t.uvs1);
+                        put(out, i, TEXCOORD1_TEXELS, texcoord1_first, &uvs1);
+                    }
+                });
+            });
         }
-        s.nodes = planes;
-        s.node_children = children;
-        s.instance_first = instance_first as u32;
-        s.leaf_stack_limit = leaf_stack_limit;
-        let mut bounds = Aabb::EMPTY;
-        for b in boxes.iter().filter(|b| b.min.cmple(b.max).all()) {
-            bounds.extend(b.min);
-            bounds.extend(b.max);
+    }
+}
+
+/// A deformed level made again at a pose: its bottom level (whose triangle order its triangles
+/// are written in) and that level widened (whose nodes are packed); `None` for a kept level.
+type Remade = Option<(crate::bvh::Bvh, crate::bvh::WideBvh)>;
+
+/// The bottom levels' nodes at a pose, as [`Posing::level_nodes`] lays them out.
+struct LevelNodes<'a> {
+    /// Per level, its root node.
+    roots: Vec<u32>,
+    /// Per level, its nodes.
+    pieces: Vec<Piece<'a>>,
+    /// The most stack any bottom level needs (child nodes pushed, leaves too).
+    bottom: (u32, u32),
+    /// All the nodes: the top level's and the levels'.
+    node_count: usize,
+}
+
+/// The node arrays: the top level's planes and child entries, then each level's nodes
+/// (a kept level's child entries shifted to where it now lies), then the placements' texels
+/// behind the nodes' planes. Written in place (one copy of each kept level).
+fn node_arrays(
+    top_planes: &Texels<Vec4>,
+    top_children: &Texels<UVec4>,
+    levels: &LevelNodes,
+    placement_texels: &[Vec4],
+) -> (Texels<Vec4>, Texels<UVec4>) {
+    let instance_first = levels.node_count * NODE_TEXELS as usize;
+    let planes = Texels::par_from_fill(instance_first + placement_texels.len(), |out| {
+        let mut at = 0;
+        let mut copy = |from: &[Vec4]| {
+            out[at..at + from.len()].copy_from_slice(from);
+            at += from.len();
+        };
+        copy(top_planes.as_slice());
+        levels.pieces.iter().for_each(|p| copy(p.planes()));
+        copy(placement_texels);
+    });
+    let children = Texels::par_from_fill(levels.node_count, |out| {
+        out[..top_children.len()].copy_from_slice(top_children.as_slice());
+        let mut at = top_children.len();
+        for piece in &levels.pieces {
+            let to = &mut out[at..at + piece.children_len()];
+            match piece {
+                Piece::Kept(_, from, shift) => to.iter_mut().zip(*from).for_each(|(o, c)| *o = shifted(*c, *shift)),
+                Piece::Made(_, from) => to.copy_from_slice(from.as_slice()),
+            }
+            at += to.len();
         }
-        let scene_scale = bounds.min.abs().max(bounds.max.abs()).max_element();
-        s.scene_scale = if scene_scale.is_finite() { scene_scale } else { 1.0 };
-        packed.features.traversal_stack = traversal_stack;
-        Ok(packed)
+    });
+    (planes, children)
+}
+
+/// The scene's scale (the largest coordinate of the placements' `boxes`, skipping empty
+/// ones; 1 when there is none), as packing the posed scene computes it: the kernel's ray
+/// offsets scale with it, so it must follow what moves.
+fn scene_scale(boxes: &[Aabb]) -> f32 {
+    let mut bounds = Aabb::EMPTY;
+    for b in boxes.iter().filter(|b| b.min.cmple(b.max).all()) {
+        bounds.extend(b.min);
+        bounds.extend(b.max);
+    }
+    let scene_scale = bounds.min.abs().max(bounds.max.abs()).max_element();
+    if scene_scale.is_finite() {
+        scene_scale
+    } else {
+        1.0
     }
 }
 
