@@ -242,6 +242,7 @@ mod tests {
     use crate::backend::Renderer;
     use crate::kernel::features::RenderSettings;
     use crate::pack::pack;
+    use kernel_dsl::Texels;
 
     /// A file of the repository's vendored test data (`tests/data/`, see its README.md).
     fn test_data(rel: &str) -> std::path::PathBuf {
@@ -483,6 +484,36 @@ mod tests {
         let mut q = p.clone();
         q.features.sky = true;
         assert!(matches!(decode(&encode(&q)).unwrap_err(), BundleError::Inconsistent(_)));
+    }
+
+    /// The sky's guide tables must be its CDFs': a guide entry changed, a bucket count changed
+    /// or the column guides cut short are refused (the kernel would search between wrong bounds).
+    #[test]
+    fn sky_guides_that_disagree_with_the_cdfs_are_refused() {
+        let p = textured_with_sky();
+        assert!(decode(&encode(&p)).is_ok());
+        let h = p.scene.sky_height as usize;
+        // What is changed in `sky_rows`, given the sky's height.
+        type Edit = fn(&mut Vec<glam::Vec4>, usize);
+        let edits: [(&str, Edit); 4] = [
+            ("a column guide entry", |rows, h| rows[h + 5].y += 1.0),
+            ("a row guide entry", |rows, _| rows[3].y += 1.0),
+            ("the column bucket count", |rows, _| rows[0].w *= 2.0),
+            ("the column guides cut short", |rows, _| {
+                rows.pop();
+            }),
+        ];
+        for (what, edit) in edits {
+            let mut q = p.clone();
+            let mut rows = q.scene.sky_rows.as_slice().to_vec();
+            edit(&mut rows, h);
+            q.scene.sky_rows = Texels::new(rows);
+            let refused = decode(&encode(&q)).err();
+            assert!(
+                matches!(refused, Some(BundleError::Inconsistent(ref m)) if m.contains("sky")),
+                "{what}: {refused:?}"
+            );
+        }
     }
 
     /// A two-level scene (meshes once, placements) round-trips to the same image; placements
