@@ -384,7 +384,7 @@ fn offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     return p + n * eps;
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:255)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:256)
 fn power_heuristic(a: f32, b: f32) -> f32 {
     let a2: f32 = a * a;
     let b2: f32 = b * b;
@@ -2743,7 +2743,7 @@ fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     }
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:267)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:268)
 fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }

@@ -598,14 +598,14 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:255)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:256)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
     return a2 + b2 > 0.0 ? a2 / (a2 + b2) : 0.0;
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:267)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:268)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

@@ -1039,7 +1039,7 @@ vec3 sky_texel_radiance(vec2 c) {
     return lp_fetch_vec4(scene_sky, i).xyz * scene_sky_intensity;
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:255)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:256)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
@@ -2042,7 +2042,7 @@ bool occluded(vec3 origin, vec3 dir, float t_max) {
     }
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:267)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:268)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

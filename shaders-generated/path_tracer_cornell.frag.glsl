@@ -624,7 +624,7 @@ float light_pmf(uint index) {
     return lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS).z;
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:255)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:256)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
@@ -979,7 +979,7 @@ bool occluded(vec3 origin, vec3 dir, float t_max) {
     return any_hit(origin, dir, t_max);
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:267)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:268)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

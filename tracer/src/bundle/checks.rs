@@ -63,6 +63,9 @@ pub(super) fn check_consistency(p: &Packed) -> Result<(), BundleError> {
 /// return another texel than the CDFs say (never one out of range: it reads within the rows).
 fn check_sky(s: &Scene) -> Result<(), BundleError> {
     let (w, h) = (s.sky_width as usize, s.sky_height as usize);
+    if w == 0 || h == 0 {
+        return Err(BundleError::Inconsistent(format!("sky {w}x{h} has no texels")));
+    }
     if s.sky.len() as u64 != s.sky_width as u64 * s.sky_height as u64 || s.sky_rows.len() != sky::rows_len(w, h) {
         return Err(BundleError::Inconsistent(format!(
             "sky {}x{} with {} texels and {} rows (the marginal CDF and guide tables need {})",

@@ -503,6 +503,11 @@ mod tests {
                 rows.pop();
             }),
         ];
+        let mut no_texels = p.clone();
+        (no_texels.scene.sky_height, no_texels.scene.sky) = (0, Texels::default());
+        no_texels.scene.sky_rows = Texels::default();
+        let refused = decode(&encode(&no_texels)).err();
+        assert!(matches!(refused, Some(BundleError::Inconsistent(ref m)) if m.contains("sky")), "{refused:?}");
         for (what, edit) in edits {
             let mut q = p.clone();
             let mut rows = q.scene.sky_rows.as_slice().to_vec();

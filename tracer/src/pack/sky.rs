@@ -6,9 +6,10 @@
 //! for a uniform `u` starts between buckets `floor(u K)` and the next instead of over the whole
 //! row: 2-3 steps instead of 9-10 fetches scattered over the map, for the very index the full
 //! search finds (`K` a power of two makes `u K` and `k / K` exact in `f32`). Layout of
-//! `sky_rows` (height `H` + the column guides): row `r` is `[marginal CDF, row guide r (for r <
-//! K_rows), K_rows (row 0) , K_columns (row 0)]`; then row `r`'s `K_columns` column guide
-//! entries, four to a texel (entry `r K_columns + k` in component `% 4` of texel `H + / 4`).
+//! `sky_rows`: texel `r < H` (the map's height) is `[marginal CDF of row r, row guide entry r
+//! (for r < K_rows, else 0), then in texel 0 only K_rows and K_columns (else 0, 0)]`; after
+//! them the column guides, `K_columns` entries per row, four to a texel: entry
+//! `i = r K_columns + k` is component `i % 4` of texel `H + i / 4`.
 
 use glam::Vec4;
 use kernel_dsl::Texels;
@@ -102,8 +103,8 @@ pub(crate) fn rows_with_guides(texels: &[Vec4], rows: &[Vec4], width: usize, hei
     let (row_buckets, column_buckets) = guide_buckets(width, height);
     let marginal = |y: usize| rows[y].x;
     let mut out: Vec<Vec4> = (0..height).map(|y| Vec4::new(marginal(y), 0.0, 0.0, 0.0)).collect();
-    for (y, g) in guide(marginal, height, row_buckets).enumerate() {
-        out[y].y = g as f32;
+    for (row, g) in out.iter_mut().zip(guide(marginal, height, row_buckets)) {
+        row.y = g as f32;
     }
     if let Some(first) = out.first_mut() {
         first.z = row_buckets as f32;
