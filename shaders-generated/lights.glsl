@@ -430,10 +430,15 @@ float sky_pdf(vec3 dir, vec2 c) {
     return sky_texel_pdf(pmf, sqrt(max(1.0 - dir.y * dir.y, 0.0)));
 }
 
-// lights::search_sky_row (lightport-tracer/src/kernel/lights.rs:131)
+// lights::guide_bucket (lightport-tracer/src/kernel/lights.rs:130)
+uint guide_bucket(float u, uint buckets) {
+    return min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+}
+
+// lights::search_sky_row (lightport-tracer/src/kernel/lights.rs:137)
 uint search_sky_row(float u) {
     uint buckets = max(lp_f32_to_u32(lp_fetch_vec4(scene_sky_rows, 0u).z), 1u);
-    uint k = min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+    uint k = guide_bucket(u, buckets);
     uint lo = index_of(lp_fetch_vec4(scene_sky_rows, k).y);
     uint hi = scene_sky_height - 1u;
     if (k + 1u < buckets) {
@@ -450,7 +455,7 @@ uint search_sky_row(float u) {
     return lo;
 }
 
-// lights::sky_column_guide (lightport-tracer/src/kernel/lights.rs:151)
+// lights::sky_column_guide (lightport-tracer/src/kernel/lights.rs:157)
 uint sky_column_guide(uint i) {
     vec4 t = lp_fetch_vec4(scene_sky_rows, scene_sky_height + i / 4u);
     uint c = i % 4u;
@@ -465,11 +470,11 @@ uint sky_column_guide(uint i) {
     return index_of(g);
 }
 
-// lights::search_sky_column (lightport-tracer/src/kernel/lights.rs:167)
+// lights::search_sky_column (lightport-tracer/src/kernel/lights.rs:173)
 uint search_sky_column(uint row, float u) {
     uint base = row * scene_sky_width;
     uint buckets = max(lp_f32_to_u32(lp_fetch_vec4(scene_sky_rows, 0u).w), 1u);
-    uint k = min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+    uint k = guide_bucket(u, buckets);
     uint lo = sky_column_guide(row * buckets + k);
     uint hi = scene_sky_width - 1u;
     if (k + 1u < buckets) {
@@ -536,7 +541,7 @@ bool is_hole(uint triangle, uint material, float u, float v) {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// lights::sample_light (lightport-tracer/src/kernel/lights.rs:190)
+// lights::sample_light (lightport-tracer/src/kernel/lights.rs:196)
 LightSample sample_light(vec3 p, vec3 u) {
     LightSample none = LightSample(vec3(0.0, 1.0, 0.0), 0.0, vec3(0.0), 0.0, false);
     uint index = choose_light(u.x);
@@ -598,14 +603,14 @@ LightSample sample_light(vec3 p, vec3 u) {
     }
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:256)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:262)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
     return a2 + b2 > 0.0 ? a2 / (a2 + b2) : 0.0;
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:268)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:274)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

@@ -1039,7 +1039,7 @@ vec3 sky_texel_radiance(vec2 c) {
     return lp_fetch_vec4(scene_sky, i).xyz * scene_sky_intensity;
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:256)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:262)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
@@ -1399,10 +1399,15 @@ vec2 uniform_sample_triangle(float u1, float u2) {
     return vec2(s * (1.0 - u2), s * u2);
 }
 
-// lights::search_sky_row (lightport-tracer/src/kernel/lights.rs:131)
+// lights::guide_bucket (lightport-tracer/src/kernel/lights.rs:130)
+uint guide_bucket(float u, uint buckets) {
+    return min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+}
+
+// lights::search_sky_row (lightport-tracer/src/kernel/lights.rs:137)
 uint search_sky_row(float u) {
     uint buckets = max(lp_f32_to_u32(lp_fetch_vec4(scene_sky_rows, 0u).z), 1u);
-    uint k = min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+    uint k = guide_bucket(u, buckets);
     uint lo = index_of(lp_fetch_vec4(scene_sky_rows, k).y);
     uint hi = scene_sky_height - 1u;
     if (k + 1u < buckets) {
@@ -1419,7 +1424,7 @@ uint search_sky_row(float u) {
     return lo;
 }
 
-// lights::sky_column_guide (lightport-tracer/src/kernel/lights.rs:151)
+// lights::sky_column_guide (lightport-tracer/src/kernel/lights.rs:157)
 uint sky_column_guide(uint i) {
     vec4 t = lp_fetch_vec4(scene_sky_rows, scene_sky_height + i / 4u);
     uint c = i % 4u;
@@ -1434,11 +1439,11 @@ uint sky_column_guide(uint i) {
     return index_of(g);
 }
 
-// lights::search_sky_column (lightport-tracer/src/kernel/lights.rs:167)
+// lights::search_sky_column (lightport-tracer/src/kernel/lights.rs:173)
 uint search_sky_column(uint row, float u) {
     uint base = row * scene_sky_width;
     uint buckets = max(lp_f32_to_u32(lp_fetch_vec4(scene_sky_rows, 0u).w), 1u);
-    uint k = min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+    uint k = guide_bucket(u, buckets);
     uint lo = sky_column_guide(row * buckets + k);
     uint hi = scene_sky_width - 1u;
     if (k + 1u < buckets) {
@@ -1463,7 +1468,7 @@ vec3 sky_direction(vec2 uv) {
     return vec3(s * sin(phi), cos(theta), -s * cos(phi));
 }
 
-// lights::sample_light (lightport-tracer/src/kernel/lights.rs:190)
+// lights::sample_light (lightport-tracer/src/kernel/lights.rs:196)
 LightSample sample_light(vec3 p, vec3 u) {
     LightSample none = LightSample(vec3(0.0, 1.0, 0.0), 0.0, vec3(0.0), 0.0, false);
     uint index = choose_light(u.x);
@@ -2042,7 +2047,7 @@ bool occluded(vec3 origin, vec3 dir, float t_max) {
     }
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:268)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:274)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

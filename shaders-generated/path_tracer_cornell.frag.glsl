@@ -624,7 +624,7 @@ float light_pmf(uint index) {
     return lp_fetch_vec4(scene_lights, index * LIGHT_TEXELS).z;
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:256)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:262)
 float power_heuristic(float a, float b) {
     float a2 = a * a;
     float b2 = b * b;
@@ -742,7 +742,7 @@ vec2 uniform_sample_triangle(float u1, float u2) {
     return vec2(s * (1.0 - u2), s * u2);
 }
 
-// lights::sample_light (lightport-tracer/src/kernel/lights.rs:190)
+// lights::sample_light (lightport-tracer/src/kernel/lights.rs:196)
 LightSample sample_light(vec3 p, vec3 u) {
     LightSample none = LightSample(vec3(0.0, 1.0, 0.0), 0.0, vec3(0.0), 0.0, false);
     uint index = choose_light(u.x);
@@ -979,7 +979,7 @@ bool occluded(vec3 origin, vec3 dir, float t_max) {
     return any_hit(origin, dir, t_max);
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:268)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:274)
 vec4 finite_or_zero(vec3 c) {
     return lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z) ? vec4(c, 1.0) : vec4(0.0);
 }

@@ -590,7 +590,7 @@ fn light_pmf(index: u32) -> f32 {
     return lp_scene_vec4f[scene.lp_start_lights + index * LIGHT_TEXELS].z;
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:256)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:262)
 fn power_heuristic(a: f32, b: f32) -> f32 {
     let a2: f32 = a * a;
     let b2: f32 = b * b;
@@ -708,7 +708,7 @@ fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
     return vec2<f32>(s * (1.0 - u2), s * u2);
 }
 
-// lights::sample_light (lightport-tracer/src/kernel/lights.rs:190)
+// lights::sample_light (lightport-tracer/src/kernel/lights.rs:196)
 fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     let none: LightSample = LightSample(vec3<f32>(0.0, 1.0, 0.0), 0.0, vec3<f32>(0.0), 0.0, false);
     let index: u32 = choose_light(u.x);
@@ -943,7 +943,7 @@ fn occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     return any_hit(origin, dir, t_max);
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:268)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:274)
 fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }

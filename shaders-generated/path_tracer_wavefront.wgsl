@@ -1183,7 +1183,7 @@ fn sky_texel_radiance(c: vec2<f32>) -> vec3<f32> {
     return lp_scene_vec4f[scene.lp_start_sky + i].xyz * scene.sky_intensity;
 }
 
-// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:256)
+// lights::power_heuristic (lightport-tracer/src/kernel/lights.rs:262)
 fn power_heuristic(a: f32, b: f32) -> f32 {
     let a2: f32 = a * a;
     let b2: f32 = b * b;
@@ -1543,10 +1543,15 @@ fn uniform_sample_triangle(u1: f32, u2: f32) -> vec2<f32> {
     return vec2<f32>(s * (1.0 - u2), s * u2);
 }
 
-// lights::search_sky_row (lightport-tracer/src/kernel/lights.rs:131)
+// lights::guide_bucket (lightport-tracer/src/kernel/lights.rs:130)
+fn guide_bucket(u: f32, buckets: u32) -> u32 {
+    return min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+}
+
+// lights::search_sky_row (lightport-tracer/src/kernel/lights.rs:137)
 fn search_sky_row(u: f32) -> u32 {
     let buckets: u32 = max(lp_f32_to_u32(lp_scene_vec4f[scene.lp_start_sky_rows + 0u].z), 1u);
-    let k: u32 = min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+    let k: u32 = guide_bucket(u, buckets);
     var lo: u32 = index_of(lp_scene_vec4f[scene.lp_start_sky_rows + k].y);
     var hi: u32 = scene.sky_height - 1u;
     if k + 1u < buckets {
@@ -1563,7 +1568,7 @@ fn search_sky_row(u: f32) -> u32 {
     return lo;
 }
 
-// lights::sky_column_guide (lightport-tracer/src/kernel/lights.rs:151)
+// lights::sky_column_guide (lightport-tracer/src/kernel/lights.rs:157)
 fn sky_column_guide(i: u32) -> u32 {
     let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_sky_rows + (scene.sky_height + i / 4u)];
     let c: u32 = i % 4u;
@@ -1578,11 +1583,11 @@ fn sky_column_guide(i: u32) -> u32 {
     return index_of(g);
 }
 
-// lights::search_sky_column (lightport-tracer/src/kernel/lights.rs:167)
+// lights::search_sky_column (lightport-tracer/src/kernel/lights.rs:173)
 fn search_sky_column(row: u32, u: f32) -> u32 {
     let base: u32 = row * scene.sky_width;
     let buckets: u32 = max(lp_f32_to_u32(lp_scene_vec4f[scene.lp_start_sky_rows + 0u].w), 1u);
-    let k: u32 = min(lp_f32_to_u32(u * lp_u32_to_f32(buckets)), buckets - 1u);
+    let k: u32 = guide_bucket(u, buckets);
     var lo: u32 = sky_column_guide(row * buckets + k);
     var hi: u32 = scene.sky_width - 1u;
     if k + 1u < buckets {
@@ -1607,7 +1612,7 @@ fn sky_direction(uv: vec2<f32>) -> vec3<f32> {
     return vec3<f32>(s * sin(phi), cos(theta), -s * cos(phi));
 }
 
-// lights::sample_light (lightport-tracer/src/kernel/lights.rs:190)
+// lights::sample_light (lightport-tracer/src/kernel/lights.rs:196)
 fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     let none: LightSample = LightSample(vec3<f32>(0.0, 1.0, 0.0), 0.0, vec3<f32>(0.0), 0.0, false);
     let index: u32 = choose_light(u.x);
@@ -2236,7 +2241,7 @@ fn connect(invocation: u32) {
     }
 }
 
-// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:268)
+// lights::finite_or_zero (lightport-tracer/src/kernel/lights.rs:274)
 fn finite_or_zero(c: vec3<f32>) -> vec4<f32> {
     return select(vec4<f32>(0.0), vec4<f32>(c, 1.0), lp_is_finite(c.x) && lp_is_finite(c.y) && lp_is_finite(c.z));
 }

@@ -125,12 +125,18 @@ pub mod lights {
         }
     }
 
+    /// The bucket of a guide table of `buckets` (a power of two: `u * buckets` is exact) that
+    /// the uniform `u` in [0, 1) falls in.
+    pub fn guide_bucket(u: f32, buckets: u32) -> u32 {
+        ((u * buckets as f32) as u32).min(buckets - 1)
+    }
+
     /// The row of the sky sampled by the uniform `u`: the first whose marginal CDF value exceeds
     /// `u` (the last if none does), by binary search between the row guide's bucket of `u` and
     /// the next (`tracer::pack::sky`: the same row as a search over every row).
     pub fn search_sky_row(scene: &Scene, u: f32) -> u32 {
         let buckets = (scene.sky_rows.fetch(0).z as u32).max(1);
-        let k = ((u * buckets as f32) as u32).min(buckets - 1);
+        let k = guide_bucket(u, buckets);
         let mut lo = index_of(scene.sky_rows.fetch(k).y);
         let mut hi = scene.sky_height - 1;
         if k + 1 < buckets {
@@ -167,7 +173,7 @@ pub mod lights {
     pub fn search_sky_column(scene: &Scene, row: u32, u: f32) -> u32 {
         let base = row * scene.sky_width;
         let buckets = (scene.sky_rows.fetch(0).w as u32).max(1);
-        let k = ((u * buckets as f32) as u32).min(buckets - 1);
+        let k = guide_bucket(u, buckets);
         let mut lo = sky_column_guide(scene, row * buckets + k);
         let mut hi = scene.sky_width - 1;
         if k + 1 < buckets {
