@@ -7,7 +7,9 @@
 //! cargo run --release --example bundle_sizes -- [--entries] [--write DIR] SCENE...
 //! ```
 //!
-//! `--write DIR` also writes each bundle to `DIR/<scene>.lpb`.
+//! `--write DIR` also writes each bundle to `DIR/<scene>.lpb`; `--sky FILE` (`.hdr` or `.exr`)
+//! adds that sky to every scene, as `lightport serve --sky` does, and counts its file in the
+//! source.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -46,23 +48,27 @@ fn mb(bytes: u64) -> String {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let (mut entries, mut write, mut paths) = (false, None, Vec::new());
+    let (mut entries, mut write, mut sky, mut paths) = (false, None, None, Vec::new());
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
         match arg.as_str() {
             "--entries" => entries = true,
             "--write" => write = Some(PathBuf::from(args.next().ok_or("--write takes a directory")?)),
+            "--sky" => sky = Some(PathBuf::from(args.next().ok_or("--sky takes a .hdr or .exr file")?)),
             _ => paths.push(PathBuf::from(arg)),
         }
     }
     if paths.is_empty() {
-        return Err("usage: bundle_sizes [--entries] SCENE...".into());
+        return Err("usage: bundle_sizes [--entries] [--write DIR] [--sky FILE] SCENE...".into());
     }
     println!("| scene | triangles | source | bundle raw | bundle gzip | gzip / source | encode | decode |");
     println!("|---|---|---|---|---|---|---|---|");
     let mut details = Vec::new();
     for path in &paths {
-        let scene = tracer::scene::load(path)?;
+        let mut scene = tracer::scene::load(path)?;
+        if let Some(sky) = &sky {
+            scene.sky = Some(tracer::scene::load_sky(sky, 1.0, 0.0)?);
+        }
         let (_, packed) = build_and_pack(&scene, &RenderSettings::default())?;
         let name = path.file_stem().unwrap_or_default().to_string_lossy().into_owned();
         let start = std::time::Instant::now();
@@ -74,7 +80,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if let Some(dir) = &write {
             std::fs::write(dir.join(format!("{name}.lpb")), &bytes)?;
         }
-        let (source, zipped) = (source_bytes(path), gzip(&bytes) as u64);
+        let sky_file = sky.as_deref().map_or(0, source_bytes);
+        let (source, zipped) = (source_bytes(path) + sky_file, gzip(&bytes) as u64);
         println!(
             "| {name} | {} | {} | {} | {} | {:.2} | {encode:.0} ms | {decode:.0} ms |",
             packed.triangle_count,

@@ -225,7 +225,8 @@ fn sky(shared: &Path) -> Vec<Seed> {
 }
 
 /// Bundles of the generated scenes at a small image size: diffuse only, emissive triangles and
-/// point lights, a sky, textures.
+/// point lights, a sky made in code (its texels travel) and one from a file (the file
+/// travels: `tracer/src/bundle/sky.rs`), textures.
 fn bundle() -> Vec<Seed> {
     let settings = RenderSettings { width: 8, height: 6, ..RenderSettings::default() };
     let mut with_sky = scene::diffuse_plane(Vec3::splat(0.5));
@@ -235,12 +236,20 @@ fn bundle() -> Vec<Seed> {
         texels: (0..8).map(|i| Vec3::splat(i as f32)).collect(),
         intensity: 1.0,
         rotation: 0.0,
+        file: None,
     });
+    let mut with_sky_file = scene::diffuse_plane(Vec3::splat(0.5));
+    let hdr = image::Rgb32FImage::from_fn(8, 4, |x, y| image::Rgb([x as f32 * 0.5, y as f32, 2.0]));
+    let hdr = encode(DynamicImage::ImageRgb32F(hdr), ImageFormat::Hdr);
+    with_sky_file.sky = scene::load_sky_slice(&hdr, scene::SkyFormat::Hdr, "generated.hdr", 1.0, 0.0).ok();
     let textured =
         scene::load_gltf_slice(&crate::glb::textured_quad(&crate::targets::tiny_images().0), None, &Default::default());
     // Two levels: placements the decoder's checks must bound (roots, transforms, flags).
     let mut scenes =
         vec![("cornell_box", scene::cornell_box()), ("sky", with_sky), ("instanced", scene::instanced_shapes(2))];
+    if with_sky_file.sky.is_some() {
+        scenes.push(("sky_file", with_sky_file));
+    }
     if let Ok(t) = textured {
         scenes.push(("textured", t));
     }

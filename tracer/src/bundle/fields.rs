@@ -1,6 +1,8 @@
 //! Each field of [`Packed`] as an entry under its path: texel arrays, uniforms, flags, counts,
 //! and the kernel's `Scene` and `Features` walked through their one declaration each.
 
+use std::borrow::Cow;
+
 use glam::{UVec4, Vec3, Vec4};
 use kernel_dsl::{Resource, ResourceMut, Resources, Texels};
 
@@ -163,22 +165,28 @@ fn field_name(prefix: &str, field: &str) -> String {
     }
 }
 
-/// The packed scene, field by field, except that the texture
-/// atlas travels as its images ([`super::textures`]): `scene.texture_texels` is stored empty
-/// when there are images, and decoded from them on reading.
+/// The packed scene, field by field, except that the texture atlas travels as its images
+/// ([`super::textures`]) and the sky as its file ([`super::sky`]): `scene.texture_texels`,
+/// `scene.sky` and `scene.sky_rows` are stored empty when there are images or a file, and
+/// decoded from them on reading.
 impl Field for Packed {
     fn write(&self, prefix: &str, w: &mut Writer) {
-        let Packed { scene, features, triangle_count, light_count, texture_images } = self;
+        let Packed { scene, features, triangle_count, light_count, texture_images, sky_file } = self;
         let name = |field| field_name(prefix, field);
-        if texture_images.is_empty() {
-            scene.write(&name("scene"), w);
-        } else {
-            Scene { texture_texels: Texels::default(), ..scene.clone() }.write(&name("scene"), w);
+        let mut stored = Cow::Borrowed(scene);
+        if !texture_images.is_empty() {
+            stored.to_mut().texture_texels = Texels::default();
         }
+        if sky_file.is_some() {
+            let scene = stored.to_mut();
+            (scene.sky, scene.sky_rows) = (Texels::default(), Texels::default());
+        }
+        stored.write(&name("scene"), w);
         features.write(&name("features"), w);
         triangle_count.write(&name("triangle_count"), w);
         light_count.write(&name("light_count"), w);
         super::textures::write(texture_images, &scene.texture_texels, w);
+        super::sky::write(sky_file.as_ref(), w);
     }
     fn read(prefix: &str, r: &mut Reader) -> Result<Self, BundleError> {
         let name = |field| field_name(prefix, field);
@@ -193,7 +201,8 @@ impl Field for Packed {
             }
             scene.texture_texels = atlas;
         }
-        Ok(Packed { scene, features, triangle_count, light_count, texture_images })
+        let sky_file = super::sky::read(r, &mut scene)?;
+        Ok(Packed { scene, features, triangle_count, light_count, texture_images, sky_file })
     }
 }
 /// The feature flags, each under `<prefix>.<flag>` in declaration order, then the stack size.

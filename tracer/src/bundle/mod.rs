@@ -16,9 +16,9 @@
 //! `triangle_count`), plus `meta.name` (the scene's name). A `Texels<Vec4>` is `f32` × 4 × texels,
 //! a `Vec3` uniform `f32` × 3 × 1, a `u32` uniform `u32` × 1 × 1, a flag `u8` × 1 × 1 (0 or 1).
 //! Plain data starts 16-byte aligned, so a reader may view the arrays in place; numeric arrays
-//! over 4 KiB are compressed ([`format`] says why and how). The texture atlas is
-//! the exception: it travels as the image files it was decoded from ([`textures`]), so a bundle
-//! is no larger than the scene the artist exported.
+//! over 4 KiB are compressed ([`format`] says why and how). The texture atlas and the sky are
+//! the exceptions: they travel as the image files they were decoded from ([`textures`], [`sky`]),
+//! so a bundle is no larger than the files the artist exported.
 //!
 //! Decoding is strict: wrong magic, another version, a length that disagrees with the input,
 //! truncation, an unknown, missing, duplicated or mistyped field, or values that contradict each
@@ -30,8 +30,8 @@
 //! `Packed` destructured without `..`, so a field added anywhere is stored with no edit here.
 //!
 //! [`format`] reads and writes the container (header, entries, alignment), [`fields`] maps each
-//! field to its entry, [`textures`] stores the atlas as images, [`checks`] (with `bounds`)
-//! refuses values that contradict each other.
+//! field to its entry, [`textures`] stores the atlas as images and [`sky`] the sky as its file,
+//! [`checks`] (with `bounds`) refuses values that contradict each other.
 //!
 //! No I/O here: the module compiles for `wasm32-unknown-unknown` (where the texture decoder's rayon
 //! runs on the calling thread).
@@ -41,6 +41,7 @@ mod checks;
 mod fields;
 mod format;
 mod motion;
+mod sky;
 mod textures;
 
 use crate::kernel::features::Features;
@@ -64,8 +65,9 @@ pub const MAGIC: [u8; 8] = *b"LPBUNDLE";
 /// entries. 8: `features.transmission`, `features.volume`, `scene.has_transmission`,
 /// `scene.has_volume`, `scene.transmission_first`. 9: `scene.frame_index` (stratified pixel
 /// samples) and `scene.has_denoise_guide`. 10: two-level scenes: `features.instances`,
-/// `scene.has_instances`, `scene.instance_first`, placements appended to `scene.nodes`.)
-pub const VERSION: u32 = 10;
+/// `scene.has_instances`, `scene.instance_first`, placements appended to `scene.nodes`. 11: the
+/// sky as its file, `sky.format`, `sky.file`.)
+pub const VERSION: u32 = 11;
 /// The largest bundle accepted (and produced): well within wasm32's 4 GiB address space.
 pub const MAX_BUNDLE_BYTES: u64 = 1 << 30;
 /// File extension used for bundles (the server serves `/bundles/<hash>.lpb`).
@@ -270,6 +272,12 @@ mod tests {
         p
     }
 
+    /// [`textured_with_sky`] with its sky as if made in code: it travels as texels (compressed)
+    /// and guide tables, not as its file.
+    fn textured_with_sky_texels() -> Packed {
+        Packed { sky_file: None, ..textured_with_sky() }
+    }
+
     fn render(p: Packed) -> crate::backend::Image {
         let mut r = CpuRenderer::new(p, 7);
         for _ in 0..3 {
@@ -280,7 +288,12 @@ mod tests {
 
     #[test]
     fn round_trip_renders_the_same_image_bit_for_bit() {
-        for (name, p) in [("cornell-box", cornell()), ("BoxTextured+sky", textured_with_sky())] {
+        let cases = [
+            ("cornell-box", cornell()),
+            ("BoxTextured+sky", textured_with_sky()),
+            ("BoxTextured+sky texels", textured_with_sky_texels()),
+        ];
+        for (name, p) in cases {
             let bytes = encode_named(name, &p);
             let back = Bundle::decode(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
             assert_eq!(back.name, name);
@@ -390,7 +403,7 @@ mod tests {
 
     #[test]
     fn compressed_entries_are_checked() {
-        let good = encode(&textured_with_sky());
+        let good = encode(&textured_with_sky_texels());
         let at = entry_offset(&good, "scene.sky");
         assert_eq!(good[at + 2], 1, "the sky is large enough to be compressed");
         let data = (at + 12).next_multiple_of(ALIGN);
@@ -428,7 +441,7 @@ mod tests {
             assert_eq!(peek_features(&good).unwrap(), decode(&good).unwrap().features);
         }
         // The compressed entries are not decompressed: a corrupt one is decode's to find.
-        let p = textured_with_sky();
+        let p = textured_with_sky_texels();
         let good = encode(&p);
         let at = entry_offset(&good, "scene.sky");
         assert_eq!(good[at + 2], 1, "the sky is large enough to be compressed");
@@ -490,7 +503,7 @@ mod tests {
     /// or the column guides cut short are refused (the kernel would search between wrong bounds).
     #[test]
     fn sky_guides_that_disagree_with_the_cdfs_are_refused() {
-        let p = textured_with_sky();
+        let p = textured_with_sky_texels();
         assert!(decode(&encode(&p)).is_ok());
         let h = p.scene.sky_height as usize;
         // What is changed in `sky_rows`, given the sky's height.

@@ -13,7 +13,7 @@
 use crate::bvh::Bvh;
 use crate::kernel::scene_data::Scene as KernelScene;
 use crate::kernel::{Features, RenderSettings};
-use crate::scene::Scene;
+use crate::scene::{Scene, SkyFile};
 
 mod alpha_mask;
 mod camera;
@@ -45,6 +45,9 @@ pub struct Packed {
     /// The textures of `scene.texture_texels`, in order, as images: what a bundle ships instead
     /// of the texels (empty when the scene has no textures).
     pub texture_images: Vec<AtlasImage>,
+    /// The sky's source file, which a bundle ships instead of `scene.sky` and `scene.sky_rows`
+    /// (`None` without a sky, or for a sky made in code).
+    pub sky_file: Option<SkyFile>,
 }
 
 /// Why a scene cannot be packed.
@@ -156,7 +159,9 @@ pub fn pack_with_textures(
     let light_count = parts.lights.count;
     let kernel_scene = kernel_scene(parts, scene, textures, &features, settings, ordered.leaf_stack_limit);
     let texture_images = if features.textures { textures.images.clone() } else { Vec::new() };
-    Ok(Packed { scene: kernel_scene, features, triangle_count: ordered.triangles.len(), light_count, texture_images })
+    let sky_file = scene.sky.as_ref().and_then(|s| s.file.clone());
+    let triangle_count = ordered.triangles.len();
+    Ok(Packed { scene: kernel_scene, features, triangle_count, light_count, texture_images, sky_file })
 }
 
 /// What `scene` uses, once its triangles are in BVH order and its emitters and alpha-tested
@@ -316,7 +321,7 @@ impl Packed {
             ..Default::default()
         };
         features.set_kernel_flags(&mut scene);
-        Packed { scene, features, triangle_count: 0, light_count: 0, texture_images: Vec::new() }
+        Packed { scene, features, triangle_count: 0, light_count: 0, texture_images: Vec::new(), sky_file: None }
     }
 
     /// Exchanges the whole scene (every array and uniform) with `other`, which must need the

@@ -18,14 +18,14 @@ use crate::kernel::lights::luminance;
 use crate::scene::Sky;
 
 /// The kernel's sky arrays.
-pub(super) struct PackedSky {
+pub(crate) struct PackedSky {
     pub texels: Texels<Vec4>,
     pub rows: Texels<Vec4>,
     /// Mean radiance of the map weighted by solid angle (the sky light's power estimate).
     pub mean_radiance: f32,
 }
 
-pub(super) fn pack_sky(sky: Option<&Sky>) -> PackedSky {
+pub(crate) fn pack_sky(sky: Option<&Sky>) -> PackedSky {
     let mut sky_texels = Vec::new();
     let mut sky_rows = Vec::new();
     let mut mean_radiance = 0.0;
@@ -156,7 +156,7 @@ mod tests {
 
     fn sky(width: u32, height: u32, radiance: impl Fn(u32, u32) -> f32) -> Sky {
         let texels = (0..width * height).map(|i| Vec3::splat(radiance(i % width, i / width))).collect();
-        Sky { width, height, texels, intensity: 1.0, rotation: 0.0 }
+        Sky { width, height, texels, intensity: 1.0, rotation: 0.0, file: None }
     }
 
     /// Uniforms to search for: random ones, every bucket boundary of a guide with `buckets`

@@ -329,12 +329,22 @@ pub struct Sky {
     pub intensity: f32,
     /// Rotation of the map about +Y, radians (counter-clockwise seen from above).
     pub rotation: f32,
+    /// The file the texels were decoded from (`None` for a sky made in code): what a bundle
+    /// ships instead of the texels.
+    pub file: Option<SkyFile>,
+}
+
+/// A sky's source file: its format and bytes, which decode to the sky's texels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SkyFile {
+    pub format: SkyFormat,
+    pub bytes: EncodedImage,
 }
 
 impl Sky {
     /// A sky of constant radiance (a 1x1 map), for analytic tests.
     pub fn uniform(radiance: Vec3) -> Self {
-        Self { width: 1, height: 1, texels: vec![radiance], intensity: 1.0, rotation: 0.0 }
+        Self { width: 1, height: 1, texels: vec![radiance], intensity: 1.0, rotation: 0.0, file: None }
     }
 
     /// The sky a scene that nothing lights gets ([`Scene::light_if_unlit`]): uniform radiance

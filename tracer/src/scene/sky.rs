@@ -7,7 +7,7 @@ use image::ImageFormat;
 
 use super::texture::{catch_decoder_panic, decode_limited};
 use super::util::read_file;
-use super::{SceneError, Sky, MAX_IMAGE_TEXELS, MAX_RADIANCE};
+use super::{SceneError, Sky, SkyFile, MAX_IMAGE_TEXELS, MAX_RADIANCE};
 
 /// Loads an equirectangular sky (see [`Sky`] for the mapping) from a `.hdr` or `.exr` file.
 ///
@@ -111,6 +111,7 @@ pub fn load_sky_slice(
     rotation: f32,
 ) -> Result<Sky, SceneError> {
     check_parameters(intensity, rotation)?;
+    let sky_format = format;
     let format = match format {
         SkyFormat::Hdr => ImageFormat::Hdr,
         SkyFormat::Exr => ImageFormat::OpenExr,
@@ -146,5 +147,6 @@ pub fn load_sky_slice(
         }
         texels.push(v.max(Vec3::ZERO));
     }
-    Ok(Sky { width, height, texels, intensity, rotation })
+    let file = Some(SkyFile { format: sky_format, bytes: bytes.into() });
+    Ok(Sky { width, height, texels, intensity, rotation, file })
 }
