@@ -75,8 +75,7 @@ impl GlRuntime {
         // The texture uploads were only handed to the browser's GPU process: wait until it
         // has them, so that they count as upload and not as the first frame.
         let waiting = now_ms();
-        // SAFETY: a plain synchronisation call on the renderer's current context.
-        unsafe { renderer.gl().finish() };
+        read_back_pixel(renderer.gl());
         let created_at = now_ms();
         let startup = Startup {
             codegen_ms: build.codegen_ms,
@@ -292,13 +291,18 @@ impl GlRuntime {
 
     /// Waits for the GPU: reads one pixel of the canvas back.
     pub fn sync(&self) {
-        let gl = self.renderer.gl();
-        let mut pixel = [0u8; 4];
-        // SAFETY: reads one RGBA8 pixel of the default framebuffer into a 4-byte buffer.
-        unsafe {
-            gl.bind_framebuffer(glow::FRAMEBUFFER, None);
-            gl.read_pixels(0, 0, 1, 1, glow::RGBA, glow::UNSIGNED_BYTE, glow::PixelPackData::Slice(Some(&mut pixel)));
-        }
+        read_back_pixel(self.renderer.gl());
+    }
+}
+
+/// Waits until the GPU process has run every command sent so far, by reading one pixel of the
+/// canvas back (`gl.finish()` returns at once in Chromium).
+fn read_back_pixel(gl: &glow::Context) {
+    let mut pixel = [0u8; 4];
+    // SAFETY: reads one RGBA8 pixel of the default framebuffer into a 4-byte buffer.
+    unsafe {
+        gl.bind_framebuffer(glow::FRAMEBUFFER, None);
+        gl.read_pixels(0, 0, 1, 1, glow::RGBA, glow::UNSIGNED_BYTE, glow::PixelPackData::Slice(Some(&mut pixel)));
     }
 }
 
