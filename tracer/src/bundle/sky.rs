@@ -17,17 +17,13 @@ use crate::scene::{load_sky_slice, SkyFile, SkyFormat};
 const FORMAT: &str = "sky.format";
 const FILE: &str = "sky.file";
 
-fn format_code(file: Option<&SkyFile>) -> u8 {
-    match file.map(|f| f.format) {
-        None => 0,
-        Some(SkyFormat::Hdr) => 1,
-        Some(SkyFormat::Exr) => 2,
-    }
-}
+/// Each file format's code in `sky.format` (0: no file).
+const FORMAT_CODES: [(SkyFormat, u8); 2] = [(SkyFormat::Hdr, 1), (SkyFormat::Exr, 2)];
 
 /// Writes the sky's file entries (empty without a file).
 pub(super) fn write(file: Option<&SkyFile>, w: &mut Writer) {
-    w.entry(FORMAT, ElementType::U8, 1, 1, |out| out.push(format_code(file)));
+    let code = file.and_then(|f| FORMAT_CODES.iter().find(|(format, _)| *format == f.format)).map_or(0, |(_, c)| *c);
+    w.entry(FORMAT, ElementType::U8, 1, 1, |out| out.push(code));
     let bytes = file.map_or(&[][..], |f| &f.bytes[..]);
     w.entry(FILE, ElementType::U8, 1, bytes.len() as u64, |out| out.extend_from_slice(bytes));
 }
@@ -38,12 +34,11 @@ pub(super) fn read(r: &mut Reader, scene: &mut Scene) -> Result<Option<SkyFile>,
     let invalid = |field: &str, reason: String| BundleError::InvalidValue { field: field.to_string(), reason };
     let code = r.scalar(FORMAT, ElementType::U8, 1)?[0];
     let bytes = r.take(FILE, ElementType::U8, 1)?.data_cow()?;
-    let format = match code {
-        0 if bytes.is_empty() => return Ok(None),
-        0 => return Err(invalid(FILE, format!("{} bytes of a sky file with no format", bytes.len()))),
-        1 => SkyFormat::Hdr,
-        2 => SkyFormat::Exr,
-        _ => return Err(invalid(FORMAT, format!("{code} is not a sky format (0: none, 1: .hdr, 2: .exr)"))),
+    let format = match FORMAT_CODES.iter().find(|(_, c)| *c == code) {
+        Some((format, _)) => *format,
+        None if code == 0 && bytes.is_empty() => return Ok(None),
+        None if code == 0 => return Err(invalid(FILE, format!("{} bytes of a sky file with no format", bytes.len()))),
+        None => return Err(invalid(FORMAT, format!("{code} is not a sky format (0: none, 1: .hdr, 2: .exr)"))),
     };
     if !scene.sky.is_empty() || !scene.sky_rows.is_empty() {
         return Err(BundleError::Inconsistent("the sky is stored as texels and as a file".into()));

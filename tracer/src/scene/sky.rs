@@ -111,14 +111,13 @@ pub fn load_sky_slice(
     rotation: f32,
 ) -> Result<Sky, SceneError> {
     check_parameters(intensity, rotation)?;
-    let sky_format = format;
-    let format = match format {
+    let image_format = match format {
         SkyFormat::Hdr => ImageFormat::Hdr,
         SkyFormat::Exr => ImageFormat::OpenExr,
     };
     let err = |message: String| SceneError::Image { name: name.to_owned(), message };
-    check_backed(bytes, format, name)?;
-    let img = decode_limited(bytes, format, MAX_IMAGE_TEXELS, name)?;
+    check_backed(bytes, image_format, name)?;
+    let img = decode_limited(bytes, image_format, MAX_IMAGE_TEXELS, name)?;
     let (width, height) = (img.width(), img.height());
     if width == 0 || height == 0 {
         return Err(err("image has no texels".into()));
@@ -147,6 +146,6 @@ pub fn load_sky_slice(
         }
         texels.push(v.max(Vec3::ZERO));
     }
-    let file = Some(SkyFile { format: sky_format, bytes: bytes.into() });
+    let file = Some(SkyFile { format, bytes: bytes.into() });
     Ok(Sky { width, height, texels, intensity, rotation, file })
 }
