@@ -71,36 +71,20 @@ bool lp_is_nan(float x) {
     return (floatBitsToUint(x) & 0x7fffffffu) > 0x7f800000u;
 }
 
-// Texel `i` of a row-major RGBA32F data texture, its row and column without integer division
-// (SIMD drivers divide lane by lane): an f32 quotient within one of the row, corrected once.
+// Texel `i` of a row-major RGBA32F data texture whose width is a power of two: its row
+// is a shift by the width's exponent (from its f32 bits) and its column a mask.
 vec4 lp_fetch_vec4(highp sampler2D t, uint i) {
     uint w = uint(textureSize(t, 0).x);
-    uint row = uint(float(i) / float(w));
-    uint column = i - row * w;
-    if (int(column) < 0) {
-        row -= 1u;
-        column += w;
-    } else if (column >= w) {
-        row += 1u;
-        column -= w;
-    }
-    return texelFetch(t, ivec2(int(column), int(row)), 0);
+    uint shift = (floatBitsToUint(float(w)) >> 23u) - 127u;
+    return texelFetch(t, ivec2(int(i & (w - 1u)), int(i >> shift)), 0);
 }
 
-// Texel `i` of a row-major RGBA32UI data texture, its row and column without integer division
-// (SIMD drivers divide lane by lane): an f32 quotient within one of the row, corrected once.
+// Texel `i` of a row-major RGBA32UI data texture whose width is a power of two: its row
+// is a shift by the width's exponent (from its f32 bits) and its column a mask.
 uvec4 lp_fetch_uvec4(highp usampler2D t, uint i) {
     uint w = uint(textureSize(t, 0).x);
-    uint row = uint(float(i) / float(w));
-    uint column = i - row * w;
-    if (int(column) < 0) {
-        row -= 1u;
-        column += w;
-    } else if (column >= w) {
-        row += 1u;
-        column -= w;
-    }
-    return texelFetch(t, ivec2(int(column), int(row)), 0);
+    uint shift = (floatBitsToUint(float(w)) >> 23u) - 127u;
+    return texelFetch(t, ivec2(int(i & (w - 1u)), int(i >> shift)), 0);
 }
 
 // textures::euclid_remainder (lightport-tracer/src/kernel/textures.rs:58)

@@ -58,10 +58,17 @@ pub(crate) enum Helper {
         suffix: String,
         scalar: Scalar,
     },
-    FetchVec4,
-    FetchUVec4,
+    FetchVec4(crate::TexelRows),
+    FetchUVec4(crate::TexelRows),
     /// WGSL: `bitcast<f32>` of a constant behind a function call (see `float_from_bits`).
     FloatFromBits,
+}
+
+/// What a texel fetch reads: unsigned (`Texels<UVec4>`) or float texels, laid out how.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Fetch {
+    pub unsigned: bool,
+    pub rows: crate::TexelRows,
 }
 
 /// Helpers a language asks for while writing an expression.
@@ -328,7 +335,7 @@ pub(crate) trait Language {
     /// The scalar or vector field `field` of resource struct global `global`.
     fn resource_field(&self, global: &str, field: &str) -> String;
     /// Texel `index` of the texel array `field` of resource struct global `global`.
-    fn fetch(&self, global: &str, field: &str, index: Text, unsigned: bool, helpers: &mut Helpers) -> String;
+    fn fetch(&self, global: &str, field: &str, index: Text, fetch: Fetch, helpers: &mut Helpers) -> String;
 
     // ------------------------------------------------------------ compute (storage, atomics)
 

@@ -120,6 +120,23 @@ pub struct Selection {
     /// Compute entry points (WGSL only): one `main_{stage}` per stage function
     /// `fn stage(<&resources..>, invocation: u32)`, see [`Selection::compute`].
     pub compute: Vec<String>,
+    /// How the runtime lays texel arrays out as GLSL data textures (WGSL reads storage
+    /// buffers and ignores it).
+    pub texel_rows: TexelRows,
+}
+
+/// The width of the 2D data texture a GLSL kernel reads a texel array from (texel `i` at
+/// column `i mod width`, row `i / width`): what the generated `lp_fetch_*` may assume.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum TexelRows {
+    /// A power of two (the renderers' scene arrays): the row is a shift and the column a mask.
+    /// A SIMD JIT (SwiftShader, llvmpipe) inlines the fetch at each of the kernel's ~50-90 call
+    /// sites, so its size is a good part of the kernel's compile time.
+    #[default]
+    PowerOfTwoWidth,
+    /// Any width (an image pass's image-wide arrays, texel `y * width + x` at pixel (x, y)):
+    /// an f32 quotient corrected once (no integer division, which SIMD drivers run lane by lane).
+    AnyWidth,
 }
 
 /// Invocations per workgroup of a compute entry point ([`Selection::compute`]).
@@ -298,9 +315,10 @@ impl Selection {
         Selection::entry_with(function, specialize, PixelOutput::Accumulate)
     }
 
-    /// A complete shader of one image pass: `function`'s value stored as each pixel.
+    /// A complete shader of one image pass: `function`'s value stored as each pixel. Its texel
+    /// arrays are image-wide ([`TexelRows::AnyWidth`]).
     pub fn image_pass(function: &str, specialize: BTreeMap<String, u32>) -> Selection {
-        Selection::entry_with(function, specialize, PixelOutput::Write)
+        Selection { texel_rows: TexelRows::AnyWidth, ..Selection::entry_with(function, specialize, PixelOutput::Write) }
     }
 
     fn entry_with(function: &str, specialize: BTreeMap<String, u32>, output: PixelOutput) -> Selection {
@@ -308,9 +326,7 @@ impl Selection {
             roots: vec![function.to_string()],
             specialize,
             entry: Some(EntryPoint { function: function.to_string(), output }),
-            harness: None,
-            regenerate: None,
-            compute: Vec::new(),
+            ..Selection::default()
         }
     }
 

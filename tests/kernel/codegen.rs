@@ -151,7 +151,8 @@ fn every_generated_file_matches_the_committed_file() {
 /// (`wrap_pair`) not at all beside it (one remainder per mode: a SIMD driver runs both modes'
 /// branches), a bilinear lookup (`textures::footprint`) wraps once per axis for both its texels, and the GLSL
 /// data-texture fetch, which every node, triangle and material read goes through, finds its row
-/// with an f32 division only.
+/// by a shift (scene arrays have power-of-two widths) and, in the denoiser's image pass (arrays
+/// as wide as the image), with an f32 division only.
 #[test]
 fn the_kernels_divide_integers_only_where_a_texture_wraps() {
     let files = tracer::kernel::generated_shaders().expect("generation and validation succeed");
@@ -189,16 +190,47 @@ fn the_kernels_divide_integers_only_where_a_texture_wraps() {
             for fetch in ["vec4 lp_fetch_vec4(", "uvec4 lp_fetch_uvec4("] {
                 let fetch = body(source, fetch);
                 let code: String = fetch.lines().filter(|l| !l.trim_start().starts_with("//")).collect();
-                assert!(!code.contains('%'), "{name}: the data fetch divides integers:\n{fetch}");
-                assert_eq!(code.matches('/').count(), 1, "{name}: the data fetch's one division:\n{fetch}");
-                assert!(code.contains("float(i) / float(w)"), "{name}: the data fetch's division in f32:\n{fetch}");
+                assert!(!code.contains(['%', '/']), "{name}: the data fetch divides:\n{fetch}");
+                assert!(!code.contains("if ("), "{name}: the data fetch branches:\n{fetch}");
+                assert!(
+                    code.contains("i & (w - 1u)") && code.contains("i >> shift"),
+                    "{name}: the data fetch's row is a shift and its column a mask:\n{fetch}"
+                );
             }
         }
     }
+    // The denoiser's image pass reads image-wide arrays (any width): an f32 quotient.
+    let pass = &files.iter().find(|f| f.name == "denoise_pass.frag.glsl").expect("the filter pass").source;
+    let fetch = body(pass, "vec4 lp_fetch_vec4(");
+    let code: String = fetch.lines().filter(|l| !l.trim_start().starts_with("//")).collect();
+    assert!(!code.contains('%'), "the filter pass's data fetch divides integers:\n{fetch}");
+    assert_eq!(code.matches('/').count(), 1, "the filter pass's data fetch's one division:\n{fetch}");
+    assert!(code.contains("float(i) / float(w)"), "the filter pass's division in f32:\n{fetch}");
 }
 
-/// A model of the GLSL data fetch's row and column (`lp_fetch_*`: an f32 quotient, corrected
-/// once), in f32 as the shader computes it, with the conversion and the division each off by up
+/// The scene arrays' fetch (`lp_fetch_*` at `TexelRows::PowerOfTwoWidth`) finds texel i at
+/// (i & (w - 1), i >> shift) with the shift read from the f32 bits of the width: exact for every
+/// power-of-two width a texture can have, and every texture shape the GL backend makes has one.
+#[test]
+fn scene_arrays_have_power_of_two_widths_and_the_fetch_shifts_exactly() {
+    for k in 0..=24u32 {
+        let w = 1u32 << k;
+        let shift = ((w as f32).to_bits() >> 23) - 127;
+        assert_eq!(shift, k, "the exponent of width {w}");
+        for i in [0, w - 1, w, 3 * w + w / 2, (1u32 << 28) - 1] {
+            assert_eq!((i & (w - 1), i >> shift), (i % w, i / w), "texel {i} of width {w}");
+        }
+    }
+    for texels in [0usize, 1, 2, 3, 5, 1000, 65_537, 1 << 20, (1 << 28) - 3] {
+        let (w, h) = tracer::backend::gl::texture_shape(texels, 16384).expect("fits");
+        assert!(w.is_power_of_two(), "{texels} texels: width {w}");
+        assert!(w as usize * h as usize >= texels.max(1), "{texels} texels: {w}x{h}");
+    }
+}
+
+/// A model of the GLSL data fetch's row and column at any width (`lp_fetch_*` at
+/// `TexelRows::AnyWidth`, the denoiser's image pass: an f32 quotient, corrected once), in f32
+/// as the shader computes it, with the conversion and the division each off by up
 /// to 3 ULP (GLSL ES 3.00 allows 2.5 for division; llvmpipe rounds correctly, so the corrections
 /// never run there): exact for every texel row of every texture a backend makes (power-of-two
 /// scene arrays up to 2^28 texels, image-wide denoiser arrays), first and last columns.

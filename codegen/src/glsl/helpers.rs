@@ -1,6 +1,7 @@
 //! The bodies of the divergence helpers in GLSL ES 3.00.
 
 use crate::language::{Helper, Language as _};
+use crate::TexelRows;
 
 use super::Glsl;
 
@@ -25,24 +26,34 @@ pub(super) fn text(h: &Helper) -> String {
             let scalar = Glsl.scalar_type(*scalar);
             format!("{scalar} lp_{name}_{suffix}({ty} v) {{\n    return {expr};\n}}\n")
         }
-        Helper::FetchVec4 => fetch("vec4", "sampler2D", "RGBA32F"),
+        Helper::FetchVec4(rows) => fetch("vec4", "sampler2D", "RGBA32F", *rows),
         // GLSL builds NaN and infinities with uintBitsToFloat in place.
         Helper::FloatFromBits => unreachable!("GLSL never asks for {h:?}"),
-        Helper::FetchUVec4 => fetch("uvec4", "usampler2D", "RGBA32UI"),
+        Helper::FetchUVec4(rows) => fetch("uvec4", "usampler2D", "RGBA32UI", *rows),
     }
 }
 
 /// `lp_fetch_{ty}`: texel `i` of a row-major data texture of `format` texels, its row and column
-/// without integer division (SIMD drivers divide lane by lane). The f32 quotient is within one
-/// of the row for every texture a backend makes (`tests/kernel/codegen.rs` models it), and the
-/// column from it, wrapped below zero or at least the width, says which way to correct.
-fn fetch(ty: &str, sampler: &str, format: &str) -> String {
-    format!(
-        "// Texel `i` of a row-major {format} data texture, its row and column without integer division\n\
-         // (SIMD drivers divide lane by lane): an f32 quotient within one of the row, corrected once.\n\
-         {ty} lp_fetch_{ty}(highp {sampler} t, uint i) {{\n    uint w = uint(textureSize(t, 0).x);\n    \
-         uint row = uint(float(i) / float(w));\n    uint column = i - row * w;\n    if (int(column) < 0) {{\n        \
-         row -= 1u;\n        column += w;\n    }} else if (column >= w) {{\n        row += 1u;\n        \
-         column -= w;\n    }}\n    return texelFetch(t, ivec2(int(column), int(row)), 0);\n}}\n"
-    )
+/// without integer division (SIMD drivers divide lane by lane). At a power-of-two width the row
+/// is a shift (the width's exponent, read from its f32 bits: exact, unlike `log2`) and the
+/// column a mask. At any width the f32 quotient is within one of the row for every texture a
+/// backend makes (`tests/kernel/codegen.rs` models it), and the column from it, wrapped below
+/// zero or at least the width, says which way to correct.
+fn fetch(ty: &str, sampler: &str, format: &str, rows: TexelRows) -> String {
+    let head = format!("{ty} lp_fetch_{ty}(highp {sampler} t, uint i) {{\n    uint w = uint(textureSize(t, 0).x);\n");
+    match rows {
+        TexelRows::PowerOfTwoWidth => format!(
+            "// Texel `i` of a row-major {format} data texture whose width is a power of two: its row\n\
+             // is a shift by the width's exponent (from its f32 bits) and its column a mask.\n\
+             {head}    uint shift = (floatBitsToUint(float(w)) >> 23u) - 127u;\n    \
+             return texelFetch(t, ivec2(int(i & (w - 1u)), int(i >> shift)), 0);\n}}\n"
+        ),
+        TexelRows::AnyWidth => format!(
+            "// Texel `i` of a row-major {format} data texture, its row and column without integer division\n\
+             // (SIMD drivers divide lane by lane): an f32 quotient within one of the row, corrected once.\n\
+             {head}    uint row = uint(float(i) / float(w));\n    uint column = i - row * w;\n    \
+             if (int(column) < 0) {{\n        row -= 1u;\n        column += w;\n    }} else if (column >= w) {{\n        \
+             row += 1u;\n        column -= w;\n    }}\n    return texelFetch(t, ivec2(int(column), int(row)), 0);\n}}\n"
+        ),
+    }
 }

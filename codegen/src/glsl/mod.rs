@@ -14,7 +14,7 @@ mod reserved;
 mod shaders;
 
 use crate::ir::BinOp;
-use crate::language::{prec, Bitcast, Helper, Helpers, Language, SampleFields, Text};
+use crate::language::{prec, Bitcast, Fetch, Helper, Helpers, Language, SampleFields, Text};
 use crate::types::{Scalar, Ty, I32};
 
 pub(crate) use shaders::fullscreen_vertex_shader;
@@ -216,9 +216,12 @@ impl Language for Glsl {
     }
 
     /// Every texel array is its own data texture, `{global}_{field}`.
-    fn fetch(&self, global: &str, field: &str, index: Text, unsigned: bool, helpers: &mut Helpers) -> String {
-        let (h, name) =
-            if unsigned { (Helper::FetchUVec4, "lp_fetch_uvec4") } else { (Helper::FetchVec4, "lp_fetch_vec4") };
+    fn fetch(&self, global: &str, field: &str, index: Text, fetch: Fetch, helpers: &mut Helpers) -> String {
+        let (h, name) = if fetch.unsigned {
+            (Helper::FetchUVec4(fetch.rows), "lp_fetch_uvec4")
+        } else {
+            (Helper::FetchVec4(fetch.rows), "lp_fetch_vec4")
+        };
         helpers.insert(h);
         format!("{name}({global}_{field}, {})", index.0)
     }

@@ -5,7 +5,7 @@
 use super::{float_lit, has_effects, helper_suffix, is_zero_literal, op_prec, strip_parens, Lowerer, R};
 use crate::infer;
 use crate::ir::{self, BinOp, Expr, ExprKind as K, UnOp};
-use crate::language::{prec, prec::wrap, AtomicOp, Bitcast, Helper, StorageElement, Text};
+use crate::language::{prec, prec::wrap, AtomicOp, Bitcast, Fetch, Helper, StorageElement, Text};
 use crate::names;
 use crate::types::{self, ConstValue, Scalar, Ty, F32, U32};
 
@@ -535,7 +535,8 @@ impl<'a> Lowerer<'a> {
         self.resources_used.insert((res.clone(), field.clone()));
         let i = self.expr(index)?;
         let unsigned = matches!(rt, Ty::Texels(el) if matches!(**el, Ty::Vector(Scalar::U32, _)));
-        Ok((self.lang.fetch(&super::snake(&res), field, i, unsigned, &mut self.helpers), prec::ATOM))
+        let fetch = Fetch { unsigned, rows: self.selection.texel_rows };
+        Ok((self.lang.fetch(&super::snake(&res), field, i, fetch, &mut self.helpers), prec::ATOM))
     }
 }
 

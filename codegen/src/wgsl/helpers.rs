@@ -12,7 +12,7 @@ pub(super) fn text(h: &Helper) -> String {
         Helper::F32ToI32 => "// f32 as i32 saturates like Rust: NaN gives 0, out of range gives i32::MIN/MAX.\nfn lp_f32_to_i32(x: f32) -> i32 {\n    if x >= 2147483648.0 {\n        return 2147483647i;\n    }\n    if x >= -2147483648.0 {\n        return i32(x);\n    }\n    if x < 0.0 {\n        return -2147483647i - 1i;\n    }\n    return 0i;\n}\n".into(),
         // WGSL's integer `/` and `%` and float `%` already truncate like Rust: the lowering
         // never asks for these.
-        Helper::DivI32 | Helper::RemI32 | Helper::FmodF32 | Helper::FetchVec4 | Helper::FetchUVec4 => {
+        Helper::DivI32 | Helper::RemI32 | Helper::FmodF32 | Helper::FetchVec4(_) | Helper::FetchUVec4(_) => {
             unreachable!("WGSL never asks for {h:?}")
         }
         Helper::FloatFromBits => "// NaN and infinities at run time: a WGSL constant expression may not produce them.\nfn lp_f32_from_bits(bits: u32) -> f32 {\n    return bitcast<f32>(bits);\n}\n".into(),

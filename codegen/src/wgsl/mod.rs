@@ -15,7 +15,7 @@ mod reserved;
 mod shaders;
 
 use crate::ir::BinOp;
-use crate::language::{prec, AtomicOp, Bitcast, Helper, Helpers, Language, SampleFields, StorageElement, Text};
+use crate::language::{prec, AtomicOp, Bitcast, Fetch, Helper, Helpers, Language, SampleFields, StorageElement, Text};
 use crate::types::{Scalar, Ty, U32};
 
 /// The WGSL language.
@@ -192,8 +192,8 @@ impl Language for Wgsl {
 
     /// Texel arrays share one storage buffer per element type ([`shaders::texel_buffer`]); each
     /// starts at `{global}.lp_start_{field}`.
-    fn fetch(&self, global: &str, field: &str, index: Text, unsigned: bool, _helpers: &mut Helpers) -> String {
-        let buffer = shaders::texel_buffer(global, unsigned);
+    fn fetch(&self, global: &str, field: &str, index: Text, fetch: Fetch, _helpers: &mut Helpers) -> String {
+        let buffer = shaders::texel_buffer(global, fetch.unsigned);
         format!("{buffer}[{global}.{} + {}]", shaders::start_member(field), prec::wrap(index, prec::MUL))
     }
 

@@ -10,7 +10,7 @@
 //! - every `Texels<Vec4>` / `Texels<UVec4>` field `f` of the kernel's `Scene` is a 2D RGBA32F /
 //!   RGBA32UI texture bound to the sampler uniform `scene_f`: the packed array exactly as
 //!   packed, row-major, with the power-of-two width of [`texture_shape`] (the shader's
-//!   `lp_fetch_*` finds the row i / `textureSize(t, 0).x` from an f32 quotient), NEAREST filtering;
+//!   `lp_fetch_*` takes the row as a shift and the column as a mask), NEAREST filtering;
 //! - every scalar or vector field `f` is the uniform `scene_f`;
 //! - `lp_accumulation` is the previous frame's running sum (rgb: sum of samples, w: number of
 //!   finite samples); the entry point writes it plus this frame's sample. Two RGBA32F

@@ -1,6 +1,7 @@
-//! The data textures: the shape a packed array takes as a 2D texture (the shader's `lp_fetch_*`
-//! finds texel i's row i / `textureSize(t, 0).x` from an f32 quotient, corrected once), the
-//! scene's arrays laid out in it, and their upload.
+//! The data textures: the shape a packed array takes as a 2D texture (a power-of-two width, so
+//! that the shader's `lp_fetch_*` finds texel i's row by a shift and its column by a mask:
+//! `lightport_codegen::TexelRows::PowerOfTwoWidth`), the scene's arrays laid out in it, and
+//! their upload.
 
 use glow::HasContext;
 
