@@ -130,8 +130,9 @@ pub struct Selection {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum TexelRows {
     /// A power of two (the renderers' scene arrays): the row is a shift and the column a mask.
-    /// A SIMD JIT (SwiftShader, llvmpipe) inlines the fetch at each of the kernel's ~50-90 call
-    /// sites, so its size is a good part of the kernel's compile time.
+    /// A JIT that inlines every call (SwiftShader, llvmpipe) copies the fetch to each of its call
+    /// sites (53 in the Cornell box's variant, 128 in LittlestTokyo's), so its size is a good
+    /// part of the kernel's compile time.
     #[default]
     PowerOfTwoWidth,
     /// Any width (an image pass's image-wide arrays, texel `y * width + x` at pixel (x, y)):
