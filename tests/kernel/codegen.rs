@@ -161,6 +161,9 @@ fn the_kernels_divide_integers_only_where_a_texture_wraps() {
         let end = source[start..].find("\n}\n").expect("function end") + start;
         source[start..end].to_string()
     };
+    // A function's code without its comment lines.
+    let code_of =
+        |function: &str| -> String { function.lines().filter(|l| !l.trim_start().starts_with("//")).collect() };
     for name in ["path_tracer.frag.glsl", "path_tracer.wgsl", "path_tracer_wavefront.wgsl"] {
         let source = &files.iter().find(|f| f.name == name).unwrap_or_else(|| panic!("{name} generated")).source;
         for helper in ["lp_div_i32", "lp_rem_i32"] {
@@ -189,7 +192,7 @@ fn the_kernels_divide_integers_only_where_a_texture_wraps() {
         if glsl {
             for fetch in ["vec4 lp_fetch_vec4(", "uvec4 lp_fetch_uvec4("] {
                 let fetch = body(source, fetch);
-                let code: String = fetch.lines().filter(|l| !l.trim_start().starts_with("//")).collect();
+                let code = code_of(&fetch);
                 assert!(!code.contains(['%', '/']), "{name}: the data fetch divides:\n{fetch}");
                 assert!(!code.contains("if ("), "{name}: the data fetch branches:\n{fetch}");
                 assert!(
@@ -202,7 +205,7 @@ fn the_kernels_divide_integers_only_where_a_texture_wraps() {
     // The denoiser's image pass reads image-wide arrays (any width): an f32 quotient.
     let pass = &files.iter().find(|f| f.name == "denoise_pass.frag.glsl").expect("the filter pass").source;
     let fetch = body(pass, "vec4 lp_fetch_vec4(");
-    let code: String = fetch.lines().filter(|l| !l.trim_start().starts_with("//")).collect();
+    let code = code_of(&fetch);
     assert!(!code.contains('%'), "the filter pass's data fetch divides integers:\n{fetch}");
     assert_eq!(code.matches('/').count(), 1, "the filter pass's data fetch's one division:\n{fetch}");
     assert!(code.contains("float(i) / float(w)"), "the filter pass's division in f32:\n{fetch}");
@@ -232,8 +235,9 @@ fn scene_arrays_have_power_of_two_widths_and_the_fetch_shifts_exactly() {
 /// `TexelRows::AnyWidth`, the denoiser's image pass: an f32 quotient, corrected once), in f32
 /// as the shader computes it, with the conversion and the division each off by up
 /// to 3 ULP (GLSL ES 3.00 allows 2.5 for division; llvmpipe rounds correctly, so the corrections
-/// never run there): exact for every texel row of every texture a backend makes (power-of-two
-/// scene arrays up to 2^28 texels, image-wide denoiser arrays), first and last columns.
+/// never run there): exact for every texel row of the image-wide denoiser arrays, and of
+/// power-of-two widths up to 2^28 texels too (as a model, though scene arrays now shift), first
+/// and last columns.
 #[test]
 fn the_data_fetch_row_estimate_is_corrected_to_the_exact_row() {
     let nudge =
