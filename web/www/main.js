@@ -53,7 +53,11 @@ const cache = new BundleCache(Number(params.get('budget')) || DEFAULT_BUDGET_BYT
 // The scene list is requested now, beside the wasm module's download and compile, rather than
 // after them (20-60 ms sooner on this machine); a failure is reported where it is awaited.
 // (Asking for a WebGPU adapter this early too, to start Chromium's WebGPU sooner, measured no
-// gain: the device came at 472-607 ms against 486-561 ms.)
+// gain: the device came at 472-607 ms against 486-561 ms. Nor did requesting the first scene's
+// bundle as soon as the list names it, to download it beside the wasm module's compile: on this
+// 2-core machine the two share the CPU, and the bundle reached the load no sooner (4 alternated
+// cold visits, medians, with against without: Cornell box 656 / 701 ms on WebGL2, 1208 / 1235 ms
+// on WebGPU; LittlestTokyo 745 / 718 and 1183 / 1148 ms).)
 const sceneList = fetch('scenes.json');
 sceneList.catch(() => {});
 let viewer = null;
