@@ -147,7 +147,7 @@ struct Bsdf {
     surface: Surface,
 }
 
-// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:68)
+// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:69)
 struct SurfaceNormals {
     ng: vec3<f32>,
     ns: vec3<f32>,
@@ -155,7 +155,7 @@ struct SurfaceNormals {
     area2: f32,
 }
 
-// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:111)
+// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:112)
 struct FirstHit {
     albedo: vec3<f32>,
     normal: vec3<f32>,
@@ -163,7 +163,7 @@ struct FirstHit {
     emission: vec3<f32>,
 }
 
-// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:184)
+// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:207)
 struct PathState {
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -174,7 +174,7 @@ struct PathState {
     rng: u32,
 }
 
-// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:198)
+// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:221)
 struct ShadowRay {
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -182,7 +182,7 @@ struct ShadowRay {
     contribution: vec3<f32>,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:372)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:395)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -225,15 +225,15 @@ const STRATEGY_MIS: u32 = 2u;
 const STACK_SIZE: u32 = 11u;
 // bsdf::BSDF_LAMBERT (lightport-tracer/src/kernel/bsdf.rs:32)
 const BSDF_LAMBERT: u32 = 0u;
-// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:32)
+// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:33)
 const RR_START_DEPTH: u32 = 3u;
-// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:35)
+// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:36)
 const RR_MAX_SURVIVAL: f32 = 0.95;
-// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:38)
+// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:39)
 const ORIGIN_OFFSET: f32 = 4e-6;
-// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:41)
+// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:42)
 const SHADOW_RAY_SHORTENING: f32 = 1.0 - 0.0001;
-// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:104)
+// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:105)
 const SKY_DEPTH: f32 = 1e20;
 // wavefront::WORKGROUP (lightport-tracer/src/kernel/wavefront.rs:35)
 const WORKGROUP: u32 = 64u;
@@ -429,7 +429,7 @@ fn camera_ray(film: vec2<f32>, lens: vec2<f32>) -> Ray {
     }
 }
 
-// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:214)
+// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:237)
 fn start_path(x: u32, y: u32, frame_seed: u32, frame_index: u32) -> PathState {
     let pixel: u32 = y * scene.width + x;
     var rng: u32 = pixel_seed(pixel, frame_seed);
@@ -758,7 +758,7 @@ fn load_path(slot: u32) -> PathState {
     return PathState(o.xyz, lp_paths_storage_vec4f[paths.lp_start_direction + slot].xyz, lp_paths_storage_vec4f[paths.lp_start_throughput + slot].xyz, lp_paths_storage_vec4f[paths.lp_start_radiance + slot].xyz, o.w, w.z, w.y);
 }
 
-// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:206)
+// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:229)
 fn no_shadow_ray() -> ShadowRay {
     return ShadowRay(vec3<f32>(0.0), vec3<f32>(0.0, 0.0, 1.0), 0.0, vec3<f32>(0.0));
 }
@@ -775,7 +775,7 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     return select(0.0, a2 / (a2 + b2), a2 + b2 > 0.0);
 }
 
-// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:52)
+// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:53)
 fn hit_emission_weight(scatter_pdf: f32, light_pdf: f32) -> f32 {
     if scatter_pdf <= 0.0 || (scene.strategy == STRATEGY_BSDF) {
         return 1.0;
@@ -794,7 +794,7 @@ fn world_triangle(triangle: u32, instance: u32) -> TriangleData {
     }
 }
 
-// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:76)
+// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:77)
 fn surface_normals(tri: TriangleData, hit: Hit, dir: vec3<f32>) -> SurfaceNormals {
     var face: vec3<f32> = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
     let area2: f32 = length(face);
@@ -856,7 +856,7 @@ fn bsdf_normal(b: Bsdf, ns: vec3<f32>, ng: vec3<f32>, dir: vec3<f32>) -> vec3<f3
     }
 }
 
-// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:45)
+// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:46)
 fn offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let eps: f32 = (lp_max_element_vec3(abs(p)) + scene.scene_scale) * ORIGIN_OFFSET;
     return p + n * eps;
@@ -931,7 +931,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     return select(vec3<f32>(0.0), b.surface.diffuse * INV_PI, wi.z > 0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:385)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:408)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> ShadowRay {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var shadow: ShadowRay = no_shadow_ray();
@@ -975,7 +975,7 @@ fn onb_to_world(onb: Onb, v: vec3<f32>) -> vec3<f32> {
     return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
 }
 
-// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:242)
+// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:265)
 fn shade_hit(path: ptr<function, PathState>, hit: Hit, first: ptr<function, FirstHit>, shadow: ptr<function, ShadowRay>) -> bool {
     let origin: vec3<f32> = (*path).origin;
     let dir: vec3<f32> = (*path).dir;

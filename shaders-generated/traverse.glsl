@@ -293,7 +293,7 @@ vec3 safe_inverse(vec3 dir) {
     return vec3(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:103)
+// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:112)
 Hit no_hit() {
     return Hit(NONE, 0.0, 0.0, 0.0, 0u);
 }
@@ -385,7 +385,7 @@ NodeHits sort_children(NodeHits n) {
     return NodeHits(vec4(t0, t1, t2, t3), uvec4(e0, e1, e2, e3));
 }
 
-// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:94)
+// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:103)
 float cull_distance(float t) {
     float widened = t;
     if (t < 1e30) {
@@ -394,7 +394,7 @@ float cull_distance(float t) {
     return widened;
 }
 
-// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:116)
+// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:125)
 void intersect_leaf_visible(uint entry, uint instance, vec3 origin, vec3 dir, Hit after, inout Hit hit, inout Hit pending) {
     uint first = entry >> 8;
     uint i_end = first + (entry & 255u);
@@ -559,7 +559,7 @@ bool is_hole(uint triangle, uint material, float u, float v) {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:403)
+// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:412)
 Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
     vec3 world_inv_dir = safe_inverse(dir);
     uvec3 world_near = near_planes(world_inv_dir);
@@ -705,7 +705,7 @@ Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
     return hit;
 }
 
-// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:154)
+// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:163)
 Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -825,7 +825,7 @@ Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
     return hit;
 }
 
-// traverse_masked::closest_visible (lightport-tracer/src/kernel/traverse_masked.rs:80)
+// traverse_masked::closest_visible (lightport-tracer/src/kernel/traverse_masked.rs:89)
 Hit closest_visible(vec3 origin, vec3 dir, float t_max) {
     if (scene_has_instances != 0u) {
         return closest_visible_two_level(origin, dir, t_max);
@@ -1145,7 +1145,7 @@ bool any_hit_two_level(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:286)
+// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:295)
 bool occluded_masked_one_level(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -1319,7 +1319,7 @@ bool any_hit(vec3 origin, vec3 dir, float t_max) {
     }
 }
 
-// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:562)
+// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:571)
 bool occluded_masked_two_level(vec3 origin, vec3 dir, float t_max) {
     vec3 world_inv_dir = safe_inverse(dir);
     uvec3 world_near = near_planes(world_inv_dir);

@@ -278,7 +278,7 @@ fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(1.0 / x, 1.0 / y, 1.0 / z);
 }
 
-// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:103)
+// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:112)
 fn no_hit() -> Hit {
     return Hit(NONE, 0.0, 0.0, 0.0, 0u);
 }
@@ -370,7 +370,7 @@ fn sort_children(n: NodeHits) -> NodeHits {
     return NodeHits(vec4<f32>(t0, t1, t2, t3), vec4<u32>(e0, e1, e2, e3));
 }
 
-// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:94)
+// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:103)
 fn cull_distance(t: f32) -> f32 {
     var widened: f32 = t;
     if t < 1e30 {
@@ -379,7 +379,7 @@ fn cull_distance(t: f32) -> f32 {
     return widened;
 }
 
-// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:116)
+// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:125)
 fn intersect_leaf_visible(entry: u32, instance: u32, origin: vec3<f32>, dir: vec3<f32>, after: Hit, hit: ptr<function, Hit>, pending: ptr<function, Hit>) {
     let first: u32 = entry >> 8u;
     let i_end: u32 = first + (entry & 255u);
@@ -544,7 +544,7 @@ fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:403)
+// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:412)
 fn closest_visible_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let world_inv_dir: vec3<f32> = safe_inverse(dir);
     let world_near: vec3<u32> = near_planes(world_inv_dir);
@@ -687,7 +687,7 @@ fn closest_visible_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
     return hit;
 }
 
-// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:154)
+// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:163)
 fn closest_visible_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -804,7 +804,7 @@ fn closest_visible_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
     return hit;
 }
 
-// traverse_masked::closest_visible (lightport-tracer/src/kernel/traverse_masked.rs:80)
+// traverse_masked::closest_visible (lightport-tracer/src/kernel/traverse_masked.rs:89)
 fn closest_visible(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     if scene.has_instances != 0u {
         return closest_visible_two_level(origin, dir, t_max);
@@ -1116,7 +1116,7 @@ fn any_hit_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     return blocked;
 }
 
-// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:286)
+// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:295)
 fn occluded_masked_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -1286,7 +1286,7 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     }
 }
 
-// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:562)
+// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:571)
 fn occluded_masked_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let world_inv_dir: vec3<f32> = safe_inverse(dir);
     let world_near: vec3<u32> = near_planes(world_inv_dir);

@@ -720,6 +720,16 @@ bool is_hole(uint triangle, uint material, float u, float v) {
     return coverage(mask, uv) < mask.cutoff;
 }
 
+// traverse_masked::in_hole (lightport-tracer/src/kernel/traverse_masked.rs:77)
+bool in_hole(Hit hit, uint holes) {
+    bool hole = false;
+    if ((hit.triangle != NONE) && holes < MAX_HOLES) {
+        TriangleData tri = fetch_triangle(hit.triangle);
+        hole = tri.masked && is_hole(hit.triangle, tri.material, hit.u, hit.v);
+    }
+    return hole;
+}
+
 // traverse_masked::visible_hit (lightport-tracer/src/kernel/traverse_masked.rs:57)
 Hit visible_hit(vec3 origin, vec3 dir, float t_max, bool only_masked) {
     Hit after = before_any_hit();
@@ -729,24 +739,21 @@ Hit visible_hit(vec3 origin, vec3 dir, float t_max, bool only_masked) {
     while (searching) {
         hit = closest_candidate(origin, dir, t_max, after, only_masked);
         searching = false;
-        if ((hit.triangle != NONE) && holes < MAX_HOLES) {
-            TriangleData tri = fetch_triangle(hit.triangle);
-            if (tri.masked && is_hole(hit.triangle, tri.material, hit.u, hit.v)) {
-                after = hit;
-                holes += 1u;
-                searching = true;
-            }
+        if (in_hole(hit, holes)) {
+            after = hit;
+            holes += 1u;
+            searching = true;
         }
     }
     return hit;
 }
 
-// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:103)
+// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:112)
 Hit no_hit() {
     return Hit(NONE, 0.0, 0.0, 0.0, 0u);
 }
 
-// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:94)
+// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:103)
 float cull_distance(float t) {
     float widened = t;
     if (t < 1e30) {
@@ -755,7 +762,7 @@ float cull_distance(float t) {
     return widened;
 }
 
-// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:116)
+// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:125)
 void intersect_leaf_visible(uint entry, uint instance, vec3 origin, vec3 dir, Hit after, inout Hit hit, inout Hit pending) {
     uint first = entry >> 8;
     uint i_end = first + (entry & 255u);
@@ -776,7 +783,7 @@ void intersect_leaf_visible(uint entry, uint instance, vec3 origin, vec3 dir, Hi
     }
 }
 
-// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:403)
+// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:412)
 Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
     vec3 world_inv_dir = safe_inverse(dir);
     uvec3 world_near = near_planes(world_inv_dir);
@@ -922,7 +929,7 @@ Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
     return hit;
 }
 
-// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:154)
+// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:163)
 Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -1042,7 +1049,7 @@ Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
     return hit;
 }
 
-// traverse_masked::closest_visible (lightport-tracer/src/kernel/traverse_masked.rs:80)
+// traverse_masked::closest_visible (lightport-tracer/src/kernel/traverse_masked.rs:89)
 Hit closest_visible(vec3 origin, vec3 dir, float t_max) {
     if (scene_has_instances != 0u) {
         return closest_visible_two_level(origin, dir, t_max);
@@ -1051,7 +1058,7 @@ Hit closest_visible(vec3 origin, vec3 dir, float t_max) {
     }
 }
 
-// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:286)
+// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:295)
 bool occluded_masked_one_level(vec3 origin, vec3 dir, float t_max) {
     vec3 inv_dir = safe_inverse(dir);
     uvec3 near = near_planes(inv_dir);
@@ -1154,7 +1161,7 @@ bool occluded_masked_one_level(vec3 origin, vec3 dir, float t_max) {
     return blocked;
 }
 
-// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:562)
+// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:571)
 bool occluded_masked_two_level(vec3 origin, vec3 dir, float t_max) {
     vec3 world_inv_dir = safe_inverse(dir);
     uvec3 world_near = near_planes(world_inv_dir);

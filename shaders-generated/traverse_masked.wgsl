@@ -699,6 +699,16 @@ fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
     return coverage(mask, uv) < mask.cutoff;
 }
 
+// traverse_masked::in_hole (lightport-tracer/src/kernel/traverse_masked.rs:77)
+fn in_hole(hit: Hit, holes: u32) -> bool {
+    var hole: bool = false;
+    if (hit.triangle != NONE) && holes < MAX_HOLES {
+        let tri: TriangleData = fetch_triangle(hit.triangle);
+        hole = tri.masked && is_hole(hit.triangle, tri.material, hit.u, hit.v);
+    }
+    return hole;
+}
+
 // traverse_masked::visible_hit (lightport-tracer/src/kernel/traverse_masked.rs:57)
 fn visible_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, only_masked: bool) -> Hit {
     var after: Hit = before_any_hit();
@@ -708,24 +718,21 @@ fn visible_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, only_masked: bool)
     while searching {
         hit = closest_candidate(origin, dir, t_max, after, only_masked);
         searching = false;
-        if (hit.triangle != NONE) && holes < MAX_HOLES {
-            let tri: TriangleData = fetch_triangle(hit.triangle);
-            if tri.masked && is_hole(hit.triangle, tri.material, hit.u, hit.v) {
-                after = hit;
-                holes += 1u;
-                searching = true;
-            }
+        if in_hole(hit, holes) {
+            after = hit;
+            holes += 1u;
+            searching = true;
         }
     }
     return hit;
 }
 
-// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:103)
+// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:112)
 fn no_hit() -> Hit {
     return Hit(NONE, 0.0, 0.0, 0.0, 0u);
 }
 
-// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:94)
+// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:103)
 fn cull_distance(t: f32) -> f32 {
     var widened: f32 = t;
     if t < 1e30 {
@@ -734,7 +741,7 @@ fn cull_distance(t: f32) -> f32 {
     return widened;
 }
 
-// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:116)
+// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:125)
 fn intersect_leaf_visible(entry: u32, instance: u32, origin: vec3<f32>, dir: vec3<f32>, after: Hit, hit: ptr<function, Hit>, pending: ptr<function, Hit>) {
     let first: u32 = entry >> 8u;
     let i_end: u32 = first + (entry & 255u);
@@ -755,7 +762,7 @@ fn intersect_leaf_visible(entry: u32, instance: u32, origin: vec3<f32>, dir: vec
     }
 }
 
-// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:403)
+// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:412)
 fn closest_visible_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let world_inv_dir: vec3<f32> = safe_inverse(dir);
     let world_near: vec3<u32> = near_planes(world_inv_dir);
@@ -898,7 +905,7 @@ fn closest_visible_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
     return hit;
 }
 
-// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:154)
+// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:163)
 fn closest_visible_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -1015,7 +1022,7 @@ fn closest_visible_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
     return hit;
 }
 
-// traverse_masked::closest_visible (lightport-tracer/src/kernel/traverse_masked.rs:80)
+// traverse_masked::closest_visible (lightport-tracer/src/kernel/traverse_masked.rs:89)
 fn closest_visible(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     if scene.has_instances != 0u {
         return closest_visible_two_level(origin, dir, t_max);
@@ -1024,7 +1031,7 @@ fn closest_visible(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     }
 }
 
-// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:286)
+// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:295)
 fn occluded_masked_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -1125,7 +1132,7 @@ fn occluded_masked_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> b
     return blocked;
 }
 
-// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:562)
+// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:571)
 fn occluded_masked_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let world_inv_dir: vec3<f32> = safe_inverse(dir);
     let world_near: vec3<u32> = near_planes(world_inv_dir);

@@ -228,7 +228,7 @@ struct Bsdf {
     surface: Surface,
 }
 
-// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:68)
+// integrator::SurfaceNormals (lightport-tracer/src/kernel/integrator.rs:69)
 struct SurfaceNormals {
     ng: vec3<f32>,
     ns: vec3<f32>,
@@ -236,7 +236,7 @@ struct SurfaceNormals {
     area2: f32,
 }
 
-// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:111)
+// integrator::FirstHit (lightport-tracer/src/kernel/integrator.rs:112)
 struct FirstHit {
     albedo: vec3<f32>,
     normal: vec3<f32>,
@@ -244,7 +244,7 @@ struct FirstHit {
     emission: vec3<f32>,
 }
 
-// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:184)
+// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:207)
 struct PathState {
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -255,7 +255,7 @@ struct PathState {
     rng: u32,
 }
 
-// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:198)
+// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:221)
 struct ShadowRay {
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -263,7 +263,7 @@ struct ShadowRay {
     contribution: vec3<f32>,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:372)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:395)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -346,15 +346,15 @@ const BSDF_LAMBERT: u32 = 0u;
 const BSDF_METAL_ROUGH: u32 = 1u;
 // bsdf::BSDF_DIELECTRIC (lightport-tracer/src/kernel/bsdf.rs:38)
 const BSDF_DIELECTRIC: u32 = 2u;
-// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:32)
+// integrator::RR_START_DEPTH (lightport-tracer/src/kernel/integrator.rs:33)
 const RR_START_DEPTH: u32 = 3u;
-// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:35)
+// integrator::RR_MAX_SURVIVAL (lightport-tracer/src/kernel/integrator.rs:36)
 const RR_MAX_SURVIVAL: f32 = 0.95;
-// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:38)
+// integrator::ORIGIN_OFFSET (lightport-tracer/src/kernel/integrator.rs:39)
 const ORIGIN_OFFSET: f32 = 4e-6;
-// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:41)
+// integrator::SHADOW_RAY_SHORTENING (lightport-tracer/src/kernel/integrator.rs:42)
 const SHADOW_RAY_SHORTENING: f32 = 1.0 - 0.0001;
-// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:104)
+// integrator::SKY_DEPTH (lightport-tracer/src/kernel/integrator.rs:105)
 const SKY_DEPTH: f32 = 1e20;
 // wavefront::WORKGROUP (lightport-tracer/src/kernel/wavefront.rs:35)
 const WORKGROUP: u32 = 64u;
@@ -569,7 +569,7 @@ fn camera_ray(film: vec2<f32>, lens: vec2<f32>) -> Ray {
     }
 }
 
-// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:214)
+// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:237)
 fn start_path(x: u32, y: u32, frame_seed: u32, frame_index: u32) -> PathState {
     let pixel: u32 = y * scene.width + x;
     var rng: u32 = pixel_seed(pixel, frame_seed);
@@ -641,7 +641,7 @@ fn stack_entry(first: u32, count: u32) -> u32 {
     return (first << 8u) | count;
 }
 
-// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:103)
+// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:112)
 fn no_hit() -> Hit {
     return Hit(NONE, 0.0, 0.0, 0.0, 0u);
 }
@@ -766,7 +766,7 @@ fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, near: vec3<u
     return NodeHits(t, e);
 }
 
-// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:94)
+// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:103)
 fn cull_distance(t: f32) -> f32 {
     var widened: f32 = t;
     if t < 1e30 {
@@ -825,7 +825,7 @@ fn is_next_candidate(t: f32, triangle: u32, instance: u32, after: Hit, best: Hit
     return before_best && past_after;
 }
 
-// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:116)
+// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:125)
 fn intersect_leaf_visible(entry: u32, instance: u32, origin: vec3<f32>, dir: vec3<f32>, after: Hit, hit: ptr<function, Hit>, pending: ptr<function, Hit>) {
     let first: u32 = entry >> 8u;
     let i_end: u32 = first + (entry & 255u);
@@ -990,7 +990,7 @@ fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:403)
+// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:412)
 fn closest_visible_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let world_inv_dir: vec3<f32> = safe_inverse(dir);
     let world_near: vec3<u32> = near_planes(world_inv_dir);
@@ -1133,7 +1133,7 @@ fn closest_visible_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
     return hit;
 }
 
-// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:154)
+// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:163)
 fn closest_visible_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -1250,7 +1250,7 @@ fn closest_visible_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> H
     return hit;
 }
 
-// traverse_masked::closest_visible (lightport-tracer/src/kernel/traverse_masked.rs:80)
+// traverse_masked::closest_visible (lightport-tracer/src/kernel/traverse_masked.rs:89)
 fn closest_visible(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
     if scene.has_instances != 0u {
         return closest_visible_two_level(origin, dir, t_max);
@@ -1512,7 +1512,7 @@ fn load_path(slot: u32) -> PathState {
     return PathState(o.xyz, lp_paths_storage_vec4f[paths.lp_start_direction + slot].xyz, lp_paths_storage_vec4f[paths.lp_start_throughput + slot].xyz, lp_paths_storage_vec4f[paths.lp_start_radiance + slot].xyz, o.w, w.z, w.y);
 }
 
-// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:206)
+// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:229)
 fn no_shadow_ray() -> ShadowRay {
     return ShadowRay(vec3<f32>(0.0), vec3<f32>(0.0, 0.0, 1.0), 0.0, vec3<f32>(0.0));
 }
@@ -1567,7 +1567,7 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     return select(0.0, a2 / (a2 + b2), a2 + b2 > 0.0);
 }
 
-// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:52)
+// integrator::hit_emission_weight (lightport-tracer/src/kernel/integrator.rs:53)
 fn hit_emission_weight(scatter_pdf: f32, light_pdf: f32) -> f32 {
     if scatter_pdf <= 0.0 || (scene.strategy == STRATEGY_BSDF) {
         return 1.0;
@@ -1760,7 +1760,7 @@ fn normal_mapped(hit: Hit, material: u32, ns: vec3<f32>, flip: f32, ng: vec3<f32
     return n;
 }
 
-// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:76)
+// integrator::surface_normals (lightport-tracer/src/kernel/integrator.rs:77)
 fn surface_normals(tri: TriangleData, hit: Hit, dir: vec3<f32>) -> SurfaceNormals {
     var face: vec3<f32> = cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
     if scene.has_instances != 0u {
@@ -1815,7 +1815,7 @@ fn fetch_glass(material: u32) -> GlassData {
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:427)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:450)
 fn volume_transmittance(material: u32, t: f32) -> vec3<f32> {
     let sigma: vec3<f32> = fetch_glass(material).sigma_a;
     return vec3<f32>(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -1925,7 +1925,7 @@ fn bsdf_normal(b: Bsdf, ns: vec3<f32>, ng: vec3<f32>, dir: vec3<f32>) -> vec3<f3
     return select(select(ns, select(ng, ns, dot(ns, dir) < 0.0), (scene.has_transmission != 0u) && (b.kind == BSDF_DIELECTRIC)), select(ng, ns, dot(ns, dir) < 0.0), (scene.has_metal_rough != 0u) && (b.kind == BSDF_METAL_ROUGH));
 }
 
-// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:45)
+// integrator::offset_origin (lightport-tracer/src/kernel/integrator.rs:46)
 fn offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let eps: f32 = (lp_max_element_vec3(abs(p)) + scene.scene_scale) * ORIGIN_OFFSET;
     return p + n * eps;
@@ -2274,7 +2274,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:385)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:408)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> ShadowRay {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var shadow: ShadowRay = no_shadow_ray();
@@ -2408,7 +2408,7 @@ fn onb_to_world(onb: Onb, v: vec3<f32>) -> vec3<f32> {
     return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
 }
 
-// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:242)
+// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:265)
 fn shade_hit(path: ptr<function, PathState>, hit: Hit, first: ptr<function, FirstHit>, shadow: ptr<function, ShadowRay>) -> bool {
     let origin: vec3<f32> = (*path).origin;
     let dir: vec3<f32> = (*path).dir;
@@ -2664,7 +2664,7 @@ fn any_hit_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     return blocked;
 }
 
-// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:286)
+// traverse_masked::occluded_masked_one_level (lightport-tracer/src/kernel/traverse_masked.rs:295)
 fn occluded_masked_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let inv_dir: vec3<f32> = safe_inverse(dir);
     let near: vec3<u32> = near_planes(inv_dir);
@@ -2834,7 +2834,7 @@ fn any_hit(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     }
 }
 
-// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:562)
+// traverse_masked::occluded_masked_two_level (lightport-tracer/src/kernel/traverse_masked.rs:571)
 fn occluded_masked_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
     let world_inv_dir: vec3<f32> = safe_inverse(dir);
     let world_near: vec3<u32> = near_planes(world_inv_dir);

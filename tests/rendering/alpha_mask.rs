@@ -458,17 +458,21 @@ fn reaches(functions: &[(String, String)], text: &str, callee: &str) -> bool {
     functions.iter().any(|(n, body)| call_sites(text, n) > 0 && (n == callee || reaches(functions, body, callee)))
 }
 
-/// Issue 31: alpha masks cost 1.3-2.6x per sample on the GPU runtimes. Two causes, each held
-/// off here in the generated GLSL and WGSL of a masked scene:
+/// Issue 31: alpha masks cost 1.3-2.6x per sample on the GPU runtimes. Three causes, each held
+/// off here in the generated GLSL and WGSL of a masked scene's megakernel:
 /// - the hole test (texel fetches) inside a traversal loop: SIMD drivers (llvmpipe,
 ///   SwiftShader) run it under a lane mask for every node or triangle, masked or not (2.4x
-///   per sample on GL with no triangle flagged). The loop that runs the node tests must not
-///   reach `is_hole`;
-/// - the whole traversal run again per hole (`visible_hit` around a traversal function), and
-///   shadow rays traversing twice (unmasked triangles, then masked ones). Each ray's function
-///   holds one traversal loop (`intersect_node` and `intersect_triangle` once each), and the
-///   function that runs the hole test is the one that runs the node tests: traversal resumes
-///   behind a hole instead of starting again.
+///   per sample on GL with no triangle flagged). No loop that runs the node tests may reach
+///   `is_hole`;
+/// - shadow rays traversing twice (unmasked triangles, then masked ones): `occluded` holds one
+///   traversal loop (`intersect_node` and `intersect_triangle` once each), and the function
+///   that runs its hole test is the one that runs the node tests: traversal resumes behind a
+///   hole instead of starting again;
+/// - for closest hits, a hole test and a loop of its own around traversal on every ray's path
+///   (`visible_hit`, or `closest_visible_*`'s one traversal, which cost as much: the code's
+///   presence costs llvmpipe, 1.18x per sample with nearly no ray meeting a mask). The path
+///   loop (`trace_path`) tests the candidate itself (`in_hole`) and searches again behind a
+///   hole in its next iteration: `closest_candidate`, its traversal, does not reach `is_hole`.
 ///
 /// Both in one-level scenes and in two-level ones (`Features::instances`, whose traversal loop
 /// walks both levels: the search again behind each hole lasted there longer).
@@ -484,7 +488,19 @@ fn the_hole_test_stays_out_of_the_traversal_loop_and_traversal_runs_once() {
         let target_features = format!("{target:?}, instances {}", features.instances);
         let source = tracer::kernel::path_tracer_shader(&features, target).unwrap().source;
         let functions = shader_functions(&source);
-        for ray in ["trace_closest", "occluded"] {
+        let body_of = |name: &str| &functions.iter().find(|(n, _)| n == name).unwrap_or_else(|| panic!("no {name}")).1;
+        // Closest hits: the path loop passes through holes; its traversal has no hole test.
+        let path = body_of("trace_path");
+        assert_eq!(call_sites(path, "in_hole"), 1, "{target_features}: the path loop tests its candidate");
+        assert_eq!(call_sites(path, "trace_closest"), 0, "{target_features}: no hole test around traversal");
+        assert_eq!(inlined_copies(&functions, "closest_candidate", "intersect_node"), 1, "{target_features}");
+        assert!(
+            !reaches(&functions, body_of("closest_candidate"), "is_hole"),
+            "{target_features}: the closest hit's traversal tests holes"
+        );
+        // Shadow rays: one traversal, which tests the masked candidates it finds.
+        {
+            let ray = "occluded";
             for callee in ["is_hole", "intersect_node", "intersect_triangle"] {
                 assert_eq!(inlined_copies(&functions, ray, callee), 1, "{target_features}: {ray}: copies of {callee}");
             }

@@ -62,16 +62,25 @@ pub mod traverse_masked {
         while searching {
             hit = closest_candidate(scene, origin, dir, t_max, after, only_masked);
             searching = false;
-            if hit.triangle != NONE && holes < MAX_HOLES {
-                let tri = fetch_triangle(scene, hit.triangle);
-                if tri.masked && is_hole(scene, hit.triangle, tri.material, hit.u, hit.v) {
-                    after = hit;
-                    holes += 1;
-                    searching = true;
-                }
+            if in_hole(scene, hit, holes) {
+                after = hit;
+                holes += 1;
+                searching = true;
             }
         }
         hit
+    }
+
+    /// Whether the candidate `hit`, found behind `holes` holes, lies in a hole of a masked
+    /// triangle: a ray passes through it and searches again behind it. Past `MAX_HOLES` holes a
+    /// candidate counts as a hit.
+    pub fn in_hole(scene: &Scene, hit: Hit, holes: u32) -> bool {
+        let mut hole = false;
+        if hit.triangle != NONE && holes < MAX_HOLES {
+            let tri = fetch_triangle(scene, hit.triangle);
+            hole = tri.masked && is_hole(scene, hit.triangle, tri.material, hit.u, hit.v);
+        }
+        hole
     }
 
     /// `trace_closest` with alpha masks: one traversal that tests candidates as it finds them
