@@ -166,7 +166,7 @@ pub mod integrator {
     /// loop's next iteration searches again behind it (`traverse_masked::visible_hit`'s search,
     /// one candidate per iteration), with no loop of its own around traversal and no hole test
     /// on `trace_closest`'s path. SIMD drivers pay for that code's presence on every ray, holes
-    /// or not (llvmpipe: LittlestTokyo's masks 1.20-1.22x per sample with it, 1.13-1.17x here).
+    /// or not (llvmpipe: LittlestTokyo's masks 1.18-1.22x per sample with it, a median 1.08x here).
     #[inline(always)]
     pub fn trace_path(scene: &Scene, x: u32, y: u32, first: &mut FirstHit) -> Vec4 {
         let mut path = start_path(scene, x, y, scene.frame_seed, scene.frame_index);
