@@ -70,12 +70,15 @@ uint lp_f32_to_u32(float x) {
     return 0u;
 }
 
-// Texel `i` of a row-major RGBA32F data texture whose width is a power of two: its row
-// is a shift by the width's exponent (from its f32 bits) and its column a mask.
+// Texel `i` of a row-major RGBA32F data texture whose width is a power of two: its column
+// a mask, its row the texels before that row times 1/width (exact in f32; no shifts, which
+// SwiftShader runs lane by lane).
 vec4 lp_fetch_vec4(highp sampler2D t, uint i) {
-    uint w = uint(textureSize(t, 0).x);
-    uint shift = (floatBitsToUint(float(w)) >> 23u) - 127u;
-    return texelFetch(t, ivec2(int(i & (w - 1u)), int(i >> shift)), 0);
+    int w = textureSize(t, 0).x;
+    int column = int(i) & (w - 1);
+    float inverse_width = uintBitsToFloat(0x7f000000u - floatBitsToUint(float(w)));
+    int row = int(float(int(i) - column) * inverse_width);
+    return texelFetch(t, ivec2(column, row), 0);
 }
 
 // scene_data::index_of (lightport-tracer/src/kernel/scene_data.rs:139)

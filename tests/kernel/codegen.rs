@@ -195,9 +195,11 @@ fn the_kernels_divide_integers_only_where_a_texture_wraps() {
                 let code = code_of(&fetch);
                 assert!(!code.contains(['%', '/']), "{name}: the data fetch divides:\n{fetch}");
                 assert!(!code.contains("if ("), "{name}: the data fetch branches:\n{fetch}");
+                // SwiftShader runs each vector shift lane by lane (four extracts, shifts and inserts).
+                assert!(!code.contains(">>") && !code.contains("<<"), "{name}: the data fetch shifts:\n{fetch}");
                 assert!(
-                    code.contains("i & (w - 1u)") && code.contains("i >> shift"),
-                    "{name}: the data fetch's row is a shift and its column a mask:\n{fetch}"
+                    code.contains("int(i) & (w - 1)") && code.contains("* inverse_width"),
+                    "{name}: the data fetch's column is a mask and its row a product:\n{fetch}"
                 );
             }
         }
@@ -212,16 +214,25 @@ fn the_kernels_divide_integers_only_where_a_texture_wraps() {
 }
 
 /// The scene arrays' fetch (`lp_fetch_*` at `TexelRows::PowerOfTwoWidth`) finds texel i at
-/// (i & (w - 1), i >> shift) with the shift read from the f32 bits of the width: exact for every
-/// power-of-two width a texture can have, and every texture shape the GL backend makes has one.
+/// column `i & (w - 1)`, row `(i - column) as f32 * (1 / w)` with 1/w made from the f32 bits of
+/// the width (`0x7f000000 - bits(w)`), in f32 as the shader computes it: exact for every
+/// power-of-two width and row a texture can have (16384 x 16384 natively), and every texture
+/// shape the GL backend makes has a power-of-two width.
 #[test]
-fn scene_arrays_have_power_of_two_widths_and_the_fetch_shifts_exactly() {
-    for k in 0..=24u32 {
+fn scene_arrays_have_power_of_two_widths_and_the_fetch_row_is_exact() {
+    let fetch_model = |i: u32, w: u32| -> (i32, i32) {
+        let w = w as i32;
+        let column = (i as i32) & (w - 1);
+        let inverse_width = f32::from_bits(0x7f00_0000 - (w as f32).to_bits());
+        (column, (((i as i32) - column) as f32 * inverse_width) as i32)
+    };
+    for k in 0..=14u32 {
         let w = 1u32 << k;
-        let shift = ((w as f32).to_bits() >> 23) - 127;
-        assert_eq!(shift, k, "the exponent of width {w}");
-        for i in [0, w - 1, w, 3 * w + w / 2, (1u32 << 28) - 1] {
-            assert_eq!((i & (w - 1), i >> shift), (i % w, i / w), "texel {i} of width {w}");
+        assert_eq!(f32::from_bits(0x7f00_0000 - (w as f32).to_bits()), 1.0 / w as f32, "1/{w}");
+        for row in (0..16384u32).step_by(7).chain([16383]) {
+            for i in [row * w, row * w + w / 2, row * w + w - 1] {
+                assert_eq!(fetch_model(i, w), ((i % w) as i32, (i / w) as i32), "texel {i} of width {w}");
+            }
         }
     }
     for texels in [0usize, 1, 2, 3, 5, 1000, 65_537, 1 << 20, (1 << 28) - 3] {
@@ -236,7 +247,7 @@ fn scene_arrays_have_power_of_two_widths_and_the_fetch_shifts_exactly() {
 /// as the shader computes it, with the conversion and the division each off by up
 /// to 3 ULP (GLSL ES 3.00 allows 2.5 for division; llvmpipe rounds correctly, so the corrections
 /// never run there): exact for every texel row of the image-wide denoiser arrays, and of
-/// power-of-two widths up to 2^28 texels too (as a model, though scene arrays now shift), first
+/// power-of-two widths up to 2^28 texels too (as a model, though scene arrays use the product), first
 /// and last columns.
 #[test]
 fn the_data_fetch_row_estimate_is_corrected_to_the_exact_row() {

@@ -34,24 +34,31 @@ pub(super) fn text(h: &Helper) -> String {
 }
 
 /// `lp_fetch_{ty}`: texel `i` of a row-major data texture of `format` texels, its row and column
-/// without integer division (SIMD drivers divide lane by lane). At a power-of-two width the row
-/// is a shift (the width's exponent, read from its f32 bits: exact, unlike `log2`) and the
-/// column a mask. At any width the f32 quotient is within one of the row for every texture a
-/// backend makes (`tests/kernel/codegen.rs` models it), and the column from it, wrapped below
-/// zero or at least the width, says which way to correct.
+/// without integer division (SIMD drivers divide lane by lane) and, at a power-of-two width,
+/// without shifts: SwiftShader (WebGL2 in a browser without a GPU) runs every vector shift lane
+/// by lane, four extracts, shifts and inserts for one `>>`. There the column is a mask and the
+/// row the texels before the column's row times 1/width, both exact in f32 (a multiple of a
+/// power of two below 2^14 rows has at most 14 significant bits; the reciprocal of a power of two
+/// is one, made from the width's f32 bits by one subtraction). At any width the f32 quotient is
+/// within one of the row for every texture a backend makes (`tests/kernel/codegen.rs` models
+/// both), and the column from it, wrapped below zero or at least the width, says which way to
+/// correct.
 fn fetch(ty: &str, sampler: &str, format: &str, rows: TexelRows) -> String {
-    let head = format!("{ty} lp_fetch_{ty}(highp {sampler} t, uint i) {{\n    uint w = uint(textureSize(t, 0).x);\n");
     match rows {
         TexelRows::PowerOfTwoWidth => format!(
-            "// Texel `i` of a row-major {format} data texture whose width is a power of two: its row\n\
-             // is a shift by the width's exponent (from its f32 bits) and its column a mask.\n\
-             {head}    uint shift = (floatBitsToUint(float(w)) >> 23u) - 127u;\n    \
-             return texelFetch(t, ivec2(int(i & (w - 1u)), int(i >> shift)), 0);\n}}\n"
+            "// Texel `i` of a row-major {format} data texture whose width is a power of two: its column\n\
+             // a mask, its row the texels before that row times 1/width (exact in f32; no shifts, which\n\
+             // SwiftShader runs lane by lane).\n\
+             {ty} lp_fetch_{ty}(highp {sampler} t, uint i) {{\n    int w = textureSize(t, 0).x;\n    \
+             int column = int(i) & (w - 1);\n    \
+             float inverse_width = uintBitsToFloat(0x7f000000u - floatBitsToUint(float(w)));\n    \
+             int row = int(float(int(i) - column) * inverse_width);\n    \
+             return texelFetch(t, ivec2(column, row), 0);\n}}\n"
         ),
         TexelRows::AnyWidth => format!(
             "// Texel `i` of a row-major {format} data texture, its row and column without integer division\n\
              // (SIMD drivers divide lane by lane): an f32 quotient within one of the row, corrected once.\n\
-             {head}    uint row = uint(float(i) / float(w));\n    uint column = i - row * w;\n    \
+             {ty} lp_fetch_{ty}(highp {sampler} t, uint i) {{\n    uint w = uint(textureSize(t, 0).x);\n    uint row = uint(float(i) / float(w));\n    uint column = i - row * w;\n    \
              if (int(column) < 0) {{\n        row -= 1u;\n        column += w;\n    }} else if (column >= w) {{\n        \
              row += 1u;\n        column -= w;\n    }}\n    return texelFetch(t, ivec2(int(column), int(row)), 0);\n}}\n"
         ),
