@@ -151,8 +151,8 @@ fn every_generated_file_matches_the_committed_file() {
 /// (`wrap_pair`) not at all beside it (one remainder per mode: a SIMD driver runs both modes'
 /// branches), a bilinear lookup (`textures::footprint`) wraps once per axis for both its texels, and the GLSL
 /// data-texture fetch, which every node, triangle and material read goes through, finds its row
-/// by a shift (scene arrays have power-of-two widths) and, in the denoiser's image pass (arrays
-/// as wide as the image), with an f32 division only.
+/// without shifting (scene arrays have power-of-two widths: a product by 1/width) and, in the
+/// denoiser's image pass (arrays as wide as the image), with an f32 division only.
 #[test]
 fn the_kernels_divide_integers_only_where_a_texture_wraps() {
     let files = tracer::kernel::generated_shaders().expect("generation and validation succeed");
