@@ -36,10 +36,11 @@ pub(super) fn text(h: &Helper) -> String {
 /// `lp_fetch_{ty}`: texel `i` of a row-major data texture of `format` texels, its row and column
 /// without integer division (SIMD drivers divide lane by lane) and, at a power-of-two width,
 /// without shifts: SwiftShader (WebGL2 in a browser without a GPU) runs every vector shift lane
-/// by lane, four extracts, shifts and inserts for one `>>`. There the column is a mask and the
-/// row the texels before the column's row times 1/width, both exact in f32 (a multiple of a
-/// power of two below 2^14 rows has at most 14 significant bits; the reciprocal of a power of two
-/// is one, made from the width's f32 bits by one subtraction). At any width the f32 quotient is
+/// by lane, four extracts, shifts and inserts for one `>>`. There the column is `i & (w - 1)` and
+/// the row `(i - column) * (1 / w)` in f32, exact: `i - column` is `row * w`, at most 14
+/// significant bits times a power of two (textures have at most 2^14 rows), and the reciprocal of
+/// a power of two is one, made from the width's f32 bits by one subtraction. An index past the
+/// texture reads outside it, as before (a negative row from `int(i)` past 2^31). At any width the f32 quotient is
 /// within one of the row for every texture a backend makes (`tests/kernel/codegen.rs` models
 /// both), and the column from it, wrapped below zero or at least the width, says which way to
 /// correct.
