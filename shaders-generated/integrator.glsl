@@ -211,7 +211,7 @@ struct GuidedSample {
     vec4 emission;
 };
 
-// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:207)
+// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:204)
 struct PathState {
     vec3 origin;
     vec3 dir;
@@ -222,7 +222,7 @@ struct PathState {
     uint rng;
 };
 
-// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:221)
+// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:218)
 struct ShadowRay {
     vec3 origin;
     vec3 dir;
@@ -230,7 +230,7 @@ struct ShadowRay {
     vec3 contribution;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:395)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:392)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -816,7 +816,7 @@ Ray camera_ray(vec2 film, vec2 lens) {
     }
 }
 
-// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:237)
+// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:234)
 PathState start_path(uint x, uint y, uint frame_seed, uint frame_index) {
     uint pixel = y * scene_width + x;
     uint rng = pixel_seed(pixel, frame_seed);
@@ -1231,41 +1231,6 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
     }
 }
 
-// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:112)
-Hit no_hit() {
-    return Hit(NONE, 0.0, 0.0, 0.0, 0u);
-}
-
-// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:103)
-float cull_distance(float t) {
-    float widened = t;
-    if (t < 1e30) {
-        widened = t * 1.0000008;
-    }
-    return widened;
-}
-
-// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:125)
-void intersect_leaf_visible(uint entry, uint instance, vec3 origin, vec3 dir, Hit after, inout Hit hit, inout Hit pending) {
-    uint first = entry >> 8;
-    uint i_end = first + (entry & 255u);
-    for (uint i = first; i < i_end; ++i) {
-        TriangleData tri = fetch_triangle(i);
-        TriangleHit h = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if (tri.masked) {
-            Hit best = hit;
-            if (pending.triangle != NONE) {
-                best = pending;
-            }
-            if (is_next_candidate(h.t, i, instance, after, best)) {
-                pending = Hit(i, h.t, h.u, h.v, instance);
-            }
-        } else if (is_next_candidate(h.t, i, instance, before_any_hit(), hit)) {
-            hit = Hit(i, h.t, h.u, h.v, instance);
-        }
-    }
-}
-
 // alpha_mask::fetch_alpha_mask (lightport-tracer/src/kernel/alpha_mask.rs:37)
 AlphaMaskData fetch_alpha_mask(uint material) {
     vec4 t = lp_fetch_vec4(scene_materials, scene_alpha_mask_first + material);
@@ -1301,290 +1266,6 @@ bool is_hole(uint triangle, uint material, float u, float v) {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:412)
-Hit closest_visible_two_level(vec3 origin, vec3 dir, float t_max) {
-    vec3 world_inv_dir = safe_inverse(dir);
-    uvec3 world_near = near_planes(world_inv_dir);
-    vec3 o = origin;
-    vec3 d = dir;
-    vec3 inv_dir = world_inv_dir;
-    uvec3 near = world_near;
-    uint instance = 0u;
-    bool in_instance = false;
-    uint instance_sp = 0u;
-    Hit hit = Hit(NONE, t_max, 0.0, 0.0, 0u);
-    uint stack[64];
-    for (int i = 0; i < 64; ++i) { stack[i] = 0u; }
-    float stack_t[64];
-    for (int i_1 = 0; i_1 < 64; ++i_1) { stack_t[i_1] = 0.0; }
-    uint leaf_limit = scene_leaf_stack_limit;
-    uint sp = 0u;
-    uint entry = stack_entry(0u, 0u);
-    float entry_t = 0.0;
-    bool visiting = true;
-    uint leaves[3];
-    for (int i_2 = 0; i_2 < 3; ++i_2) { leaves[i_2] = 0u; }
-    uint leaf_count = 0u;
-    bool descend = false;
-    Hit pending = no_hit();
-    Hit after = before_any_hit();
-    bool resume = false;
-    uint holes = 0u;
-    while (visiting) {
-        while (visiting && (pending.triangle == NONE)) {
-            if (!resume) {
-                if (!in_instance && is_leaf(entry)) {
-                    uint first = entry >> 8;
-                    if ((entry & 255u) > 1u && sp < STACK_SIZE) {
-                        stack[sp] = stack_entry(first + 1u, (entry & 255u) - 1u);
-                        stack_t[sp] = entry_t;
-                        sp += 1u;
-                    }
-                    InstanceRay r = instance_ray(first, origin, dir);
-                    o = r.origin;
-                    d = r.dir;
-                    inv_dir = safe_inverse(d);
-                    near = near_planes(inv_dir);
-                    instance = first;
-                    in_instance = true;
-                    instance_sp = sp;
-                    entry = stack_entry(r.root, 0u);
-                }
-                bool may_batch = in_instance;
-                descend = false;
-                leaf_count = 0u;
-                if (is_leaf(entry)) {
-                    leaves[0u] = entry;
-                    leaf_count = 1u;
-                } else {
-                    NodeHits sorted = sort_children(intersect_node(entry >> 8, o, inv_dir, near, cull_distance(hit.t)));
-                    float t0 = sorted.t.x;
-                    float t1 = sorted.t.y;
-                    float t2 = sorted.t.z;
-                    float t3 = sorted.t.w;
-                    uint e0 = sorted.entries.x;
-                    uint e1 = sorted.entries.y;
-                    uint e2 = sorted.entries.z;
-                    uint e3 = sorted.entries.w;
-                    if (t3 < MISS) {
-                        if (sp >= leaf_limit && is_leaf(e3) && may_batch) {
-                            leaves[leaf_count] = e3;
-                            leaf_count += 1u;
-                        } else if (sp < STACK_SIZE) {
-                            stack[sp] = e3;
-                            stack_t[sp] = t3;
-                            sp += 1u;
-                        }
-                    }
-                    if (t2 < MISS) {
-                        if (sp >= leaf_limit && is_leaf(e2) && may_batch) {
-                            leaves[leaf_count] = e2;
-                            leaf_count += 1u;
-                        } else if (sp < STACK_SIZE) {
-                            stack[sp] = e2;
-                            stack_t[sp] = t2;
-                            sp += 1u;
-                        }
-                    }
-                    if (t1 < MISS) {
-                        if (sp >= leaf_limit && is_leaf(e1) && may_batch) {
-                            leaves[leaf_count] = e1;
-                            leaf_count += 1u;
-                        } else if (sp < STACK_SIZE) {
-                            stack[sp] = e1;
-                            stack_t[sp] = t1;
-                            sp += 1u;
-                        }
-                    }
-                    if (t0 < MISS) {
-                        entry = e0;
-                        entry_t = t0;
-                        descend = true;
-                    }
-                }
-            }
-            resume = false;
-            uint k_end = leaf_count;
-            for (uint k = 0u; k < k_end; ++k) {
-                intersect_leaf_visible(leaves[k], instance, o, d, after, hit, pending);
-            }
-            after = before_any_hit();
-            if ((pending.triangle != NONE) && !is_next_candidate(pending.t, pending.triangle, pending.instance, before_any_hit(), hit)) {
-                pending = no_hit();
-            }
-            if ((pending.triangle == NONE) && !descend) {
-                visiting = false;
-                while (sp > 0u && !visiting) {
-                    if (in_instance && (sp == instance_sp)) {
-                        o = origin;
-                        d = dir;
-                        inv_dir = world_inv_dir;
-                        near = world_near;
-                        in_instance = false;
-                    }
-                    sp -= 1u;
-                    if (!(stack_t[sp] > cull_distance(hit.t))) {
-                        entry = stack[sp];
-                        entry_t = stack_t[sp];
-                        visiting = true;
-                    }
-                }
-            }
-        }
-        if (pending.triangle != NONE) {
-            TriangleData tri = fetch_triangle(pending.triangle);
-            if (holes < MAX_HOLES && is_hole(pending.triangle, tri.material, pending.u, pending.v)) {
-                holes += 1u;
-                after = pending;
-            } else {
-                hit = pending;
-                leaf_count = 0u;
-            }
-            resume = true;
-            pending = no_hit();
-        }
-    }
-    return hit;
-}
-
-// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:163)
-Hit closest_visible_one_level(vec3 origin, vec3 dir, float t_max) {
-    vec3 inv_dir = safe_inverse(dir);
-    uvec3 near = near_planes(inv_dir);
-    Hit hit = Hit(NONE, t_max, 0.0, 0.0, 0u);
-    uint stack[64];
-    for (int i = 0; i < 64; ++i) { stack[i] = 0u; }
-    float stack_t[64];
-    for (int i_1 = 0; i_1 < 64; ++i_1) { stack_t[i_1] = 0.0; }
-    uint leaf_limit = scene_leaf_stack_limit;
-    uint sp = 0u;
-    uint entry = stack_entry(0u, 0u);
-    bool visiting = true;
-    uint leaves[3];
-    for (int i_2 = 0; i_2 < 3; ++i_2) { leaves[i_2] = 0u; }
-    uint leaf_count = 0u;
-    bool descend = false;
-    Hit pending = no_hit();
-    Hit after = before_any_hit();
-    bool rescan = false;
-    uint holes = 0u;
-    while (visiting) {
-        while (visiting && (pending.triangle == NONE)) {
-            if (!rescan) {
-                descend = false;
-                leaf_count = 0u;
-                if (is_leaf(entry)) {
-                    leaves[0u] = entry;
-                    leaf_count = 1u;
-                } else {
-                    NodeHits sorted = sort_children(intersect_node(entry >> 8, origin, inv_dir, near, cull_distance(hit.t)));
-                    float t0 = sorted.t.x;
-                    float t1 = sorted.t.y;
-                    float t2 = sorted.t.z;
-                    float t3 = sorted.t.w;
-                    uint e0 = sorted.entries.x;
-                    uint e1 = sorted.entries.y;
-                    uint e2 = sorted.entries.z;
-                    uint e3 = sorted.entries.w;
-                    if (t3 < MISS) {
-                        if (sp >= leaf_limit && is_leaf(e3)) {
-                            leaves[leaf_count] = e3;
-                            leaf_count += 1u;
-                        } else if (sp < STACK_SIZE) {
-                            stack[sp] = e3;
-                            stack_t[sp] = t3;
-                            sp += 1u;
-                        }
-                    }
-                    if (t2 < MISS) {
-                        if (sp >= leaf_limit && is_leaf(e2)) {
-                            leaves[leaf_count] = e2;
-                            leaf_count += 1u;
-                        } else if (sp < STACK_SIZE) {
-                            stack[sp] = e2;
-                            stack_t[sp] = t2;
-                            sp += 1u;
-                        }
-                    }
-                    if (t1 < MISS) {
-                        if (sp >= leaf_limit && is_leaf(e1)) {
-                            leaves[leaf_count] = e1;
-                            leaf_count += 1u;
-                        } else if (sp < STACK_SIZE) {
-                            stack[sp] = e1;
-                            stack_t[sp] = t1;
-                            sp += 1u;
-                        }
-                    }
-                    if (t0 < MISS) {
-                        entry = e0;
-                        descend = true;
-                    }
-                }
-            }
-            rescan = false;
-            uint k_end = leaf_count;
-            for (uint k = 0u; k < k_end; ++k) {
-                intersect_leaf_visible(leaves[k], 0u, origin, dir, after, hit, pending);
-            }
-            after = before_any_hit();
-            if ((pending.triangle != NONE) && !is_next_candidate(pending.t, pending.triangle, 0u, before_any_hit(), hit)) {
-                pending = no_hit();
-            }
-            if ((pending.triangle == NONE) && !descend) {
-                visiting = false;
-                while (sp > 0u && !visiting) {
-                    sp -= 1u;
-                    if (!(stack_t[sp] > cull_distance(hit.t))) {
-                        entry = stack[sp];
-                        visiting = true;
-                    }
-                }
-            }
-        }
-        if (pending.triangle != NONE) {
-            TriangleData tri = fetch_triangle(pending.triangle);
-            if (holes < MAX_HOLES && is_hole(pending.triangle, tri.material, pending.u, pending.v)) {
-                holes += 1u;
-                after = pending;
-                rescan = true;
-            } else {
-                hit = pending;
-                if (!descend) {
-                    visiting = false;
-                    while (sp > 0u && !visiting) {
-                        sp -= 1u;
-                        if (!(stack_t[sp] > cull_distance(hit.t))) {
-                            entry = stack[sp];
-                            visiting = true;
-                        }
-                    }
-                }
-            }
-            pending = no_hit();
-        }
-    }
-    return hit;
-}
-
-// traverse_masked::closest_visible (lightport-tracer/src/kernel/traverse_masked.rs:89)
-Hit closest_visible(vec3 origin, vec3 dir, float t_max) {
-    if (scene_has_instances != 0u) {
-        return closest_visible_two_level(origin, dir, t_max);
-    } else {
-        return closest_visible_one_level(origin, dir, t_max);
-    }
-}
-
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:169)
-Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
-    if (scene_has_alpha_mask != 0u) {
-        return closest_visible(origin, dir, t_max);
-    } else {
-        return closest_candidate(origin, dir, t_max, before_any_hit(), false);
-    }
-}
-
 // traverse_masked::in_hole (lightport-tracer/src/kernel/traverse_masked.rs:77)
 bool in_hole(Hit hit, uint holes) {
     bool hole = false;
@@ -1595,7 +1276,7 @@ bool in_hole(Hit hit, uint holes) {
     return hole;
 }
 
-// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:229)
+// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:226)
 ShadowRay no_shadow_ray() {
     return ShadowRay(vec3(0.0), vec3(0.0, 0.0, 1.0), 0.0, vec3(0.0));
 }
@@ -1690,7 +1371,7 @@ GlassData fetch_glass(uint material) {
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:450)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:447)
 vec3 volume_transmittance(uint material, float t) {
     vec3 sigma = fetch_glass(material).sigma_a;
     return vec3(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -2143,7 +1824,7 @@ vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:408)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:405)
 ShadowRay sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     ShadowRay shadow = no_shadow_ray();
@@ -2277,7 +1958,7 @@ vec3 onb_to_world(Onb onb, vec3 v) {
     return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
 }
 
-// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:265)
+// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:262)
 bool shade_hit(inout PathState path, Hit hit, inout FirstHit first, inout ShadowRay shadow) {
     vec3 origin = path.origin;
     vec3 dir = path.dir;
@@ -2810,12 +2491,7 @@ vec4 trace_path(uint x, uint y, inout FirstHit first) {
     Hit behind = before_any_hit();
     uint holes = 0u;
     while (true) {
-        Hit hit;
-        if (scene_has_alpha_mask != 0u) {
-            hit = closest_candidate(path.origin, path.dir, MISS, behind, false);
-        } else {
-            hit = trace_closest(path.origin, path.dir, MISS);
-        }
+        Hit hit = closest_candidate(path.origin, path.dir, MISS, behind, false);
         if (scene_has_alpha_mask != 0u) {
             if (in_hole(hit, holes)) {
                 behind = hit;

@@ -212,7 +212,7 @@ struct GuidedSample {
     emission: vec4<f32>,
 }
 
-// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:207)
+// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:204)
 struct PathState {
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -223,7 +223,7 @@ struct PathState {
     rng: u32,
 }
 
-// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:221)
+// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:218)
 struct ShadowRay {
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -231,7 +231,7 @@ struct ShadowRay {
     contribution: vec3<f32>,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:395)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:392)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -795,7 +795,7 @@ fn camera_ray(film: vec2<f32>, lens: vec2<f32>) -> Ray {
     }
 }
 
-// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:237)
+// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:234)
 fn start_path(x: u32, y: u32, frame_seed: u32, frame_index: u32) -> PathState {
     let pixel: u32 = y * scene.width + x;
     var rng: u32 = pixel_seed(pixel, frame_seed);
@@ -1204,41 +1204,6 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
     }
 }
 
-// traverse_masked::no_hit (lightport-tracer/src/kernel/traverse_masked.rs:112)
-fn no_hit() -> Hit {
-    return Hit(NONE, 0.0, 0.0, 0.0, 0u);
-}
-
-// traverse_masked::cull_distance (lightport-tracer/src/kernel/traverse_masked.rs:103)
-fn cull_distance(t: f32) -> f32 {
-    var widened: f32 = t;
-    if t < 1e30 {
-        widened = t * 1.0000008;
-    }
-    return widened;
-}
-
-// traverse_masked::intersect_leaf_visible (lightport-tracer/src/kernel/traverse_masked.rs:125)
-fn intersect_leaf_visible(entry: u32, instance: u32, origin: vec3<f32>, dir: vec3<f32>, after: Hit, hit: ptr<function, Hit>, pending: ptr<function, Hit>) {
-    let first: u32 = entry >> 8u;
-    let i_end: u32 = first + (entry & 255u);
-    for (var i: u32 = first; i < i_end; i++) {
-        let tri: TriangleData = fetch_triangle(i);
-        let h: TriangleHit = intersect_triangle(origin, dir, tri.v0, tri.v1, tri.v2);
-        if tri.masked {
-            var best: Hit = *hit;
-            if (*pending).triangle != NONE {
-                best = *pending;
-            }
-            if is_next_candidate(h.t, i, instance, after, best) {
-                *pending = Hit(i, h.t, h.u, h.v, instance);
-            }
-        } else if is_next_candidate(h.t, i, instance, before_any_hit(), *hit) {
-            *hit = Hit(i, h.t, h.u, h.v, instance);
-        }
-    }
-}
-
 // alpha_mask::fetch_alpha_mask (lightport-tracer/src/kernel/alpha_mask.rs:37)
 fn fetch_alpha_mask(material: u32) -> AlphaMaskData {
     let t: vec4<f32> = lp_scene_vec4f[scene.lp_start_materials + (scene.alpha_mask_first + material)];
@@ -1274,284 +1239,6 @@ fn is_hole(triangle: u32, material: u32, u: f32, v: f32) -> bool {
     return coverage(mask, uv) < mask.cutoff;
 }
 
-// traverse_masked::closest_visible_two_level (lightport-tracer/src/kernel/traverse_masked.rs:412)
-fn closest_visible_two_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
-    let world_inv_dir: vec3<f32> = safe_inverse(dir);
-    let world_near: vec3<u32> = near_planes(world_inv_dir);
-    var o: vec3<f32> = origin;
-    var d: vec3<f32> = dir;
-    var inv_dir: vec3<f32> = world_inv_dir;
-    var near: vec3<u32> = world_near;
-    var instance: u32 = 0u;
-    var in_instance: bool = false;
-    var instance_sp: u32 = 0u;
-    var hit: Hit = Hit(NONE, t_max, 0.0, 0.0, 0u);
-    var stack: array<u32, 64>;
-    var stack_t: array<f32, 64>;
-    let leaf_limit: u32 = scene.leaf_stack_limit;
-    var sp: u32 = 0u;
-    var entry: u32 = stack_entry(0u, 0u);
-    var entry_t: f32 = 0.0;
-    var visiting: bool = true;
-    var leaves: array<u32, 3>;
-    var leaf_count: u32 = 0u;
-    var descend: bool = false;
-    var pending: Hit = no_hit();
-    var after: Hit = before_any_hit();
-    var resume: bool = false;
-    var holes: u32 = 0u;
-    while visiting {
-        while visiting && (pending.triangle == NONE) {
-            if !resume {
-                if !in_instance && is_leaf(entry) {
-                    let first: u32 = entry >> 8u;
-                    if (entry & 255u) > 1u && sp < STACK_SIZE {
-                        stack[sp] = stack_entry(first + 1u, (entry & 255u) - 1u);
-                        stack_t[sp] = entry_t;
-                        sp += 1u;
-                    }
-                    let r: InstanceRay = instance_ray(first, origin, dir);
-                    o = r.origin;
-                    d = r.dir;
-                    inv_dir = safe_inverse(d);
-                    near = near_planes(inv_dir);
-                    instance = first;
-                    in_instance = true;
-                    instance_sp = sp;
-                    entry = stack_entry(r.root, 0u);
-                }
-                let may_batch: bool = in_instance;
-                descend = false;
-                leaf_count = 0u;
-                if is_leaf(entry) {
-                    leaves[0u] = entry;
-                    leaf_count = 1u;
-                } else {
-                    let sorted: NodeHits = sort_children(intersect_node(entry >> 8u, o, inv_dir, near, cull_distance(hit.t)));
-                    let t0: f32 = sorted.t.x;
-                    let t1: f32 = sorted.t.y;
-                    let t2: f32 = sorted.t.z;
-                    let t3: f32 = sorted.t.w;
-                    let e0: u32 = sorted.entries.x;
-                    let e1: u32 = sorted.entries.y;
-                    let e2: u32 = sorted.entries.z;
-                    let e3: u32 = sorted.entries.w;
-                    if t3 < MISS {
-                        if sp >= leaf_limit && is_leaf(e3) && may_batch {
-                            leaves[leaf_count] = e3;
-                            leaf_count += 1u;
-                        } else if sp < STACK_SIZE {
-                            stack[sp] = e3;
-                            stack_t[sp] = t3;
-                            sp += 1u;
-                        }
-                    }
-                    if t2 < MISS {
-                        if sp >= leaf_limit && is_leaf(e2) && may_batch {
-                            leaves[leaf_count] = e2;
-                            leaf_count += 1u;
-                        } else if sp < STACK_SIZE {
-                            stack[sp] = e2;
-                            stack_t[sp] = t2;
-                            sp += 1u;
-                        }
-                    }
-                    if t1 < MISS {
-                        if sp >= leaf_limit && is_leaf(e1) && may_batch {
-                            leaves[leaf_count] = e1;
-                            leaf_count += 1u;
-                        } else if sp < STACK_SIZE {
-                            stack[sp] = e1;
-                            stack_t[sp] = t1;
-                            sp += 1u;
-                        }
-                    }
-                    if t0 < MISS {
-                        entry = e0;
-                        entry_t = t0;
-                        descend = true;
-                    }
-                }
-            }
-            resume = false;
-            let k_end: u32 = leaf_count;
-            for (var k: u32 = 0u; k < k_end; k++) {
-                intersect_leaf_visible(leaves[k], instance, o, d, after, &hit, &pending);
-            }
-            after = before_any_hit();
-            if (pending.triangle != NONE) && !is_next_candidate(pending.t, pending.triangle, pending.instance, before_any_hit(), hit) {
-                pending = no_hit();
-            }
-            if (pending.triangle == NONE) && !descend {
-                visiting = false;
-                while sp > 0u && !visiting {
-                    if in_instance && (sp == instance_sp) {
-                        o = origin;
-                        d = dir;
-                        inv_dir = world_inv_dir;
-                        near = world_near;
-                        in_instance = false;
-                    }
-                    sp -= 1u;
-                    if !(stack_t[sp] > cull_distance(hit.t)) {
-                        entry = stack[sp];
-                        entry_t = stack_t[sp];
-                        visiting = true;
-                    }
-                }
-            }
-        }
-        if pending.triangle != NONE {
-            let tri: TriangleData = fetch_triangle(pending.triangle);
-            if holes < MAX_HOLES && is_hole(pending.triangle, tri.material, pending.u, pending.v) {
-                holes += 1u;
-                after = pending;
-            } else {
-                hit = pending;
-                leaf_count = 0u;
-            }
-            resume = true;
-            pending = no_hit();
-        }
-    }
-    return hit;
-}
-
-// traverse_masked::closest_visible_one_level (lightport-tracer/src/kernel/traverse_masked.rs:163)
-fn closest_visible_one_level(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
-    let inv_dir: vec3<f32> = safe_inverse(dir);
-    let near: vec3<u32> = near_planes(inv_dir);
-    var hit: Hit = Hit(NONE, t_max, 0.0, 0.0, 0u);
-    var stack: array<u32, 64>;
-    var stack_t: array<f32, 64>;
-    let leaf_limit: u32 = scene.leaf_stack_limit;
-    var sp: u32 = 0u;
-    var entry: u32 = stack_entry(0u, 0u);
-    var visiting: bool = true;
-    var leaves: array<u32, 3>;
-    var leaf_count: u32 = 0u;
-    var descend: bool = false;
-    var pending: Hit = no_hit();
-    var after: Hit = before_any_hit();
-    var rescan: bool = false;
-    var holes: u32 = 0u;
-    while visiting {
-        while visiting && (pending.triangle == NONE) {
-            if !rescan {
-                descend = false;
-                leaf_count = 0u;
-                if is_leaf(entry) {
-                    leaves[0u] = entry;
-                    leaf_count = 1u;
-                } else {
-                    let sorted: NodeHits = sort_children(intersect_node(entry >> 8u, origin, inv_dir, near, cull_distance(hit.t)));
-                    let t0: f32 = sorted.t.x;
-                    let t1: f32 = sorted.t.y;
-                    let t2: f32 = sorted.t.z;
-                    let t3: f32 = sorted.t.w;
-                    let e0: u32 = sorted.entries.x;
-                    let e1: u32 = sorted.entries.y;
-                    let e2: u32 = sorted.entries.z;
-                    let e3: u32 = sorted.entries.w;
-                    if t3 < MISS {
-                        if sp >= leaf_limit && is_leaf(e3) {
-                            leaves[leaf_count] = e3;
-                            leaf_count += 1u;
-                        } else if sp < STACK_SIZE {
-                            stack[sp] = e3;
-                            stack_t[sp] = t3;
-                            sp += 1u;
-                        }
-                    }
-                    if t2 < MISS {
-                        if sp >= leaf_limit && is_leaf(e2) {
-                            leaves[leaf_count] = e2;
-                            leaf_count += 1u;
-                        } else if sp < STACK_SIZE {
-                            stack[sp] = e2;
-                            stack_t[sp] = t2;
-                            sp += 1u;
-                        }
-                    }
-                    if t1 < MISS {
-                        if sp >= leaf_limit && is_leaf(e1) {
-                            leaves[leaf_count] = e1;
-                            leaf_count += 1u;
-                        } else if sp < STACK_SIZE {
-                            stack[sp] = e1;
-                            stack_t[sp] = t1;
-                            sp += 1u;
-                        }
-                    }
-                    if t0 < MISS {
-                        entry = e0;
-                        descend = true;
-                    }
-                }
-            }
-            rescan = false;
-            let k_end: u32 = leaf_count;
-            for (var k: u32 = 0u; k < k_end; k++) {
-                intersect_leaf_visible(leaves[k], 0u, origin, dir, after, &hit, &pending);
-            }
-            after = before_any_hit();
-            if (pending.triangle != NONE) && !is_next_candidate(pending.t, pending.triangle, 0u, before_any_hit(), hit) {
-                pending = no_hit();
-            }
-            if (pending.triangle == NONE) && !descend {
-                visiting = false;
-                while sp > 0u && !visiting {
-                    sp -= 1u;
-                    if !(stack_t[sp] > cull_distance(hit.t)) {
-                        entry = stack[sp];
-                        visiting = true;
-                    }
-                }
-            }
-        }
-        if pending.triangle != NONE {
-            let tri: TriangleData = fetch_triangle(pending.triangle);
-            if holes < MAX_HOLES && is_hole(pending.triangle, tri.material, pending.u, pending.v) {
-                holes += 1u;
-                after = pending;
-                rescan = true;
-            } else {
-                hit = pending;
-                if !descend {
-                    visiting = false;
-                    while sp > 0u && !visiting {
-                        sp -= 1u;
-                        if !(stack_t[sp] > cull_distance(hit.t)) {
-                            entry = stack[sp];
-                            visiting = true;
-                        }
-                    }
-                }
-            }
-            pending = no_hit();
-        }
-    }
-    return hit;
-}
-
-// traverse_masked::closest_visible (lightport-tracer/src/kernel/traverse_masked.rs:89)
-fn closest_visible(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
-    if scene.has_instances != 0u {
-        return closest_visible_two_level(origin, dir, t_max);
-    } else {
-        return closest_visible_one_level(origin, dir, t_max);
-    }
-}
-
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:169)
-fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
-    if scene.has_alpha_mask != 0u {
-        return closest_visible(origin, dir, t_max);
-    } else {
-        return closest_candidate(origin, dir, t_max, before_any_hit(), false);
-    }
-}
-
 // traverse_masked::in_hole (lightport-tracer/src/kernel/traverse_masked.rs:77)
 fn in_hole(hit: Hit, holes: u32) -> bool {
     var hole: bool = false;
@@ -1562,7 +1249,7 @@ fn in_hole(hit: Hit, holes: u32) -> bool {
     return hole;
 }
 
-// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:229)
+// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:226)
 fn no_shadow_ray() -> ShadowRay {
     return ShadowRay(vec3<f32>(0.0), vec3<f32>(0.0, 0.0, 1.0), 0.0, vec3<f32>(0.0));
 }
@@ -1657,7 +1344,7 @@ fn fetch_glass(material: u32) -> GlassData {
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:450)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:447)
 fn volume_transmittance(material: u32, t: f32) -> vec3<f32> {
     let sigma: vec3<f32> = fetch_glass(material).sigma_a;
     return vec3<f32>(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -2110,7 +1797,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:408)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:405)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> ShadowRay {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var shadow: ShadowRay = no_shadow_ray();
@@ -2244,7 +1931,7 @@ fn onb_to_world(onb: Onb, v: vec3<f32>) -> vec3<f32> {
     return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
 }
 
-// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:265)
+// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:262)
 fn shade_hit(path: ptr<function, PathState>, hit: Hit, first: ptr<function, FirstHit>, shadow: ptr<function, ShadowRay>) -> bool {
     let origin: vec3<f32> = (*path).origin;
     let dir: vec3<f32> = (*path).dir;
@@ -2769,12 +2456,7 @@ fn trace_path(x: u32, y: u32, first: ptr<function, FirstHit>) -> vec4<f32> {
     var behind: Hit = before_any_hit();
     var holes: u32 = 0u;
     loop {
-        var hit: Hit;
-        if scene.has_alpha_mask != 0u {
-            hit = closest_candidate(path.origin, path.dir, MISS, behind, false);
-        } else {
-            hit = trace_closest(path.origin, path.dir, MISS);
-        }
+        let hit: Hit = closest_candidate(path.origin, path.dir, MISS, behind, false);
         if scene.has_alpha_mask != 0u {
             if in_hole(hit, holes) {
                 behind = hit;

@@ -188,7 +188,7 @@ struct FirstHit {
     vec3 emission;
 };
 
-// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:207)
+// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:204)
 struct PathState {
     vec3 origin;
     vec3 dir;
@@ -199,7 +199,7 @@ struct PathState {
     uint rng;
 };
 
-// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:221)
+// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:218)
 struct ShadowRay {
     vec3 origin;
     vec3 dir;
@@ -207,7 +207,7 @@ struct ShadowRay {
     vec3 contribution;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:395)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:392)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -453,7 +453,7 @@ Ray camera_ray(vec2 film, vec2 lens) {
     }
 }
 
-// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:237)
+// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:234)
 PathState start_path(uint x, uint y, uint frame_seed, uint frame_index) {
     uint pixel = y * scene_width + x;
     uint rng = pixel_seed(pixel, frame_seed);
@@ -937,7 +937,7 @@ bool in_hole(Hit hit, uint holes) {
     return hole;
 }
 
-// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:229)
+// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:226)
 ShadowRay no_shadow_ray() {
     return ShadowRay(vec3(0.0), vec3(0.0, 0.0, 1.0), 0.0, vec3(0.0));
 }
@@ -1224,7 +1224,7 @@ GlassData fetch_glass(uint material) {
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:450)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:447)
 vec3 volume_transmittance(uint material, float t) {
     vec3 sigma = fetch_glass(material).sigma_a;
     return vec3(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -1645,7 +1645,7 @@ vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:408)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:405)
 ShadowRay sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     ShadowRay shadow = no_shadow_ray();
@@ -1779,7 +1779,7 @@ vec3 onb_to_world(Onb onb, vec3 v) {
     return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
 }
 
-// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:265)
+// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:262)
 bool shade_hit(inout PathState path, Hit hit, inout FirstHit first, inout ShadowRay shadow) {
     vec3 origin = path.origin;
     vec3 dir = path.dir;

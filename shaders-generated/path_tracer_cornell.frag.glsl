@@ -126,7 +126,7 @@ struct FirstHit {
     vec3 emission;
 };
 
-// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:207)
+// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:204)
 struct PathState {
     vec3 origin;
     vec3 dir;
@@ -137,7 +137,7 @@ struct PathState {
     uint rng;
 };
 
-// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:221)
+// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:218)
 struct ShadowRay {
     vec3 origin;
     vec3 dir;
@@ -145,7 +145,7 @@ struct ShadowRay {
     vec3 contribution;
 };
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:395)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:392)
 struct Shading {
     vec3 p;
     vec3 ng;
@@ -334,7 +334,7 @@ Ray camera_ray(vec2 film, vec2 lens) {
     }
 }
 
-// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:237)
+// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:234)
 PathState start_path(uint x, uint y, uint frame_seed, uint frame_index) {
     uint pixel = y * scene_width + x;
     uint rng = pixel_seed(pixel, frame_seed);
@@ -597,14 +597,7 @@ Hit closest_candidate(vec3 origin, vec3 dir, float t_max, Hit after, bool only_m
     }
 }
 
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:169)
-Hit trace_closest(vec3 origin, vec3 dir, float t_max) {
-    {
-        return closest_candidate(origin, dir, t_max, before_any_hit(), false);
-    }
-}
-
-// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:229)
+// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:226)
 ShadowRay no_shadow_ray() {
     return ShadowRay(vec3(0.0), vec3(0.0, 0.0, 1.0), 0.0, vec3(0.0));
 }
@@ -777,7 +770,7 @@ vec3 bsdf_eval(Bsdf b, vec3 wo, vec3 wi) {
     return wi.z > 0.0 ? b.surface.diffuse * INV_PI : vec3(0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:408)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:405)
 ShadowRay sample_ld(Shading sh, inout uint rng) {
     vec3 u_light = vec3(random_float(rng), random_float(rng), random_float(rng));
     ShadowRay shadow = no_shadow_ray();
@@ -821,7 +814,7 @@ vec3 onb_to_world(Onb onb, vec3 v) {
     return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
 }
 
-// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:265)
+// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:262)
 bool shade_hit(inout PathState path, Hit hit, inout FirstHit first, inout ShadowRay shadow) {
     vec3 origin = path.origin;
     vec3 dir = path.dir;
@@ -980,7 +973,7 @@ vec4 trace_path(uint x, uint y, inout FirstHit first) {
     Hit behind = before_any_hit();
     uint holes = 0u;
     while (true) {
-        Hit hit = trace_closest(path.origin, path.dir, MISS);
+        Hit hit = closest_candidate(path.origin, path.dir, MISS, behind, false);
         ShadowRay shadow = no_shadow_ray();
         bool go_on = shade_hit(path, hit, first, shadow);
         if (shadow.t_max > 0.0 && !occluded(shadow.origin, shadow.dir, shadow.t_max)) {

@@ -127,7 +127,7 @@ struct FirstHit {
     emission: vec3<f32>,
 }
 
-// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:207)
+// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:204)
 struct PathState {
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -138,7 +138,7 @@ struct PathState {
     rng: u32,
 }
 
-// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:221)
+// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:218)
 struct ShadowRay {
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -146,7 +146,7 @@ struct ShadowRay {
     contribution: vec3<f32>,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:395)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:392)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -313,7 +313,7 @@ fn camera_ray(film: vec2<f32>, lens: vec2<f32>) -> Ray {
     }
 }
 
-// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:237)
+// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:234)
 fn start_path(x: u32, y: u32, frame_seed: u32, frame_index: u32) -> PathState {
     let pixel: u32 = y * scene.width + x;
     var rng: u32 = pixel_seed(pixel, frame_seed);
@@ -573,14 +573,7 @@ fn closest_candidate(origin: vec3<f32>, dir: vec3<f32>, t_max: f32, after: Hit, 
     }
 }
 
-// traverse::trace_closest (lightport-tracer/src/kernel/traverse.rs:169)
-fn trace_closest(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> Hit {
-    {
-        return closest_candidate(origin, dir, t_max, before_any_hit(), false);
-    }
-}
-
-// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:229)
+// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:226)
 fn no_shadow_ray() -> ShadowRay {
     return ShadowRay(vec3<f32>(0.0), vec3<f32>(0.0, 0.0, 1.0), 0.0, vec3<f32>(0.0));
 }
@@ -753,7 +746,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     return select(vec3<f32>(0.0), b.surface.diffuse * INV_PI, wi.z > 0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:408)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:405)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> ShadowRay {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var shadow: ShadowRay = no_shadow_ray();
@@ -797,7 +790,7 @@ fn onb_to_world(onb: Onb, v: vec3<f32>) -> vec3<f32> {
     return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
 }
 
-// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:265)
+// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:262)
 fn shade_hit(path: ptr<function, PathState>, hit: Hit, first: ptr<function, FirstHit>, shadow: ptr<function, ShadowRay>) -> bool {
     let origin: vec3<f32> = (*path).origin;
     let dir: vec3<f32> = (*path).dir;
@@ -954,7 +947,7 @@ fn trace_path(x: u32, y: u32, first: ptr<function, FirstHit>) -> vec4<f32> {
     var behind: Hit = before_any_hit();
     var holes: u32 = 0u;
     loop {
-        let hit: Hit = trace_closest(path.origin, path.dir, MISS);
+        let hit: Hit = closest_candidate(path.origin, path.dir, MISS, behind, false);
         var shadow: ShadowRay = no_shadow_ray();
         let go_on: bool = shade_hit(&path, hit, first, &shadow);
         if shadow.t_max > 0.0 && !occluded(shadow.origin, shadow.dir, shadow.t_max) {

@@ -225,7 +225,7 @@ struct FirstHit {
     emission: vec3<f32>,
 }
 
-// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:207)
+// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:204)
 struct PathState {
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -236,7 +236,7 @@ struct PathState {
     rng: u32,
 }
 
-// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:221)
+// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:218)
 struct ShadowRay {
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -244,7 +244,7 @@ struct ShadowRay {
     contribution: vec3<f32>,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:395)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:392)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -548,7 +548,7 @@ fn camera_ray(film: vec2<f32>, lens: vec2<f32>) -> Ray {
     }
 }
 
-// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:237)
+// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:234)
 fn start_path(x: u32, y: u32, frame_seed: u32, frame_index: u32) -> PathState {
     let pixel: u32 = y * scene.width + x;
     var rng: u32 = pixel_seed(pixel, frame_seed);
@@ -1135,7 +1135,7 @@ fn load_path(slot: u32) -> PathState {
     return PathState(o.xyz, lp_paths_storage_vec4f[paths.lp_start_direction + slot].xyz, lp_paths_storage_vec4f[paths.lp_start_throughput + slot].xyz, lp_paths_storage_vec4f[paths.lp_start_radiance + slot].xyz, o.w, w.z, w.y);
 }
 
-// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:229)
+// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:226)
 fn no_shadow_ray() -> ShadowRay {
     return ShadowRay(vec3<f32>(0.0), vec3<f32>(0.0, 0.0, 1.0), 0.0, vec3<f32>(0.0));
 }
@@ -1422,7 +1422,7 @@ fn fetch_glass(material: u32) -> GlassData {
     return GlassData(a.x, a.y, index_of(a.z), a.w > 0.0, b.xyz);
 }
 
-// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:450)
+// integrator::volume_transmittance (lightport-tracer/src/kernel/integrator.rs:447)
 fn volume_transmittance(material: u32, t: f32) -> vec3<f32> {
     let sigma: vec3<f32> = fetch_glass(material).sigma_a;
     return vec3<f32>(exp(-sigma.x * t), exp(-sigma.y * t), exp(-sigma.z * t));
@@ -1843,7 +1843,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     }
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:408)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:405)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> ShadowRay {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var shadow: ShadowRay = no_shadow_ray();
@@ -1977,7 +1977,7 @@ fn onb_to_world(onb: Onb, v: vec3<f32>) -> vec3<f32> {
     return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
 }
 
-// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:265)
+// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:262)
 fn shade_hit(path: ptr<function, PathState>, hit: Hit, first: ptr<function, FirstHit>, shadow: ptr<function, ShadowRay>) -> bool {
     let origin: vec3<f32> = (*path).origin;
     let dir: vec3<f32> = (*path).dir;

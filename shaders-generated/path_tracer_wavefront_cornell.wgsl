@@ -163,7 +163,7 @@ struct FirstHit {
     emission: vec3<f32>,
 }
 
-// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:207)
+// integrator::PathState (lightport-tracer/src/kernel/integrator.rs:204)
 struct PathState {
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -174,7 +174,7 @@ struct PathState {
     rng: u32,
 }
 
-// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:221)
+// integrator::ShadowRay (lightport-tracer/src/kernel/integrator.rs:218)
 struct ShadowRay {
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -182,7 +182,7 @@ struct ShadowRay {
     contribution: vec3<f32>,
 }
 
-// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:395)
+// integrator::Shading (lightport-tracer/src/kernel/integrator.rs:392)
 struct Shading {
     p: vec3<f32>,
     ng: vec3<f32>,
@@ -429,7 +429,7 @@ fn camera_ray(film: vec2<f32>, lens: vec2<f32>) -> Ray {
     }
 }
 
-// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:237)
+// integrator::start_path (lightport-tracer/src/kernel/integrator.rs:234)
 fn start_path(x: u32, y: u32, frame_seed: u32, frame_index: u32) -> PathState {
     let pixel: u32 = y * scene.width + x;
     var rng: u32 = pixel_seed(pixel, frame_seed);
@@ -758,7 +758,7 @@ fn load_path(slot: u32) -> PathState {
     return PathState(o.xyz, lp_paths_storage_vec4f[paths.lp_start_direction + slot].xyz, lp_paths_storage_vec4f[paths.lp_start_throughput + slot].xyz, lp_paths_storage_vec4f[paths.lp_start_radiance + slot].xyz, o.w, w.z, w.y);
 }
 
-// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:229)
+// integrator::no_shadow_ray (lightport-tracer/src/kernel/integrator.rs:226)
 fn no_shadow_ray() -> ShadowRay {
     return ShadowRay(vec3<f32>(0.0), vec3<f32>(0.0, 0.0, 1.0), 0.0, vec3<f32>(0.0));
 }
@@ -931,7 +931,7 @@ fn bsdf_eval(b: Bsdf, wo: vec3<f32>, wi: vec3<f32>) -> vec3<f32> {
     return select(vec3<f32>(0.0), b.surface.diffuse * INV_PI, wi.z > 0.0);
 }
 
-// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:408)
+// integrator::sample_ld (lightport-tracer/src/kernel/integrator.rs:405)
 fn sample_ld(sh: Shading, rng: ptr<function, u32>) -> ShadowRay {
     let u_light: vec3<f32> = vec3<f32>(random_float(rng), random_float(rng), random_float(rng));
     var shadow: ShadowRay = no_shadow_ray();
@@ -975,7 +975,7 @@ fn onb_to_world(onb: Onb, v: vec3<f32>) -> vec3<f32> {
     return onb.tangent * v.x + onb.bitangent * v.y + onb.normal * v.z;
 }
 
-// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:265)
+// integrator::shade_hit (lightport-tracer/src/kernel/integrator.rs:262)
 fn shade_hit(path: ptr<function, PathState>, hit: Hit, first: ptr<function, FirstHit>, shadow: ptr<function, ShadowRay>) -> bool {
     let origin: vec3<f32> = (*path).origin;
     let dir: vec3<f32> = (*path).dir;

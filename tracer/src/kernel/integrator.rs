@@ -26,7 +26,7 @@ pub mod integrator {
         STRATEGY_NEE,
     };
     use crate::kernel::textures::base_color_at;
-    use crate::kernel::traverse::{closest_candidate, occluded, trace_closest, Hit};
+    use crate::kernel::traverse::{closest_candidate, occluded, Hit};
     use crate::kernel::traverse_masked::{before_any_hit, in_hole};
 
     /// Russian roulette starts after this many path segments.
@@ -159,7 +159,7 @@ pub mod integrator {
     /// asks for the denoiser's guide (`has_denoise_guide`), the path's first hit in `first`.
     /// The megakernel schedule: one invocation follows its path to the end, each segment's
     /// extension ray, shading and shadow ray in turn. The wavefront schedule (`kernel::wavefront`)
-    /// runs the same three steps ([`trace_closest`], [`shade_hit`], [`occluded`]) as stages
+    /// runs the same three steps ([`trace_closest`](crate::kernel::traverse::trace_closest), [`shade_hit`], [`occluded`]) as stages
     /// over a pool of paths.
     ///
     /// With alpha masks, a segment's closest hit in a hole is passed through here: the path
@@ -174,11 +174,8 @@ pub mod integrator {
         let mut behind = before_any_hit();
         let mut holes = 0u32;
         loop {
-            let hit = if scene.has_alpha_mask != 0 {
-                closest_candidate(scene, path.origin, path.dir, MISS, behind, false)
-            } else {
-                trace_closest(scene, path.origin, path.dir, MISS)
-            };
+            // Without masks `behind` stays before any hit: `trace_closest`'s own search.
+            let hit = closest_candidate(scene, path.origin, path.dir, MISS, behind, false);
             if scene.has_alpha_mask != 0 {
                 if in_hole(scene, hit, holes) {
                     behind = hit;
